@@ -1,0 +1,318 @@
+"""The physics of the rubbing Jeffcott rotor: the one place where it is written.
+
+Everything here is nondimensional (model notes, section 1):
+
+    x'' + 2 nu x' + x + K f_x = E cos(eta tau + phi0)
+    y'' + 2 nu y' + y + K f_y = E sin(eta tau + phi0),       E = e eta^2
+
+    f = (1 - 1/z) (x - mu_c y, y + mu_c x)   for z > 1,   f = 0 for z <= 1
+    mu_c = mu sign(v_r),   v_r = Rp eta + (x y' - y x') / z
+
+The sign convention is that of the notes (correction 1 to the paper): ``K f`` stands on
+the left-hand side, so the force the stator exerts on the rotor is ``-K f``. It pushes
+the rotor back towards the centre, and its tangential part opposes the slip ``v_r``.
+
+State vectors are ``s = (x, y, vx, vy)`` with ``vx = dx/dtau``. The functions work on
+plain floats and numpy arrays; nothing here imports a solver, pydantic or matplotlib.
+"""
+
+from __future__ import annotations
+
+import cmath
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+# Regime codes carried by solutions (one per sample and per segment).
+FREE = 0
+SLIP_POSITIVE = 1  # in contact, v_r > 0, mu_c = +mu
+SLIP_NEGATIVE = -1  # in contact, v_r < 0, mu_c = -mu
+REGIME_NAMES = {FREE: "free", SLIP_POSITIVE: "slip+", SLIP_NEGATIVE: "slip-"}
+
+
+@dataclass(frozen=True)
+class ModelParams:
+    """Nondimensional parameters (notes section 1)."""
+
+    nu: float  # damping ratio d_r / (2 omega m)
+    eta: float  # speed ratio Omega / omega
+    e: float  # unbalance eccentricity / clearance
+    K: float  # stator / rotor stiffness ratio
+    mu: float = 0.0  # Coulomb friction coefficient
+    Rp: float = 0.0  # rotor radius / clearance
+    phi0: float = 0.0  # unbalance phase (rad)
+
+    @property
+    def E(self) -> float:
+        """Amplitude of the unbalance forcing, e eta^2."""
+        return self.e * self.eta**2
+
+    @property
+    def period(self) -> float:
+        """Forcing period 2 pi / eta in tau."""
+        return 2.0 * math.pi / self.eta
+
+    def as_dict(self) -> dict[str, float]:
+        return asdict(self)
+
+
+def friction_sign(regime: int) -> float:
+    """The sign of mu_c in a regime (0 in free flight)."""
+    return float(regime) if regime in (SLIP_POSITIVE, SLIP_NEGATIVE) else 0.0
+
+
+# --------------------------------------------------------------------------- forces
+
+
+def radius(x, y):
+    """z = sqrt(x^2 + y^2), in clearances."""
+    return np.hypot(x, y)
+
+
+def penetration_factor(x, y):
+    """(1 - 1/z) where z > 1, else 0: the scalar factor of the contact force."""
+    z = np.hypot(x, y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        factor = np.where(z > 1.0, 1.0 - 1.0 / z, 0.0)
+    return factor if np.ndim(factor) else float(factor)
+
+
+def contact_force(x, y, K: float, mu_c: float):
+    """Force of the stator on the rotor, ``(Fx, Fy) = -K f``, nondimensional (eq. 5-6 corrected).
+
+    Zero inside the clearance (z <= 1). ``mu_c`` is the signed friction coefficient
+    (``mu sign(v_r)``). Divide by nothing: in units of ``k_r * clearance`` this is the
+    force; multiply by ``k_r * clearance`` for newtons.
+    """
+    factor = penetration_factor(x, y)
+    fx = -K * factor * (x - mu_c * y)
+    fy = -K * factor * (y + mu_c * x)
+    return fx, fy
+
+
+def normal_force(x, y, K: float):
+    """Magnitude of the normal contact force, K (z - 1) for z > 1, else 0."""
+    z = np.hypot(x, y)
+    out = np.where(z > 1.0, K * (z - 1.0), 0.0)
+    return out if np.ndim(out) else float(out)
+
+
+def slip_velocity(x, y, vx, vy, Rp: float, eta: float):
+    """v_r = Rp eta + (x vy - y vx) / z: slip of the rotor surface on the stator (notes 1, 6)."""
+    z = np.hypot(x, y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        whirl = np.where(z > 0.0, (x * vy - y * vx) / np.where(z > 0.0, z, 1.0), 0.0)
+    out = Rp * eta + whirl
+    return out if np.ndim(out) else float(out)
+
+
+def force_jacobian(x0: float, y0: float, mu_c: float) -> np.ndarray:
+    """Jacobian of f = (1 - 1/z) R (x, y) at (x0, y0), R = [[1, -mu_c], [mu_c, 1]].
+
+    With the paper's coefficients (eq. 9-12) this is R [[A1, B1], [B2, A2]].
+    """
+    a = x0 * x0 + y0 * y0
+    z0 = math.sqrt(a)
+    inv_z, inv_z3 = 1.0 / z0, 1.0 / (a * z0)
+    A1 = 1.0 - inv_z + x0 * x0 * inv_z3
+    A2 = 1.0 - inv_z + y0 * y0 * inv_z3
+    B = x0 * y0 * inv_z3
+    return np.array(
+        [
+            [A1 - mu_c * B, B - mu_c * A2],  # F_a1 - 1, F_b1 (over K)
+            [B + mu_c * A1, A2 + mu_c * B],  # F_b2, F_a2 - 1 (over K)
+        ]
+    )
+
+
+def taylor_force(x0: float, y0: float, x, y, K: float, mu_c: float):
+    """First-order Taylor expansion about (x0, y0) of the contact force ``-K f`` (eq. 9-14).
+
+    Uses the paper's constant terms D1 = -x0/sqrt(alpha), D2 = -y0/sqrt(alpha), so
+    ``f ~ R ((A1 x + B1 y + D1), (B2 x + A2 y + D2))``. Valid as an approximation for an
+    expansion point in contact (z0 > 1 or on the circle).
+    """
+    a = x0 * x0 + y0 * y0
+    z0 = math.sqrt(a)
+    inv_z, inv_z3 = 1.0 / z0, 1.0 / (a * z0)
+    A1 = 1.0 - inv_z + x0 * x0 * inv_z3
+    A2 = 1.0 - inv_z + y0 * y0 * inv_z3
+    B = x0 * y0 * inv_z3
+    f1x = A1 * x + B * y - x0 * inv_z
+    f1y = B * x + A2 * y - y0 * inv_z
+    return -K * (f1x - mu_c * f1y), -K * (f1y + mu_c * f1x)
+
+
+def linearised_contact_system(s0, params: ModelParams, mu_c: float):
+    """The contact equation linearised about the state ``s0`` (eq. 13-14, corrected).
+
+    Returns ``(A, b)`` of the first-order system ``s' = A s + b + q(tau)`` where
+    ``q = (0, 0, E cos(eta tau + phi0), E sin(eta tau + phi0))``. The stiffness block is
+    ``I + K J`` with ``J = force_jacobian``: rows ``[F_a1, F_b1]`` and ``[F_b2, F_a2]``
+    (correction 2), and ``b`` carries ``-K (f(s0) - J p0)``.
+    """
+    x0, y0 = float(s0[0]), float(s0[1])
+    J = force_jacobian(x0, y0, mu_c)
+    z0 = math.hypot(x0, y0)
+    factor = 1.0 - 1.0 / z0
+    f0 = np.array([factor * (x0 - mu_c * y0), factor * (y0 + mu_c * x0)])
+    A = np.zeros((4, 4))
+    A[0, 2] = A[1, 3] = 1.0
+    A[2:, :2] = -(np.eye(2) + params.K * J)
+    A[2, 2] = A[3, 3] = -2.0 * params.nu
+    b = np.zeros(4)
+    b[2:] = -params.K * (f0 - J @ np.array([x0, y0]))
+    return A, b
+
+
+def contact_eigenvalues(x0: float, y0: float, params: ModelParams, mu_c: float) -> np.ndarray:
+    """Eigenvalues of the linearised contact system at the point (x0, y0)."""
+    A, _ = linearised_contact_system((x0, y0, 0.0, 0.0), params, mu_c)
+    return np.linalg.eigvals(A)
+
+
+# ------------------------------------------------------------------ right-hand side
+
+
+def rhs(tau: float, s, params: ModelParams, regime: int) -> np.ndarray:
+    """Right-hand side in a fixed regime (regime-locked, smooth in s).
+
+    In a contact regime the contact law is applied whatever z is (its smooth extension),
+    so a solver that stops at the events z = 1 and v_r = 0 never steps across a kink.
+    """
+    x, y, vx, vy = s[0], s[1], s[2], s[3]
+    phase = params.eta * tau + params.phi0
+    E = params.E
+    ax = E * math.cos(phase) - 2.0 * params.nu * vx - x
+    ay = E * math.sin(phase) - 2.0 * params.nu * vy - y
+    if regime != FREE:
+        mu_c = params.mu * friction_sign(regime)
+        factor = params.K * (1.0 - 1.0 / math.hypot(x, y))
+        ax -= factor * (x - mu_c * y)
+        ay -= factor * (y + mu_c * x)
+    return np.array([vx, vy, ax, ay])
+
+
+def rhs_jacobian(tau: float, s, params: ModelParams, regime: int) -> np.ndarray:
+    """Jacobian of ``rhs`` with respect to the state (for implicit solvers)."""
+    jac = np.zeros((4, 4))
+    jac[0, 2] = jac[1, 3] = 1.0
+    jac[2, 0] = jac[3, 1] = -1.0
+    jac[2, 2] = jac[3, 3] = -2.0 * params.nu
+    if regime != FREE:
+        mu_c = params.mu * friction_sign(regime)
+        jac[2:, :2] -= params.K * force_jacobian(float(s[0]), float(s[1]), mu_c)
+    return jac
+
+
+def regime_of_state(s, params: ModelParams) -> int:
+    """The regime a state is in by position and slip direction (z > 1 means contact)."""
+    x, y, vx, vy = s[0], s[1], s[2], s[3]
+    if math.hypot(x, y) <= 1.0:
+        return FREE
+    if params.mu == 0.0:
+        return SLIP_POSITIVE
+    v_r = slip_velocity(x, y, vx, vy, params.Rp, params.eta)
+    return SLIP_POSITIVE if v_r >= 0.0 else SLIP_NEGATIVE
+
+
+# ------------------------------------------------------------------ exact solutions
+
+
+def free_steady_state(tau, params: ModelParams):
+    """Steady free whirl (notes 5): w_p = E exp(i(eta tau + phi0)) / (1 - eta^2 + 2 i nu eta).
+
+    Returns complex position and complex velocity (arrays or scalars).
+    """
+    amp = params.E / complex(1.0 - params.eta**2, 2.0 * params.nu * params.eta)
+    rot = np.exp(1j * (params.eta * np.asarray(tau, dtype=float) + params.phi0))
+    w = amp * rot
+    return w, 1j * params.eta * w
+
+
+def _damped_basis(dt, nu: float):
+    """C(t) = cos(beta t), S(t) = sin(beta t)/beta with beta^2 = 1 - nu^2, for any nu >= 0.
+
+    Written so that over-damped (nu > 1) and critically damped (nu = 1) rotors work too.
+    """
+    beta2 = 1.0 - nu * nu
+    dt = np.asarray(dt, dtype=float)
+    if beta2 > 0.0:
+        beta = math.sqrt(beta2)
+        return np.cos(beta * dt), np.sin(beta * dt) / beta
+    if beta2 < 0.0:
+        kappa = math.sqrt(-beta2)
+        return np.cosh(kappa * dt), np.sinh(kappa * dt) / kappa
+    return np.ones_like(dt), dt.copy()
+
+
+def free_flight(tau, tau0: float, s0, params: ModelParams) -> np.ndarray:
+    """Closed-form free flight (eq. 7-8, with exp(-nu tau), correction 4).
+
+    The state at times ``tau`` (scalar or array) of the linear no-contact system started
+    from ``s0`` at ``tau0``. Exact for all time; shape (4,) or (4, n).
+    """
+    w0 = complex(s0[0], s0[1])
+    v0 = complex(s0[2], s0[3])
+    wp0, vp0 = free_steady_state(tau0, params)
+    d0, dv0 = w0 - complex(wp0), v0 - complex(vp0)
+    dt = np.asarray(tau, dtype=float) - tau0
+    C, S = _damped_basis(dt, params.nu)
+    decay = np.exp(-params.nu * dt)
+    nu = params.nu
+    wh = decay * (d0 * C + (dv0 + nu * d0) * S)
+    vh = decay * (dv0 * C - (d0 + nu * dv0) * S)
+    wp, vp = free_steady_state(tau, params)
+    w, v = wp + wh, vp + vh
+    return np.array([np.real(w), np.imag(w), np.real(v), np.imag(v)])
+
+
+def synchronous_rub_radii(params: ModelParams) -> list[float]:
+    """Radii r > 1 of the synchronous forward full annular rub (notes section 5).
+
+    Solves (a r - K)^2 + (b r - mu K)^2 = E^2 with a = 1 - eta^2 + K,
+    b = 2 nu eta + mu K; returns the roots greater than 1, ascending (may be empty or two).
+    """
+    K, mu, E = params.K, params.mu, params.E
+    a = 1.0 - params.eta**2 + K
+    b = 2.0 * params.nu * params.eta + mu * K
+    qa = a * a + b * b
+    qb = -2.0 * K * (a + b * mu)
+    qc = K * K * (1.0 + mu * mu) - E * E
+    disc = qb * qb - 4.0 * qa * qc
+    if disc < 0.0:
+        return []
+    sq = math.sqrt(disc)
+    roots = sorted({(-qb - sq) / (2.0 * qa), (-qb + sq) / (2.0 * qa)})
+    return [r for r in roots if r > 1.0]
+
+
+def synchronous_rub_amplitude(r: float, params: ModelParams) -> complex:
+    """Complex amplitude A of w = A exp(i eta tau) on the synchronous rub of radius r."""
+    denom = complex(1.0 - params.eta**2, 2.0 * params.nu * params.eta) + params.K * (
+        1.0 - 1.0 / r
+    ) * complex(1.0, params.mu)
+    return params.E * cmath.exp(1j * params.phi0) / denom
+
+
+def synchronous_rub(tau, params: ModelParams, r: float | None = None) -> np.ndarray:
+    """Exact synchronous forward full annular rub w = A exp(i eta tau): states, shape (4, n).
+
+    ``r`` defaults to the largest admissible radius. Valid only while v_r > 0 on it
+    (forward slip, mu_c = +mu), which ``synchronous_rub_is_forward`` checks.
+    """
+    if r is None:
+        radii = synchronous_rub_radii(params)
+        if not radii:
+            raise ValueError("these parameters have no synchronous full annular rub (r > 1)")
+        r = radii[-1]
+    A = synchronous_rub_amplitude(r, params)
+    w = A * np.exp(1j * params.eta * np.asarray(tau, dtype=float))
+    v = 1j * params.eta * w
+    return np.array([np.real(w), np.imag(w), np.real(v), np.imag(v)])
+
+
+def synchronous_rub_is_forward(r: float, params: ModelParams) -> bool:
+    """True when the slip on the synchronous rub is positive (Rp eta + r eta > 0)."""
+    return params.Rp * params.eta + r * params.eta > 0.0

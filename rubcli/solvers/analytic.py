@@ -1,0 +1,316 @@
+"""The paper's piecewise analytical method (model notes, section 3), with its corrections.
+
+- **Free flight** (z < 1): the closed form of eq. (7-8) (``model.free_flight``), exact for
+  all time. No steps are taken inside it; the contact entry is sought on the closed form
+  by a vectorised scan (1/32 of the fastest period, ``events.first_crossing``) followed
+  by Brent's method, so an entry is located to ~1e-14 in tau and a brief touch inside a
+  scan interval is found through the extremum of ``z``.
+- **Contact** (z > 1): every step of length ``h = period / steps_per_period`` expands the
+  contact force to first order about the current point (eq. 9-14, with the stiffness
+  matrix of correction 2) and solves the resulting linear 4x4 system exactly: constant
+  and harmonic particular solutions plus the homogeneous part from the full
+  eigen-decomposition of the system matrix (correction 5: no assumption that modes decay
+  at rate nu; complex or growing modes are kept). The expansion point moves every step.
+  Contact exit and slip reversal are located on the step's closed form by the same
+  scan-and-Brent procedure, so a step that leaves and re-enters is not missed.
+- **Friction direction** follows ``sign(v_r)``; a reversal ends the step and the next
+  step uses the new sign.
+
+Order: the linearisation error in the force is O(delta^2) with delta ~ h, so the local
+error is O(h^4) in position and O(h^3) in velocity, and the global error is O(h^2).
+The error grows with K (the curvature of the force scales with K): on stiff stators the
+step must shrink like 1/sqrt(K) for a fixed accuracy (docs/solvers.md).
+
+Limits: set-valued friction (stick/roll) is not modelled; a slip reversal that is
+immediately undone ends the run with status ``failed`` and says so.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import scipy.linalg
+
+from rubcli import model
+from rubcli.problem import Problem
+from rubcli.solution import FAILED, SUCCESS, Solution, SwitchEvent
+from rubcli.solvers import register
+from rubcli.solvers.events import (
+    GRAZING_TOLERANCE,
+    StormGuard,
+    entry_regime,
+    first_crossing,
+    reversal_undone,
+    scan_spacing,
+    slip_rate,
+    slip_value,
+    surface_rate,
+    surface_value,
+)
+
+FREE_SCAN_FRACTION = 1.0 / 32.0  # scan spacing in free flight, fraction of fastest period
+CONTACT_SCAN_FRACTION = 1.0 / 16.0  # scan spacing inside a contact step
+FREE_SCAN_CHUNK = 512  # scan points evaluated at once in free flight
+EIGVEC_COND_LIMIT = 1e10  # above this the eigenbasis is not trusted: use expm
+
+
+class FreeFlight:
+    """The closed-form free flight from (tau0, s0): eq. (7-8)."""
+
+    def __init__(self, tau0: float, s0: np.ndarray, params: model.ModelParams):
+        self.tau0, self.s0, self.params = tau0, np.asarray(s0, dtype=float), params
+        beta = math.sqrt(abs(1.0 - params.nu**2))
+        self.omega_max = max(params.eta, beta, 1.0)
+
+    def states(self, t):
+        return model.free_flight(t, self.tau0, self.s0, self.params)
+
+    def derivatives(self, t, S):
+        p = self.params
+        phase = p.eta * np.asarray(t) + p.phi0
+        ax = p.E * np.cos(phase) - 2.0 * p.nu * S[2] - S[0]
+        ay = p.E * np.sin(phase) - 2.0 * p.nu * S[3] - S[1]
+        return np.array([S[2], S[3], ax, ay])
+
+
+class LinearisedContact:
+    """Exact solution of the contact equation linearised about (tau0, s0) (eq. 13-18 corrected).
+
+    ``s(t) = s_c + Re(S_hat exp(i(eta t + phi0))) + exp(A (t - tau0)) d0`` where
+    ``A s_c + b = 0``, ``(i eta - A) S_hat = (0, 0, E, -i E)`` and ``d0`` matches s0.
+    """
+
+    def __init__(self, tau0: float, s0: np.ndarray, params: model.ModelParams, mu_c: float):
+        self.tau0, self.params = tau0, params
+        A, b = model.linearised_contact_system(s0, params, mu_c)
+        self.A, self.b = A, b
+        self.s_c = np.linalg.solve(A, -b)
+        forcing = np.array([0.0, 0.0, params.E, -1j * params.E])
+        self.S_hat = np.linalg.solve(1j * params.eta * np.eye(4) - A, forcing)
+        self.d0 = np.asarray(s0, dtype=float) - self.s_c - self._harmonic(tau0)
+        lam, V = np.linalg.eig(A)
+        self.lam = lam
+        self.use_expm = np.linalg.cond(V) > EIGVEC_COND_LIMIT
+        if not self.use_expm:
+            self.V = V
+            self.c = np.linalg.solve(V, self.d0.astype(complex))
+        self.omega_max = max(float(np.max(np.abs(lam.imag))), params.eta, 1.0)
+
+    def _harmonic(self, t):
+        phase = self.params.eta * np.asarray(t, dtype=float) + self.params.phi0
+        if np.ndim(phase) == 0:
+            return np.real(self.S_hat * np.exp(1j * phase))
+        return np.real(self.S_hat[:, None] * np.exp(1j * phase)[None, :])
+
+    def states(self, t):
+        t = np.asarray(t, dtype=float)
+        dt = t - self.tau0
+        if self.use_expm:
+            if dt.ndim == 0:
+                hom = scipy.linalg.expm(self.A * float(dt)) @ self.d0
+            else:
+                hom = np.array([scipy.linalg.expm(self.A * d) @ self.d0 for d in dt]).T
+        elif dt.ndim == 0:
+            hom = np.real(self.V @ (self.c * np.exp(self.lam * float(dt))))
+        else:
+            hom = np.real(self.V @ (self.c[:, None] * np.exp(np.outer(self.lam, dt))))
+        s_c = self.s_c if dt.ndim == 0 else self.s_c[:, None]
+        return s_c + self._harmonic(t) + hom
+
+    def derivatives(self, t, S):
+        p = self.params
+        phase = p.eta * np.asarray(t, dtype=float) + p.phi0
+        out = self.A @ S + (self.b if S.ndim == 1 else self.b[:, None])
+        out[2] = out[2] + p.E * np.cos(phase)
+        out[3] = out[3] + p.E * np.sin(phase)
+        return out
+
+
+def _scan(prop, ta: float, tb: float, spacing: float, regime: int, params, starts):
+    """Earliest event of ``regime`` on ``prop`` in (ta, tb]: (tau, kind, new_regime) or None.
+
+    ``starts`` = (start_on_surface, start_on_slip) for the first interval.
+    """
+    n = max(1, int(math.ceil((tb - ta) / spacing)))
+    grid = np.linspace(ta, tb, n + 1)
+    S = prop.states(grid)
+    on_surface, on_slip = starts
+
+    def g(t):
+        return float(surface_value(prop.states(t)))
+
+    def dg(t):
+        return float(surface_rate(prop.states(t)))
+
+    found = []
+    if regime == model.FREE:
+        tau = first_crossing(
+            g, grid, surface_value(S), surface_rate(S), dg, on_surface, GRAZING_TOLERANCE
+        )
+        if tau is not None:
+            found.append((tau, "contact_entry", None))
+        return found[0] if found else None
+
+    tau = first_crossing(
+        lambda t: -g(t),
+        grid,
+        -surface_value(S),
+        -surface_rate(S),
+        lambda t: -dg(t),
+        on_surface,
+        0.0,
+    )
+    if tau is not None:
+        found.append((tau, "contact_exit", model.FREE))
+    if params.mu > 0.0:
+        sign = float(regime)
+        dS = prop.derivatives(grid, S)
+
+        def hv(t):
+            return -sign * float(slip_value(prop.states(t), params))
+
+        def dhv(t):
+            s = prop.states(t)
+            return -sign * float(slip_rate(s[:, None], prop.derivatives(t, s)[:, None])[0])
+
+        tau = first_crossing(
+            hv, grid, -sign * slip_value(S, params), -sign * slip_rate(S, dS), dhv, on_slip
+        )
+        if tau is not None:
+            found.append((tau, "slip_reversal", -regime))
+    return min(found, key=lambda item: item[0]) if found else None
+
+
+@register("analytic")
+def solve_analytic(
+    problem: Problem,
+    steps_per_period: int = 400,
+    max_steps: int = 5_000_000,
+    max_wall_time_s: float = 600.0,
+    progress=None,
+    **_ignored,
+) -> Solution:
+    params = problem.params
+    t_eval = problem.t_eval
+    t_end = float(t_eval[-1])
+    h = params.period / steps_per_period
+    start_clock = time.perf_counter()
+
+    out_states = np.empty((t_eval.size, 4))
+    out_regimes = np.empty(t_eval.size, dtype=int)
+    state = np.array(problem.initial, dtype=float)
+    tau = float(t_eval[0])
+    regime = model.regime_of_state(state, params)
+    out_states[0], out_regimes[0] = state, regime
+    k = 1
+    events: list[SwitchEvent] = []
+    stats = {"nsteps": 0, "n_free_segments": 0, "n_contact_steps": 0, "n_expm_fallbacks": 0}
+    status, message = SUCCESS, "reached the end of the time span"
+    starts = (False, False)
+    storms = StormGuard()
+    next_progress = tau
+
+    def fill(prop, t_stop, reg):
+        nonlocal k
+        j = int(np.searchsorted(t_eval, t_stop, side="right"))
+        if j > k:
+            out_states[k:j] = prop.states(t_eval[k:j]).T
+            out_regimes[k:j] = reg
+            k = j
+
+    while tau < t_end:
+        if regime == model.FREE:
+            prop = FreeFlight(tau, state, params)
+            stats["n_free_segments"] += 1
+            spacing = scan_spacing(prop.omega_max, FREE_SCAN_FRACTION)
+            event, ta = None, tau
+            while ta < t_end and event is None:
+                tb = min(t_end, ta + FREE_SCAN_CHUNK * spacing)
+                event = _scan(prop, ta, tb, spacing, regime, params, starts)
+                starts = (False, False)
+                fill(prop, event[0] if event else tb, regime)
+                ta = tb
+                if time.perf_counter() - start_clock > max_wall_time_s:
+                    break
+        else:
+            mu_c = params.mu * model.friction_sign(regime)
+            try:
+                prop = LinearisedContact(tau, state, params, mu_c)
+            except np.linalg.LinAlgError as exc:
+                status, message = (
+                    FAILED,
+                    f"linearised contact system singular at tau = {tau:.6g}: {exc}",
+                )
+                break
+            stats["n_contact_steps"] += 1
+            stats["n_expm_fallbacks"] += int(prop.use_expm)
+            tb = min(t_end, tau + h)
+            spacing = scan_spacing(prop.omega_max, CONTACT_SCAN_FRACTION)
+            event = _scan(prop, tau, tb, spacing, regime, params, starts)
+            starts = (False, False)
+            fill(prop, event[0] if event else tb, regime)
+        stats["nsteps"] += 1
+
+        if event is None:
+            new_tau = tb if regime != model.FREE else ta
+            state = prop.states(new_tau)
+        else:
+            new_tau, kind, new_regime = event
+            state = prop.states(new_tau)
+            if new_regime is None:
+                new_regime = entry_regime(state, params)
+            if kind == "slip_reversal" and reversal_undone(state, new_tau, new_regime, params):
+                status = FAILED
+                message = (
+                    f"slip reversal at tau = {new_tau:.6g} is immediately undone: the rotor "
+                    f"sticks (rolls) on the stator, which this method does not model"
+                )
+                tau = new_tau
+                break
+            events.append(SwitchEvent(new_tau, kind, tuple(state), regime, new_regime))
+            starts = (kind in ("contact_entry", "contact_exit"), kind == "slip_reversal")
+            regime = new_regime
+        if not np.all(np.isfinite(state)):
+            status, message = FAILED, f"non-finite state at tau = {new_tau:.6g}"
+            break
+        if event is not None and storms.storm(new_tau):
+            status, message = FAILED, f"switch storm at tau = {new_tau:.6g}"
+            break
+        tau = new_tau
+        if stats["nsteps"] >= max_steps and tau < t_end:
+            status, message = (
+                FAILED,
+                f"step budget exhausted (max_steps = {max_steps}) at tau = {tau:.6g}",
+            )
+            break
+        if time.perf_counter() - start_clock > max_wall_time_s and tau < t_end:
+            status = FAILED
+            message = (
+                f"wall-time budget exhausted (max_wall_time_s = {max_wall_time_s:g}) "
+                f"at tau = {tau:.6g}"
+            )
+            break
+        if progress is not None and tau >= next_progress:
+            progress(tau)
+            next_progress = tau + 0.01 * (t_end - t_eval[0])
+
+    if status == SUCCESS and progress is not None:
+        progress(t_end)
+    return Solution(
+        problem=problem,
+        method="analytic",
+        t=t_eval[:k].copy(),
+        states=out_states[:k].copy(),
+        regimes=out_regimes[:k].copy(),
+        events=events,
+        stats=stats,
+        settings={
+            "steps_per_period": steps_per_period,
+            "max_steps": max_steps,
+            "max_wall_time_s": max_wall_time_s,
+        },
+        status=status,
+        message=message,
+    )
