@@ -1,0 +1,452 @@
+"""Case files: the TOML schema (pydantic) and loading a case into a Problem plus settings.
+
+Loading goes in three steps, each a function that can be used alone:
+
+1. ``read_case_file(path)``: read the file and parse TOML (missing file, not TOML -> error);
+2. ``validate_case(raw, source)``: validate against the schema (``CaseFile``);
+3. ``assemble_case(settings, path)``: fill the defaults, convert physical units once
+   (``rubcli.units``) and build the nondimensional ``Problem``.
+
+``load_case(path)`` does all three. Every problem is reported as a ``CaseError`` whose
+message has one line per problem, naming the file, the dotted field and what is wrong::
+
+    my.toml: model.K: Input should be greater than 0 (got -1.0)
+
+The key names are a contract with users (issue 2): add keys, don't rename them. The full
+reference is ``docs/cases.md``. This module does not import the solvers: the method
+names are a static tuple, ``KNOWN_METHODS``, that a test keeps equal to the registry.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated, Any, Literal, get_args
+
+import numpy as np
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
+from pydantic_core import PydanticCustomError
+
+from rubcli import units
+from rubcli.model import ModelParams
+from rubcli.problem import Problem
+
+MethodName = Literal["analytic", "rk45", "dop853", "radau", "bdf", "lsoda"]
+KNOWN_METHODS: tuple[str, ...] = get_args(MethodName)
+
+PlotName = Literal["orbit", "time"]
+KNOWN_PLOTS: tuple[str, ...] = get_args(PlotName)
+
+ForcesMapProduct = Literal["forces", "taylor_error", "eigen"]
+
+# Defaults of [forces_map] when a list is not given (notes 2.8 and section 6).
+DEFAULT_FORCES_MAP_DELTAS: tuple[float, ...] = tuple(float(d) for d in np.logspace(-6, -1, 11))
+DEFAULT_FORCES_MAP_K_VALUES: tuple[float, ...] = (17.6, 1.76e3, 1.76e5, 1.75e6)
+
+# A run keeps every output sample in memory (8 floats of state per sample and method,
+# plus the CSV columns); beyond this many samples a case is refused as a likely typo.
+MAX_OUTPUT_SAMPLES = 10_000_000
+
+CASE_NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._-]*$"
+
+PositiveFloat = Annotated[float, Field(gt=0)]
+
+
+class CaseError(Exception):
+    """An invalid case: ``problems`` has one line per problem, each naming file and field."""
+
+    def __init__(self, problems: list[str]):
+        self.problems = list(problems)
+        super().__init__("\n".join(self.problems))
+
+
+class _Section(BaseModel):
+    """Common configuration: unknown keys are errors, no NaN or infinity, no coercion.
+
+    ``strict`` keeps TOML's own types: a string is never read as a number, a float never
+    as an integer (an integer is still accepted where a float is expected).
+    """
+
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False, frozen=True)
+
+
+def _unique(values: list) -> list:
+    """Field validator: a list without repeated entries."""
+    seen = set()
+    for value in values:
+        if value in seen:
+            raise PydanticCustomError("duplicate", "'{value}' is listed twice", {"value": value})
+        seen.add(value)
+    return values
+
+
+# ============================================================================ [case]
+
+
+class CaseSection(_Section):
+    """[case]: the name (used for the default output dir) and an optional description."""
+
+    name: str = Field(pattern=CASE_NAME_PATTERN, max_length=100)
+    description: str = ""
+
+
+# ============================================================ [model] or [physical]
+
+
+class ModelSection(_Section):
+    """[model]: nondimensional parameters (notes section 1)."""
+
+    nu: float = Field(ge=0)  # damping ratio d_r / (2 omega m)
+    eta: float = Field(gt=0)  # speed ratio Omega / omega
+    e: float = Field(ge=0)  # unbalance eccentricity / clearance
+    K: float = Field(gt=0)  # stator / rotor stiffness ratio
+    mu: float = Field(default=0.0, ge=0)  # Coulomb friction coefficient
+    Rp: float = Field(default=0.0, ge=0)  # rotor radius / clearance
+    phi0: float = 0.0  # unbalance phase, rad
+
+    def params(self) -> ModelParams:
+        return ModelParams(**self.model_dump())
+
+
+class PhysicalSection(_Section):
+    """[physical]: the same machine in SI units, converted once by ``rubcli.units``."""
+
+    m: float = Field(gt=0)  # rotor mass, kg
+    k_r: float = Field(gt=0)  # rotor (shaft) stiffness, N/m
+    d_r: float = Field(ge=0)  # rotor damping, N s/m
+    k_s: float = Field(gt=0)  # stator stiffness, N/m
+    clearance: float = Field(gt=0)  # radial clearance, m
+    e: float = Field(ge=0)  # unbalance eccentricity, m
+    Omega: float = Field(gt=0)  # spin speed, rad/s
+    Rp: float = Field(default=0.0, ge=0)  # rotor radius at the rub, m
+    mu: float = Field(default=0.0, ge=0)  # Coulomb friction coefficient
+    phi0: float = 0.0  # unbalance phase, rad
+
+
+# ========================================================================= [initial]
+
+
+class InitialSection(_Section):
+    """[initial]: state at tau = 0 (clearances and d/dtau; metres and m/s with [physical])."""
+
+    x: float
+    y: float
+    vx: float = 0.0
+    vy: float = 0.0
+
+
+# ============================================================================ [time]
+
+
+class TimeSection(_Section):
+    """[time]: duration in forcing periods 2 pi / eta and the output sampling."""
+
+    periods: float = Field(gt=0)
+    samples_per_period: int = Field(gt=0)
+
+    @model_validator(mode="after")
+    def _not_too_many_samples(self) -> TimeSection:
+        n = self.periods * self.samples_per_period
+        if n > MAX_OUTPUT_SAMPLES:
+            raise PydanticCustomError(
+                "too_many_samples",
+                "periods * samples_per_period = {n:.3g} output samples, more than {limit}",
+                {"n": n, "limit": MAX_OUTPUT_SAMPLES},
+            )
+        return self
+
+
+# ========================================================================== [solver]
+
+
+class SolverSection(_Section):
+    """[solver]: which methods run and their settings (every method ignores what it can't use)."""
+
+    methods: list[MethodName] = Field(default_factory=lambda: ["analytic", "rk45"], min_length=1)
+    rtol: float = Field(default=1e-8, gt=0, lt=1)  # scipy methods
+    atol: float = Field(default=1e-10, gt=0)  # scipy methods
+    steps_per_period: int = Field(default=400, gt=0)  # analytic: step = period / this
+    max_steps: int = Field(default=5_000_000, gt=0)
+    max_wall_time_s: float = Field(default=600.0, gt=0)
+
+    _methods_unique = field_validator("methods")(_unique)
+
+    def options(self) -> dict[str, Any]:
+        """Keyword options for ``rubcli.solvers.solve`` (the same for every method)."""
+        return self.model_dump(exclude={"methods"})
+
+
+# ========================================================================== [output]
+
+
+class OutputSection(_Section):
+    """[output]: where and what to write. Only what is asked is computed and written."""
+
+    dir: str | None = Field(default=None, min_length=1)  # default out/<case name>
+    csv: bool = True
+    plots: list[PlotName] = Field(default_factory=lambda: list(KNOWN_PLOTS))
+
+    _plots_unique = field_validator("plots")(_unique)
+
+
+# ====================================================================== [forces_map]
+
+
+class ForcesMapSection(_Section):
+    """[forces_map]: settings of ``rubcli forces-map`` (contact force and Taylor error maps)."""
+
+    extent: float = Field(default=1.5, gt=1)  # half-width of the square grid, clearances
+    resolution: int = Field(default=201, ge=3)  # grid points per side
+    products: list[ForcesMapProduct] = Field(
+        default_factory=lambda: ["forces", "taylor_error", "eigen"], min_length=1
+    )
+    deltas: list[PositiveFloat] | None = Field(default=None, min_length=1)
+    K_values: list[PositiveFloat] | None = Field(default=None, min_length=1)
+
+    _products_unique = field_validator("products")(_unique)
+
+    def resolved_deltas(self) -> tuple[float, ...]:
+        """``deltas`` or the default: 11 points logarithmically spaced over 1e-6 ... 1e-1."""
+        return tuple(self.deltas) if self.deltas is not None else DEFAULT_FORCES_MAP_DELTAS
+
+    def resolved_K_values(self) -> tuple[float, ...]:
+        """``K_values`` or the default: 17.6, 1.76e3, 1.76e5, 1.75e6 (the paper's range)."""
+        if self.K_values is not None:
+            return tuple(self.K_values)
+        return DEFAULT_FORCES_MAP_K_VALUES
+
+
+# ============================================================ [compare], [analysis]
+# Reserved for `rubcli compare` and the response analysis: their section models go here,
+# and each gets one optional field in CaseFile below (``compare: CompareSection | None``).
+
+
+# ======================================================================= whole file
+
+
+class CaseFile(_Section):
+    """The whole case file. Exactly one of [model] and [physical] must be given."""
+
+    case: CaseSection
+    model: ModelSection | None = None
+    physical: PhysicalSection | None = None
+    initial: InitialSection
+    time: TimeSection
+    solver: SolverSection = Field(default_factory=SolverSection)
+    output: OutputSection = Field(default_factory=OutputSection)
+    forces_map: ForcesMapSection | None = None
+
+    @model_validator(mode="after")
+    def _model_xor_physical(self) -> CaseFile:
+        # The loader reports this with a field name before pydantic runs; this keeps the
+        # rule for anyone who validates a dict directly.
+        if (self.model is None) == (self.physical is None):
+            raise PydanticCustomError("model_or_physical", _MODEL_XOR_PHYSICAL)
+        return self
+
+
+_MODEL_XOR_PHYSICAL = "give exactly one of [model] (nondimensional) and [physical] (SI units)"
+_TABLES = frozenset(CaseFile.model_fields)
+
+
+# ============================================================================ loading
+
+
+@dataclass(frozen=True)
+class Case:
+    """A validated case: its settings, the nondimensional Problem and the physical scale."""
+
+    settings: CaseFile
+    problem: Problem
+    scale: units.PhysicalScale | None = None
+    path: Path | None = None
+
+    @property
+    def name(self) -> str:
+        return self.settings.case.name
+
+    @property
+    def source(self) -> str:
+        return str(self.path) if self.path is not None else "<case>"
+
+    @property
+    def params(self) -> ModelParams:
+        return self.problem.params
+
+    @property
+    def methods(self) -> list[str]:
+        return list(self.settings.solver.methods)
+
+    @property
+    def solver_options(self) -> dict[str, Any]:
+        """Options passed to ``rubcli.solvers.solve`` for every method."""
+        return self.settings.solver.options()
+
+    @property
+    def output_dir(self) -> Path:
+        """``[output] dir``, or ``out/<case name>``; relative paths are from the working dir."""
+        return Path(self.settings.output.dir or f"out/{self.name}")
+
+    def with_overrides(
+        self,
+        *,
+        methods: list[str] | None = None,
+        periods: float | None = None,
+        output_dir: str | Path | None = None,
+    ) -> Case:
+        """The same case with command-line overrides applied, validated again."""
+        raw = self.settings.model_dump(exclude_none=True)
+        if methods:
+            raw["solver"]["methods"] = list(methods)
+        if periods is not None:
+            raw["time"]["periods"] = periods
+        if output_dir is not None:
+            raw["output"]["dir"] = str(output_dir)
+        settings = validate_case(raw, self.source)
+        return assemble_case(settings, self.path)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The case echoed for report.json: settings with defaults, and what was derived."""
+        p = self.problem
+        return {
+            "source": self.source,
+            "settings": self.settings.model_dump(mode="json"),
+            "output_dir": str(self.output_dir),
+            "nondimensional": {
+                "params": p.params.as_dict(),
+                "initial": dict(zip(("x", "y", "vx", "vy"), p.initial, strict=True)),
+                "t_span": list(p.t_span),
+                "n_samples": int(p.t_eval.size),
+                "period": p.params.period,
+            },
+            "scale": self.scale.as_dict() if self.scale is not None else None,
+        }
+
+
+def read_case_file(path: str | Path) -> dict[str, Any]:
+    """Step 1: read and parse the TOML file. Raises CaseError naming the file."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise CaseError([f"{path}: file not found"]) from None
+    except IsADirectoryError:
+        raise CaseError([f"{path}: is a directory, not a case file"]) from None
+    except OSError as exc:
+        raise CaseError([f"{path}: cannot read: {exc.strerror or exc}"]) from None
+    return parse_case_text(data, str(path))
+
+
+def parse_case_text(data: str | bytes, source: str = "<case>") -> dict[str, Any]:
+    """Parse TOML text; a syntax error names the source and the line."""
+    if isinstance(data, bytes):
+        try:
+            data = data.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise CaseError([f"{source}: not valid TOML: not UTF-8 text ({exc.reason})"]) from None
+    try:
+        return tomllib.loads(data)
+    except tomllib.TOMLDecodeError as exc:
+        message = str(exc)
+        found = re.search(r"\(at line (\d+), column (\d+)\)", message)
+        if found:
+            reason = message[: found.start()].strip()
+            where = f"line {found.group(1)}, column {found.group(2)}"
+            raise CaseError([f"{source}: {where}: not valid TOML: {reason}"]) from None
+        raise CaseError([f"{source}: not valid TOML: {message}"]) from None
+
+
+def validate_case(raw: dict[str, Any], source: str = "<case>") -> CaseFile:
+    """Step 2: validate a parsed case against the schema. Raises CaseError."""
+    problems: list[str] = []
+    has_model, has_physical = "model" in raw, "physical" in raw
+    if has_model and has_physical:
+        problems.append(f"{source}: physical: {_MODEL_XOR_PHYSICAL}, not both")
+    elif not has_model and not has_physical:
+        problems.append(f"{source}: model: missing table; {_MODEL_XOR_PHYSICAL}")
+    try:
+        settings = CaseFile.model_validate(raw)
+    except ValidationError as exc:
+        for error in exc.errors():
+            if error["type"] == "model_or_physical":
+                continue  # already reported above with a field name
+            problems.append(_format_error(source, error))
+    if problems:
+        raise CaseError(problems)
+    return settings
+
+
+def assemble_case(settings: CaseFile, path: str | Path | None = None) -> Case:
+    """Step 3: convert units once and build the nondimensional Problem."""
+    path = Path(path) if path is not None else None
+    source = str(path) if path is not None else "<case>"
+    init = settings.initial
+    scale = None
+    if settings.physical is not None:
+        params, scale = units.nondimensional_params(**settings.physical.model_dump())
+        initial = units.nondimensional_state(init.x, init.y, init.vx, init.vy, scale)
+        table = "physical"
+    else:
+        assert settings.model is not None
+        params = settings.model.params()
+        initial = (init.x, init.y, init.vx, init.vy)
+        table = "model"
+    bad = [k for k, v in params.as_dict().items() if not math.isfinite(v)]
+    if bad or not all(math.isfinite(v) for v in initial):
+        what = ", ".join(bad) if bad else "the initial state"
+        raise CaseError([f"{source}: {table}: converted values are not finite ({what})"])
+    problem = Problem.from_periods(
+        params,
+        initial,
+        periods=settings.time.periods,
+        samples_per_period=settings.time.samples_per_period,
+        name=settings.case.name,
+    )
+    return Case(settings=settings, problem=problem, scale=scale, path=path)
+
+
+def load_case(path: str | Path) -> Case:
+    """Read, validate and assemble a case file. Raises CaseError."""
+    raw = read_case_file(path)
+    return assemble_case(validate_case(raw, str(path)), path)
+
+
+def load_case_text(text: str, source: str = "<case>") -> Case:
+    """Like ``load_case`` for TOML text in memory (e.g. the sample of ``rubcli init``)."""
+    return assemble_case(validate_case(parse_case_text(text, source), source), None)
+
+
+def _format_error(source: str, error: dict[str, Any]) -> str:
+    """One pydantic error as ``source: dotted.field: message``."""
+    loc = error["loc"]
+    field = ""
+    for part in loc:
+        field += f"[{part}]" if isinstance(part, int) else (f".{part}" if field else str(part))
+    kind = error["type"]
+    if kind == "missing":
+        if len(loc) == 1 and loc[0] in _TABLES:
+            message = f"missing table [{loc[0]}]"
+        else:
+            message = "missing required key"
+    elif kind == "string_pattern_mismatch" and loc == ("case", "name"):
+        message = (
+            "must start with a letter or digit and hold only letters, digits, '.', '_' and '-'"
+            f" (it names the default output dir; got {error['input']!r})"
+        )
+    elif kind == "extra_forbidden":
+        message = "unknown key (not part of the case-file schema; see docs/cases.md)"
+    else:
+        message = error["msg"]
+        if "input" in error and not isinstance(error["input"], dict | list):
+            message += f" (got {error['input']!r})"
+    return f"{source}: {field or '(file)'}: {message}"

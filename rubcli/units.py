@@ -1,0 +1,109 @@
+"""Conversion between SI quantities and the nondimensional model (model notes, section 1).
+
+    omega = sqrt(k_r / m)        tau = omega t           nu = d_r / (2 omega m)
+    eta = Omega / omega          K = k_s / k_r           x^ = x / clearance
+    e^ = e / clearance           Rp^ = Rp / clearance    v^ = v / (omega clearance)
+
+Forces: the nondimensional contact force ``-K f`` is in units of ``k_r * clearance``, so
+the normal force ``K (z - 1)`` becomes ``k_s (r - clearance)`` in newtons (notes 1).
+
+Pure functions on floats and numpy arrays; a case file is converted here once, and every
+physical output column is converted back here.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+from rubcli.model import ModelParams
+
+
+@dataclass(frozen=True)
+class PhysicalScale:
+    """The SI scales of one machine: natural frequency, clearance and the two stiffnesses."""
+
+    omega: float  # rotor natural frequency sqrt(k_r / m), rad/s
+    clearance: float  # radial clearance gamma, m
+    k_r: float  # rotor stiffness, N/m
+    k_s: float  # stator stiffness, N/m
+
+    @property
+    def force(self) -> float:
+        """The force unit k_r * clearance, in newtons."""
+        return self.k_r * self.clearance
+
+    @property
+    def velocity(self) -> float:
+        """The velocity unit omega * clearance, in m/s."""
+        return self.omega * self.clearance
+
+    def as_dict(self) -> dict[str, float]:
+        return asdict(self)
+
+
+def physical_scale(m: float, k_r: float, k_s: float, clearance: float) -> PhysicalScale:
+    """The scale of a machine of mass ``m`` (kg), stiffnesses in N/m, clearance in m."""
+    return PhysicalScale(omega=math.sqrt(k_r / m), clearance=clearance, k_r=k_r, k_s=k_s)
+
+
+def nondimensional_params(
+    *,
+    m: float,
+    k_r: float,
+    d_r: float,
+    k_s: float,
+    clearance: float,
+    e: float,
+    Omega: float,
+    Rp: float = 0.0,
+    mu: float = 0.0,
+    phi0: float = 0.0,
+) -> tuple[ModelParams, PhysicalScale]:
+    """Nondimensional parameters and the scale from SI values (notes section 1).
+
+    ``d_r`` in N s/m, ``e`` and ``Rp`` in m, ``Omega`` in rad/s, ``phi0`` in rad.
+    """
+    scale = physical_scale(m, k_r, k_s, clearance)
+    params = ModelParams(
+        nu=d_r / (2.0 * scale.omega * m),
+        eta=Omega / scale.omega,
+        e=e / clearance,
+        K=k_s / k_r,
+        mu=mu,
+        Rp=Rp / clearance,
+        phi0=phi0,
+    )
+    return params, scale
+
+
+def nondimensional_state(
+    x: float, y: float, vx: float, vy: float, scale: PhysicalScale
+) -> tuple[float, float, float, float]:
+    """A state in metres and m/s as a nondimensional state (x^, y^, x^', y^')."""
+    return (
+        x / scale.clearance,
+        y / scale.clearance,
+        vx / scale.velocity,
+        vy / scale.velocity,
+    )
+
+
+def seconds(tau, scale: PhysicalScale):
+    """Nondimensional time tau as seconds, t = tau / omega."""
+    return tau / scale.omega
+
+
+def metres(position, scale: PhysicalScale):
+    """Positions in clearances as metres."""
+    return position * scale.clearance
+
+
+def metres_per_second(velocity, scale: PhysicalScale):
+    """Nondimensional velocities d(x^)/dtau as m/s."""
+    return velocity * scale.velocity
+
+
+def newtons(force, scale: PhysicalScale):
+    """Nondimensional forces (units of k_r * clearance) as newtons."""
+    return force * scale.force
