@@ -1,0 +1,62 @@
+"""rubcli: a Jeffcott rotor rubbing on a circular stator.
+
+The paper's piecewise analytical solution beside scipy's integrators, one ``solve``
+for all of them, and case files that drive the ``rubcli`` command line::
+
+    from rubcli import load_case, solve
+
+    case = load_case("cases/paper/fig3a.toml")
+    solution = solve(case.problem, "analytic", steps_per_period=400)
+
+``solve``, ``METHODS`` and the case loader are imported on first use, so that importing
+the numerical core (``rubcli.model``) stays light.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from rubcli.model import ModelParams
+from rubcli.problem import Problem
+from rubcli.solution import Solution
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "METHODS",
+    "Case",
+    "CaseError",
+    "ModelParams",
+    "Problem",
+    "Solution",
+    "__version__",
+    "load_case",
+    "solve",
+]
+
+_LAZY = {
+    "solve": "rubcli.solvers",
+    "METHODS": "rubcli.solvers",
+    "load_case": "rubcli.case",
+    "Case": "rubcli.case",
+    "CaseError": "rubcli.case",
+}
+
+if TYPE_CHECKING:
+    from rubcli.case import Case, CaseError, load_case
+    from rubcli.solvers import METHODS, solve
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'rubcli' has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

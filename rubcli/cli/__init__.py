@@ -1,0 +1,1 @@
+"""The ``rubcli`` command line: ``app.py`` registers one module per command."""

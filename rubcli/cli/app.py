@@ -1,0 +1,50 @@
+"""The ``rubcli`` typer app. It only registers commands: one module per command.
+
+To add a command, write ``rubcli/cli/<name>.py`` with a ``command`` function and add one
+line below, e.g. ``app.command("forces-map")(forces_map.command)``.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+
+from rubcli import __version__
+from rubcli.cli import init, run, validate
+
+app = typer.Typer(
+    name="rubcli",
+    help="Jeffcott rotor rubbing on a circular stator: the paper's analytic solution "
+    "beside scipy's integrators, driven by TOML case files.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_show_locals=False,
+)
+
+app.command("init")(init.command)
+app.command("validate")(validate.command)
+app.command("run")(run.command)
+
+
+def _version(value: bool) -> None:
+    if value:
+        from rubcli.cli import console
+
+        console.info(f"rubcli {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: Annotated[
+        bool,
+        typer.Option("--version", callback=_version, is_eager=True, help="Show the version."),
+    ] = False,
+) -> None:
+    """Jeffcott rotor rubbing on a circular stator (rubcli)."""
+
+
+def main() -> None:
+    """Entry point of the ``rubcli`` script and ``python -m rubcli``."""
+    app()

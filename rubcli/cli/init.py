@@ -1,0 +1,101 @@
+"""``rubcli init``: print a commented sample case file to stdout.
+
+The samples are tested to validate (tests/test_cli.py); keep them in step with the schema
+in ``rubcli/case.py`` and the reference in ``docs/cases.md``.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+
+from rubcli.cli import console
+
+SAMPLE_CASE = """\
+# A rubcli case file (TOML). Reference: docs/cases.md. Check it with `rubcli validate`.
+# Values: the paper's Figure 3(b) (El-Sayed et al., COBEM 2021), mu = 0.01.
+
+[case]
+name = "my-case"                # names the default output dir out/<name>
+description = "Jeffcott rotor rubbing on a stator, Figure 3(b) parameters"
+
+[model]                         # nondimensional (docs/cases.md; or [physical] in SI units)
+nu = 0.009478                   # damping ratio d_r / (2 omega m), >= 0
+eta = 0.7818                    # speed ratio Omega / omega, > 0
+e = 7.52                        # unbalance eccentricity / clearance, >= 0
+K = 17.6                        # stator / rotor stiffness ratio k_s / k_r, > 0
+mu = 0.01                       # Coulomb friction coefficient, >= 0 (default 0)
+Rp = 46.16                      # rotor radius / clearance, >= 0 (default 0)
+phi0 = 0.0                      # unbalance phase at tau = 0, rad (default 0)
+
+[initial]                       # state at tau = 0, in clearances and d/dtau
+x = 0.88544
+y = -0.8039
+vx = 0.0                        # default 0
+vy = 0.0                        # default 0
+
+[time]
+periods = 20                    # duration in forcing periods 2 pi / eta, > 0
+samples_per_period = 100        # output samples per period (integer > 0)
+
+[solver]
+methods = ["analytic", "rk45"]  # any of: analytic, rk45, dop853, radau, bdf, lsoda
+rtol = 1e-8                     # scipy methods: relative tolerance
+atol = 1e-10                    # scipy methods: absolute tolerance
+steps_per_period = 400          # analytic: fixed step = forcing period / this
+max_steps = 5000000             # give up after this many steps (status "failed")
+max_wall_time_s = 600           # give up after this many seconds, per method
+
+[output]
+# dir = "out/my-case"           # default out/<case name>, relative to the working dir
+csv = true                      # write <method>.csv for each method
+plots = ["orbit", "time"]       # any of: orbit, time ([] for none)
+"""
+
+SAMPLE_PHYSICAL_CASE = """\
+# A rubcli case file in SI units (TOML). Reference: docs/cases.md.
+# [physical] is converted once to the nondimensional model; outputs get SI columns too.
+
+[case]
+name = "my-machine"
+description = "A small test rig: 4 kg disc on a 4e5 N/m shaft, 0.2 mm clearance"
+
+[physical]
+m = 4.0                         # rotor (disc) mass, kg
+k_r = 4.0e5                     # shaft stiffness, N/m       -> omega = sqrt(k_r/m) = 316 rad/s
+d_r = 25.3                      # shaft damping, N s/m       -> nu = d_r/(2 omega m) = 0.01
+k_s = 4.0e6                     # stator stiffness, N/m      -> K = k_s/k_r = 10
+clearance = 2.0e-4              # radial clearance, m
+e = 2.5e-4                      # unbalance eccentricity, m  -> e/clearance = 1.25
+Omega = 250.0                   # spin speed, rad/s          -> eta = Omega/omega = 0.79
+Rp = 0.05                       # rotor radius at the rub, m (default 0)
+mu = 0.1                        # Coulomb friction coefficient (default 0)
+phi0 = 0.0                      # unbalance phase, rad (default 0)
+
+[initial]                       # at t = 0, in metres and m/s
+x = 0.0
+y = 0.0
+vx = 0.0
+vy = 0.0
+
+[time]
+periods = 20                    # duration in forcing periods 2 pi / Omega, > 0
+samples_per_period = 100
+
+[solver]
+methods = ["analytic", "rk45"]
+
+[output]
+csv = true
+plots = ["orbit", "time"]
+"""
+
+
+def command(
+    physical: Annotated[
+        bool, typer.Option("--physical", help="Print a sample in SI units ([physical]).")
+    ] = False,
+) -> None:
+    """Print a commented sample case file (redirect it: rubcli init > my.toml)."""
+    console.raw(SAMPLE_PHYSICAL_CASE if physical else SAMPLE_CASE)

@@ -1,0 +1,242 @@
+"""``rubcli run CASE [--method NAME]... [--out DIR] [--periods P]``: solve and write outputs.
+
+Each method of the case (or of ``--method``) is solved with ``rubcli.solvers.solve``; then
+only the products the case asks for are written into the output dir:
+
+- ``<method>.csv`` per method if ``[output] csv``;
+- ``orbit.png`` and/or ``time.png`` per ``[output] plots``;
+- ``report.json`` always: the case echoed, and per method its status, message, wall time,
+  step/evaluation counts, contact switches, contact fraction and max penetration.
+
+Exit codes: 0 success; 2 invalid input (nothing is solved or written); 1 if any method
+failed (its failure is in report.json; the outputs of the run are still written). All
+files are staged and moved into place at the end, so an interrupted run writes nothing.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+import time
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from rubcli import __version__, io
+from rubcli.case import KNOWN_METHODS, Case, CaseError
+from rubcli.cli import console
+from rubcli.cli.validate import EXIT_INVALID, load_or_exit
+from rubcli.solution import Solution
+
+EXIT_FAILED = 1
+ERROR = "error"  # status of a method whose solver raised an exception
+
+
+def _check_methods(names: list[str] | None) -> list[str] | None:
+    """--method values: known names, repeated ones dropped (first kept)."""
+    if not names:
+        return None
+    unknown = [n for n in names if n not in KNOWN_METHODS]
+    if unknown:
+        console.error(
+            f"--method: unknown method {', '.join(repr(n) for n in unknown)}; "
+            f"choose from {', '.join(KNOWN_METHODS)}"
+        )
+        raise typer.Exit(EXIT_INVALID)
+    return list(dict.fromkeys(names))
+
+
+def _apply_overrides(
+    case: Case, methods: list[str] | None, out: Path | None, periods: float | None
+) -> Case:
+    if periods is not None and not (math.isfinite(periods) and periods > 0):
+        console.error(f"--periods: must be a finite number > 0 (got {periods!r})")
+        raise typer.Exit(EXIT_INVALID)
+    try:
+        return case.with_overrides(methods=methods, periods=periods, output_dir=out)
+    except CaseError as exc:
+        console.error_lines("invalid command-line override", exc.problems)
+        raise typer.Exit(EXIT_INVALID) from None
+
+
+def solve_method(case: Case, name: str) -> tuple[Solution | None, dict[str, Any]]:
+    """Solve the case with one method behind a progress bar; return it and its report entry.
+
+    A solver that raises is recorded with status ``error`` and its traceback printed:
+    the other methods still run and the run exits 1.
+    """
+    from rubcli import solvers
+
+    t0, t1 = case.problem.t_span
+    start = time.perf_counter()
+    with console.progress_bar(f"{name:<8}", total=t1 - t0) as update:
+        try:
+            solution = solvers.solve(
+                case.problem,
+                name,
+                **case.solver_options,
+                progress=lambda tau: update(tau - t0),
+            )
+        except Exception as exc:  # noqa: BLE001 - reported with its traceback, run exits 1
+            console.exception(exc)
+            entry = {
+                "status": ERROR,
+                "message": f"{type(exc).__name__}: {exc}",
+                "wall_time_s": time.perf_counter() - start,
+                "settings": case.solver_options,
+            }
+            return None, entry
+    return solution, method_report(solution)
+
+
+def method_report(solution: Solution) -> dict[str, Any]:
+    """The report.json entry of one method."""
+    t_end = float(solution.t[-1]) if solution.t.size else None
+    return {
+        "status": solution.status,
+        "message": solution.message,
+        "wall_time_s": solution.wall_time_s,
+        "stats": dict(solution.stats),
+        "n_contact_switches": solution.n_contact_switches,
+        "n_events": len(solution.events),
+        "contact_fraction": solution.contact_fraction(),
+        "max_penetration": solution.max_penetration(),
+        "n_samples": int(solution.t.size),
+        "tau_end": t_end,
+        "settings": dict(solution.settings),
+    }
+
+
+def write_outputs(
+    case: Case,
+    solutions: list[Solution],
+    entries: dict[str, dict[str, Any]],
+    command_line: dict[str, Any],
+) -> list[Path]:
+    """Write the requested products and report.json into the case's output dir (staged)."""
+    from rubcli.plotting import run as plots
+
+    output = case.settings.output
+    files: list[str] = []
+    with io.staged_output_dir(case.output_dir) as staged:
+        if output.csv:
+            for solution in solutions:
+                name = f"{solution.method}.csv"
+                io.write_solution_csv(staged.path(name), solution, case.scale)
+                entries[solution.method]["files"] = [name]
+                files.append(name)
+        title = plots.parameters_title(case.name, case.params)
+        figures = {"orbit": plots.orbit_figure, "time": plots.time_figure}
+        for plot in output.plots:
+            figure = figures[plot](solutions, title, scale=case.scale)
+            io.save_figure(figure, staged.path(f"{plot}.png"))
+            files.append(f"{plot}.png")
+        files.append("report.json")
+        report = {
+            "rubcli_version": __version__,
+            "created_utc": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+            "environment": io.environment_info(),
+            "command_line": command_line,
+            "case": case.to_dict(),
+            "success": all(e["status"] == "success" for e in entries.values()),
+            "methods": entries,
+            "files": files,
+        }
+        io.write_json(staged.path("report.json"), report)
+    return [case.output_dir / name for name in files]
+
+
+def _summary_rows(entries: dict[str, dict[str, Any]]) -> list[list[str]]:
+    rows = []
+    for name, e in entries.items():
+        stats = e.get("stats", {})
+        steps = stats.get("nsteps")
+        fraction = e.get("contact_fraction")
+        penetration = e.get("max_penetration")
+        rows.append(
+            [
+                name,
+                e["status"],
+                f"{e['wall_time_s']:.3f}",
+                "-" if steps is None else str(steps),
+                str(e.get("n_contact_switches", "-")),
+                "-" if fraction is None else f"{100 * fraction:.1f}%",
+                "-" if penetration is None else f"{penetration:.4g}",
+            ]
+        )
+    return rows
+
+
+def command(
+    case_file: Annotated[Path, typer.Argument(metavar="CASE", help="The case file (TOML).")],
+    method: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--method",
+            "-m",
+            metavar="NAME",
+            help=f"Method to run instead of the case's (repeatable): {', '.join(KNOWN_METHODS)}.",
+        ),
+    ] = None,
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            "--out", "-o", metavar="DIR", help="Output dir instead of the case's (output.dir)."
+        ),
+    ] = None,
+    periods: Annotated[
+        float | None,
+        typer.Option(
+            "--periods",
+            metavar="P",
+            help="Duration in forcing periods instead of the case's time.periods (quick checks).",
+        ),
+    ] = None,
+) -> None:
+    """Solve a case with each of its methods and write CSVs, plots and report.json."""
+    case = load_or_exit(case_file)
+    case = _apply_overrides(case, _check_methods(method), out, periods)
+    target = case.output_dir
+    if target.exists() and not target.is_dir():
+        console.error(f"{target}: output dir exists and is not a directory")
+        raise typer.Exit(EXIT_INVALID)
+
+    from rubcli import solvers
+
+    unavailable = [m for m in case.methods if m not in solvers.METHODS]
+    if unavailable:
+        console.error(f"{case_file}: solver.methods: not available: {', '.join(unavailable)}")
+        raise typer.Exit(EXIT_INVALID)
+
+    problem = case.problem
+    console.info(
+        f"{case.name}: {problem.periods:g} periods (tau 0 .. {problem.t_span[1]:.6g}), "
+        f"methods {', '.join(case.methods)}"
+    )
+    solutions: list[Solution] = []
+    entries: dict[str, dict[str, Any]] = {}
+    for name in case.methods:
+        solution, entries[name] = solve_method(case, name)
+        if solution is not None:
+            solutions.append(solution)
+
+    command_line = {
+        "case_file": str(case_file),
+        "methods": method or None,
+        "out": str(out) if out is not None else None,
+        "periods": periods,
+    }
+    written = write_outputs(case, solutions, entries, command_line)
+
+    console.table(
+        f"{case.name}: results",
+        ["method", "status", "wall s", "steps", "switches", "in contact", "max pen."],
+        _summary_rows(entries),
+    )
+    console.info(f"wrote {len(written)} files to {target}: {', '.join(p.name for p in written)}")
+    failed = {n: e for n, e in entries.items() if e["status"] != "success"}
+    for name, entry in failed.items():
+        console.error(f"method {name} {entry['status']}: {entry['message']}")
+    if failed:
+        raise typer.Exit(EXIT_FAILED)

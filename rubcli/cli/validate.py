@@ -1,0 +1,56 @@
+"""``rubcli validate CASE``: check a case file and show what it resolves to."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from rubcli.case import Case, CaseError, load_case
+from rubcli.cli import console
+
+EXIT_INVALID = 2
+
+
+def load_or_exit(path: Path) -> Case:
+    """Load a case; on a CaseError print one line per problem and exit with code 2."""
+    try:
+        return load_case(path)
+    except CaseError as exc:
+        console.error_lines(f"invalid case file {path}", exc.problems)
+        raise typer.Exit(EXIT_INVALID) from None
+
+
+def summary_lines(case: Case) -> list[str]:
+    """What a case resolves to, in a few lines (the nondimensional problem it defines)."""
+    p, problem = case.params, case.problem
+    lines = [
+        f"case      {case.name}"
+        + (f": {case.settings.case.description}" if case.settings.case.description else ""),
+        f"model     nu={p.nu:.6g} eta={p.eta:.6g} e={p.e:.6g} K={p.K:.6g} "
+        f"mu={p.mu:.6g} Rp={p.Rp:.6g} phi0={p.phi0:.6g}",
+        "initial   x={:.6g} y={:.6g} vx={:.6g} vy={:.6g}".format(*problem.initial),
+        f"time      {problem.periods:g} periods = tau 0 .. {problem.t_span[1]:.6g}, "
+        f"{problem.t_eval.size} samples",
+        f"methods   {', '.join(case.methods)}",
+        f"output    {case.output_dir}",
+    ]
+    if case.scale is not None:
+        s = case.scale
+        lines.insert(
+            2,
+            f"scale     omega={s.omega:.6g} rad/s, clearance={s.clearance:.6g} m, "
+            f"force unit k_r*clearance={s.force:.6g} N",
+        )
+    return lines
+
+
+def command(
+    case_file: Annotated[Path, typer.Argument(metavar="CASE", help="The case file (TOML).")],
+) -> None:
+    """Validate a case file; exit 0 if valid, 2 with one line per problem if not."""
+    case = load_or_exit(case_file)
+    for line in summary_lines(case):
+        console.info(line)
+    console.success(f"{case_file}: valid")
