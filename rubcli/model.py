@@ -223,11 +223,17 @@ def regime_of_state(s, params: ModelParams) -> int:
 def free_steady_state(tau, params: ModelParams):
     """Steady free whirl (notes 5): w_p = E exp(i(eta tau + phi0)) / (1 - eta^2 + 2 i nu eta).
 
-    Returns complex position and complex velocity (arrays or scalars).
+    Returns complex position and complex velocity (arrays or scalars). At the undamped
+    exact resonance the secular particular solution is returned instead.
     """
-    amp = params.E / complex(1.0 - params.eta**2, 2.0 * params.nu * params.eta)
-    rot = np.exp(1j * (params.eta * np.asarray(tau, dtype=float) + params.phi0))
-    w = amp * rot
+    tau = np.asarray(tau, dtype=float)
+    denom = complex(1.0 - params.eta**2, 2.0 * params.nu * params.eta)
+    rot = np.exp(1j * (params.eta * tau + params.phi0))
+    if denom == 0.0:
+        # Undamped exact resonance (nu = 0, eta = 1): w_p = (E / 2i) tau exp(i(tau + phi0)).
+        w = params.E / 2j * tau * rot
+        return w, params.E / 2j * rot * (1.0 + 1j * tau)
+    w = params.E / denom * rot
     return w, 1j * params.eta * w
 
 

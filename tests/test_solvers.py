@@ -1,0 +1,163 @@
+"""Every solver against exact solutions and against each other (model notes, section 5).
+
+Tolerances: scipy methods are checked with the scaled error of scipy's own test-suite,
+``|y - y_exact| / (atol + rtol |y_exact|)``, bounded by a factor that allows for the
+global accumulation over the horizon; the analytic method by its own global order.
+"""
+
+import numpy as np
+import pytest
+
+from rubcli import model
+from rubcli.model import ModelParams
+from rubcli.problem import Problem
+from rubcli.solution import FAILED, SUCCESS
+from rubcli.solvers import METHODS, solve
+
+SCIPY = ["rk45", "dop853", "radau", "bdf", "lsoda"]
+ALL = ["analytic", *SCIPY]
+TIGHT = {"rtol": 1e-10, "atol": 1e-12, "steps_per_period": 1600}
+
+
+def test_registry_has_every_method():
+    assert set(ALL) <= set(METHODS)
+    with pytest.raises(ValueError, match="unknown method"):
+        solve(Problem.from_periods(ModelParams(0.1, 0.5, 0.1, 1.0), (0, 0, 0, 0), 1), "euler")
+
+
+@pytest.mark.parametrize("method", ALL)
+@pytest.mark.parametrize("nu", [0.009478, 0.0, 1.5])
+def test_free_flight_matches_closed_form(method, nu):
+    p = ModelParams(nu=nu, eta=0.7818, e=0.2, K=17.6, mu=0.1, Rp=46.16, phi0=0.3)
+    prob = Problem.from_periods(p, (0.2, -0.1, 0.3, 0.0), periods=5, samples_per_period=20)
+    exact = model.free_flight(prob.t_eval, 0.0, prob.initial, p).T
+    assert np.max(np.hypot(exact[:, 0], exact[:, 1])) < 1.0  # never touches
+    sol = solve(prob, method, rtol=1e-9, atol=1e-12)
+    assert sol.status == SUCCESS and not sol.events
+    err = np.abs(sol.states - exact)
+    if method == "analytic":
+        assert err.max() < 1e-13  # the closed form itself
+    else:
+        # global error over 5 periods, scaled by the tolerance times the orbit size
+        assert err.max() / (1e-12 + 1e-9 * np.abs(exact).max()) < 200
+
+
+@pytest.mark.parametrize("method", ALL)
+@pytest.mark.parametrize("mu", [0.0, 0.01])
+def test_stays_on_synchronous_full_annular_rub(method, mu, fig3_params):
+    p = fig3_params(mu)
+    r = model.synchronous_rub_radii(p)[-1]
+    assert model.synchronous_rub_is_forward(r, p)
+    prob = Problem.from_periods(p, tuple(model.synchronous_rub(0.0, p, r)), 5, 20)
+    exact = model.synchronous_rub(prob.t_eval, p, r).T
+    sol = solve(prob, method, **TIGHT)
+    assert sol.status == SUCCESS
+    assert not sol.events  # never leaves contact, never reverses slip
+    assert np.all(sol.regimes == model.SLIP_POSITIVE)
+    bound = 2e-5 if method == "analytic" else 1e-6
+    assert np.max(np.abs(sol.states - exact)) < bound
+
+
+def test_analytic_observed_order_is_two(fig3_params):
+    """The local linearisation error is O(h^2) in the force: global order 2 (docs)."""
+    p = fig3_params(0.01)
+    prob = Problem.from_periods(p, (0.88544, -0.8039, 0.0, 0.0), 2, 25)
+    ref = solve(prob, "dop853", rtol=1e-13, atol=1e-13)
+    steps = [100, 200, 400, 800]
+    errors = [np.max(np.abs(solve(prob, "analytic", steps_per_period=n).w - ref.w)) for n in steps]
+    slope = -np.polyfit(np.log(steps), np.log(errors), 1)[0]
+    assert slope == pytest.approx(2.0, abs=0.2)
+    assert errors[-1] < errors[0] / 30
+
+
+def test_analytic_order_on_exact_rub(fig3_params):
+    p = fig3_params(0.01)
+    r = model.synchronous_rub_radii(p)[-1]
+    prob = Problem.from_periods(p, tuple(model.synchronous_rub(0.0, p, r)), 2, 10)
+    exact = model.synchronous_rub(prob.t_eval, p, r).T
+    steps = [50, 100, 200, 400]
+    errors = [
+        np.max(np.abs(solve(prob, "analytic", steps_per_period=n).states - exact)) for n in steps
+    ]
+    slope = -np.polyfit(np.log(steps), np.log(errors), 1)[0]
+    assert slope == pytest.approx(2.0, abs=0.2)
+
+
+@pytest.mark.parametrize("method", ALL)
+def test_switch_times_lie_on_the_surface(method, fig3_params):
+    p = fig3_params(0.0)
+    prob = Problem.from_periods(p, (0.88544, -0.8039, 0.0, 0.0), 3, 20)
+    sol = solve(prob, method, **TIGHT)
+    assert sol.status == SUCCESS
+    switches = [ev for ev in sol.events if ev.kind != "slip_reversal"]
+    assert len(switches) >= 4
+    for ev in switches:
+        assert abs(np.hypot(ev.state[0], ev.state[1]) - 1.0) < 1e-9
+    kinds = [ev.kind for ev in switches]
+    assert all(a != b for a, b in zip(kinds, kinds[1:], strict=False))  # entry/exit alternate
+    # samples are on the right side of the surface for their regime
+    z = sol.z
+    assert np.all(z[sol.contact == 1] >= 1.0 - 1e-9)
+    assert np.all(z[sol.contact == 0] <= 1.0 + 1e-9)
+
+
+SHORT_CONTACTS = ModelParams(nu=0.0, eta=1.0, e=0.0, K=17.6, mu=0.0, Rp=0.0)
+
+
+@pytest.mark.parametrize(
+    ("method", "options"),
+    [("analytic", {"steps_per_period": 4})] + [(m, {"rtol": 1e-3, "atol": 1e-6}) for m in SCIPY],
+)
+def test_brief_contacts_inside_one_step_are_not_missed(method, options):
+    """An unforced ellipse peaking at z = 1.001: each contact lasts ~0.1, far below a step.
+
+    The reference count of switches comes from the exact free ellipse x = 0.5 cos t,
+    y = 1.001 sin t, which crosses z = 1 twice per half-turn: 12 crossings in 3 turns.
+    """
+    prob = Problem.from_periods(SHORT_CONTACTS, (0.5, 0.0, 0.0, 1.001), 3, 8)
+    sol = solve(prob, method, **options)
+    assert sol.status == SUCCESS
+    assert len(sol.events) == 12
+    if method == "analytic":
+        h = SHORT_CONTACTS.period / 4
+        durations = np.diff([ev.tau for ev in sol.events])[::2]
+        assert np.all(durations < h / 10)
+
+
+def test_methods_agree_on_paper_case(fig3_params):
+    p = fig3_params(0.02)
+    prob = Problem.from_periods(p, (0.88544, -0.8039, 0.0, 0.0), 5, 20)
+    ref = solve(prob, "dop853", rtol=1e-12, atol=1e-13)
+    expected = {"rk45": 1e-6, "radau": 1e-6, "bdf": 1e-4, "lsoda": 1e-5, "analytic": 1e-4}
+    for method, bound in expected.items():
+        sol = solve(prob, method, **{**TIGHT, "steps_per_period": 3200})
+        assert sol.status == SUCCESS
+        assert len(sol.events) == len(ref.events), method
+        assert np.max(np.abs(sol.w - ref.w)) < bound, method
+
+
+@pytest.mark.parametrize("method", ALL)
+def test_step_budget_gives_clean_failure_with_partial_result(method, fig3_params):
+    prob = Problem.from_periods(fig3_params(0.0), (0.88544, -0.8039, 0.0, 0.0), 5, 20)
+    sol = solve(prob, method, max_steps=20)
+    assert sol.status == FAILED
+    assert "max_steps" in sol.message
+    assert 1 <= sol.t.size < prob.t_eval.size
+    assert np.all(np.isfinite(sol.states))
+    np.testing.assert_array_equal(sol.states[0], prob.initial)
+
+
+@pytest.mark.parametrize("method", ALL)
+def test_wall_time_budget_is_honoured(method, fig3_params):
+    prob = Problem.from_periods(fig3_params(0.0), (0.88544, -0.8039, 0.0, 0.0), 200, 20)
+    sol = solve(prob, method, max_wall_time_s=0.05)
+    assert sol.status == FAILED and "max_wall_time_s" in sol.message
+
+
+def test_progress_reaches_the_end(fig3_params):
+    prob = Problem.from_periods(fig3_params(0.0), (0.88544, -0.8039, 0.0, 0.0), 3, 10)
+    for method in ("analytic", "rk45"):
+        seen = []
+        solve(prob, method, progress=seen.append)
+        assert seen and seen[-1] == pytest.approx(prob.t_span[1])
+        assert seen == sorted(seen)
