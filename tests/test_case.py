@@ -249,7 +249,12 @@ def test_init_samples_validate():
         ("x = 0.88544", "x = -inf", "initial.x", "finite"),
         ("K = 17.6", 'K = "17.6"', "model.K", "valid number"),
         ("K = 17.6", "K = true", "model.K", "valid number"),
-        ("samples_per_period = 10", "samples_per_period = 10.0", "time.samples_per_period", "integer"),
+        (
+            "samples_per_period = 10",
+            "samples_per_period = 10.0",
+            "time.samples_per_period",
+            "integer",
+        ),
         ("periods = 2", "periods = 0", "time.periods", "greater than 0"),
         ("periods = 2", "periods = 1e12", "time", "output samples"),
         ('name = "t"', 'name = "a/b"', "case.name", "letters, digits"),
