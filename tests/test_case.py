@@ -162,7 +162,7 @@ def test_physical_units_convert_as_by_hand(tmp_path):
     assert scale == units.PhysicalScale(omega=100.0, clearance=1e-3, k_r=4e4, k_s=8e5)
     assert p.nu == pytest.approx(0.01, rel=1e-14)
     assert p.eta == pytest.approx(0.8, rel=1e-14)
-    assert p.K == pytest.approx(20.0, rel=1e-14)
+    assert p.K == pytest.approx(20.0, rel=1e-14)  # noqa: SIM300 (K is not a constant)
     assert p.e == pytest.approx(2.0, rel=1e-14)
     assert p.Rp == pytest.approx(50.0, rel=1e-14)
     assert (p.mu, p.phi0) == (0.1, 0.3)
