@@ -7,11 +7,16 @@ coefficients (eq. 9-14 with the notes' corrections 1-2), never from the code und
 
 from __future__ import annotations
 
+import csv
+import dataclasses
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
+from typer.testing import CliRunner
 
 from rubcli.analysis.forces import (
     DIRECTIONS,
@@ -27,6 +32,9 @@ from rubcli.analysis.forces import (
     taylor_error_bound,
     taylor_step_bound,
 )
+from rubcli.case import load_case
+from rubcli.cli.app import app
+from rubcli.cli.forces_map import FORCES_COLUMNS, make_outputs, output_dir
 from rubcli.model import ModelParams, contact_eigenvalues, contact_force, taylor_force
 
 EPS = np.finfo(float).eps
@@ -332,3 +340,183 @@ def test_modal_summary_on_hand_eigenvalues():
     lam = np.array([-0.1 + 2j, -0.1 - 2j, 0.3 + 1j, 0.3 - 1j])
     max_real, f1, f2 = modal_summary(lam)
     assert (max_real, f1, f2) == (0.3, 1.0, 2.0)
+
+
+# ------------------------------------------------------------------------------- CLI
+
+REPO = Path(__file__).resolve().parents[1]
+
+SMALL_CASE = """\
+[case]
+name = "small-map"
+
+[model]
+nu = 0.009478
+eta = 0.7818
+e = 7.52
+K = 17.6e3
+mu = 0.1
+Rp = 46.16
+
+[initial]
+x = 0.88544
+y = -0.8039
+vx = 0.0
+vy = 0.0
+
+[time]
+periods = 1
+samples_per_period = 10
+"""
+
+
+def write_small_case(tmp_path: Path, forces_map: str) -> Path:
+    path = tmp_path / "case.toml"
+    path.write_text(SMALL_CASE + "\n[forces_map]\n" + forces_map, encoding="utf-8")
+    return path
+
+
+def read_rows(path: Path) -> tuple[list[str], list[list[str]]]:
+    with open(path, newline="") as handle:
+        rows = list(csv.reader(handle))
+    return rows[0], rows[1:]
+
+
+def invoke(*args) -> object:
+    return CliRunner().invoke(app, [str(a) for a in args])
+
+
+def test_cli_writes_only_the_eigen_map_when_only_it_is_asked(tmp_path):
+    case = write_small_case(tmp_path, 'products = ["eigen"]\nresolution = 11\nextent = 2.0\n')
+    out = tmp_path / "out"
+    result = invoke("forces-map", case, "--out", out)
+    assert result.exit_code == 0, result.output
+    assert {p.name for p in out.iterdir()} == {"eigen_map.csv", "eigen_map.png", "report.json"}
+    header, rows = read_rows(out / "eigen_map.csv")
+    assert header == ["x", "y", "max_real", "freq_1", "freq_2"]
+    assert len(rows) == 121
+    # the point (2, 0) is in contact; (0, 0) is not (empty fields)
+    by_point = {(float(r[0]), float(r[1])): r[2:] for r in rows}
+    assert by_point[(0.0, 0.0)] == ["", "", ""]
+    assert float(by_point[(2.0, 0.0)][0]) == pytest.approx(-NU, rel=1e-9)
+    report = json.loads((out / "report.json").read_text())
+    assert list(report["products"]) == ["eigen"]
+    eigen = report["products"]["eigen"]
+    assert eigen["max_real_part"] == pytest.approx(-NU, rel=1e-9)
+    assert eigen["positive_fraction_of_contact_points"] == 0.0
+    assert eigen["flutter_radius_undamped"] == pytest.approx(5.524937810560, rel=1e-10)
+    assert report["case"]["settings"]["forces_map"]["products"] == ["eigen"]
+
+
+def test_cli_writes_every_product_with_the_requested_columns(tmp_path):
+    case = write_small_case(
+        tmp_path,
+        "resolution = 9\nextent = 1.5\ndeltas = [1e-4, 1e-3, 1e-2]\nK_values = [17.6, 1760.0]\n",
+    )
+    out = tmp_path / "out"
+    result = invoke("forces-map", case, "--out", out)
+    assert result.exit_code == 0, result.output
+    assert {p.name for p in out.iterdir()} == {
+        "forces_map.csv",
+        "forces_map.png",
+        "taylor_error.csv",
+        "taylor_error.png",
+        "eigen_map.csv",
+        "eigen_map.png",
+        "report.json",
+    }
+    header, rows = read_rows(out / "forces_map.csv")
+    assert header == list(FORCES_COLUMNS)
+    assert len(rows) == 81
+    table = {(float(r[0]), float(r[1])): [float(v) for v in r[2:]] for r in rows}
+    # hand value at (1.5, 0): F = -K/3 (1.5, 0.15) = (-8800, -880)
+    Fx, Fy, Tx, Ty, dx, dy = table[(1.5, 0.0)]
+    assert (Fx, Fy) == (pytest.approx(-8800.0, rel=1e-13), pytest.approx(-880.0, rel=1e-13))
+    assert (Tx, Ty) == (pytest.approx(Fx, rel=1e-13), pytest.approx(Fy, rel=1e-13))
+    assert table[(0.0, 0.0)] == [0.0] * 6
+
+    header, rows = read_rows(out / "taylor_error.csv")
+    assert header == ["K", "delta", "direction", "max_abs_error"]
+    assert len(rows) == 2 * 3 * 3
+    assert {r[2] for r in rows} == set(DIRECTIONS)
+    # tangential, K = 1760, delta = 1e-2 at z0 -> 1: K sqrt(1.01) (sqrt(1 + 1e-4) - 1)
+    tangential = {(float(r[0]), float(r[1])): float(r[3]) for r in rows if r[2] == "tangential"}
+    hand = 1760.0 * math.sqrt(1.01) * (math.sqrt(1 + 1e-4) - 1)
+    assert tangential[(1760.0, 1e-2)] == pytest.approx(hand, rel=1e-5)
+
+    report = json.loads((out / "report.json").read_text())
+    slopes = report["products"]["taylor_error"]["fitted_slope"]
+    assert slopes["radial"] == {"17.6": None, "1760.0": None}
+    for direction in ("tangential", "worst"):
+        for slope in slopes[direction].values():
+            assert slope == pytest.approx(2.0, abs=0.01)
+    assert report["products"]["forces"]["max_abs_diff"] < 1e-10
+    assert report["files"][-1] == "report.json"
+
+
+def test_default_output_dir_is_a_subdirectory_of_the_case_output_dir(tmp_path):
+    # Without --out the files go to <output dir>/forces-map, so that the report.json of
+    # `rubcli run` on the same case is not overwritten.
+    path = tmp_path / "case.toml"
+    path.write_text(SMALL_CASE + '\n[output]\ndir = "' + (tmp_path / "o").as_posix() + '"\n')
+    case = load_case(path)
+    assert case.settings.forces_map is None
+    assert output_dir(case, None) == tmp_path / "o" / "forces-map"
+    assert output_dir(case, tmp_path / "x") == tmp_path / "x"
+
+
+@pytest.mark.parametrize(
+    "table, field",
+    [
+        ("extent = 1.0\n", "forces_map.extent"),
+        ("resolution = 2\n", "forces_map.resolution"),
+        ('products = ["orbit"]\n', "forces_map.products"),
+        ("deltas = [-1e-3]\n", "forces_map.deltas"),
+        ("K_values = [0.0]\n", "forces_map.K_values"),
+        ("colour = 1\n", "forces_map.colour"),
+    ],
+)
+def test_cli_rejects_bad_input_with_exit_2_and_writes_nothing(tmp_path, table, field):
+    case = write_small_case(tmp_path, table)
+    out = tmp_path / "out"
+    result = invoke("forces-map", case, "--out", out)
+    assert result.exit_code == 2, result.output
+    assert field in result.output
+    assert "Traceback" not in result.output
+    assert not out.exists()
+
+
+def test_cli_rejects_an_output_path_that_is_a_file(tmp_path):
+    case = write_small_case(tmp_path, 'products = ["eigen"]\nresolution = 5\n')
+    out = tmp_path / "out"
+    out.write_text("not a directory")
+    result = invoke("forces-map", case, "--out", out)
+    assert result.exit_code == 2
+    assert "not a directory" in result.output
+
+
+@pytest.mark.parametrize("name", ["paper/fig2.toml", "examples/eigen-only.toml"])
+def test_shipped_forces_map_cases_run_at_a_small_resolution(tmp_path, name):
+    case = load_case(REPO / "cases" / name)
+    settings = case.settings.forces_map
+    assert settings is not None
+    if name == "paper/fig2.toml":
+        # paper section 3.1 and Figure 2 caption; Table 1
+        assert (case.params.K, case.params.mu) == (17.6e3, 0.1)
+        assert (case.params.nu, case.params.eta, case.params.Rp) == (0.009478, 0.7818, 46.16)
+    small = settings.model_copy(update={"resolution": 15})
+    case = dataclasses.replace(
+        case, settings=case.settings.model_copy(update={"forces_map": small})
+    )
+    report = make_outputs(case, tmp_path, {"case_file": name})
+    expected = {
+        "forces": "forces_map.csv",
+        "taylor_error": "taylor_error.csv",
+        "eigen": "eigen_map.csv",
+    }
+    written = {p.name for p in tmp_path.iterdir()}
+    assert {expected[p] for p in settings.products} <= written
+    assert {v for k, v in expected.items() if k not in settings.products}.isdisjoint(written)
+    if "eigen" in settings.products and name == "examples/eigen-only.toml":
+        # the grid reaches beyond the flutter radius: some contact points are unstable
+        assert report["products"]["eigen"]["positive_fraction_of_contact_points"] > 0.0
