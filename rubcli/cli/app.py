@@ -11,7 +11,7 @@ from typing import Annotated
 import typer
 
 from rubcli import __version__
-from rubcli.cli import forces_map, init, run, validate
+from rubcli.cli import compare, forces_map, init, run, validate
 
 app = typer.Typer(
     name="rubcli",
@@ -26,6 +26,7 @@ app.command("init")(init.command)
 app.command("validate")(validate.command)
 app.command("run")(run.command)
 app.command("forces-map")(forces_map.command)
+app.command("compare")(compare.command)
 
 
 def _version(value: bool) -> None:

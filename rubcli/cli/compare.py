@@ -1,0 +1,570 @@
+"""``rubcli compare CASE [--out DIR] [--quick]``: reference, error against run time, orbits.
+
+What it does, in order (docs/compare.md):
+
+1. **Reference** for the work-precision problem (``[compare] horizon_periods``, default
+   the case's ``[time] periods``): exact where the case has one, otherwise DOP853 at 1e-12
+   checked against LSODA at 1e-12, with its predictability horizon
+   (``rubcli.analysis.reference``).
+2. **Work-precision** (unless ``[compare] work_precision = false``): each method of
+   ``[compare] methods`` (default ``[solver] methods``) over its ladder, timed (median of
+   ``repeats``; start-up apart) and measured against the reference
+   (``rubcli.analysis.work_precision``). Writes ``work_precision.csv``,
+   ``work_precision.png`` and ``error_growth.png``.
+3. **Orbits**: for the case's mu, or for each value of ``[compare] mu`` (the paper's
+   Figure 3 is ``mu = [0, 0.01, ..., 0.05]``), each method at the case's ``[solver]``
+   settings over ``[time] periods``, with its error against a reference of that mu and
+   the largest difference between the methods. Writes ``orbits.png`` (one panel per mu)
+   and, with a mu list, ``sweep.csv``. The synchronous full annular rub of each mu is
+   reported with its stability (``rubcli.analysis.synchronous``).
+4. **Response** (only with ``[analysis] response = true``): the class of each method's
+   steady response from the stroboscopic section after ``transient_periods``, backed by
+   the largest Lyapunov exponent; ``poincare.png``.
+
+``report.md`` and ``report.json`` summarise everything. ``--quick`` (for CI) shortens the
+ladders (rtol 1e-3, 1e-6, 1e-9; steps_per_period 25, 100, 400), runs each setting once,
+caps the work-precision horizon at 5 periods and the Lyapunov run at 30 periods; the
+orbit runs keep the case's duration.
+
+Exit codes: 0 done (failed settings are results, listed in the report); 2 invalid input;
+1 if no reference could be built.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as dt
+import math
+import time
+from pathlib import Path
+from typing import Annotated, Any
+
+import numpy as np
+import typer
+
+from rubcli import __version__, io
+from rubcli.analysis import response as rsp
+from rubcli.analysis import work_precision as wpm
+from rubcli.analysis.reference import Reference, ReferenceError, position_errors, reference_solution
+from rubcli.analysis.synchronous import synchronous_rubs
+from rubcli.case import AnalysisSection, Case, CompareSection
+from rubcli.cli import console
+from rubcli.cli.validate import EXIT_INVALID, load_or_exit
+from rubcli.problem import Problem
+from rubcli.solution import Solution
+
+EXIT_FAILED = 1
+QUICK_HORIZON_PERIODS = 5.0
+QUICK_LYAPUNOV_PERIODS = 30
+CSV_COLUMNS = (
+    "method", "setting", "wall_time_s", "error_max", "error_final", "setting_name",
+    "wall_time_min_s", "repeats", "nsteps", "nfev", "njev", "n_events", "status",
+)  # fmt: skip
+
+
+# ------------------------------------------------------------------------- helpers
+
+
+def _problem(case: Case, periods: float, mu: float | None = None) -> Problem:
+    params = case.params if mu is None else dataclasses.replace(case.params, mu=float(mu))
+    return Problem.from_periods(
+        params,
+        case.problem.initial,
+        periods=periods,
+        samples_per_period=case.settings.time.samples_per_period,
+        name=case.name,
+    )
+
+
+def _reference(problem: Problem, threshold: float, label: str) -> Reference:
+    t0, t1 = problem.t_span
+    with console.progress_bar(f"{label:<22}", total=2.0 * (t1 - t0)) as update:
+        offsets = {"reference": 0.0, "reference check": t1 - t0}
+        return reference_solution(
+            problem,
+            threshold=threshold,
+            progress=lambda which, tau: update(offsets[which] + tau - t0),
+        )
+
+
+def _solve(problem: Problem, method: str, options: dict[str, Any], label: str) -> Solution:
+    from rubcli.solvers import solve
+
+    t0, t1 = problem.t_span
+    with console.progress_bar(f"{label:<22}", total=t1 - t0) as update:
+        return solve(problem, method, progress=lambda tau: update(tau - t0), **options)
+
+
+def _fmt(value: float | None, spec: str = ".3g") -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "-"
+    return format(value, spec)
+
+
+# ------------------------------------------------------------------ work-precision
+
+
+def work_precision(case: Case, cfg: CompareSection, quick: bool, threshold: float):
+    """Reference and work-precision table of the case (step 1 and 2)."""
+    periods = cfg.horizon_periods or case.settings.time.periods
+    if quick:
+        periods = min(periods, QUICK_HORIZON_PERIODS)
+    problem = _problem(case, periods)
+    reference = _reference(problem, threshold, "reference")
+    methods = list(cfg.methods or case.methods)
+    if quick:
+        rtols, steps, repeats = wpm.QUICK_RTOLS, wpm.QUICK_STEPS_PER_PERIOD, 1
+    else:
+        rtols = tuple(cfg.rtols or wpm.DEFAULT_RTOLS)
+        steps = tuple(cfg.steps_per_period or wpm.DEFAULT_STEPS_PER_PERIOD)
+        repeats = cfg.repeats
+    settings = wpm.ladder(methods, rtols, steps, cfg.atol_factor)
+    index = {id(s): i for i, s in enumerate(settings)}
+    span = max(reference.trusted_until - problem.t_span[0], 1e-300)
+    with console.progress_bar("work-precision ladder  ", total=float(len(settings))) as update:
+        result = wpm.run_work_precision(
+            problem,
+            reference,
+            settings,
+            repeats=repeats,
+            max_wall_time_s=cfg.max_wall_time_s,
+            progress=lambda s, tau: update(index[id(s)] + (tau - problem.t_span[0]) / span),
+        )
+    return result
+
+
+def write_work_precision_csv(path: Path, result: wpm.WorkPrecision) -> None:
+    lines = [",".join(CSV_COLUMNS)]
+    for row in result.rows:
+        rec = row.record()
+        values = []
+        for name in CSV_COLUMNS:
+            value = rec["setting_name"] if name == "setting_name" else rec.get(name)
+            if name == "setting":
+                value = rec["setting"]
+            if value is None:
+                values.append("")
+            elif isinstance(value, float):
+                values.append("nan" if not math.isfinite(value) else f"{value:.17g}")
+            else:
+                values.append(str(value))
+        lines.append(",".join(values))
+    io.write_text(path, "\n".join(lines) + "\n")
+
+
+# ------------------------------------------------------------------------ orbits
+
+
+def _response(solution: Solution, analysis: AnalysisSection, quick: bool):
+    periods = solution.problem.periods
+    transient = analysis.transient_periods
+    if transient is None:
+        transient = 0.5 * periods
+    lyap_periods = analysis.lyapunov_periods
+    if quick:
+        lyap_periods = min(lyap_periods, QUICK_LYAPUNOV_PERIODS)
+    result = rsp.classify_solution(
+        solution,
+        transient_periods=transient,
+        lyapunov=analysis.lyapunov,
+        lyapunov_periods=lyap_periods,
+        rel_tol=analysis.rel_tol,
+        max_period=analysis.max_period,
+    )
+    section = rsp.section_from_solution(solution, transient) if solution.t.size > 1 else None
+    return result, section
+
+
+def orbit_panel(
+    case: Case,
+    mu: float | None,
+    methods: list[str],
+    threshold: float,
+    analysis: AnalysisSection | None,
+    quick: bool,
+    reference: Reference | None = None,
+) -> dict[str, Any]:
+    """One mu: each method at the [solver] settings, errors, agreement, response (step 3-4)."""
+    problem = _problem(case, case.settings.time.periods, mu)
+    mu_value = problem.params.mu
+    if reference is None:
+        reference = _reference(problem, threshold, f"reference mu={mu_value:g}")
+    solutions, entries = [], {}
+    options = case.solver_options
+    for name in methods:
+        sol = _solve(problem, name, options, f"{name} mu={mu_value:g}")
+        solutions.append(sol)
+        err = position_errors(sol.t, sol.states, reference)
+        entry = {
+            "status": sol.status,
+            "message": sol.message,
+            "wall_time_s": sol.wall_time_s,
+            "stats": dict(sol.stats),
+            "tau_end": float(sol.t[-1]) if sol.t.size else None,
+            "error_max": float(err.max()) if err.size else None,
+            "error_final": float(err[-1]) if err.size else None,
+            "error_until_tau": float(reference.t[err.size - 1]) if err.size else None,
+        }
+        if analysis is not None and analysis.response:
+            result, section = _response(sol, analysis, quick)
+            entry["response"] = result.to_dict()
+            entry["_section"] = (section, result)
+        entries[name] = entry
+    agreement = {}
+    for i in range(len(solutions)):
+        for j in range(i + 1, len(solutions)):
+            a, b = solutions[i], solutions[j]
+            n = min(a.t.size, b.t.size)
+            diff = np.abs(a.w[:n] - b.w[:n]) if n else np.array([np.nan])
+            agreement[f"{a.method} vs {b.method}"] = {
+                "max_difference": float(np.max(diff)),
+                "until_tau": float(a.t[n - 1]) if n else None,
+                "first_tau_above_1e-2": _first_above(a.t[:n], diff, 1e-2),
+            }
+    rubs = [r.to_dict() for r in synchronous_rubs(problem.params)]
+    return {
+        "mu": mu_value,
+        "problem": problem,
+        "reference": reference,
+        "solutions": solutions,
+        "methods": entries,
+        "agreement": agreement,
+        "synchronous_rubs": rubs,
+    }
+
+
+def _first_above(t: np.ndarray, values: np.ndarray, level: float) -> float | None:
+    idx = np.nonzero(values > level)[0]
+    return float(t[idx[0]]) if idx.size else None
+
+
+def _panel_note(panel: dict) -> str:
+    parts = []
+    for name, entry in panel["methods"].items():
+        if "response" in entry:
+            r = entry["response"]
+            text = r["kind"] + (f" p{r['period']}" if r["period"] else "")
+            parts.append(f"{name}: {text}")
+    for a in panel["agreement"].values():
+        parts.append(f"max|diff| {a['max_difference']:.2g}")
+    return "; ".join(parts)
+
+
+def _panel_json(panel: dict) -> dict:
+    methods = {
+        name: {k: v for k, v in entry.items() if not k.startswith("_")}
+        for name, entry in panel["methods"].items()
+    }
+    return {
+        "mu": panel["mu"],
+        "periods": panel["problem"].periods,
+        "reference": panel["reference"].to_dict(),
+        "methods": methods,
+        "agreement": panel["agreement"],
+        "synchronous_rubs": panel["synchronous_rubs"],
+    }
+
+
+def write_sweep_csv(path: Path, panels: list[dict]) -> None:
+    header = (
+        "mu,method,status,wall_time_s,error_max,error_final,error_until_tau,response_kind,"
+        "response_period,lyapunov,lyapunov_stderr,sync_rub_r,sync_rub_stable,sync_rub_growth_rate"
+    )
+    lines = [header]
+    for panel in panels:
+        rub = panel["synchronous_rubs"][-1] if panel["synchronous_rubs"] else None
+        for name, e in panel["methods"].items():
+            r = e.get("response") or {}
+            cells = [
+                f"{panel['mu']:g}", name, e["status"], _fmt(e["wall_time_s"], ".6g"),
+                _fmt(e["error_max"], ".6g"), _fmt(e["error_final"], ".6g"),
+                _fmt(e["error_until_tau"], ".8g"), r.get("kind", ""),
+                "" if r.get("period") is None else str(r["period"]),
+                _fmt(r.get("lyapunov"), ".6g"), _fmt(r.get("lyapunov_stderr"), ".3g"),
+                "" if rub is None else f"{rub['r']:.12g}",
+                "" if rub is None else str(rub["stable"]).lower(),
+                "" if rub is None else f"{rub['growth_rate']:.6g}",
+            ]  # fmt: skip
+            lines.append(",".join("" if c == "-" else c for c in cells))
+    io.write_text(path, "\n".join(lines) + "\n")
+
+
+# ------------------------------------------------------------------------ report
+
+
+def report_markdown(case: Case, wp: wpm.WorkPrecision | None, panels: list[dict],
+                    quick: bool, targets=wpm.TARGETS) -> str:  # fmt: skip
+    """The human-readable summary (report.md)."""
+    from rubcli.plotting.compare import table_rows
+
+    p = case.params
+    out = [f"# rubcli compare: {case.name}", ""]
+    out.append(
+        f"Parameters: nu = {p.nu:g}, eta = {p.eta:g}, e = {p.e:g}, K = {p.K:g}, mu = {p.mu:g}, "
+        f"Rp = {p.Rp:g}, phi0 = {p.phi0:g}; initial state {case.problem.initial}."
+        + (" Quick mode (short ladders, one run per setting)." if quick else "")
+    )
+    out.append("")
+    if wp is not None:
+        ref = wp.reference
+        out += ["## Reference", "", ref.description + ".", ""]
+        out.append(
+            f"Estimated error of the reference: max {ref.error_estimate:.2g}, at the end of the "
+            f"trusted span {ref.error_estimate_final:.2g} (clearances). Trusted up to tau = "
+            f"{ref.trusted_until:.6g} ({(ref.trusted_until - ref.problem.t_span[0]) / p.period:.4g}"
+            f" forcing periods) of {ref.problem.t_span[1]:.6g}"
+            + (" (finite predictability horizon)." if ref.horizon_limited else ".")
+        )
+        for note in ref.notes:
+            out.append(f"- {note}")
+        out += ["", "## Work-precision", ""]
+        out.append(
+            f"Over {wp.problem.periods:.4g} forcing periods; wall time is the median of up to "
+            f"{wp.repeats} runs (runs over {wpm.REPEAT_BELOW_S:g} s are not repeated). Start-up "
+            "(a warm-up solve per method, excluded from the table): "
+            + ", ".join(f"{m} {s * 1e3:.1f} ms" for m, s in wp.startup_s.items())
+            + "."
+        )
+        out += ["", "| method | setting | wall time (s) | error max | error final | steps | "
+                "f evals | status |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+        for cells in table_rows(wp.rows):
+            out.append("| " + " | ".join(cells) + " |")
+        if wp.skipped:
+            out += ["", "Skipped after a failure or budget stop: " + ", ".join(wp.skipped) + "."]
+        out += ["", "### Cheapest method for a target error", ""]
+        out += [
+            "| target (max error) | cheapest | wall time (s) | error max |",
+            "|---|---|---|---|",
+        ]
+        for target, row in wp.cheapest(targets).items():
+            if row is None:
+                why = (
+                    "not resolvable (below 10x the reference error)"
+                    if target < wpm.RESOLUTION_FACTOR * ref.error_estimate
+                    else "none reached it"
+                )
+                out.append(f"| {target:g} | {why} | - | - |")
+            else:
+                out.append(
+                    f"| {target:g} | {row.method} at {row.setting_name} = {row.label} | "
+                    f"{row.wall_time_s:.4g} | {row.error_max:.3g} |"
+                )
+        order = wpm.observed_order(wp.rows_of("analytic")) if "analytic" in wp.methods else None
+        if order is not None:
+            out += ["", f"Observed order of `analytic` in its step (fit of log error_max vs "
+                    f"log step over the ladder): {order:.2f}."]  # fmt: skip
+        out.append("")
+    if panels:
+        out += ["## Orbits" + (" per mu" if len(panels) > 1 else ""), ""]
+        out.append(
+            f"Each method at the case's [solver] settings over {case.settings.time.periods:g} "
+            "forcing periods; errors against the reference of that mu within its trusted span."
+        )
+        out += ["", "| mu | method | status | error max | response | period | Lyapunov | "
+                "synchronous rub r (stable?) |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+        for panel in panels:
+            rub = panel["synchronous_rubs"][-1] if panel["synchronous_rubs"] else None
+            rub_text = "none" if rub is None else (
+                f"{rub['r']:.6g} ({'stable' if rub['stable'] else 'unstable'}, "
+                f"growth {rub['growth_rate']:.2g})"
+            )  # fmt: skip
+            for name, e in panel["methods"].items():
+                r = e.get("response") or {}
+                lyap = r.get("lyapunov")
+                lyap_text = "-" if lyap is None else f"{lyap:.3g} +- {r['lyapunov_stderr']:.1g}"
+                status = (
+                    e["status"] if e["status"] == "success" else f"{e['status']}: {e['message']}"
+                )
+                out.append(
+                    f"| {panel['mu']:g} | {name} | {status} | {_fmt(e['error_max'])} | "
+                    f"{r.get('kind', '-')} | {r.get('period') or '-'} | {lyap_text} | {rub_text} |"
+                )
+        out.append("")
+        for panel in panels:
+            for pair, a in panel["agreement"].items():
+                out.append(
+                    f"- mu = {panel['mu']:g}: {pair}: max |difference| {a['max_difference']:.3g}"
+                    + (
+                        f", first above 1e-2 at tau = {a['first_tau_above_1e-2']:.6g}"
+                        if a["first_tau_above_1e-2"] is not None
+                        else ""
+                    )  # fmt: skip
+                )
+        out.append("")
+    return "\n".join(out)
+
+
+def _response_summary(panels: list[dict]) -> dict | None:
+    """Top-level ``response`` of report.json: the first method of the first panel, and all."""
+    if not panels:
+        return None
+    first = panels[0]
+    by_method = {n: e["response"] for n, e in first["methods"].items() if "response" in e}
+    if not by_method:
+        return None
+    name = next(iter(by_method))
+    r = by_method[name]
+    return {"method": name, "kind": r["kind"], "period": r["period"],
+            "lyapunov": r["lyapunov"], "by_method": by_method}  # fmt: skip
+
+
+# ------------------------------------------------------------------------ command
+
+
+def command(
+    case_file: Annotated[Path, typer.Argument(metavar="CASE", help="The case file (TOML).")],
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            "--out", "-o", metavar="DIR", help="Output dir (default: <case output dir>/compare)."
+        ),
+    ] = None,  # fmt: skip
+    quick: Annotated[
+        bool, typer.Option("--quick", help="Short ladders, one run each, 5-period horizon (CI).")
+    ] = False,
+) -> None:
+    """Reference solution, error against run time per method, orbits and response classes."""
+    case = load_or_exit(case_file)
+    cfg = case.settings.compare or CompareSection()
+    analysis = case.settings.analysis
+    from rubcli import solvers
+
+    methods = list(cfg.methods or case.methods)
+    unavailable = [m for m in methods if m not in solvers.METHODS]
+    if unavailable:
+        console.error(f"{case_file}: methods not available: {', '.join(unavailable)}")
+        raise typer.Exit(EXIT_INVALID)
+    target = out if out is not None else case.output_dir / "compare"
+    if target.exists() and not target.is_dir():
+        console.error(f"{target}: output dir exists and is not a directory")
+        raise typer.Exit(EXIT_INVALID)
+
+    started = time.perf_counter()
+    threshold = cfg.reference_threshold
+    console.info(f"{case.name}: compare {', '.join(methods)}" + (" (quick)" if quick else ""))
+    try:
+        wp = work_precision(case, cfg, quick, threshold) if cfg.work_precision else None
+        mus = cfg.mu if cfg.mu is not None else [None]
+        same = (
+            wp is not None
+            and cfg.mu is None
+            and math.isclose(wp.reference.problem.periods, case.settings.time.periods)
+        )
+        panels = [
+            orbit_panel(
+                case,
+                mu,
+                list(case.methods),
+                threshold,
+                analysis,
+                quick,
+                reference=wp.reference if same else None,
+            )  # fmt: skip
+            for mu in mus
+        ]
+    except ReferenceError as exc:
+        console.error(f"no reference solution: {exc}")
+        raise typer.Exit(EXIT_FAILED) from None
+
+    from rubcli.plotting import compare as plots
+    from rubcli.plotting.run import parameters_title
+
+    title = parameters_title(case.name, case.params)
+    files: list[str] = []
+    with io.staged_output_dir(target) as staged:
+        if wp is not None:
+            write_work_precision_csv(staged.path("work_precision.csv"), wp)
+            io.save_figure(
+                plots.work_precision_figure(wp, title), staged.path("work_precision.png")
+            )
+            io.save_figure(plots.error_growth_figure(wp, title), staged.path("error_growth.png"))
+            files += ["work_precision.csv", "work_precision.png", "error_growth.png"]
+        orbit_panels = [
+            {"title": f"mu = {p['mu']:g}", "solutions": p["solutions"], "note": _panel_note(p)}
+            for p in panels
+        ]
+        io.save_figure(plots.orbits_figure(orbit_panels, title), staged.path("orbits.png"))
+        files.append("orbits.png")
+        if cfg.mu is not None:
+            write_sweep_csv(staged.path("sweep.csv"), panels)
+            files.append("sweep.csv")
+        sections = [
+            (f"{name}, mu = {p['mu']:g}", *e["_section"])
+            for p in panels
+            for name, e in p["methods"].items()
+            if "_section" in e and e["_section"][0] is not None
+        ]
+        if sections:
+            io.save_figure(plots.poincare_figure(sections, title), staged.path("poincare.png"))
+            files.append("poincare.png")
+        io.write_text(staged.path("report.md"), report_markdown(case, wp, panels, quick))
+        files += ["report.md", "report.json"]
+        report = {
+            "rubcli_version": __version__,
+            "created_utc": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+            "environment": io.environment_info(),
+            "command_line": {
+                "case_file": str(case_file),
+                "out": str(out) if out else None,
+                "quick": quick,
+            },  # fmt: skip
+            "case": case.to_dict(),
+            "quick": quick,
+            "reference": None if wp is None else wp.reference.to_dict(),
+            "work_precision": None
+            if wp is None
+            else {
+                "periods": wp.problem.periods,
+                "repeats": wp.repeats,
+                "startup_s": wp.startup_s,
+                "skipped": wp.skipped,
+                "rows": [r.record() for r in wp.rows],
+                "cheapest": {
+                    f"{t:g}": None
+                    if r is None
+                    else {
+                        "method": r.method,
+                        "setting_name": r.setting_name,
+                        "setting": r.setting,
+                        "wall_time_s": r.wall_time_s,
+                        "error_max": r.error_max,
+                    }
+                    for t, r in wp.cheapest().items()
+                },
+                "observed_order_analytic": wpm.observed_order(wp.rows_of("analytic")),
+            },  # fmt: skip
+            "orbits": [_panel_json(p) for p in panels],
+            "response": _response_summary(panels),
+            "wall_time_s": time.perf_counter() - started,
+            "files": files,
+        }
+        io.write_json(staged.path("report.json"), report)
+
+    if wp is not None:
+        console.table(
+            f"{case.name}: work-precision ({wp.problem.periods:.4g} periods)",
+            [
+                "method",
+                "setting",
+                "wall s",
+                "error max",
+                "error final",
+                "steps",
+                "f evals",
+                "status",
+            ],  # fmt: skip
+            plots.table_rows(wp.rows),
+        )
+        for t, row in wp.cheapest().items():
+            text = "-" if row is None else f"{row.method} {row.setting_name} = {row.label}"
+            console.info(f"cheapest for error <= {t:g}: {text}")
+    for panel in panels:
+        for name, e in panel["methods"].items():
+            if "response" in e:
+                r = e["response"]
+                console.info(f"mu = {panel['mu']:g} {name}: {r['kind']}"
+                             + (f", period {r['period']}" if r["period"] else "")
+                             + f" ({r['message']})")  # fmt: skip
+            if e["status"] != "success":
+                console.warning(f"mu = {panel['mu']:g} {name}: {e['message']}")
+    console.info(f"wrote {len(files)} files to {target}: {', '.join(files)}")
