@@ -421,32 +421,59 @@ def validate_case(raw: dict[str, Any], source: str = "<case>") -> CaseFile:
     return settings
 
 
-def assemble_case(settings: CaseFile, path: str | Path | None = None) -> Case:
-    """Step 3: convert units once and build the nondimensional Problem."""
+def assemble_case(
+    settings: CaseFile, path: str | Path | None = None, source: str | None = None
+) -> Case:
+    """Step 3: convert units once and build the nondimensional Problem.
+
+    ``source`` names the case in error messages (default: ``path``).
+    """
     path = Path(path) if path is not None else None
-    source = str(path) if path is not None else "<case>"
+    if source is None:
+        source = str(path) if path is not None else "<case>"
     init = settings.initial
     scale = None
     if settings.physical is not None:
-        params, scale = units.nondimensional_params(**settings.physical.model_dump())
-        initial = units.nondimensional_state(init.x, init.y, init.vx, init.vy, scale)
+        try:
+            params, scale = units.nondimensional_params(**settings.physical.model_dump())
+            initial = units.nondimensional_state(init.x, init.y, init.vx, init.vy, scale)
+        except (ArithmeticError, ValueError) as exc:  # values beyond floating-point range
+            raise CaseError([f"{source}: physical: cannot be converted ({exc})"]) from None
         table = "physical"
     else:
         assert settings.model is not None
         params = settings.model.params()
         initial = (init.x, init.y, init.vx, init.vy)
         table = "model"
-    bad = [k for k, v in params.as_dict().items() if not math.isfinite(v)]
-    if bad or not all(math.isfinite(v) for v in initial):
-        what = ", ".join(bad) if bad else "the initial state"
-        raise CaseError([f"{source}: {table}: converted values are not finite ({what})"])
-    problem = Problem.from_periods(
-        params,
-        initial,
-        periods=settings.time.periods,
-        samples_per_period=settings.time.samples_per_period,
-        name=settings.case.name,
-    )
+    problems = []
+    if scale is not None:
+        # SI values can be valid one by one and still convert to nonsense (an overflow,
+        # an underflow to 0): the converted parameters must satisfy [model]'s rules.
+        try:
+            ModelSection.model_validate(params.as_dict())
+        except ValidationError as exc:
+            for error in exc.errors():
+                name = ".".join(str(part) for part in error["loc"])
+                problems.append(
+                    f"{source}: {table}: converts to {name} = {error['input']!r}: {error['msg']}"
+                )
+    if not all(math.isfinite(v) for v in initial):
+        problems.append(f"{source}: initial: converts to a state that is not finite {initial}")
+    t_end = settings.time.periods * 2.0 * math.pi / params.eta
+    if not math.isfinite(t_end):
+        problems.append(f"{source}: time: cannot build the time grid: tau_end = {t_end}")
+    if problems:
+        raise CaseError(problems)
+    try:
+        problem = Problem.from_periods(
+            params,
+            initial,
+            periods=settings.time.periods,
+            samples_per_period=settings.time.samples_per_period,
+            name=settings.case.name,
+        )
+    except ValueError as exc:  # e.g. a time span that overflows
+        raise CaseError([f"{source}: time: cannot build the time grid: {exc}"]) from None
     return Case(settings=settings, problem=problem, scale=scale, path=path)
 
 
@@ -458,7 +485,7 @@ def load_case(path: str | Path) -> Case:
 
 def load_case_text(text: str, source: str = "<case>") -> Case:
     """Like ``load_case`` for TOML text in memory (e.g. the sample of ``rubcli init``)."""
-    return assemble_case(validate_case(parse_case_text(text, source), source), None)
+    return assemble_case(validate_case(parse_case_text(text, source), source), None, source)
 
 
 def _format_error(source: str, error: dict[str, Any]) -> str:

@@ -379,3 +379,24 @@ def test_schema_alone_rejects_model_and_physical_together():
         CaseFile.model_validate(raw)
     with pytest.raises(CaseError, match="missing table"):
         validate_case(raw, "raw")
+
+
+@pytest.mark.parametrize(
+    ("changes", "words"),
+    [
+        ({"m = 4.0": "m = 1e-320", "k_r = 4.0e4": "k_r = 1e10"}, "converts to eta = 0.0"),
+        ({"m = 4.0": "m = 1e300", "k_r = 4.0e4": "k_r = 1e-300"}, "cannot be converted"),
+    ],
+)
+def test_physical_values_that_convert_to_nonsense(tmp_path, changes, words):
+    """Each SI value is valid alone, but the converted model is not (under/overflow)."""
+    text = PHYSICAL
+    for old, new in changes.items():
+        text = replace(text, old, new)
+    problems = problems_of(tmp_path, text)
+    assert any(": physical: " in line and words in line for line in problems), problems
+
+
+def test_horizon_beyond_floating_point_range(tmp_path):
+    problems = problems_of(tmp_path, replace(MINIMAL, "eta = 0.7818", "eta = 1e-310"))
+    assert any(": time: cannot build the time grid" in line for line in problems), problems
