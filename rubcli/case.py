@@ -459,8 +459,8 @@ def assemble_case(
                 )
     if not all(math.isfinite(v) for v in initial):
         problems.append(f"{source}: initial: converts to a state that is not finite {initial}")
-    t_end = settings.time.periods * 2.0 * math.pi / params.eta
-    if not math.isfinite(t_end):
+    t_end = settings.time.periods * 2.0 * math.pi / params.eta if params.eta > 0 else math.inf
+    if not problems and not math.isfinite(t_end):
         problems.append(f"{source}: time: cannot build the time grid: tau_end = {t_end}")
     if problems:
         raise CaseError(problems)
