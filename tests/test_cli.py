@@ -237,15 +237,16 @@ def test_csv_columns_and_values(tmp_path):
     assert table.shape[0] == 41
     np.testing.assert_allclose(col["z"], np.hypot(col["x"], col["y"]), rtol=1e-15)
     assert set(np.unique(col["contact"])) <= {0.0, 1.0}
-    assert set(np.unique(col["regime"])) <= {-1.0, 0.0, 1.0}
+    assert set(np.unique(col["regime"])) <= {-1.0, 0.0, 1.0, 2.0}  # slip-, free, slip+, stick
     np.testing.assert_array_equal(col["contact"], (col["regime"] != 0).astype(float))
     in_contact = col["contact"] == 1
     np.testing.assert_allclose(
         col["normal_force"][in_contact], 17.6 * (col["z"][in_contact] - 1.0), rtol=1e-12
     )
     assert np.all(col["normal_force"][~in_contact] == 0.0)
+    slipping = np.abs(col["regime"]) == 1  # in stick the friction is below mu F_N
     np.testing.assert_allclose(
-        np.abs(col["friction_force"]), 0.01 * col["normal_force"], rtol=1e-12
+        np.abs(col["friction_force"][slipping]), 0.01 * col["normal_force"][slipping], rtol=1e-12
     )
 
 
