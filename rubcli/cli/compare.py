@@ -23,8 +23,8 @@ What it does, in order (docs/compare.md):
 
 ``report.md`` and ``report.json`` summarise everything. ``--quick`` (for CI) shortens the
 ladders (rtol 1e-3, 1e-6, 1e-9; steps_per_period 25, 100, 400), runs each setting once,
-caps the work-precision horizon at 5 periods and the Lyapunov run at 30 periods; the
-orbit runs keep the case's duration.
+caps the work-precision horizon at 5 periods, the orbit runs at 150 periods (a transient
+longer than the run is cut to 2/3 of it) and the Lyapunov run at 30 periods.
 
 Exit codes: 0 done (failed settings are results, listed in the report); 2 invalid input;
 1 if no reference could be built.
@@ -56,6 +56,7 @@ from rubcli.solution import Solution
 EXIT_FAILED = 1
 QUICK_HORIZON_PERIODS = 5.0
 QUICK_LYAPUNOV_PERIODS = 30
+QUICK_ORBIT_PERIODS = 150.0
 CSV_COLUMNS = (
     "method", "setting", "wall_time_s", "error_max", "error_final", "setting_name",
     "wall_time_min_s", "repeats", "nsteps", "nfev", "njev", "n_events", "status",
@@ -158,8 +159,8 @@ def write_work_precision_csv(path: Path, result: wpm.WorkPrecision) -> None:
 def _response(solution: Solution, analysis: AnalysisSection, quick: bool):
     periods = solution.problem.periods
     transient = analysis.transient_periods
-    if transient is None:
-        transient = 0.5 * periods
+    if transient is None or transient >= periods:
+        transient = 0.5 * periods if transient is None else 2.0 * periods / 3.0
     lyap_periods = analysis.lyapunov_periods
     if quick:
         lyap_periods = min(lyap_periods, QUICK_LYAPUNOV_PERIODS)
@@ -185,7 +186,10 @@ def orbit_panel(
     reference: Reference | None = None,
 ) -> dict[str, Any]:
     """One mu: each method at the [solver] settings, errors, agreement, response (step 3-4)."""
-    problem = _problem(case, case.settings.time.periods, mu)
+    periods = case.settings.time.periods
+    if quick:
+        periods = min(periods, QUICK_ORBIT_PERIODS)
+    problem = _problem(case, periods, mu)
     mu_value = problem.params.mu
     if reference is None:
         reference = _reference(problem, threshold, f"reference mu={mu_value:g}")
@@ -445,10 +449,13 @@ def command(
     try:
         wp = work_precision(case, cfg, quick, threshold) if cfg.work_precision else None
         mus = cfg.mu if cfg.mu is not None else [None]
+        orbit_periods = case.settings.time.periods
+        if quick:
+            orbit_periods = min(orbit_periods, QUICK_ORBIT_PERIODS)
         same = (
             wp is not None
             and cfg.mu is None
-            and math.isclose(wp.reference.problem.periods, case.settings.time.periods)
+            and math.isclose(wp.reference.problem.periods, orbit_periods)
         )
         panels = [
             orbit_panel(

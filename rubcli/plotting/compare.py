@@ -91,7 +91,7 @@ def orbits_figure(panels: Sequence[dict], title: str) -> Figure:
     n = len(panels)
     cols = 3 if n > 4 else max(1, n) if n <= 2 else 2
     rows = math.ceil(n / cols)
-    fig = _new_figure(4.2 * cols, 4.2 * rows + 0.6)
+    fig = _new_figure(max(6.4, 4.2 * cols), 4.2 * rows + 0.9)
     for k, panel in enumerate(panels):
         ax = fig.add_subplot(rows, cols, k + 1)
         _clearance(ax)
@@ -118,7 +118,7 @@ def poincare_figure(
     n = max(1, len(sections))
     cols = min(3, n)
     rows = math.ceil(n / cols)
-    fig = _new_figure(4.2 * cols, 4.2 * rows + 0.6)
+    fig = _new_figure(max(6.4, 4.2 * cols), 4.2 * rows + 0.9)
     for k, (label, section, response) in enumerate(sections):
         ax = fig.add_subplot(rows, cols, k + 1)
         _clearance(ax)
