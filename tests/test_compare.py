@@ -296,3 +296,24 @@ def test_observed_order_of_a_known_power_law():
         for n in (25, 50, 100)
     ]
     assert wpm.observed_order(rows) == pytest.approx(2.0)
+
+
+def test_run_with_analysis_response_reports_the_class(tmp_path):
+    params = fig3_params(0.0)
+    start = model.synchronous_rub(np.array([0.0]), params)[:, 0]
+    extra = "\n[analysis]\nresponse = true\ntransient_periods = 1\nlyapunov = false\n"
+    case = tmp_path / "case.toml"
+    case.write_text(_case_text(params, start, 10, extra).replace('"rk45", "analytic"', '"rk45"'))
+    out = tmp_path / "run"
+    result = CliRunner().invoke(app, ["run", str(case), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    report = json.loads((out / "report.json").read_text())
+    assert (report["response"]["kind"], report["response"]["period"]) == ("periodic", 1)
+    assert report["methods"]["rk45"]["response"]["kind"] == "periodic"
+    assert (out / "poincare.png").is_file()
+    # Without [analysis] nothing is computed or written.
+    case.write_text(_case_text(params, start, 2).replace('"rk45", "analytic"', '"rk45"'))
+    result = CliRunner().invoke(app, ["run", str(case), "--out", str(tmp_path / "plain")])
+    assert result.exit_code == 0, result.output
+    assert json.loads((tmp_path / "plain" / "report.json").read_text())["response"] is None
+    assert not (tmp_path / "plain" / "poincare.png").exists()

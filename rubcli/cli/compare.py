@@ -176,6 +176,35 @@ def _response(solution: Solution, analysis: AnalysisSection, quick: bool):
     return result, section
 
 
+def run_response(case: Case, solutions: list[Solution], entries: dict[str, dict]):
+    """``[analysis] response`` for `rubcli run`: classify each solution (no-op if not asked).
+
+    Adds ``entries[method]["response"]`` and returns ``(summary, poincare_figure)`` for the
+    report's top-level ``response`` (keys ``kind``, ``period``, ``lyapunov`` of the first
+    method, and ``by_method``), or ``(None, None)`` when the case does not ask for it.
+    """
+    analysis = case.settings.analysis
+    if analysis is None or not analysis.response or not solutions:
+        return None, None
+    from rubcli.plotting.compare import poincare_figure
+    from rubcli.plotting.run import parameters_title
+
+    sections, by_method = [], {}
+    for sol in solutions:
+        with console.progress_bar(f"response {sol.method:<13}", total=1.0) as update:
+            result, section = _response(sol, analysis, quick=False)
+            update(1.0)
+        entries[sol.method]["response"] = by_method[sol.method] = result.to_dict()
+        if section is not None:
+            sections.append((sol.method, section, result))
+    first = next(iter(by_method.values()))
+    summary = {"method": next(iter(by_method)), "kind": first["kind"],
+               "period": first["period"], "lyapunov": first["lyapunov"],
+               "by_method": by_method}  # fmt: skip
+    figure = poincare_figure(sections, parameters_title(case.name, case.params))
+    return summary, figure
+
+
 def orbit_panel(
     case: Case,
     mu: float | None,

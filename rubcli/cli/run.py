@@ -132,6 +132,13 @@ def write_outputs(
             figure = figures[plot](solutions, title, scale=case.scale)
             io.save_figure(figure, staged.path(f"{plot}.png"))
             files.append(f"{plot}.png")
+        # [analysis] response = true (owned by cli/compare.py): classes and poincare.png
+        from rubcli.cli.compare import run_response
+
+        response, poincare = run_response(case, solutions, entries)
+        if poincare is not None:
+            io.save_figure(poincare, staged.path("poincare.png"))
+            files.append("poincare.png")
         files.append("report.json")
         report = {
             "rubcli_version": __version__,
@@ -141,6 +148,7 @@ def write_outputs(
             "case": case.to_dict(),
             "success": all(e["status"] == "success" for e in entries.values()),
             "methods": entries,
+            "response": response,
             "files": files,
         }
         io.write_json(staged.path("report.json"), report)
