@@ -28,7 +28,9 @@ import numpy as np
 FREE = 0
 SLIP_POSITIVE = 1  # in contact, v_r > 0, mu_c = +mu
 SLIP_NEGATIVE = -1  # in contact, v_r < 0, mu_c = -mu
-REGIME_NAMES = {FREE: "free", SLIP_POSITIVE: "slip+", SLIP_NEGATIVE: "slip-"}
+STICK = 2  # in contact, rolling without slip: v_r = 0 held by friction within mu F_N
+STICK_HYSTERESIS = 1e-9  # relative margin inside the friction cone needed to enter stick
+REGIME_NAMES = {FREE: "free", SLIP_POSITIVE: "slip+", SLIP_NEGATIVE: "slip-", STICK: "stick"}
 
 
 @dataclass(frozen=True)
@@ -172,6 +174,38 @@ def contact_eigenvalues(x0: float, y0: float, params: ModelParams, mu_c: float) 
     return np.linalg.eigvals(A)
 
 
+def stick_friction(tau, x, y, vx, vy, params: ModelParams):
+    """Tangential force T = mu_eq K (z - 1) that holds v_r constant (notes section 4).
+
+    From the polar equations with (r theta')' = 0:
+    ``T = E sin(eta tau + phi0 - theta) - r' theta' - 2 nu r theta'``. Positive T acts
+    like friction opposing positive slip. Rolling holds while ``|T| <= mu K (z - 1)``.
+    Works on scalars and arrays.
+    """
+    r = np.hypot(x, y)
+    phase = params.eta * np.asarray(tau, dtype=float) + params.phi0
+    sin_rel = (np.sin(phase) * x - np.cos(phase) * y) / r  # sin(phase - theta)
+    r_dot = (x * vx + y * vy) / r
+    r_theta_dot = (x * vy - y * vx) / r
+    theta_dot = r_theta_dot / r
+    return params.E * sin_rel - r_dot * theta_dot - 2.0 * params.nu * r_theta_dot
+
+
+def tangential_force(tau, x, y, vx, vy, params: ModelParams, regime):
+    """Signed tangential contact force in each regime (positive opposes positive slip).
+
+    ``mu_c K (z - 1)`` when slipping, the rolling force ``stick_friction`` in stick,
+    0 in free flight. ``regime`` may be an array of regime codes.
+    """
+    regime = np.asarray(regime)
+    z = np.hypot(x, y)
+    slip = np.where(regime == SLIP_POSITIVE, 1.0, np.where(regime == SLIP_NEGATIVE, -1.0, 0.0))
+    out = slip * params.mu * params.K * (z - 1.0)
+    if np.any(regime == STICK):
+        out = np.where(regime == STICK, stick_friction(tau, x, y, vx, vy, params), out)
+    return out if np.ndim(out) else float(out)
+
+
 # ------------------------------------------------------------------ right-hand side
 
 
@@ -181,12 +215,21 @@ def rhs(tau: float, s, params: ModelParams, regime: int) -> np.ndarray:
     In a contact regime the contact law is applied whatever z is (its smooth extension),
     so a solver that stops at the events z = 1 and v_r = 0 never steps across a kink.
     """
+    if regime == STICK:
+        s = project_to_rolling(s, params)
     x, y, vx, vy = s[0], s[1], s[2], s[3]
     phase = params.eta * tau + params.phi0
     E = params.E
     ax = E * math.cos(phase) - 2.0 * params.nu * vx - x
     ay = E * math.sin(phase) - 2.0 * params.nu * vy - y
-    if regime != FREE:
+    if regime == STICK:
+        # normal force K (z - 1) along -r_hat, rolling friction T along -theta_hat
+        z = math.hypot(x, y)
+        normal = params.K * (z - 1.0) / z
+        tangential = float(stick_friction(tau, x, y, vx, vy, params)) / z
+        ax -= normal * x - tangential * y
+        ay -= normal * y + tangential * x
+    elif regime != FREE:
         mu_c = params.mu * friction_sign(regime)
         factor = params.K * (1.0 - 1.0 / math.hypot(x, y))
         ax -= factor * (x - mu_c * y)
@@ -200,21 +243,77 @@ def rhs_jacobian(tau: float, s, params: ModelParams, regime: int) -> np.ndarray:
     jac[0, 2] = jac[1, 3] = 1.0
     jac[2, 0] = jac[3, 1] = -1.0
     jac[2, 2] = jac[3, 3] = -2.0 * params.nu
-    if regime != FREE:
+    if regime == STICK:
+        # No closed form kept for the rolling law: central differences of rhs.
+        for j in range(4):
+            step = 1e-7 * max(1.0, abs(float(s[j])))
+            sp, sm = np.array(s, dtype=float), np.array(s, dtype=float)
+            sp[j] += step
+            sm[j] -= step
+            jac[:, j] = (rhs(tau, sp, params, STICK) - rhs(tau, sm, params, STICK)) / (2 * step)
+    elif regime != FREE:
         mu_c = params.mu * friction_sign(regime)
         jac[2:, :2] -= params.K * force_jacobian(float(s[0]), float(s[1]), mu_c)
     return jac
 
 
-def regime_of_state(s, params: ModelParams) -> int:
-    """The regime a state is in by position and slip direction (z > 1 means contact)."""
+def regime_of_state(s, params: ModelParams, tau: float | None = None) -> int:
+    """The regime a state is in by position and slip (z > 1 means contact; v_r = 0 may stick)."""
     x, y, vx, vy = s[0], s[1], s[2], s[3]
     if math.hypot(x, y) <= 1.0:
         return FREE
     if params.mu == 0.0:
         return SLIP_POSITIVE
     v_r = slip_velocity(x, y, vx, vy, params.Rp, params.eta)
+    if abs(v_r) <= 1e-12 * (1.0 + abs(params.Rp * params.eta)):
+        return regime_at_zero_slip(0.0 if tau is None else tau, s, params)
     return SLIP_POSITIVE if v_r >= 0.0 else SLIP_NEGATIVE
+
+
+def regime_at_zero_slip(tau: float, s, params: ModelParams) -> int:
+    """Regime of a contact state with v_r = 0 (notes section 4).
+
+    Stick (rolling) if the friction needed to hold v_r = 0 is within mu F_N; otherwise
+    slip in the direction that the needed friction points.
+    """
+    needed = float(stick_friction(tau, s[0], s[1], s[2], s[3], params))
+    limit = params.mu * params.K * (math.hypot(s[0], s[1]) - 1.0)
+    if abs(needed) > limit * (1.0 - STICK_HYSTERESIS):
+        # on the cone's edge (within round-off) slip wins, so stick is not entered
+        # only to be left at the same instant
+        return SLIP_POSITIVE if needed > 0.0 else SLIP_NEGATIVE
+    if needed > limit:
+        return SLIP_POSITIVE
+    if needed < -limit:
+        return SLIP_NEGATIVE
+    return STICK
+
+
+def project_to_rolling(s, params: ModelParams) -> np.ndarray:
+    """The state with its tangential velocity set so that v_r = 0 exactly (r theta' = -Rp eta).
+
+    In stick the tangential velocity is fixed by the rolling constraint, not a free
+    state: the stick law is evaluated on the projected state, stick samples are reported
+    projected, and the state is projected at stick entry and exit, so integration drift
+    in v_r is neither fed back nor read as a new slip reversal. Shape (4,) or (4, n).
+    """
+    s = np.asarray(s, dtype=float)
+    x, y, vx, vy = s
+    r = np.hypot(x, y)
+    radial = (x * vx + y * vy) / r
+    tangential = -params.Rp * params.eta
+    return np.array([x, y, (radial * x - tangential * y) / r, (radial * y + tangential * x) / r])
+
+
+def rolling_whirl_radius(params: ModelParams) -> float:
+    """Radius of the exact rolling backward whirl without unbalance (e = 0; notes 4).
+
+    w = r exp(-i (Rp eta / r) tau) rolls without slip when
+    (1 + K) r^2 - K r - (Rp eta)^2 = 0; it needs the friction T = 2 nu Rp eta, so it
+    sticks while 2 nu Rp eta <= mu K (r - 1).
+    """
+    K, spin = params.K, params.Rp * params.eta
+    return (K + math.sqrt(K * K + 4.0 * (1.0 + K) * spin * spin)) / (2.0 * (1.0 + K))
 
 
 # ------------------------------------------------------------------ exact solutions

@@ -21,8 +21,9 @@ error is O(h^4) in position and O(h^3) in velocity, and the global error is O(h^
 The error grows with K (the curvature of the force scales with K): on stiff stators the
 step must shrink like 1/sqrt(K) for a fixed accuracy (docs/solvers.md).
 
-Limits: set-valued friction (stick/roll) is not modelled; a slip reversal that is
-immediately undone ends the run with status ``failed`` and says so.
+Stick (rolling, notes section 4) has no closed form in the paper: when v_r reaches 0
+and the needed friction is within mu F_N, the rolling law is integrated by RK4 steps
+(``StickStep``) until it leaves the friction cone or contact ends.
 """
 
 from __future__ import annotations
@@ -38,16 +39,12 @@ from rubcli.problem import Problem
 from rubcli.solution import FAILED, SUCCESS, Solution, SwitchEvent
 from rubcli.solvers import register
 from rubcli.solvers.events import (
-    GRAZING_TOLERANCE,
+    STICK_ENTRY,
     StormGuard,
-    entry_regime,
-    first_crossing,
-    reversal_undone,
+    earliest_event,
+    initial_kind,
+    next_regime,
     scan_spacing,
-    slip_rate,
-    slip_value,
-    surface_rate,
-    surface_value,
 )
 
 FREE_SCAN_FRACTION = 1.0 / 32.0  # scan spacing in free flight, fraction of fastest period
@@ -128,59 +125,44 @@ class LinearisedContact:
         return out
 
 
-def _scan(prop, ta: float, tb: float, spacing: float, regime: int, params, starts):
-    """Earliest event of ``regime`` on ``prop`` in (ta, tb]: (tau, kind, new_regime) or None.
+class StickStep:
+    """One classical RK4 step of the rolling law with cubic Hermite dense output.
 
-    ``starts`` = (start_on_surface, start_on_slip) for the first interval.
+    The paper has no stick regime; rolling phases (notes section 4) are integrated
+    with RK4 on ``model.rhs(..., STICK)`` at the method's step (local error O(h^5)).
     """
-    n = max(1, int(math.ceil((tb - ta) / spacing)))
-    grid = np.linspace(ta, tb, n + 1)
-    S = prop.states(grid)
-    on_surface, on_slip = starts
 
-    def g(t):
-        return float(surface_value(prop.states(t)))
+    def __init__(self, tau0: float, s0: np.ndarray, h: float, params: model.ModelParams):
+        self.tau0, self.h, self.params = tau0, h, params
+        f = self._f
+        s0 = np.asarray(s0, dtype=float)
+        k1 = f(tau0, s0)
+        k2 = f(tau0 + h / 2, s0 + h / 2 * k1)
+        k3 = f(tau0 + h / 2, s0 + h / 2 * k2)
+        k4 = f(tau0 + h, s0 + h * k3)
+        self.s0, self.s1 = s0, s0 + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        self.f0, self.f1 = k1, f(tau0 + h, self.s1)
+        self.omega_max = max(params.eta, 1.0, math.sqrt(1.0 + params.K))
 
-    def dg(t):
-        return float(surface_rate(prop.states(t)))
+    def _f(self, t, s):
+        return model.rhs(t, s, self.params, model.STICK)
 
-    found = []
-    if regime == model.FREE:
-        tau = first_crossing(
-            g, grid, surface_value(S), surface_rate(S), dg, on_surface, GRAZING_TOLERANCE
+    def states(self, t):
+        u = (np.asarray(t, dtype=float) - self.tau0) / self.h
+        h00, h10 = 2 * u**3 - 3 * u**2 + 1, u**3 - 2 * u**2 + u
+        h01, h11 = -2 * u**3 + 3 * u**2, u**3 - u**2
+        if np.ndim(u) == 0:
+            return h00 * self.s0 + h10 * self.h * self.f0 + h01 * self.s1 + h11 * self.h * self.f1
+        return (
+            np.outer(self.s0, h00)
+            + np.outer(self.h * self.f0, h10)
+            + np.outer(self.s1, h01)
+            + np.outer(self.h * self.f1, h11)
         )
-        if tau is not None:
-            found.append((tau, "contact_entry", None))
-        return found[0] if found else None
 
-    tau = first_crossing(
-        lambda t: -g(t),
-        grid,
-        -surface_value(S),
-        -surface_rate(S),
-        lambda t: -dg(t),
-        on_surface,
-        0.0,
-    )
-    if tau is not None:
-        found.append((tau, "contact_exit", model.FREE))
-    if params.mu > 0.0:
-        sign = float(regime)
-        dS = prop.derivatives(grid, S)
-
-        def hv(t):
-            return -sign * float(slip_value(prop.states(t), params))
-
-        def dhv(t):
-            s = prop.states(t)
-            return -sign * float(slip_rate(s[:, None], prop.derivatives(t, s)[:, None])[0])
-
-        tau = first_crossing(
-            hv, grid, -sign * slip_value(S, params), -sign * slip_rate(S, dS), dhv, on_slip
-        )
-        if tau is not None:
-            found.append((tau, "slip_reversal", -regime))
-    return min(found, key=lambda item: item[0]) if found else None
+    def derivatives(self, t, S):
+        t = np.broadcast_to(np.asarray(t, dtype=float), (S.shape[1],))
+        return np.array([self._f(t[j], S[:, j]) for j in range(S.shape[1])]).T
 
 
 @register("analytic")
@@ -206,9 +188,15 @@ def solve_analytic(
     out_states[0], out_regimes[0] = state, regime
     k = 1
     events: list[SwitchEvent] = []
-    stats = {"nsteps": 0, "n_free_segments": 0, "n_contact_steps": 0, "n_expm_fallbacks": 0}
+    stats = {
+        "nsteps": 0,
+        "n_free_segments": 0,
+        "n_contact_steps": 0,
+        "n_stick_steps": 0,
+        "n_expm_fallbacks": 0,
+    }
     status, message = SUCCESS, "reached the end of the time span"
-    starts = (False, False)
+    last_kind = initial_kind(state, regime, params)
     storms = StormGuard()
     next_progress = tau
 
@@ -216,76 +204,76 @@ def solve_analytic(
         nonlocal k
         j = int(np.searchsorted(t_eval, t_stop, side="right"))
         if j > k:
-            out_states[k:j] = prop.states(t_eval[k:j]).T
+            samples = prop.states(t_eval[k:j])
+            if reg == model.STICK:
+                samples = model.project_to_rolling(samples, params)
+            out_states[k:j] = samples.T
             out_regimes[k:j] = reg
             k = j
 
+    def search(prop, ta, tb, fraction):
+        spacing = scan_spacing(prop.omega_max, fraction)
+        grid = np.linspace(ta, tb, max(1, math.ceil((tb - ta) / spacing)) + 1)
+        return earliest_event(prop.states, prop.derivatives, grid, regime, params, last_kind)
+
     while tau < t_end:
         if regime == model.FREE:
+            # No steps in free flight: scan the closed form chunk by chunk for the entry.
             prop = FreeFlight(tau, state, params)
             stats["n_free_segments"] += 1
-            spacing = scan_spacing(prop.omega_max, FREE_SCAN_FRACTION)
-            event, ta = None, tau
-            while ta < t_end and event is None:
-                tb = min(t_end, ta + FREE_SCAN_CHUNK * spacing)
-                event = _scan(prop, ta, tb, spacing, regime, params, starts)
-                starts = (False, False)
+            chunk = FREE_SCAN_CHUNK * scan_spacing(prop.omega_max, FREE_SCAN_FRACTION)
+            event, tb = None, tau
+            while tb < t_end and event is None:
+                ta, tb = tb, min(t_end, tb + chunk)
+                event = search(prop, ta, tb, FREE_SCAN_FRACTION)
+                last_kind = None
                 fill(prop, event[0] if event else tb, regime)
-                ta = tb
                 if time.perf_counter() - start_clock > max_wall_time_s:
                     break
         else:
-            mu_c = params.mu * model.friction_sign(regime)
-            try:
-                prop = LinearisedContact(tau, state, params, mu_c)
-            except np.linalg.LinAlgError as exc:
-                status, message = (
-                    FAILED,
-                    f"linearised contact system singular at tau = {tau:.6g}: {exc}",
-                )
-                break
-            stats["n_contact_steps"] += 1
-            stats["n_expm_fallbacks"] += int(prop.use_expm)
             tb = min(t_end, tau + h)
-            spacing = scan_spacing(prop.omega_max, CONTACT_SCAN_FRACTION)
-            event = _scan(prop, tau, tb, spacing, regime, params, starts)
-            starts = (False, False)
+            if regime == model.STICK:
+                prop = StickStep(tau, state, tb - tau, params)
+                stats["n_stick_steps"] += 1
+            else:
+                try:
+                    mu_c = params.mu * model.friction_sign(regime)
+                    prop = LinearisedContact(tau, state, params, mu_c)
+                except np.linalg.LinAlgError as exc:
+                    status = FAILED
+                    message = f"linearised contact system singular at tau = {tau:.6g}: {exc}"
+                    break
+                stats["n_contact_steps"] += 1
+                stats["n_expm_fallbacks"] += int(prop.use_expm)
+            event = search(prop, tau, tb, CONTACT_SCAN_FRACTION)
+            last_kind = None
             fill(prop, event[0] if event else tb, regime)
         stats["nsteps"] += 1
 
         if event is None:
-            new_tau = tb if regime != model.FREE else ta
-            state = prop.states(new_tau)
+            tau = tb
+            state = prop.states(tau)
         else:
-            new_tau, kind, new_regime = event
-            state = prop.states(new_tau)
-            if new_regime is None:
-                new_regime = entry_regime(state, params)
-            if kind == "slip_reversal" and reversal_undone(state, new_tau, new_regime, params):
-                status = FAILED
-                message = (
-                    f"slip reversal at tau = {new_tau:.6g} is immediately undone: the rotor "
-                    f"sticks (rolls) on the stator, which this method does not model"
-                )
-                tau = new_tau
+            tau, kind = event
+            state = prop.states(tau)
+            new_regime = next_regime(kind, tau, state, regime, params)
+            if new_regime == model.STICK:
+                kind = STICK_ENTRY
+            if model.STICK in (regime, new_regime) and model.FREE not in (regime, new_regime):
+                state = model.project_to_rolling(state, params)
+            events.append(SwitchEvent(tau, kind, tuple(state), regime, new_regime))
+            regime, last_kind = new_regime, kind
+            if storms.storm(tau):
+                status, message = FAILED, f"switch storm at tau = {tau:.6g}"
                 break
-            events.append(SwitchEvent(new_tau, kind, tuple(state), regime, new_regime))
-            starts = (kind in ("contact_entry", "contact_exit"), kind == "slip_reversal")
-            regime = new_regime
         if not np.all(np.isfinite(state)):
-            status, message = FAILED, f"non-finite state at tau = {new_tau:.6g}"
+            status, message = FAILED, f"non-finite state at tau = {tau:.6g}"
             break
-        if event is not None and storms.storm(new_tau):
-            status, message = FAILED, f"switch storm at tau = {new_tau:.6g}"
+        if tau < t_end and stats["nsteps"] >= max_steps:
+            status = FAILED
+            message = f"step budget exhausted (max_steps = {max_steps}) at tau = {tau:.6g}"
             break
-        tau = new_tau
-        if stats["nsteps"] >= max_steps and tau < t_end:
-            status, message = (
-                FAILED,
-                f"step budget exhausted (max_steps = {max_steps}) at tau = {tau:.6g}",
-            )
-            break
-        if time.perf_counter() - start_clock > max_wall_time_s and tau < t_end:
+        if tau < t_end and time.perf_counter() - start_clock > max_wall_time_s:
             status = FAILED
             message = (
                 f"wall-time budget exhausted (max_wall_time_s = {max_wall_time_s:g}) "

@@ -63,6 +63,7 @@ def first_crossing(
     start_on_surface: bool,
     tolerance: float = 0.0,
     start_tolerance: float = 1e-12,
+    immediate: bool = True,
 ) -> float | None:
     """First time in (grid[0], grid[-1]] where h goes from < 0 to >= 0, or None.
 
@@ -73,39 +74,57 @@ def first_crossing(
     A sign change between grid points is located by Brent's method. An interior
     maximum of h between two negative values (a dip across the surface and back inside
     one interval) is found as the root of dh; it counts only if h there exceeds
-    ``tolerance`` (a grazing touch below it is ignored). With ``start_on_surface`` the
-    value at grid[0] is taken as 0 from below: if dh >= 0 there, the crossing is at
-    the start itself; otherwise a return to the surface inside the first interval
-    counts only if h comes back above ``start_tolerance`` (round-off right after the
-    restart is not a crossing).
+    ``tolerance`` (a grazing touch below it is ignored).
+
+    With ``start_on_surface`` the segment begins on this very surface (the event that
+    started it): if dh >= 0 there the crossing is at the start itself (a zero-duration
+    phase; ``immediate=False`` skips this for phases that begin with dh = 0 by
+    construction, such as leaving stick). Otherwise a new crossing must clear
+    ``start_tolerance``, so round-off around the restart point is not a crossing.
     """
     n = len(grid) - 1
+    hv = np.array(hv, dtype=float)
+    level = 0.0
     if start_on_surface:
-        if hd[0] >= 0.0:
+        if immediate and hd[0] >= 0.0:
             return float(grid[0])
-        hv = np.array(hv, dtype=float)
         hv[0] = -max(abs(hv[0]), np.finfo(float).tiny)  # strictly below: -0.0 >= 0.0
-        if 0.0 <= hv[1] <= start_tolerance:
-            hv[1] = -np.finfo(float).tiny
+        level = start_tolerance
     for i in range(n):
         a, b = float(grid[i]), float(grid[i + 1])
-        ha = hv[i]
-        if ha >= 0.0:
-            # Only possible at i == 0 without start_on_surface: already across.
-            return a
-        if hv[i + 1] >= 0.0:
-            if i == 0 and start_on_surface:
-                # h leaves the surface downwards, then comes back: find the minimum.
-                if hd[1] > 0.0 and dh(a) < 0.0:
-                    a = brentq(dh, a, b, xtol=XTOL, rtol=RTOL)
-                if h(a) >= 0.0:
-                    return a
-            return brentq(h, a, b, xtol=XTOL, rtol=RTOL)
+        if hv[i + 1] >= level:
+            if i == 0 and start_on_surface and hd[1] > 0.0:
+                # h left the surface downwards and came back: search past its minimum
+                a = _extremum(dh, a, b) or a
+            return _root(h, a, b)
         if hd[i] > 0.0 and hd[i + 1] < 0.0:
-            tm = brentq(dh, a, b, xtol=XTOL, rtol=RTOL)
-            if h(tm) > tolerance:
-                return brentq(h, a, tm, xtol=XTOL, rtol=RTOL)
+            tm = _extremum(dh, a, b)
+            if tm is not None and h(tm) > max(tolerance, level):
+                return _root(h, a, tm)
     return None
+
+
+def _root(h: Callable[[float], float], a: float, b: float) -> float:
+    """Root of h in [a, b] where h(b) >= 0; ``a`` itself if h(a) is not below zero there.
+
+    The grid values that chose [a, b] and the pointwise h can differ by round-off at a
+    restart point; then the crossing is at ``a``.
+    """
+    if h(a) >= 0.0:
+        return a
+    if h(b) < 0.0:
+        return b
+    return brentq(h, a, b, xtol=XTOL, rtol=RTOL)
+
+
+def _extremum(dh: Callable[[float], float], a: float, b: float) -> float | None:
+    """Root of dh in [a, b] if dh brackets one there (a noisy rate may not)."""
+    da, db = dh(a), dh(b)
+    if da == 0.0:
+        return a
+    if da * db > 0.0:
+        return None
+    return brentq(dh, a, b, xtol=XTOL, rtol=RTOL)
 
 
 def scan_spacing(omega_max: float, fraction: float = 1.0 / 16.0) -> float:
@@ -119,17 +138,6 @@ def entry_regime(s: np.ndarray, params: model.ModelParams) -> int:
         return model.SLIP_POSITIVE
     v_r = model.slip_velocity(s[0], s[1], s[2], s[3], params.Rp, params.eta)
     return model.SLIP_POSITIVE if v_r >= 0.0 else model.SLIP_NEGATIVE
-
-
-def reversal_undone(state: np.ndarray, tau: float, new_regime: int, params) -> bool:
-    """True when, slipping in the new direction, v_r would go straight back through zero.
-
-    That is the signature of stick (rolling, notes section 4): neither slip direction is
-    consistent, and a plain sign() would chatter.
-    """
-    d = model.rhs(tau, state, params, new_regime)
-    rate = float(slip_rate(np.asarray(state)[:, None], d[:, None])[0])
-    return float(new_regime) * rate < 0.0
 
 
 class StormGuard:
@@ -147,3 +155,125 @@ class StormGuard:
         else:
             self.tau, self.count = tau, 1
         return self.count > self.LIMIT
+
+
+# Event kinds, and which restart flag each sets for the next segment.
+ENTRY, EXIT, REVERSAL, STICK_ENTRY, STICK_EXIT = (
+    "contact_entry",
+    "contact_exit",
+    "slip_reversal",
+    "stick_entry",
+    "stick_exit",
+)
+SURFACE_KINDS = (ENTRY, EXIT)
+SLIP_KINDS = (REVERSAL, STICK_EXIT)  # the next segment starts at v_r = 0
+
+
+def earliest_event(states, derivatives, grid, regime, params, last_kind, tolerance_scale=1.0):
+    """Earliest event of ``regime`` in (grid[0], grid[-1]]: (tau, kind) or None.
+
+    ``states(t)`` gives the segment's state at a scalar or array time (shape (4,) or
+    (4, n)); ``derivatives(t, S)`` its time derivative. ``last_kind`` is the event that
+    started the segment (None otherwise): the segment then starts on that event's
+    surface. Events by regime: free -> contact entry; slip -> contact exit, slip
+    reversal (v_r = 0, if mu > 0); stick -> contact exit, stick exit (|T| = mu F_N).
+    """
+    S = states(grid)
+    on_surface = last_kind in SURFACE_KINDS
+    on_slip = last_kind in SLIP_KINDS
+
+    def surface(sign):
+        def h(t):
+            return sign * float(surface_value(states(t)))
+
+        def dh(t):
+            return sign * float(surface_rate(states(t)))
+
+        return h, sign * surface_value(S), sign * surface_rate(S), dh
+
+    found = []
+    if regime == model.FREE:
+        h, hv, hd, dh = surface(+1.0)
+        tau = first_crossing(h, grid, hv, hd, dh, on_surface, GRAZING_TOLERANCE)
+        return None if tau is None else (tau, ENTRY)
+
+    h, hv, hd, dh = surface(-1.0)
+    tau = first_crossing(h, grid, hv, hd, dh, on_surface, 0.0)
+    if tau is not None:
+        found.append((tau, EXIT))
+    if params.mu > 0.0 and regime in (model.SLIP_POSITIVE, model.SLIP_NEGATIVE):
+        sign = float(regime)
+        dS = derivatives(grid, S)
+
+        def hv_fn(t):
+            return -sign * float(slip_value(states(t), params))
+
+        def dhv_fn(t):
+            s = states(t)
+            return -sign * float(slip_rate(s[:, None], derivatives(t, s[:, None]))[0])
+
+        scale = tolerance_scale * (1.0 + abs(params.Rp * params.eta))
+        tau = first_crossing(
+            hv_fn,
+            grid,
+            -sign * slip_value(S, params),
+            -sign * slip_rate(S, dS),
+            dhv_fn,
+            on_slip,
+            0.0,
+            1e-12 * scale,
+            immediate=last_kind != STICK_EXIT,
+        )
+        if tau is not None:
+            found.append((tau, REVERSAL))
+    if regime == model.STICK:
+        for sign in (+1.0, -1.0):
+            # h = sign * T - mu K (z - 1): crosses 0 upwards when the needed friction
+            # leaves the friction cone on that side.
+            def hs(t, sign=sign):
+                s = states(t)
+                return _stick_margin(t, s, params, sign)
+
+            def dhs(t, sign=sign):
+                d = 1e-6 * max(1.0, grid[-1] - grid[0])
+                return (hs(t + d) - hs(t - d)) / (2 * d)
+
+            values = _stick_margin(grid, S, params, sign)
+            d = 1e-6 * max(1.0, grid[-1] - grid[0])
+            rates = (
+                _stick_margin(grid + d, states(grid + d), params, sign)
+                - _stick_margin(grid - d, states(grid - d), params, sign)
+            ) / (2 * d)
+            tau = first_crossing(hs, grid, values, rates, dhs, False, 0.0)
+            if tau is not None:
+                found.append((tau, STICK_EXIT))
+    return min(found, key=lambda item: item[0]) if found else None
+
+
+def _stick_margin(t, S, params, sign):
+    T = model.stick_friction(t, S[0], S[1], S[2], S[3], params)
+    return sign * T - params.mu * params.K * (np.hypot(S[0], S[1]) - 1.0)
+
+
+def next_regime(kind: str, tau: float, s: np.ndarray, regime: int, params) -> int:
+    """The regime after an event of ``kind`` at state ``s``."""
+    if kind == EXIT:
+        return model.FREE
+    if kind == ENTRY:
+        return entry_regime(s, params)
+    if kind == STICK_EXIT:
+        needed = float(model.stick_friction(tau, s[0], s[1], s[2], s[3], params))
+        return model.SLIP_POSITIVE if needed > 0.0 else model.SLIP_NEGATIVE
+    # slip reversal
+    return model.regime_at_zero_slip(tau, s, params)
+
+
+def initial_kind(s, regime: int, params) -> str | None:
+    """The event surface an initial state lies on, if any (so it is not re-detected)."""
+    if abs(math.hypot(s[0], s[1]) - 1.0) <= 1e-14:
+        return ENTRY if regime != model.FREE else EXIT
+    if regime in (model.SLIP_POSITIVE, model.SLIP_NEGATIVE) and params.mu > 0.0:
+        v_r = model.slip_velocity(s[0], s[1], s[2], s[3], params.Rp, params.eta)
+        if abs(v_r) <= 1e-12 * (1.0 + abs(params.Rp * params.eta)):
+            return STICK_EXIT
+    return None

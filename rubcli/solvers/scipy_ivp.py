@@ -12,11 +12,15 @@ The step loop is driven here (not by ``solve_ivp``) so that the run budget
 reported. Samples are taken from each step's dense output (order 4 for rk45, 7 for
 dop853, the collocation polynomial for radau, the BDF/LSODA interpolants).
 
-Limits: an event is missed if its function changes sign twice within one accepted step
-(a grazing dip shorter than a step); the scan inside each step (``SCAN_POINTS``) catches
-a dip that is resolved by the dense output. Set-valued friction (stick, ``v_r = 0``
-held) is not modelled: a slip reversal that is immediately undone ends the run with a
-clear message instead of chattering.
+Stick (rolling, model notes 4) is a regime of its own: when v_r reaches 0 and the
+friction needed to hold it there is within mu F_N, the segment continues with the
+rolling law (``model.rhs`` with ``model.STICK``) until the needed friction leaves the
+friction cone (slip restarts in the direction it points) or contact ends. Implicit
+methods get a finite-difference Jacobian in stick.
+
+Limits: an event is missed if its function changes sign twice within one scan
+interval of an accepted step (``SCAN_POINTS`` per step; a dip resolved by the dense
+output is caught).
 """
 
 from __future__ import annotations
@@ -32,15 +36,11 @@ from rubcli.problem import Problem
 from rubcli.solution import FAILED, SUCCESS, Solution, SwitchEvent
 from rubcli.solvers import register
 from rubcli.solvers.events import (
-    GRAZING_TOLERANCE,
+    STICK_ENTRY,
     StormGuard,
-    entry_regime,
-    first_crossing,
-    reversal_undone,
-    slip_rate,
-    slip_value,
-    surface_rate,
-    surface_value,
+    earliest_event,
+    initial_kind,
+    next_regime,
 )
 
 SCIPY_CLASSES = {
@@ -68,71 +68,14 @@ class _Budget:
         return None
 
 
-def _locate_event(dense, t_old, t_new, params, regime, deriv, start_on_surface, start_on_slip):
-    """Earliest event of ``regime`` in (t_old, t_new] on the dense output, or None.
+def _column_derivatives(fun):
+    """derivatives(t, S) for states S of shape (4, n) from a rhs of one state."""
 
-    Returns (tau, kind, new_regime).
-    """
-    grid = np.linspace(t_old, t_new, SCAN_POINTS + 1)
-    S = dense(grid)
-    dS = np.array([deriv(t, S[:, k]) for k, t in enumerate(grid)]).T
-    found = []
-    if regime == model.FREE:
-        # entry: g = z^2 - 1 from < 0 to >= 0
-        def h(t):
-            return float(surface_value(dense(t)))
+    def derivatives(t, S):
+        t = np.broadcast_to(np.asarray(t, dtype=float), (S.shape[1],))
+        return np.array([fun(t[k], S[:, k]) for k in range(S.shape[1])]).T
 
-        def dh(t):
-            return float(surface_rate(dense(t)))
-
-        tau = first_crossing(
-            h,
-            grid,
-            surface_value(S),
-            surface_rate(S),
-            dh,
-            start_on_surface,
-            GRAZING_TOLERANCE,
-        )
-        if tau is not None:
-            found.append((tau, "contact_entry", None))
-    else:
-        # exit: -g from < 0 to >= 0
-        def h(t):
-            return -float(surface_value(dense(t)))
-
-        def dh(t):
-            return -float(surface_rate(dense(t)))
-
-        tau = first_crossing(
-            h, grid, -surface_value(S), -surface_rate(S), dh, start_on_surface, 0.0
-        )
-        if tau is not None:
-            found.append((tau, "contact_exit", model.FREE))
-        if params.mu > 0.0:
-            sign = float(regime)
-
-            def hv(t):
-                return -sign * float(slip_value(dense(t), params))
-
-            def dhv(t):
-                s = dense(t)
-                return -sign * float(slip_rate(s[:, None], deriv(t, s)[:, None])[0])
-
-            tau = first_crossing(
-                hv,
-                grid,
-                -sign * slip_value(S, params),
-                -sign * slip_rate(S, dS),
-                dhv,
-                start_on_slip,
-                0.0,
-            )
-            if tau is not None:
-                found.append((tau, "slip_reversal", -regime))
-    if not found:
-        return None
-    return min(found, key=lambda item: item[0])
+    return derivatives
 
 
 def solve_scipy(
@@ -161,16 +104,17 @@ def solve_scipy(
     events: list[SwitchEvent] = []
     stats = {"nsteps": 0, "nfev": 0, "njev": 0, "nlu": 0, "n_segments": 0}
     status, message = SUCCESS, "reached the end of the time span"
-    start_on_surface = start_on_slip = False
+    last_kind = initial_kind(state, regime, params)
     storms = StormGuard()
     next_progress = tau
 
     while tau < t_end:
         fun = partial(_rhs_fun, params=params, regime=regime)
         options = {"rtol": rtol, "atol": atol}
-        if name in IMPLICIT:
+        if name in IMPLICIT and regime != model.STICK:
             options["jac"] = partial(_jac_fun, params=params, regime=regime)
         solver = cls(fun, tau, state, t_end, **options)
+        derivatives = _column_derivatives(fun)
         stats["n_segments"] += 1
         event = None
         while True:
@@ -182,54 +126,44 @@ def solve_scipy(
             if not np.all(np.isfinite(solver.y)):
                 status, message = FAILED, f"non-finite state at tau = {solver.t:.6g}"
                 break
-            t_old, t_new = solver.t_old, solver.t
             dense = solver.dense_output()
-            event = _locate_event(
-                dense, t_old, t_new, params, regime, fun, start_on_surface, start_on_slip
-            )
-            start_on_surface = start_on_slip = False
-            t_stop = event[0] if event else t_new
+            grid = np.linspace(solver.t_old, solver.t, SCAN_POINTS + 1)
+            event = earliest_event(dense, derivatives, grid, regime, params, last_kind)
+            last_kind = None
+            t_stop = event[0] if event else solver.t
             while k < t_eval.size and t_eval[k] <= t_stop:
-                out_states[k], out_regimes[k] = dense(t_eval[k]), regime
+                sample = dense(t_eval[k])
+                if regime == model.STICK:
+                    sample = model.project_to_rolling(sample, params)
+                out_states[k], out_regimes[k] = sample, regime
                 k += 1
-            if event is not None:
-                break
-            if solver.status == "finished":
+            if event is not None or solver.status == "finished":
                 break
             reason = budget.exceeded(stats["nsteps"])
             if reason:
-                status, message = FAILED, f"{reason} at tau = {t_new:.6g}"
+                status, message = FAILED, f"{reason} at tau = {solver.t:.6g}"
                 break
-            if progress is not None and t_new >= next_progress:
-                progress(t_new)
-                next_progress = t_new + 0.01 * (t_end - t_eval[0])
+            if progress is not None and solver.t >= next_progress:
+                progress(solver.t)
+                next_progress = solver.t + 0.01 * (t_end - t_eval[0])
         stats["nfev"] += int(solver.nfev)
         stats["njev"] += int(getattr(solver, "njev", 0) or 0)
         stats["nlu"] += int(getattr(solver, "nlu", 0) or 0)
-        if status == FAILED:
+        if status == FAILED or event is None:
             break
-        if event is None:
-            tau = t_end
-            break
-        t_ev, kind, new_regime = event
+        t_ev, kind = event
         state = np.asarray(dense(t_ev), dtype=float)
-        if new_regime is None:
-            new_regime = entry_regime(state, params)
+        new_regime = next_regime(kind, t_ev, state, regime, params)
+        if new_regime == model.STICK:
+            kind = STICK_ENTRY
+        if model.STICK in (regime, new_regime) and model.FREE not in (regime, new_regime):
+            state = model.project_to_rolling(state, params)
         events.append(SwitchEvent(t_ev, kind, tuple(state), regime, new_regime))
         if storms.storm(t_ev):
             status = FAILED
             message = f"switch storm at tau = {t_ev:.6g}: {storms.count} events at one instant"
             break
-        if kind == "slip_reversal" and reversal_undone(state, t_ev, new_regime, params):
-            status = FAILED
-            message = (
-                f"slip reversal at tau = {t_ev:.6g} is immediately undone: the rotor sticks "
-                f"(rolls) on the stator, which this method does not model"
-            )
-            break
-        start_on_surface = kind in ("contact_entry", "contact_exit")
-        start_on_slip = kind == "slip_reversal"
-        tau, regime = t_ev, new_regime
+        tau, regime, last_kind = t_ev, new_regime, kind
 
     if status == SUCCESS and progress is not None:
         progress(t_end)
