@@ -90,10 +90,11 @@ class Solution:
 
     @property
     def friction_force(self) -> np.ndarray:
-        """Signed tangential force mu_c K (z - 1); positive opposes positive slip."""
-        p = self.problem.params
-        signs = np.array([model.friction_sign(int(r)) for r in self.regimes], dtype=float)
-        return p.mu * signs * self.normal_force
+        """Signed tangential force (positive opposes positive slip): mu_c K (z - 1) when
+        slipping, the rolling friction in stick, 0 in free flight (model.tangential_force)."""
+        return model.tangential_force(
+            self.t, self.x, self.y, self.vx, self.vy, self.problem.params, self.regimes
+        )
 
     @property
     def n_contact_switches(self) -> int:

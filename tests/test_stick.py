@@ -111,3 +111,11 @@ def test_stick_slip_cycle_agrees_across_methods():
         stick = sol.regimes == model.STICK
         assert stick.any() and (~stick).any()
         assert np.max(np.abs(sol.slip_velocity[stick])) < 1e-8
+
+
+def test_solution_reports_rolling_friction_in_stick():
+    p = ModelParams(nu=0.01, eta=1.0, e=0.0, K=100.0, mu=0.3, Rp=2.0)
+    _, s0 = rolling_start(p)
+    sol = solve(Problem.from_periods(p, s0, 1, 5), "dop853", rtol=1e-10, atol=1e-12)
+    # the exact rolling whirl needs T = 2 nu Rp eta (module docstring)
+    np.testing.assert_allclose(sol.friction_force, 2 * p.nu * p.Rp * p.eta, rtol=1e-6)
