@@ -15,7 +15,7 @@ from rubcli.solution import FAILED, SUCCESS
 from rubcli.solvers import METHODS, solve
 
 SCIPY = ["rk45", "dop853", "radau", "bdf", "lsoda"]
-ALL = ["analytic", *SCIPY]
+ALL = ["analytic", "analytic-polar", *SCIPY]
 TIGHT = {"rtol": 1e-10, "atol": 1e-12, "steps_per_period": 1600}
 
 
@@ -35,7 +35,7 @@ def test_free_flight_matches_closed_form(method, nu):
     sol = solve(prob, method, rtol=1e-9, atol=1e-12)
     assert sol.status == SUCCESS and not sol.events
     err = np.abs(sol.states - exact)
-    if method == "analytic":
+    if method.startswith("analytic"):
         assert err.max() < 1e-13  # the closed form itself
     else:
         # global error over 5 periods, scaled by the tolerance times the orbit size
@@ -54,7 +54,7 @@ def test_stays_on_synchronous_full_annular_rub(method, mu, fig3_params):
     assert sol.status == SUCCESS
     assert not sol.events  # never leaves contact, never reverses slip
     assert np.all(sol.regimes == model.SLIP_POSITIVE)
-    bound = 2e-5 if method == "analytic" else 1e-6
+    bound = 2e-5 if method.startswith("analytic") else 1e-6
     assert np.max(np.abs(sol.states - exact)) < bound
 
 
@@ -106,7 +106,8 @@ SHORT_CONTACTS = ModelParams(nu=0.0, eta=1.0, e=0.0, K=17.6, mu=0.0, Rp=0.0)
 
 @pytest.mark.parametrize(
     ("method", "options"),
-    [("analytic", {"steps_per_period": 4})] + [(m, {"rtol": 1e-3, "atol": 1e-6}) for m in SCIPY],
+    [(m, {"steps_per_period": 4}) for m in ("analytic", "analytic-polar")]
+    + [(m, {"rtol": 1e-3, "atol": 1e-6}) for m in SCIPY],
 )
 def test_brief_contacts_inside_one_step_are_not_missed(method, options):
     """An unforced ellipse peaking at z = 1.001: each contact lasts ~0.1, far below a step.
@@ -118,7 +119,7 @@ def test_brief_contacts_inside_one_step_are_not_missed(method, options):
     sol = solve(prob, method, **options)
     assert sol.status == SUCCESS
     assert len(sol.events) == 12
-    if method == "analytic":
+    if method.startswith("analytic"):
         h = SHORT_CONTACTS.period / 4
         durations = np.diff([ev.tau for ev in sol.events])[::2]
         assert np.all(durations < h / 10)
@@ -128,7 +129,14 @@ def test_methods_agree_on_paper_case(fig3_params):
     p = fig3_params(0.02)
     prob = Problem.from_periods(p, (0.88544, -0.8039, 0.0, 0.0), 5, 20)
     ref = solve(prob, "dop853", rtol=1e-12, atol=1e-13)
-    expected = {"rk45": 1e-6, "radau": 1e-6, "bdf": 1e-4, "lsoda": 1e-5, "analytic": 1e-4}
+    expected = {
+        "rk45": 1e-6,
+        "radau": 1e-6,
+        "bdf": 1e-4,
+        "lsoda": 1e-5,
+        "analytic": 1e-4,
+        "analytic-polar": 1e-4,
+    }
     for method, bound in expected.items():
         sol = solve(prob, method, **{**TIGHT, "steps_per_period": 3200})
         assert sol.status == SUCCESS
@@ -161,3 +169,71 @@ def test_progress_reaches_the_end(fig3_params):
         solve(prob, method, progress=seen.append)
         assert seen and seen[-1] == pytest.approx(prob.t_span[1])
         assert seen == sorted(seen)
+
+
+@pytest.mark.parametrize("K", [17.6, 17.6e3, 1.75e6])
+def test_polar_error_does_not_grow_with_stiffness(K, fig3_params):
+    """On the exact synchronous rub the polar linearisation stays exact to round-off at a
+    fixed step whatever K; the paper's Cartesian one loses accuracy as K grows."""
+    p = fig3_params(0.01, K=K)
+    r = model.synchronous_rub_radii(p)[-1]
+    prob = Problem.from_periods(p, tuple(model.synchronous_rub(0.0, p, r)), 2, 10)
+    exact = model.synchronous_rub(prob.t_eval, p, r).T
+    polar = solve(prob, "analytic-polar", steps_per_period=100)
+    cartesian = solve(prob, "analytic", steps_per_period=100)
+    polar_error = np.max(np.abs(polar.states[:, :2] - exact[:, :2]))
+    cartesian_error = np.max(np.abs(cartesian.states[:, :2] - exact[:, :2]))
+    assert polar.status == SUCCESS and not polar.events
+    assert polar_error < 1e-9
+    assert cartesian_error > 1e3 * polar_error
+
+
+def test_polar_error_does_not_grow_with_stiffness_off_the_exact_orbit(fig3_params):
+    """Started off the orbit (a radial offset that excites the fast contact mode), against
+    a tight dop853 reference: at a fixed step the polar position error does not grow
+    with K, while the paper's Cartesian linearisation's does."""
+    polar, cartesian = {}, {}
+    for K in (17.6, 1.76e3, 17.6e3):
+        p = fig3_params(0.01, K=K)
+        r = model.synchronous_rub_radii(p)[-1]
+        s0 = model.synchronous_rub(0.0, p, r)
+        s0[:2] *= 1.0 + 0.5 * (r - 1.0)  # half the penetration again
+        prob = Problem.from_periods(p, tuple(s0), 0.5, 20)
+        ref = solve(prob, "dop853", rtol=1e-12, atol=1e-14)
+        polar[K] = np.max(np.abs(solve(prob, "analytic-polar", steps_per_period=800).w - ref.w))
+        cartesian[K] = np.max(np.abs(solve(prob, "analytic", steps_per_period=800).w - ref.w))
+    assert polar[1.76e3] <= 2 * polar[17.6] and polar[17.6e3] <= 2 * polar[17.6]
+    assert cartesian[17.6e3] > 3 * cartesian[17.6]
+
+
+@pytest.mark.parametrize("method", ["analytic", "analytic-polar"])
+def test_adaptive_steps_meet_tolerance_on_exact_rub(method, fig3_params):
+    p = fig3_params(0.02)
+    r = model.synchronous_rub_radii(p)[-1]
+    prob = Problem.from_periods(p, tuple(model.synchronous_rub(0.0, p, r)), 2, 10)
+    exact = model.synchronous_rub(prob.t_eval, p, r).T
+    errors = []
+    for tol in (1e-5, 1e-7):
+        sol = solve(prob, method, analytic_tol=tol)
+        assert sol.status == SUCCESS
+        # the tolerance bounds the local error per step; over n steps the global error
+        # is at most about n * tol
+        n = sol.stats["n_contact_steps"]
+        errors.append(np.max(np.abs(sol.states - exact)))
+        assert errors[-1] < n * tol
+    # (the polar linearisation is exact on this orbit, so both its errors are round-off)
+    assert errors[1] <= errors[0] + 1e-12
+
+
+@pytest.mark.parametrize("method", ["analytic", "analytic-polar"])
+def test_adaptive_steps_on_a_trajectory_with_switches(method, fig3_params):
+    p = fig3_params(0.03)
+    prob = Problem.from_periods(p, (0.88544, -0.8039, 0.0, 0.0), 2, 25)
+    ref = solve(prob, "dop853", rtol=1e-13, atol=1e-13)
+    loose = solve(prob, method, analytic_tol=1e-4)
+    tight = solve(prob, method, analytic_tol=1e-7)
+    assert loose.status == tight.status == SUCCESS
+    e_loose = np.max(np.abs(loose.w - ref.w))
+    e_tight = np.max(np.abs(tight.w - ref.w))
+    assert e_tight < e_loose / 20
+    assert tight.stats["n_contact_steps"] > loose.stats["n_contact_steps"]

@@ -125,6 +125,82 @@ class LinearisedContact:
         return out
 
 
+def _phi12(z: np.ndarray):
+    """phi1(z) = (e^z - 1)/z and phi2(z) = (e^z - 1 - z)/z^2, with series near z = 0."""
+    small = np.abs(z) < 1e-3
+    zs = np.where(small, 1.0, z)
+    ez = np.exp(z)
+    phi1 = np.where(small, 1 + z / 2 + z * z / 6 + z**3 / 24, (ez - 1) / zs)
+    phi2 = np.where(small, 0.5 + z / 6 + z * z / 24 + z**3 / 120, (ez - 1 - z) / (zs * zs))
+    return phi1, phi2
+
+
+class PolarLinearisedContact:
+    """Local linearisation of the polar contact equations about (tau0, s0), solved exactly.
+
+    With p = (r, theta, r', theta') the contact law is linear in r - 1 (model notes 1), so
+    the stiff term K (r - 1) is integrated exactly whatever K is; what is linearised
+    (r theta'^2, the forcing's dependence on theta, mu_c K (r - 1)/r, and the explicit
+    time dependence) does not scale with the stiffness in the radial equation. The
+    affine system p' = f0 + J (p - p0) + f_tau (t - tau0) has the solution
+    ``p - p0 = t phi1(J t) f0 + t^2 phi2(J t) f_tau``, evaluated through the
+    eigen-decomposition of J (J may be singular: theta is cyclic without unbalance),
+    or through the exponential of the augmented 6x6 matrix when the eigenbasis is
+    ill-conditioned. Global order 2, like the Cartesian linearisation.
+    """
+
+    def __init__(self, tau0: float, s0: np.ndarray, params: model.ModelParams, mu_c: float):
+        self.tau0, self.params, self.mu_c = tau0, params, mu_c
+        self.p0 = model.to_polar(np.asarray(s0, dtype=float))
+        self.f0 = model.polar_rhs(tau0, self.p0, params, mu_c)
+        self.J, self.f_tau = model.polar_jacobian(tau0, self.p0, params, mu_c)
+        lam, V = np.linalg.eig(self.J)
+        self.lam = lam
+        self.use_expm = np.linalg.cond(V) > EIGVEC_COND_LIMIT
+        if not self.use_expm:
+            self.V = V
+            self.c0 = np.linalg.solve(V, self.f0.astype(complex))
+            self.c1 = np.linalg.solve(V, self.f_tau.astype(complex))
+        self.omega_max = max(float(np.max(np.abs(lam.imag))), params.eta, 1.0)
+
+    def polar_states(self, t) -> np.ndarray:
+        dt = np.atleast_1d(np.asarray(t, dtype=float) - self.tau0)
+        if self.use_expm:
+            M = np.zeros((6, 6))
+            M[:4, :4], M[:4, 4], M[:4, 5], M[4, 5] = self.J, self.f_tau, self.f0, 1.0
+            e5 = np.zeros(6)
+            e5[5] = 1.0
+            y = np.array([(scipy.linalg.expm(M * d) @ e5)[:4] for d in dt]).T
+        else:
+            z = np.outer(self.lam, dt)
+            phi1, phi2 = _phi12(z)
+            y = np.real(self.V @ (dt * phi1 * self.c0[:, None] + dt * dt * phi2 * self.c1[:, None]))
+        out = self.p0[:, None] + y
+        return out[:, 0] if np.ndim(t) == 0 else out
+
+    def states(self, t):
+        return model.from_polar(self.polar_states(t))
+
+    def derivatives(self, t, S):
+        """Time derivative of the linearised solution, in Cartesian form."""
+        t = np.asarray(t, dtype=float)
+        P = self.polar_states(t)
+        if P.ndim == 1:
+            P, t = P[:, None], np.atleast_1d(t)
+        dP = (
+            self.f0[:, None]
+            + self.J @ (P - self.p0[:, None])
+            + self.f_tau[:, None] * (t - self.tau0)
+        )
+        r, theta, u, omega = P
+        u_dot, omega_dot = dP[2], dP[3]
+        c, sn = np.cos(theta), np.sin(theta)
+        ax = u_dot * c - 2 * u * omega * sn - r * omega_dot * sn - r * omega * omega * c
+        ay = u_dot * sn + 2 * u * omega * c + r * omega_dot * c - r * omega * omega * sn
+        out = np.array([u * c - r * omega * sn, u * sn + r * omega * c, ax, ay])
+        return out[:, 0] if np.ndim(S) == 1 else out
+
+
 class StickStep:
     """One classical RK4 step of the rolling law with cubic Hermite dense output.
 
@@ -165,19 +241,59 @@ class StickStep:
         return np.array([self._f(t[j], S[:, j]) for j in range(S.shape[1])]).T
 
 
-@register("analytic")
-def solve_analytic(
+CONTACT_PROPAGATORS = {"cartesian": LinearisedContact, "polar": PolarLinearisedContact}
+# Adaptive steps (step doubling): local error ~ h^3, so h scales with (tol/err)^(1/3).
+ADAPT_SAFETY, ADAPT_MIN_FACTOR, ADAPT_MAX_FACTOR = 0.9, 0.2, 4.0
+MAX_STEP_FRACTION = 1.0 / 8.0  # of the forcing period, in adaptive mode
+
+
+def _contact_step(linearisation: str, tau: float, state, h: float, params, regime: int):
+    """The propagator of one contact step of length h (raises LinAlgError if singular)."""
+    if regime == model.STICK:
+        return StickStep(tau, state, h, params)
+    mu_c = params.mu * model.friction_sign(regime)
+    return CONTACT_PROPAGATORS[linearisation](tau, state, params, mu_c)
+
+
+def _doubling_error(linearisation, tau, state, h, params, regime):
+    """Step-doubling estimate: (error, first half-step propagator, second half-step's).
+
+    One step of h is compared with two of h/2; the difference (max norm of the state,
+    relative to 1 + |state|) estimates the local error of the half steps (x 4/3).
+    """
+    full = _contact_step(linearisation, tau, state, h, params, regime)
+    first = _contact_step(linearisation, tau, state, h / 2, params, regime)
+    mid = first.states(tau + h / 2)
+    if regime == model.STICK:
+        mid = model.project_to_rolling(mid, params)
+    second = _contact_step(linearisation, tau + h / 2, mid, h / 2, params, regime)
+    diff = full.states(tau + h) - second.states(tau + h)
+    scale = 1.0 + np.abs(state)
+    return float(np.max(np.abs(diff) / scale)) * 4.0 / 3.0, first, second
+
+
+def solve_piecewise(
     problem: Problem,
+    method: str,
+    linearisation: str,
     steps_per_period: int = 400,
+    analytic_tol: float | None = None,
     max_steps: int = 5_000_000,
     max_wall_time_s: float = 600.0,
     progress=None,
     **_ignored,
 ) -> Solution:
+    """The piecewise method with a given contact linearisation ('cartesian' or 'polar').
+
+    Fixed steps of ``period / steps_per_period`` in contact, or, with ``analytic_tol``,
+    adaptive steps chosen by step doubling so that the estimated local error per step
+    stays below the tolerance (``steps_per_period`` then sets the first step).
+    """
     params = problem.params
     t_eval = problem.t_eval
     t_end = float(t_eval[-1])
     h = params.period / steps_per_period
+    h_max = params.period * MAX_STEP_FRACTION
     start_clock = time.perf_counter()
 
     out_states = np.empty((t_eval.size, 4))
@@ -193,12 +309,14 @@ def solve_analytic(
         "n_free_segments": 0,
         "n_contact_steps": 0,
         "n_stick_steps": 0,
+        "n_rejected_steps": 0,
         "n_expm_fallbacks": 0,
     }
     status, message = SUCCESS, "reached the end of the time span"
     last_kind = initial_kind(state, regime, params)
     storms = StormGuard()
     next_progress = tau
+    pending = []  # accepted half-step propagators still to be walked (adaptive mode)
 
     def fill(prop, t_stop, reg):
         nonlocal k
@@ -219,6 +337,7 @@ def solve_analytic(
     while tau < t_end:
         if regime == model.FREE:
             # No steps in free flight: scan the closed form chunk by chunk for the entry.
+            pending.clear()
             prop = FreeFlight(tau, state, params)
             stats["n_free_segments"] += 1
             chunk = FREE_SCAN_CHUNK * scan_spacing(prop.omega_max, FREE_SCAN_FRACTION)
@@ -231,18 +350,31 @@ def solve_analytic(
                 if time.perf_counter() - start_clock > max_wall_time_s:
                     break
         else:
-            tb = min(t_end, tau + h)
+            try:
+                if analytic_tol is None:
+                    tb = min(t_end, tau + h)
+                    prop = _contact_step(linearisation, tau, state, tb - tau, params, regime)
+                else:
+                    if not pending:
+                        while True:
+                            step = min(h, h_max, t_end - tau)
+                            err, first, second = _doubling_error(
+                                linearisation, tau, state, step, params, regime
+                            )
+                            factor = ADAPT_SAFETY * (analytic_tol / max(err, 1e-300)) ** (1 / 3)
+                            h = step * min(ADAPT_MAX_FACTOR, max(ADAPT_MIN_FACTOR, factor))
+                            if err <= analytic_tol or step <= 1e-12 * params.period:
+                                break
+                            stats["n_rejected_steps"] += 1
+                        pending.extend([(first, tau + step / 2), (second, tau + step)])
+                    prop, tb = pending.pop(0)
+            except np.linalg.LinAlgError as exc:
+                status = FAILED
+                message = f"linearised contact system singular at tau = {tau:.6g}: {exc}"
+                break
             if regime == model.STICK:
-                prop = StickStep(tau, state, tb - tau, params)
                 stats["n_stick_steps"] += 1
             else:
-                try:
-                    mu_c = params.mu * model.friction_sign(regime)
-                    prop = LinearisedContact(tau, state, params, mu_c)
-                except np.linalg.LinAlgError as exc:
-                    status = FAILED
-                    message = f"linearised contact system singular at tau = {tau:.6g}: {exc}"
-                    break
                 stats["n_contact_steps"] += 1
                 stats["n_expm_fallbacks"] += int(prop.use_expm)
             event = search(prop, tau, tb, CONTACT_SCAN_FRACTION)
@@ -254,6 +386,7 @@ def solve_analytic(
             tau = tb
             state = prop.states(tau)
         else:
+            pending.clear()
             tau, kind = event
             state = prop.states(tau)
             new_regime = next_regime(kind, tau, state, regime, params)
@@ -286,19 +419,33 @@ def solve_analytic(
 
     if status == SUCCESS and progress is not None:
         progress(t_end)
+    settings = {
+        "steps_per_period": steps_per_period,
+        "analytic_tol": analytic_tol,
+        "max_steps": max_steps,
+        "max_wall_time_s": max_wall_time_s,
+    }
     return Solution(
         problem=problem,
-        method="analytic",
+        method=method,
         t=t_eval[:k].copy(),
         states=out_states[:k].copy(),
         regimes=out_regimes[:k].copy(),
         events=events,
         stats=stats,
-        settings={
-            "steps_per_period": steps_per_period,
-            "max_steps": max_steps,
-            "max_wall_time_s": max_wall_time_s,
-        },
+        settings=settings,
         status=status,
         message=message,
     )
+
+
+@register("analytic")
+def solve_analytic(problem: Problem, **options) -> Solution:
+    """The paper's method: Cartesian Taylor linearisation of the contact force (eq. 9-14)."""
+    return solve_piecewise(problem, "analytic", "cartesian", **options)
+
+
+@register("analytic-polar")
+def solve_analytic_polar(problem: Problem, **options) -> Solution:
+    """The paper's idea with the contact phase linearised in polar coordinates."""
+    return solve_piecewise(problem, "analytic-polar", "polar", **options)

@@ -98,6 +98,11 @@ def first_crossing(
                 a = _extremum(dh, a, b) or a
             return _root(h, a, b)
         if hd[i] > 0.0 and hd[i + 1] < 0.0:
+            # h can rise at most ~ rate * length above its end values within one
+            # interval (factor 2 for safety): skip maxima that cannot reach the level.
+            rise = 2.0 * (b - a) * max(hd[i], -hd[i + 1])
+            if max(hv[i], hv[i + 1]) + rise <= max(tolerance, level):
+                continue
             tm = _extremum(dh, a, b)
             if tm is not None and h(tm) > max(tolerance, level):
                 return _root(h, a, tm)
