@@ -41,11 +41,12 @@ from rubcli import units
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 
-MethodName = Literal["analytic", "rk45", "dop853", "radau", "bdf", "lsoda"]
+MethodName = Literal["analytic", "analytic-polar", "rk45", "dop853", "radau", "bdf", "lsoda"]
 KNOWN_METHODS: tuple[str, ...] = get_args(MethodName)
 
-PlotName = Literal["orbit", "time"]
+PlotName = Literal["orbit", "time", "energy"]
 KNOWN_PLOTS: tuple[str, ...] = get_args(PlotName)
+DEFAULT_PLOTS: tuple[str, ...] = ("orbit", "time")  # "energy" only when asked
 
 ForcesMapProduct = Literal["forces", "taylor_error", "eigen"]
 
@@ -176,6 +177,9 @@ class SolverSection(_Section):
     rtol: float = Field(default=1e-8, gt=0, lt=1)  # scipy methods
     atol: float = Field(default=1e-10, gt=0)  # scipy methods
     steps_per_period: int = Field(default=400, gt=0)  # analytic: step = period / this
+    # analytic methods: adaptive steps (step doubling) with this local error tolerance;
+    # steps_per_period then sets the first step
+    analytic_tol: float | None = Field(default=None, gt=0, lt=1)
     max_steps: int = Field(default=5_000_000, gt=0)
     max_wall_time_s: float = Field(default=600.0, gt=0)
 
@@ -194,7 +198,7 @@ class OutputSection(_Section):
 
     dir: str | None = Field(default=None, min_length=1)  # default out/<case name>
     csv: bool = True
-    plots: list[PlotName] = Field(default_factory=lambda: list(KNOWN_PLOTS))
+    plots: list[PlotName] = Field(default_factory=lambda: list(DEFAULT_PLOTS))
 
     _plots_unique = field_validator("plots")(_unique)
 
