@@ -117,6 +117,7 @@ def test_minimal_case_fills_defaults(tmp_path):
         "rtol": 1e-8,
         "atol": 1e-10,
         "steps_per_period": 400,
+        "analytic_tol": None,
         "max_steps": 5_000_000,
         "max_wall_time_s": 600.0,
     }
