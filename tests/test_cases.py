@@ -42,6 +42,8 @@ def test_case_runs(path, tmp_path):
     expected = {"report.json"} | {f"{plot}.png" for plot in case.settings.output.plots}
     if case.settings.output.csv:
         expected |= {f"{method}.csv" for method in case.methods}
+    if case.settings.analysis is not None and case.settings.analysis.response:
+        expected.add("poincare.png")  # [analysis] response = true (docs/compare.md)
     assert {p.name for p in out.iterdir()} == expected
     report = json.loads((out / "report.json").read_text())
     assert report["success"] is True
