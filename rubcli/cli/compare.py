@@ -414,6 +414,15 @@ def report_markdown(case: Case, wp: wpm.WorkPrecision | None, panels: list[dict]
                 )
         out.append("")
         for panel in panels:
+            ref = panel["reference"]
+            start = ref.problem.t_span[0]
+            out.append(
+                f"- mu = {panel['mu']:g}: reference {ref.kind}, estimated error "
+                f"{ref.error_estimate:.2g}, trusted for "
+                f"{(ref.trusted_until - start) / ref.problem.params.period:.4g} of "
+                f"{ref.problem.periods:.4g} periods"
+            )
+        for panel in panels:
             for pair, a in panel["agreement"].items():
                 out.append(
                     f"- mu = {panel['mu']:g}: {pair}: max |difference| {a['max_difference']:.3g}"
