@@ -1,0 +1,292 @@
+"""Energy balance of a solution: a reference-free check of its quality.
+
+Multiplying the equation of motion (model notes 1) by the velocity ``v = w'`` gives,
+exactly, for every regime (``'`` = d/dtau)::
+
+    d/dtau [ 1/2 |v|^2 + 1/2 z^2 + 1/2 K (z - 1)^2 [in contact] ]
+        = E (cos(eta tau + phi0) vx + sin(eta tau + phi0) vy)      power of the unbalance
+          - 2 nu |v|^2                                            damping
+          - T r theta'                                            friction on the translation
+
+so, with ``E_mech`` the bracket, over any span::
+
+    Delta E_mech = W_in - D_damp - D_fric,    W_in = int P_in,  D_damp = int 2 nu |v|^2,
+                                              D_fric = int T r theta' dtau.
+
+``T`` is the signed tangential contact force (``model.tangential_force``: ``mu_c K (z-1)``
+when slipping, the rolling force ``model.stick_friction`` in stick; positive opposes
+positive slip) and ``r theta' = (x vy - y vx) / z`` the whirl speed. The normal force
+``K (z - 1)`` does no net work: its power is the rate of the stator's elastic energy.
+
+**Friction and the motor.** The energy friction dissipates at the contact is
+``T v_r >= 0`` (zero in stick), with the slip ``v_r = Rp eta + r theta'``. Since
+``T r theta' = T v_r - T Rp eta``, the friction's effect on the translation is the
+contact dissipation minus ``T Rp eta``: the share of the friction power that the spin
+drive supplies (the rotor is driven at constant speed ``eta``, so the motor provides
+whatever torque the friction takes). ``D_fric`` can therefore be negative: in a backward
+whirl (dry whip) the spinning surface pumps energy into the whirl. Both shares are
+reported (``contact_dissipation``, ``spin_drive``).
+
+**Quadrature.** The integrals are taken piece by piece between the solution's located
+events (``analysis.regimes.solution_pieces``), so the kinks of the contact force at a
+switch never fall inside a quadrature interval. On each interval between two nodes
+(samples, or event states) the state is the cubic Hermite interpolant of the positions
+(from positions and velocities) and of the velocities (from velocities and
+accelerations, the accelerations from the equation of motion in the piece's regime);
+the powers are integrated on it with 3-point Gauss-Legendre. The rule is of order 4 in
+the node spacing ``h`` and needs no minimum number of nodes, so a contact shorter than
+the output spacing (two event states, no sample) still gets its friction work.
+
+**Residual.** ``energy_residual = |Delta E_mech - (W_in - D_damp - D_fric)| / throughput``
+with ``throughput = int |P_in| + D_damp + int |T r theta'| + max E_mech``, the energy that
+flowed through the system plus the largest energy stored (so a conservative motion with
+no input still has a scale). An exact solution has a residual at quadrature level
+(``O((omega h)^4)`` with ``omega`` the fastest frequency of the motion); a numerical
+solution adds its own violation of the balance, which grows with its error.
+``quadrature_error`` estimates the quadrature's own share (same normalisation): the
+difference between the rule on every node and on every other node of each piece,
+divided by 15 (Richardson, order 4); for a piece with no interior sample, the difference
+from the trapezoid rule. **A residual is informative only when it is well above the
+quadrature error**: when the output samples do not resolve the motion (a stiff stator's
+contact oscillates with frequency ``~ sqrt(K)``; raise ``samples_per_period``), both are
+large and the residual says nothing about the solver.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rubcli import model
+from rubcli.analysis.regimes import Piece, solution_pieces
+from rubcli.solution import Solution
+
+DERIVATIVE_STEP = 1e-5  # central-difference step of the power rates, times the node spacing
+RICHARDSON_FACTOR = 15.0  # 2^4 - 1: order-4 rule on h and 2h
+
+# Columns of the power array: unbalance, damping, friction on the translation
+# (-T r theta'), contact dissipation (T v_r), spin drive (T Rp eta), and |P_in|.
+_IN, _DAMP, _FRIC, _SLIP, _SPIN, _ABS_IN, _ABS_FRIC = range(7)
+
+
+@dataclass(frozen=True)
+class EnergyBalance:
+    """The terms of the energy balance at the nodes of a solution (cumulative from the start).
+
+    ``tau`` are the nodes (samples and event times, in order); each series has the same
+    length. ``work_unbalance``, ``damping``, ``friction`` (= D_fric), ``contact_dissipation``
+    and ``spin_drive`` are integrals from the start to each node. ``residual`` is
+    ``(E_mech - E_mech[0]) - (W_in - D_damp - D_fric)`` at each node.
+    """
+
+    tau: np.ndarray
+    kinetic: np.ndarray
+    rotor_spring: np.ndarray
+    stator: np.ndarray
+    work_unbalance: np.ndarray
+    damping: np.ndarray
+    friction: np.ndarray
+    contact_dissipation: np.ndarray
+    spin_drive: np.ndarray
+    throughput: float
+    quadrature_error: float  # relative to throughput (see module docstring)
+    n_pieces: int = 0
+
+    @property
+    def energy(self) -> np.ndarray:
+        """Mechanical energy: kinetic + rotor spring + stator."""
+        return self.kinetic + self.rotor_spring + self.stator
+
+    @property
+    def residual(self) -> np.ndarray:
+        delta = self.energy - self.energy[0]
+        return delta - (self.work_unbalance - self.damping - self.friction)
+
+    @property
+    def relative_residual(self) -> float:
+        """``energy_residual``: |final residual| / throughput (0 for an empty solution)."""
+        if self.tau.size == 0:
+            return 0.0
+        final = abs(float(self.residual[-1]))
+        if self.throughput > 0.0:
+            return final / self.throughput
+        return 0.0 if final == 0.0 else float("inf")
+
+    def summary(self) -> dict[str, float]:
+        """Totals over the span, for reports."""
+        if self.tau.size == 0:
+            return {"energy_residual": 0.0, "energy_quadrature_error": 0.0}
+        return {
+            "energy_residual": self.relative_residual,
+            "energy_quadrature_error": self.quadrature_error,
+            "energy_change": float(self.energy[-1] - self.energy[0]),
+            "work_unbalance": float(self.work_unbalance[-1]),
+            "damping_dissipation": float(self.damping[-1]),
+            "friction_dissipation": float(self.friction[-1]),
+            "contact_dissipation": float(self.contact_dissipation[-1]),
+            "spin_drive_work": float(self.spin_drive[-1]),
+            "energy_throughput": self.throughput,
+        }
+
+
+# ----------------------------------------------------------------------- pointwise terms
+
+
+def mechanical_energy(states, params: model.ModelParams, regime) -> tuple:
+    """Kinetic 1/2 |v|^2, rotor spring 1/2 z^2, stator 1/2 K (z-1)^2 in contact (else 0).
+
+    ``states`` has shape (n, 4) (or (4,)); ``regime`` is a code or an array of codes.
+    """
+    S = np.atleast_2d(np.asarray(states, dtype=float))
+    x, y, vx, vy = S.T
+    z = np.hypot(x, y)
+    in_contact = np.asarray(regime) != model.FREE
+    kinetic = 0.5 * (vx * vx + vy * vy)
+    spring = 0.5 * z * z
+    stator = np.where(in_contact, 0.5 * params.K * (z - 1.0) ** 2, 0.0)
+    return kinetic, spring, np.broadcast_to(stator, z.shape).astype(float)
+
+
+def accelerations(tau, states, params: model.ModelParams, regime: int) -> np.ndarray:
+    """d(vx, vy)/dtau of states (shape (n, 4)) in one regime, vectorised.
+
+    The contact force is the model's: ``model.contact_force`` when slipping; in stick the
+    normal force ``model.normal_force`` along ``-r_hat`` and the rolling friction
+    ``model.tangential_force`` along ``-theta_hat`` (what ``model.rhs`` applies).
+    """
+    S = np.atleast_2d(np.asarray(states, dtype=float))
+    tau = np.asarray(tau, dtype=float)
+    x, y, vx, vy = S.T
+    phase = params.eta * tau + params.phi0
+    ax = params.E * np.cos(phase) - 2.0 * params.nu * vx - x
+    ay = params.E * np.sin(phase) - 2.0 * params.nu * vy - y
+    if regime == model.STICK:
+        z = np.hypot(x, y)
+        normal = model.normal_force(x, y, params.K)
+        tangential = model.tangential_force(tau, x, y, vx, vy, params, regime)
+        ax = ax - (normal * x - tangential * y) / z
+        ay = ay - (normal * y + tangential * x) / z
+    elif regime != model.FREE:
+        fx, fy = model.contact_force(x, y, params.K, params.mu * model.friction_sign(regime))
+        ax, ay = ax + fx, ay + fy
+    return np.column_stack((ax, ay))
+
+
+def powers(tau, states, params: model.ModelParams, regime: int) -> np.ndarray:
+    """Power terms at states (shape (n, 4)) in one regime: array (n, 7).
+
+    Columns: unbalance P_in, damping 2 nu |v|^2, friction on the translation -T r theta',
+    contact dissipation T v_r, spin drive T Rp eta, |P_in|, |T r theta'|.
+    """
+    S = np.atleast_2d(np.asarray(states, dtype=float))
+    tau = np.asarray(tau, dtype=float)
+    x, y, vx, vy = S.T
+    phase = params.eta * tau + params.phi0
+    p_in = params.E * (np.cos(phase) * vx + np.sin(phase) * vy)
+    p_damp = 2.0 * params.nu * (vx * vx + vy * vy)
+    out = np.zeros((S.shape[0], 7))
+    out[:, _IN], out[:, _DAMP], out[:, _ABS_IN] = p_in, p_damp, np.abs(p_in)
+    if regime != model.FREE:
+        T = model.tangential_force(tau, x, y, vx, vy, params, regime)
+        z = np.hypot(x, y)
+        whirl = (x * vy - y * vx) / z  # r theta'
+        v_r = model.slip_velocity(x, y, vx, vy, params.Rp, params.eta)
+        out[:, _FRIC] = -T * whirl
+        out[:, _SLIP] = T * v_r
+        out[:, _SPIN] = T * params.Rp * params.eta
+        out[:, _ABS_FRIC] = np.abs(T * whirl)
+    return out
+
+
+# ---------------------------------------------------------------------------- quadrature
+
+
+def _interval_integrals(tau: np.ndarray, states: np.ndarray, params, regime: int) -> np.ndarray:
+    """Integrals of ``powers`` over each interval [tau_k, tau_k+1]: shape (n - 1, 7).
+
+    Corrected trapezoid rule (the integral of the cubic Hermite interpolant of each power):
+    ``h/2 (P_k + P_k+1) + h^2/12 (P'_k - P'_k+1)``. The rates ``P'`` are central
+    differences of the powers along the motion, ``s +- delta (v, a)``, with the
+    accelerations of the piece's regime; ``delta`` is 1e-5 of the local node spacing.
+    The absolute-value columns (scales only) get the plain trapezoid rule.
+    """
+    h = np.diff(tau)
+    P = powers(tau, states, params, regime)
+    rate = np.column_stack((states[:, 2:], accelerations(tau, states, params, regime)))
+    spacing = np.minimum(np.append(h, np.inf), np.insert(h, 0, np.inf))
+    delta = (DERIVATIVE_STEP * spacing)[:, None]
+    forward = powers(tau + delta[:, 0], states + delta * rate, params, regime)
+    backward = powers(tau - delta[:, 0], states - delta * rate, params, regime)
+    dP = (forward - backward) / (2.0 * delta)
+    dP[:, [_ABS_IN, _ABS_FRIC]] = 0.0
+    return 0.5 * h[:, None] * (P[:-1] + P[1:]) + (h * h / 12.0)[:, None] * (dP[:-1] - dP[1:])
+
+
+def _coarse_estimate(piece: Piece, fine: np.ndarray, params) -> np.ndarray:
+    """Estimated quadrature error of a piece's integrals (7 columns), see module docstring."""
+    n = piece.tau.size
+    if n >= 3:
+        keep = np.arange(0, n, 2)
+        if keep[-1] != n - 1:
+            keep = np.append(keep, n - 1)
+        coarse = _interval_integrals(piece.tau[keep], piece.states[keep], params, piece.regime)
+        return np.abs(fine.sum(axis=0) - coarse.sum(axis=0)) / RICHARDSON_FACTOR
+    values = powers(piece.tau, piece.states, params, piece.regime)
+    trapezoid = 0.5 * (values[0] + values[1]) * (piece.tau[1] - piece.tau[0])
+    return np.abs(fine.sum(axis=0) - trapezoid)
+
+
+def _balance_combination(integrals: np.ndarray) -> np.ndarray:
+    """W_in - D_damp - D_fric from integral columns (D_fric = -int P_fric)."""
+    return integrals[..., _IN] - integrals[..., _DAMP] + integrals[..., _FRIC]
+
+
+def energy_balance(solution: Solution) -> EnergyBalance:
+    """The energy balance of a solution, integrated piecewise between its events."""
+    params = solution.problem.params
+    pieces = solution_pieces(solution)
+    taus, states, regimes, cumulative = [], [], [], []
+    running = np.zeros(7)
+    quad_error = 0.0
+    for piece in pieces:
+        fine = _interval_integrals(piece.tau, piece.states, params, piece.regime)
+        quad_error += abs(float(_balance_combination(_coarse_estimate(piece, fine, params))))
+        sums = running + np.vstack((np.zeros(7), np.cumsum(fine, axis=0)))
+        taus.append(piece.tau)
+        states.append(piece.states)
+        regimes.append(np.full(piece.tau.size, piece.regime))
+        cumulative.append(sums)
+        running = sums[-1]
+    if not pieces:
+        empty = np.zeros(0)
+        return EnergyBalance(
+            empty, empty, empty, empty, empty, empty, empty, empty, empty, 0.0, 0.0
+        )
+    tau = np.concatenate(taus)
+    S = np.vstack(states)
+    cum = np.vstack(cumulative)
+    kinetic, spring, stator = mechanical_energy(S, params, np.concatenate(regimes))
+    energy = kinetic + spring + stator
+    throughput = float(
+        running[_ABS_IN] + running[_DAMP] + running[_ABS_FRIC] + np.max(np.abs(energy))
+    )
+    return EnergyBalance(
+        tau=tau,
+        kinetic=kinetic,
+        rotor_spring=spring,
+        stator=stator,
+        work_unbalance=cum[:, _IN],
+        damping=cum[:, _DAMP],
+        friction=-cum[:, _FRIC],
+        contact_dissipation=cum[:, _SLIP],
+        spin_drive=cum[:, _SPIN],
+        throughput=throughput,
+        quadrature_error=quad_error / throughput if throughput > 0.0 else 0.0,
+        n_pieces=len(pieces),
+    )
+
+
+def energy_residual(solution: Solution) -> float:
+    """``energy_residual`` of a solution: |Delta E - (W_in - D_damp - D_fric)| / throughput."""
+    return energy_balance(solution).relative_residual
