@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from rubcli import units
+from rubcli.model import REGIME_NAMES
 from rubcli.solution import Solution
 
 # Columns of a solution CSV, in order. Nondimensional first (clearances, tau, units of
@@ -37,6 +38,7 @@ CSV_COLUMNS = (
     "z",
     "contact",
     "regime",
+    "regime_name",
     "v_r",
     "normal_force",
     "friction_force",
@@ -51,6 +53,7 @@ CSV_PHYSICAL_COLUMNS = (
     "friction_force_N",
 )
 _INTEGER_COLUMNS = frozenset({"contact", "regime"})
+_TEXT_COLUMNS = frozenset({"regime_name"})  # free, slip+, slip-, stick (model.REGIME_NAMES)
 
 
 @contextlib.contextmanager
@@ -100,6 +103,7 @@ def solution_columns(
         "z": solution.z,
         "contact": solution.contact,
         "regime": np.asarray(solution.regimes, dtype=int),
+        "regime_name": np.array([REGIME_NAMES[int(r)] for r in solution.regimes], dtype=object),
         "v_r": solution.slip_velocity,
         "normal_force": solution.normal_force,
         "friction_force": solution.friction_force,
@@ -125,8 +129,12 @@ def write_solution_csv(
     """One row per output sample; floats with 17 significant digits (round-trip exact)."""
     columns = solution_columns(solution, scale)
     names = list(columns)
-    table = np.column_stack([np.asarray(columns[n], dtype=float) for n in names])
-    fmt = ["%d" if n in _INTEGER_COLUMNS else "%.17g" for n in names]
+    table = np.column_stack(
+        [np.asarray(columns[n], dtype=object if n in _TEXT_COLUMNS else float) for n in names]
+    )
+    fmt = [
+        "%s" if n in _TEXT_COLUMNS else "%d" if n in _INTEGER_COLUMNS else "%.17g" for n in names
+    ]
     with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8", newline="") as handle:
         handle.write(",".join(names) + "\n")
         if table.size:

@@ -87,9 +87,19 @@ def files_in(directory: Path) -> set[str]:
 
 
 def read_csv(path: Path) -> tuple[list[str], np.ndarray]:
+    """Header and the numbers of a solution CSV (text columns such as regime_name as NaN)."""
     with open(path, newline="") as handle:
         rows = list(csv.reader(handle))
+    text = [i for i, name in enumerate(rows[0]) if name == "regime_name"]
+    for row in rows[1:]:
+        for i in text:
+            row[i] = "nan"
     return rows[0], np.array(rows[1:], dtype=float)
+
+
+def read_regime_names(path: Path) -> list[str]:
+    with open(path, newline="") as handle:
+        return [row["regime_name"] for row in csv.DictReader(handle)]
 
 
 # ------------------------------------------------------------------ init and validate
@@ -239,6 +249,8 @@ def test_csv_columns_and_values(tmp_path):
     assert set(np.unique(col["contact"])) <= {0.0, 1.0}
     assert set(np.unique(col["regime"])) <= {-1.0, 0.0, 1.0, 2.0}  # slip-, free, slip+, stick
     np.testing.assert_array_equal(col["contact"], (col["regime"] != 0).astype(float))
+    names = {-1: "slip-", 0: "free", 1: "slip+", 2: "stick"}
+    assert read_regime_names(out / "rk45.csv") == [names[int(r)] for r in col["regime"]]
     in_contact = col["contact"] == 1
     np.testing.assert_allclose(
         col["normal_force"][in_contact], 17.6 * (col["z"][in_contact] - 1.0), rtol=1e-12

@@ -5,8 +5,11 @@ only the products the case asks for are written into the output dir:
 
 - ``<method>.csv`` per method if ``[output] csv``;
 - ``orbit.png`` and/or ``time.png`` per ``[output] plots``;
+- ``energy.png`` if ``[output] plots`` lists ``energy`` (the energy balance, never by default);
 - ``report.json`` always: the case echoed, and per method its status, message, wall time,
-  step/evaluation counts, contact switches, contact fraction and max penetration.
+  step/evaluation counts, contact switches, contact fraction, max penetration, the time
+  spent in each regime (from the located switch times) and the energy balance with its
+  ``energy_residual`` (``rubcli.analysis.energy``, docs/stability.md).
 
 Exit codes: 0 success; 2 invalid input (nothing is solved or written); 1 if any method
 failed (its failure is in report.json; the outputs of the run are still written). All
@@ -91,8 +94,16 @@ def solve_method(case: Case, name: str) -> tuple[Solution | None, dict[str, Any]
 
 
 def method_report(solution: Solution) -> dict[str, Any]:
-    """The report.json entry of one method."""
+    """The report.json entry of one method.
+
+    ``time_in_regime`` comes from the located switch times (``analysis.regimes``);
+    ``energy_residual`` and ``energy`` from the energy balance (``analysis.energy``).
+    """
+    from rubcli.analysis.energy import energy_balance
+    from rubcli.analysis.regimes import time_in_regimes
+
     t_end = float(solution.t[-1]) if solution.t.size else None
+    energy = energy_balance(solution).summary()
     return {
         "status": solution.status,
         "message": solution.message,
@@ -102,6 +113,9 @@ def method_report(solution: Solution) -> dict[str, Any]:
         "n_events": len(solution.events),
         "contact_fraction": solution.contact_fraction(),
         "max_penetration": solution.max_penetration(),
+        "time_in_regime": time_in_regimes(solution),
+        "energy_residual": energy["energy_residual"],
+        "energy": energy,
         "n_samples": int(solution.t.size),
         "tau_end": t_end,
         "settings": dict(solution.settings),
@@ -129,7 +143,10 @@ def write_outputs(
         title = plots.parameters_title(case.name, case.params)
         figures = {"orbit": plots.orbit_figure, "time": plots.time_figure}
         for plot in output.plots:
-            figure = figures[plot](solutions, title, scale=case.scale)
+            if plot == "energy":
+                figure = _energy_figure(solutions, title)
+            else:
+                figure = figures[plot](solutions, title, scale=case.scale)
             io.save_figure(figure, staged.path(f"{plot}.png"))
             files.append(f"{plot}.png")
         # [analysis] response = true (owned by cli/compare.py): classes and poincare.png
@@ -155,6 +172,14 @@ def write_outputs(
     return [case.output_dir / name for name in files]
 
 
+def _energy_figure(solutions: list[Solution], title: str):
+    """energy.png: the energy balance of every method (``plots = ["energy"]``)."""
+    from rubcli.analysis.energy import energy_balance
+    from rubcli.plotting.energy import energy_figure
+
+    return energy_figure(solutions, [energy_balance(s) for s in solutions], title)
+
+
 def _summary_rows(entries: dict[str, dict[str, Any]]) -> list[list[str]]:
     rows = []
     for name, e in entries.items():
@@ -162,6 +187,7 @@ def _summary_rows(entries: dict[str, dict[str, Any]]) -> list[list[str]]:
         steps = stats.get("nsteps")
         fraction = e.get("contact_fraction")
         penetration = e.get("max_penetration")
+        residual = e.get("energy_residual")
         rows.append(
             [
                 name,
@@ -171,6 +197,7 @@ def _summary_rows(entries: dict[str, dict[str, Any]]) -> list[list[str]]:
                 str(e.get("n_contact_switches", "-")),
                 "-" if fraction is None else f"{100 * fraction:.1f}%",
                 "-" if penetration is None else f"{penetration:.4g}",
+                "-" if residual is None else f"{residual:.2g}",
             ]
         )
     return rows
@@ -239,7 +266,8 @@ def command(
 
     console.table(
         f"{case.name}: results",
-        ["method", "status", "wall s", "steps", "switches", "in contact", "max pen."],
+        ["method", "status", "wall s", "steps", "switches", "in contact", "max pen."]
+        + ["energy res."],
         _summary_rows(entries),
     )
     console.info(f"wrote {len(written)} files to {target}: {', '.join(p.name for p in written)}")
