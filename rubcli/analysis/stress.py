@@ -1,0 +1,487 @@
+"""The stress suite: extreme cases, each run with every method, within a budget.
+
+``stress_cases(quick)`` lists the built-in cases (issue 5): stiff stators from
+``K = 17.6`` to ``1.75e6`` (Table 1's range), friction ``mu = 0 ... 0.1`` including the
+dry-whip (stick/roll) regime, no damping, grazing orbits, a 10,000-period horizon, a
+large eccentricity and starts deep inside the stator. ``run_suite`` solves each case with
+every method of the registry at the case-file defaults (and the analytic methods also with
+adaptive steps, ``analytic_tol = 1e-6``), under a per-run budget (``max_wall_time_s``,
+``max_steps``), and measures each run against the best available reference:
+
+- **exact** where the case has one: the free flight in closed form
+  (``analysis.reference.exact_reference``), including a free orbit that only *touches*
+  the clearance (penetration below the grazing tolerance, so no contact force ever acts),
+  and the synchronous full annular rub started on its orbit;
+- otherwise **numerical**: DOP853 at ``rtol = atol = 1e-12`` under the same budget; if
+  that run does not finish, Radau at ``1e-10``; failing both, the tightest successful
+  dop853/radau run of the suite itself. The reference used is named in every row.
+
+Each run also gets its energy residual (``analysis.energy``), its largest penetration
+and a check for non-finite values. A run that reports success is given a *warning* when
+its energy balance fails by more than 1e-2 of the throughput or it is more than 1e-2
+clearances from an exact reference: a wrong orbit must not pass unremarked. Nothing here
+writes files (``cli/stress.py`` does).
+
+The error is ``max |w - w_ref|`` over the samples the run and its reference share (a
+failed run is compared over its partial span). For a chaotic case (the paper's
+``mu = 0.05``) two correct solutions separate after a finite horizon, so a large error
+there says "beyond the horizon of predictability", not "wrong"; the energy residual is
+the check that still means something.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from rubcli import model
+from rubcli.analysis.energy import energy_balance
+from rubcli.analysis.reference import EXACT_FREE_FLIGHT, exact_reference
+from rubcli.analysis.regimes import time_in_regimes
+from rubcli.model import ModelParams
+from rubcli.problem import Problem
+from rubcli.solution import SUCCESS, Solution
+
+ERROR = "error"  # status of a run whose solver raised (a bug: never expected)
+
+# The Figure 3 machine of the paper (model notes, section 6) and its start, which lies
+# inside the stator already (z0 = 1.196).
+FIG3 = {"nu": 0.009478, "eta": 0.7818, "e": 7.52, "Rp": 46.16}
+FIG3_START = (0.88544, -0.8039, 0.0, 0.0)
+
+# Budgets per run. Full mode is generous but bounded; quick mode is for tests.
+FULL_BUDGET = {"max_wall_time_s": 120.0, "max_steps": 5_000_000}
+QUICK_BUDGET = {"max_wall_time_s": 0.5, "max_steps": 20_000}
+LONG_BUDGET = {"max_wall_time_s": 600.0, "max_steps": 20_000_000}  # the 10,000-period case
+SOLVER_OPTIONS = {"rtol": 1e-8, "atol": 1e-10, "steps_per_period": 400}  # the case defaults
+# Besides every method at the case defaults, the analytic methods with adaptive steps.
+ADAPTIVE_TOL = 1e-6
+# A successful run is flagged when its energy balance fails by more than this (relative),
+# or when it is this far (clearances) from an exact reference.
+SUSPECT_ENERGY_RESIDUAL = 1e-2
+SUSPECT_EXACT_ERROR = 1e-2
+REFERENCE_RUNS = (
+    ("dop853", {"rtol": 1e-12, "atol": 1e-12}),
+    ("radau", {"rtol": 1e-10, "atol": 1e-12}),
+)
+TOUCH_CHECK_POINTS_PER_PERIOD = 4000  # grid on which a touching free orbit is checked
+
+
+@dataclass(frozen=True)
+class StressCase:
+    """One extreme case: the machine, the start, the horizon (full and quick) and why."""
+
+    name: str
+    description: str
+    params: ModelParams
+    initial: tuple[float, float, float, float]
+    periods: float
+    quick_periods: float
+    samples_per_period: int = 100
+    touches: bool = False  # a free orbit built to touch z = 1 tangentially (exact reference)
+    budget: dict = field(default_factory=lambda: dict(FULL_BUDGET))
+
+    def problem(self, quick: bool) -> Problem:
+        periods = self.quick_periods if quick else self.periods
+        return Problem.from_periods(
+            self.params, self.initial, periods, self.samples_per_period, name=self.name
+        )
+
+
+@dataclass
+class StressRun:
+    """The outcome of one method on one case (one row of stress.csv)."""
+
+    case: str
+    method: str
+    status: str
+    message: str
+    wall_time_s: float
+    periods: float  # periods simulated (the partial span of a failed run)
+    target_periods: float
+    n_steps: int | None = None
+    n_events: int = 0
+    n_contact_switches: int = 0
+    reference: str = ""
+    error: float | None = None
+    warning: str = ""
+    energy_residual: float | None = None
+    energy_quadrature_error: float | None = None
+    max_penetration: float | None = None
+    nan: bool = False
+    stick_fraction: float = 0.0
+
+    def as_row(self) -> dict[str, object]:
+        return {name: getattr(self, name) for name in RUN_COLUMNS}
+
+
+RUN_COLUMNS = (
+    "case",
+    "method",
+    "status",
+    "message",
+    "wall_time_s",
+    "periods",
+    "target_periods",
+    "n_steps",
+    "n_events",
+    "n_contact_switches",
+    "reference",
+    "error",
+    "warning",
+    "energy_residual",
+    "energy_quadrature_error",
+    "max_penetration",
+    "nan",
+    "stick_fraction",
+)
+
+
+# ---------------------------------------------------------------------------- the cases
+
+
+def steady_unit_whirl(
+    nu: float, eta: float, K: float, mu: float, Rp: float
+) -> tuple[ModelParams, tuple[float, float, float, float]]:
+    """Parameters and start of a free whirl whose steady radius is exactly 1 (grazing).
+
+    ``|w_p| = E / |1 - eta^2 + 2 i nu eta| = 1`` gives ``e = |1 - eta^2 + 2 i nu eta| / eta^2``;
+    started on the steady orbit ``w_p(0)``, the exact motion rides along the clearance
+    circle with zero penetration: every point is a touch.
+    """
+    e = abs(complex(1.0 - eta * eta, 2.0 * nu * eta)) / (eta * eta)
+    params = ModelParams(nu=nu, eta=eta, e=e, K=K, mu=mu, Rp=Rp)
+    w, v = model.free_steady_state(0.0, params)
+    return params, (float(w.real), float(w.imag), float(v.real), float(v.imag))
+
+
+def touching_start(params: ModelParams, direction, period_fraction: float = 1.0):
+    """A start whose free flight touches z = 1 once, tangentially, at its first maximum.
+
+    Needs ``e = 0``: the free flight is then linear in the start, so scaling
+    ``direction`` by ``1 / max z`` over the first ``period_fraction`` natural periods makes
+    that maximum exactly 1 (to round-off). Returns the start and the touch time.
+    """
+    from scipy.optimize import minimize_scalar
+
+    if params.e != 0.0:
+        raise ValueError("touching_start needs e = 0 (a free flight linear in the start)")
+    s = np.asarray(direction, dtype=float)
+    t = np.linspace(0.0, period_fraction * 2.0 * math.pi, 4001)
+    z = np.hypot(*model.free_flight(t, 0.0, s, params)[:2])
+    i = int(np.clip(np.argmax(z), 1, t.size - 2))
+
+    def minus_z(tau: float) -> float:
+        return -float(np.hypot(*model.free_flight(tau, 0.0, s, params)[:2]))
+
+    found = minimize_scalar(minus_z, bracket=(t[i - 1], t[i], t[i + 1]), tol=1e-12)
+    return tuple(float(v) for v in s / -found.fun), float(found.x)
+
+
+def stress_cases() -> list[StressCase]:
+    """The built-in suite (full horizons in ``periods``, quick ones in ``quick_periods``)."""
+    cases: list[StressCase] = []
+    for K, periods, quick, spp in (
+        (17.6, 100, 1, 100),
+        (1.76e3, 100, 0.5, 100),
+        (1.76e5, 20, 0.2, 100),
+        (1.75e6, 5, 0.05, 100),
+    ):
+        params = ModelParams(**FIG3, K=K, mu=0.01)
+        r = model.synchronous_rub_radii(params)[-1]
+        start = tuple(float(v) for v in model.synchronous_rub(0.0, params, r))
+        cases.append(
+            StressCase(
+                f"sync-K{K:g}",
+                f"synchronous full annular rub, K = {K:g}, mu = 0.01, started on the exact "
+                f"orbit r = {r:.10g} (stable): exact reference",
+                params, start, periods, quick, spp,
+            )
+        )  # fmt: skip
+    for K, mu, periods, quick, spp in (
+        (17.6, 0.05, 100, 1, 100),
+        (1.76e3, 0.05, 20, 0.2, 400),
+        (1.76e5, 0.05, 3, 0.03, 4000),
+        (1.75e6, 0.1, 1, 0.01, 20000),
+    ):
+        cases.append(
+            StressCase(
+                f"fig3-K{K:g}-mu{mu:g}",
+                f"the paper's Figure 3 machine and start (z0 = 1.196: inside the stator), "
+                f"K = {K:g}, mu = {mu:g}",
+                ModelParams(**FIG3, K=K, mu=mu), FIG3_START, periods, quick, spp,
+            )
+        )  # fmt: skip
+    cases.append(
+        StressCase(
+            "fig3-nu0-mu0.01",
+            "no damping (nu = 0), Figure 3 machine and start, K = 17.6, mu = 0.01",
+            ModelParams(**{**FIG3, "nu": 0.0}, K=17.6, mu=0.01), FIG3_START, 100, 1,
+        )
+    )  # fmt: skip
+    cases.append(
+        StressCase(
+            "large-e",
+            "large eccentricity e = 46.16 (Table 1's value), K = 17.6, mu = 0.05",
+            ModelParams(**{**FIG3, "e": 46.16}, K=17.6, mu=0.05), FIG3_START, 100, 1,
+        )
+    )  # fmt: skip
+    cases.append(
+        StressCase(
+            "deep-start",
+            "start deep inside a stiff stator: z0 = 2 at K = 1.76e3 (force 1760), mu = 0.05",
+            ModelParams(**FIG3, K=1.76e3, mu=0.05), (2.0, 0.0, 0.0, 0.0), 20, 0.2, 400,
+        )
+    )  # fmt: skip
+    whip = ModelParams(nu=0.01, eta=1.0, e=0.05, K=100.0, mu=0.1, Rp=2.0)
+    r_roll = model.rolling_whirl_radius(whip)
+    cases.append(
+        StressCase(
+            "dry-whip",
+            "dry whip: backward rolling whirl (stick), nu = 0.01, eta = 1, e = 0.05, K = 100, "
+            "mu = 0.1, Rp = 2, started rolling at r = "
+            f"{r_roll:.6g}",
+            whip, (r_roll, 0.0, 0.0, -whip.Rp * whip.eta), 100, 1,
+        )
+    )  # fmt: skip
+    slip = ModelParams(nu=0.01, eta=1.0, e=0.05, K=100.0, mu=0.02, Rp=2.0)
+    cases.append(
+        StressCase(
+            "stick-slip",
+            "stick-slip cycle: the rolling whirl with mu = 0.02, the unbalance pushes the "
+            "needed friction across the cone edge twice a period",
+            slip, (r_roll, 0.0, 0.0, -slip.Rp * slip.eta), 100, 1,
+        )
+    )  # fmt: skip
+    graze, start = steady_unit_whirl(FIG3["nu"], FIG3["eta"], 17.6, 0.05, FIG3["Rp"])
+    cases.append(
+        StressCase(
+            "grazing-whirl",
+            f"free whirl of steady radius exactly 1 (e = {graze.e:.6g}), started on it: the "
+            "exact orbit slides along the clearance with zero penetration",
+            graze, start, 100, 1, touches=True,
+        )
+    )  # fmt: skip
+    touch = ModelParams(nu=0.05, eta=FIG3["eta"], e=0.0, K=1.75e6, mu=0.1, Rp=FIG3["Rp"])
+    touch_start, _ = touching_start(touch, (0.3, -0.5, 0.4, 0.6))
+    cases.append(
+        StressCase(
+            "grazing-touch",
+            "a free orbit (e = 0, nu = 0.05) that touches the clearance once, tangentially: "
+            "a contact of vanishing duration, K = 1.75e6",
+            touch, touch_start, 20, 1, touches=True,
+        )
+    )  # fmt: skip
+    long = cases[0]
+    cases.append(
+        replace(
+            long,
+            name="long-horizon",
+            description="10,000 forcing periods on the synchronous rub, K = 17.6, mu = 0.01: "
+            "exact reference; long-time drift",
+            periods=10_000,
+            quick_periods=5,
+            samples_per_period=20,
+            budget=dict(LONG_BUDGET),
+        )
+    )
+    return cases
+
+
+# ----------------------------------------------------------------------------- references
+
+
+@dataclass
+class StressReference:
+    label: str
+    t: np.ndarray
+    states: np.ndarray
+    exact: bool = False
+
+
+def touching_free_flight(problem: Problem, tolerance: float) -> np.ndarray | None:
+    """Closed-form free flight at the samples if it never penetrates beyond ``tolerance``.
+
+    Checked on a grid of ``TOUCH_CHECK_POINTS_PER_PERIOD`` points per forcing period: a
+    sanity check of a start built to touch, not a proof for an arbitrary start.
+    """
+    params, t = problem.params, problem.t_eval
+    n = max(2, int(math.ceil(problem.periods * TOUCH_CHECK_POINTS_PER_PERIOD)) + 1)
+    grid = np.linspace(t[0], t[-1], n)
+    for chunk in np.array_split(grid, max(1, n // 200_000)):
+        S = model.free_flight(chunk, float(t[0]), problem.initial, params)
+        if np.max(np.hypot(S[0], S[1])) - 1.0 > tolerance:
+            return None
+    return model.free_flight(t, float(t[0]), problem.initial, params).T
+
+
+def stress_reference(
+    case: StressCase,
+    problem: Problem,
+    budget: dict,
+    solve: Callable[..., Solution],
+) -> StressReference | None:
+    """The best available reference of a case (exact, else a tight dop853/radau run)."""
+    exact = exact_reference(problem)
+    if exact is not None:
+        label = "exact free flight" if exact.kind == EXACT_FREE_FLIGHT else "exact sync rub"
+        return StressReference(label, exact.t, exact.states, exact=True)
+    if case.touches:
+        states = touching_free_flight(problem, tolerance=1e-9)
+        if states is not None:
+            return StressReference(
+                "exact free flight (touching)", problem.t_eval, states, exact=True
+            )
+    for method, options in REFERENCE_RUNS:
+        solution = solve(problem, method, **{**SOLVER_OPTIONS, **budget, **options})
+        if solution.success and np.all(np.isfinite(solution.states)):
+            return StressReference(
+                f"{method} rtol={options['rtol']:g}", solution.t, solution.states
+            )
+    return None
+
+
+def position_error(solution: Solution, reference: StressReference) -> float | None:
+    """max |w - w_ref| over the shared samples (None if they share fewer than two)."""
+    n = min(solution.t.size, reference.t.size)
+    if n < 2:
+        return None
+    dw = np.hypot(
+        solution.states[:n, 0] - reference.states[:n, 0],
+        solution.states[:n, 1] - reference.states[:n, 1],
+    )
+    return float(np.max(dw)) if np.all(np.isfinite(dw)) else math.inf
+
+
+# ----------------------------------------------------------------------------------- runs
+
+
+def measure_run(case: StressCase, solution: Solution, target_periods: float) -> StressRun:
+    """A StressRun from a solution (reference error filled in later)."""
+    period = solution.problem.params.period
+    t0 = float(solution.problem.t_eval[0])
+    finite = bool(np.all(np.isfinite(solution.states)))
+    balance = energy_balance(solution) if finite else None
+    regimes = time_in_regimes(solution)
+    span = sum(regimes.values())
+    return StressRun(
+        case=case.name,
+        method=solution.method,
+        status=solution.status,
+        message=solution.message,
+        wall_time_s=solution.wall_time_s,
+        periods=(float(solution.t[-1]) - t0) / period if solution.t.size else 0.0,
+        target_periods=target_periods,
+        n_steps=solution.stats.get("nsteps"),
+        n_events=len(solution.events),
+        n_contact_switches=solution.n_contact_switches,
+        energy_residual=None if balance is None else balance.relative_residual,
+        energy_quadrature_error=None if balance is None else balance.quadrature_error,
+        max_penetration=solution.max_penetration() if finite else None,
+        nan=not finite,
+        stick_fraction=regimes["stick"] / span if span > 0 else 0.0,
+    )
+
+
+def method_variants(methods: Iterable[str]) -> list[tuple[str, str, dict]]:
+    """(label, method, extra options): every method at the case defaults, and each analytic
+    method also with adaptive steps (``analytic_tol = ADAPTIVE_TOL``)."""
+    variants = []
+    for method in methods:
+        variants.append((method, method, {}))
+        if method.startswith("analytic"):
+            label = f"{method} tol={ADAPTIVE_TOL:g}"
+            variants.append((label, method, {"analytic_tol": ADAPTIVE_TOL}))
+    return variants
+
+
+def warning_of(run: StressRun, exact_reference: bool) -> str:
+    """Why a run that reports success should not be trusted ("" if nothing is wrong)."""
+    if run.status != SUCCESS:
+        return ""
+    reasons = []
+    if run.nan:
+        reasons.append("non-finite state")
+    if run.energy_residual is not None and not run.energy_residual <= SUSPECT_ENERGY_RESIDUAL:
+        reasons.append(f"energy residual {run.energy_residual:.2g}")
+    if exact_reference and run.error is not None and not run.error <= SUSPECT_EXACT_ERROR:
+        reasons.append(f"error {run.error:.2g} against the exact solution")
+    return "; ".join(reasons)
+
+
+def run_case(
+    case: StressCase,
+    methods: Iterable[str],
+    *,
+    quick: bool,
+    on_run: Callable[[StressRun], None] | None = None,
+) -> list[StressRun]:
+    """Every method variant on one case, then the reference and each run's error."""
+    from rubcli.solvers import solve
+
+    problem = case.problem(quick)
+    budget = dict(QUICK_BUDGET) if quick else dict(case.budget)
+    runs: list[StressRun] = []
+    solutions: dict[str, Solution] = {}
+    for label, method, extra in method_variants(methods):
+        start = time.perf_counter()
+        try:
+            solution = solve(problem, method, **{**SOLVER_OPTIONS, **budget, **extra})
+        except Exception as exc:  # noqa: BLE001 - a solver that raises is a reported bug
+            run = StressRun(
+                case=case.name, method=label, status=ERROR,
+                message=f"{type(exc).__name__}: {exc}",
+                wall_time_s=time.perf_counter() - start, periods=0.0,
+                target_periods=problem.periods,
+            )  # fmt: skip
+        else:
+            solutions[label] = solution
+            run = measure_run(case, solution, problem.periods)
+            run.method = label
+        runs.append(run)
+        if on_run is not None:
+            on_run(run)
+    reference = stress_reference(case, problem, budget, solve)
+    if reference is None:
+        reference = _fallback_reference(solutions)
+    for run in runs:
+        solution = solutions.get(run.method)
+        if reference is not None and solution is not None:
+            run.reference = reference.label
+            run.error = position_error(solution, reference)
+        run.warning = warning_of(run, reference is not None and reference.exact)
+    return runs
+
+
+def _fallback_reference(solutions: dict[str, Solution]) -> StressReference | None:
+    """The suite's own successful dop853 (else radau) run, at the suite's tolerance."""
+    for method in ("dop853", "radau"):
+        solution = solutions.get(method)
+        if solution is not None and solution.status == SUCCESS:
+            label = f"{method} rtol={SOLVER_OPTIONS['rtol']:g} (suite run)"
+            return StressReference(label, solution.t, solution.states)
+    return None
+
+
+def run_suite(
+    cases: Iterable[StressCase],
+    methods: Iterable[str],
+    *,
+    quick: bool,
+    on_run: Callable[[StressRun], None] | None = None,
+) -> list[StressRun]:
+    """Every case with every method; ``on_run`` is called after each run (progress)."""
+    methods = list(methods)
+    runs: list[StressRun] = []
+    for case in cases:
+        runs.extend(run_case(case, methods, quick=quick, on_run=on_run))
+    return runs
+
+
+def clean(run: StressRun) -> bool:
+    """A run that ended as a user may see it: success, or failed with a reason; no NaN."""
+    return run.status in (SUCCESS, "failed") and bool(run.message) and not run.nan
