@@ -218,9 +218,9 @@ def stress_cases() -> list[StressCase]:
         )  # fmt: skip
     cases.append(
         StressCase(
-            "fig3-nu0-mu0.01",
-            "no damping (nu = 0), Figure 3 machine and start, K = 17.6, mu = 0.01",
-            ModelParams(**{**FIG3, "nu": 0.0}, K=17.6, mu=0.01), FIG3_START, 100, 1,
+            "fig3-nu0-mu0",
+            "no dissipation at all (nu = 0, mu = 0), Figure 3 machine and start, K = 17.6",
+            ModelParams(**{**FIG3, "nu": 0.0}, K=17.6, mu=0.0), FIG3_START, 100, 1,
         )
     )  # fmt: skip
     cases.append(
