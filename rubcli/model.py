@@ -13,7 +13,13 @@ the left-hand side, so the force the stator exerts on the rotor is ``-K f``. It 
 the rotor back towards the centre, and its tangential part opposes the slip ``v_r``.
 
 State vectors are ``s = (x, y, vx, vy)`` with ``vx = dx/dtau``. The functions work on
-plain floats and numpy arrays; nothing here imports a solver, pydantic or matplotlib.
+plain floats and numpy arrays; nothing here imports a solver, pydantic, matplotlib or numba.
+
+The formulas the compiled kernels need (``rubcli/solvers/kernels.py``) are written once,
+as the ``*_entries`` / ``*_arrays`` / ``*_value`` cores below: plain functions on floats
+(some also on arrays) in the subset of Python that numba compiles. The public functions
+here call them, and the kernels module registers the same function objects with numba
+(``register_jitable``), so the Python and the compiled paths share one definition.
 """
 
 from __future__ import annotations
@@ -59,9 +65,24 @@ class ModelParams:
         return asdict(self)
 
 
+def params_vector(params: ModelParams) -> tuple[float, ...]:
+    """(nu, eta, E, phi0, K, mu, Rp): the parameters in the order the cores take them."""
+    return (
+        float(params.nu),
+        float(params.eta),
+        float(params.E),
+        float(params.phi0),
+        float(params.K),
+        float(params.mu),
+        float(params.Rp),
+    )
+
+
 def friction_sign(regime: int) -> float:
-    """The sign of mu_c in a regime (0 in free flight)."""
-    return float(regime) if regime in (SLIP_POSITIVE, SLIP_NEGATIVE) else 0.0
+    """The sign of mu_c in a regime (0 in free flight and in stick). Compilable core."""
+    if regime in (SLIP_POSITIVE, SLIP_NEGATIVE):
+        return float(regime)
+    return 0.0
 
 
 # --------------------------------------------------------------------------- forces
@@ -109,23 +130,38 @@ def slip_velocity(x, y, vx, vy, Rp: float, eta: float):
     return out if np.ndim(out) else float(out)
 
 
+def slip_velocity_rate(x, y, vx, vy, ax, ay):
+    """d v_r / dtau from the state and its acceleration (ax, ay); scalars or arrays.
+
+    v_r = Rp eta + w / z with w = x vy - y vx, so dv_r/dtau = (x ay - y ax) / z - w z' / z^2
+    (compilable core).
+    """
+    z = np.hypot(x, y)
+    whirl = x * vy - y * vx
+    zdot = (x * vx + y * vy) / z
+    return (x * ay - y * ax) / z - whirl * zdot / (z * z)
+
+
+def force_jacobian_entries(x0: float, y0: float, mu_c: float):
+    """Entries (j00, j01, j10, j11) of ``force_jacobian`` (compilable core)."""
+    a = x0 * x0 + y0 * y0
+    z0 = math.sqrt(a)
+    inv_z = 1.0 / z0
+    inv_z3 = 1.0 / (a * z0)
+    A1 = 1.0 - inv_z + x0 * x0 * inv_z3
+    A2 = 1.0 - inv_z + y0 * y0 * inv_z3
+    B = x0 * y0 * inv_z3
+    # F_a1 - 1, F_b1 (over K); F_b2, F_a2 - 1 (over K)
+    return A1 - mu_c * B, B - mu_c * A2, B + mu_c * A1, A2 + mu_c * B
+
+
 def force_jacobian(x0: float, y0: float, mu_c: float) -> np.ndarray:
     """Jacobian of f = (1 - 1/z) R (x, y) at (x0, y0), R = [[1, -mu_c], [mu_c, 1]].
 
     With the paper's coefficients (eq. 9-12) this is R [[A1, B1], [B2, A2]].
     """
-    a = x0 * x0 + y0 * y0
-    z0 = math.sqrt(a)
-    inv_z, inv_z3 = 1.0 / z0, 1.0 / (a * z0)
-    A1 = 1.0 - inv_z + x0 * x0 * inv_z3
-    A2 = 1.0 - inv_z + y0 * y0 * inv_z3
-    B = x0 * y0 * inv_z3
-    return np.array(
-        [
-            [A1 - mu_c * B, B - mu_c * A2],  # F_a1 - 1, F_b1 (over K)
-            [B + mu_c * A1, A2 + mu_c * B],  # F_b2, F_a2 - 1 (over K)
-        ]
-    )
+    j00, j01, j10, j11 = force_jacobian_entries(float(x0), float(y0), float(mu_c))
+    return np.array([[j00, j01], [j10, j11]])
 
 
 def taylor_force(x0: float, y0: float, x, y, K: float, mu_c: float):
@@ -135,15 +171,32 @@ def taylor_force(x0: float, y0: float, x, y, K: float, mu_c: float):
     ``f ~ R ((A1 x + B1 y + D1), (B2 x + A2 y + D2))``. Valid as an approximation for an
     expansion point in contact (z0 > 1 or on the circle).
     """
-    a = x0 * x0 + y0 * y0
-    z0 = math.sqrt(a)
-    inv_z, inv_z3 = 1.0 / z0, 1.0 / (a * z0)
-    A1 = 1.0 - inv_z + x0 * x0 * inv_z3
-    A2 = 1.0 - inv_z + y0 * y0 * inv_z3
-    B = x0 * y0 * inv_z3
+    A1, B, _, A2 = force_jacobian_entries(x0, y0, 0.0)  # the coefficients without friction
+    inv_z = 1.0 / math.sqrt(x0 * x0 + y0 * y0)
     f1x = A1 * x + B * y - x0 * inv_z
     f1y = B * x + A2 * y - y0 * inv_z
     return -K * (f1x - mu_c * f1y), -K * (f1y + mu_c * f1x)
+
+
+def linearised_contact_arrays(x0: float, y0: float, K: float, nu: float, mu_c: float):
+    """``(A, b)`` of ``linearised_contact_system`` from scalars (compilable core)."""
+    j00, j01, j10, j11 = force_jacobian_entries(x0, y0, mu_c)
+    factor = 1.0 - 1.0 / math.hypot(x0, y0)
+    f0x = factor * (x0 - mu_c * y0)
+    f0y = factor * (y0 + mu_c * x0)
+    A = np.zeros((4, 4))
+    A[0, 2] = 1.0
+    A[1, 3] = 1.0
+    A[2, 0] = -(1.0 + K * j00)
+    A[2, 1] = -(K * j01)
+    A[3, 0] = -(K * j10)
+    A[3, 1] = -(1.0 + K * j11)
+    A[2, 2] = -2.0 * nu
+    A[3, 3] = -2.0 * nu
+    b = np.zeros(4)
+    b[2] = -K * (f0x - (j00 * x0 + j01 * y0))
+    b[3] = -K * (f0y - (j10 * x0 + j11 * y0))
+    return A, b
 
 
 def linearised_contact_system(s0, params: ModelParams, mu_c: float):
@@ -154,24 +207,26 @@ def linearised_contact_system(s0, params: ModelParams, mu_c: float):
     ``I + K J`` with ``J = force_jacobian``: rows ``[F_a1, F_b1]`` and ``[F_b2, F_a2]``
     (correction 2), and ``b`` carries ``-K (f(s0) - J p0)``.
     """
-    x0, y0 = float(s0[0]), float(s0[1])
-    J = force_jacobian(x0, y0, mu_c)
-    z0 = math.hypot(x0, y0)
-    factor = 1.0 - 1.0 / z0
-    f0 = np.array([factor * (x0 - mu_c * y0), factor * (y0 + mu_c * x0)])
-    A = np.zeros((4, 4))
-    A[0, 2] = A[1, 3] = 1.0
-    A[2:, :2] = -(np.eye(2) + params.K * J)
-    A[2, 2] = A[3, 3] = -2.0 * params.nu
-    b = np.zeros(4)
-    b[2:] = -params.K * (f0 - J @ np.array([x0, y0]))
-    return A, b
+    return linearised_contact_arrays(
+        float(s0[0]), float(s0[1]), float(params.K), float(params.nu), float(mu_c)
+    )
 
 
 def contact_eigenvalues(x0: float, y0: float, params: ModelParams, mu_c: float) -> np.ndarray:
     """Eigenvalues of the linearised contact system at the point (x0, y0)."""
     A, _ = linearised_contact_system((x0, y0, 0.0, 0.0), params, mu_c)
     return np.linalg.eigvals(A)
+
+
+def stick_friction_value(tau, x, y, vx, vy, nu: float, eta: float, E: float, phi0: float):
+    """``stick_friction`` from scalars or arrays (compilable core)."""
+    r = np.hypot(x, y)
+    phase = eta * tau + phi0
+    sin_rel = (np.sin(phase) * x - np.cos(phase) * y) / r  # sin(phase - theta)
+    r_dot = (x * vx + y * vy) / r
+    r_theta_dot = (x * vy - y * vx) / r
+    theta_dot = r_theta_dot / r
+    return E * sin_rel - r_dot * theta_dot - 2.0 * nu * r_theta_dot
 
 
 def stick_friction(tau, x, y, vx, vy, params: ModelParams):
@@ -182,13 +237,8 @@ def stick_friction(tau, x, y, vx, vy, params: ModelParams):
     like friction opposing positive slip. Rolling holds while ``|T| <= mu K (z - 1)``.
     Works on scalars and arrays.
     """
-    r = np.hypot(x, y)
-    phase = params.eta * np.asarray(tau, dtype=float) + params.phi0
-    sin_rel = (np.sin(phase) * x - np.cos(phase) * y) / r  # sin(phase - theta)
-    r_dot = (x * vx + y * vy) / r
-    r_theta_dot = (x * vy - y * vx) / r
-    theta_dot = r_theta_dot / r
-    return params.E * sin_rel - r_dot * theta_dot - 2.0 * params.nu * r_theta_dot
+    tau = np.asarray(tau, dtype=float)
+    return stick_friction_value(tau, x, y, vx, vy, params.nu, params.eta, params.E, params.phi0)
 
 
 def tangential_force(tau, x, y, vx, vy, params: ModelParams, regime):
@@ -209,52 +259,85 @@ def tangential_force(tau, x, y, vx, vy, params: ModelParams, regime):
 # ------------------------------------------------------------------ right-hand side
 
 
+def rhs_entries(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu, Rp, regime):
+    """``rhs`` from scalars: (vx, vy, ax, ay) (compilable core)."""
+    if regime == STICK:
+        vx, vy = rolling_velocity(x, y, vx, vy, Rp * eta)
+    phase = eta * tau + phi0
+    ax = E * math.cos(phase) - 2.0 * nu * vx - x
+    ay = E * math.sin(phase) - 2.0 * nu * vy - y
+    if regime == STICK:
+        # normal force K (z - 1) along -r_hat, rolling friction T along -theta_hat
+        z = math.hypot(x, y)
+        normal = K * (z - 1.0) / z
+        tangential = stick_friction_value(tau, x, y, vx, vy, nu, eta, E, phi0) / z
+        ax -= normal * x - tangential * y
+        ay -= normal * y + tangential * x
+    elif regime != FREE:
+        mu_c = mu * friction_sign(regime)
+        factor = K * (1.0 - 1.0 / math.hypot(x, y))
+        ax -= factor * (x - mu_c * y)
+        ay -= factor * (y + mu_c * x)
+    return vx, vy, ax, ay
+
+
+def rhs_jacobian_array(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu, Rp, regime):
+    """``rhs_jacobian`` from scalars (compilable core)."""
+    jac = np.zeros((4, 4))
+    jac[0, 2] = 1.0
+    jac[1, 3] = 1.0
+    jac[2, 0] = -1.0
+    jac[3, 1] = -1.0
+    jac[2, 2] = -2.0 * nu
+    jac[3, 3] = -2.0 * nu
+    if regime == STICK:
+        # No closed form kept for the rolling law: central differences of rhs.
+        s = np.array([x, y, vx, vy])
+        for j in range(4):
+            step = 1e-7 * max(1.0, abs(s[j]))
+            sp = s.copy()
+            sm = s.copy()
+            sp[j] += step
+            sm[j] -= step
+            fp = rhs_entries(tau, sp[0], sp[1], sp[2], sp[3], nu, eta, E, phi0, K, mu, Rp, STICK)
+            fm = rhs_entries(tau, sm[0], sm[1], sm[2], sm[3], nu, eta, E, phi0, K, mu, Rp, STICK)
+            for i in range(4):
+                jac[i, j] = (fp[i] - fm[i]) / (2 * step)
+    elif regime != FREE:
+        mu_c = mu * friction_sign(regime)
+        j00, j01, j10, j11 = force_jacobian_entries(x, y, mu_c)
+        jac[2, 0] -= K * j00
+        jac[2, 1] -= K * j01
+        jac[3, 0] -= K * j10
+        jac[3, 1] -= K * j11
+    return jac
+
+
+def _rhs_args(tau, s, params: ModelParams, regime: int):
+    return (
+        float(tau),
+        float(s[0]),
+        float(s[1]),
+        float(s[2]),
+        float(s[3]),
+        *params_vector(params),
+        int(regime),
+    )
+
+
 def rhs(tau: float, s, params: ModelParams, regime: int) -> np.ndarray:
     """Right-hand side in a fixed regime (regime-locked, smooth in s).
 
     In a contact regime the contact law is applied whatever z is (its smooth extension),
     so a solver that stops at the events z = 1 and v_r = 0 never steps across a kink.
+    In stick the law is evaluated on the state projected to rolling (``project_to_rolling``).
     """
-    if regime == STICK:
-        s = project_to_rolling(s, params)
-    x, y, vx, vy = s[0], s[1], s[2], s[3]
-    phase = params.eta * tau + params.phi0
-    E = params.E
-    ax = E * math.cos(phase) - 2.0 * params.nu * vx - x
-    ay = E * math.sin(phase) - 2.0 * params.nu * vy - y
-    if regime == STICK:
-        # normal force K (z - 1) along -r_hat, rolling friction T along -theta_hat
-        z = math.hypot(x, y)
-        normal = params.K * (z - 1.0) / z
-        tangential = float(stick_friction(tau, x, y, vx, vy, params)) / z
-        ax -= normal * x - tangential * y
-        ay -= normal * y + tangential * x
-    elif regime != FREE:
-        mu_c = params.mu * friction_sign(regime)
-        factor = params.K * (1.0 - 1.0 / math.hypot(x, y))
-        ax -= factor * (x - mu_c * y)
-        ay -= factor * (y + mu_c * x)
-    return np.array([vx, vy, ax, ay])
+    return np.array(rhs_entries(*_rhs_args(tau, s, params, regime)))
 
 
 def rhs_jacobian(tau: float, s, params: ModelParams, regime: int) -> np.ndarray:
     """Jacobian of ``rhs`` with respect to the state (for implicit solvers)."""
-    jac = np.zeros((4, 4))
-    jac[0, 2] = jac[1, 3] = 1.0
-    jac[2, 0] = jac[3, 1] = -1.0
-    jac[2, 2] = jac[3, 3] = -2.0 * params.nu
-    if regime == STICK:
-        # No closed form kept for the rolling law: central differences of rhs.
-        for j in range(4):
-            step = 1e-7 * max(1.0, abs(float(s[j])))
-            sp, sm = np.array(s, dtype=float), np.array(s, dtype=float)
-            sp[j] += step
-            sm[j] -= step
-            jac[:, j] = (rhs(tau, sp, params, STICK) - rhs(tau, sm, params, STICK)) / (2 * step)
-    elif regime != FREE:
-        mu_c = params.mu * friction_sign(regime)
-        jac[2:, :2] -= params.K * force_jacobian(float(s[0]), float(s[1]), mu_c)
-    return jac
+    return rhs_jacobian_array(*_rhs_args(tau, s, params, regime))
 
 
 def regime_of_state(s, params: ModelParams, tau: float | None = None) -> int:
@@ -299,10 +382,16 @@ def project_to_rolling(s, params: ModelParams) -> np.ndarray:
     """
     s = np.asarray(s, dtype=float)
     x, y, vx, vy = s
+    vx, vy = rolling_velocity(x, y, vx, vy, params.Rp * params.eta)
+    return np.array([x, y, vx, vy])
+
+
+def rolling_velocity(x, y, vx, vy, spin: float):
+    """Velocity with its radial part kept and r theta' = -spin (compilable core)."""
     r = np.hypot(x, y)
     radial = (x * vx + y * vy) / r
-    tangential = -params.Rp * params.eta
-    return np.array([x, y, (radial * x - tangential * y) / r, (radial * y + tangential * x) / r])
+    tangential = -spin
+    return (radial * x - tangential * y) / r, (radial * y + tangential * x) / r
 
 
 def rolling_whirl_radius(params: ModelParams) -> float:
@@ -319,18 +408,66 @@ def rolling_whirl_radius(params: ModelParams) -> float:
 # ------------------------------------------------------------------ polar form
 
 
+def polar_entries(x, y, vx, vy):
+    """(r, theta, r', theta') from (x, y, vx, vy), scalars or arrays (compilable core)."""
+    r = np.hypot(x, y)
+    return r, np.arctan2(y, x), (x * vx + y * vy) / r, (x * vy - y * vx) / (r * r)
+
+
+def cartesian_entries(r, theta, u, omega):
+    """(x, y, vx, vy) from (r, theta, r', theta'), scalars or arrays (compilable core)."""
+    c = np.cos(theta)
+    sn = np.sin(theta)
+    return r * c, r * sn, u * c - r * omega * sn, u * sn + r * omega * c
+
+
 def to_polar(s) -> np.ndarray:
     """(x, y, vx, vy) -> (r, theta, r', theta'); shape (4,) or (4, n)."""
     x, y, vx, vy = np.asarray(s, dtype=float)
-    r = np.hypot(x, y)
-    return np.array([r, np.arctan2(y, x), (x * vx + y * vy) / r, (x * vy - y * vx) / (r * r)])
+    return np.array(polar_entries(x, y, vx, vy))
 
 
 def from_polar(p) -> np.ndarray:
     """(r, theta, r', theta') -> (x, y, vx, vy); shape (4,) or (4, n)."""
     r, theta, u, omega = np.asarray(p, dtype=float)
-    c, sn = np.cos(theta), np.sin(theta)
-    return np.array([r * c, r * sn, u * c - r * omega * sn, u * sn + r * omega * c])
+    return np.array(cartesian_entries(r, theta, u, omega))
+
+
+def polar_rhs_entries(tau, r, theta, u, omega, nu, eta, E, phi0, K, mu_c):
+    """``polar_rhs`` from scalars: (r', theta', r'', theta'') (compilable core)."""
+    psi = eta * tau + phi0 - theta
+    r_acc = r * omega * omega - 2.0 * nu * u - r - K * (r - 1.0) + E * math.cos(psi)
+    tangential = -2.0 * u * omega - 2.0 * nu * r * omega - mu_c * K * (r - 1.0)
+    return u, omega, r_acc, (tangential + E * math.sin(psi)) / r
+
+
+def polar_jacobian_arrays(tau, r, theta, u, omega, nu, eta, E, phi0, K, mu_c):
+    """``(J, f_tau)`` of ``polar_jacobian`` from scalars (compilable core)."""
+    psi = eta * tau + phi0 - theta
+    sin_psi = math.sin(psi)
+    cos_psi = math.cos(psi)
+    numerator = -2.0 * u * omega - 2.0 * nu * r * omega - mu_c * K * (r - 1.0) + E * sin_psi
+    J = np.zeros((4, 4))
+    J[0, 2] = 1.0
+    J[1, 3] = 1.0
+    J[2, 0] = omega * omega - 1.0 - K
+    J[2, 1] = E * sin_psi
+    J[2, 2] = -2.0 * nu
+    J[2, 3] = 2.0 * r * omega
+    J[3, 0] = (-2.0 * nu * omega - mu_c * K) / r - numerator / (r * r)
+    J[3, 1] = -E * cos_psi / r
+    J[3, 2] = -2.0 * omega / r
+    J[3, 3] = -2.0 * (u + nu * r) / r
+    f_tau = np.zeros(4)
+    f_tau[2] = -E * eta * sin_psi
+    f_tau[3] = E * eta * cos_psi / r
+    return J, f_tau
+
+
+def _polar_args(tau, p, params: ModelParams, mu_c: float):
+    nu, eta, E, phi0, K = params_vector(params)[:5]
+    r, theta, u, omega = (float(v) for v in p)
+    return float(tau), r, theta, u, omega, nu, eta, E, phi0, K, float(mu_c)
 
 
 def polar_rhs(tau: float, p, params: ModelParams, mu_c: float) -> np.ndarray:
@@ -340,36 +477,12 @@ def polar_rhs(tau: float, p, params: ModelParams, mu_c: float) -> np.ndarray:
     theta'' = (-2 r' theta' - 2 nu r theta' - mu_c K (r - 1) + E sin(psi)) / r,
     psi = eta tau + phi0 - theta. K enters only linearly in r - 1.
     """
-    r, theta, u, omega = p
-    psi = params.eta * tau + params.phi0 - theta
-    K, nu, E = params.K, params.nu, params.E
-    r_acc = r * omega * omega - 2.0 * nu * u - r - K * (r - 1.0) + E * math.cos(psi)
-    tangential = -2.0 * u * omega - 2.0 * nu * r * omega - mu_c * K * (r - 1.0)
-    return np.array([u, omega, r_acc, (tangential + E * math.sin(psi)) / r])
+    return np.array(polar_rhs_entries(*_polar_args(tau, p, params, mu_c)))
 
 
 def polar_jacobian(tau: float, p, params: ModelParams, mu_c: float):
     """(J, f_tau): Jacobian of ``polar_rhs`` in (r, theta, r', theta') and its tau-derivative."""
-    r, theta, u, omega = p
-    psi = params.eta * tau + params.phi0 - theta
-    K, nu, E = params.K, params.nu, params.E
-    sin_psi, cos_psi = math.sin(psi), math.cos(psi)
-    numerator = -2.0 * u * omega - 2.0 * nu * r * omega - mu_c * K * (r - 1.0) + E * sin_psi
-    J = np.array(
-        [
-            [0.0, 0.0, 1.0, 0.0],
-            [0.0, 0.0, 0.0, 1.0],
-            [omega * omega - 1.0 - K, E * sin_psi, -2.0 * nu, 2.0 * r * omega],
-            [
-                (-2.0 * nu * omega - mu_c * K) / r - numerator / (r * r),
-                -E * cos_psi / r,
-                -2.0 * omega / r,
-                -2.0 * (u + nu * r) / r,
-            ],
-        ]
-    )
-    f_tau = np.array([0.0, 0.0, -E * params.eta * sin_psi, E * params.eta * cos_psi / r])
-    return J, f_tau
+    return polar_jacobian_arrays(*_polar_args(tau, p, params, mu_c))
 
 
 # ------------------------------------------------------------------ exact solutions

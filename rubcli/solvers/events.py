@@ -46,12 +46,7 @@ def slip_value(S: np.ndarray, params: model.ModelParams) -> np.ndarray:
 
 def slip_rate(S: np.ndarray, dS: np.ndarray) -> np.ndarray:
     """d v_r / dtau from states S and their derivatives dS (both shape (4, n))."""
-    x, y, vx, vy = S
-    ax, ay = dS[2], dS[3]
-    z = np.hypot(x, y)
-    whirl = x * vy - y * vx
-    zdot = (x * vx + y * vy) / z
-    return (x * ay - y * ax) / z - whirl * zdot / (z * z)
+    return model.slip_velocity_rate(S[0], S[1], S[2], S[3], dS[2], dS[3])
 
 
 def first_crossing(
