@@ -16,9 +16,9 @@ A setting that fails, or exceeds ``max_wall_time_s``, is recorded with its statu
 tighter settings of that method are then skipped (they would cost more), and noted.
 
 Settings: scipy methods take ``rtol`` with ``atol = rtol * atol_factor``; ``analytic``
-takes ``steps_per_period``. ``cheapest_for(rows, target)`` picks the fastest successful
-row whose ``error_max`` is at most the target (``None`` if none reaches it, or if the
-target is below what the reference can resolve).
+and ``analytic-polar`` take ``steps_per_period``. ``cheapest_for(rows, target)`` picks
+the fastest successful row whose ``error_max`` is at most the target (``None`` if none
+reaches it, or if the target is below what the reference can resolve).
 """
 
 from __future__ import annotations
@@ -67,7 +67,7 @@ def ladder(
     """The settings for each method, loosest first (so a budget stop skips the dearest)."""
     out = []
     for method in methods:
-        if method == "analytic":
+        if method.startswith("analytic"):  # analytic, analytic-polar: fixed steps
             for n in sorted(steps_per_period):
                 out.append(
                     Setting(method, "steps_per_period", int(n), {"steps_per_period": int(n)})

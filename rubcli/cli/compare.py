@@ -382,10 +382,11 @@ def report_markdown(case: Case, wp: wpm.WorkPrecision | None, panels: list[dict]
                     f"| {target:g} | {row.method} at {row.setting_name} = {row.label} | "
                     f"{row.wall_time_s:.4g} | {row.error_max:.3g} |"
                 )
-        order = wpm.observed_order(wp.rows_of("analytic")) if "analytic" in wp.methods else None
-        if order is not None:
-            out += ["", f"Observed order of `analytic` in its step (fit of log error_max vs "
-                    f"log step over the ladder): {order:.2f}."]  # fmt: skip
+        for method in (m for m in wp.methods if m.startswith("analytic")):
+            order = wpm.observed_order(wp.rows_of(method))
+            if order is not None:
+                out += ["", f"Observed order of `{method}` in its step (fit of log error_max "
+                        f"vs log step over the ladder): {order:.2f}."]  # fmt: skip
         out.append("")
     if panels:
         out += ["## Orbits" + (" per mu" if len(panels) > 1 else ""), ""]
