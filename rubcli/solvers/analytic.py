@@ -24,6 +24,13 @@ step must shrink like 1/sqrt(K) for a fixed accuracy (docs/solvers.md).
 Stick (rolling, notes section 4) has no closed form in the paper: when v_r reaches 0
 and the needed friction is within mu F_N, the rolling law is integrated by RK4 steps
 (``StickStep``) until it leaves the friction cone or contact ends.
+
+Compiled bulk (``compiled=True``, the default, fixed steps only): runs of slip steps in
+which no event can occur are taken by ``kernels.advance_contact``, the same closed forms
+compiled with numba; it hands back to the Python propagators below before any step that
+might hold an event, so events and regime changes are always decided here. The two paths
+agree to round-off (tests/test_kernels.py). Adaptive steps (``analytic_tol``), stick,
+free flight and each step that starts on an event surface run in Python.
 """
 
 from __future__ import annotations
@@ -37,7 +44,7 @@ import scipy.linalg
 from rubcli import model
 from rubcli.problem import Problem
 from rubcli.solution import FAILED, SUCCESS, Solution, SwitchEvent
-from rubcli.solvers import register
+from rubcli.solvers import kernels, register
 from rubcli.solvers.events import (
     STICK_ENTRY,
     StormGuard,
@@ -51,6 +58,7 @@ FREE_SCAN_FRACTION = 1.0 / 32.0  # scan spacing in free flight, fraction of fast
 CONTACT_SCAN_FRACTION = 1.0 / 16.0  # scan spacing inside a contact step
 FREE_SCAN_CHUNK = 512  # scan points evaluated at once in free flight
 EIGVEC_COND_LIMIT = 1e10  # above this the eigenbasis is not trusted: use expm
+KERNEL_CHUNK_STEPS = 4096  # compiled steps per call between wall-time and progress checks
 
 
 class FreeFlight:
@@ -281,6 +289,7 @@ def solve_piecewise(
     max_steps: int = 5_000_000,
     max_wall_time_s: float = 600.0,
     progress=None,
+    compiled: bool = True,
     **_ignored,
 ) -> Solution:
     """The piecewise method with a given contact linearisation ('cartesian' or 'polar').
@@ -288,6 +297,8 @@ def solve_piecewise(
     Fixed steps of ``period / steps_per_period`` in contact, or, with ``analytic_tol``,
     adaptive steps chosen by step doubling so that the estimated local error per step
     stays below the tolerance (``steps_per_period`` then sets the first step).
+    With ``compiled`` (fixed steps only) the event-free slip steps run in the numba
+    kernel ``kernels.advance_contact``; ``compiled=False`` is the pure-Python path.
     """
     params = problem.params
     t_eval = problem.t_eval
@@ -317,6 +328,11 @@ def solve_piecewise(
     storms = StormGuard()
     next_progress = tau
     pending = []  # accepted half-step propagators still to be walked (adaptive mode)
+    use_kernel = compiled and analytic_tol is None and kernels.ensure_fresh()
+    if use_kernel:
+        pars = np.array(model.params_vector(params))
+        t_eval_c = np.ascontiguousarray(t_eval, dtype=float)
+    stats["n_compiled_steps"] = 0
 
     def fill(prop, t_stop, reg):
         nonlocal k
@@ -335,6 +351,7 @@ def solve_piecewise(
         return earliest_event(prop.states, prop.derivatives, grid, regime, params, last_kind)
 
     while tau < t_end:
+        bulk_only = False  # the compiled kernel took this iteration's steps
         if regime == model.FREE:
             # No steps in free flight: scan the closed form chunk by chunk for the entry.
             pending.clear()
@@ -350,6 +367,35 @@ def solve_piecewise(
                 if time.perf_counter() - start_clock > max_wall_time_s:
                     break
         else:
+            if (
+                use_kernel
+                and last_kind is None
+                and regime in (model.SLIP_POSITIVE, model.SLIP_NEGATIVE)
+            ):
+                k0 = k
+                tau, state, k, taken, reason = kernels.advance_contact(
+                    linearisation == "polar",
+                    tau,
+                    np.ascontiguousarray(state, dtype=float),
+                    h,
+                    t_end,
+                    regime,
+                    pars,
+                    t_eval_c,
+                    out_states,
+                    k,
+                    min(KERNEL_CHUNK_STEPS, max_steps - stats["nsteps"]),
+                    CONTACT_SCAN_FRACTION,
+                    EIGVEC_COND_LIMIT,
+                )
+                out_regimes[k0:k] = regime
+                stats["nsteps"] += taken
+                stats["n_contact_steps"] += taken
+                stats["n_compiled_steps"] += taken
+                # at a possible event (or a step the kernel leaves to Python) the Python
+                # step below is taken from where the kernel stopped
+                bulk_only = reason not in (kernels.STOP_EVENT, kernels.STOP_PYTHON)
+        if regime != model.FREE and not bulk_only:
             try:
                 if analytic_tol is None:
                     tb = min(t_end, tau + h)
@@ -380,12 +426,14 @@ def solve_piecewise(
             event = search(prop, tau, tb, CONTACT_SCAN_FRACTION)
             last_kind = None
             fill(prop, event[0] if event else tb, regime)
-        stats["nsteps"] += 1
-
-        if event is None:
+        if bulk_only:
+            pass  # the kernel has advanced tau, state, the samples and the step counts
+        elif event is None:
+            stats["nsteps"] += 1
             tau = tb
             state = prop.states(tau)
         else:
+            stats["nsteps"] += 1
             pending.clear()
             tau, kind = event
             state = prop.states(tau)
@@ -424,6 +472,7 @@ def solve_piecewise(
         "analytic_tol": analytic_tol,
         "max_steps": max_steps,
         "max_wall_time_s": max_wall_time_s,
+        "compiled": use_kernel,
     }
     return Solution(
         problem=problem,

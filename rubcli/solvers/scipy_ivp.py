@@ -18,6 +18,11 @@ rolling law (``model.rhs`` with ``model.STICK``) until the needed friction leave
 friction cone (slip restarts in the direction it points) or contact ends. Implicit
 methods get a finite-difference Jacobian in stick.
 
+With ``compiled=True`` (the default) the right-hand side, its Jacobian and the column
+derivatives of the event scan are numba kernels (``kernels.rhs``) compiled from the
+same ``model.rhs_entries``; scipy's own per-step Python work is unchanged, so this
+buys only the share of the time spent in the right-hand side (benchmarks/floor.md).
+
 Limits: an event is missed if its function changes sign twice within one scan
 interval of an accepted step (``SCAN_POINTS`` per step; a dip resolved by the dense
 output is caught).
@@ -34,7 +39,7 @@ from scipy import integrate
 from rubcli import model
 from rubcli.problem import Problem
 from rubcli.solution import FAILED, SUCCESS, Solution, SwitchEvent
-from rubcli.solvers import register
+from rubcli.solvers import kernels, register
 from rubcli.solvers.events import (
     STICK_ENTRY,
     StormGuard,
@@ -86,6 +91,7 @@ def solve_scipy(
     max_steps: int = 5_000_000,
     max_wall_time_s: float = 600.0,
     progress=None,
+    compiled: bool = True,
     **_ignored,
 ) -> Solution:
     params = problem.params
@@ -108,13 +114,13 @@ def solve_scipy(
     storms = StormGuard()
     next_progress = tau
 
+    compiled = compiled and kernels.ensure_fresh()
     while tau < t_end:
-        fun = partial(_rhs_fun, params=params, regime=regime)
+        fun, jac, derivatives = _rhs_functions(params, regime, compiled)
         options = {"rtol": rtol, "atol": atol}
         if name in IMPLICIT and regime != model.STICK:
-            options["jac"] = partial(_jac_fun, params=params, regime=regime)
+            options["jac"] = jac
         solver = cls(fun, tau, state, t_end, **options)
-        derivatives = _column_derivatives(fun)
         stats["n_segments"] += 1
         event = None
         while True:
@@ -180,6 +186,7 @@ def solve_scipy(
             "atol": atol,
             "max_steps": max_steps,
             "max_wall_time_s": max_wall_time_s,
+            "compiled": compiled,
         },
         status=status,
         message=message,
@@ -192,6 +199,27 @@ def _rhs_fun(t, s, params, regime):
 
 def _jac_fun(t, s, params, regime):
     return model.rhs_jacobian(t, s, params, regime)
+
+
+def _rhs_functions(params: model.ModelParams, regime: int, compiled: bool):
+    """(fun, jac, derivatives) of one regime: compiled kernels or model.py in Python."""
+    if not compiled:
+        fun = partial(_rhs_fun, params=params, regime=regime)
+        return fun, partial(_jac_fun, params=params, regime=regime), _column_derivatives(fun)
+    pars = np.array(model.params_vector(params))
+    rhs, jacobian, columns = kernels.rhs, kernels.rhs_jacobian, kernels.rhs_columns
+
+    def fun(t, s):
+        return rhs(t, s, pars, regime)
+
+    def jac(t, s):
+        return jacobian(t, s, pars, regime)
+
+    def derivatives(t, S):
+        t = np.broadcast_to(np.asarray(t, dtype=float), (S.shape[1],))
+        return columns(np.ascontiguousarray(t), np.ascontiguousarray(S, dtype=float), pars, regime)
+
+    return fun, jac, derivatives
 
 
 def _register(name: str) -> None:

@@ -1,0 +1,962 @@
+"""Compiled (numba) kernels: the event-free bulk of the analytic contact steps, and the
+right-hand sides given to scipy.
+
+What is compiled, and what is not
+---------------------------------
+``advance_contact`` advances *consecutive fixed-length contact steps in one slip regime*
+(slip+ or slip-) from ``(tau, state)`` with the Cartesian (``analytic``) or the polar
+(``analytic-polar``) linearisation, exactly as the Python propagators
+``LinearisedContact`` and ``PolarLinearisedContact`` in ``analytic.py`` do, and fills the
+output samples that fall in each step from the step's closed form. It hands control back
+to Python *before* any step that might contain an event, so that every event is located,
+and every regime change decided, by the tested Python code (``events.earliest_event``):
+
+- on the step's scan grid (the spacing rule of ``analytic.py``: a fraction of the
+  fastest period ``2 pi / omega_max``) the surface function ``-(z^2 - 1)`` or, with
+  friction, the slip function ``-sign * v_r`` comes within a margin of zero, or an
+  interior extremum might reach it (the rise bound of ``events.first_crossing``, with
+  margins); the margins cover the round-off by which the compiled and the Python
+  propagators differ, so a step the kernel takes is a step in which Python finds no
+  event;
+- the eigenbasis is not clearly well conditioned (the Python propagator then decides
+  between its eigen-decomposition and its ``expm`` fallback), the linear system is
+  exactly singular, or the step's states are not finite (Python then fails cleanly);
+- the step budget it was given is used up, or ``t_end`` is reached.
+
+Stick, free flight, adaptive steps and the steps that start on an event surface stay
+in Python. The physics (contact Jacobian, linearised system, polar right-hand side and
+Jacobian, the regime-locked right-hand side) is not written here: it is ``model.py``'s
+compilable cores, registered with numba below, so both paths run one definition.
+
+Caching: every kernel is compiled with ``cache=True``; the first call on a machine
+compiles (seconds), later processes load the machine code from ``__pycache__``. numba
+does not notice that a *called* function in another file changed, so ``ensure_fresh``
+(run once per process before the first kernel call) evaluates the registered model cores
+through a cached probe and recompiles every kernel if the probe disagrees with Python.
+"""
+
+from __future__ import annotations
+
+import cmath
+import math
+import warnings
+
+import numba
+import numpy as np
+from numba.extending import register_jitable
+
+from rubcli import model
+from rubcli.model import (
+    cartesian_entries,
+    friction_sign,
+    linearised_contact_arrays,
+    polar_entries,
+    polar_jacobian_arrays,
+    polar_rhs_entries,
+    rhs_entries,
+    rhs_jacobian_array,
+    slip_velocity_rate,
+)
+
+# The model's compilable cores, registered so that compiled code calls the same functions.
+COMPILABLE_CORES = (
+    model.friction_sign,
+    model.force_jacobian_entries,
+    model.linearised_contact_arrays,
+    model.stick_friction_value,
+    model.rolling_velocity,
+    model.rhs_entries,
+    model.rhs_jacobian_array,
+    model.slip_velocity_rate,
+    model.polar_entries,
+    model.cartesian_entries,
+    model.polar_rhs_entries,
+    model.polar_jacobian_arrays,
+)
+for _core in COMPILABLE_CORES:
+    register_jitable(_core)
+
+# Why advance_contact stopped.
+STOP_END = 0  # reached t_end
+STOP_EVENT = 1  # the next step may contain an event: Python takes it
+STOP_PYTHON = 2  # the next step needs Python (conditioning, singular system, non-finite)
+STOP_LIMIT = 3  # the step limit it was given is reached
+STOP_REASONS = {
+    STOP_END: "end",
+    STOP_EVENT: "event",
+    STOP_PYTHON: "python",
+    STOP_LIMIT: "limit",
+}
+
+EPS = np.finfo(float).eps
+EVENT_MARGIN = 1e-9  # relative margin of the event pre-check (plus eps * cond(V) terms)
+EIG_RESIDUAL_TOL = 1e3 * EPS  # backward error accepted from the hand-written eigensolver
+
+jit = numba.njit(cache=True)
+
+
+# --------------------------------------------------------------- small linear algebra
+
+
+@jit
+def _abs1(z):
+    return abs(z.real) + abs(z.imag)
+
+
+@jit
+def _lu_factor(M, piv):
+    """In-place LU with partial pivoting (as LAPACK getrf; pivots by |re| + |im|).
+
+    The unit lower factor is stored below the diagonal, U above it, and the diagonal
+    holds the *reciprocals* of U's pivots (so that ``_lu_solve`` multiplies). Returns
+    False when a pivot is exactly zero (LAPACK's "singular" condition).
+    """
+    n = M.shape[0]
+    for j in range(n):
+        p = j
+        best = _abs1(M[j, j])
+        for i in range(j + 1, n):
+            a = _abs1(M[i, j])
+            if a > best:
+                best = a
+                p = i
+        piv[j] = p
+        if best == 0.0:
+            return False
+        if p != j:
+            for c in range(n):
+                tmp = M[j, c]
+                M[j, c] = M[p, c]
+                M[p, c] = tmp
+        inv = 1.0 / M[j, j]
+        M[j, j] = inv
+        for i in range(j + 1, n):
+            M[i, j] *= inv
+        for i in range(j + 1, n):
+            f = M[i, j]
+            for c in range(j + 1, n):
+                M[i, c] -= f * M[j, c]
+    return True
+
+
+@jit
+def _lu_solve(LU, piv, b):
+    """Solve in place with the factors of ``_lu_factor``."""
+    n = LU.shape[0]
+    for j in range(n):
+        p = piv[j]
+        if p != j:
+            tmp = b[j]
+            b[j] = b[p]
+            b[p] = tmp
+    for i in range(n):
+        acc = b[i]
+        for c in range(i):
+            acc -= LU[i, c] * b[c]
+        b[i] = acc
+    for i in range(n - 1, -1, -1):
+        acc = b[i]
+        for c in range(i + 1, n):
+            acc -= LU[i, c] * b[c]
+        b[i] = acc * LU[i, i]
+
+
+@jit
+def _givens(x, y):
+    """(c, s): c real, s complex, with [[c, s], [-conj(s), c]] @ [x, y] = [r, 0]."""
+    ay2 = y.real * y.real + y.imag * y.imag
+    if ay2 == 0.0:
+        return 1.0, 0j
+    ax2 = x.real * x.real + x.imag * x.imag
+    if ax2 == 0.0:
+        return 0.0, 1.0 + 0j
+    ax = math.sqrt(ax2)
+    norm = math.sqrt(ax2 + ay2)
+    inv = 1.0 / (ax * norm)
+    return ax / norm, complex(
+        (x.real * y.real + x.imag * y.imag) * inv, (x.imag * y.real - x.real * y.imag) * inv
+    )
+
+
+@jit
+def _rotate(H, Z, k, c, s, col_start, row_stop):
+    """H <- G H G^H on rows/columns k, k+1 (G = [[c, s], [-conj(s), c]]); Z <- Z G^H."""
+    n = H.shape[0]
+    sr = s.real
+    si = s.imag
+    for j in range(col_start, n):
+        a = H[k, j]
+        b = H[k + 1, j]
+        H[k, j] = complex(
+            c * a.real + sr * b.real - si * b.imag, c * a.imag + sr * b.imag + si * b.real
+        )
+        H[k + 1, j] = complex(
+            c * b.real - sr * a.real - si * a.imag, c * b.imag - sr * a.imag + si * a.real
+        )
+    for i in range(row_stop):
+        a = H[i, k]
+        b = H[i, k + 1]
+        H[i, k] = complex(
+            c * a.real + sr * b.real + si * b.imag, c * a.imag + sr * b.imag - si * b.real
+        )
+        H[i, k + 1] = complex(
+            c * b.real - sr * a.real + si * a.imag, c * b.imag - sr * a.imag - si * a.real
+        )
+    for i in range(n):
+        a = Z[i, k]
+        b = Z[i, k + 1]
+        Z[i, k] = complex(
+            c * a.real + sr * b.real + si * b.imag, c * a.imag + sr * b.imag - si * b.real
+        )
+        Z[i, k + 1] = complex(
+            c * b.real - sr * a.real + si * a.imag, c * b.imag - sr * a.imag - si * a.real
+        )
+
+
+@jit
+def _rotate_real(B, Q, k, c, s, col_start):
+    """Real Givens similarity on rows/columns k, k+1: B <- G B G^T, Q <- Q G^T."""
+    n = B.shape[0]
+    for j in range(col_start, n):
+        a = B[k, j]
+        b = B[k + 1, j]
+        B[k, j] = c * a + s * b
+        B[k + 1, j] = c * b - s * a
+    for i in range(n):
+        a = B[i, k]
+        b = B[i, k + 1]
+        B[i, k] = c * a + s * b
+        B[i, k + 1] = c * b - s * a
+    for i in range(n):
+        a = Q[i, k]
+        b = Q[i, k + 1]
+        Q[i, k] = c * a + s * b
+        Q[i, k + 1] = c * b - s * a
+
+
+@jit
+def _eig_small(M, lam, V, B, Q, H, Z, scale, x):
+    """Eigenvalues and unit eigenvectors of a small real matrix; False if it failed.
+
+    Balancing by powers of 2 (LAPACK gebal's scaling), Hessenberg form by real Givens
+    rotations, complex single-shift QR with Wilkinson shifts (exceptional shifts every
+    10 iterations) to the Schur form, eigenvectors by back substitution (with ztrevc's
+    perturbation of tiny divisors) and back-transformation. About 1.5 us for 4x4,
+    against about 9 us for LAPACK's zgeev through numba.
+    """
+    n = M.shape[0]
+    for i in range(n):
+        scale[i] = 1.0
+        for j in range(n):
+            B[i, j] = M[i, j]
+            Q[i, j] = 1.0 if i == j else 0.0
+    # balance (powers of 2, as LAPACK gebal's scaling without permutations)
+    converged = False
+    while not converged:
+        converged = True
+        for i in range(n):
+            c = 0.0
+            r = 0.0
+            for j in range(n):
+                if j != i:
+                    c += B[j, i] * B[j, i]
+                    r += B[i, j] * B[i, j]
+            if c == 0.0 or r == 0.0:
+                continue
+            c = math.sqrt(c)
+            r = math.sqrt(r)
+            g = r / 2.0
+            f = 1.0
+            s = c + r
+            while c < g:
+                f *= 2.0
+                c *= 2.0
+                r /= 2.0
+                g /= 2.0
+            g = c / 2.0
+            while g >= r:
+                f /= 2.0
+                c /= 2.0
+                g /= 2.0
+                r *= 2.0
+            if c + r >= 0.95 * s:
+                continue
+            scale[i] *= f
+            converged = False
+            inv = 1.0 / f
+            for j in range(n):
+                B[i, j] *= inv
+                B[j, i] *= f
+    # Hessenberg by real Givens rotations
+    for j in range(n - 2):
+        for i in range(n - 1, j + 1, -1):
+            b = B[i, j]
+            if b != 0.0:
+                a = B[i - 1, j]
+                norm = math.hypot(a, b)
+                _rotate_real(B, Q, i - 1, a / norm, b / norm, j)
+                B[i, j] = 0.0
+    hnorm = 0.0
+    for i in range(n):
+        for j in range(n):
+            H[i, j] = B[i, j]
+            Z[i, j] = Q[i, j]
+            hnorm = max(hnorm, abs(B[i, j]))
+    # complex single-shift QR (Wilkinson shifts, exceptional shifts every 10 iterations)
+    hi = n - 1
+    its = 0
+    total = 0
+    while hi > 0:
+        lo = hi
+        while lo > 0:
+            tst = _abs1(H[lo - 1, lo - 1]) + _abs1(H[lo, lo])
+            if tst == 0.0:
+                tst = hnorm
+            if _abs1(H[lo, lo - 1]) <= EPS * tst:
+                H[lo, lo - 1] = 0.0
+                break
+            lo -= 1
+        if lo == hi:
+            hi -= 1
+            its = 0
+            continue
+        its += 1
+        total += 1
+        if total > 30 * n:
+            return False
+        a = H[hi - 1, hi - 1]
+        b = H[hi - 1, hi]
+        cc = H[hi, hi - 1]
+        d = H[hi, hi]
+        if its % 10 == 0:
+            mu = d + 0.75 * _abs1(cc)
+        else:
+            p = 0.5 * (a - d)
+            disc = np.sqrt(p * p + b * cc)
+            den = p + disc
+            den2 = p - disc
+            if _abs1(den2) > _abs1(den):
+                den = den2
+            mu = d if den == 0 else d - b * cc / den
+        xx = H[lo, lo] - mu
+        yy = H[lo + 1, lo]
+        for k in range(lo, hi):
+            if k > lo:
+                xx = H[k, k - 1]
+                yy = H[k + 1, k - 1]
+            c, s = _givens(xx, yy)
+            _rotate(H, Z, k, c, s, max(lo, k - 1), min(k + 2, hi) + 1)
+            if k > lo:
+                H[k + 1, k - 1] = 0.0
+    for k in range(n):
+        lam[k] = H[k, k]
+    # eigenvectors of the triangular factor, back-transformed and unit-normalised
+    for k in range(n):
+        smin = max(EPS * _abs1(H[k, k]), 1e-290)
+        x[k] = 1.0
+        for i in range(k - 1, -1, -1):
+            acc = 0j
+            for j in range(i + 1, k + 1):
+                acc += H[i, j] * x[j]
+            den = H[i, i] - H[k, k]
+            if _abs1(den) < smin:
+                den = smin
+            x[i] = -acc / den
+        norm = 0.0
+        for i in range(n):
+            acc = 0j
+            for j in range(k + 1):
+                acc += Z[i, j] * x[j]
+            acc *= scale[i]
+            V[i, k] = acc
+            norm += acc.real * acc.real + acc.imag * acc.imag
+        if not (norm > 0.0 and norm < np.inf):
+            return False
+        inv_norm = 1.0 / math.sqrt(norm)
+        for i in range(n):
+            V[i, k] *= inv_norm
+    return True
+
+
+@jit
+def _residual_ok(M, lam, V, scale):
+    """|(M v - lam v)_i| / scale_i <= tol ||D^-1 M D||_1 max_i |v_i / scale_i| per eigenpair."""
+    n = M.shape[0]
+    bnorm = 0.0
+    for j in range(n):
+        col = 0.0
+        for i in range(n):
+            col += abs(M[i, j]) * scale[j] / scale[i]
+        bnorm = max(bnorm, col)
+    for k in range(n):
+        vmax = 0.0
+        rmax = 0.0
+        for i in range(n):
+            acc = -lam[k] * V[i, k]
+            for j in range(n):
+                acc += M[i, j] * V[j, k]
+            rmax = max(rmax, _abs1(acc) / scale[i])
+            vmax = max(vmax, _abs1(V[i, k]) / scale[i])
+        if not rmax <= EIG_RESIDUAL_TOL * bnorm * vmax:
+            return False
+    return True
+
+
+@jit
+def _norm1(M):
+    """The 1-norm with |re| + |im| for the modulus: between ||M||_1 and sqrt(2) ||M||_1."""
+    best = 0.0
+    for j in range(M.shape[1]):
+        s = 0.0
+        for i in range(M.shape[0]):
+            s += _abs1(M[i, j])
+        best = max(best, s)
+    return best
+
+
+@jit
+def _phi12(z):
+    """phi1(z) = (e^z - 1)/z, phi2(z) = (e^z - 1 - z)/z^2, series near 0 (as analytic._phi12)."""
+    if z.real * z.real + z.imag * z.imag < 1e-6:  # |z| < 1e-3
+        z2 = z * z
+        z3 = z2 * z
+        return 1 + z / 2 + z2 / 6 + z3 / 24, 0.5 + z / 6 + z2 / 24 + z3 / 120
+    inv = 1.0 / z
+    em1 = cmath.exp(z) - 1
+    return em1 * inv, (em1 - z) * inv * inv
+
+
+# --------------------------------------------------------------- the two propagators
+#
+# A step's data live in the preallocated arrays of ``_workspace``: "prepare" fills them at
+# (tau0, s0) as the Python propagator's __init__ does, "evaluate" writes the Cartesian
+# state and its time derivative at tau0 + dt as its ``states`` and ``derivatives`` do.
+
+
+@jit
+def _workspace():
+    """(lam, V, LU, coef, piv, real, M, B, Q, H, Z, scale, x, P, dP): one step's arrays."""
+    return (
+        np.empty(4, dtype=np.complex128),  # lam: eigenvalues
+        np.empty((4, 4), dtype=np.complex128),  # V: unit eigenvectors
+        np.empty((4, 4), dtype=np.complex128),  # LU: LU factors (of V after prepare)
+        np.empty((2, 4), dtype=np.complex128),  # coef: eigen-coefficients
+        np.empty(4, dtype=np.int64),  # piv: LU pivots
+        np.empty(12),  # real: p0, f0, f_tau (polar); s_c, b (Cartesian)
+        np.empty((4, 4)),  # M: the system matrix J (polar) or A (Cartesian)
+        np.empty((4, 4)),  # B: eigensolver work (balanced matrix)
+        np.empty((4, 4)),  # Q: eigensolver work
+        np.empty((4, 4), dtype=np.complex128),  # H: eigensolver work (Schur form)
+        np.empty((4, 4), dtype=np.complex128),  # Z: eigensolver work (Schur vectors)
+        np.empty(4),  # scale: balancing
+        np.empty(4, dtype=np.complex128),  # x: complex vector work
+        np.empty(4),  # P: polar state work
+        np.empty(4),  # dP: its derivative
+    )
+
+
+@jit
+def _eigenbasis(ws):
+    """Eigen-decomposition of ``M`` into ``lam``, ``V``; LU of V; returns cond(V).
+
+    The condition number is ``||V||_1 ||V^-1||_1`` measured with ``_norm1``, so between
+    cond1(V) and 2 cond1(V), and cond2(V) <= 4 cond1(V) (inf when V is exactly singular
+    or M is not finite). The hand-written ``_eig_small`` is checked by its residual in the
+    balanced coordinates; if it fails, LAPACK's zgeev (``np.linalg.eig`` on the complex
+    matrix) is used.
+    """
+    lam, V, LU, _, piv, _, M, B, Q, H, Z, scale, x, _, _ = ws
+    for i in range(4):
+        for j in range(4):
+            if not math.isfinite(M[i, j]):
+                return np.inf
+    if not (_eig_small(M, lam, V, B, Q, H, Z, scale, x) and _residual_ok(M, lam, V, scale)):
+        lam_, V_ = np.linalg.eig(M.astype(np.complex128))
+        lam[:] = lam_
+        V[:, :] = V_
+    LU[:, :] = V
+    if not _lu_factor(LU, piv):
+        return np.inf
+    inv_norm = 0.0
+    for j in range(4):
+        for i in range(4):
+            x[i] = 0.0
+        x[j] = 1.0
+        _lu_solve(LU, piv, x)
+        col = 0.0
+        for i in range(4):
+            col += _abs1(x[i])
+        inv_norm = max(inv_norm, col)
+    return _norm1(V) * inv_norm
+
+
+@jit
+def _omega_max(lam, eta):
+    """max(|Im lam|, eta, 1): the fastest angular frequency of the step (scan spacing)."""
+    m = 0.0
+    for i in range(lam.shape[0]):
+        m = max(m, abs(lam[i].imag))
+    return max(m, eta, 1.0)
+
+
+@jit
+def _prepare_polar(tau0, s0, pars, mu_c, ws):
+    """PolarLinearisedContact.__init__ at (tau0, s0): returns (cond1(V), omega_max).
+
+    ``real`` holds p0 (0:4), f0 (4:8), f_tau (8:12); ``M`` is J; ``coef`` the
+    eigen-coefficients of f0 and f_tau.
+    """
+    lam, _, LU, coef, piv, real, M, _, _, _, _, _, _, _, _ = ws
+    nu, eta, E, phi0, K = pars[0], pars[1], pars[2], pars[3], pars[4]
+    r, theta, u, omega = polar_entries(s0[0], s0[1], s0[2], s0[3])
+    f0 = polar_rhs_entries(tau0, r, theta, u, omega, nu, eta, E, phi0, K, mu_c)
+    J, f_tau = polar_jacobian_arrays(tau0, r, theta, u, omega, nu, eta, E, phi0, K, mu_c)
+    M[:, :] = J
+    real[0] = r
+    real[1] = theta
+    real[2] = u
+    real[3] = omega
+    for i in range(4):
+        real[4 + i] = f0[i]
+        real[8 + i] = f_tau[i]
+    cond = _eigenbasis(ws)
+    if not cond < np.inf:
+        return cond, 1.0
+    for i in range(4):
+        coef[0, i] = f0[i]
+        coef[1, i] = f_tau[i]
+    _lu_solve(LU, piv, coef[0])
+    _lu_solve(LU, piv, coef[1])
+    return cond, _omega_max(lam, eta)
+
+
+@jit
+def _evaluate_polar(dt, ws, out, dout):
+    """PolarLinearisedContact.states and .derivatives at tau0 + dt, in Cartesian form."""
+    lam, V, _, coef, _, real, M, _, _, _, _, _, w, P, dP = ws
+    if dt == 0.0:
+        for i in range(4):
+            P[i] = real[i]  # p0 + Re(V @ 0), exactly
+    else:
+        for i in range(4):
+            phi1, phi2 = _phi12(lam[i] * dt)
+            w[i] = dt * phi1 * coef[0, i] + dt * dt * phi2 * coef[1, i]
+        for i in range(4):
+            acc = 0j
+            for j in range(4):
+                acc += V[i, j] * w[j]
+            P[i] = real[i] + acc.real
+    for i in range(4):
+        acc = 0.0
+        for j in range(4):
+            acc += M[i, j] * (P[j] - real[j])
+        dP[i] = real[4 + i] + acc + real[8 + i] * dt
+    r, theta, u, omega = P[0], P[1], P[2], P[3]
+    x, y, vx, vy = cartesian_entries(r, theta, u, omega)
+    out[0] = x
+    out[1] = y
+    out[2] = vx
+    out[3] = vy
+    c = x / r  # cos(theta), sin(theta) to round-off (the rates serve the event check)
+    sn = y / r
+    u_dot = dP[2]
+    omega_dot = dP[3]
+    dout[0] = vx
+    dout[1] = vy
+    dout[2] = u_dot * c - 2 * u * omega * sn - r * omega_dot * sn - r * omega * omega * c
+    dout[3] = u_dot * sn + 2 * u * omega * c + r * omega_dot * c - r * omega * omega * sn
+
+
+@jit
+def _prepare_cartesian(tau0, s0, pars, mu_c, ws):
+    """LinearisedContact.__init__ at (tau0, s0): returns (cond1(V), omega_max).
+
+    ``real`` holds s_c (0:4) and b (4:8); ``M`` is A; ``coef[0]`` the eigen-coefficients
+    c of d0, ``coef[1]`` the harmonic amplitude S_hat.
+    """
+    lam, _, LU, coef, piv, real, M, _, _, _, _, _, x, _, _ = ws
+    nu, eta, E, phi0, K = pars[0], pars[1], pars[2], pars[3], pars[4]
+    A, b = linearised_contact_arrays(s0[0], s0[1], K, nu, mu_c)
+    M[:, :] = A
+    for i in range(4):
+        for j in range(4):
+            LU[i, j] = A[i, j]
+    if not _lu_factor(LU, piv):
+        return np.inf, 1.0
+    for i in range(4):
+        x[i] = -b[i]
+    _lu_solve(LU, piv, x)  # s_c = A^-1 (-b)
+    for i in range(4):
+        real[i] = x[i].real
+        real[4 + i] = b[i]
+    for i in range(4):
+        for j in range(4):
+            LU[i, j] = -A[i, j]
+        LU[i, i] += 1j * eta
+    if not _lu_factor(LU, piv):
+        return np.inf, 1.0
+    coef[1, 0] = 0.0
+    coef[1, 1] = 0.0
+    coef[1, 2] = E
+    coef[1, 3] = -1j * E
+    _lu_solve(LU, piv, coef[1])  # S_hat = (i eta - A)^-1 (0, 0, E, -i E)
+    cond = _eigenbasis(ws)
+    if not cond < np.inf:
+        return cond, 1.0
+    rot = cmath.exp(1j * (eta * tau0 + phi0))
+    for i in range(4):
+        coef[0, i] = s0[i] - real[i] - (coef[1, i] * rot).real  # d0
+    _lu_solve(LU, piv, coef[0])
+    return cond, _omega_max(lam, eta)
+
+
+@jit
+def _evaluate_cartesian(dt, tau, pars, ws, out, dout):
+    """LinearisedContact.states and .derivatives at tau = tau0 + dt."""
+    lam, V, _, coef, _, real, M, _, _, _, _, _, e, _, _ = ws
+    eta, E, phi0 = pars[1], pars[2], pars[3]
+    phase = eta * tau + phi0
+    rot = cmath.exp(1j * phase)
+    for j in range(4):
+        e[j] = coef[0, j] * cmath.exp(lam[j] * dt)
+    for i in range(4):
+        acc = 0j
+        for j in range(4):
+            acc += V[i, j] * e[j]
+        out[i] = real[i] + (coef[1, i] * rot).real + acc.real
+    for i in range(4):
+        acc = 0.0
+        for j in range(4):
+            acc += M[i, j] * out[j]
+        dout[i] = acc + real[4 + i]
+    dout[2] += E * math.cos(phase)
+    dout[3] += E * math.sin(phase)
+
+
+@jit
+def _prepare(polar, tau0, s0, pars, mu_c, ws):
+    if polar:
+        return _prepare_polar(tau0, s0, pars, mu_c, ws)
+    return _prepare_cartesian(tau0, s0, pars, mu_c, ws)
+
+
+@jit
+def _evaluate(polar, tau0, t, pars, ws, out, dout):
+    if polar:
+        _evaluate_polar(t - tau0, ws, out, dout)
+    else:
+        _evaluate_cartesian(t - tau0, t, pars, ws, out, dout)
+
+
+# --------------------------------------------------------------- the event pre-check
+
+
+@jit
+def _may_cross(grid, hv, hd, n, margin_v, margin_d):
+    """False only if h surely stays below 0 on [grid[0], grid[n]] (events.first_crossing).
+
+    A conservative form of ``first_crossing`` for a segment that does not start on the
+    surface: True at a grid value within ``margin_v`` of the level, or in an interval
+    whose end rates allow an interior maximum (within ``margin_d``) that the rise bound
+    ``2 * length * max|rate|`` cannot keep below the level.
+    """
+    if hv[0] >= -margin_v:
+        return True
+    for i in range(n):
+        if hv[i + 1] >= -margin_v:
+            return True
+        if hd[i] > -margin_d and hd[i + 1] < margin_d:
+            rise = 2.0 * (grid[i + 1] - grid[i]) * max(abs(hd[i]), abs(hd[i + 1]))
+            if max(hv[i], hv[i + 1]) + rise > -margin_v:
+                return True
+    return False
+
+
+@jit
+def _step_may_have_event(grid, S, dS, n, sign, check_slip, spin, cond, hv, hd):
+    """Whether ``events.earliest_event`` might find an event of a slip step on this grid.
+
+    Contact exit: h = -(z^2 - 1) with rate -2 (x vx + y vy); slip reversal (mu > 0):
+    h = -sign v_r with rate -sign dv_r/dtau (``events.slip_rate``). The margins are
+    relative (``EVENT_MARGIN``) plus the round-off an eigenbasis of condition ``cond``
+    allows, so that the compiled and the Python propagators cannot disagree.
+    """
+    rel = EVENT_MARGIN + 64.0 * EPS * cond
+    rate_scale = 0.0
+    for i in range(n + 1):
+        x, y, vx, vy = S[i, 0], S[i, 1], S[i, 2], S[i, 3]
+        hv[i] = -(x * x + y * y - 1.0)
+        hd[i] = -2.0 * (x * vx + y * vy)
+        rate_scale = max(rate_scale, abs(hd[i]))
+    if _may_cross(grid, hv, hd, n, 2.0 * rel, rel * (1.0 + rate_scale)):
+        return True
+    if not check_slip:
+        return False
+    rate_scale = 0.0
+    for i in range(n + 1):
+        x, y, vx, vy = S[i, 0], S[i, 1], S[i, 2], S[i, 3]
+        z = math.hypot(x, y)
+        whirl = x * vy - y * vx
+        hv[i] = -sign * (spin + whirl / z)
+        hd[i] = -sign * slip_velocity_rate(x, y, vx, vy, dS[i, 2], dS[i, 3])
+        rate_scale = max(rate_scale, abs(hd[i]))
+    return _may_cross(grid, hv, hd, n, rel * (1.0 + abs(spin)), rel * (1.0 + rate_scale))
+
+
+# --------------------------------------------------------------- the bulk stepper
+
+
+@jit
+def advance_contact(
+    polar,
+    tau,
+    state,
+    h,
+    t_end,
+    regime,
+    pars,
+    t_eval,
+    out_states,
+    k,
+    max_steps,
+    scan_fraction,
+    cond_limit,
+):
+    """Fixed contact steps of length h in one slip regime while no event can occur.
+
+    ``polar`` selects the linearisation (``PolarLinearisedContact`` or
+    ``LinearisedContact``); ``pars`` is ``model.params_vector``; each step is
+    ``[tau, min(t_end, tau + h)]`` and ``out_states[k:]`` receives the samples of
+    ``t_eval[k:]`` that it covers. ``scan_fraction`` and ``cond_limit`` are analytic.py's
+    ``CONTACT_SCAN_FRACTION`` and ``EIGVEC_COND_LIMIT``. At most ``max_steps`` steps.
+
+    Returns ``(tau, state, k, steps, reason)`` (reason: a ``STOP_*`` code); the step
+    from ``(tau, state)`` has not been taken.
+    """
+    eta, mu, Rp = pars[1], pars[5], pars[6]
+    mu_c = mu * friction_sign(regime)
+    check_slip = mu > 0.0
+    sign = float(regime)
+    spin = Rp * eta
+    s = state.copy()
+    n_out = t_eval.shape[0]
+    ws = _workspace()
+    out = np.empty(4)
+    dout = np.empty(4)
+    size = 2
+    grid = np.empty(size)
+    S = np.empty((size, 4))
+    dS = np.empty((size, 4))
+    hv = np.empty(size)
+    hd = np.empty(size)
+    steps = 0
+    while True:
+        if tau >= t_end:
+            return tau, s, k, steps, STOP_END
+        if steps >= max_steps:
+            return tau, s, k, steps, STOP_LIMIT
+        tb = min(t_end, tau + h)
+        cond, omega_max = _prepare(polar, tau, s, pars, mu_c, ws)
+        # Python uses the eigenbasis while cond2(V) <= cond_limit, and cond2 <= 4 cond1:
+        # proceed only where Python surely uses it too.
+        if not 8.0 * cond <= cond_limit:
+            return tau, s, k, steps, STOP_PYTHON
+        spacing = scan_fraction * 2.0 * math.pi / max(omega_max, 1e-300)
+        n = max(1, math.ceil((tb - tau) / spacing))
+        if size < n + 1:
+            size = n + 1
+            grid = np.empty(size)
+            S = np.empty((size, 4))
+            dS = np.empty((size, 4))
+            hv = np.empty(size)
+            hd = np.empty(size)
+        delta = (tb - tau) / n  # np.linspace(tau, tb, n + 1)
+        for i in range(n):
+            grid[i] = i * delta + tau
+        grid[n] = tb
+        finite = True
+        for i in range(n + 1):
+            _evaluate(polar, tau, grid[i], pars, ws, out, dout)
+            for j in range(4):
+                S[i, j] = out[j]
+                dS[i, j] = dout[j]
+                finite = finite and math.isfinite(out[j]) and math.isfinite(dout[j])
+        if not finite:
+            return tau, s, k, steps, STOP_PYTHON
+        if _step_may_have_event(grid, S, dS, n, sign, check_slip, spin, cond, hv, hd):
+            return tau, s, k, steps, STOP_EVENT
+        while k < n_out and t_eval[k] <= tb:
+            _evaluate(polar, tau, t_eval[k], pars, ws, out, dout)
+            for j in range(4):
+                out_states[k, j] = out[j]
+            k += 1
+        for j in range(4):
+            s[j] = S[n, j]
+        tau = tb
+        steps += 1
+
+
+# --------------------------------------------------------------- right-hand sides
+
+
+@jit
+def rhs(t, s, pars, regime):
+    """``model.rhs`` compiled: the regime-locked right-hand side (pars = params_vector)."""
+    out = np.empty(4)
+    vx, vy, ax, ay = rhs_entries(
+        t,
+        s[0],
+        s[1],
+        s[2],
+        s[3],
+        pars[0],
+        pars[1],
+        pars[2],
+        pars[3],
+        pars[4],
+        pars[5],
+        pars[6],
+        regime,
+    )
+    out[0], out[1], out[2], out[3] = vx, vy, ax, ay
+    return out
+
+
+@jit
+def rhs_columns(t, S, pars, regime):
+    """``rhs`` for the states in the columns of S (4, n) at the times t (n,)."""
+    out = np.empty_like(S)
+    for k in range(S.shape[1]):
+        vx, vy, ax, ay = rhs_entries(
+            t[k],
+            S[0, k],
+            S[1, k],
+            S[2, k],
+            S[3, k],
+            pars[0],
+            pars[1],
+            pars[2],
+            pars[3],
+            pars[4],
+            pars[5],
+            pars[6],
+            regime,
+        )
+        out[0, k] = vx
+        out[1, k] = vy
+        out[2, k] = ax
+        out[3, k] = ay
+    return out
+
+
+@jit
+def rhs_jacobian(t, s, pars, regime):
+    """``model.rhs_jacobian`` compiled."""
+    return rhs_jacobian_array(
+        t,
+        s[0],
+        s[1],
+        s[2],
+        s[3],
+        pars[0],
+        pars[1],
+        pars[2],
+        pars[3],
+        pars[4],
+        pars[5],
+        pars[6],
+        regime,
+    )
+
+
+# --------------------------------------------------------------- freshness of the cache
+
+
+def _probe_values(x):
+    """The registered model cores evaluated at one point (see ``ensure_fresh``).
+
+    A plain function, run as it is by the interpreter and compiled as ``_probe``.
+    """
+    nu, eta, E, phi0, K, mu, Rp = x[0], x[1], x[2], x[3], x[4], x[5], x[6]
+    tau, px, py, vx, vy = x[7], x[8], x[9], x[10], x[11]
+    out = np.empty(81)
+    n = 0
+    for regime in (0, 1, -1, 2):
+        for v in rhs_entries(tau, px, py, vx, vy, nu, eta, E, phi0, K, mu, Rp, regime):
+            out[n] = v
+            n += 1
+    for v in rhs_jacobian_array(tau, px, py, vx, vy, nu, eta, E, phi0, K, mu, Rp, 1).ravel():
+        out[n] = v
+        n += 1
+    A, b = linearised_contact_arrays(px, py, K, nu, mu)
+    for v in A.ravel():
+        out[n] = v
+        n += 1
+    for v in b:
+        out[n] = v
+        n += 1
+    out[n] = slip_velocity_rate(px, py, vx, vy, 0.3, -0.2)
+    n += 1
+    r, theta, u, omega = polar_entries(px, py, vx, vy)
+    for v in cartesian_entries(r, theta, u, omega):
+        out[n] = v
+        n += 1
+    for v in polar_rhs_entries(tau, r, theta, u, omega, nu, eta, E, phi0, K, mu):
+        out[n] = v
+        n += 1
+    J, f_tau = polar_jacobian_arrays(tau, r, theta, u, omega, nu, eta, E, phi0, K, mu)
+    for v in J.ravel():
+        out[n] = v
+        n += 1
+    for v in f_tau:
+        out[n] = v
+        n += 1
+    return out[:n]
+
+
+_probe = jit(_probe_values)
+# nu, eta, E, phi0, K, mu, Rp, tau, x, y, vx, vy: a contact state with friction
+PROBE_POINT = np.array([0.013, 0.71, 2.9, 0.37, 123.0, 0.07, 3.1, 1.3, 1.05, -0.42, 0.61, 1.7])
+PROBE_RTOL = 1e-12  # the two evaluations differ by round-off (libm vs CPython's hypot)
+_usable: bool | None = None
+
+
+def _probe_agrees() -> bool:
+    compiled = _probe(PROBE_POINT)
+    expected = _probe_values(PROBE_POINT)
+    return bool(np.allclose(compiled, expected, rtol=PROBE_RTOL, atol=PROBE_RTOL))
+
+
+def ensure_fresh() -> bool:
+    """Make sure the cached kernels run model.py's current cores; True if they do.
+
+    numba invalidates a cached function when its own file changes, not when a function
+    it calls in another file (model.py's cores) does. Once per process, the probe
+    (cached like the kernels) is compared with the interpreter's evaluation of the same
+    cores; if they disagree, every kernel's cache is flushed and the probe compared
+    again. Should they still disagree (a core that numba compiles differently), the
+    kernels are not used: False, with a warning, and the callers run pure Python.
+    """
+    global _usable
+    if _usable is None:
+        usable = _probe_agrees()
+        if not usable:
+            for dispatcher in _CACHED:
+                dispatcher.recompile()  # flushes its cache; compiled afresh on next call
+            usable = _probe_agrees()
+        if not usable:
+            warnings.warn(
+                "rubcli: the compiled kernels disagree with model.py; using the pure-Python "
+                "path (please report this)",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+        _usable = usable
+    return _usable
+
+
+_CACHED = [
+    value
+    for value in list(globals().values())
+    if isinstance(value, numba.core.dispatcher.Dispatcher)
+]

@@ -1,0 +1,281 @@
+"""The numba kernels (rubcli/solvers/kernels.py) against the pure-Python path.
+
+The compiled path must give the Python path's numbers to round-off: the same events of
+the same kinds at the same times, the same regimes, the same states. Round-off differs
+only through the eigen-decomposition (hand-written QR in the kernel, LAPACK in Python)
+and libm versus CPython's hypot; tolerances below allow ~1e3 ulp of accumulation.
+The kernels compile once per machine (cache=True); later test runs load them.
+"""
+
+import numpy as np
+import pytest
+
+from rubcli import model
+from rubcli.model import ModelParams
+from rubcli.problem import Problem
+from rubcli.solution import FAILED, SUCCESS
+from rubcli.solvers import analytic, kernels, solve
+
+ANALYTIC = ["analytic", "analytic-polar"]
+FIG3_INITIAL = (0.88544, -0.8039, 0.0, 0.0)
+FORCED = ModelParams(nu=0.01, eta=1.0, e=0.05, K=100.0, mu=0.02, Rp=2.0)  # test_stick.py
+
+
+def assert_same_solution(compiled, python, state_tol=1e-10, time_tol=1e-11):
+    assert compiled.status == python.status
+    assert compiled.t.size == python.t.size
+    assert [ev.kind for ev in compiled.events] == [ev.kind for ev in python.events]
+    assert [(ev.regime_before, ev.regime_after) for ev in compiled.events] == [
+        (ev.regime_before, ev.regime_after) for ev in python.events
+    ]
+    times = np.array([ev.tau for ev in compiled.events])
+    np.testing.assert_allclose(times, [ev.tau for ev in python.events], rtol=0, atol=time_tol)
+    np.testing.assert_array_equal(compiled.regimes, python.regimes)
+    scale = 1.0 + np.abs(python.states)
+    assert np.max(np.abs(compiled.states - python.states) / scale) < state_tol
+
+
+def both_paths(prob, method, **options):
+    compiled = solve(prob, method, compiled=True, **options)
+    python = solve(prob, method, compiled=False, **options)
+    assert python.stats.get("n_compiled_steps", 0) == 0
+    return compiled, python
+
+
+# ------------------------------------------------------------------ shared physics
+
+
+def test_compiled_cores_agree_with_model(fig3_params):
+    """kernels.rhs / rhs_jacobian / rhs_columns and the probe of every registered core
+    against model.py's public functions, on random states in every regime."""
+    assert kernels.ensure_fresh()
+    np.testing.assert_allclose(
+        kernels._probe(kernels.PROBE_POINT), kernels._probe_values(kernels.PROBE_POINT), rtol=1e-13
+    )
+    p = fig3_params(0.05, phi0=0.4)
+    pars = np.array(model.params_vector(p))
+    rng = np.random.default_rng(7)
+    for _ in range(50):
+        s = rng.normal(size=4) * [1.2, 1.2, 3.0, 3.0]
+        tau = rng.uniform(0.0, 50.0)
+        for regime in (model.FREE, model.SLIP_POSITIVE, model.SLIP_NEGATIVE, model.STICK):
+            expected = model.rhs(tau, s, p, regime)
+            np.testing.assert_allclose(kernels.rhs(tau, s, pars, regime), expected, rtol=1e-13)
+            columns = kernels.rhs_columns(np.array([tau]), s[:, None].copy(), pars, regime)
+            np.testing.assert_allclose(columns[:, 0], expected, rtol=1e-13)
+            np.testing.assert_allclose(
+                kernels.rhs_jacobian(tau, s, pars, regime),
+                model.rhs_jacobian(tau, s, p, regime),
+                rtol=1e-9 if regime == model.STICK else 1e-13,  # central differences
+                atol=1e-9 if regime == model.STICK else 0.0,
+            )
+
+
+def test_probe_mismatch_flushes_and_falls_back(monkeypatch):
+    """ensure_fresh: a stale probe triggers a recompile of every cached kernel, and a
+    persistent disagreement disables the kernels (pure Python, with a warning)."""
+
+    class FakeDispatcher:
+        recompiled = 0
+
+        def recompile(self):
+            FakeDispatcher.recompiled += 1
+
+    fakes = [FakeDispatcher(), FakeDispatcher()]
+    monkeypatch.setattr(kernels, "_CACHED", fakes)
+    monkeypatch.setattr(kernels, "_usable", None)
+    monkeypatch.setattr(kernels, "_probe_values", lambda x: kernels._probe(x) + 1.0)
+    with pytest.warns(RuntimeWarning, match="pure-Python"):
+        assert kernels.ensure_fresh() is False
+    assert FakeDispatcher.recompiled == len(fakes)
+    prob = Problem.from_periods(FORCED, (1.2, 0.0, 0.0, 1.0), 0.2, 10)
+    assert solve(prob, "analytic-polar").settings["compiled"] is False
+    monkeypatch.setattr(kernels, "_usable", None)
+    monkeypatch.setattr(kernels, "_probe_values", kernels._probe)
+    assert kernels.ensure_fresh() is True
+
+
+# ------------------------------------------------------------------ eigen-decomposition
+
+
+def _eig(M):
+    ws = kernels._workspace()
+    lam, V, _, _, _, _, Mw, B, Q, H, Z, scale, x, _, _ = ws
+    Mw[:, :] = M
+    ok = kernels._eig_small(Mw, lam, V, B, Q, H, Z, scale, x)
+    return ok, lam.copy(), V.copy(), ws
+
+
+@pytest.mark.parametrize("K", [17.6, 17.6e3, 1.75e6])
+@pytest.mark.parametrize("mu", [0.0, 0.02, 0.3])
+def test_eigensolver_matches_lapack_on_contact_matrices(K, mu, fig3_params):
+    p = fig3_params(mu, K=K)
+    r = model.synchronous_rub_radii(p)[-1]
+    s = model.synchronous_rub(0.3, p, r)
+    s[:2] *= 1.0 + 0.3 * (r - 1.0)
+    J, _ = model.polar_jacobian(0.3, model.to_polar(s), p, mu)
+    A, _ = model.linearised_contact_system(s, p, mu)
+    for M in (J, A):
+        ok, lam, V, _ = _eig(M)
+        assert ok
+        reference = np.linalg.eigvals(M)
+        scale = np.abs(reference).max()
+        for value in lam:  # every eigenvalue is one of LAPACK's, to round-off
+            assert np.min(np.abs(reference - value)) < 1e-13 * scale
+        np.testing.assert_allclose(np.linalg.norm(V, axis=0), 1.0, rtol=1e-14)
+        # the residual relative to the balanced norm, as kernels._residual_ok checks it
+        assert kernels._residual_ok(M, lam, V, _eig(M)[3][11])
+
+
+def test_eigensolver_random_and_defective_matrices():
+    rng = np.random.default_rng(3)
+    for _ in range(300):
+        M = rng.normal(size=(4, 4)) * 10.0 ** rng.uniform(-3, 3, size=(4, 4))
+        ok, lam, V, _ = _eig(M)
+        assert ok
+        residual = np.abs(M @ V - V * lam).max()
+        assert residual < 1e-12 * np.abs(M).sum(axis=0).max()
+    jordan = np.diag(np.ones(3), 1)  # defective: no eigenbasis
+    ws = kernels._workspace()
+    ws[6][:, :] = jordan
+    assert not kernels._eigenbasis(ws) < 1e10  # handed to Python's expm fallback
+
+
+# ------------------------------------------------------------------ kernel vs Python
+
+
+@pytest.mark.parametrize("method", ANALYTIC)
+def test_paper_case_with_contacts(method, fig3_params):
+    prob = Problem.from_periods(fig3_params(0.02), FIG3_INITIAL, 3, 50)
+    compiled, python = both_paths(prob, method)
+    assert compiled.status == SUCCESS and len(compiled.events) >= 2
+    assert compiled.stats["n_compiled_steps"] > 0.9 * compiled.stats["n_contact_steps"]
+    assert_same_solution(compiled, python)
+
+
+@pytest.mark.parametrize("method", ANALYTIC)
+def test_chaotic_case_with_many_switches(method, fig3_params):
+    """mu = 0.05 (the paper's chaotic case) with a coarse step: many entries and exits."""
+    prob = Problem.from_periods(fig3_params(0.05), FIG3_INITIAL, 2, 50)
+    compiled, python = both_paths(prob, method, steps_per_period=200)
+    assert compiled.stats["n_compiled_steps"] > 0
+    assert_same_solution(compiled, python, state_tol=1e-9, time_tol=1e-10)
+
+
+@pytest.mark.parametrize("method", ANALYTIC)
+def test_stick_slip_case(method):
+    r = model.rolling_whirl_radius(FORCED)
+    prob = Problem.from_periods(FORCED, (r, 0.0, 0.0, -FORCED.Rp * FORCED.eta), 3, 50)
+    compiled, python = both_paths(prob, method, steps_per_period=800)
+    kinds = {ev.kind for ev in compiled.events}
+    assert {"stick_exit", "stick_entry"} <= kinds
+    assert compiled.stats["n_compiled_steps"] > 0 and compiled.stats["n_stick_steps"] > 0
+    assert_same_solution(compiled, python)
+
+
+def test_exact_synchronous_rub_at_stiff_stator(fig3_params):
+    """K = 1.75e6, analytic-polar: both paths stay on the exact orbit to round-off."""
+    p = fig3_params(0.01, K=1.75e6)
+    r = model.synchronous_rub_radii(p)[-1]
+    prob = Problem.from_periods(p, tuple(model.synchronous_rub(0.0, p, r)), 1, 10)
+    compiled, python = both_paths(prob, "analytic-polar", steps_per_period=100)
+    assert not compiled.events
+    assert compiled.stats["n_compiled_steps"] == python.stats["n_contact_steps"] >= 100
+    exact = model.synchronous_rub(prob.t_eval, p, r).T
+    assert np.max(np.abs(compiled.states[:, :2] - exact[:, :2])) < 1e-9
+    assert_same_solution(compiled, python, state_tol=1e-11)
+
+
+@pytest.mark.parametrize("method", ANALYTIC)
+def test_ill_conditioned_steps_are_left_to_python(method, fig3_params, monkeypatch):
+    """With a condition limit of 1 every eigenbasis is 'ill-conditioned': the kernel hands
+    every step back and Python takes it with its expm fallback."""
+    monkeypatch.setattr(analytic, "EIGVEC_COND_LIMIT", 1.0)
+    prob = Problem.from_periods(fig3_params(0.02), FIG3_INITIAL, 0.3, 20)
+    compiled, python = both_paths(prob, method)
+    assert compiled.stats["n_compiled_steps"] == 0
+    assert compiled.stats["n_expm_fallbacks"] == compiled.stats["n_contact_steps"] > 0
+    assert_same_solution(compiled, python, state_tol=1e-13, time_tol=1e-13)
+
+
+@pytest.mark.parametrize("method", ANALYTIC)
+def test_step_budget_stops_both_paths_at_the_same_step(method, fig3_params):
+    prob = Problem.from_periods(fig3_params(0.02), FIG3_INITIAL, 3, 50)
+    compiled, python = both_paths(prob, method, max_steps=700)
+    assert compiled.status == FAILED and "max_steps" in compiled.message
+    assert compiled.stats["nsteps"] == python.stats["nsteps"] == 700
+    assert compiled.message == python.message
+    assert_same_solution(compiled, python)
+
+
+def test_adaptive_steps_stay_in_python(fig3_params):
+    prob = Problem.from_periods(fig3_params(0.02), FIG3_INITIAL, 0.2, 20)
+    sol = solve(prob, "analytic-polar", analytic_tol=1e-6)
+    assert sol.settings["compiled"] is False and sol.stats["n_compiled_steps"] == 0
+
+
+def test_kernel_stops_before_an_event_and_at_its_limits(fig3_params):
+    """advance_contact on its own, one step into the first contact phase of the paper's
+    case: it stops before the step that holds the contact exit (fills the samples up to
+    there, as the Python reference does, and no later ones), at its step limit and at
+    t_end."""
+    p = fig3_params(0.0)
+    prob = Problem.from_periods(p, FIG3_INITIAL, 3, 100)
+    ref = solve(prob, "analytic-polar", compiled=False)
+    kinds = [ev.kind for ev in ref.events]
+    entry = ref.events[kinds.index("contact_entry")]  # (the orbit starts in contact)
+    exit_ = ref.events[kinds.index("contact_entry") + 1]
+    assert exit_.kind == "contact_exit"
+    h = p.period / 400
+    first = analytic.PolarLinearisedContact(entry.tau, np.array(entry.state), p, 0.0)
+    tau0 = entry.tau + h
+    s0 = np.ascontiguousarray(first.states(tau0))
+    t_eval = prob.t_eval.copy()
+    k0 = int(np.searchsorted(t_eval, tau0, side="right"))
+    pars = np.array(model.params_vector(p))
+
+    def advance(t_end, limit):
+        out = np.full((t_eval.size, 4), np.nan)
+        result = kernels.advance_contact(
+            True,
+            tau0,
+            s0,
+            h,
+            t_end,
+            model.SLIP_POSITIVE,
+            pars,
+            t_eval,
+            out,
+            k0,
+            limit,
+            analytic.CONTACT_SCAN_FRACTION,
+            analytic.EIGVEC_COND_LIMIT,
+        )
+        return (*result, out)
+
+    tau, state, k, steps, reason, out = advance(t_eval[-1], 10**9)
+    assert reason == kernels.STOP_EVENT
+    assert 0.0 <= exit_.tau - tau < 3 * h  # stopped just before the exit's step
+    assert steps == round((tau - tau0) / h)
+    assert t_eval[k - 1] <= tau < t_eval[k]
+    np.testing.assert_allclose(out[k0:k], ref.states[k0:k], rtol=0, atol=1e-12)
+    assert np.all(np.isnan(out[k:]))
+    assert model.regime_of_state(state, p) == model.SLIP_POSITIVE
+
+    tau, _, _, steps, reason, _ = advance(t_eval[-1], 5)
+    assert (steps, reason) == (5, kernels.STOP_LIMIT) and tau == pytest.approx(tau0 + 5 * h)
+    t_end = tau0 + 2.5 * h
+    tau, _, _, steps, reason, _ = advance(t_end, 10**9)
+    assert (steps, reason, tau) == (3, kernels.STOP_END, t_end)
+
+
+# ------------------------------------------------------------------ scipy right-hand sides
+
+
+@pytest.mark.parametrize("method", ["rk45", "radau"])
+def test_scipy_compiled_rhs_gives_the_same_solution(method, fig3_params):
+    prob = Problem.from_periods(fig3_params(0.02), FIG3_INITIAL, 2, 50)
+    compiled, python = both_paths(prob, method, rtol=1e-9, atol=1e-11)
+    assert compiled.settings["compiled"] and not python.settings["compiled"]
+    # the rhs agree to round-off; the step controllers may still diverge at that level
+    assert_same_solution(compiled, python, state_tol=1e-8, time_tol=1e-8)
