@@ -250,6 +250,7 @@ def test_kernel_stops_before_an_event_and_at_its_limits(fig3_params):
             limit,
             analytic.CONTACT_SCAN_FRACTION,
             analytic.EIGVEC_COND_LIMIT,
+            (False, False, False),
         )
         return (*result, out)
 

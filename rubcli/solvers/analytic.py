@@ -30,7 +30,7 @@ which no event can occur are taken by ``kernels.advance_contact``, the same clos
 compiled with numba; it hands back to the Python propagators below before any step that
 might hold an event, so events and regime changes are always decided here. The two paths
 agree to round-off (tests/test_kernels.py). Adaptive steps (``analytic_tol``), stick,
-free flight and each step that starts on an event surface run in Python.
+free flight, and each step that might hold an event run in Python.
 """
 
 from __future__ import annotations
@@ -46,7 +46,10 @@ from rubcli.problem import Problem
 from rubcli.solution import FAILED, SUCCESS, Solution, SwitchEvent
 from rubcli.solvers import kernels, register
 from rubcli.solvers.events import (
+    SLIP_KINDS,
     STICK_ENTRY,
+    STICK_EXIT,
+    SURFACE_KINDS,
     StormGuard,
     earliest_event,
     initial_kind,
@@ -367,11 +370,7 @@ def solve_piecewise(
                 if time.perf_counter() - start_clock > max_wall_time_s:
                     break
         else:
-            if (
-                use_kernel
-                and last_kind is None
-                and regime in (model.SLIP_POSITIVE, model.SLIP_NEGATIVE)
-            ):
+            if use_kernel and regime in (model.SLIP_POSITIVE, model.SLIP_NEGATIVE):
                 k0 = k
                 tau, state, k, taken, reason = kernels.advance_contact(
                     linearisation == "polar",
@@ -387,7 +386,10 @@ def solve_piecewise(
                     min(KERNEL_CHUNK_STEPS, max_steps - stats["nsteps"]),
                     CONTACT_SCAN_FRACTION,
                     EIGVEC_COND_LIMIT,
+                    (last_kind in SURFACE_KINDS, last_kind in SLIP_KINDS, last_kind != STICK_EXIT),
                 )
+                if taken:
+                    last_kind = None
                 out_regimes[k0:k] = regime
                 stats["nsteps"] += taken
                 stats["n_contact_steps"] += taken

@@ -23,8 +23,10 @@ and every regime change decided, by the tested Python code (``events.earliest_ev
   exactly singular, or the step's states are not finite (Python then fails cleanly);
 - the step budget it was given is used up, or ``t_end`` is reached.
 
-Stick, free flight, adaptive steps and the steps that start on an event surface stay
-in Python. The physics (contact Jacobian, linearised system, polar right-hand side and
+A step that starts at an event (the segment's first) is checked as ``first_crossing``
+checks it: it starts just below that surface, and a start rate that might be a
+zero-duration phase goes to Python. Stick, free flight and adaptive steps stay in
+Python. The physics (contact Jacobian, linearised system, polar right-hand side and
 Jacobian, the regime-locked right-hand side) is not written here: it is ``model.py``'s
 compilable cores, registered with numba below, so both paths run one definition.
 
@@ -652,15 +654,21 @@ def _evaluate(polar, tau0, t, pars, ws, out, dout):
 
 
 @jit
-def _may_cross(grid, hv, hd, n, margin_v, margin_d):
-    """False only if h surely stays below 0 on [grid[0], grid[n]] (events.first_crossing).
+def _may_cross(grid, hv, hd, n, margin_v, margin_d, on_surface, immediate):
+    """False only if h surely stays below 0 on (grid[0], grid[n]] (events.first_crossing).
 
-    A conservative form of ``first_crossing`` for a segment that does not start on the
-    surface: True at a grid value within ``margin_v`` of the level, or in an interval
-    whose end rates allow an interior maximum (within ``margin_d``) that the rise bound
-    ``2 * length * max|rate|`` cannot keep below the level.
+    A conservative form of ``first_crossing``: True at a grid value within ``margin_v``
+    of the level, or in an interval whose end rates allow an interior maximum (within
+    ``margin_d``) that the rise bound ``2 * length * max|rate|`` cannot keep below the
+    level. A segment that starts on this surface (``on_surface``, the event that began
+    it) counts as starting just below it, and with ``immediate`` a start rate that is
+    not clearly negative may be a zero-duration phase: True.
     """
-    if hv[0] >= -margin_v:
+    if on_surface:
+        if immediate and hd[0] >= -margin_d:
+            return True
+        hv[0] = -abs(hv[0])
+    elif hv[0] >= -margin_v:
         return True
     for i in range(n):
         if hv[i + 1] >= -margin_v:
@@ -673,14 +681,17 @@ def _may_cross(grid, hv, hd, n, margin_v, margin_d):
 
 
 @jit
-def _step_may_have_event(grid, S, dS, n, sign, check_slip, spin, cond, hv, hd):
+def _step_may_have_event(grid, S, dS, n, sign, check_slip, spin, cond, hv, hd, starts):
     """Whether ``events.earliest_event`` might find an event of a slip step on this grid.
 
     Contact exit: h = -(z^2 - 1) with rate -2 (x vx + y vy); slip reversal (mu > 0):
     h = -sign v_r with rate -sign dv_r/dtau (``events.slip_rate``). The margins are
     relative (``EVENT_MARGIN``) plus the round-off an eigenbasis of condition ``cond``
     allows, so that the compiled and the Python propagators cannot disagree.
+    ``starts`` = (on the contact surface, on the slip surface, slip start immediate):
+    the segment begins at the event that started it (``earliest_event``'s last_kind).
     """
+    on_surface, on_slip, slip_immediate = starts
     rel = EVENT_MARGIN + 64.0 * EPS * cond
     rate_scale = 0.0
     for i in range(n + 1):
@@ -688,7 +699,7 @@ def _step_may_have_event(grid, S, dS, n, sign, check_slip, spin, cond, hv, hd):
         hv[i] = -(x * x + y * y - 1.0)
         hd[i] = -2.0 * (x * vx + y * vy)
         rate_scale = max(rate_scale, abs(hd[i]))
-    if _may_cross(grid, hv, hd, n, 2.0 * rel, rel * (1.0 + rate_scale)):
+    if _may_cross(grid, hv, hd, n, 2.0 * rel, rel * (1.0 + rate_scale), on_surface, True):
         return True
     if not check_slip:
         return False
@@ -700,7 +711,8 @@ def _step_may_have_event(grid, S, dS, n, sign, check_slip, spin, cond, hv, hd):
         hv[i] = -sign * (spin + whirl / z)
         hd[i] = -sign * slip_velocity_rate(x, y, vx, vy, dS[i, 2], dS[i, 3])
         rate_scale = max(rate_scale, abs(hd[i]))
-    return _may_cross(grid, hv, hd, n, rel * (1.0 + abs(spin)), rel * (1.0 + rate_scale))
+    margin_v = rel * (1.0 + abs(spin))
+    return _may_cross(grid, hv, hd, n, margin_v, rel * (1.0 + rate_scale), on_slip, slip_immediate)
 
 
 # --------------------------------------------------------------- the bulk stepper
@@ -721,6 +733,7 @@ def advance_contact(
     max_steps,
     scan_fraction,
     cond_limit,
+    starts,
 ):
     """Fixed contact steps of length h in one slip regime while no event can occur.
 
@@ -729,6 +742,8 @@ def advance_contact(
     ``[tau, min(t_end, tau + h)]`` and ``out_states[k:]`` receives the samples of
     ``t_eval[k:]`` that it covers. ``scan_fraction`` and ``cond_limit`` are analytic.py's
     ``CONTACT_SCAN_FRACTION`` and ``EIGVEC_COND_LIMIT``. At most ``max_steps`` steps.
+    ``starts`` = (on the contact surface, on the slip surface, slip start immediate)
+    says whether the first step starts at an event (as ``earliest_event``'s last_kind).
 
     Returns ``(tau, state, k, steps, reason)`` (reason: a ``STOP_*`` code); the step
     from ``(tau, state)`` has not been taken.
@@ -783,7 +798,9 @@ def advance_contact(
                 finite = finite and math.isfinite(out[j]) and math.isfinite(dout[j])
         if not finite:
             return tau, s, k, steps, STOP_PYTHON
-        if _step_may_have_event(grid, S, dS, n, sign, check_slip, spin, cond, hv, hd):
+        if steps > 0:
+            starts = (False, False, False)
+        if _step_may_have_event(grid, S, dS, n, sign, check_slip, spin, cond, hv, hd, starts):
             return tau, s, k, steps, STOP_EVENT
         while k < n_out and t_eval[k] <= tb:
             _evaluate(polar, tau, t_eval[k], pars, ws, out, dout)
