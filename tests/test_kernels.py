@@ -100,22 +100,26 @@ def test_probe_mismatch_flushes_and_falls_back(monkeypatch):
 
 def _eig(M):
     ws = kernels._workspace()
-    lam, V, _, _, _, _, Mw, B, Q, H, Z, scale, x, _, _ = ws
+    lam, V, _, _, _, _, Mw, B, Q, H, Z, scale, x, _, _, _ = ws
     Mw[:, :] = M
     ok = kernels._eig_small(Mw, lam, V, B, Q, H, Z, scale, x)
     return ok, lam.copy(), V.copy(), ws
 
 
+def _contact_matrices(p, mu, tau=0.3):
+    """The polar J and the Cartesian A at a state just outside the synchronous rub."""
+    r = model.synchronous_rub_radii(p)[-1]
+    s = model.synchronous_rub(tau, p, r)
+    s[:2] *= 1.0 + 0.3 * (r - 1.0)
+    J, _ = model.polar_jacobian(tau, model.to_polar(s), p, mu)
+    A, _ = model.linearised_contact_system(s, p, mu)
+    return J, A
+
+
 @pytest.mark.parametrize("K", [17.6, 17.6e3, 1.75e6])
 @pytest.mark.parametrize("mu", [0.0, 0.02, 0.3])
 def test_eigensolver_matches_lapack_on_contact_matrices(K, mu, fig3_params):
-    p = fig3_params(mu, K=K)
-    r = model.synchronous_rub_radii(p)[-1]
-    s = model.synchronous_rub(0.3, p, r)
-    s[:2] *= 1.0 + 0.3 * (r - 1.0)
-    J, _ = model.polar_jacobian(0.3, model.to_polar(s), p, mu)
-    A, _ = model.linearised_contact_system(s, p, mu)
-    for M in (J, A):
+    for M in _contact_matrices(fig3_params(mu, K=K), mu):
         ok, lam, V, _ = _eig(M)
         assert ok
         reference = np.linalg.eigvals(M)
@@ -125,6 +129,34 @@ def test_eigensolver_matches_lapack_on_contact_matrices(K, mu, fig3_params):
         np.testing.assert_allclose(np.linalg.norm(V, axis=0), 1.0, rtol=1e-14)
         # the residual relative to the balanced norm, as kernels._residual_ok checks it
         assert kernels._residual_ok(M, lam, V, _eig(M)[3][11])
+
+
+@pytest.mark.parametrize("K", [17.6, 1.75e6])
+@pytest.mark.parametrize("mu", [0.0, 0.02])
+def test_warm_eigensolver_from_nearby_eigenvalues(K, mu, fig3_params):
+    """_eig_warm (Newton on the characteristic quartic from the previous step's
+    eigenvalues, structured eigenvectors, V^-1 from the left eigenvectors) agrees with
+    LAPACK whenever it accepts; it declines (for the QR path) from coincident guesses.
+
+    For the polar J it must accept. The Cartesian stiffness block has entries ~K, so at
+    K = 1.75e6 the quartic's value cancels to ~eps K^2 and Newton may not meet its
+    tolerance: declining is then the right answer (the QR path takes over)."""
+    J, A = _contact_matrices(fig3_params(mu, K=K), mu)
+    J_next, A_next = _contact_matrices(fig3_params(mu, K=K), mu, tau=0.32)  # one step on
+    for M, M_next, must_accept in ((J, J_next, True), (A, A_next, K < 1e3)):
+        ok, previous, _, ws = _eig(M)
+        assert ok
+        lam, V, Vinv, B, scale = ws[0], ws[1], ws[15], ws[7], ws[11]
+        accepted = kernels._eig_warm(M_next, lam, V, Vinv, previous, B, scale)
+        assert accepted or not must_accept
+        if accepted:
+            reference = np.linalg.eigvals(M_next)
+            for value in lam:
+                assert np.min(np.abs(reference - value)) < 1e-13 * np.abs(reference).max()
+            assert kernels._residual_ok(M_next, lam, V, scale)
+            np.testing.assert_allclose(Vinv @ V, np.eye(4), atol=1e-12)
+        same = np.full(4, previous[0])
+        assert not kernels._eig_warm(M_next, lam, V, Vinv, same, B, scale)
 
 
 def test_eigensolver_random_and_defective_matrices():
@@ -138,7 +170,7 @@ def test_eigensolver_random_and_defective_matrices():
     jordan = np.diag(np.ones(3), 1)  # defective: no eigenbasis
     ws = kernels._workspace()
     ws[6][:, :] = jordan
-    assert not kernels._eigenbasis(ws) < 1e10  # handed to Python's expm fallback
+    assert not kernels._eigenbasis(ws, False) < 1e10  # handed to Python's expm fallback
 
 
 # ------------------------------------------------------------------ kernel vs Python
