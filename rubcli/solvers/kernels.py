@@ -19,8 +19,9 @@ and every regime change decided, by the tested Python code (``events.earliest_ev
   propagators differ, so a step the kernel takes is a step in which Python finds no
   event;
 - the eigenbasis is not clearly well conditioned (the Python propagator then decides
-  between its eigen-decomposition and its ``expm`` fallback), the linear system is
-  exactly singular, or the step's states are not finite (Python then fails cleanly);
+  between its eigen-decomposition and its ``expm`` fallback), the compiled eigensolver
+  does not pass its own checks, the linear system is exactly singular, or the step's
+  states are not finite (Python then fails cleanly);
 - the step budget it was given is used up, or ``t_end`` is reached.
 
 A step that starts at an event (the segment's first) is checked as ``first_crossing``
@@ -593,9 +594,10 @@ def _eigenbasis(ws, warm):
     cond1(V) and 2 cond1(V), and cond2(V) <= 4 cond1(V) (inf when V is exactly singular
     or M is not finite). With ``warm`` (``lam`` holds the previous step's eigenvalues)
     ``_eig_warm`` is tried first, else (or if it fails) the QR-based ``_eig_small``;
-    either is accepted only if its residual in the balanced coordinates is small, and
-    LAPACK's zgeev (``np.linalg.eig`` on the complex matrix) is the last resort.
-    ``Vinv`` comes from the left eigenvectors (warm) or from the LU factors of V.
+    either is accepted only if its residual in the balanced coordinates is small; if
+    neither is, cond = inf hands the step to the Python propagator (LAPACK's eig, or
+    its expm fallback). ``Vinv`` comes from the left eigenvectors (warm) or from the LU
+    factors of V.
     """
     lam, V, LU, _, piv, _, M, B, Q, H, Z, scale, x, _, _, Vinv = ws
     for i in range(4):
@@ -609,9 +611,7 @@ def _eigenbasis(ws, warm):
     if not warm and not (
         _eig_small(M, lam, V, B, Q, H, Z, scale, x) and _residual_ok(M, lam, V, scale)
     ):
-        lam_, V_ = np.linalg.eig(M.astype(np.complex128))
-        lam[:] = lam_
-        V[:, :] = V_
+        return np.inf  # the step goes to Python (LAPACK's eig, or its expm fallback)
     if not warm:
         LU[:, :] = V
         if not _lu_factor(LU, piv):
