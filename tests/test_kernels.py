@@ -71,6 +71,30 @@ def test_compiled_cores_agree_with_model(fig3_params):
             )
 
 
+@pytest.mark.parametrize("mu_c", [0.0, 0.05, -0.05])
+def test_kernel_step_data_agree_with_model(mu_c, fig3_params):
+    """What a kernel step is built from (the polar state, rhs, Jacobian and f_tau; the
+    Cartesian linearised system A, b) equals model.py's public functions."""
+    p = fig3_params(abs(mu_c), phi0=0.4, K=176.0)
+    pars = np.array(model.params_vector(p))
+    s0 = np.array([1.02, -0.31, 0.4, 1.3])
+    tau0 = 2.7
+    ws = kernels._workspace()
+    kernels._prepare_polar(tau0, s0, pars, mu_c, ws, False)
+    real, M = ws[5], ws[6]
+    p0 = model.to_polar(s0)
+    J, f_tau = model.polar_jacobian(tau0, p0, p, mu_c)
+    np.testing.assert_allclose(real[0:4], p0, rtol=1e-15)
+    np.testing.assert_allclose(real[4:8], model.polar_rhs(tau0, p0, p, mu_c), rtol=1e-13)
+    np.testing.assert_allclose(real[8:12], f_tau, rtol=1e-13)
+    np.testing.assert_allclose(M, J, rtol=1e-13)
+    kernels._prepare_cartesian(tau0, s0, pars, mu_c, ws, False)
+    A, b = model.linearised_contact_system(s0, p, mu_c)
+    np.testing.assert_allclose(M, A, rtol=1e-13)
+    np.testing.assert_allclose(real[4:8], b, rtol=1e-13)
+    np.testing.assert_allclose(real[0:4], np.linalg.solve(A, -b), rtol=1e-12)  # s_c
+
+
 def test_probe_mismatch_flushes_and_falls_back(monkeypatch):
     """ensure_fresh: a stale probe triggers a recompile of every cached kernel, and a
     persistent disagreement disables the kernels (pure Python, with a warning)."""
