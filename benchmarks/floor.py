@@ -50,6 +50,7 @@ from pathlib import Path
 
 import numba
 import numpy as np
+from machine import cpu_model
 
 from rubcli import model
 from rubcli.model import ModelParams, rhs_entries
@@ -256,16 +257,6 @@ def measure_compile_time() -> dict:
             )
             results[label] = json.loads(done.stdout.strip().splitlines()[-1])
     return results
-
-
-def cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def render(args, floor: dict, contact: list[dict], rows: list[dict], compile_times: dict) -> str:
