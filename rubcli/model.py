@@ -35,7 +35,9 @@ FREE = 0
 SLIP_POSITIVE = 1  # in contact, v_r > 0, mu_c = +mu
 SLIP_NEGATIVE = -1  # in contact, v_r < 0, mu_c = -mu
 STICK = 2  # in contact, rolling without slip: v_r = 0 held by friction within mu F_N
-STICK_HYSTERESIS = 1e-9  # relative margin inside the friction cone needed to enter stick
+# Stick ends where the needed friction exceeds mu F_N by this relative margin, so that
+# the slip that follows moves away from v_r = 0 (its rate is this margin times mu F_N)
+STICK_EXIT_MARGIN = 1e-9
 REGIME_NAMES = {FREE: "free", SLIP_POSITIVE: "slip+", SLIP_NEGATIVE: "slip-", STICK: "stick"}
 
 
@@ -354,17 +356,15 @@ def regime_of_state(s, params: ModelParams, tau: float | None = None) -> int:
 
 
 def regime_at_zero_slip(tau: float, s, params: ModelParams) -> int:
-    """Regime of a contact state with v_r = 0 (notes section 4).
+    """Regime of a contact state with v_r = 0 (notes section 4), by Filippov's rule.
 
-    Stick (rolling) if the friction needed to hold v_r = 0 is within mu F_N; otherwise
-    slip in the direction that the needed friction points.
+    With T the friction needed to hold v_r = 0 and L = mu K (z - 1) the friction limit,
+    slip+ (friction -L) gives dv_r/dtau = T - L and slip- gives T + L. A slip direction
+    is taken only if v_r leaves zero in it: slip+ if T > L, slip- if T < -L; otherwise
+    neither is consistent and the rotor sticks (rolls).
     """
     needed = float(stick_friction(tau, s[0], s[1], s[2], s[3], params))
     limit = params.mu * params.K * (math.hypot(s[0], s[1]) - 1.0)
-    if abs(needed) > limit * (1.0 - STICK_HYSTERESIS):
-        # on the cone's edge (within round-off) slip wins, so stick is not entered
-        # only to be left at the same instant
-        return SLIP_POSITIVE if needed > 0.0 else SLIP_NEGATIVE
     if needed > limit:
         return SLIP_POSITIVE
     if needed < -limit:

@@ -68,9 +68,14 @@ def test_grazing_constructions_are_exact():
         assert np.max(z) - 1.0 < GRAZING_TOLERANCE  # never a contact
 
 
-# The exact orbit slides along z = 1. Every scipy method storms (or crawls through
-# thousands of zero-duration contacts) today; the analytic methods see a touch.
-@pytest.mark.parametrize("method", params_marked(ALL, xfail_for(SCIPY)))
+# The exact orbit slides along z = 1. The analytic methods see a touch; the scipy methods
+# follow it too since a crossing must clear their tolerance band (events.first_crossing),
+# except bdf, whose dense output wanders across the band: ~10 zero-duration contacts a
+# period (harmless: no force acts), more than this test's "sane" count.
+BDF_TOUCHES = "bdf records ~10 zero-duration contacts per period on this orbit"
+
+
+@pytest.mark.parametrize("method", params_marked(ALL, xfail_for(["bdf"], BDF_TOUCHES)))
 def test_free_whirl_of_radius_one_is_a_touch(method):
     p, start = steady_unit_whirl(NU, ETA, 17.6, 0.05, RP)
     prob = Problem.from_periods(p, start, 2, 20)
@@ -133,8 +138,9 @@ def test_start_just_before_the_apex_of_a_touch(method, K, offset):
         assert sol.message.startswith("switch storm"), sol.message
         assert len(sol.events) <= 25 and sol.events[-1].tau < 1e-6
         return
-    # a few zero-duration contacts at the start are spurious but harmless
-    assert len(sol.events) <= 10 and all(ev.tau < 1e-6 for ev in sol.events)
+    # a few zero-force contacts at the start are spurious but harmless; an adaptive
+    # solver leaves one only when z - 1 has cleared its tolerance band (~1e-5 in tau here)
+    assert len(sol.events) <= 10 and all(ev.tau < 1e-4 for ev in sol.events)
     exact = model.free_flight(prob.t_eval, 0.0, before, p).T
     assert np.max(np.abs(sol.states - exact)) < 1e-7
 

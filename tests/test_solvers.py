@@ -107,7 +107,9 @@ SHORT_CONTACTS = ModelParams(nu=0.0, eta=1.0, e=0.0, K=17.6, mu=0.0, Rp=0.0)
 @pytest.mark.parametrize(
     ("method", "options"),
     [(m, {"steps_per_period": 4}) for m in ("analytic", "analytic-polar")]
-    + [(m, {"rtol": 1e-3, "atol": 1e-6}) for m in SCIPY],
+    # penetration 1e-3 is 10x the scipy methods' band (a contact shallower than rtol is
+    # a touch to them, events.earliest_event)
+    + [(m, {"rtol": 1e-4, "atol": 1e-7}) for m in SCIPY],
 )
 def test_brief_contacts_inside_one_step_are_not_missed(method, options):
     """An unforced ellipse peaking at z = 1.001: each contact lasts ~0.1, far below a step.
@@ -120,9 +122,8 @@ def test_brief_contacts_inside_one_step_are_not_missed(method, options):
     assert sol.status == SUCCESS
     assert len(sol.events) == 12
     if method.startswith("analytic"):
-        h = SHORT_CONTACTS.period / 4
         durations = np.diff([ev.tau for ev in sol.events])[::2]
-        assert np.all(durations < h / 10)
+        assert np.all(durations < SHORT_CONTACTS.period / 4 / 10)  # the step is period / 4
 
 
 def test_methods_agree_on_paper_case(fig3_params):

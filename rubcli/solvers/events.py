@@ -25,6 +25,8 @@ from rubcli import model
 # A free orbit whose largest penetration stays below this many clearances is taken as
 # a grazing touch that does not enter contact (the force there is below K * 1e-12).
 GRAZING_TOLERANCE = 1e-12
+# The band of the position-level surface g relative to the slip band (earliest_event).
+SURFACE_BAND = 1.0
 # Root location tolerance in tau.
 XTOL = 1e-14
 RTOL = 4.0 * np.finfo(float).eps
@@ -74,24 +76,32 @@ def first_crossing(
     With ``start_on_surface`` the segment begins on this very surface (the event that
     started it): if dh >= 0 there the crossing is at the start itself (a zero-duration
     phase; ``immediate=False`` skips this for phases that begin with dh = 0 by
-    construction, such as leaving stick). Otherwise a new crossing must clear
-    ``start_tolerance``, so round-off around the restart point is not a crossing.
+    construction, such as leaving stick).
+
+    A crossing must clear ``start_tolerance`` (the noise band of h: round-off for a
+    closed form, the tolerance of an adaptive solver's dense output), so noise around
+    the surface, after a restart or anywhere, is not a crossing; the crossing is then
+    located between the last point truly below zero and the first beyond the band.
     """
     n = len(grid) - 1
     hv = np.array(hv, dtype=float)
-    level = 0.0
+    level = start_tolerance
     if start_on_surface:
         if immediate and hd[0] >= 0.0:
             return float(grid[0])
         hv[0] = -max(abs(hv[0]), np.finfo(float).tiny)  # strictly below: -0.0 >= 0.0
-        level = start_tolerance
+    below = 0  # the last grid point where h was truly below zero (not in the band)
     for i in range(n):
         a, b = float(grid[i]), float(grid[i + 1])
         if hv[i + 1] >= level:
             if i == 0 and start_on_surface and hd[1] > 0.0:
                 # h left the surface downwards and came back: search past its minimum
                 a = _extremum(dh, a, b) or a
+            elif below < i:
+                a = float(grid[below])  # h sat in the restart band: bracket from below
             return _root(h, a, b)
+        if hv[i + 1] < 0.0:
+            below = i + 1
         if hd[i] > 0.0 and hd[i + 1] < 0.0:
             # h can rise at most ~ rate * length above its end values within one
             # interval (factor 2 for safety): skip maxima that cannot reach the level.
@@ -169,7 +179,7 @@ SURFACE_KINDS = (ENTRY, EXIT)
 SLIP_KINDS = (REVERSAL, STICK_EXIT)  # the next segment starts at v_r = 0
 
 
-def earliest_event(states, derivatives, grid, regime, params, last_kind, tolerance_scale=1.0):
+def earliest_event(states, derivatives, grid, regime, params, last_kind, restart_band=1e-12):
     """Earliest event of ``regime`` in (grid[0], grid[-1]]: (tau, kind) or None.
 
     ``states(t)`` gives the segment's state at a scalar or array time (shape (4,) or
@@ -177,6 +187,13 @@ def earliest_event(states, derivatives, grid, regime, params, last_kind, toleran
     started the segment (None otherwise): the segment then starts on that event's
     surface. Events by regime: free -> contact entry; slip -> contact exit, slip
     reversal (v_r = 0, if mu > 0); stick -> contact exit, stick exit (|T| = mu F_N).
+
+    ``restart_band``: a slip reversal must clear this band (times 1 + Rp eta) in v_r.
+    A closed form gives v_r to round-off (1e-12); an adaptive solver's dense output gives
+    the velocity-level v_r only to its tolerance, so scipy methods pass rtol. The
+    position-level surface g = z^2 - 1 gets the same band: a solver at tolerance rtol
+    cannot tell a contact whose penetration is below ~rtol from none (an orbit riding the
+    clearance wanders across z = 1 by that much), so such a touch is not a contact.
     """
     S = states(grid)
     on_surface = last_kind in SURFACE_KINDS
@@ -194,11 +211,13 @@ def earliest_event(states, derivatives, grid, regime, params, last_kind, toleran
     found = []
     if regime == model.FREE:
         h, hv, hd, dh = surface(+1.0)
-        tau = first_crossing(h, grid, hv, hd, dh, on_surface, GRAZING_TOLERANCE)
+        tau = first_crossing(
+            h, grid, hv, hd, dh, on_surface, GRAZING_TOLERANCE, SURFACE_BAND * restart_band
+        )
         return None if tau is None else (tau, ENTRY)
 
     h, hv, hd, dh = surface(-1.0)
-    tau = first_crossing(h, grid, hv, hd, dh, on_surface, 0.0)
+    tau = first_crossing(h, grid, hv, hd, dh, on_surface, 0.0, SURFACE_BAND * restart_band)
     if tau is not None:
         found.append((tau, EXIT))
     if params.mu > 0.0 and regime in (model.SLIP_POSITIVE, model.SLIP_NEGATIVE):
@@ -212,7 +231,7 @@ def earliest_event(states, derivatives, grid, regime, params, last_kind, toleran
             s = states(t)
             return -sign * float(slip_rate(s[:, None], derivatives(t, s[:, None]))[0])
 
-        scale = tolerance_scale * (1.0 + abs(params.Rp * params.eta))
+        scale = 1.0 + abs(params.Rp * params.eta)
         tau = first_crossing(
             hv_fn,
             grid,
@@ -221,7 +240,7 @@ def earliest_event(states, derivatives, grid, regime, params, last_kind, toleran
             dhv_fn,
             on_slip,
             0.0,
-            1e-12 * scale,
+            restart_band * scale,
             immediate=last_kind != STICK_EXIT,
         )
         if tau is not None:
@@ -251,8 +270,10 @@ def earliest_event(states, derivatives, grid, regime, params, last_kind, toleran
 
 
 def _stick_margin(t, S, params, sign):
+    """sign * T - L (1 + STICK_EXIT_MARGIN): stick ends where this rises through 0."""
     T = model.stick_friction(t, S[0], S[1], S[2], S[3], params)
-    return sign * T - params.mu * params.K * (np.hypot(S[0], S[1]) - 1.0)
+    limit = params.mu * params.K * (np.hypot(S[0], S[1]) - 1.0)
+    return sign * T - limit * (1.0 + model.STICK_EXIT_MARGIN)
 
 
 def next_regime(kind: str, tau: float, s: np.ndarray, regime: int, params) -> int:

@@ -56,6 +56,7 @@ SCIPY_CLASSES = {
     "lsoda": integrate.LSODA,
 }
 IMPLICIT = {"radau", "bdf", "lsoda"}
+RESTART_BAND_FLOOR = 1e-12
 SCAN_POINTS = 4  # sub-intervals per step in which events are scanned on the dense output
 
 
@@ -99,6 +100,9 @@ def solve_scipy(
     t_end = float(t_eval[-1])
     cls = SCIPY_CLASSES[name]
     budget = _Budget(max_steps, max_wall_time_s)
+    # Right after a restart the dense output is consistent with the located state only
+    # to the solver's tolerance, not to round-off: a new crossing must clear that band.
+    restart_band = max(RESTART_BAND_FLOOR, rtol)
 
     out_states = np.empty((t_eval.size, 4))
     out_regimes = np.empty(t_eval.size, dtype=int)
@@ -134,7 +138,9 @@ def solve_scipy(
                 break
             dense = solver.dense_output()
             grid = np.linspace(solver.t_old, solver.t, SCAN_POINTS + 1)
-            event = earliest_event(dense, derivatives, grid, regime, params, last_kind)
+            event = earliest_event(
+                dense, derivatives, grid, regime, params, last_kind, restart_band
+            )
             last_kind = None
             t_stop = event[0] if event else solver.t
             while k < t_eval.size and t_eval[k] <= t_stop:
