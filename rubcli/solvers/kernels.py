@@ -986,25 +986,7 @@ def rhs_columns(t, S, pars, regime):
     """``rhs`` for the states in the columns of S (4, n) at the times t (n,)."""
     out = np.empty_like(S)
     for k in range(S.shape[1]):
-        vx, vy, ax, ay = rhs_entries(
-            t[k],
-            S[0, k],
-            S[1, k],
-            S[2, k],
-            S[3, k],
-            pars[0],
-            pars[1],
-            pars[2],
-            pars[3],
-            pars[4],
-            pars[5],
-            pars[6],
-            regime,
-        )
-        out[0, k] = vx
-        out[1, k] = vy
-        out[2, k] = ax
-        out[3, k] = ay
+        out[:, k] = rhs(t[k], np.ascontiguousarray(S[:, k]), pars, regime)
     return out
 
 
