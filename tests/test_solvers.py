@@ -238,3 +238,16 @@ def test_adaptive_steps_on_a_trajectory_with_switches(method, fig3_params):
     e_tight = np.max(np.abs(tight.w - ref.w))
     assert e_tight < e_loose / 20
     assert tight.stats["n_contact_steps"] > loose.stats["n_contact_steps"]
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_diverged_linearisation_fails_cleanly(compiled, fig3_params):
+    """K = 17.6e3 from the Figure 3 start at 25 steps per period: the polar linearisation
+    diverges (a frequency of ~1e7 per tau). The run must end with a clean failure and a
+    reason, not allocate a scan of 1e14 points (it once did)."""
+    p = fig3_params(0.0, K=17.6e3)
+    prob = Problem.from_periods(p, (0.88544, -0.8039, 0.0, 0.0), 10, 50)
+    sol = solve(prob, "analytic-polar", steps_per_period=25, compiled=compiled)
+    assert sol.status == FAILED
+    assert "cannot resolve" in sol.message
+    assert np.all(np.isfinite(sol.states))

@@ -167,13 +167,16 @@ def measure(
     times = []
     solution = None
     for i in range(max(1, repeats)):
-        solution = solve(
-            problem,
-            setting.method,
-            max_wall_time_s=max_wall_time_s,
-            progress=progress if i == 0 else None,
-            **setting.options,
-        )
+        try:
+            solution = solve(
+                problem,
+                setting.method,
+                max_wall_time_s=max_wall_time_s,
+                progress=progress if i == 0 else None,
+                **setting.options,
+            )
+        except Exception as exc:  # a method that raises is a failed row, not a dead ladder
+            return _error_row(setting, exc)
         times.append(solution.wall_time_s)
         if not solution.success or solution.wall_time_s > repeat_below_s:
             break
@@ -202,13 +205,36 @@ def measure(
     )
 
 
+def _error_row(setting: Setting, exc: Exception) -> Row:
+    return Row(
+        method=setting.method,
+        setting_name=setting.name,
+        setting=setting.value,
+        wall_time_s=math.nan,
+        wall_time_min_s=math.nan,
+        repeats=0,
+        error_max=math.nan,
+        error_final=math.nan,
+        nsteps=None,
+        nfev=None,
+        njev=None,
+        n_events=0,
+        status="error",
+        message=f"{type(exc).__name__}: {exc}",
+        options=dict(setting.options),
+    )
+
+
 def warm_up(problem: Problem, method: str, options: dict) -> float:
     """One solve over the first forcing period; returns its wall time (start-up cost)."""
     from rubcli.solvers import solve
 
     period_end = float(problem.t_eval[0]) + problem.params.period
     short = truncate_problem(problem, period_end)
-    return solve(short, method, **options).wall_time_s
+    try:
+        return solve(short, method, **options).wall_time_s
+    except Exception:  # the ladder's own rows record the failure
+        return math.nan
 
 
 def run_work_precision(

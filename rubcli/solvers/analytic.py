@@ -46,6 +46,7 @@ from rubcli.problem import Problem
 from rubcli.solution import FAILED, SUCCESS, Solution, SwitchEvent
 from rubcli.solvers import kernels, register
 from rubcli.solvers.events import (
+    MAX_SCAN_POINTS,
     SLIP_KINDS,
     STICK_ENTRY,
     STICK_EXIT,
@@ -252,6 +253,10 @@ class StickStep:
         return np.array([self._f(t[j], S[:, j]) for j in range(S.shape[1])]).T
 
 
+class _UnresolvedError(Exception):
+    """A step whose event scan would need more than MAX_SCAN_POINTS points."""
+
+
 CONTACT_PROPAGATORS = {"cartesian": LinearisedContact, "polar": PolarLinearisedContact}
 # Adaptive steps (step doubling): local error ~ h^3, so h scales with (tol/err)^(1/3).
 ADAPT_SAFETY, ADAPT_MIN_FACTOR, ADAPT_MAX_FACTOR = 0.9, 0.2, 4.0
@@ -350,122 +355,135 @@ def solve_piecewise(
 
     def search(prop, ta, tb, fraction):
         spacing = scan_spacing(prop.omega_max, fraction)
+        if (tb - ta) / spacing > MAX_SCAN_POINTS:
+            raise _UnresolvedError(
+                f"the linearised step at tau = {ta:.6g} has a frequency of "
+                f"{prop.omega_max:.3g} per tau, which a step of {tb - ta:.3g} cannot resolve "
+                f"(the linearisation has diverged; try a smaller step)"
+            )
         grid = np.linspace(ta, tb, max(1, math.ceil((tb - ta) / spacing)) + 1)
         return earliest_event(prop.states, prop.derivatives, grid, regime, params, last_kind)
 
-    while tau < t_end:
-        bulk_only = False  # the compiled kernel took this iteration's steps
-        if regime == model.FREE:
-            # No steps in free flight: scan the closed form chunk by chunk for the entry.
-            pending.clear()
-            prop = FreeFlight(tau, state, params)
-            stats["n_free_segments"] += 1
-            chunk = FREE_SCAN_CHUNK * scan_spacing(prop.omega_max, FREE_SCAN_FRACTION)
-            event, tb = None, tau
-            while tb < t_end and event is None:
-                ta, tb = tb, min(t_end, tb + chunk)
-                event = search(prop, ta, tb, FREE_SCAN_FRACTION)
+    try:
+        while tau < t_end:
+            bulk_only = False  # the compiled kernel took this iteration's steps
+            if regime == model.FREE:
+                # No steps in free flight: scan the closed form chunk by chunk for the entry.
+                pending.clear()
+                prop = FreeFlight(tau, state, params)
+                stats["n_free_segments"] += 1
+                chunk = FREE_SCAN_CHUNK * scan_spacing(prop.omega_max, FREE_SCAN_FRACTION)
+                event, tb = None, tau
+                while tb < t_end and event is None:
+                    ta, tb = tb, min(t_end, tb + chunk)
+                    event = search(prop, ta, tb, FREE_SCAN_FRACTION)
+                    last_kind = None
+                    fill(prop, event[0] if event else tb, regime)
+                    if time.perf_counter() - start_clock > max_wall_time_s:
+                        break
+            else:
+                if use_kernel and regime in (model.SLIP_POSITIVE, model.SLIP_NEGATIVE):
+                    k0 = k
+                    tau, state, k, taken, reason = kernels.advance_contact(
+                        linearisation == "polar",
+                        tau,
+                        np.ascontiguousarray(state, dtype=float),
+                        h,
+                        t_end,
+                        regime,
+                        pars,
+                        t_eval_c,
+                        out_states,
+                        k,
+                        min(KERNEL_CHUNK_STEPS, max_steps - stats["nsteps"]),
+                        CONTACT_SCAN_FRACTION,
+                        EIGVEC_COND_LIMIT,
+                        (
+                            last_kind in SURFACE_KINDS,
+                            last_kind in SLIP_KINDS,
+                            last_kind != STICK_EXIT,
+                        ),
+                    )
+                    if taken:
+                        last_kind = None
+                    out_regimes[k0:k] = regime
+                    stats["nsteps"] += taken
+                    stats["n_contact_steps"] += taken
+                    stats["n_compiled_steps"] += taken
+                    # at a possible event (or a step the kernel leaves to Python) the Python
+                    # step below is taken from where the kernel stopped
+                    bulk_only = reason not in (kernels.STOP_EVENT, kernels.STOP_PYTHON)
+            if regime != model.FREE and not bulk_only:
+                try:
+                    if analytic_tol is None:
+                        tb = min(t_end, tau + h)
+                        prop = _contact_step(linearisation, tau, state, tb - tau, params, regime)
+                    else:
+                        if not pending:
+                            while True:
+                                step = min(h, h_max, t_end - tau)
+                                err, first, second = _doubling_error(
+                                    linearisation, tau, state, step, params, regime
+                                )
+                                factor = ADAPT_SAFETY * (analytic_tol / max(err, 1e-300)) ** (1 / 3)
+                                h = step * min(ADAPT_MAX_FACTOR, max(ADAPT_MIN_FACTOR, factor))
+                                if err <= analytic_tol or step <= 1e-12 * params.period:
+                                    break
+                                stats["n_rejected_steps"] += 1
+                            pending.extend([(first, tau + step / 2), (second, tau + step)])
+                        prop, tb = pending.pop(0)
+                except np.linalg.LinAlgError as exc:
+                    status = FAILED
+                    message = f"linearised contact system singular at tau = {tau:.6g}: {exc}"
+                    break
+                if regime == model.STICK:
+                    stats["n_stick_steps"] += 1
+                else:
+                    stats["n_contact_steps"] += 1
+                    stats["n_expm_fallbacks"] += int(prop.use_expm)
+                event = search(prop, tau, tb, CONTACT_SCAN_FRACTION)
                 last_kind = None
                 fill(prop, event[0] if event else tb, regime)
-                if time.perf_counter() - start_clock > max_wall_time_s:
-                    break
-        else:
-            if use_kernel and regime in (model.SLIP_POSITIVE, model.SLIP_NEGATIVE):
-                k0 = k
-                tau, state, k, taken, reason = kernels.advance_contact(
-                    linearisation == "polar",
-                    tau,
-                    np.ascontiguousarray(state, dtype=float),
-                    h,
-                    t_end,
-                    regime,
-                    pars,
-                    t_eval_c,
-                    out_states,
-                    k,
-                    min(KERNEL_CHUNK_STEPS, max_steps - stats["nsteps"]),
-                    CONTACT_SCAN_FRACTION,
-                    EIGVEC_COND_LIMIT,
-                    (last_kind in SURFACE_KINDS, last_kind in SLIP_KINDS, last_kind != STICK_EXIT),
-                )
-                if taken:
-                    last_kind = None
-                out_regimes[k0:k] = regime
-                stats["nsteps"] += taken
-                stats["n_contact_steps"] += taken
-                stats["n_compiled_steps"] += taken
-                # at a possible event (or a step the kernel leaves to Python) the Python
-                # step below is taken from where the kernel stopped
-                bulk_only = reason not in (kernels.STOP_EVENT, kernels.STOP_PYTHON)
-        if regime != model.FREE and not bulk_only:
-            try:
-                if analytic_tol is None:
-                    tb = min(t_end, tau + h)
-                    prop = _contact_step(linearisation, tau, state, tb - tau, params, regime)
-                else:
-                    if not pending:
-                        while True:
-                            step = min(h, h_max, t_end - tau)
-                            err, first, second = _doubling_error(
-                                linearisation, tau, state, step, params, regime
-                            )
-                            factor = ADAPT_SAFETY * (analytic_tol / max(err, 1e-300)) ** (1 / 3)
-                            h = step * min(ADAPT_MAX_FACTOR, max(ADAPT_MIN_FACTOR, factor))
-                            if err <= analytic_tol or step <= 1e-12 * params.period:
-                                break
-                            stats["n_rejected_steps"] += 1
-                        pending.extend([(first, tau + step / 2), (second, tau + step)])
-                    prop, tb = pending.pop(0)
-            except np.linalg.LinAlgError as exc:
-                status = FAILED
-                message = f"linearised contact system singular at tau = {tau:.6g}: {exc}"
-                break
-            if regime == model.STICK:
-                stats["n_stick_steps"] += 1
+            if bulk_only:
+                pass  # the kernel has advanced tau, state, the samples and the step counts
+            elif event is None:
+                stats["nsteps"] += 1
+                tau = tb
+                state = prop.states(tau)
             else:
-                stats["n_contact_steps"] += 1
-                stats["n_expm_fallbacks"] += int(prop.use_expm)
-            event = search(prop, tau, tb, CONTACT_SCAN_FRACTION)
-            last_kind = None
-            fill(prop, event[0] if event else tb, regime)
-        if bulk_only:
-            pass  # the kernel has advanced tau, state, the samples and the step counts
-        elif event is None:
-            stats["nsteps"] += 1
-            tau = tb
-            state = prop.states(tau)
-        else:
-            stats["nsteps"] += 1
-            pending.clear()
-            tau, kind = event
-            state = prop.states(tau)
-            new_regime = next_regime(kind, tau, state, regime, params)
-            if new_regime == model.STICK:
-                kind = STICK_ENTRY
-            if model.STICK in (regime, new_regime) and model.FREE not in (regime, new_regime):
-                state = model.project_to_rolling(state, params)
-            events.append(SwitchEvent(tau, kind, tuple(state), regime, new_regime))
-            regime, last_kind = new_regime, kind
-            if storms.storm(tau):
-                status, message = FAILED, f"switch storm at tau = {tau:.6g}"
+                stats["nsteps"] += 1
+                pending.clear()
+                tau, kind = event
+                state = prop.states(tau)
+                new_regime = next_regime(kind, tau, state, regime, params)
+                if new_regime == model.STICK:
+                    kind = STICK_ENTRY
+                if model.STICK in (regime, new_regime) and model.FREE not in (regime, new_regime):
+                    state = model.project_to_rolling(state, params)
+                events.append(SwitchEvent(tau, kind, tuple(state), regime, new_regime))
+                regime, last_kind = new_regime, kind
+                if storms.storm(tau):
+                    status, message = FAILED, f"switch storm at tau = {tau:.6g}"
+                    break
+            if not np.all(np.isfinite(state)):
+                status, message = FAILED, f"non-finite state at tau = {tau:.6g}"
                 break
-        if not np.all(np.isfinite(state)):
-            status, message = FAILED, f"non-finite state at tau = {tau:.6g}"
-            break
-        if tau < t_end and stats["nsteps"] >= max_steps:
-            status = FAILED
-            message = f"step budget exhausted (max_steps = {max_steps}) at tau = {tau:.6g}"
-            break
-        if tau < t_end and time.perf_counter() - start_clock > max_wall_time_s:
-            status = FAILED
-            message = (
-                f"wall-time budget exhausted (max_wall_time_s = {max_wall_time_s:g}) "
-                f"at tau = {tau:.6g}"
-            )
-            break
-        if progress is not None and tau >= next_progress:
-            progress(tau)
-            next_progress = tau + 0.01 * (t_end - t_eval[0])
+            if tau < t_end and stats["nsteps"] >= max_steps:
+                status = FAILED
+                message = f"step budget exhausted (max_steps = {max_steps}) at tau = {tau:.6g}"
+                break
+            if tau < t_end and time.perf_counter() - start_clock > max_wall_time_s:
+                status = FAILED
+                message = (
+                    f"wall-time budget exhausted (max_wall_time_s = {max_wall_time_s:g}) "
+                    f"at tau = {tau:.6g}"
+                )
+                break
+            if progress is not None and tau >= next_progress:
+                progress(tau)
+                next_progress = tau + 0.01 * (t_end - t_eval[0])
+    except _UnresolvedError as exc:
+        status, message = FAILED, str(exc)
 
     if status == SUCCESS and progress is not None:
         progress(t_end)

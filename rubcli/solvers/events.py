@@ -27,6 +27,9 @@ from rubcli import model
 GRAZING_TOLERANCE = 1e-12
 # The band of the position-level surface g relative to the slip band (earliest_event).
 SURFACE_BAND = 1.0
+# A scan finer than this many points in one step means the linearised step carries a
+# frequency the step cannot resolve (a diverged linearisation): the run fails cleanly.
+MAX_SCAN_POINTS = 100_000
 # Root location tolerance in tau.
 XTOL = 1e-14
 RTOL = 4.0 * np.finfo(float).eps

@@ -82,6 +82,8 @@ for _core in COMPILABLE_CORES:
 # Why advance_contact stopped.
 STOP_END = 0  # reached t_end
 STOP_EVENT = 1  # the next step may contain an event: Python takes it
+from rubcli.solvers.events import MAX_SCAN_POINTS  # noqa: E402
+
 STOP_PYTHON = 2  # the next step needs Python (conditioning, singular system, non-finite)
 STOP_LIMIT = 3  # the step limit it was given is reached
 STOP_REASONS = {
@@ -919,6 +921,8 @@ def advance_contact(
         if not 8.0 * cond <= cond_limit:
             return tau, s, k, steps, STOP_PYTHON
         spacing = scan_fraction * 2.0 * math.pi / max(omega_max, 1e-300)
+        if (tb - tau) / spacing > MAX_SCAN_POINTS:
+            return tau, s, k, steps, STOP_PYTHON  # Python fails the run cleanly
         n = max(1, math.ceil((tb - tau) / spacing))
         if size < n + 1:
             size = n + 1
