@@ -12,8 +12,10 @@ only over its trusted span: ``error_max = max_k |w_k - w_ref,k|`` and
 ``error_final = |w - w_ref|`` at the last trusted sample. The problem is truncated to the
 trusted span before it is solved, so time and error cover the same interval.
 
-A setting that fails, or exceeds ``max_wall_time_s``, is recorded with its status; the
-tighter settings of that method are then skipped (they would cost more), and noted.
+A setting that fails is recorded with its status and message. If it failed on the run
+budget (``max_wall_time_s``, ``max_steps``), the tighter settings of that method are
+skipped (they would cost more), and noted; after any other failure (a loose step that
+diverged, say) the ladder goes on.
 
 Settings: scipy methods take ``rtol`` with ``atol = rtol * atol_factor``; ``analytic``
 and ``analytic-polar`` take ``steps_per_period``. ``cheapest_for(rows, target)`` picks
@@ -273,8 +275,8 @@ def run_work_precision(
             progress=cb,
         )
         rows.append(row)
-        if not row.success:
-            stopped.add(setting.method)
+        if not row.success and "budget" in row.message:
+            stopped.add(setting.method)  # tighter settings would cost more still
     return WorkPrecision(rows, reference, solved, startup, skipped, repeats)
 
 
