@@ -49,7 +49,7 @@ FULL = {17.6: 100, 17.6e3: 10, 1.75e6: 2}
 QUICK = {17.6: 10, 17.6e3: 2, 1.75e6: 0.5}
 
 
-def run_case(K: float, mu: float, periods: float, quick: bool, budget: float):
+def run_case(K: float, mu: float, periods: float, quick: bool, budget: float, methods=None):
     params = ModelParams(K=K, mu=mu, **FIG3)
     problem = Problem.from_periods(params, START, periods, 50, name=f"K={K:g} mu={mu:g}")
     t0 = time.perf_counter()
@@ -57,7 +57,7 @@ def run_case(K: float, mu: float, periods: float, quick: bool, budget: float):
     ref_time = time.perf_counter() - t0
     rtols = wpm.QUICK_RTOLS if quick else wpm.DEFAULT_RTOLS
     steps = (100, 400, 1600) if quick else wpm.DEFAULT_STEPS_PER_PERIOD
-    settings = wpm.ladder(RUBCLI + SCIPY, rtols=rtols, steps_per_period=steps)
+    settings = wpm.ladder(methods or RUBCLI + SCIPY, rtols=rtols, steps_per_period=steps)
     wp = wpm.run_work_precision(
         problem, reference, settings, repeats=1 if quick else 3, max_wall_time_s=budget
     )
@@ -91,6 +91,7 @@ def main() -> None:
     parser.add_argument("--budget", type=float, default=120.0, help="max seconds per solve")
     parser.add_argument("--no-memory", action="store_true")
     parser.add_argument("--K", type=float, nargs="+", help="only these stiffness ratios")
+    parser.add_argument("--methods", nargs="+", help="only these methods (default: all)")
     args = parser.parse_args()
     horizons = QUICK if args.quick else FULL
     if args.K:
@@ -117,7 +118,9 @@ def main() -> None:
     for K, periods in horizons.items():
         for mu in (0.0, 0.03):
             print(f"== K = {K:g}, mu = {mu:g}, {periods} periods", flush=True)
-            problem, ref, ref_time, wp = run_case(K, mu, periods, args.quick, args.budget)
+            problem, ref, ref_time, wp = run_case(
+                K, mu, periods, args.quick, args.budget, args.methods
+            )
             lines += [
                 f"## K = {K:g}, mu = {mu:g}, {periods} forcing periods",
                 "",
