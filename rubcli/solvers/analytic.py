@@ -48,13 +48,12 @@ from rubcli.solvers import kernels, register
 from rubcli.solvers.events import (
     MAX_SCAN_POINTS,
     SLIP_KINDS,
-    STICK_ENTRY,
     STICK_EXIT,
     SURFACE_KINDS,
     StormGuard,
+    apply_event,
     earliest_event,
     initial_kind,
-    next_regime,
     scan_spacing,
 )
 
@@ -453,15 +452,10 @@ def solve_piecewise(
             else:
                 stats["nsteps"] += 1
                 pending.clear()
-                tau, kind = event
-                state = prop.states(tau)
-                new_regime = next_regime(kind, tau, state, regime, params)
-                if new_regime == model.STICK:
-                    kind = STICK_ENTRY
-                if model.STICK in (regime, new_regime) and model.FREE not in (regime, new_regime):
-                    state = model.project_to_rolling(state, params)
-                events.append(SwitchEvent(tau, kind, tuple(state), regime, new_regime))
-                regime, last_kind = new_regime, kind
+                tau = event[0]
+                state, regime, switch = apply_event(tau, event[1], prop.states(tau), regime, params)
+                events.append(switch)
+                last_kind = switch.kind
                 if storms.storm(tau):
                     status, message = FAILED, f"switch storm at tau = {tau:.6g}"
                     break

@@ -301,3 +301,21 @@ def initial_kind(s, regime: int, params) -> str | None:
         if abs(v_r) <= 1e-12 * (1.0 + abs(params.Rp * params.eta)):
             return STICK_EXIT
     return None
+
+
+def apply_event(tau: float, kind: str, state, regime: int, params):
+    """The switch at a located event: the new regime, and the event as recorded.
+
+    A slip reversal that ends in stick is recorded as a stick entry; the state is
+    projected onto the rolling constraint when stick begins or ends in contact.
+    Returns ``(state, new_regime, SwitchEvent)``.
+    """
+    from rubcli.solution import SwitchEvent
+
+    state = np.asarray(state, dtype=float)
+    new_regime = next_regime(kind, tau, state, regime, params)
+    if new_regime == model.STICK:
+        kind = STICK_ENTRY
+    if model.STICK in (regime, new_regime) and model.FREE not in (regime, new_regime):
+        state = model.project_to_rolling(state, params)
+    return state, new_regime, SwitchEvent(tau, kind, tuple(state), regime, new_regime)

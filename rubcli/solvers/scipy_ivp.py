@@ -41,11 +41,10 @@ from rubcli.problem import Problem
 from rubcli.solution import FAILED, SUCCESS, Solution, SwitchEvent
 from rubcli.solvers import kernels, register
 from rubcli.solvers.events import (
-    STICK_ENTRY,
     StormGuard,
+    apply_event,
     earliest_event,
     initial_kind,
-    next_regime,
 )
 
 SCIPY_CLASSES = {
@@ -163,19 +162,14 @@ def solve_scipy(
         stats["nlu"] += int(getattr(solver, "nlu", 0) or 0)
         if status == FAILED or event is None:
             break
-        t_ev, kind = event
-        state = np.asarray(dense(t_ev), dtype=float)
-        new_regime = next_regime(kind, t_ev, state, regime, params)
-        if new_regime == model.STICK:
-            kind = STICK_ENTRY
-        if model.STICK in (regime, new_regime) and model.FREE not in (regime, new_regime):
-            state = model.project_to_rolling(state, params)
-        events.append(SwitchEvent(t_ev, kind, tuple(state), regime, new_regime))
+        t_ev = event[0]
+        state, regime, switch = apply_event(t_ev, event[1], dense(t_ev), regime, params)
+        events.append(switch)
         if storms.storm(t_ev):
             status = FAILED
             message = f"switch storm at tau = {t_ev:.6g}: {storms.count} events at one instant"
             break
-        tau, regime, last_kind = t_ev, new_regime, kind
+        tau, last_kind = t_ev, switch.kind
 
     if status == SUCCESS and progress is not None:
         progress(t_end)
