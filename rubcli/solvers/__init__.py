@@ -20,6 +20,31 @@ def register(name: str) -> Callable[[SolverFn], SolverFn]:
     return deco
 
 
+# The options each family of methods takes (besides ``progress``). ``options_for`` filters
+# a settings dict (e.g. a case's [solver] table) down to what one method uses.
+COMMON_OPTIONS = ("max_steps", "max_wall_time_s", "compiled")
+_FAMILY_OPTIONS = {
+    "analytic": ("steps_per_period", "analytic_tol"),
+    "scipy": ("rtol", "atol"),
+    "dop853-jit": ("rtol", "atol", "compiled_events"),
+}
+
+
+def _family(method: str) -> str:
+    if method.startswith("analytic"):
+        return "analytic"
+    return method if method == "dop853-jit" else "scipy"
+
+
+def options_for(method: str, options: dict) -> dict:
+    """The entries of ``options`` that ``method`` uses (the rest would be ignored by it).
+
+    Pass a method only its own options: ``solve(problem, m, **options_for(m, settings))``.
+    """
+    known = COMMON_OPTIONS + _FAMILY_OPTIONS[_family(method)] + ("progress",)
+    return {k: v for k, v in options.items() if k in known}
+
+
 def solve(problem: Problem, method: str, **options) -> Solution:
     """Solve ``problem`` with ``method`` (a key of ``METHODS``).
 
