@@ -13,8 +13,8 @@ message has one line per problem, naming the file, the dotted field and what is 
     my.toml: model.K: Input should be greater than 0 (got -1.0)
 
 The key names are a contract with users (issue 2): add keys, don't rename them. The full
-reference is ``docs/cases.md``. This module does not import the solvers: the method
-names are a static tuple, ``KNOWN_METHODS``, that a test keeps equal to the registry.
+reference is ``docs/cases.md``. The method names come from the registry's data
+(``rubcli.solvers.registry``), which loads no solver.
 """
 
 from __future__ import annotations
@@ -40,10 +40,9 @@ from pydantic_core import PydanticCustomError
 from rubcli import units
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
+from rubcli.solvers import registry
 
-MethodName = Literal[
-    "analytic", "analytic-polar", "rk45", "dop853", "radau", "bdf", "lsoda", "dop853-jit"
-]
+MethodName = Literal[registry.NAMES]  # every method of the registry
 KNOWN_METHODS: tuple[str, ...] = get_args(MethodName)
 
 PlotName = Literal["orbit", "time", "energy"]
@@ -173,7 +172,7 @@ class TimeSection(_Section):
 
 
 class SolverSection(_Section):
-    """[solver]: which methods run and their settings (every method ignores what it can't use)."""
+    """[solver]: which methods run and their settings (each method takes the ones it uses)."""
 
     methods: list[MethodName] = Field(default_factory=lambda: ["analytic", "rk45"], min_length=1)
     rtol: float = Field(default=1e-8, gt=0, lt=1)  # scipy methods
@@ -188,7 +187,7 @@ class SolverSection(_Section):
     _methods_unique = field_validator("methods")(_unique)
 
     def options(self) -> dict[str, Any]:
-        """Keyword options for ``rubcli.solvers.solve`` (the same for every method)."""
+        """The settings as keyword options (``Case.options_for`` picks one method's)."""
         return self.model_dump(exclude={"methods"})
 
 
@@ -330,8 +329,12 @@ class Case:
 
     @property
     def solver_options(self) -> dict[str, Any]:
-        """Options passed to ``rubcli.solvers.solve`` for every method."""
+        """The [solver] settings shared by every method (each takes its own part)."""
         return self.settings.solver.options()
+
+    def options_for(self, method: str) -> dict[str, Any]:
+        """The [solver] settings that ``method`` takes, for ``rubcli.solvers.solve``."""
+        return registry.options_for(method, self.solver_options)
 
     @property
     def output_dir(self) -> Path:

@@ -52,6 +52,7 @@ from rubcli.cli import console
 from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 from rubcli.problem import Problem
 from rubcli.solution import Solution
+from rubcli.solvers.registry import SPECS, STEPS_PER_PERIOD
 
 EXIT_FAILED = 1
 QUICK_HORIZON_PERIODS = 5.0
@@ -223,9 +224,8 @@ def orbit_panel(
     if reference is None:
         reference = _reference(problem, threshold, f"reference mu={mu_value:g}")
     solutions, entries = [], {}
-    options = case.solver_options
     for name in methods:
-        sol = _solve(problem, name, options, f"{name} mu={mu_value:g}")
+        sol = _solve(problem, name, case.options_for(name), f"{name} mu={mu_value:g}")
         solutions.append(sol)
         err = position_errors(sol.t, sol.states, reference)
         entry = {
@@ -382,7 +382,7 @@ def report_markdown(case: Case, wp: wpm.WorkPrecision | None, panels: list[dict]
                     f"| {target:g} | {row.method} at {row.setting_name} = {row.label} | "
                     f"{row.wall_time_s:.4g} | {row.error_max:.3g} |"
                 )
-        for method in (m for m in wp.methods if m.startswith("analytic")):
+        for method in (m for m in wp.methods if SPECS[m].knob == STEPS_PER_PERIOD):
             order = wpm.observed_order(wp.rows_of(method))
             if order is not None:
                 out += ["", f"Observed order of `{method}` in its step (fit of log error_max "

@@ -79,7 +79,7 @@ def start_up(case: Case) -> float:
     start = time.perf_counter()
     for name in case.methods:
         with contextlib.suppress(Exception):  # the timed run reports any failure
-            solvers.solve(short, name, **case.solver_options)
+            solvers.solve(short, name, **case.options_for(name))
     return time.perf_counter() - start
 
 
@@ -98,7 +98,7 @@ def solve_method(case: Case, name: str) -> tuple[Solution | None, dict[str, Any]
             solution = solvers.solve(
                 case.problem,
                 name,
-                **case.solver_options,
+                **case.options_for(name),
                 progress=lambda tau: update(tau - t0),
             )
         except Exception as exc:  # noqa: BLE001 - reported with its traceback, run exits 1
@@ -107,7 +107,7 @@ def solve_method(case: Case, name: str) -> tuple[Solution | None, dict[str, Any]
                 "status": ERROR,
                 "message": f"{type(exc).__name__}: {exc}",
                 "wall_time_s": time.perf_counter() - start,
-                "settings": case.solver_options,
+                "settings": case.options_for(name),
             }
             return None, entry
     return solution, method_report(solution)
