@@ -49,6 +49,7 @@ from rubcli.solution import FAILED, SUCCESS, Solution, SwitchEvent
 from rubcli.solvers import kernels, register
 from rubcli.solvers.events import (
     MAX_SCAN_POINTS,
+    NO_EVENT,
     StormGuard,
     apply_event,
     earliest_event,
@@ -298,7 +299,6 @@ def solve_piecewise(
     max_wall_time_s: float = 600.0,
     progress=None,
     compiled: bool = True,
-    **_ignored,
 ) -> Solution:
     """The piecewise method with a given contact linearisation ('cartesian' or 'polar').
 
@@ -395,7 +395,7 @@ def solve_piecewise(
                 while tb < t_end and event is None:
                     ta, tb = tb, min(t_end, tb + chunk)
                     event = search(prop, ta, tb, FREE_SCAN_FRACTION)
-                    last_kind = None
+                    last_kind = NO_EVENT
                     fill(prop, event[0] if event else tb, regime)
                     if time.perf_counter() - start_clock > max_wall_time_s:
                         break
@@ -430,7 +430,7 @@ def solve_piecewise(
                         )
                         stats["n_rejected_steps"] += rejected
                     if taken:
-                        last_kind = None
+                        last_kind = NO_EVENT
                     out_regimes[k0:k] = regime
                     stats["nsteps"] += taken
                     stats["n_contact_steps"] += taken
@@ -467,7 +467,7 @@ def solve_piecewise(
                     stats["n_contact_steps"] += 1
                     stats["n_expm_fallbacks"] += int(prop.use_expm)
                 event = search(prop, tau, tb, CONTACT_SCAN_FRACTION)
-                last_kind = None
+                last_kind = NO_EVENT
                 fill(prop, event[0] if event else tb, regime)
             if bulk_only:
                 pass  # the kernel has advanced tau, state, the samples and the step counts
@@ -479,9 +479,10 @@ def solve_piecewise(
                 stats["nsteps"] += 1
                 pending.clear()
                 tau = event[0]
-                state, regime, switch = apply_event(tau, event[1], prop.states(tau), regime, params)
+                state, regime, last_kind, switch = apply_event(
+                    tau, event[1], prop.states(tau), regime, params
+                )
                 events.append(switch)
-                last_kind = switch.kind
                 if storms.storm(tau):
                     status, message = FAILED, storms.message()
                     break

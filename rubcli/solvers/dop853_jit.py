@@ -34,11 +34,8 @@ from rubcli.problem import Problem
 from rubcli.solution import FAILED, SUCCESS, Solution, SwitchEvent
 from rubcli.solvers import kernels, register
 from rubcli.solvers.events import (
-    ENTRY,
-    EXIT,
-    REVERSAL,
-    STICK_ENTRY,
-    STICK_EXIT,
+    KIND_NAMES,
+    NO_EVENT,
     StormGuard,
     apply_event,
     earliest_event,
@@ -56,13 +53,6 @@ from rubcli.solvers.scipy_ivp import (
 
 CHUNK_STEPS = 2000  # committed steps per kernel call: budget and progress checks between
 EVENT_BUFFER = 256  # events the kernel may apply before it returns to flush them
-KERNEL_KINDS = {
-    kernels.KIND_ENTRY: ENTRY,
-    kernels.KIND_EXIT: EXIT,
-    kernels.KIND_REVERSAL: REVERSAL,
-    kernels.KIND_STICK_ENTRY: STICK_ENTRY,
-    kernels.KIND_STICK_EXIT: STICK_EXIT,
-}
 
 
 class Dop853Dense:
@@ -87,7 +77,6 @@ def solve_dop853_jit(
     progress=None,
     compiled: bool = True,
     compiled_events: bool = True,
-    **_ignored,
 ) -> Solution:
     """scipy's DOP853 in a compiled step loop; ``compiled_events=False`` hands every
     possible event to the Python event code (a check of the compiled one)."""
@@ -124,7 +113,7 @@ def solve_dop853_jit(
     f = np.empty(4)
     ev_tau, ev_kind = np.empty(EVENT_BUFFER), np.empty(EVENT_BUFFER, dtype=np.int64)
     ev_state, ev_regimes = np.empty((EVENT_BUFFER, 4)), np.empty((EVENT_BUFFER, 2), dtype=np.int64)
-    new_segment, at_event = True, last_kind is not None
+    new_segment, at_event = True, last_kind != NO_EVENT
 
     while True:
         if new_segment:  # as scipy starts a solver: f and the initial step
@@ -133,7 +122,7 @@ def solve_dop853_jit(
             stats["nfev"] += 2
             stats["n_segments"] += 1
             new_segment = False
-        starts = start_flags(last_kind) if at_event else start_flags(None)
+        starts = start_flags(last_kind if at_event else NO_EVENT)
         chunk = max(1, min(CHUNK_STEPS, max_steps - stats["nsteps"]))
         tau, t_new, h_abs, k, steps, nfev, reason, regime, n_ev, at_event = (
             kernels.advance_dop853(
@@ -147,10 +136,10 @@ def solve_dop853_jit(
         # segments the kernel started (with a full buffer the last one starts here)
         stats["n_segments"] += n_ev - (reason == kernels.STOP_FULL)
         for i in range(n_ev):  # the events the kernel located and applied
-            t_ev, kind = float(ev_tau[i]), KERNEL_KINDS[int(ev_kind[i])]
+            t_ev, last_kind = float(ev_tau[i]), int(ev_kind[i])
             before, after = int(ev_regimes[i, 0]), int(ev_regimes[i, 1])
-            events.append(SwitchEvent(t_ev, kind, tuple(map(float, ev_state[i])), before, after))
-            last_kind = kind
+            state_i = tuple(map(float, ev_state[i]))
+            events.append(SwitchEvent(t_ev, KIND_NAMES[last_kind], state_i, before, after))
             if storms.storm(t_ev):
                 status, message = FAILED, storms.message()
                 k = int(np.searchsorted(t_eval, t_ev, side="right"))
@@ -179,7 +168,7 @@ def solve_dop853_jit(
             grid = np.linspace(tau, t_new, SCAN_POINTS + 1)
             derivatives = _rhs_functions(params, regime, True)[2]
             event = earliest_event(
-                dense, derivatives, grid, regime, params, last_kind if at_event else None,
+                dense, derivatives, grid, regime, params, last_kind if at_event else NO_EVENT,
                 restart_band,
             )  # fmt: skip
             t_stop = event[0] if event else t_new
@@ -189,12 +178,14 @@ def solve_dop853_jit(
                 state[:], f[:] = y_new, f_new
             else:
                 t_ev = event[0]
-                state, regime, switch = apply_event(t_ev, event[1], dense(t_ev), regime, params)
+                state, regime, kind, switch = apply_event(
+                    t_ev, event[1], dense(t_ev), regime, params
+                )
                 events.append(switch)
                 if storms.storm(t_ev):
                     status, message = FAILED, storms.message()
                     break
-                tau, last_kind, at_event, new_segment = t_ev, switch.kind, True, True
+                tau, last_kind, at_event, new_segment = t_ev, kind, True, True
                 if tau >= t_end:
                     break
         over = budget.exceeded(stats["nsteps"])

@@ -53,7 +53,6 @@ import warnings
 import numba
 import numpy as np
 from numba.extending import register_jitable
-from scipy.integrate._ivp import dop853_coefficients as _dop
 
 from rubcli import model
 from rubcli.model import (
@@ -67,7 +66,25 @@ from rubcli.model import (
     rhs_jacobian_array,
     rolling_velocity,
     slip_velocity_rate,
+    slip_velocity_value,
     stick_friction_value,
+)
+from rubcli.solvers import dop853_coefficients as _dop
+from rubcli.solvers import events
+from rubcli.solvers.events import (
+    ENTRY,
+    EXIT,
+    GRAZING_TOLERANCE,
+    MAX_SCAN_POINTS,
+    REFINE_POINTS,
+    REVERSAL,
+    RTOL,
+    STICK_EXIT,
+    STICK_EXIT_LEVEL,
+    SURFACE_BAND,
+    XTOL,
+    start_flags,
+    switch_regime,
 )
 
 # The model's compilable cores, registered so that compiled code calls the same functions.
@@ -84,32 +101,29 @@ COMPILABLE_CORES = (
     model.cartesian_entries,
     model.polar_rhs_entries,
     model.polar_jacobian_arrays,
+    model.slip_velocity_value,
+    model.entry_regime_value,
+    model.zero_slip_regime_value,
+    events.start_flags,
+    events.switch_regime,
 )
 for _core in COMPILABLE_CORES:
     register_jitable(_core)
 
-# Why advance_contact stopped.
+# Why a kernel stopped (advance_contact, advance_contact_adaptive, advance_dop853).
 STOP_END = 0  # reached t_end
 STOP_EVENT = 1  # the next step may contain an event: Python takes it
-from rubcli.solvers.events import (  # noqa: E402
-    GRAZING_TOLERANCE,
-    MAX_SCAN_POINTS,
-    REFINE_POINTS,
-    RTOL,
-    STICK_EXIT_LEVEL,
-    SURFACE_BAND,
-    XTOL,
-)
-
 STOP_PYTHON = 2  # the next step needs Python (conditioning, singular system, non-finite)
 STOP_LIMIT = 3  # the step limit it was given is reached
+STOP_SMALL_STEP = 4  # DOP853: the step size fell below scipy's minimum (10 ulp of tau)
+STOP_FULL = 5  # DOP853: the kernel's event buffers are full
 STOP_REASONS = {
     STOP_END: "end",
     STOP_EVENT: "event",
     STOP_PYTHON: "python",
     STOP_LIMIT: "limit",
-    4: "small step",
-    5: "event buffer full",
+    STOP_SMALL_STEP: "small step",
+    STOP_FULL: "event buffer full",
 }
 
 EPS = np.finfo(float).eps
@@ -879,9 +893,7 @@ def _slip_may_cross(grid, S, dS, n, sign, spin, cond, hv, hd, starts):
     rate_scale = 0.0
     for i in range(n + 1):
         x, y, vx, vy = S[i, 0], S[i, 1], S[i, 2], S[i, 3]
-        z = math.hypot(x, y)
-        whirl = x * vy - y * vx
-        hv[i] = -sign * (spin + whirl / z)
+        hv[i] = -sign * slip_velocity_value(x, y, vx, vy, spin)
         hd[i] = -sign * slip_velocity_rate(x, y, vx, vy, dS[i, 2], dS[i, 3])
         rate_scale = max(rate_scale, abs(hd[i]))
     margin_v = rel * (1.0 + abs(spin))
@@ -1190,7 +1202,7 @@ def advance_contact_adaptive(
 
 # --------------------------------------------------------------- DOP853, compiled
 
-# scipy's own DOP853 tableau (Hairer's coefficients, as scipy.integrate.DOP853 uses them):
+# scipy's DOP853 tableau (vendored: dop853_coefficients.py, Hairer's coefficients):
 # stages 0-11 and the solution weights, the embedded 5th- and 3rd-order error weights,
 # and the three extra stages and the D matrix of the 7th-order dense output.
 DOP_A = np.ascontiguousarray(_dop.A, dtype=float)  # (16, 16)
@@ -1203,8 +1215,6 @@ DOP_STAGES = _dop.N_STAGES  # 12
 DOP_ERROR_EXPONENT = -1.0 / 8.0  # scipy: -1 / (error_estimator_order + 1), order 7
 DOP_SAFETY, DOP_MIN_FACTOR, DOP_MAX_FACTOR = 0.9, 0.2, 10.0  # scipy.integrate._ivp.rk
 DOP_SCAN_POINTS = 4  # scipy_ivp.SCAN_POINTS: the event scan grid of a step
-STOP_SMALL_STEP = 4  # the step size fell below scipy's minimum (10 ulp of tau)
-STOP_FULL = 5  # the kernel's event buffers are full
 FREE_REGIME, STICK_REGIME = model.FREE, model.STICK
 STICK_EXIT_MARGIN = model.STICK_EXIT_MARGIN
 SLIP_POSITIVE_REGIME, SLIP_NEGATIVE_REGIME = model.SLIP_POSITIVE, model.SLIP_NEGATIVE
@@ -1360,8 +1370,6 @@ def dop853_dense(t, t_old, h, y_old, F):
     return out
 
 
-# Event kinds the kernel applies: events.ENTRY, EXIT, REVERSAL, STICK_ENTRY, STICK_EXIT.
-KIND_ENTRY, KIND_EXIT, KIND_REVERSAL, KIND_STICK_ENTRY, KIND_STICK_EXIT = 0, 1, 2, 3, 4
 # Event functions of events.earliest_event: the surface z = 1, the slip v_r = 0, and the
 # stick margin (the needed friction against the friction cone).
 FN_SURFACE, FN_SLIP, FN_STICK = 0, 1, 2
@@ -1461,7 +1469,7 @@ def _event_fn(t, fn, sign, deriv, t_old, h, y_old, F, pars, regime, d, row, drow
     if deriv:
         _rhs_into(t, row, pars, regime, drow)
         return -sign * slip_velocity_rate(x, y, vx, vy, drow[2], drow[3])
-    return -sign * (pars[6] * pars[1] + (x * vy - y * vx) / math.hypot(x, y))
+    return -sign * slip_velocity_value(x, y, vx, vy, pars[6] * pars[1])
 
 
 @jit
@@ -1626,14 +1634,14 @@ def _dop853_locate(t_old, h, y_old, F, pars, regime, grid, hv, hd, row, drow, st
             FN_SURFACE, 1.0, grid, hv, hd, n, starts[0], GRAZING_TOLERANCE,
             SURFACE_BAND * band, True, t_old, h, y_old, F, pars, regime, d, row, drow,
         )  # fmt: skip
-        return (t, KIND_ENTRY) if not math.isnan(t) else (t, -1)
+        return (t, ENTRY) if not math.isnan(t) else (t, -1)
     best, kind = math.nan, -1
     t = _first_crossing(
         FN_SURFACE, -1.0, grid, hv, hd, n, starts[0], 0.0, SURFACE_BAND * band, True,
         t_old, h, y_old, F, pars, regime, d, row, drow,
     )  # fmt: skip
     if not math.isnan(t):
-        best, kind = t, KIND_EXIT
+        best, kind = t, EXIT
     if pars[5] > 0.0 and regime != STICK_REGIME:
         level = band * (1.0 + abs(pars[6] * pars[1]))
         t = _first_crossing(
@@ -1641,7 +1649,7 @@ def _dop853_locate(t_old, h, y_old, F, pars, regime, grid, hv, hd, row, drow, st
             t_old, h, y_old, F, pars, regime, d, row, drow,
         )  # fmt: skip
         if not math.isnan(t) and (math.isnan(best) or t < best):
-            best, kind = t, KIND_REVERSAL
+            best, kind = t, REVERSAL
     if regime == STICK_REGIME:
         for sign in (1.0, -1.0):
             t = _first_crossing(
@@ -1649,49 +1657,21 @@ def _dop853_locate(t_old, h, y_old, F, pars, regime, grid, hv, hd, row, drow, st
                 t_old, h, y_old, F, pars, regime, d, row, drow,
             )  # fmt: skip
             if not math.isnan(t) and (math.isnan(best) or t < best):
-                best, kind = t, KIND_STICK_EXIT
+                best, kind = t, STICK_EXIT
     return best, kind
 
 
 @jit
 def _apply_event(kind, t, s, regime, pars):
-    """``events.apply_event``: (new regime, kind as recorded); ``s`` is projected onto
-    the rolling constraint in place when stick begins or ends in contact."""
-    if kind == KIND_EXIT:
-        new = FREE_REGIME
-    elif kind == KIND_ENTRY:
-        new = SLIP_POSITIVE_REGIME
-        if pars[5] != 0.0:
-            v_r = pars[6] * pars[1] + ((s[0] * s[3] - s[1] * s[2]) / math.hypot(s[0], s[1]))
-            new = SLIP_POSITIVE_REGIME if v_r >= 0.0 else SLIP_NEGATIVE_REGIME
-    else:
-        needed = stick_friction_value(t, s[0], s[1], s[2], s[3], pars[0], pars[1], pars[2], pars[3])
-        if kind == KIND_STICK_EXIT:
-            new = SLIP_POSITIVE_REGIME if needed > 0.0 else SLIP_NEGATIVE_REGIME
-        else:  # slip reversal: model.regime_at_zero_slip (Filippov)
-            limit = pars[5] * pars[4] * (math.hypot(s[0], s[1]) - 1.0)
-            if needed > limit:
-                new = SLIP_POSITIVE_REGIME
-            elif needed < -limit:
-                new = SLIP_NEGATIVE_REGIME
-            else:
-                new = STICK_REGIME
-    if new == STICK_REGIME:
-        kind = KIND_STICK_ENTRY
-    stick = regime == STICK_REGIME or new == STICK_REGIME
-    if stick and regime != FREE_REGIME and new != FREE_REGIME:
+    """``events.switch_regime`` on a kernel state: (new regime, kind as recorded); ``s``
+    is projected onto the rolling constraint in place when stick begins or ends."""
+    new, recorded, project = switch_regime(
+        kind, t, s[0], s[1], s[2], s[3], regime,
+        pars[0], pars[1], pars[2], pars[3], pars[4], pars[5], pars[6],
+    )  # fmt: skip
+    if project:
         s[2], s[3] = rolling_velocity(s[0], s[1], s[2], s[3], pars[6] * pars[1])
-    return new, kind
-
-
-@jit
-def _start_flags(kind):
-    """``events.start_flags`` of the event kind that begins a segment."""
-    return (
-        kind in (KIND_ENTRY, KIND_EXIT),
-        kind in (KIND_REVERSAL, KIND_STICK_EXIT),
-        kind != KIND_STICK_EXIT,
-    )
+    return new, recorded
 
 
 @jit
@@ -1823,7 +1803,7 @@ def advance_dop853(
             y[i] = row[i]
         n_events += 1
         tau, regime = t_stop, new_regime
-        starts = _start_flags(kind)
+        starts = start_flags(kind)
         if n_events == capacity:
             return tau, tau, h_abs, k, steps, nfev, STOP_FULL, regime, n_events, True
         _rhs_into(tau, y, pars, regime, f)

@@ -41,6 +41,7 @@ from rubcli.problem import Problem
 from rubcli.solution import FAILED, SUCCESS, Solution, SwitchEvent
 from rubcli.solvers import kernels, register
 from rubcli.solvers.events import (
+    NO_EVENT,
     StormGuard,
     apply_event,
     earliest_event,
@@ -92,7 +93,6 @@ def solve_scipy(
     max_wall_time_s: float = 600.0,
     progress=None,
     compiled: bool = True,
-    **_ignored,
 ) -> Solution:
     params = problem.params
     t_eval = problem.t_eval
@@ -140,7 +140,7 @@ def solve_scipy(
             event = earliest_event(
                 dense, derivatives, grid, regime, params, last_kind, restart_band
             )
-            last_kind = None
+            last_kind = NO_EVENT
             t_stop = event[0] if event else solver.t
             k = fill_samples(dense, t_eval, k, t_stop, regime, params, out_states, out_regimes)
             if event is not None or solver.status == "finished":
@@ -158,13 +158,13 @@ def solve_scipy(
         if status == FAILED or event is None:
             break
         t_ev = event[0]
-        state, regime, switch = apply_event(t_ev, event[1], dense(t_ev), regime, params)
+        state, regime, kind, switch = apply_event(t_ev, event[1], dense(t_ev), regime, params)
         events.append(switch)
         if storms.storm(t_ev):
             status = FAILED
             message = storms.message()
             break
-        tau, last_kind = t_ev, switch.kind
+        tau, last_kind = t_ev, kind
 
     if status == SUCCESS and progress is not None:
         progress(t_end)
