@@ -278,7 +278,8 @@ def _rotate_real(B, Q, k, c, s, col_start):
 def _balance(B, scale):
     """Balance B in place by powers of 2 (LAPACK gebal's scaling, no permutations).
 
-    On return B holds D^-1 B D with D = diag(scale).
+    On return B holds D^-1 B D with D = diag(scale). A row or column whose norm
+    overflows (entries beyond 1e154) is left unscaled: its scaling loop would not end.
     """
     n = B.shape[0]
     for i in range(n):
@@ -293,8 +294,8 @@ def _balance(B, scale):
                 if j != i:
                     c += B[j, i] * B[j, i]
                     r += B[i, j] * B[i, j]
-            if c == 0.0 or r == 0.0:
-                continue
+            if c == 0.0 or r == 0.0 or not (c < np.inf and r < np.inf):
+                continue  # (an overflowing norm would never balance: leave the row)
             c = math.sqrt(c)
             r = math.sqrt(r)
             g = r / 2.0
