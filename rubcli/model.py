@@ -15,10 +15,10 @@ the rotor back towards the centre, and its tangential part opposes the slip ``v_
 State vectors are ``s = (x, y, vx, vy)`` with ``vx = dx/dtau``. The functions work on
 plain floats and numpy arrays; nothing here imports a solver, pydantic, matplotlib or numba.
 
-The formulas the compiled kernels need (``rubcli/solvers/kernels.py``) are written once,
+The formulas the compiled kernels need (``rubcli/solvers/compiled/``) are written once,
 as the ``*_entries`` / ``*_arrays`` / ``*_value`` cores below: plain functions on floats
 (some also on arrays) in the subset of Python that numba compiles. The public functions
-here call them, and the kernels module registers the same function objects with numba
+here call them, and ``compiled/jit.py`` registers the same function objects with numba
 (``register_jitable``), so the Python and the compiled paths share one definition.
 """
 

@@ -45,7 +45,8 @@ import scipy.linalg
 from rubcli import model
 from rubcli.problem import Problem
 from rubcli.solution import Solution
-from rubcli.solvers import driver, kernels, register
+from rubcli.solvers import compiled as kernels
+from rubcli.solvers import driver, register
 from rubcli.solvers.events import (
     MAX_SCAN_POINTS,
     NO_EVENT,

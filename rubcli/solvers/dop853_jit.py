@@ -32,7 +32,8 @@ import numpy as np
 from rubcli import model
 from rubcli.problem import Problem
 from rubcli.solution import Solution, SwitchEvent
-from rubcli.solvers import driver, kernels, register
+from rubcli.solvers import compiled as kernels
+from rubcli.solvers import driver, register
 from rubcli.solvers.events import (
     KIND_NAMES,
     NO_EVENT,

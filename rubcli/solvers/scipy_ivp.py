@@ -38,7 +38,8 @@ from scipy import integrate
 from rubcli import model
 from rubcli.problem import Problem
 from rubcli.solution import Solution
-from rubcli.solvers import driver, kernels, register
+from rubcli.solvers import compiled as kernels
+from rubcli.solvers import driver, register
 from rubcli.solvers.events import (
     NO_EVENT,
     earliest_event,
