@@ -36,9 +36,8 @@ def register(name: str) -> Callable[[SolverFn], SolverFn]:
 
 
 def _methods() -> dict[str, SolverFn]:
-    if not _METHODS:
-        for module in _FAMILIES:
-            importlib.import_module(module)
+    for module in _FAMILIES:  # (imported once; a no-op afterwards)
+        importlib.import_module(module)
     return _METHODS
 
 
