@@ -14,7 +14,7 @@ from rubcli import model
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solution import FAILED, SUCCESS
-from rubcli.solvers import analytic, compiled, solve
+from rubcli.solvers import analytic, compiled, control, solve
 from rubcli.solvers.compiled import cache, linalg, propagators
 
 ANALYTIC = ["analytic", "analytic-polar"]
@@ -358,13 +358,13 @@ def test_adaptive_kernel_hands_back_whole_pairs(fig3_params):
     t_eval = np.linspace(0.0, p.period, 11)
     pars = np.array(model.params_vector(p))
     h0 = p.period / 400
-    control = (
+    settings = (
         1e-7,
-        analytic.ADAPT_SAFETY,
-        analytic.ADAPT_MIN_FACTOR,
-        analytic.ADAPT_MAX_FACTOR,
-        p.period * analytic.MAX_STEP_FRACTION,
-        analytic.MIN_STEP_FRACTION * p.period,
+        control.SAFETY,
+        control.MIN_FACTOR,
+        control.MAX_FACTOR,
+        p.period * control.MAX_STEP_FRACTION,
+        control.MIN_STEP_FRACTION * p.period,
     )
 
     def advance(limit, t_end=t_eval[-1]):
@@ -384,7 +384,7 @@ def test_adaptive_kernel_hands_back_whole_pairs(fig3_params):
             analytic.CONTACT_SCAN_FRACTION,
             analytic.EIGVEC_COND_LIMIT,
             (False, False, False),
-            control,
+            settings,
         )
 
     tau, state, k, steps, rejected, h, reason = advance(1)
@@ -394,7 +394,7 @@ def test_adaptive_kernel_hands_back_whole_pairs(fig3_params):
     assert (steps, reason) == (2, compiled.STOP_LIMIT) and tau > 0.0 and h != h0
     tau, _, k, steps, _, h, reason = advance(10**9)
     assert reason == compiled.STOP_END and tau >= t_eval[-1] and k == t_eval.size
-    assert steps % 2 == 0 and 0.0 < h <= 4 * control[4]
+    assert steps % 2 == 0 and 0.0 < h <= 4 * settings[4]
 
 
 def test_kernel_stops_before_an_event_and_at_its_limits(fig3_params):

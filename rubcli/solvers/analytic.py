@@ -46,7 +46,7 @@ from rubcli import model
 from rubcli.problem import Problem
 from rubcli.solution import Solution
 from rubcli.solvers import compiled as kernels
-from rubcli.solvers import driver, register
+from rubcli.solvers import control, driver, register
 from rubcli.solvers.events import (
     MAX_SCAN_POINTS,
     NO_EVENT,
@@ -256,9 +256,6 @@ class _UnresolvedError(Exception):
 
 CONTACT_PROPAGATORS = {"cartesian": LinearisedContact, "polar": PolarLinearisedContact}
 # Adaptive steps (step doubling): local error ~ h^3, so h scales with (tol/err)^(1/3).
-ADAPT_SAFETY, ADAPT_MIN_FACTOR, ADAPT_MAX_FACTOR = 0.9, 0.2, 4.0
-MAX_STEP_FRACTION = 1.0 / 8.0  # of the forcing period, in adaptive mode
-MIN_STEP_FRACTION = 1e-12  # of the forcing period: a step this short is always accepted
 
 
 def _contact_step(linearisation: str, tau: float, state, h: float, params, regime: int):
@@ -281,9 +278,8 @@ def _doubling_error(linearisation, tau, state, h, params, regime):
     if regime == model.STICK:
         mid = model.project_to_rolling(mid, params)
     second = _contact_step(linearisation, tau + h / 2, mid, h / 2, params, regime)
-    diff = full.states(tau + h) - second.states(tau + h)
-    scale = 1.0 + np.abs(state)
-    return float(np.max(np.abs(diff) / scale)) * 4.0 / 3.0, first, second
+    error = control.doubling_error(full.states(tau + h), second.states(tau + h), state)
+    return error, first, second
 
 
 class PiecewiseStepper:
@@ -308,8 +304,8 @@ class PiecewiseStepper:
         params = run.params
         self.linearisation, self.analytic_tol = linearisation, analytic_tol
         self.h = params.period / steps_per_period
-        self.h_max = params.period * MAX_STEP_FRACTION
-        self.min_step = MIN_STEP_FRACTION * params.period
+        self.h_max = params.period * control.MAX_STEP_FRACTION
+        self.min_step = control.MIN_STEP_FRACTION * params.period
         self.pending = []  # accepted half-step propagators still to be walked (adaptive)
         run.stats.update(
             n_free_segments=0, n_contact_steps=0, n_stick_steps=0, n_rejected_steps=0,
@@ -321,7 +317,7 @@ class PiecewiseStepper:
             self.t_eval_c = np.ascontiguousarray(run.t_eval, dtype=float)
             self.control = (
                 float(analytic_tol) if analytic_tol is not None else 0.0,
-                ADAPT_SAFETY, ADAPT_MIN_FACTOR, ADAPT_MAX_FACTOR, self.h_max, self.min_step,
+                control.SAFETY, control.MIN_FACTOR, control.MAX_FACTOR, self.h_max, self.min_step,
             )  # fmt: skip
         self.settings = {
             "steps_per_period": steps_per_period,
@@ -423,9 +419,11 @@ class PiecewiseStepper:
                     err, first, second = _doubling_error(
                         self.linearisation, tau, run.state, step, params, run.regime
                     )
-                    factor = ADAPT_SAFETY * (self.analytic_tol / max(err, 1e-300)) ** (1 / 3)
-                    self.h = step * min(ADAPT_MAX_FACTOR, max(ADAPT_MIN_FACTOR, factor))
-                    if err <= self.analytic_tol or step <= self.min_step:
+                    self.h, accept = control.next_step(
+                        step, err, self.analytic_tol, control.SAFETY, control.MIN_FACTOR,
+                        control.MAX_FACTOR, self.min_step,
+                    )  # fmt: skip
+                    if accept:
                         break
                     run.stats["n_rejected_steps"] += 1
                 self.pending.extend([(first, tau + step / 2), (second, tau + step)])

@@ -36,6 +36,7 @@ from rubcli.solvers.compiled.propagators import (
     _prepare,
     _workspace,
 )
+from rubcli.solvers.control import doubling_error, next_step
 from rubcli.solvers.events import (
     MAX_SCAN_POINTS,
 )
@@ -300,17 +301,11 @@ def advance_contact_adaptive(
             if not 8.0 * cond2 <= cond_limit:
                 return tau, s, k, steps, rejected, h, STOP_PYTHON
             _evaluate(polar, t_mid, t_next, pars, ws2, end, dout)
-            largest = 0.0
-            for j in range(4):
-                d = abs(full[j] - end[j]) / (1.0 + abs(s[j]))
-                if not d <= largest:  # (a NaN propagates, as in np.max)
-                    largest = d
-            err = largest * 4.0 / 3.0
+            err = doubling_error(full, end, s)
             if not math.isfinite(err):
                 return tau, s, k, steps, rejected, h, STOP_PYTHON
-            factor = safety * (tol / max(err, 1e-300)) ** (1 / 3)
-            h_next = step * min(max_factor, max(min_factor, factor))
-            if err <= tol or step <= min_step:
+            h_next, accept = next_step(step, err, tol, safety, min_factor, max_factor, min_step)
+            if accept:
                 break
             tries += 1
         # both halves are checked before either is taken (Python may redo the pair)

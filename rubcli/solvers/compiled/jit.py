@@ -14,7 +14,7 @@ import numpy as np
 from numba.extending import register_jitable
 
 from rubcli import model
-from rubcli.solvers import events
+from rubcli.solvers import control, events
 
 # The model's compilable cores, registered so that compiled code calls the same functions.
 COMPILABLE_CORES = (
@@ -35,6 +35,8 @@ COMPILABLE_CORES = (
     model.zero_slip_regime_value,
     events.start_flags,
     events.switch_regime,
+    control.doubling_error,
+    control.next_step,
 )
 
 
