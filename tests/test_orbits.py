@@ -187,6 +187,27 @@ def test_grazing_of_the_free_whirl_located_to_the_closed_form():
     assert branch.points[0].contact_fraction == 0.0 and branch.points[-1].contact_fraction == 1.0
 
 
+def test_unstable_rub_meets_the_free_branch_in_a_nonsmooth_fold_at_grazing():
+    """Down the unstable rub branch to r = 1, where it turns into the free whirl (eta up)."""
+
+    def free_radius_minus_one(eta):
+        return RUN_UP.e * eta**2 / abs(1 - eta**2 + 2j * RUN_UP.nu * eta) - 1.0
+
+    independent = brentq(free_radius_minus_one, 1.0, 1.2, xtol=1e-15)
+    params = dataclasses.replace(RUN_UP, eta=1.0687)
+    r_unstable = model.synchronous_rub_radii(params)[0]
+    s0 = model.synchronous_rub(np.array([0.0]), params, r_unstable)[:, 0]
+    settings = cn.ContinuationSettings("eta", 0.6, 1.6, 0.02, 1e-6, 0.05, max_points=4,
+                                       directions=(-1,))  # fmt: skip
+    branch = cn.continue_branch(params, s0, settings)
+    assert not branch.points[-1].stable and branch.points[0].stable  # unstable rub -> free
+    kinds = {b.kind: b for b in branch.bifurcations}
+    assert set(kinds) == {cn.GRAZING, cn.FOLD}
+    for bif in kinds.values():
+        assert bif.located and abs(bif.parameter - independent) < 1e-6
+    assert "nonsmooth fold" in kinds[cn.FOLD].note
+
+
 def test_newton_failure_and_point_budget_end_cleanly():
     with pytest.raises(ob.NewtonError) as info:
         ob.shoot(PAPER, [3.0, 0.0, 0.0, 0.0], max_iter=1)
@@ -321,7 +342,7 @@ def test_overlay_of_a_sweep(tmp_path):
     assert px.size == pz.size == 7 * 2 * 5 - 5 and "strobe_z" in label
     np.testing.assert_allclose(pz[px == px[0]], 0.5)
     out = tmp_path / "out"
-    case = _write(tmp_path, GOOD_ORBITS)
+    case = _write(tmp_path, GOOD_ORBITS.replace("max_points = 8", "max_points = 2"))
     result = CliRunner().invoke(app, ["orbits", str(case), "--out", str(out), "--overlay", str(nc)])
     assert result.exit_code == 0, result.output
     assert json.loads((out / "report.json").read_text())["overlay"] == str(nc)

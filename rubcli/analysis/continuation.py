@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import brentq
 
+from rubcli import model
 from rubcli.analysis import orbits as ob
 from rubcli.model import ModelParams
 
@@ -48,6 +49,10 @@ KINDS = (FOLD, FLIP, NEIMARK_SACKER, GRAZING, STICK_ONSET)
 COMPLEX_PAIR_TOL = 1e-6
 # Bisection on a count stops at this fraction of the segment.
 BISECTION_TOL = 1e-7
+# A bifurcation bracketed this tightly (relative, in the parameter) counts as located.
+LOCATED_WIDTH = 1e-6
+# Step halvings of the damped Newton corrector.
+MAX_HALVINGS = 4
 
 
 @dataclass(frozen=True)
@@ -235,9 +240,12 @@ class CorrectorError(Exception):
 class _Problem:
     """G(X) and its Jacobian for one parameter, in scaled coordinates X = (x0, q)."""
 
-    def __init__(self, params: ModelParams, settings: ContinuationSettings):
+    def __init__(
+        self, params: ModelParams, settings: ContinuationSettings, locked: int | None = None
+    ):
         self.params = params
         self.s = settings
+        self.locked = locked  # a regime to integrate in without switches (grazing location)
         self.evaluations = 0
 
     def params_at(self, q: float) -> ModelParams:
@@ -246,22 +254,26 @@ class _Problem:
     def evaluate(self, X: np.ndarray, derivative: bool = True):
         """(flow result, G, dP/dq or None) at X."""
         p = self.params_at(X[4])
-        fl = ob.stroboscopic_map(p, X[:4], self.s.k, rtol=self.s.rtol, atol=self.s.atol)
+        fl = ob.stroboscopic_map(
+            p, X[:4], self.s.k, rtol=self.s.rtol, atol=self.s.atol, locked=self.locked
+        )
         self.evaluations += 1
-        dPdq = None
-        if derivative:
-            q = X[4]
-            h = 1e-6 * max(1.0, abs(q))
-            plus = ob.stroboscopic_map(
-                self.params_at(q + h), X[:4], self.s.k, variational=False,
-                rtol=self.s.rtol, atol=self.s.atol,
-            ).state  # fmt: skip
-            minus = ob.stroboscopic_map(
-                self.params_at(q - h), X[:4], self.s.k, variational=False,
-                rtol=self.s.rtol, atol=self.s.atol,
-            ).state  # fmt: skip
-            dPdq = (plus - minus) / (2.0 * h)
+        dPdq = self.derivative(X) if derivative else None
         return fl, fl.state - X[:4], dPdq
+
+    def derivative(self, X: np.ndarray) -> np.ndarray:
+        """dP/dq at X by central differences of the map."""
+        q = X[4]
+        h = 1e-6 * max(1.0, abs(q))
+        plus = ob.stroboscopic_map(
+            self.params_at(q + h), X[:4], self.s.k, variational=False,
+            rtol=self.s.rtol, atol=self.s.atol, locked=self.locked,
+        ).state  # fmt: skip
+        minus = ob.stroboscopic_map(
+            self.params_at(q - h), X[:4], self.s.k, variational=False,
+            rtol=self.s.rtol, atol=self.s.atol, locked=self.locked,
+        ).state  # fmt: skip
+        return (plus - minus) / (2.0 * h)
 
     def point(self, X: np.ndarray, fl: ob.FlowResult, iterations: int) -> BranchPoint:
         return BranchPoint(
@@ -279,16 +291,17 @@ class _Problem:
         )
 
     def correct(self, X_pred: np.ndarray, normal: np.ndarray) -> tuple[np.ndarray, BranchPoint]:
-        """Newton on G = 0, normal . (X - X_pred) = 0 from X_pred."""
+        """Newton on G = 0, normal . (X - X_pred) = 0 from X_pred.
+
+        A step that does not reduce the residual is halved (up to ``MAX_HALVINGS`` times):
+        the map is only piecewise smooth where an orbit grazes, and full Newton steps can
+        cycle across the kink there.
+        """
         X = X_pred.copy()
+        fl, G = self._residual(X)
+        dPdq = self._dPdq(X)
+        res = float(np.max(np.abs(G)))
         for it in range(self.s.max_newton + 1):
-            try:
-                fl, G, dPdq = self.evaluate(X)
-            except ob.OrbitError as exc:
-                raise CorrectorError(str(exc)) from None
-            res = float(np.max(np.abs(G)))
-            if not math.isfinite(res):
-                raise CorrectorError("non-finite residual")
             if res <= self.s.newton_tol * ob.residual_scale(X[:4]):
                 return X, self.point(X, fl, it)
             if it == self.s.max_newton:
@@ -302,8 +315,32 @@ class _Problem:
                 dX = np.linalg.solve(A, rhs)
             except np.linalg.LinAlgError:
                 raise CorrectorError("singular bordered Jacobian") from None
-            X = X + dX
+            lam = 1.0
+            for halving in range(MAX_HALVINGS + 1):
+                X_new = X + lam * dX
+                fl_new, G_new = self._residual(X_new)
+                res_new = float(np.max(np.abs(G_new)))
+                if res_new < res or halving == MAX_HALVINGS:
+                    break
+                lam /= 2.0
+            X, fl, G, res = X_new, fl_new, G_new, res_new
+            dPdq = self._dPdq(X)
         raise CorrectorError(f"no convergence in {self.s.max_newton} iterations ({res:.3g})")
+
+    def _residual(self, X: np.ndarray):
+        try:
+            fl, G, _ = self.evaluate(X, derivative=False)
+        except ob.OrbitError as exc:
+            raise CorrectorError(str(exc)) from None
+        if not np.all(np.isfinite(G)):
+            raise CorrectorError("non-finite residual")
+        return fl, G
+
+    def _dPdq(self, X: np.ndarray) -> np.ndarray:
+        try:
+            return self.derivative(X)
+        except ob.OrbitError as exc:
+            raise CorrectorError(str(exc)) from None
 
     def tangent(self, X: np.ndarray, previous: np.ndarray | None, direction: int) -> np.ndarray:
         """Unit tangent of the branch at a solution X, oriented along ``previous``/direction."""
@@ -434,22 +471,77 @@ def _at_bound(prob: _Problem, X_a, X_b, bound: float):
 def detect(
     prob: _Problem, Xs: list[np.ndarray], points: list[BranchPoint], locate: bool = True
 ) -> list[Bifurcation]:
-    """Bifurcations between consecutive points, each located if ``locate``."""
+    """Bifurcations between consecutive points, each located if ``locate``.
+
+    Where the orbit grazes between two points, ``Phi`` jumps (the flow on one side has no
+    contact phase): a sign change of the fold or flip test function in that segment is a
+    nonsmooth (discontinuous) bifurcation at the grazing point, reported there.
+    """
     found: list[Bifurcation] = []
     for i in range(len(points) - 1):
         a, b = points[i], points[i + 1]
-        for kind, test in CONTINUOUS_TESTS.items():
+        graze = None
+        if (a.max_z - 1.0) * (b.max_z - 1.0) < 0.0:
+            graze = _locate_grazing(prob, Xs, points, i, locate)
+        elif a.contact_phases != b.contact_phases:
+            graze = _locate_count(prob, Xs, points, i, GRAZING, _phases, locate)
+        if graze is not None:
+            found.append(graze)
+        for kind in (FOLD, FLIP, NEIMARK_SACKER):
+            test = CONTINUOUS_TESTS[kind]
             ta, tb = test(a), test(b)
             if ta == 0.0 or tb == 0.0 or (ta > 0.0) == (tb > 0.0):
                 continue
             if kind == NEIMARK_SACKER and a.n_unstable == b.n_unstable:
                 continue  # no pair crossed the circle: a neutral saddle or a jump of Phi
+            if graze is not None:
+                note = (
+                    f"at the grazing point: Phi jumps there and {a.n_unstable} -> "
+                    f"{b.n_unstable} multipliers lie outside the unit circle (nonsmooth {kind})"
+                )
+                found.append(Bifurcation(kind, _labelled(graze.point, kind), (i, i + 1),
+                                         graze.located, test(graze.point), note))  # fmt: skip
+                continue
             found.extend(_locate_continuous(prob, Xs, points, i, kind, test, locate))
-        if a.contact_phases != b.contact_phases and (a.max_z - 1.0) * (b.max_z - 1.0) > 0:
-            found.append(_locate_count(prob, Xs, points, i, GRAZING, _phases, locate))
         if _has_stick(a) != _has_stick(b):
             found.append(_locate_count(prob, Xs, points, i, STICK_ONSET, _has_stick, locate))
     return found
+
+
+def _locate_grazing(prob: _Problem, Xs, points, i, locate) -> Bifurcation:
+    """Grazing between points i and i+1, located on the smooth side.
+
+    The orbit on the free side (no contact) is continued with contact switched off (its
+    smooth extension), and the root of max z - 1 on it is where it touches the stator; if
+    neither side is free, the side in permanent contact is used with min z - 1 instead.
+    """
+    a, b = points[i], points[i + 1]
+    free = a if a.contact_fraction == 0.0 else b if b.contact_fraction == 0.0 else None
+    if free is not None:
+        side, test = _Problem(prob.params, prob.s, locked=0), grazing_test
+    else:
+        full = a if a.contact_fraction == 1.0 and a.contact_phases == 0 else b
+        side = _Problem(prob.params, prob.s, locked=_contact_regime(prob, full))
+
+        def test(pt: BranchPoint) -> float:
+            return pt.min_z - 1.0
+
+    cache: dict[float, BranchPoint] = {}
+    try:
+        for theta in (0.0, 1.0):
+            cache[theta] = _on_segment(side, Xs[i], Xs[i + 1], theta)
+    except CorrectorError as exc:
+        return _locate_count(prob, Xs, points, i, GRAZING, _touches, locate, f"{exc}; ")
+    return _locate_continuous(side, Xs, points, i, GRAZING, test, locate, cache)[0]
+
+
+def _contact_regime(prob: _Problem, point: BranchPoint) -> int:
+    p = ob.with_parameter(prob.params, prob.s.parameter, point.parameter)
+    return model.regime_of_state(point.state, p, 0.0)
+
+
+def _touches(point: BranchPoint) -> bool:
+    return point.max_z > 1.0
 
 
 def _phases(point: BranchPoint) -> int:
@@ -463,13 +555,15 @@ def _on_segment(prob: _Problem, Xa, Xb, theta: float) -> BranchPoint:
     return pt
 
 
-def _locate_continuous(prob, Xs, points, i, kind, test, locate) -> list[Bifurcation]:
-    a, b = points[i], points[i + 1]
+def _locate_continuous(prob, Xs, points, i, kind, test, locate, cache=None) -> list[Bifurcation]:
+    """Brent's method on ``test`` along the segment i -> i+1 (``cache``: known ends)."""
+    cache = dict(cache) if cache is not None else {0.0: points[i], 1.0: points[i + 1]}
+    a, b = cache[0.0], cache[1.0]
     between = (i, i + 1)
-    if not locate:
+    if not locate or (test(a) > 0.0) == (test(b) > 0.0):
         mid = a if abs(test(a)) < abs(test(b)) else b
-        return [Bifurcation(kind, _labelled(mid, kind), between, False, test(mid))]
-    cache: dict[float, BranchPoint] = {0.0: a, 1.0: b}
+        note = "" if not locate else "no sign change of the test function on the smooth side"
+        return [Bifurcation(kind, _labelled(mid, kind), between, False, test(mid), note)]
 
     def g(theta: float) -> float:
         if theta not in cache:
@@ -479,9 +573,15 @@ def _locate_continuous(prob, Xs, points, i, kind, test, locate) -> list[Bifurcat
     try:
         theta = brentq(g, 0.0, 1.0, xtol=prob.s.locate_xtol, rtol=1e-14, maxiter=60)
     except (CorrectorError, ValueError, RuntimeError) as exc:
-        mid = a if abs(test(a)) < abs(test(b)) else b
-        return [Bifurcation(kind, _labelled(mid, kind), between, False, test(mid),
-                            f"not located: {exc}")]  # fmt: skip
+        # the corrector fails close to a nonsmooth point (a corner of the branch at a
+        # grazing): keep the tightest bracket found and report its better end
+        lo, hi = _bracket(cache, test, test(a))
+        pl, ph = cache[lo], cache[hi]
+        best = pl if abs(test(pl)) <= abs(test(ph)) else ph
+        width = abs(ph.parameter - pl.parameter)
+        note = f"bracketed to {width:.2g} in {prob.s.parameter} (corrector: {exc})"
+        located = width <= LOCATED_WIDTH * max(1.0, abs(best.parameter))
+        return [Bifurcation(kind, _labelled(best, kind), between, located, test(best), note)]
     pt = cache[theta]
     note = ""
     if kind == NEIMARK_SACKER:
@@ -490,9 +590,17 @@ def _locate_continuous(prob, Xs, points, i, kind, test, locate) -> list[Bifurcat
             return []  # a neutral saddle (real pair with product 1), not a bifurcation
         note = f"critical pair {pair.real:.6g} +- {abs(pair.imag):.6g}i"
         note += f", angle {math.degrees(abs(math.atan2(pair.imag, pair.real))):.4g} deg"
-    elif a.n_unstable == b.n_unstable:
+    elif kind in (FOLD, FLIP) and a.n_unstable == b.n_unstable:
         note = "test function changes sign without a change of stability (a jump of Phi)"
     return [Bifurcation(kind, _labelled(pt, kind), between, True, test(pt), note)]
+
+
+def _bracket(cache: dict[float, BranchPoint], test, value_a: float) -> tuple[float, float]:
+    """The tightest [lo, hi] among evaluated fractions with the sign change inside."""
+    side_a = [t for t, pt in cache.items() if (test(pt) > 0.0) == (value_a > 0.0)]
+    lo = max(side_a)
+    hi = min(t for t, pt in cache.items() if t > lo and (test(pt) > 0.0) != (value_a > 0.0))
+    return lo, hi
 
 
 def _unit_pair(multipliers: np.ndarray) -> complex | None:
@@ -504,7 +612,7 @@ def _unit_pair(multipliers: np.ndarray) -> complex | None:
     return complex(complex_ones[np.argmin(np.abs(np.abs(complex_ones) - 1.0))])
 
 
-def _locate_count(prob, Xs, points, i, kind, predicate, locate) -> Bifurcation:
+def _locate_count(prob, Xs, points, i, kind, predicate, locate, why="") -> Bifurcation:
     a, b = points[i], points[i + 1]
     between = (i, i + 1)
     if not locate:
@@ -520,8 +628,9 @@ def _locate_count(prob, Xs, points, i, kind, predicate, locate) -> Bifurcation:
             else:
                 hi, best = mid, pt
     except CorrectorError as exc:
-        return Bifurcation(kind, _labelled(best, kind), between, False, 0.0, f"not located: {exc}")
-    note = f"located by bisection to {BISECTION_TOL:g} of the segment"
+        note = f"{why}not located: {exc}"
+        return Bifurcation(kind, _labelled(best, kind), between, False, 0.0, note)
+    note = f"{why}located by bisection to {BISECTION_TOL:g} of the segment"
     return Bifurcation(kind, _labelled(best, kind), between, True, 0.0, note)
 
 

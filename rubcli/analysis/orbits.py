@@ -222,15 +222,20 @@ def flow(
     rtol: float = RTOL,
     atol: float = ATOL,
     max_events: int | None = None,
+    locked: int | None = None,
 ) -> FlowResult:
     """Integrate the nonsmooth flow from (tau0, s0) to tau1, with the monodromy matrix.
 
     Returns the final state, ``Phi = d s(tau1) / d s0`` (if ``variational``), the switch
     events, the largest and smallest z (refined on the dense output), and the time spent
     in contact and in stick. Raises OrbitError on chatter or a failed integration.
+
+    ``locked``: integrate in this one regime without any switch (the smooth extension of
+    a free or a slipping flow across the surfaces), used to locate grazing from the side
+    where the branch is smooth.
     """
     s = np.asarray(s0, dtype=float).copy()
-    regime = _start_regime(tau0, s, params)
+    regime = _start_regime(tau0, s, params) if locked is None else int(locked)
     if regime == model.STICK:
         s = model.project_to_rolling(s, params)
     phi = np.eye(4)
@@ -265,7 +270,7 @@ def flow(
                 return np.array(model.rhs_entries(t, Y[0], Y[1], Y[2], Y[3], *args, reg))
 
             Y0 = s.copy()
-        evs = _event_functions(params, reg)
+        evs = _event_functions(params, reg) if locked is None else []
         sol = solve_ivp(
             fun, (tau, tau1), Y0, method="DOP853", rtol=rtol, atol=atol, events=evs,
             dense_output=True,
@@ -354,10 +359,18 @@ def _refine_extreme(best, sign: float) -> float:
 
 
 def stroboscopic_map(
-    params: ModelParams, s0, k: int = 1, *, variational: bool = True, rtol=RTOL, atol=ATOL
+    params: ModelParams,
+    s0,
+    k: int = 1,
+    *,
+    variational: bool = True,
+    rtol=RTOL,
+    atol=ATOL,
+    locked: int | None = None,
 ) -> FlowResult:
     """P^k(s0): the flow over k forcing periods from tau = 0 (with its monodromy matrix)."""
-    return flow(params, s0, 0.0, k * params.period, variational=variational, rtol=rtol, atol=atol)
+    T = k * params.period
+    return flow(params, s0, 0.0, T, variational=variational, rtol=rtol, atol=atol, locked=locked)
 
 
 def floquet_multipliers(monodromy: np.ndarray) -> np.ndarray:

@@ -19,13 +19,6 @@ from matplotlib.lines import Line2D
 
 from rubcli.analysis.continuation import Branch
 
-SHORT = {
-    "fold": "fold",
-    "period_doubling": "PD",
-    "neimark_sacker": "NS",
-    "grazing": "graze",
-    "stick_onset": "stick",
-}
 MARKERS = {
     "fold": "s",
     "period_doubling": "D",
@@ -92,25 +85,19 @@ def branch_figure(
     if z.size and np.min(z) - 1.0 < 0.1 * max(np.ptp(z), 1e-3):
         ax.axhline(1.0, color="0.2", lw=0.8, ls=":", zorder=2)
         handles.append(Line2D([], [], color="0.2", lw=0.8, ls=":", label="clearance z = 1"))
-    seen = set()
-    for k, bif in enumerate(branch.bifurcations):
+    for k, bif in enumerate(branch.bifurcations, start=1):
         marker = MARKERS.get(bif.kind, "o")
         color = f"C{1 + list(MARKERS).index(bif.kind) if bif.kind in MARKERS else 1}"
-        ax.plot(bif.parameter, bif.point.max_z, marker, color=color, ms=10, mec="k", zorder=6)
-        text = f"{SHORT.get(bif.kind, bif.kind)} {name}={bif.parameter:.6g}"
+        # points that coincide (a nonsmooth fold at a grazing) are drawn smaller on top
+        size = 12 if bif.kind == "grazing" else 8
+        ax.plot(bif.parameter, bif.point.max_z, marker, color=color, ms=size, mec="k", zorder=6)
+        ax.annotate(str(k), (bif.parameter, bif.point.max_z), xytext=(7, 5 + 9 * (k % 2)),
+                    textcoords="offset points", fontsize=9, weight="bold")  # fmt: skip
+        text = f"{k}: {bif.kind.replace('_', ' ')} at {name} = {bif.parameter:.8g}"
         if not bif.located:
             text += " (not located)"
-        ax.annotate(
-            text, (bif.parameter, bif.point.max_z), xytext=(8, 10 + 14 * (k % 3)),
-            textcoords="offset points", fontsize=8,
-            arrowprops={"arrowstyle": "-", "color": "0.4", "lw": 0.6},
-        )  # fmt: skip
-        if bif.kind not in seen:
-            seen.add(bif.kind)
-            handles.append(
-                Line2D([], [], marker=marker, linestyle="", color=color, mec="k", ms=8,
-                       label=bif.kind.replace("_", " "))
-            )  # fmt: skip
+        handles.append(Line2D([], [], marker=marker, linestyle="", color=color, mec="k",
+                              ms=size * 0.8, label=text))  # fmt: skip
     ax.ticklabel_format(axis="y", useOffset=False)
     ax.set_xlabel(f"{name} (nondimensional)")
     ax.set_ylabel("max z over the orbit (clearances)")
