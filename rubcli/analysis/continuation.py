@@ -247,6 +247,7 @@ class _Problem:
         self.s = settings
         self.locked = locked  # a regime to integrate in without switches (grazing location)
         self.evaluations = 0
+        self.last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
     def params_at(self, q: float) -> ModelParams:
         return ob.with_parameter(self.params, self.s.parameter, q * self.s.scale)
@@ -303,6 +304,7 @@ class _Problem:
         res = float(np.max(np.abs(G)))
         for it in range(self.s.max_newton + 1):
             if res <= self.s.newton_tol * ob.residual_scale(X[:4]):
+                self.last = (X.copy(), fl.monodromy, dPdq)  # reused by tangent()
                 return X, self.point(X, fl, it)
             if it == self.s.max_newton:
                 break
@@ -344,9 +346,14 @@ class _Problem:
 
     def tangent(self, X: np.ndarray, previous: np.ndarray | None, direction: int) -> np.ndarray:
         """Unit tangent of the branch at a solution X, oriented along ``previous``/direction."""
-        fl, _, dPdq = self.evaluate(X)
+        last = self.last
+        if last is not None and np.array_equal(last[0], X):
+            monodromy, dPdq = last[1], last[2]
+        else:
+            fl, _, dPdq = self.evaluate(X)
+            monodromy = fl.monodromy
         J = np.zeros((4, 5))
-        J[:, :4] = fl.monodromy - np.eye(4)
+        J[:, :4] = monodromy - np.eye(4)
         J[:, 4] = dPdq
         t = np.linalg.svd(J)[2][-1]
         if previous is not None:
