@@ -516,35 +516,23 @@ def detect(
 
 
 def _locate_grazing(prob: _Problem, Xs, points, i, locate) -> Bifurcation:
-    """Grazing between points i and i+1, located on the smooth side.
+    """Grazing between points i and i+1 (one of them free), located on the smooth side.
 
-    The orbit on the free side (no contact) is continued with contact switched off (its
-    smooth extension), and the root of max z - 1 on it is where it touches the stator; if
-    neither side is free, the side in permanent contact is used with min z - 1 instead.
+    The orbit on the free side is continued with contact switched off (its smooth
+    extension: ``locked`` free flow), and the root of its max z - 1 is where it touches
+    the stator. Newton on the switching map itself cycles near a grazing orbit; if the
+    smooth side cannot be corrected, bisection on "touches or not" is used instead.
     """
-    a, b = points[i], points[i + 1]
-    free = a if a.contact_fraction == 0.0 else b if b.contact_fraction == 0.0 else None
-    if free is not None:
-        side, test = _Problem(prob.params, prob.s, locked=0), grazing_test
-    else:
-        full = a if a.contact_fraction == 1.0 and a.contact_phases == 0 else b
-        side = _Problem(prob.params, prob.s, locked=_contact_regime(prob, full))
-
-        def test(pt: BranchPoint) -> float:
-            return pt.min_z - 1.0
-
+    if not locate:
+        return _locate_continuous(prob, Xs, points, i, GRAZING, grazing_test, False)[0]
+    side = _Problem(prob.params, prob.s, locked=model.FREE)
     cache: dict[float, BranchPoint] = {}
     try:
         for theta in (0.0, 1.0):
             cache[theta] = _on_segment(side, Xs[i], Xs[i + 1], theta)
     except CorrectorError as exc:
         return _locate_count(prob, Xs, points, i, GRAZING, _touches, locate, f"{exc}; ")
-    return _locate_continuous(side, Xs, points, i, GRAZING, test, locate, cache)[0]
-
-
-def _contact_regime(prob: _Problem, point: BranchPoint) -> int:
-    p = ob.with_parameter(prob.params, prob.s.parameter, point.parameter)
-    return model.regime_of_state(point.state, p, 0.0)
+    return _locate_continuous(side, Xs, points, i, GRAZING, grazing_test, locate, cache)[0]
 
 
 def _touches(point: BranchPoint) -> bool:
