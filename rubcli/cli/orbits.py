@@ -222,7 +222,8 @@ def summary_lines(branch: cn.Branch) -> list[list[str]]:
 def command(
     case_file: Annotated[Path, typer.Argument(metavar="CASE", help="The case file (TOML).")],
     out: Annotated[
-        Path | None, typer.Option("--out", help="Output directory (default [output] dir).")
+        Path | None,
+        typer.Option("--out", help="Output directory (default: the case's output dir)."),
     ] = None,
     overlay: Annotated[
         Path | None,
@@ -236,7 +237,7 @@ def command(
         bool, typer.Option("--quick", help="CI mode: 12 points per direction, tolerance 1e-10.")
     ] = False,
 ) -> None:
-    """Periodic orbits, Floquet multipliers and continuation in one parameter ([orbits])."""
+    """Periodic orbits, Floquet multipliers and continuation in one parameter (orbits table)."""
     case = load_or_exit(case_file)
     problems = check_case(case)
     overlay_data = None

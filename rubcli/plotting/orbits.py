@@ -89,7 +89,7 @@ def branch_figure(
         marker = MARKERS.get(bif.kind, "o")
         color = f"C{1 + list(MARKERS).index(bif.kind) if bif.kind in MARKERS else 1}"
         # points that coincide (a nonsmooth fold at a grazing) are drawn smaller on top
-        size = 12 if bif.kind == "grazing" else 8
+        size = {"grazing": 12, "neimark_sacker": 14}.get(bif.kind, 8)
         ax.plot(bif.parameter, bif.point.max_z, marker, color=color, ms=size, mec="k", zorder=6)
         ax.annotate(str(k), (bif.parameter, bif.point.max_z), xytext=(7, 5 + 9 * (k % 2)),
                     textcoords="offset points", fontsize=9, weight="bold")  # fmt: skip
