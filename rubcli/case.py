@@ -269,6 +269,74 @@ class AnalysisSection(_Section):
     max_period: int = Field(default=16, ge=1)
 
 
+# ========================================================================== [orbits]
+# Owned by `rubcli orbits` (docs/orbits.md): periodic orbits, Floquet multipliers and
+# pseudo-arclength continuation in one nondimensional parameter.
+
+OrbitParameter = Literal["eta", "mu", "K", "e", "nu", "Rp"]
+OrbitStart = Literal["initial", "transient", "synchronous_rub"]
+OrbitDirections = Literal["both", "up", "down"]
+
+
+class OrbitsSection(_Section):
+    """[orbits]: the branch to continue (nondimensional, also for [physical] cases)."""
+
+    parameter: OrbitParameter
+    min: float  # parameter window; the case's value must lie in it
+    max: float
+    step: float = Field(gt=0)  # first step, parameter units
+    min_step: float | None = Field(default=None, gt=0)  # default step / 1000
+    max_step: float | None = Field(default=None, gt=0)  # default 5 step
+    max_points: int = Field(default=200, ge=1, le=100_000)  # per direction
+    directions: OrbitDirections = "both"
+    period: int = Field(default=1, ge=1, le=64)  # k: orbits of k forcing periods
+    start: OrbitStart = "initial"  # guess: [initial], after a transient, or the exact rub
+    transient_periods: int = Field(default=0, ge=0, le=100_000)  # with start = "transient"
+    newton_tol: float = Field(default=1e-10, gt=0, lt=1)
+    max_newton: int = Field(default=10, ge=1, le=100)
+    rtol: float = Field(default=1e-12, ge=1e-14, lt=1e-3)  # integration of the map
+    atol: float = Field(default=1e-12, gt=0, lt=1e-3)
+    locate: bool = True  # locate each detected bifurcation on its test function
+
+    @model_validator(mode="after")
+    def _window(self) -> OrbitsSection:
+        if not self.min < self.max:
+            raise PydanticCustomError(
+                "orbits_window", "min must be below max (got min = {lo}, max = {hi})",
+                {"lo": self.min, "hi": self.max},
+            )  # fmt: skip
+        lower = {"eta": 0.0, "K": 0.0}.get(self.parameter)
+        if lower is not None and self.min <= lower:
+            raise PydanticCustomError(
+                "orbits_window", "{name} must stay positive: min must be > 0 (got {lo})",
+                {"name": self.parameter, "lo": self.min},
+            )  # fmt: skip
+        if self.parameter in ("mu", "e", "nu", "Rp") and self.min < 0.0:
+            raise PydanticCustomError(
+                "orbits_window", "{name} cannot be negative: min must be >= 0 (got {lo})",
+                {"name": self.parameter, "lo": self.min},
+            )  # fmt: skip
+        width = self.max - self.min
+        if self.step > width:
+            raise PydanticCustomError(
+                "orbits_step", "step {step} is wider than the window max - min = {w}",
+                {"step": self.step, "w": width},
+            )  # fmt: skip
+        lo, hi = self.resolved_min_step(), self.resolved_max_step()
+        if not lo <= self.step <= hi:
+            raise PydanticCustomError(
+                "orbits_step", "need min_step <= step <= max_step (got {lo}, {s}, {hi})",
+                {"lo": lo, "s": self.step, "hi": hi},
+            )  # fmt: skip
+        return self
+
+    def resolved_min_step(self) -> float:
+        return self.min_step if self.min_step is not None else self.step / 1000.0
+
+    def resolved_max_step(self) -> float:
+        return self.max_step if self.max_step is not None else 5.0 * self.step
+
+
 # ======================================================================= whole file
 
 
@@ -285,6 +353,7 @@ class CaseFile(_Section):
     forces_map: ForcesMapSection | None = None
     compare: CompareSection | None = None
     analysis: AnalysisSection | None = None
+    orbits: OrbitsSection | None = None
 
     @model_validator(mode="after")
     def _model_xor_physical(self) -> CaseFile:

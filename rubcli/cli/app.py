@@ -11,7 +11,7 @@ from typing import Annotated
 import typer
 
 from rubcli import __version__
-from rubcli.cli import compare, forces_map, init, run, stress, validate
+from rubcli.cli import compare, forces_map, init, orbits, run, stress, validate
 
 app = typer.Typer(
     name="rubcli",
@@ -28,6 +28,7 @@ app.command("run")(run.command)
 app.command("forces-map")(forces_map.command)
 app.command("compare")(compare.command)
 app.command("stress")(stress.command)
+app.command("orbits")(orbits.command)
 
 
 def _version(value: bool) -> None:
