@@ -114,7 +114,7 @@ def test_saltation_is_identity_at_contact_and_not_at_slip_reversal():
     S = ob.saltation_matrix(0.3, on_circle, params, model.FREE, model.SLIP_POSITIVE, grad)
     assert np.array_equal(S, np.eye(4))
     s = np.array([1.02, 0.0, 0.0, -params.Rp * params.eta])  # v_r = 0 in contact
-    grad = ob.surface_gradient("slip_reversal", 0.0, s, params, model.SLIP_POSITIVE)[0]
+    grad = ob.surface_gradient(ob.ev.REVERSAL, 0.0, s, params, model.SLIP_POSITIVE)[0]
     S = ob.saltation_matrix(0.0, s, params, model.SLIP_POSITIVE, model.SLIP_NEGATIVE, grad)
     # the friction force jumps by 2 mu K (z - 1) along the tangent (here +y) when the slip
     # reverses; S = I + jump e_y grad^T / (grad . f-), grad . f- = dv_r/dtau before

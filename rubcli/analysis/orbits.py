@@ -76,7 +76,7 @@ class FlowResult:
     @property
     def contact_phases(self) -> int:
         """Contact entries on the way (0 for an orbit always in contact or always free)."""
-        return sum(1 for e in self.events if e[1] == ev.ENTRY)
+        return sum(1 for e in self.events if e[1] == ev.KIND_NAMES[ev.ENTRY])
 
 
 def with_parameter(params: ModelParams, name: str, value: float) -> ModelParams:
@@ -118,10 +118,10 @@ def _numerical_gradient(fun, tau: float, s: np.ndarray) -> tuple[np.ndarray, flo
 
 
 def surface_gradient(
-    kind: str, tau: float, s: np.ndarray, params: ModelParams, regime: int
+    kind: int, tau: float, s: np.ndarray, params: ModelParams, regime: int
 ) -> tuple[np.ndarray, float]:
-    """(grad h, dh/dtau) of the surface an event of ``kind`` crosses, at (tau, s)."""
-    if kind in ev.SURFACE_KINDS:
+    """(grad h, dh/dtau) of the surface an event of ``kind`` (an ``events`` code) crosses."""
+    if kind in (ev.ENTRY, ev.EXIT):
         return np.array([2.0 * s[0], 2.0 * s[1], 0.0, 0.0]), 0.0
     if kind in (ev.REVERSAL, ev.STICK_ENTRY):
         return _slip_gradient(s), 0.0
@@ -248,7 +248,7 @@ def flow(
     best_max = (-math.inf, None, None)  # (z, dense sol, (ta, tb))
     best_min = (math.inf, None, None)
     nfev = 0
-    last_kind: str | None = None
+    last_kind = ev.NO_EVENT
 
     while tau < tau1:
         reg = regime
@@ -304,8 +304,7 @@ def flow(
         s_ev = Y_ev[:4].copy()
         if variational:
             phi = Y_ev[4:].reshape(4, 4).copy()
-        s_new, new_regime, record = ev.apply_event(t_ev, kind, s_ev, reg, params)
-        kind = record.kind
+        s_new, new_regime, kind, _ = ev.apply_event(t_ev, kind, s_ev, reg, params)
         if variational:
             grad, dh_dt = surface_gradient(kind, t_ev, s_ev, params, reg)
             if kind == ev.STICK_EXIT:
@@ -313,13 +312,13 @@ def flow(
                 # projected here, and so is its variation
                 phi = rolling_projection_jacobian(s_ev, params) @ phi
             phi = saltation_matrix(t_ev, s_new, params, reg, new_regime, grad, dh_dt) @ phi
-        found.append((t_ev, kind, reg, new_regime))
+        found.append((t_ev, ev.KIND_NAMES[kind], reg, new_regime))
         if len(found) > limit:
             raise OrbitError(
                 f"more than {limit} switch events in {periods:.3g} periods (chattering contact)"
             )
         if t_ev - tau <= RESTART_GAP and kind == last_kind and new_regime == reg:
-            raise OrbitError(f"switch storm at tau = {t_ev:.9g} ({kind})")
+            raise OrbitError(f"switch storm at tau = {t_ev:.9g} ({ev.KIND_NAMES[kind]})")
         s, regime, tau, last_kind = s_new, new_regime, t_ev, kind
 
     max_z = _refine_extreme(best_max, +1.0)
