@@ -17,6 +17,8 @@ computes anything):
   (they would be stale results beside a new report) and named in a warning;
 - a non-empty dir without a manifest (``--out .``, a home dir, someone's data) is refused
   unless ``force``; with ``force`` rubcli writes its files and leaves the others alone.
+  Sub-directories that hold a rubcli manifest (the ``compare/`` and ``forces-map/`` dirs
+  inside a case's output dir) do not count.
 
 Every CSV goes through ``write_csv`` (one formatting rule: shortest round-trip floats,
 written in blocks of rows, so a 10-million-sample solution never sits in memory as
@@ -421,7 +423,13 @@ def check_output_dir(target: str | Path, *, force: bool = False) -> OutputPlan:
     plan = OutputPlan(target=target)
     if not target.is_dir():
         return plan
-    entries = sorted(p.name for p in target.iterdir() if not p.name.startswith(STAGING_PREFIX))
+    entries = sorted(
+        p.name
+        for p in target.iterdir()
+        if not p.name.startswith(STAGING_PREFIX)
+        # a sub-dir written by rubcli (`compare/`, `forces-map/` of a case) is no obstacle
+        and not (p.is_dir() and read_manifest(p) is not None)
+    )
     if not entries:
         return plan
     manifest = read_manifest(target)

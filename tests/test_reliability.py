@@ -316,6 +316,18 @@ def test_rerun_removes_the_stale_files_of_the_previous_run(tmp_path):
         "rk45.csv", "orbit.png", "report.json"]  # fmt: skip
 
 
+def test_a_case_dir_holding_only_rubcli_sub_dirs_is_usable(tmp_path):
+    """`rubcli compare` first (out/<case>/compare/), then `rubcli run` into out/<case>."""
+    out = tmp_path / "out"
+    (out / "compare").mkdir(parents=True)
+    report = {**io.report_envelope("compare", {}), "files": ["report.json"]}
+    io.write_json(out / "compare" / "report.json", report)
+    result = invoke("run", write_case(tmp_path, output="plots = []\n"), "--out", out)
+    assert result.exit_code == 0, result.output
+    assert names(out) == {"compare", "rk45.csv", "report.json"}
+    assert names(out / "compare") == {"report.json"}
+
+
 @pytest.mark.parametrize("where", ["here", "data"])
 def test_non_empty_dir_not_written_by_rubcli_is_refused_unless_force(
     tmp_path, monkeypatch, count_solves, where
