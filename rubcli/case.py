@@ -61,10 +61,11 @@ DEFAULT_FORCES_MAP_K_VALUES: tuple[float, ...] = (17.6, 1.76e3, 1.76e5, 1.75e6)
 MAX_OUTPUT_SAMPLES = 10_000_000
 # Every size a case can set is bounded by a memory estimate, refused at validation:
 # - a run holds, per method and output sample, t, the state, the regime and the arrays of
-#   its report (energy balance, regimes): about RUN_BYTES_PER_SAMPLE bytes;
+#   its report (energy balance, regimes): about RUN_BYTES_PER_SAMPLE bytes (measured: 580
+#   bytes per sample for the paper's case over 1,000,001 samples, benchmarks/RESULTS.md);
 # - `forces-map` holds about FORCES_MAP_ARRAYS float arrays of resolution^2 points.
-MAX_CASE_MEMORY_BYTES = 4 * 1024**3
-RUN_BYTES_PER_SAMPLE = 200
+MAX_CASE_MEMORY_BYTES = 8 * 1024**3
+RUN_BYTES_PER_SAMPLE = 600
 FORCES_MAP_ARRAYS = 24
 
 CASE_NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._-]*$"
