@@ -22,7 +22,7 @@ What it does, in order (docs/compare.md):
    the largest Lyapunov exponent; ``poincare.png``.
 
 ``report.md`` and ``report.json`` summarise everything (``--json``: the report on stdout
-only). The computing is in ``rubcli.analysis`` (``work_precision``, ``orbits``); this
+only). The computing is in ``rubcli.analysis`` (``work_precision``, ``panels``); this
 module parses, calls, writes and prints. ``--quick`` (for CI) shortens the
 ladders (rtol 1e-3, 1e-6, 1e-9; steps_per_period 25, 100, 400), runs each setting once,
 caps the work-precision horizon at 5 periods, the orbit runs at 150 periods (a transient
@@ -44,9 +44,9 @@ from typing import Annotated, Any
 import typer
 
 from rubcli import io
-from rubcli.analysis import orbits
+from rubcli.analysis import panels
 from rubcli.analysis import work_precision as wpm
-from rubcli.analysis.orbits import OrbitPanel
+from rubcli.analysis.panels import OrbitPanel
 from rubcli.analysis.reference import ReferenceError
 from rubcli.case import AnalysisSection, Case, CompareSection
 from rubcli.cli import console
@@ -63,7 +63,7 @@ from rubcli.problem import Problem
 
 EXIT_FAILED = 1
 QUICK_HORIZON_PERIODS = 5.0
-QUICK_LYAPUNOV_PERIODS = orbits.QUICK_LYAPUNOV_PERIODS
+QUICK_LYAPUNOV_PERIODS = panels.QUICK_LYAPUNOV_PERIODS
 QUICK_ORBIT_PERIODS = 150.0
 CSV_COLUMNS = (
     "method", "setting", "wall_time_s", "error_max", "error_final", "setting_name",
@@ -100,7 +100,7 @@ def work_precision(case: Case, cfg: CompareSection, quick: bool, threshold: floa
     if quick:
         periods = min(periods, QUICK_HORIZON_PERIODS)
     problem = _problem(case, periods)
-    reference = orbits.reference_with_progress(
+    reference = panels.reference_with_progress(
         problem, threshold, "reference", console.progress_bar
     )
     methods = list(cfg.methods or case.methods)
@@ -136,11 +136,11 @@ def write_work_precision_csv(path: Path, result: wpm.WorkPrecision) -> None:
 # ------------------------------------------------------------------------ orbits
 
 
-def response_settings(analysis: AnalysisSection | None) -> orbits.ResponseSettings | None:
+def response_settings(analysis: AnalysisSection | None) -> panels.ResponseSettings | None:
     """``[analysis]`` as response settings (None unless ``response = true``)."""
     if analysis is None or not analysis.response:
         return None
-    return orbits.ResponseSettings(**analysis.model_dump(exclude={"response"}))
+    return panels.ResponseSettings(**analysis.model_dump(exclude={"response"}))
 
 
 def orbit_panel(
@@ -152,11 +152,11 @@ def orbit_panel(
     quick: bool,
     reference=None,
 ) -> OrbitPanel:
-    """One mu (``rubcli.analysis.orbits.orbit_panel`` on the case's problem of that mu)."""
+    """One mu (``rubcli.analysis.panels.orbit_panel`` on the case's problem of that mu)."""
     periods = case.settings.time.periods
     if quick:
         periods = min(periods, QUICK_ORBIT_PERIODS)
-    return orbits.orbit_panel(
+    return panels.orbit_panel(
         _problem(case, periods, mu),
         methods,
         case.solver_options,
@@ -423,7 +423,7 @@ def _compare(
             "reference": None if wp is None else wp.reference.to_dict(),
             "work_precision": None if wp is None else _work_precision_json(wp),
             "orbits": [p.to_dict() for p in panels],
-            "response": orbits.panels_response_summary(panels),
+            "response": panels.panels_response_summary(panels),
             "wall_time_s": time.perf_counter() - started,
             "files": files,
         }

@@ -37,7 +37,7 @@ from typing import Annotated, Any
 import typer
 
 from rubcli import io
-from rubcli.analysis import orbits
+from rubcli.analysis import panels
 from rubcli.analysis.checks import WARNING, method_summary
 from rubcli.case import KNOWN_METHODS, Case, CaseError
 from rubcli.cli import console
@@ -133,12 +133,12 @@ def solve_method(case: Case, name: str) -> tuple[Solution | None, dict[str, Any]
     return solution, method_summary(solution)
 
 
-def response_settings(case: Case) -> orbits.ResponseSettings | None:
+def response_settings(case: Case) -> panels.ResponseSettings | None:
     """The case's ``[analysis]`` as response settings (None unless ``response = true``)."""
     analysis = case.settings.analysis
     if analysis is None or not analysis.response:
         return None
-    return orbits.ResponseSettings(**analysis.model_dump(exclude={"response"}))
+    return panels.ResponseSettings(**analysis.model_dump(exclude={"response"}))
 
 
 def write_outputs(
@@ -174,10 +174,10 @@ def write_outputs(
         response = None
         settings = response_settings(case)
         if settings is not None and solutions:
-            results = orbits.run_responses(solutions, settings, progress=console.progress_bar)
+            results = panels.run_responses(solutions, settings, progress=console.progress_bar)
             for result in results:
                 entries[result.method]["response"] = result.to_dict()
-            response = orbits.response_summary(results)
+            response = panels.response_summary(results)
             io.save_figure(_poincare_figure(case, results), staged.path("poincare.png"))
             files.append("poincare.png")
         files.append(io.REPORT_NAME)
@@ -192,7 +192,7 @@ def write_outputs(
     return report
 
 
-def _poincare_figure(case: Case, results: list[orbits.MethodResponse]):
+def _poincare_figure(case: Case, results: list[panels.MethodResponse]):
     from rubcli.plotting.compare import poincare_figure
     from rubcli.plotting.run import parameters_title
 
