@@ -58,10 +58,30 @@ DEFAULT_FORCES_MAP_K_VALUES: tuple[float, ...] = (17.6, 1.76e3, 1.76e5, 1.75e6)
 # A run keeps every output sample in memory (8 floats of state per sample and method,
 # plus the CSV columns); beyond this many samples a case is refused as a likely typo.
 MAX_OUTPUT_SAMPLES = 10_000_000
+# Every size a case can set is bounded by a memory estimate, refused at validation:
+# - a run holds, per method and output sample, t, the state, the regime and the arrays of
+#   its report (energy balance, regimes): about RUN_BYTES_PER_SAMPLE bytes (measured: 580
+#   bytes per sample for the paper's case over 1,000,001 samples, benchmarks/RESULTS.md);
+# - `forces-map` holds about FORCES_MAP_ARRAYS float arrays of resolution^2 points.
+MAX_CASE_MEMORY_BYTES = 8 * 1024**3
+RUN_BYTES_PER_SAMPLE = 600
+FORCES_MAP_ARRAYS = 24
 
 CASE_NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._-]*$"
 
 PositiveFloat = Annotated[float, Field(gt=0)]
+
+
+def _gib(n_bytes: float) -> str:
+    return f"{n_bytes / 1024**3:.3g} GiB"
+
+
+def _short_repr(value: object, limit: int = 80) -> str:
+    """``repr(value)`` cut to ``limit`` characters (a 5 MB value is not echoed whole)."""
+    text = repr(value)
+    if len(text) <= limit:
+        return text
+    return f"{text[: limit - 25]}... ({len(text)} characters)"
 
 
 class CaseError(Exception):
@@ -160,10 +180,11 @@ class TimeSection(_Section):
     def _not_too_many_samples(self) -> TimeSection:
         n = self.periods * self.samples_per_period
         if n > MAX_OUTPUT_SAMPLES:
+            # pydantic fills {name} templates without format specs: format here
             raise PydanticCustomError(
                 "too_many_samples",
-                "periods * samples_per_period = {n:.3g} output samples, more than {limit}",
-                {"n": n, "limit": MAX_OUTPUT_SAMPLES},
+                f"periods * samples_per_period = {n:.3g} output samples, more than "
+                f"{MAX_OUTPUT_SAMPLES:,}",
             )
         return self
 
@@ -211,7 +232,7 @@ class ForcesMapSection(_Section):
     """[forces_map]: settings of ``rubcli forces-map`` (contact force and Taylor error maps)."""
 
     extent: float = Field(default=1.5, gt=1)  # half-width of the square grid, clearances
-    resolution: int = Field(default=201, ge=3)  # grid points per side
+    resolution: int = Field(default=201, ge=3)  # grid points per side (memory-bounded)
     products: list[ForcesMapProduct] = Field(
         default_factory=lambda: ["forces", "taylor_error", "eigen"], min_length=1
     )
@@ -219,6 +240,19 @@ class ForcesMapSection(_Section):
     K_values: list[PositiveFloat] | None = Field(default=None, min_length=1)
 
     _products_unique = field_validator("products")(_unique)
+
+    @field_validator("resolution")
+    @classmethod
+    def _resolution_fits_in_memory(cls, value: int) -> int:
+        need = FORCES_MAP_ARRAYS * 8 * value * value
+        if need > MAX_CASE_MEMORY_BYTES:
+            largest = math.isqrt(MAX_CASE_MEMORY_BYTES // (FORCES_MAP_ARRAYS * 8))
+            raise PydanticCustomError(
+                "too_much_memory",
+                f"a {value} x {value} grid needs about {_gib(need)} of memory, more than the "
+                f"{_gib(MAX_CASE_MEMORY_BYTES)} a case may ask for; at most {largest}",
+            )
+        return value
 
     def resolved_deltas(self) -> tuple[float, ...]:
         """``deltas`` or the default: 11 points logarithmically spaced over 1e-6 ... 1e-1."""
@@ -354,6 +388,20 @@ class CaseFile(_Section):
     compare: CompareSection | None = None
     analysis: AnalysisSection | None = None
     orbits: OrbitsSection | None = None
+
+    @model_validator(mode="after")
+    def _run_fits_in_memory(self) -> CaseFile:
+        samples = self.time.periods * self.time.samples_per_period
+        methods = len(self.solver.methods)
+        need = samples * methods * RUN_BYTES_PER_SAMPLE
+        if samples <= MAX_OUTPUT_SAMPLES and need > MAX_CASE_MEMORY_BYTES:
+            raise PydanticCustomError(
+                "too_much_memory",
+                f"{samples:.3g} output samples x {methods} methods need about {_gib(need)} "
+                f"of memory, more than the {_gib(MAX_CASE_MEMORY_BYTES)} a case may ask for; "
+                "run fewer methods at a time or fewer time.samples_per_period",
+            )
+        return self
 
     @model_validator(mode="after")
     def _model_xor_physical(self) -> CaseFile:
@@ -580,13 +628,14 @@ def _format_error(source: str, error: dict[str, Any]) -> str:
             message = "missing required key"
     elif kind == "string_pattern_mismatch" and loc == ("case", "name"):
         message = (
-            "must start with a letter or digit and hold only letters, digits, '.', '_' and '-'"
-            f" (it names the default output dir; got {error['input']!r})"
+            "must start with an ASCII letter or digit and hold only ASCII letters, digits, "
+            f"'.', '_' and '-' (it names the default output dir; got "
+            f"{_short_repr(error['input'])})"
         )
     elif kind == "extra_forbidden":
         message = "unknown key (not part of the case-file schema; see docs/cases.md)"
     else:
         message = error["msg"]
         if "input" in error and not isinstance(error["input"], dict | list):
-            message += f" (got {error['input']!r})"
+            message += f" (got {_short_repr(error['input'])})"
     return f"{source}: {field or '(file)'}: {message}"

@@ -261,8 +261,15 @@ def tangential_force(tau, x, y, vx, vy, params: ModelParams, regime):
     z = np.hypot(x, y)
     slip = np.where(regime == SLIP_POSITIVE, 1.0, np.where(regime == SLIP_NEGATIVE, -1.0, 0.0))
     out = slip * params.mu * params.K * (z - 1.0)
-    if np.any(regime == STICK):
-        out = np.where(regime == STICK, stick_friction(tau, x, y, vx, vy, params), out)
+    stick = regime == STICK
+    if np.any(stick):  # evaluated on the stick samples only (z > 1 there, no 0/0 elsewhere)
+        if np.ndim(out):
+            out = np.array(out, dtype=float)
+            tau, x, y, vx, vy = np.broadcast_arrays(tau, x, y, vx, vy)
+            out[stick] = stick_friction(tau[stick], x[stick], y[stick], vx[stick], vy[stick],
+                                        params)  # fmt: skip
+        else:
+            out = stick_friction(tau, x, y, vx, vy, params)
     return out if np.ndim(out) else float(out)
 
 
