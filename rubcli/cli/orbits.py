@@ -20,7 +20,6 @@ input (nothing written); 1 no starting orbit (only report.json, with the reason)
 
 from __future__ import annotations
 
-import datetime as dt
 import time
 from pathlib import Path
 from typing import Annotated, Any
@@ -33,6 +32,7 @@ from rubcli.analysis import continuation as cn
 from rubcli.analysis import orbits as ob
 from rubcli.case import Case, OrbitsSection
 from rubcli.cli import console
+from rubcli.cli.common import ForceOption, JsonOption, emit, prepare_output, report_stale
 from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 
 EXIT_FAILED = 1
@@ -236,6 +236,8 @@ def command(
     quick: Annotated[
         bool, typer.Option("--quick", help="CI mode: 12 points per direction, tolerance 1e-10.")
     ] = False,
+    json: JsonOption = False,
+    force: ForceOption = False,
 ) -> None:
     """Periodic orbits, Floquet multipliers and continuation in one parameter (orbits table)."""
     case = load_or_exit(case_file)
@@ -253,7 +255,13 @@ def command(
     o: OrbitsSection = case.settings.orbits
     settings = settings_from_case(case, quick)
     target = Path(out) if out is not None else case.output_dir
-    started = dt.datetime.now(dt.UTC)
+    plan = prepare_output(target, force)  # before any work: exit 2 if unusable
+    with console.machine_readable(json):
+        _orbits(case_file, case, o, settings, target, plan, overlay, overlay_data, quick, json)
+
+
+def _orbits(case_file, case, o, settings, target, plan, overlay, overlay_data, quick, json):
+    """The work of the command, once its inputs and output dir are checked."""
     t0 = time.perf_counter()
     params = case.params
     with console.progress_bar("start orbit", total=1.0) as update:
@@ -263,20 +271,18 @@ def command(
     with console.progress_bar(f"continuation in {o.parameter}", total=total) as update:
         branch = cn.continue_branch(params, guess, settings, progress=lambda n: update(n))
     wall = time.perf_counter() - t0
+    command_line = {"case_file": str(case_file), "out": str(target), "quick": quick,
+                    "overlay": str(overlay) if overlay is not None else None}  # fmt: skip
     report = {
-        "command": "orbits",
-        "rubcli_version": __version__,
-        "started_utc": started.isoformat(),
+        **io.report_envelope("orbits", command_line, case.to_dict()),
         "wall_time_s": wall,
         "quick": quick,
-        "case": case.to_dict(),
         "continuation": {k: v for k, v in settings.__dict__.items()},
         "start_guess": [float(v) for v in guess],
         "branch": branch.to_dict(),
         "overlay": str(overlay) if overlay is not None else None,
-        "environment": io.environment_info(),
     }
-    with io.staged_output_dir(target) as staged:
+    with io.staged_output_dir(target, plan) as staged:
         if branch.status == "ok":
             attrs = {"case": case.name, "parameter": branch.parameter,
                      "rubcli_version": __version__, "stops": branch.stops}  # fmt: skip
@@ -287,7 +293,10 @@ def command(
             title = _title(case, branch)
             io.save_figure(branch_figure(branch, title, overlay_data), staged.path("branch.png"))
             io.save_figure(multipliers_figure(branch, title), staged.path("multipliers.png"))
+        report["files"] = sorted(p.name for p in staged.staging.iterdir()) + ["report.json"]
         io.write_json(staged.path("report.json"), report)
+    report_stale(plan)
+    emit(report, json)
     if branch.status != "ok":
         console.error(f"{case_file}: {branch.message}; report.json written to {target}")
         raise typer.Exit(EXIT_FAILED)
