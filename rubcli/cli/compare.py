@@ -44,7 +44,7 @@ from typing import Annotated, Any
 import typer
 
 from rubcli import io
-from rubcli.analysis import panels
+from rubcli.analysis import panels as panel_study
 from rubcli.analysis import work_precision as wpm
 from rubcli.analysis.panels import OrbitPanel
 from rubcli.analysis.reference import ReferenceError
@@ -64,7 +64,7 @@ from rubcli.solvers.registry import SPECS, STEPS_PER_PERIOD
 
 EXIT_FAILED = 1
 QUICK_HORIZON_PERIODS = 5.0
-QUICK_LYAPUNOV_PERIODS = panels.QUICK_LYAPUNOV_PERIODS
+QUICK_LYAPUNOV_PERIODS = panel_study.QUICK_LYAPUNOV_PERIODS
 QUICK_ORBIT_PERIODS = 150.0
 CSV_COLUMNS = (
     "method", "setting", "wall_time_s", "error_max", "error_final", "setting_name",
@@ -101,7 +101,7 @@ def work_precision(case: Case, cfg: CompareSection, quick: bool, threshold: floa
     if quick:
         periods = min(periods, QUICK_HORIZON_PERIODS)
     problem = _problem(case, periods)
-    reference = panels.reference_with_progress(
+    reference = panel_study.reference_with_progress(
         problem, threshold, "reference", console.progress_bar
     )
     methods = list(cfg.methods or case.methods)
@@ -137,11 +137,11 @@ def write_work_precision_csv(path: Path, result: wpm.WorkPrecision) -> None:
 # ------------------------------------------------------------------------ orbits
 
 
-def response_settings(analysis: AnalysisSection | None) -> panels.ResponseSettings | None:
+def response_settings(analysis: AnalysisSection | None) -> panel_study.ResponseSettings | None:
     """``[analysis]`` as response settings (None unless ``response = true``)."""
     if analysis is None or not analysis.response:
         return None
-    return panels.ResponseSettings(**analysis.model_dump(exclude={"response"}))
+    return panel_study.ResponseSettings(**analysis.model_dump(exclude={"response"}))
 
 
 def orbit_panel(
@@ -157,7 +157,7 @@ def orbit_panel(
     periods = case.settings.time.periods
     if quick:
         periods = min(periods, QUICK_ORBIT_PERIODS)
-    return panels.orbit_panel(
+    return panel_study.orbit_panel(
         _problem(case, periods, mu),
         methods,
         case.solver_options,
@@ -424,7 +424,7 @@ def _compare(
             "reference": None if wp is None else wp.reference.to_dict(),
             "work_precision": None if wp is None else _work_precision_json(wp),
             "orbits": [p.to_dict() for p in panels],
-            "response": panels.panels_response_summary(panels),
+            "response": panel_study.panels_response_summary(panels),
             "wall_time_s": time.perf_counter() - started,
             "files": files,
         }

@@ -17,21 +17,8 @@ from rubcli.solvers.compiled.jit import (
 
 @jit
 def _rhs_into(t, y, pars, regime, out):
-    vx, vy, ax, ay = rhs_entries(
-        t,
-        y[0],
-        y[1],
-        y[2],
-        y[3],
-        pars[0],
-        pars[1],
-        pars[2],
-        pars[3],
-        pars[4],
-        pars[5],
-        pars[6],
-        regime,
-    )
+    nu, eta, E, phi0, K, mu, Rp = pars[0], pars[1], pars[2], pars[3], pars[4], pars[5], pars[6]
+    vx, vy, ax, ay = rhs_entries(t, y[0], y[1], y[2], y[3], nu, eta, E, phi0, K, mu, Rp, regime)
     out[0], out[1], out[2], out[3] = vx, vy, ax, ay
 
 
@@ -39,22 +26,7 @@ def _rhs_into(t, y, pars, regime, out):
 def rhs(t, s, pars, regime):
     """``model.rhs`` compiled: the regime-locked right-hand side (pars = params_vector)."""
     out = np.empty(4)
-    vx, vy, ax, ay = rhs_entries(
-        t,
-        s[0],
-        s[1],
-        s[2],
-        s[3],
-        pars[0],
-        pars[1],
-        pars[2],
-        pars[3],
-        pars[4],
-        pars[5],
-        pars[6],
-        regime,
-    )
-    out[0], out[1], out[2], out[3] = vx, vy, ax, ay
+    _rhs_into(t, s, pars, regime, out)
     return out
 
 
@@ -70,18 +42,5 @@ def rhs_columns(t, S, pars, regime):
 @jit
 def rhs_jacobian(t, s, pars, regime):
     """``model.rhs_jacobian`` compiled."""
-    return rhs_jacobian_array(
-        t,
-        s[0],
-        s[1],
-        s[2],
-        s[3],
-        pars[0],
-        pars[1],
-        pars[2],
-        pars[3],
-        pars[4],
-        pars[5],
-        pars[6],
-        regime,
-    )
+    nu, eta, E, phi0, K, mu, Rp = pars[0], pars[1], pars[2], pars[3], pars[4], pars[5], pars[6]
+    return rhs_jacobian_array(t, s[0], s[1], s[2], s[3], nu, eta, E, phi0, K, mu, Rp, regime)
