@@ -130,11 +130,12 @@ class Run:
         return None
 
     def report_progress(self, final: bool = False) -> None:
+        """Report tau (about every 1 % of the span), and the end once (``final``)."""
         if self._progress is None:
             return
         if final:
             self._progress(self.t_end)
-        elif self.tau >= self._next_progress:
+        elif self._next_progress <= self.tau < self.t_end:
             self._progress(self.tau)
             self._next_progress = self.tau + PROGRESS_FRACTION * (self.t_end - self.t_eval[0])
 
