@@ -18,7 +18,7 @@ _PLOTS = ", ".join(KNOWN_PLOTS)
 
 # The optional tables, commented out, shared by both samples.
 _OPTIONAL_TABLES = """
-# Optional tables (docs/cases.md, docs/compare.md, docs/forces-map.md); uncomment to use.
+# Optional tables (docs/cases.md, compare.md, forces-map.md, orbits.md); uncomment to use.
 
 # [analysis]                    # response class of each run (Poincare section, Lyapunov)
 # response = true
@@ -33,6 +33,13 @@ _OPTIONAL_TABLES = """
 # extent = 1.5                  # half-width of the grid, clearances
 # resolution = 201              # grid points per side (bounded by a memory estimate)
 # products = ["forces", "taylor_error", "eigen"]
+
+# [orbits]                      # `rubcli orbits`: periodic orbits and continuation
+# parameter = "mu"              # continued in: eta, mu, K, e, nu or Rp (docs/orbits.md)
+# min = 0.0                     # the window; the case's value must lie in it
+# max = 0.06
+# step = 0.002                  # first continuation step
+# start = "synchronous_rub"     # guess: "initial", "transient" or "synchronous_rub"
 """
 
 SAMPLE_CASE = f"""\
