@@ -6,8 +6,9 @@ make any method slower than the run-to-run noise)::
     PYTHONPATH=/path/to/old python benchmarks/redesign_ab.py --tag old
     python benchmarks/redesign_ab.py --tag new
 
-Each row is the median (and minimum) of ``--repeats`` in-process solves after a warm-up
-(numba's cache load is not timed). Output: one line per (case, method) and a JSON file
+Each row is the median (and minimum) CPU time (``time.process_time``: on a loaded shared
+machine, wall time mostly measures the wait for a core) of ``--repeats`` in-process
+solves after a warm-up (numba's cache load is not timed). Output: one line per (case, method) and a JSON file
 ``benchmarks/redesign_ab-<tag>.json`` that ``--compare old new`` turns into a ratio table.
 """
 
@@ -63,9 +64,9 @@ def measure(repeats: int) -> dict:
             solve(problem, method, **options)  # warm-up
             times = []
             for _ in range(repeats):
-                start = time.perf_counter()
+                start = time.process_time()
                 sol = solve(problem, method, **options)
-                times.append(time.perf_counter() - start)
+                times.append(time.process_time() - start)
             key = f"{case} | {label}"
             out[key] = {"median": statistics.median(times), "min": min(times),
                         "events": len(sol.events), "status": sol.status}  # fmt: skip
@@ -82,7 +83,7 @@ def main() -> None:
     here = Path(__file__).parent
     if args.compare:
         a, b = (json.loads((here / f"redesign_ab-{t}.json").read_text()) for t in args.compare)
-        print(f"| case and method | {args.compare[0]} (s) | {args.compare[1]} (s) | ratio |")
+        print(f"| case and method | {args.compare[0]} (CPU s) | {args.compare[1]} (CPU s) | ratio |")
         print("|---|---|---|---|")
         for key in a:
             if key in b:
