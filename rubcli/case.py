@@ -42,7 +42,15 @@ from rubcli.model import ModelParams
 from rubcli.problem import Problem
 
 MethodName = Literal[
-    "analytic", "analytic-polar", "rk45", "dop853", "radau", "bdf", "lsoda", "dop853-jit"
+    "analytic",
+    "analytic-polar",
+    "rk45",
+    "dop853",
+    "radau",
+    "bdf",
+    "lsoda",
+    "dop853-jit",
+    "taylor",
 ]
 KNOWN_METHODS: tuple[str, ...] = get_args(MethodName)
 

@@ -27,13 +27,14 @@ _FAMILY_OPTIONS = {
     "analytic": ("steps_per_period", "analytic_tol"),
     "scipy": ("rtol", "atol"),
     "dop853-jit": ("rtol", "atol", "compiled_events"),
+    "taylor": ("rtol", "atol", "compiled_events"),
 }
 
 
 def _family(method: str) -> str:
     if method.startswith("analytic"):
         return "analytic"
-    return method if method == "dop853-jit" else "scipy"
+    return method if method in ("dop853-jit", "taylor") else "scipy"
 
 
 def options_for(method: str, options: dict) -> dict:
@@ -61,4 +62,4 @@ def solve(problem: Problem, method: str, **options) -> Solution:
     return solution
 
 
-from rubcli.solvers import analytic, dop853_jit, scipy_ivp  # noqa: E402,F401  (registers them)
+from rubcli.solvers import analytic, dop853_jit, scipy_ivp, taylor  # noqa: E402,F401  (registers them)
