@@ -62,8 +62,8 @@ PEERS = ("heyoka", "cyrk")
 ATOL_FACTOR = 1e-2
 REFERENCE_RTOL, REFERENCE_ATOL = 1e-13, 1e-15
 CHECK_RTOL = 1e-14  # taylor at this rtol: the reference's own uncertainty
-CYRK_MAX_STEPS = 5_000_000
-HEYOKA_MAX_EVENTS = 200_000
+CYRK_MAX_STEPS = 1_000_000
+HEYOKA_MAX_EVENTS = 50_000
 
 
 @dataclass(frozen=True)
@@ -374,7 +374,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--repeats", type=int, default=None)
-    ap.add_argument("--budget", type=float, default=30.0, help="seconds per run")
+    ap.add_argument("--budget", type=float, default=10.0, help="seconds per run")
     ap.add_argument("--case", type=int, action="append", help="case index (0-3); repeatable")
     args = ap.parse_args(argv)
     repeats = args.repeats or (2 if args.quick else 5)

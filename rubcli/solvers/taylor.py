@@ -120,10 +120,12 @@ def solve_taylor(
         )  # fmt: skip
         stats["nsteps"] += steps
         stats["n_segments"] += n_ev
+        taus, kinds = ev_tau[:n_ev].tolist(), ev_kind[:n_ev].tolist()
+        ev_states, ev_regs = ev_state[:n_ev].tolist(), ev_regimes[:n_ev].tolist()
         for i in range(n_ev):
-            t_ev, kind = float(ev_tau[i]), KERNEL_KINDS[int(ev_kind[i])]
-            before, after = int(ev_regimes[i, 0]), int(ev_regimes[i, 1])
-            events.append(SwitchEvent(t_ev, kind, tuple(map(float, ev_state[i])), before, after))
+            t_ev, kind = taus[i], KERNEL_KINDS[kinds[i]]
+            before, after = ev_regs[i]
+            events.append(SwitchEvent(t_ev, kind, tuple(ev_states[i]), before, after))
             last_kind = kind
             if storms.storm(t_ev):
                 status, message = FAILED, storms.message()

@@ -23,14 +23,16 @@ A step of order N costs O(N^2) operations and no right-hand-side calls.
 
 Order and step (Jorba & Zou 2005, section 3.2.2; heyoka's rule)
 ---------------------------------------------------------------
-The order is fixed for a run by the tolerance: ``N = ceil(-0.85 ln(rtol)) + 1`` (13 at
-1e-6, 21 at 1e-10, 27 at 1e-13). Jorba and Zou's rule ``ceil(-ln(rtol) / 2) + 1``
-minimises the operation count of the recurrences alone; measured here, higher orders
-pay (fewer, longer steps; each step also carries the event pre-check and the samples):
-on the paper's case (K = 17.6, 100 periods) order 8 took 2.8x the time of order 16 at
-rtol 1e-6, and order 12 1.5x that of order 20 at 1e-10 (``benchmarks/peers.py`` measures
-the method as registered). With the state tolerance ``eps = max(atol, rtol
-|s_0|_inf)`` the step is ``h = exp(-0.7 / (N - 1)) min((eps / |a_{N-1}|)^(1/(N-1)),
+The order is fixed for a run by the tolerance: ``N = ceil(-0.9 ln(rtol)) + 3`` (16 at
+1e-6, 24 at 1e-10, 30 at 1e-13). Jorba and Zou's rule ``ceil(-ln(rtol) / 2) + 1`` (8,
+13, 16) minimises the operation count of the recurrences alone; measured here, higher
+orders pay (fewer, longer steps; each step also carries the event pre-check, the
+samples and the loop overheads of short recurrences). On the paper's case (K = 17.6,
+mu = 0, 100 periods, CPU time, minimum of 5) orders 10 / 13 / 16 / 20 / 24 / 28 took
+1.83 / 1.34 / 1.22 / 1.20 / 1.30 / 1.51 ms at rtol 1e-6 and 4.86 / 2.89 / 2.26 / 1.92 /
+1.93 / 2.07 ms at rtol 1e-10, at about the same error (``benchmarks/peers.py`` measures
+the method as registered). With the state tolerance ``eps = max(atol, rtol |s_0|_inf)``
+the step is ``h = exp(-0.7 / (N - 1)) min((eps / |a_{N-1}|)^(1/(N-1)),
 (eps / |a_N|)^(1/N))``, so that the last terms of the series are below eps; steps are
 never rejected. The step's Taylor polynomial is its dense output (samples and events).
 
@@ -100,8 +102,9 @@ fast = numba.njit(cache=True, fastmath={"reassoc", "contract", "nsz", "arcp"})
 
 MAX_ORDER = 30
 MIN_ORDER = 4
-ORDER_FACTOR = 0.85  # N = ceil(-0.85 ln(rtol)) + 1 (Jorba & Zou's rule has 0.5)
-WORK_ROWS = 24
+ORDER_FACTOR = 0.9  # N = ceil(-0.9 ln(rtol)) + 3 (Jorba & Zou's rule: 0.5 and + 1)
+ORDER_OFFSET = 3
+WORK_ROWS = 27
 STEP_SAFETY_EXPONENT = 0.7  # h *= exp(-0.7 / (N - 1)) (heyoka)
 PRECHECK_MARGIN = 1e-9  # relative margin of the series bound (plus the state tolerance)
 SCAN_PER_PERIOD = 8  # scan intervals per period of the fastest frequency
@@ -111,9 +114,9 @@ MAX_SCAN = 4096
 
 
 def taylor_order(rtol: float) -> int:
-    """The order for a tolerance: ceil(-ORDER_FACTOR ln(rtol)) + 1, within [MIN_ORDER,
-    MAX_ORDER] (module docstring)."""
-    order = math.ceil(-ORDER_FACTOR * math.log(rtol)) + 1
+    """The order for a tolerance: ceil(-0.9 ln(rtol)) + 3, within [MIN_ORDER, MAX_ORDER]
+    (module docstring)."""
+    order = math.ceil(-ORDER_FACTOR * math.log(rtol)) + ORDER_OFFSET
     return int(min(MAX_ORDER, max(MIN_ORDER, order)))
 
 
@@ -158,7 +161,7 @@ def taylor_coefficients(t0, s, pars, regime, order, C, W):
     ``order`` in every regime and of u = 1 / z (row 2) in contact."""
     nu, eta, E, phi0, K, mu = pars[0], pars[1], pars[2], pars[3], pars[4], pars[5]
     x, y, vx, vy = C[0], C[1], C[2], C[3]
-    q, u, fc, fs = W[0], W[2], W[4], W[5]
+    q, u = W[0], W[2]
     for i in range(4):
         C[i, 0] = s[i]
     phase = eta * t0 + phi0
@@ -170,30 +173,42 @@ def taylor_coefficients(t0, s, pars, regime, order, C, W):
         return
     mu_c = mu * float(regime) if contact else 0.0
     nu2 = 2.0 * nu
+    # Reversed copies (xr[M - j] = x_j) turn every Cauchy sum into a forward dot
+    # product, sum_j a_j b_{k-j} = sum_j a_j br[M - k + j], which vectorises.
+    M = MAX_ORDER
+    xr, yr, ur, jq = W[23], W[24], W[25], W[26]
+    xr[M], yr[M] = s[0], s[1]
     for k in range(order):
-        fc[k], fs[k] = fr, fi
         ax = E * fr - nu2 * vx[k] - x[k]
         ay = E * fi - nu2 * vy[k] - y[k]
         fr, fi = -fi * eta / (k + 1), fr * eta / (k + 1)
         if contact:
-            # q = x^2 + y^2 and u = q^(-1/2) (``_inverse_radius_terms``, written out)
+            # q = x^2 + y^2 and u = q^(-1/2) (``_inverse_radius_terms``, written out:
+            # k q_0 u_k = sum_{j=1}^{k} (j / 2 - k) q_j u_{k-j})
+            off = M - k
             acc = 0.0
             for j in range(k + 1):
-                acc += x[j] * x[k - j] + y[j] * y[k - j]
+                acc += x[j] * xr[off + j] + y[j] * yr[off + j]
             q[k] = acc
+            jq[k] = k * acc
             if k == 0:
                 u[0] = 1.0 / math.sqrt(acc)
             else:
-                acc = 0.0
+                acc1 = 0.0
+                acc2 = 0.0
                 for j in range(1, k + 1):
-                    acc += (-0.5 * j - (k - j)) * q[j] * u[k - j]
-                u[k] = acc / (k * q[0])
+                    acc1 += jq[j] * ur[off + j]
+                    acc2 += q[j] * ur[off + j]
+                u[k] = (0.5 * acc1 - k * acc2) / (k * q[0])
+            ur[off] = u[k]
             # K (1 - u) (x - mu_c y, y + mu_c x): sum_j K (delta_j0 - u_j) (x, y)_{k-j}
-            gx = x[k]
-            gy = y[k]
+            gx = 0.0
+            gy = 0.0
             for j in range(k + 1):
-                gx -= u[j] * x[k - j]
-                gy -= u[j] * y[k - j]
+                gx += u[j] * xr[off + j]
+                gy += u[j] * yr[off + j]
+            gx = x[k] - gx
+            gy = y[k] - gy
             ax -= K * (gx - mu_c * gy)
             ay -= K * (gy + mu_c * gx)
         inv = 1.0 / (k + 1)
@@ -201,13 +216,16 @@ def taylor_coefficients(t0, s, pars, regime, order, C, W):
         C[1, k + 1] = vy[k] * inv
         C[2, k + 1] = ax * inv
         C[3, k + 1] = ay * inv
+        xr[M - k - 1] = C[0, k + 1]
+        yr[M - k - 1] = C[1, k + 1]
     if contact:
         _inverse_radius_terms(x, y, q, u, order)
     else:
         for k in range(order + 1):
             acc = 0.0
+            off = M - k
             for j in range(k + 1):
-                acc += x[j] * x[k - j] + y[j] * y[k - j]
+                acc += x[j] * xr[off + j] + y[j] * yr[off + j]
             q[k] = acc
 
 
