@@ -83,7 +83,7 @@ def test_series_local_error_has_order_n_plus_1(case, order):
     pars = np.array(model.params_vector(params))
     t0 = 0.37
     C = np.zeros((4, tk.MAX_ORDER + 1))
-    W = np.zeros((tk.WORK_ROWS, tk.MAX_ORDER + 1))
+    W = np.zeros((tk.WORK_ROWS, tk.WORK_COLS))
     tk.taylor_coefficients(t0, np.array(exact(t0), dtype=float), pars, regime, order, C, W)
     out = np.empty(4)
 

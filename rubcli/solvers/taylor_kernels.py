@@ -42,16 +42,18 @@ Each step's event functions (``events.earliest_event``: the surface ``z^2 - 1``,
 slip ``v_r`` with friction, the stick margin) are located on the step's polynomial by a
 transcription of ``events.first_crossing`` (the same grid logic, scipy's Brent iteration),
 and applied by ``kernels._apply_event`` (Filippov's rule, the projection onto rolling).
-Most steps are cleared without a scan: the surface and the slip have Taylor series of
-their own (``q`` above, ``v_r = Rp eta + (x vy - y vx) u``) and ``|H(s) - H_0| <=
-sum_k |H_k| s^k``, so a step whose bound stays below zero by a margin holds no event of
-it; failing that, the series is evaluated on 16 sub-intervals and bounded between them
-by its second derivative (``_stays_below``). The first step of every segment and
-every stick step are scanned. The scan grid has ``max(4, ceil(8 h omega / 2 pi))``
-intervals, omega a bound on the fastest frequency
-(1 + eta in free flight, sqrt(1 + K) + 1 + eta + |theta'| in contact): the extrema of
-an event function are half a period of it apart, so it turns at most once per interval,
-as ``first_crossing`` requires.
+Most steps are cleared without a scan. The surface and the slip have Taylor series of
+their own (``q - 1`` above; ``v_r = Rp eta + (x vy - y vx) u``). They differ from the
+event functions of the state polynomials (what ``locate`` evaluates) by terms above
+order N: for the surface these are bounded exactly (``_product_tail_bound``), for the
+slip a margin of 100 state tolerances covers them. With ``|H(s) - H_0| <= sum_k |H_k|
+s^k``, a step whose bound stays below zero by the margin holds no event of it; failing
+that, the series is evaluated on 16 sub-intervals and bounded between them by its
+second derivative (``_stays_below``). The first step of every segment and every stick
+step are scanned. The scan grid has ``max(4, ceil(8 h omega / 2 pi))`` intervals, omega
+a bound on the fastest frequency (1 + eta in free flight, sqrt(1 + K) + 1 + eta +
+|theta'| in contact): the extrema of an event function are half a period of it apart,
+so it turns at most once per interval, as ``first_crossing`` requires.
 """
 
 from __future__ import annotations
@@ -105,6 +107,7 @@ MIN_ORDER = 4
 ORDER_FACTOR = 0.9  # N = ceil(-0.9 ln(rtol)) + 3 (Jorba & Zou's rule: 0.5 and + 1)
 ORDER_OFFSET = 3
 WORK_ROWS = 27
+WORK_COLS = 2 * MAX_ORDER + 1  # the surface's polynomial has degree 2N
 STEP_SAFETY_EXPONENT = 0.7  # h *= exp(-0.7 / (N - 1)) (heyoka)
 PRECHECK_MARGIN = 1e-9  # relative margin of the series bound (plus the state tolerance)
 SCAN_PER_PERIOD = 8  # scan intervals per period of the fastest frequency
@@ -157,7 +160,7 @@ def _inverse_radius_terms(x, y, q, u, k):
 def taylor_coefficients(t0, s, pars, regime, order, C, W):
     """The Taylor coefficients C[:, 0..order] (rows x, y, vx, vy; columns the orders)
     of the regime-locked solution through ``s`` at ``t0``; ``W`` (WORK_ROWS,
-    MAX_ORDER + 1) is work space, left holding the series of q = z^2 (row 0) up to
+    WORK_COLS) is work space, left holding the series of q = z^2 (row 0) up to
     ``order`` in every regime and of u = 1 / z (row 2) in contact."""
     nu, eta, E, phi0, K, mu = pars[0], pars[1], pars[2], pars[3], pars[4], pars[5]
     x, y, vx, vy = C[0], C[1], C[2], C[3]
@@ -359,26 +362,45 @@ def _stays_below(H, order, h, margin):
 
 
 @fast
+def _product_tail_bound(a, order, h, A, R):
+    """Bound on [0, h] of the terms of degree above N of a(s)^2, a the polynomial of
+    degree N: sum_{i+j>N} A_i A_j = sum_{i=1}^{N} A_i R_{N-i+1}, with A_i = |a_i| h^i and
+    R_m = sum_{j>=m} A_j."""
+    p = 1.0
+    for i in range(order + 1):
+        A[i] = abs(a[i]) * p
+        p *= h
+    R[order + 1] = 0.0
+    for m in range(order, -1, -1):
+        R[m] = R[m + 1] + A[m]
+    acc = 0.0
+    for i in range(1, order + 1):
+        acc += A[i] * R[order - i + 1]
+    return acc
+
+
+@fast
 def _may_have_event(C, order, h, regime, pars, W, eps):
     """False if no event function of the regime can reach zero in [t0, t0 + h]: the
-    surface's series (and the slip's) stays below zero by a margin (``_stays_below``).
-
-    The margin covers the difference between an event function of the truncated
-    polynomials (what ``locate`` and the Python code evaluate) and the truncated series
-    of the event function: terms beyond order N, of the size of the state tolerance."""
-    q, H = W[0], W[10]
-    scale = 1.0 + abs(q[0])
-    margin = PRECHECK_MARGIN * scale + 100.0 * eps * scale
+    surface's series (and the slip's) stays below zero by a margin (``_stays_below``)."""
+    # The surface's series q - 1 (W[0]), against x(s)^2 + y(s)^2 - 1 of the state
+    # polynomials that locate evaluates: they differ by the product terms of degree
+    # above N, bounded by _product_tail_bound; the margin adds round-off.
+    x, y, q, H = C[0], C[1], W[0], W[10]
     direction = 1.0 if regime == FREE_REGIME else -1.0
     for k in range(order + 1):
         H[k] = direction * q[k]
     H[0] -= direction
+    tail = _product_tail_bound(x, order, h, W[11], W[12])
+    tail += _product_tail_bound(y, order, h, W[11], W[12])
+    margin = PRECHECK_MARGIN * (1.0 + abs(H[0]) + _series_bound(H, order, h)) + tail
     if not _stays_below(H, order, h, margin):
         return True
     if regime == FREE_REGIME or pars[5] == 0.0:
         return False
-    # v_r = Rp eta + (x vy - y vx) u: its series (u is W[2])
-    x, y, vx, vy = C[0], C[1], C[2], C[3]
+    # v_r = Rp eta + (x vy - y vx) u: its series (u is W[2]); the margin covers the
+    # terms beyond order N, by which it differs from v_r of the state polynomials
+    vx, vy = C[2], C[3]
     wv, u = W[8], W[2]
     sign = float(regime)
     for k in range(order + 1):
@@ -633,7 +655,7 @@ def advance_taylor(
     the current segment, as ``events.start_flags``. Returns ``(tau, t_new, k, steps,
     reason, regime, n_events, at_event)``; reasons as ``advance_dop853``'s.
     """
-    W = np.zeros((WORK_ROWS, MAX_ORDER + 1))
+    W = np.zeros((WORK_ROWS, WORK_COLS))
     row = np.empty(4)
     drow = np.empty(4)
     y_new = np.empty(4)
