@@ -16,6 +16,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from rubcli import model
+from rubcli.analysis.stress import touching_start
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solution import FAILED, SUCCESS
@@ -229,3 +230,41 @@ def test_budgets_progress_and_registration():
     assert sol.success and seen[-1] == long.t_eval[-1] and len(seen) >= 2
     assert np.all(np.diff(seen) > 0)
     assert sol.settings["order"] == tk.taylor_order(1e-8) == sol.stats["order"]
+
+
+@pytest.mark.parametrize("depth", [1e-5, 1e-8])
+def test_shallow_contact_is_found_as_by_dop853_jit(depth):
+    """A free orbit scaled to penetrate the clearance by ``depth`` (e = 0: free flight is
+    linear, so scaling the start scales the orbit): the series pre-check must not clear
+    the step that holds the contact. Same events as dop853-jit, on the surface."""
+    p = ModelParams(nu=0.05, eta=0.7818, e=0.0, K=17.6, mu=0.1, Rp=46.16)
+    start, touch = touching_start(p, (0.3, -0.5, 0.4, 0.6))
+    prob = Problem.from_periods(p, tuple(np.array(start) * (1.0 + depth)), 3, 50)
+    ref = solve(prob, "dop853-jit", rtol=1e-12, atol=1e-14)
+    sol = solve(prob, "taylor", rtol=1e-12, atol=1e-14)
+    assert sol.success and ref.success
+    kinds = [e.kind for e in sol.events]
+    assert kinds[0] == "contact_entry" and kinds[-1] == "contact_exit"
+    assert kinds == [e.kind for e in ref.events]
+    assert abs(sol.events[0].tau - touch) < 0.1
+    times = np.array([e.tau for e in sol.events]) - [e.tau for e in ref.events]
+    assert np.max(np.abs(times)) < 1e-8
+
+
+def test_precheck_flags_a_shallow_crossing_and_clears_a_clear_step():
+    """The series pre-check on one short step over the apex of an orbit that penetrates
+    by 1e-5: it must flag the step (the surface polynomial peaks above zero there); on
+    the same orbit shrunk by 1% (the apex 1e-2 inside) it must clear it."""
+    p = ModelParams(nu=0.05, eta=0.7818, e=0.0, K=17.6, mu=0.1, Rp=46.16)
+    start, touch = touching_start(p, (0.3, -0.5, 0.4, 0.6))
+    pars = np.array(model.params_vector(p))
+    order, h = 16, 0.1
+    C = np.zeros((4, tk.MAX_ORDER + 1))
+    W = np.zeros((tk.WORK_ROWS, tk.WORK_COLS))
+    flags = []
+    for scale in (1.0 + 1e-5, 0.99):
+        t0 = touch - h / 2
+        s0 = model.free_flight(t0, 0.0, np.array(start) * scale, p)
+        tk.taylor_coefficients(t0, s0, pars, model.FREE, order, C, W)
+        flags.append(bool(tk._may_have_event(C, order, h, model.FREE, pars, W, 1e-14)))
+    assert flags == [True, False]
