@@ -30,17 +30,13 @@ import numpy as np
 
 from rubcli import model
 from rubcli.problem import Problem
-from rubcli.solution import FAILED, SUCCESS, Solution, SwitchEvent
-from rubcli.solvers import kernels, register, taylor_kernels
-from rubcli.solvers.dop853_jit import EVENT_BUFFER, KERNEL_KINDS
-from rubcli.solvers.events import (
-    StormGuard,
-    apply_event,
-    earliest_event,
-    initial_kind,
-    start_flags,
-)
-from rubcli.solvers.scipy_ivp import RESTART_BAND_FLOOR, Budget, _rhs_functions, fill_samples
+from rubcli.solution import Solution, SwitchEvent
+from rubcli.solvers import compiled as kernels
+from rubcli.solvers import driver, register
+from rubcli.solvers.compiled import taylor as taylor_kernels
+from rubcli.solvers.dop853_jit import EVENT_BUFFER
+from rubcli.solvers.events import KIND_NAMES, NO_EVENT, earliest_event, start_flags
+from rubcli.solvers.scipy_ivp import RESTART_BAND_FLOOR, _rhs_functions, fill_samples
 
 CHUNK_STEPS = 2000  # steps per kernel call: budget and progress checks between
 
@@ -68,6 +64,99 @@ class TaylorDense:
         return out
 
 
+class TaylorStepper:
+    """The compiled Taylor method as a driver stepper (``driver.integrate``).
+
+    One ``advance`` is one call of ``taylor_kernels.advance_taylor``: up to
+    ``CHUNK_STEPS`` steps with the events it locates and applies itself (recorded here,
+    with the storm guard), or, with ``compiled_events=False`` (or a step the kernel hands
+    back), the pending step's events located by the Python event code on its polynomial.
+    """
+
+    def __init__(self, run: driver.Run, rtol: float, atol: float, compiled_events: bool):
+        self.pars = np.array(model.params_vector(run.params))
+        self.restart_band = max(RESTART_BAND_FLOOR, rtol)
+        self.rtol, self.atol = max(rtol, 100 * np.finfo(float).eps), atol
+        self.order = taylor_kernels.taylor_order(self.rtol)
+        self.compiled_events = compiled_events
+        self.C = np.zeros((4, taylor_kernels.MAX_ORDER + 1))
+        self.info = np.zeros(1, dtype=np.int64)
+        self.ev_tau = np.empty(EVENT_BUFFER)
+        self.ev_kind = np.empty(EVENT_BUFFER, dtype=np.int64)
+        self.ev_state = np.empty((EVENT_BUFFER, 4))
+        self.ev_regimes = np.empty((EVENT_BUFFER, 2), dtype=np.int64)
+        self.at_event = run.last_kind != NO_EVENT
+        run.state = np.ascontiguousarray(run.state, dtype=float)
+        run.stats.update(nfev=0, n_segments=1, python_steps=0, order=self.order)
+        self.settings = {
+            "rtol": self.rtol,
+            "atol": atol,
+            "order": self.order,
+            "max_steps": run.max_steps,
+            "max_wall_time_s": run.max_wall_time_s,
+            "compiled": True,
+            "compiled_events": compiled_events,
+        }
+
+    def advance(self, run: driver.Run) -> None:
+        stats = run.stats
+        starts = start_flags(run.last_kind if self.at_event else NO_EVENT)
+        chunk = max(1, min(CHUNK_STEPS, run.steps_left))
+        tau, t_new, run.k, steps, reason, run.regime, n_ev, self.at_event = (
+            taylor_kernels.advance_taylor(
+                run.tau, run.state, run.t_end, self.pars, run.regime, self.order, self.rtol,
+                self.atol, run.t_eval, run.states, run.regimes, run.k, chunk, starts, self.C,
+                self.restart_band, self.ev_tau, self.ev_kind, self.ev_state, self.ev_regimes,
+                self.compiled_events, self.info,
+            )
+        )  # fmt: skip
+        run.tau = tau  # the kernel updated the state in place
+        stats["nsteps"] += steps
+        stats["nfev"] = stats["nsteps"]  # one series expansion per step
+        stats["n_segments"] += n_ev
+        taus, kinds = self.ev_tau[:n_ev].tolist(), self.ev_kind[:n_ev].tolist()
+        ev_states, ev_regs = self.ev_state[:n_ev].tolist(), self.ev_regimes[:n_ev].tolist()
+        for i in range(n_ev):  # the events the kernel located and applied
+            run.last_kind = kinds[i]
+            before, after = ev_regs[i]
+            event = SwitchEvent(taus[i], KIND_NAMES[kinds[i]], tuple(ev_states[i]), before, after)
+            if not run.record(event):
+                run.k = int(np.searchsorted(run.t_eval, taus[i], side="right"))
+                return
+        if reason == kernels.STOP_SMALL_STEP:
+            run.fail(f"taylor failed at tau = {tau:.6g}: the step fell below 10 ulp of tau")
+        elif reason == kernels.STOP_PYTHON:
+            run.fail(f"non-finite state at tau = {t_new:.6g}")
+        elif reason == kernels.STOP_EVENT:
+            self._python_event_step(run, t_new)
+
+    def _python_event_step(self, run: driver.Run, t_new: float) -> None:
+        """The pending step [tau, t_new]: the shared event code decides."""
+        run.stats["nsteps"] += 1
+        run.stats["nfev"] = run.stats["nsteps"]
+        run.stats["python_steps"] += 1
+        tau = run.tau
+        dense = TaylorDense(tau, self.C, self.order)
+        grid = np.linspace(tau, t_new, int(self.info[0]) + 1)
+        derivatives = _rhs_functions(run.params, run.regime, True)[2]
+        event = earliest_event(
+            dense, derivatives, grid, run.regime, run.params,
+            run.last_kind if self.at_event else NO_EVENT, self.restart_band,
+        )  # fmt: skip
+        t_stop = event[0] if event else t_new
+        run.k = fill_samples(
+            dense, run.t_eval, run.k, t_stop, run.regime, run.params, run.states, run.regimes
+        )
+        if event is None:
+            run.tau, self.at_event = t_new, False
+            run.state[:] = dense(t_new)
+            return
+        run.stats["n_segments"] += 1
+        if run.switch(event[0], event[1], dense(event[0])):
+            run.state = np.array(run.state, dtype=float)
+            self.at_event = True
+
+
 def solve_taylor(
     problem: Problem,
     rtol: float = 1e-8,
@@ -77,128 +166,17 @@ def solve_taylor(
     progress=None,
     compiled: bool = True,
     compiled_events: bool = True,
-    **_ignored,
 ) -> Solution:
-    """Adaptive Taylor series of order ceil(-ln(rtol)/2) + 1 with located events."""
+    """Adaptive Taylor series (order from rtol, ``taylor_kernels.taylor_order``) with
+    located events. There is no pure-Python path: ``compiled=False`` only hands every
+    possible event to the Python event code (as ``compiled_events=False``)."""
     kernels.ensure_fresh()
-    compiled_events = bool(compiled_events and compiled)
-    params = problem.params
-    pars = np.array(model.params_vector(params))
-    t_eval = problem.t_eval
-    t_end = float(t_eval[-1])
-    budget = Budget(max_steps, max_wall_time_s)
-    restart_band = max(RESTART_BAND_FLOOR, rtol)
-    rtol = max(rtol, 100 * np.finfo(float).eps)
-    order = taylor_kernels.taylor_order(rtol)
-
-    out_states = np.empty((t_eval.size, 4))
-    out_regimes = np.empty(t_eval.size, dtype=int)
-    state = np.array(problem.initial, dtype=float)
-    tau = float(t_eval[0])
-    regime = model.regime_of_state(state, params)
-    out_states[0], out_regimes[0] = state, regime
-    k = 1
-    events: list[SwitchEvent] = []
-    stats = {"nsteps": 0, "nfev": 0, "n_segments": 1, "python_steps": 0, "order": order}
-    status, message = SUCCESS, "reached the end of the time span"
-    last_kind = initial_kind(state, regime, params)
-    storms = StormGuard()
-    next_progress = tau
-    C = np.zeros((4, taylor_kernels.MAX_ORDER + 1))
-    info = np.zeros(1, dtype=np.int64)
-    ev_tau, ev_kind = np.empty(EVENT_BUFFER), np.empty(EVENT_BUFFER, dtype=np.int64)
-    ev_state, ev_regimes = np.empty((EVENT_BUFFER, 4)), np.empty((EVENT_BUFFER, 2), dtype=np.int64)
-    at_event = last_kind is not None
-
-    while True:
-        starts = start_flags(last_kind) if at_event else start_flags(None)
-        chunk = max(1, min(CHUNK_STEPS, max_steps - stats["nsteps"]))
-        tau, t_new, k, steps, reason, regime, n_ev, at_event = taylor_kernels.advance_taylor(
-            tau, state, t_end, pars, regime, order, rtol, atol, t_eval, out_states,
-            out_regimes, k, chunk, starts, C, restart_band, ev_tau, ev_kind, ev_state,
-            ev_regimes, compiled_events, info,
-        )  # fmt: skip
-        stats["nsteps"] += steps
-        stats["n_segments"] += n_ev
-        taus, kinds = ev_tau[:n_ev].tolist(), ev_kind[:n_ev].tolist()
-        ev_states, ev_regs = ev_state[:n_ev].tolist(), ev_regimes[:n_ev].tolist()
-        for i in range(n_ev):
-            t_ev, kind = taus[i], KERNEL_KINDS[kinds[i]]
-            before, after = ev_regs[i]
-            events.append(SwitchEvent(t_ev, kind, tuple(ev_states[i]), before, after))
-            last_kind = kind
-            if storms.storm(t_ev):
-                status, message = FAILED, storms.message()
-                k = int(np.searchsorted(t_eval, t_ev, side="right"))
-                break
-        if status == FAILED or reason == kernels.STOP_END:
-            break
-        if reason == kernels.STOP_SMALL_STEP:
-            status = FAILED
-            message = f"taylor failed at tau = {tau:.6g}: the step fell below 10 ulp of tau"
-            break
-        if reason == kernels.STOP_PYTHON:
-            status, message = FAILED, f"non-finite state at tau = {t_new:.6g}"
-            break
-        if reason == kernels.STOP_EVENT:
-            # the pending step [tau, t_new]: the shared event code decides
-            stats["nsteps"] += 1
-            stats["python_steps"] += 1
-            dense = TaylorDense(tau, C, order)
-            grid = np.linspace(tau, t_new, int(info[0]) + 1)
-            derivatives = _rhs_functions(params, regime, True)[2]
-            event = earliest_event(
-                dense, derivatives, grid, regime, params, last_kind if at_event else None,
-                restart_band,
-            )  # fmt: skip
-            t_stop = event[0] if event else t_new
-            k = fill_samples(dense, t_eval, k, t_stop, regime, params, out_states, out_regimes)
-            if event is None:
-                tau, at_event = t_new, False
-                state[:] = dense(t_new)
-            else:
-                t_ev = event[0]
-                state, regime, switch = apply_event(t_ev, event[1], dense(t_ev), regime, params)
-                state = np.array(state, dtype=float)
-                events.append(switch)
-                stats["n_segments"] += 1
-                if storms.storm(t_ev):
-                    status, message = FAILED, storms.message()
-                    break
-                tau, last_kind, at_event = t_ev, switch.kind, True
-                if tau >= t_end:
-                    break
-        over = budget.exceeded(stats["nsteps"])
-        if over:
-            status, message = FAILED, f"{over} at tau = {tau:.6g}"
-            break
-        if progress is not None and tau >= next_progress:
-            progress(tau)
-            next_progress = tau + 0.01 * (t_end - t_eval[0])
-
-    stats["nfev"] = stats["nsteps"]  # one series expansion per step
-    if status == SUCCESS and progress is not None:
-        progress(t_end)
-    return Solution.from_samples(
-        problem,
-        "taylor",
-        k,
-        out_states,
-        out_regimes,
-        events=events,
-        stats=stats,
-        settings={
-            "rtol": rtol,
-            "atol": atol,
-            "order": order,
-            "max_steps": max_steps,
-            "max_wall_time_s": max_wall_time_s,
-            "compiled": True,
-            "compiled_events": compiled_events,
-        },
-        status=status,
-        message=message,
-    )
+    run = driver.Run(
+        problem, "taylor", max_steps=max_steps, max_wall_time_s=max_wall_time_s,
+        progress=progress,
+    )  # fmt: skip
+    stepper = TaylorStepper(run, rtol, atol, bool(compiled_events and compiled))
+    return driver.integrate(run, stepper)
 
 
 register("taylor")(solve_taylor)

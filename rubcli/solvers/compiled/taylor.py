@@ -41,7 +41,7 @@ Events
 Each step's event functions (``events.earliest_event``: the surface ``z^2 - 1``, the
 slip ``v_r`` with friction, the stick margin) are located on the step's polynomial by a
 transcription of ``events.first_crossing`` (the same grid logic, scipy's Brent iteration),
-and applied by ``kernels._apply_event`` (Filippov's rule, the projection onto rolling).
+and applied by ``roots._apply_event`` (Filippov's rule, the projection onto rolling).
 Most steps are cleared without a scan. The surface and the slip have Taylor series of
 their own (``q - 1`` above; ``v_r = Rp eta + (x vy - y vx) u``). They differ from the
 event functions of the state polynomials (what ``locate`` evaluates) by terms above
@@ -63,36 +63,38 @@ import math
 import numba
 import numpy as np
 
-from rubcli.solvers.events import (
-    GRAZING_TOLERANCE,
-    REFINE_POINTS,
-    RTOL,
-    STICK_EXIT_LEVEL,
-    SURFACE_BAND,
-    XTOL,
-)
-from rubcli.solvers.kernels import (
-    FN_SLIP,
-    FN_STICK,
-    FN_SURFACE,
-    FREE_REGIME,
-    KIND_ENTRY,
-    KIND_EXIT,
-    KIND_REVERSAL,
-    KIND_STICK_EXIT,
-    STICK_REGIME,
+from rubcli.model import rolling_velocity
+from rubcli.solvers.compiled.jit import (
     STOP_END,
     STOP_EVENT,
     STOP_FULL,
     STOP_LIMIT,
     STOP_PYTHON,
     STOP_SMALL_STEP,
+)
+from rubcli.solvers.compiled.rhs import _rhs_into
+from rubcli.solvers.compiled.roots import (
+    FN_SLIP,
+    FN_STICK,
+    FN_SURFACE,
+    FREE_REGIME,
+    STICK_REGIME,
     TINY,
     _apply_event,
-    _rhs_into,
-    _start_flags,
     _stick_margin_at,
-    rolling_velocity,
+)
+from rubcli.solvers.events import (
+    ENTRY,
+    EXIT,
+    GRAZING_TOLERANCE,
+    REFINE_POINTS,
+    REVERSAL,
+    RTOL,
+    STICK_EXIT,
+    STICK_EXIT_LEVEL,
+    SURFACE_BAND,
+    XTOL,
+    start_flags,
 )
 
 jit = numba.njit(cache=True)
@@ -433,7 +435,7 @@ def scan_points(h, regime, pars, s):
 @jit
 def _event_fn(t, fn, sign, deriv, t0, C, order, pars, regime, d, row, drow):
     """An event function of ``events.earliest_event`` (or its rate) on the polynomial,
-    evaluated as the Python code evaluates it (``kernels._event_fn``'s rules)."""
+    evaluated as the Python code evaluates it (``roots._event_fn``'s rules)."""
     if fn == FN_STICK:
         if not deriv:
             dense_at(t, t0, C, order, row)
@@ -460,7 +462,7 @@ def _event_fn(t, fn, sign, deriv, t0, C, order, pars, regime, d, row, drow):
 
 @jit
 def _brentq(a, b, fa, fb, fn, sign, deriv, t0, C, order, pars, regime, d, row, drow):
-    """scipy's ``brentq`` (kernels._brentq) on ``_event_fn``."""
+    """scipy's ``brentq`` (roots._brentq) on ``_event_fn``."""
     xpre, xcur, fpre, fcur = a, b, fa, fb
     if fpre == 0.0:
         return xpre
@@ -529,7 +531,7 @@ def _crossing_scan(
     fn, sign, grid, hv, hd, n, on_surface, tolerance, level, immediate, refine,
     t0, C, order, pars, regime, d, row, drow,
 ):  # fmt: skip
-    """The loop of ``events.first_crossing`` (kernels._crossing_scan)."""
+    """The loop of ``events.first_crossing`` (roots._crossing_scan)."""
     if on_surface:
         if immediate and hd[0] >= 0.0:
             return grid[0], math.nan, math.nan
@@ -595,7 +597,7 @@ def _first_crossing(
 
 @jit
 def locate(t0, C, order, pars, regime, grid, n, hv, hd, row, drow, starts, band):
-    """``events.earliest_event`` on one step's polynomial (kernels._dop853_locate):
+    """``events.earliest_event`` on one step's polynomial (roots._dop853_locate):
     (tau, kind) of the earliest event in (grid[0], grid[n]], or (NaN, -1)."""
     d = 1e-6 * max(1.0, grid[n] - grid[0])
     if regime == FREE_REGIME:
@@ -603,14 +605,14 @@ def locate(t0, C, order, pars, regime, grid, n, hv, hd, row, drow, starts, band)
             FN_SURFACE, 1.0, grid, hv, hd, n, starts[0], GRAZING_TOLERANCE,
             SURFACE_BAND * band, True, t0, C, order, pars, regime, d, row, drow,
         )  # fmt: skip
-        return (t, KIND_ENTRY) if not math.isnan(t) else (t, -1)
+        return (t, ENTRY) if not math.isnan(t) else (t, -1)
     best, kind = math.nan, -1
     t = _first_crossing(
         FN_SURFACE, -1.0, grid, hv, hd, n, starts[0], 0.0, SURFACE_BAND * band, True,
         t0, C, order, pars, regime, d, row, drow,
     )  # fmt: skip
     if not math.isnan(t):
-        best, kind = t, KIND_EXIT
+        best, kind = t, EXIT
     if pars[5] > 0.0 and regime != STICK_REGIME:
         level = band * (1.0 + abs(pars[6] * pars[1]))
         t = _first_crossing(
@@ -618,7 +620,7 @@ def locate(t0, C, order, pars, regime, grid, n, hv, hd, row, drow, starts, band)
             t0, C, order, pars, regime, d, row, drow,
         )  # fmt: skip
         if not math.isnan(t) and (math.isnan(best) or t < best):
-            best, kind = t, KIND_REVERSAL
+            best, kind = t, REVERSAL
     if regime == STICK_REGIME:
         for sign in (1.0, -1.0):
             t = _first_crossing(
@@ -626,7 +628,7 @@ def locate(t0, C, order, pars, regime, grid, n, hv, hd, row, drow, starts, band)
                 t0, C, order, pars, regime, d, row, drow,
             )  # fmt: skip
             if not math.isnan(t) and (math.isnan(best) or t < best):
-                best, kind = t, KIND_STICK_EXIT
+                best, kind = t, STICK_EXIT
     return best, kind
 
 
@@ -641,13 +643,13 @@ def advance_taylor(
 ):  # fmt: skip
     """Taylor steps of order ``order`` with their events, from ``(tau, y)``.
 
-    Like ``kernels.advance_dop853``: each step's coefficients (``taylor_coefficients``)
+    Like ``dop853_loop.advance_dop853``: each step's coefficients (``taylor_coefficients``)
     and step (``step_size``, cut at t_end); the step goes through the event pre-check
     (``_may_have_event``; the first step of a segment and stick steps always scan). A
     clear step is committed and fills the samples it covers (projected in stick).
     Otherwise, with ``compiled_events``, ``locate`` finds the earliest event on the
     scan grid, the samples up to it are filled, the event is applied
-    (``kernels._apply_event``), recorded in ``events_*``, and a new segment starts;
+    (``roots._apply_event``), recorded in ``events_*``, and a new segment starts;
     without, the step is returned uncommitted (reason EVENT) with ``C`` holding its
     coefficients and ``info[0]`` the scan intervals, for the Python event code.
 
@@ -727,6 +729,6 @@ def advance_taylor(
             y[i] = row[i]
         n_events += 1
         tau, regime = t_stop, new_regime
-        starts = _start_flags(kind)
+        starts = start_flags(kind)
         if n_events == capacity:
             return tau, tau, k, steps, STOP_FULL, regime, n_events, True
