@@ -20,7 +20,12 @@ from rubcli.solvers.registry import SPECS, check_options, options_for  # noqa: F
 SolverFn = Callable[..., Solution]
 _METHODS: dict[str, SolverFn] = {}
 # The modules that register the methods' solver functions.
-_FAMILIES = ("rubcli.solvers.analytic", "rubcli.solvers.scipy_ivp", "rubcli.solvers.dop853_jit")
+_FAMILIES = (
+    "rubcli.solvers.analytic",
+    "rubcli.solvers.scipy_ivp",
+    "rubcli.solvers.dop853_jit",
+    "rubcli.solvers.taylor",
+)
 
 
 def register(name: str) -> Callable[[SolverFn], SolverFn]:

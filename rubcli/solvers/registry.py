@@ -35,7 +35,8 @@ class MethodSpec:
     family: str  # "analytic" (closed forms + linearised contact), "scipy", "compiled-rk"
     knob: str  # the accuracy setting a work-precision ladder varies: RTOL or STEPS_PER_PERIOD
     options: tuple[str, ...]  # its own options, besides COMMON_OPTIONS and progress
-    order: int  # global order of accuracy in its step (error-controlled: of the scheme)
+    order: int | None  # global order in its step (error-controlled: of the scheme; None: set
+    # by the tolerance)
     implicit: bool  # uses a Jacobian (stiff-capable in the usual sense)
     compiled: bool  # has a numba path (``compiled=False`` selects the pure-Python one)
     adaptive: str | None  # the option that switches on adaptive steps, if the knob is not one
@@ -140,6 +141,17 @@ SPECS: dict[str, MethodSpec] = {
             True,
             None,
             "scipy's DOP853 step for step in a numba loop, events located in compiled code",
+        ),
+        MethodSpec(
+            "taylor",
+            "compiled-taylor",
+            RTOL,
+            _TOLERANCES + ("compiled_events",),
+            None,
+            False,
+            True,
+            None,
+            "adaptive Taylor series (order from rtol) in a numba loop, events on its polynomial",
         ),
     )  # fmt: skip
 }

@@ -11,6 +11,10 @@
 - ``dop853.py``: scipy's DOP853 step, error norm, dense output and initial step;
 - ``roots.py``: events located and applied on a DOP853 step's dense output;
 - ``dop853_loop.py``: the compiled DOP853 loop (``dop853-jit``);
+- ``taylor.py``: the ``taylor`` method's series, step size, event location and loop
+  (one file of about 700 lines: its event search is a transcription of ``roots.py``'s
+  for the step polynomial, to be merged with it when the event search becomes one
+  compilable function, issue 10);
 - ``cache.py``: numba's cache kept fresh when model.py or events.py change.
 
 What the drivers call is re-exported here.
