@@ -3,13 +3,14 @@
 Run it once per checkout, alternately, in the same hour (issue 10: the redesign must not
 make any method slower than the run-to-run noise)::
 
-    PYTHONPATH=/path/to/old python benchmarks/redesign_ab.py --tag old
+    PYTHONPATH=/old/checkout python benchmarks/redesign_ab.py --tag old
     python benchmarks/redesign_ab.py --tag new
 
 Each row is the median (and minimum) CPU time (``time.process_time``: on a loaded shared
 machine, wall time mostly measures the wait for a core) of ``--repeats`` in-process
-solves after a warm-up (numba's cache load is not timed). Output: one line per (case, method) and a JSON file
-``benchmarks/redesign_ab-<tag>.json`` that ``--compare old new`` turns into a ratio table.
+solves after a warm-up (numba's cache load is not timed). Output: one line per (case,
+method) and ``benchmarks/redesign_ab-<tag>.json``, which ``--compare old new`` turns into
+a ratio table.
 """
 
 from __future__ import annotations
@@ -83,7 +84,8 @@ def main() -> None:
     here = Path(__file__).parent
     if args.compare:
         a, b = (json.loads((here / f"redesign_ab-{t}.json").read_text()) for t in args.compare)
-        print(f"| case and method | {args.compare[0]} (CPU s) | {args.compare[1]} (CPU s) | ratio |")
+        a_tag, b_tag = args.compare
+        print(f"| case and method | {a_tag} (CPU s) | {b_tag} (CPU s) | ratio |")
         print("|---|---|---|---|")
         for key in a:
             if key in b:
