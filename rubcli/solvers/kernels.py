@@ -93,6 +93,7 @@ STOP_END = 0  # reached t_end
 STOP_EVENT = 1  # the next step may contain an event: Python takes it
 from rubcli.solvers.events import (  # noqa: E402
     GRAZING_TOLERANCE,
+    LOOK_AHEAD,
     MAX_SCAN_POINTS,
     REFINE_POINTS,
     RTOL,
@@ -1580,7 +1581,10 @@ def _crossing_scan(
     refined (``refine``)."""
     if on_surface:
         if immediate and hd[0] >= 0.0:
-            return grid[0], math.nan, math.nan
+            ahead = grid[0] + LOOK_AHEAD * (grid[1] - grid[0])  # events._ahead
+            rate = _event_fn(ahead, fn, sign, True, t_old, h, y_old, F, pars, regime, d, row, drow)
+            if rate >= 0.0:
+                return grid[0], math.nan, math.nan
         hv[0] = -max(abs(hv[0]), TINY)
     below = 0
     for i in range(n):
