@@ -163,8 +163,9 @@ class TimeSection(_Section):
         if n > MAX_OUTPUT_SAMPLES:
             raise PydanticCustomError(
                 "too_many_samples",
-                "periods * samples_per_period = {n:.3g} output samples, more than {limit}",
-                {"n": n, "limit": MAX_OUTPUT_SAMPLES},
+                # (pydantic fills {n} but knows no format spec: format it here)
+                "periods * samples_per_period = {n} output samples, more than {limit}",
+                {"n": f"{n:.3g}", "limit": MAX_OUTPUT_SAMPLES},
             )
         return self
 
