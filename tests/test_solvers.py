@@ -184,8 +184,8 @@ def test_wall_time_budget_is_honoured(method, fig3_params, monkeypatch):
     assert 1 <= sol.t.size < prob.t_eval.size  # stopped early, partial result kept
     assert np.all(np.isfinite(sol.states))
     if method in ("analytic", "analytic-polar", "dop853-jit"):  # the fast ones
-        full = solve(prob, method, max_wall_time_s=1e15)
-        assert full.status == SUCCESS, full.message
+        short = Problem.from_periods(prob.params, prob.initial, 20, 20)
+        assert solve(short, method, max_wall_time_s=1e15).status == SUCCESS
 
 
 def test_progress_reaches_the_end(fig3_params):
