@@ -1,4 +1,4 @@
-"""taylor: the adaptive Taylor-series method (rubcli/solvers/taylor.py, taylor_kernels.py).
+"""taylor: the adaptive Taylor-series method (rubcli/solvers/taylor.py, compiled/taylor.py).
 
 The series are checked by their order: the local error of the order-N polynomial of one
 step against exact solutions (free flight, the synchronous rub with friction, the rolling
@@ -182,7 +182,7 @@ def test_contact_switches_lie_on_the_surface():
 )  # K = 1.76e4: impacts with slip reversals and stick
 def test_compiled_events_match_the_python_event_code(K, mu, periods):
     """Events located in the kernel (a transcription of events.first_crossing on the
-    step's polynomial, kernels._apply_event) against the same steps with every step that
+    step's polynomial, roots._apply_event) against the same steps with every step that
     may hold an event handed to events.earliest_event / apply_event: the same events at
     the same times, the same steps, the same states to round-off."""
     prob = fig3_problem(mu, periods, K=K)

@@ -34,6 +34,10 @@ MAX_SCAN_POINTS = 100_000
 STICK_EXIT_LEVEL = 1e-12
 # Sub-intervals of a first interval in which a segment left its surface and came back.
 REFINE_POINTS = 32
+# A zero-duration phase needs the rate at the start and at this fraction of the first
+# interval later to be >= 0: a start rate that is zero to round-off (a tangential start,
+# as at an exit located at the apex of a graze) is decided by where h goes next.
+LOOK_AHEAD = 1e-6
 # Root location tolerance in tau.
 XTOL = 1e-14
 RTOL = 4.0 * np.finfo(float).eps
@@ -82,9 +86,14 @@ def first_crossing(
     ``tolerance`` (a grazing touch below it is ignored).
 
     With ``start_on_surface`` the segment begins on this very surface (the event that
-    started it): if dh >= 0 there the crossing is at the start itself (a zero-duration
-    phase; ``immediate=False`` skips this for phases that begin with dh = 0 by
-    construction, such as leaving stick).
+    started it): if dh >= 0 there, and still a moment later (``LOOK_AHEAD``), the
+    crossing is at the start itself (a zero-duration phase; ``immediate=False`` skips
+    this for phases that begin with dh = 0 by construction, such as leaving stick).
+    The second reading matters at a tangential start, where dh is zero to round-off
+    and its sign means nothing: at an exit located at the apex of a graze, both the
+    free and the contact segment read dh >= 0 and would hand over to each other at
+    that instant for ever (a switch storm); the rate a moment later says which side
+    the orbit really goes to.
 
     A crossing must clear ``start_tolerance`` (the noise band of h: round-off for a
     closed form, the tolerance of an adaptive solver's dense output), so noise around
@@ -103,7 +112,7 @@ def first_crossing(
     hv = np.array(hv, dtype=float)
     level = start_tolerance
     if start_on_surface:
-        if immediate and hd[0] >= 0.0:
+        if immediate and hd[0] >= 0.0 and dh(_ahead(grid)) >= 0.0:
             return float(grid[0])
         hv[0] = -max(abs(hv[0]), np.finfo(float).tiny)  # strictly below: -0.0 >= 0.0
     below = 0  # the last grid point where h was truly below zero (not in the band)
@@ -136,6 +145,11 @@ def first_crossing(
             if tm is not None and h(tm) > max(tolerance, level):
                 return _root(h, a, tm)
     return None
+
+
+def _ahead(grid: np.ndarray) -> float:
+    """The look-ahead time of the zero-duration test (``LOOK_AHEAD``)."""
+    return float(grid[0]) + LOOK_AHEAD * (float(grid[1]) - float(grid[0]))
 
 
 def _root(h: Callable[[float], float], a: float, b: float) -> float:

@@ -41,6 +41,7 @@ from rubcli.solvers.events import (
     ENTRY,
     EXIT,
     GRAZING_TOLERANCE,
+    LOOK_AHEAD,
     REFINE_POINTS,
     REVERSAL,
     RTOL,
@@ -276,7 +277,10 @@ def _crossing_scan(
     refined (``refine``)."""
     if on_surface:
         if immediate and hd[0] >= 0.0:
-            return grid[0], math.nan, math.nan
+            ahead = grid[0] + LOOK_AHEAD * (grid[1] - grid[0])  # events._ahead
+            rate = _event_fn(ahead, fn, sign, True, t_old, h, y_old, F, pars, regime, d, row, drow)
+            if rate >= 0.0:
+                return grid[0], math.nan, math.nan
         hv[0] = -max(abs(hv[0]), TINY)
     below = 0
     for i in range(n):

@@ -87,6 +87,7 @@ from rubcli.solvers.events import (
     ENTRY,
     EXIT,
     GRAZING_TOLERANCE,
+    LOOK_AHEAD,
     REFINE_POINTS,
     REVERSAL,
     RTOL,
@@ -534,7 +535,10 @@ def _crossing_scan(
     """The loop of ``events.first_crossing`` (roots._crossing_scan)."""
     if on_surface:
         if immediate and hd[0] >= 0.0:
-            return grid[0], math.nan, math.nan
+            ahead = grid[0] + LOOK_AHEAD * (grid[1] - grid[0])  # events._ahead
+            rate = _event_fn(ahead, fn, sign, True, t0, C, order, pars, regime, d, row, drow)
+            if rate >= 0.0:
+                return grid[0], math.nan, math.nan
         hv[0] = -max(abs(hv[0]), TINY)
     below = 0
     for i in range(n):
