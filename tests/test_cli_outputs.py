@@ -147,14 +147,14 @@ def test_compare_into_an_existing_dir_and_interrupted(tmp_path, monkeypatch):
 
     # interrupted after orbits.png is staged, before report.md and report.json
     monkeypatch.setattr(compare_cli, "report_markdown", interrupt)
-    result = invoke("compare", path, "--quick", "--out", out)
+    result = invoke("compare", path, "--quick", "--out", out, "--force")
     assert result.exit_code == 130  # typer's exit code for an interrupt (128 + SIGINT)
     assert names(out) == {"keep.txt", "report.json"}
     assert (out / "report.json").read_text() == '{"old": true}'
     assert names(tmp_path) == {"case.toml", "out"}  # no staging dir left beside it
 
     monkeypatch.undo()
-    result = invoke("compare", path, "--quick", "--out", out)
+    result = invoke("compare", path, "--quick", "--out", out, "--force")
     assert result.exit_code == 0, result.output
     assert {"keep.txt", "orbits.png", "report.md", "report.json"} <= names(out)
     assert (out / "keep.txt").read_text() == "mine"
@@ -171,7 +171,7 @@ def test_forces_map_into_an_existing_dir_and_interrupted(tmp_path, monkeypatch):
     out = tmp_path / "out"
     out.mkdir()
     (out / "keep.txt").write_text("mine")
-    result = invoke("forces-map", path, "--out", out)
+    result = invoke("forces-map", path, "--out", out, "--force")
     assert result.exit_code == 0, result.output
     assert names(out) == {"keep.txt", "eigen_map.csv", "eigen_map.png", "report.json"}
     before = {p.name: p.read_bytes() for p in out.iterdir()}
@@ -179,13 +179,13 @@ def test_forces_map_into_an_existing_dir_and_interrupted(tmp_path, monkeypatch):
     from rubcli.plotting import forces as plots
 
     monkeypatch.setattr(plots, "eigen_map_figure", interrupt)
-    result = invoke("forces-map", path, "--out", out)
+    result = invoke("forces-map", path, "--out", out, "--force")
     assert result.exit_code == 130
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
     assert names(tmp_path) == {"case.toml", "out"}
 
     fresh = tmp_path / "fresh"
-    result = invoke("forces-map", path, "--out", fresh)
+    result = invoke("forces-map", path, "--out", fresh, "--force")
     assert result.exit_code == 130 and not fresh.exists()
     assert names(tmp_path) == {"case.toml", "out"}
 
@@ -209,7 +209,7 @@ def test_stress_runs_a_selection(tmp_path):
         assert row["status"] == "success" and row["warning"] == ""
         assert row["reference"] == "exact free flight (touching)"
         assert float(row["error"]) < 1e-5  # dop853 at rtol 1e-8 through a stiff touch
-    assert names(out) == {"stress.csv", "stress.md"}
+    assert names(out) == {"stress.csv", "stress.md", "report.json"}
     text = (out / "stress.md").read_text()
     cmd = "rubcli stress --quick --case grazing-touch --method dop853-jit --method analytic"
     assert f"`{cmd}`" in text
@@ -248,15 +248,15 @@ def test_stress_into_an_existing_dir_and_interrupted(tmp_path, monkeypatch):
     from rubcli.cli import stress as stress_cli
 
     monkeypatch.setattr(stress_cli, "markdown_text", interrupt)
-    result = invoke("stress", *STRESS_SELECTION, "--out", out)
+    result = invoke("stress", *STRESS_SELECTION, "--out", out, "--force")
     assert result.exit_code == 130
     assert (out / "stress.csv").read_text() == "old"  # the half-staged table never moved in
     assert names(out) == {"keep.txt", "stress.csv"}
     assert names(tmp_path) == {"out"}
     monkeypatch.undo()
-    result = invoke("stress", *STRESS_SELECTION, "--out", out)
+    result = invoke("stress", *STRESS_SELECTION, "--out", out, "--force")
     assert result.exit_code == 0, result.output
-    assert names(out) == {"keep.txt", "stress.csv", "stress.md"}
+    assert names(out) == {"keep.txt", "stress.csv", "stress.md", "report.json"}
     assert (out / "stress.csv").read_text().startswith("case,method,status")
 
 
