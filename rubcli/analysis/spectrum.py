@@ -152,3 +152,33 @@ def solution_spectrum(solution, transient_periods: float = 0.0) -> FullSpectrum:
         raise ValueError("less than one forcing period after the transient")
     keep = (t >= t0 - 1e-9 * period) & (t < t0 + whole * period - 1e-9 * period)
     return full_spectrum(t[keep], solution.w[keep], problem.params.eta)
+
+
+def default_transient(recorded_periods: float, transient_periods: float | None = None) -> float:
+    """Forcing periods taken as transient in a record of ``recorded_periods``.
+
+    ``transient_periods`` when given and shorter than the record; otherwise the first
+    half of the record, rounded down to whole periods (the figures' keyphasor dots and
+    the report's spectrum use the same rule).
+    """
+    if transient_periods is None or transient_periods >= recorded_periods:
+        return float(math.floor(recorded_periods / 2.0))
+    return float(transient_periods)
+
+
+def steady_spectrum(solution, transient_periods: float | None = None) -> FullSpectrum | None:
+    """The full spectrum of a successful Solution over its steady span, or None.
+
+    The steady span follows ``default_transient``; None for a failed run, a record of
+    less than two forcing periods or a non-finite one (nothing trustworthy to analyse).
+    """
+    if not solution.success or solution.t.size < 8:
+        return None
+    period = solution.problem.params.period
+    recorded = float(solution.t[-1] - solution.t[0]) / period
+    if recorded < 2.0 - 1e-9:
+        return None
+    try:
+        return solution_spectrum(solution, default_transient(recorded, transient_periods))
+    except ValueError:
+        return None

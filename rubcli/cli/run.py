@@ -6,10 +6,12 @@ only the products the case asks for are written into the output dir:
 - ``<method>.csv`` per method if ``[output] csv``;
 - ``orbit.png`` and/or ``time.png`` per ``[output] plots``;
 - ``energy.png`` if ``[output] plots`` lists ``energy`` (the energy balance, never by default);
+- ``spectrum.png`` if ``[output] plots`` lists ``spectrum`` (the full spectrum of x + i y);
 - ``report.json`` always: the case echoed, and per method its status, message, wall time,
   step/evaluation counts, contact switches, contact fraction, max penetration, the time
   spent in each regime (from the located switch times) and the energy balance with its
-  ``energy_residual`` (``rubcli.analysis.energy``, docs/stability.md).
+  ``energy_residual`` (``rubcli.analysis.energy``, docs/stability.md), and the dominant
+  line of the full spectrum over the steady span (``spectrum``: order, direction).
 
 Exit codes: 0 success; 2 invalid input (nothing is solved or written); 1 if any method
 failed (its failure is in report.json; the outputs of the run are still written). All
@@ -161,12 +163,21 @@ def write_outputs(
                 entries[solution.method]["files"] = [name]
                 files.append(name)
         title = plots.parameters_title(case.name, case.params)
-        figures = {"orbit": plots.orbit_figure, "time": plots.time_figure}
+        failures = {n: e["message"] for n, e in entries.items() if e["status"] == ERROR}
+        transient = case.settings.analysis.transient_periods if case.settings.analysis else None
+        spectra = _spectra(case, solutions, entries, transient)
         for plot in output.plots:
             if plot == "energy":
-                figure = _energy_figure(solutions, title)
+                figure = _energy_figure(solutions, title, case.scale)
+            elif plot == "spectrum":
+                figure = _spectrum_figure(spectra, failures, title, case.scale)
+            elif plot == "orbit":
+                figure = plots.orbit_figure(
+                    solutions, title, scale=case.scale, transient_periods=transient,
+                    failures=failures,
+                )  # fmt: skip
             else:
-                figure = figures[plot](solutions, title, scale=case.scale)
+                figure = plots.time_figure(solutions, title, scale=case.scale, failures=failures)
             io.save_figure(figure, staged.path(f"{plot}.png"))
             files.append(f"{plot}.png")
         # [analysis] response = true (owned by cli/compare.py): classes and poincare.png
@@ -192,12 +203,39 @@ def write_outputs(
     return [case.output_dir / name for name in files]
 
 
-def _energy_figure(solutions: list[Solution], title: str):
+def _energy_figure(solutions: list[Solution], title: str, scale=None):
     """energy.png: the energy balance of every method (``plots = ["energy"]``)."""
     from rubcli.analysis.energy import energy_balance
     from rubcli.plotting.energy import energy_figure
 
-    return energy_figure(solutions, [energy_balance(s) for s in solutions], title)
+    return energy_figure(solutions, [energy_balance(s) for s in solutions], title, scale=scale)
+
+
+def _spectra(case: Case, solutions: list[Solution], entries: dict, transient: float | None):
+    """Full spectrum of each solution over its steady span (``analysis.spectrum``).
+
+    Adds ``entries[method]["spectrum"]`` (dominant whirl order, direction, amplitude; rad/s
+    for a [physical] case; null for a failed run) and returns the figure's panels.
+    """
+    from rubcli.analysis.spectrum import steady_spectrum
+
+    omega_scale = None if case.scale is None else case.scale.omega
+    panels = []
+    for sol in solutions:
+        spectrum = steady_spectrum(sol, transient)
+        summary = None if spectrum is None else spectrum.to_dict(omega_scale)
+        entries[sol.method]["spectrum"] = summary
+        note = "" if spectrum is not None else f"{sol.status}: {sol.message}"
+        panels.append((sol.method, spectrum, note))
+    return panels
+
+
+def _spectrum_figure(panels, failures: dict[str, str], title: str, scale=None):
+    """spectrum.png (``plots = [..., "spectrum"]``): one panel per method."""
+    from rubcli.plotting.spectrum import spectrum_figure
+
+    panels = panels + [(name, None, f"error: {why}") for name, why in failures.items()]
+    return spectrum_figure(panels, title, scale=scale)
 
 
 def _summary_rows(entries: dict[str, dict[str, Any]]) -> list[list[str]]:
