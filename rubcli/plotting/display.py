@@ -232,9 +232,9 @@ def orbit_radius(solutions: Sequence[Solution], cap_failed: float = 10.0) -> flo
         for s in good:
             n = finite_length(s)
             if n:
-                radius = max(radius, float(np.max(np.abs(s.w[:n]))))
+                radius = max(radius, float(np.max(np.hypot(s.x[:n], s.y[:n]))))
     else:
-        radii = [np.abs(s.w[: finite_length(s)]) for s in solutions]
+        radii = [np.hypot(s.x[: finite_length(s)], s.y[: finite_length(s)]) for s in solutions]
         radii = [r for r in radii if r.size]
         if radii:
             r99 = float(np.percentile(np.concatenate(radii), 99.0))
@@ -255,4 +255,4 @@ def distance(a: Solution, b: Solution, t_from: float | None = None) -> float | N
         keep = slice(first, n)
     if not np.allclose(a.t[keep], b.t[keep], rtol=1e-12, atol=0.0):
         return None  # not sampled at the same times
-    return float(np.max(np.abs(a.w[keep] - b.w[keep])))
+    return float(np.max(np.hypot(a.x[keep] - b.x[keep], a.y[keep] - b.y[keep])))
