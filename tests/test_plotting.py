@@ -104,6 +104,9 @@ def test_fine_orbit_is_round_where_the_samples_are_a_polygon():
     fine = display.fine_orbit(sol, sol.t[0])
     assert fine.shape[0] >= 3 * display.FINE_POINTS_PER_PERIOD
     assert np.max(np.abs(np.hypot(fine[:, 0], fine[:, 1]) - 1.0)) < 1e-3
+    # the drawn polyline itself (its chords) stays on the circle
+    mid = 0.5 * (fine[:-1] + fine[1:])
+    assert np.max(np.abs(np.hypot(mid[:, 0], mid[:, 1]) - 1.0)) < 1e-3
 
 
 def test_keyphasor_dots_one_per_forcing_period_of_the_steady_span():
