@@ -55,8 +55,8 @@ def draw_spectrum(
     ax.set_ylim(floor, peak * 4.0)
     for sign in (-1.0, 1.0):
         ax.axvline(sign, color="0.5", ls=":", lw=0.8)
-    ax.text(0.02, 0.97, "backward", transform=ax.transAxes, va="top", fontsize="small")
-    ax.text(0.98, 0.97, "forward", transform=ax.transAxes, va="top", ha="right",
+    ax.text(0.02, 0.97, "backward (< 0)", transform=ax.transAxes, va="top", fontsize="small")
+    ax.text(0.98, 0.97, "forward (> 0)", transform=ax.transAxes, va="top", ha="right",
             fontsize="small")  # fmt: skip
     if spectrum.direction == STATIC:
         text = f"no whirl: static offset {spectrum.static_offset * unit:.3g}"
@@ -67,7 +67,7 @@ def draw_spectrum(
         text = f"dominant {dom:+.3f}X {spectrum.direction}, amplitude {dom_amp:.3g}"
         if scale is not None:
             text += f", {spectrum.dominant_omega * scale.omega:.4g} rad/s"
-    ax.set_xlabel("frequency / running speed (order; negative = backward whirl)")
+    ax.set_xlabel("frequency / running speed (order)")
     ax.set_ylabel("whirl amplitude / clearance" if scale is None else "whirl amplitude (m)")
     if scale is not None:
         factor = spectrum.eta * scale.omega  # rad/s per order
