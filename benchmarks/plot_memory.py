@@ -53,12 +53,11 @@ atol = 1e-10
 csv = false
 plots = {plots}
 """
-CONFIGS = {
-    "no figures": "[]",
-    "orbit + time": '["orbit", "time"]',
+CONFIGS = {"no figures": "[]", "orbit + time": '["orbit", "time"]'}
+NEW_CONFIGS = {
     "orbit + time + energy": '["orbit", "time", "energy"]',
+    "orbit + time + energy + spectrum": '["orbit", "time", "energy", "spectrum"]',
 }
-NEW_CONFIGS = {"orbit + time + energy + spectrum": '["orbit", "time", "energy", "spectrum"]'}
 
 
 def measure(case: Path, out: Path, pythonpath: str | None) -> tuple[float, float, int]:
@@ -68,7 +67,9 @@ def measure(case: Path, out: Path, pythonpath: str | None) -> tuple[float, float
         env["PYTHONPATH"] = pythonpath
     cmd = ["/usr/bin/time", "-v", sys.executable, "-m", "rubcli", "run", str(case),
            "--out", str(out)]  # fmt: skip
-    proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
+    # run from the case's directory: `python -m` puts the working directory first on
+    # sys.path, which would shadow PYTHONPATH with the checkout the script is run from
+    proc = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=case.parent)
     rss = re.search(r"Maximum resident set size \(kbytes\): (\d+)", proc.stderr)
     wall = re.search(r"Elapsed \(wall clock\) time \(h:mm:ss or m:ss\): ([\d:.]+)", proc.stderr)
     seconds = 0.0

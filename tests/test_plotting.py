@@ -217,6 +217,8 @@ def test_every_method_failed_gives_a_message_not_a_blank_figure():
     fig = orbit_figure([], "title", failures={"rk45": "ValueError: boom"})
     assert "rk45: ValueError: boom" in _texts(fig)
     assert "Every method failed" not in _texts(orbit_figure([exact_rub(4, 40)], "title"))
+    labels = [t.get_text() for t in orbit_figure([bad], "t").legends[0].get_texts()]
+    assert not any("keyphasor" in label for label in labels)  # no dots were drawn
 
 
 # ------------------------------------------------------------------ spectrum

@@ -146,6 +146,8 @@ def legend_handles(drawing: OrbitDrawing, periods: float, unit_name: str) -> tup
         Line2D([], [], ls="", marker="o", color="k", mfc="0.6", ms=5,
                label="keyphasor: 1 dot per forcing period (steady span)"),
     ]  # fmt: skip
+    if drawing.first is None:  # nothing succeeded: no bold span, start or dots were drawn
+        handles = []
     return handles, distance_text(drawing, unit_name)
 
 

@@ -110,7 +110,8 @@ def failure_message(
     if not lines:
         lines = ["no method was run"]
     short = [line if len(line) <= 90 else line[:87] + "..." for line in lines]
-    return "Every method failed; nothing converged to draw.\n" + "\n".join(short)
+    head = "Every method failed (any partial trace is drawn up to its failure):"
+    return head + "\n" + "\n".join(short)
 
 
 def _message_box(ax, message: str) -> None:
