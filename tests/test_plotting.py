@@ -273,3 +273,17 @@ def test_residual_axis_starts_near_the_quadrature_floor_not_at_1e_308():
     assert top == pytest.approx(3e-9)
     bottom, _ = residual_limits(np.zeros(5), quadrature_error=0.0)
     assert bottom == RESIDUAL_BOTTOM
+
+
+def test_spectrum_of_a_short_record_beside_a_large_static_offset():
+    """One steady period: the whirl's bin is next to the 0X line, which is larger; the
+    peak is returned unrefined instead of dividing by zero (found by `compare --quick`
+    over 2 periods)."""
+    problem = Problem.from_periods(FIG3A, (0.0, 0.0, 0.0, 0.0), 2, 40)
+    t = problem.t_eval
+    w = 5.0 + 0.3 * np.exp(1j * 1.2 * FIG3A.eta * t)  # an offset and a small 1.2X whirl
+    states = np.column_stack((w.real, w.imag, np.zeros_like(t), np.zeros_like(t)))
+    sol = Solution(problem, "offset", t.copy(), states, np.zeros(t.size, dtype=np.int64))
+    spectrum = steady_spectrum(sol)
+    assert spectrum is not None and spectrum.direction == FORWARD
+    assert abs(spectrum.dominant_order - 1.2) <= spectrum.resolution / FIG3A.eta

@@ -122,12 +122,18 @@ def _refine_peak(amplitude: np.ndarray, peak: int) -> tuple[float, float]:
     350): with ``a`` the ratio of the larger neighbour to the peak bin, the line lies
     ``d = (2 a - 1) / (a + 1)`` bins towards that neighbour, and the window's response
     there, ``sinc(d) / (1 - d^2)``, restores its amplitude. Exact for a lone line; a peak
-    at the edge of the array is returned unrefined.
+    at the edge of the array, or one beside a larger bin (not a local maximum), is
+    returned unrefined.
     """
     b = float(amplitude[peak])
     if peak == 0 or peak == amplitude.size - 1 or b <= 0.0:
         return 0.0, b
     left, right = float(amplitude[peak - 1]), float(amplitude[peak + 1])
+    if max(left, right) > b:
+        # not a local maximum: the larger neighbour belongs to another line (the 0X one,
+        # excluded from the search), so the two-bin interpolation does not apply (and
+        # its offset would reach 1, where the window response formula divides by zero)
+        return 0.0, b
     side = 1.0 if right >= left else -1.0
     ratio = max(left, right) / b
     offset = min(1.0, max(0.0, (2.0 * ratio - 1.0) / (ratio + 1.0)))
