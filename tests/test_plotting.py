@@ -179,7 +179,7 @@ def test_long_run_figures_draw_a_bounded_number_of_points():
     sol = whirl(10_000, 100, 1.0)  # 10,000 periods at 100 samples per period
     fig = orbit_figure([sol], "long")
     drawn = sum(line.get_xdata().size for line in fig.axes[0].get_lines())
-    assert drawn < 50_000
+    assert drawn < display.FADED_POINTS + display.FINE_POINTS + 1000
     fig = time_figure([sol], "long")
     for ax in fig.axes:
         for line in ax.get_lines():

@@ -34,7 +34,7 @@ from rubcli.analysis.spectrum import default_transient
 from rubcli.solution import Solution
 
 ENVELOPE_BINS = 2000  # time plots: at most 2 * ENVELOPE_BINS points per trace
-FADED_POINTS = 20_000  # orbit plots: at most this many points of the faded transient
+FADED_POINTS = 60_000  # orbit plots: at most this many points of the faded transient
 FADED_POINTS_PER_PERIOD = 200  # ... refined up to this many per period while they fit
 FINE_POINTS_PER_PERIOD = 720  # the bold steady orbit: points per forcing period
 FINE_POINTS = 20_000  # ... and at most this many in all
@@ -198,7 +198,7 @@ def period_subset(
     period = solution.problem.params.period
     if stop <= max_points:
         per_period = (stop - 1) / max((t[stop - 1] - t[0]) / period, 1e-300)
-        refine = int(min(max_points // stop, math.ceil(points_per_period / per_period)))
+        refine = int(min(max(1, max_points // stop), math.ceil(points_per_period / per_period)))
         if refine <= 1:
             return solution.states[:stop, :2].copy()
         frac = np.arange(refine) / refine
