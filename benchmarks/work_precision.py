@@ -42,7 +42,7 @@ from rubcli.problem import Problem
 HERE = Path(__file__).resolve().parent
 FIG3 = {"nu": 0.009478, "eta": 0.7818, "e": 7.52, "Rp": 46.16, "phi0": 0.0}
 START = (0.88544, -0.8039, 0.0, 0.0)  # Figure 3 caption
-RUBCLI = ("analytic", "analytic-polar", "dop853-jit")
+RUBCLI = ("analytic", "analytic-polar", "dop853-jit", "taylor")
 SCIPY = ("rk45", "dop853", "radau", "bdf", "lsoda")
 TARGET = 1e-6
 

@@ -40,4 +40,5 @@ def compiled_kernels():
         solve(problem, "analytic-polar", analytic_tol=1e-5)
         solve(problem, "analytic", analytic_tol=1e-5)
         solve(problem, "dop853-jit", rtol=1e-6, atol=1e-8)
+        solve(problem, "taylor", rtol=1e-6, atol=1e-8)
         solve(problem, "radau", rtol=1e-4, atol=1e-6)

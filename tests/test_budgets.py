@@ -21,7 +21,11 @@ from typer.testing import CliRunner
 from rubcli import model
 from rubcli.case import load_case
 from rubcli.cli.app import app
-from rubcli.solvers import METHODS
+from rubcli.model import ModelParams
+from rubcli.problem import Problem
+from rubcli.solution import FAILED
+from rubcli.solvers import METHODS, solve
+from rubcli.solvers.registry import NAMES as ALL_METHODS
 
 runner = CliRunner()
 
@@ -136,8 +140,24 @@ def test_report_has_time_in_regimes_and_energy_residual(tmp_path):
     assert entry["contact_fraction"] == pytest.approx(1.0)
     # dop853 at rtol 1e-10 balances to quadrature level at 50 samples per period
     # (the residual falls 16-20x per doubling of the samples: tests/test_energy.py)
-    assert entry["energy"]["energy_residual"] == entry["energy_residual"]
     assert 0.0 <= entry["energy_residual"] < entry["energy"]["energy_quadrature_error"] < 1e-4
+    # the reported terms: the mechanical energy change recomputed from the CSV's first and
+    # last states (kinetic + rotor spring + stator K (z - 1)^2 / 2), and the residual from
+    # the reported totals
+    energy = entry["energy"]
+    rows = read_rows(out / "dop853.csv")
+
+    def mechanical(row):
+        x, y, vx, vy = (float(row[k]) for k in ("x", "y", "vx", "vy"))
+        z = math.hypot(x, y)
+        return 0.5 * (vx * vx + vy * vy + x * x + y * y) + 0.5 * 100.0 * max(z - 1.0, 0.0) ** 2
+
+    change = mechanical(rows[-1]) - mechanical(rows[0])
+    assert energy["energy_change"] == pytest.approx(change, rel=1e-9, abs=1e-12)
+    balance = energy["work_unbalance"] - energy["damping_dissipation"]
+    balance -= energy["friction_dissipation"]
+    recomputed = abs(energy["energy_change"] - balance) / energy["energy_throughput"]
+    assert entry["energy_residual"] == pytest.approx(recomputed, rel=1e-6, abs=1e-15)
     names = [row["regime_name"] for row in read_rows(out / "dop853.csv")]
     assert set(names) == {"stick", "slip+"}
     assert "energy.png" not in {p.name for p in out.iterdir()}  # not by default
@@ -149,3 +169,24 @@ def test_energy_plot_when_asked(tmp_path):
     assert (out / "energy.png").stat().st_size > 10_000
     assert "energy.png" in report["files"]
     assert "orbit.png" not in report["files"]
+
+
+ABSURD = {
+    "K = 1e200": {"K": 1e200},
+    "K = 1e308, e = 1e300": {"K": 1e308, "e": 1e300},
+}
+
+
+@pytest.mark.parametrize("method", sorted(ALL_METHODS))
+@pytest.mark.parametrize("label", list(ABSURD))
+def test_absurd_magnitudes_fail_cleanly_within_the_budget(method, label):
+    """Issue 12, defects 4 and 5: parameters beyond floating-point sense end as a failed
+    method with its reason, within the step budget: no hang (the analytic methods once
+    looped for ever balancing a matrix whose norm overflowed), no exception (dop853-jit
+    once raised ZeroDivisionError)."""
+    params = ModelParams(**{"nu": 0.009478, "eta": 0.7818, "e": 7.52, "Rp": 46.16, **ABSURD[label]})
+    problem = Problem.from_periods(params, (0.88544, -0.8039, 0.0, 0.0), 50, 100)
+    sol = solve(problem, method, max_steps=1000, max_wall_time_s=1e9)
+    assert sol.status == FAILED
+    assert sol.message and "Traceback" not in sol.message
+    assert sol.t.size >= 1 and sol.stats["nsteps"] <= 1000

@@ -18,6 +18,7 @@ import pytest
 from scipy.optimize import minimize_scalar
 from typer.testing import CliRunner
 
+from rubcli import model
 from rubcli.analysis.forces import (
     DIRECTIONS,
     band_radii,
@@ -293,10 +294,23 @@ def test_without_friction_the_system_is_symmetric_and_decays_at_nu():
     np.testing.assert_allclose(em.freq_1[contact], hand_1, rtol=1e-10)
     assert np.all(np.isnan(em.max_real[~contact]))
     assert em.positive_fraction == 0.0
-    # the stiffness matrix is symmetric and its eigenvalues are real
-    S = paper_stiffness(1.1, 0.4, K, 0.0)
-    np.testing.assert_allclose(S, S.T, rtol=0, atol=0)
+    # the model's stiffness block I + K J (what the solvers use) is symmetric at mu = 0,
+    # and J is the Jacobian of the force (1 - 1/z)(x, y): central differences of it
+    A, _ = model.linearised_contact_system((1.1, 0.4, 0.0, 0.0), params(K, 0.0), 0.0)
+    S = -A[2:, :2]
+    np.testing.assert_allclose(S, S.T, rtol=1e-15, atol=0)
     assert np.all(np.isreal(np.linalg.eigvals(S)))
+
+    def force(x, y):
+        z = math.hypot(x, y)
+        return np.array([(1 - 1 / z) * x, (1 - 1 / z) * y])
+
+    h = 1e-6
+    fd = np.column_stack(
+        [(force(1.1 + h, 0.4) - force(1.1 - h, 0.4)) / (2 * h),
+         (force(1.1, 0.4 + h) - force(1.1, 0.4 - h)) / (2 * h)]
+    )  # fmt: skip
+    np.testing.assert_allclose(S, np.eye(2) + K * fd, rtol=1e-8)
 
 
 def test_eigen_map_matches_model_eigenvalues_with_friction():

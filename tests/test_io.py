@@ -24,8 +24,18 @@ def test_atomic_path_replaces_only_on_success(tmp_path):
 
 
 def test_written_files_get_the_usual_mode(tmp_path):
-    path = io.write_text(tmp_path / "a.txt", "x")
-    assert path.stat().st_mode & 0o044  # readable by others unless the umask forbids it
+    """A staged file gets the mode a plain open() would give it: 0o666 less the umask
+    (a temp file's own 0o600 must not leak into the output)."""
+    import os
+    import stat
+
+    for umask in (0o022, 0o077, 0o002):
+        old = os.umask(umask)
+        try:
+            path = io.write_text(tmp_path / f"a{umask:o}.txt", "x")
+        finally:
+            os.umask(old)
+        assert stat.S_IMODE(path.stat().st_mode) == 0o666 & ~umask
 
 
 def test_json_writer_handles_numpy_and_non_finite(tmp_path):

@@ -1,8 +1,10 @@
 """`rubcli stress --quick` through the real CLI, and the suite's make-up.
 
-Asserted as statuses, never as wall-clock limits: every run of every case ends with a
-clean status (``success``, or ``failed`` with a reason: a budget, a switch storm), no
-state is non-finite, every case finds a reference, and the files are complete.
+The quick suite runs here under a step budget only (``QUICK_BUDGET``'s 0.5 s wall budget
+is replaced by one no run reaches), so which runs finish does not depend on the machine:
+every run of every case must succeed, every case finds a reference, each run is as
+accurate as its method can be against an exact or confirmed reference, and exactly the
+runs that are not carry a warning. Never a wall-clock limit.
 """
 
 from __future__ import annotations
@@ -18,11 +20,15 @@ from rubcli.analysis import stress
 from rubcli.cli.app import app
 from rubcli.solvers import METHODS
 
+STEP_BUDGET = {"max_wall_time_s": 1e6, "max_steps": 20_000}  # the quick step budget
+
 
 @pytest.fixture(scope="module")
 def quick_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("stress") / "quick"
-    result = CliRunner().invoke(app, ["stress", "--quick", "--out", str(out)])
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(stress, "QUICK_BUDGET", STEP_BUDGET)
+        result = CliRunner().invoke(app, ["stress", "--quick", "--out", str(out)])
     with open(out / "stress.csv", newline="") as handle:
         rows = list(csv.DictReader(handle))
     return result, out, rows
@@ -39,16 +45,51 @@ def test_quick_suite_ends_cleanly_everywhere(quick_run):
     }
     for row in rows:
         where = f"{row['case']} / {row['method']}: {row['message']}"
-        assert row["status"] in ("success", "failed"), where
-        assert row["message"], where
+        # within 20,000 steps every method finishes every quick case: no storm, no stall
+        assert row["status"] == "success", where
+        assert row["message"] == "reached the end of the time span", where
         assert row["nan"] == "0", where
-        assert float(row["periods"]) <= float(row["target_periods"]) * (1 + 1e-12), where
-        if row["status"] == "success":
-            assert float(row["periods"]) == pytest.approx(float(row["target_periods"])), where
-            assert math.isfinite(float(row["energy_residual"])), where
+        assert float(row["periods"]) == pytest.approx(float(row["target_periods"])), where
+        assert math.isfinite(float(row["energy_residual"])), where
+
+
+# Runs that succeed with a wrong orbit: the paper's fixed-step linearisation (400 steps a
+# period; 100 on the stiff rubs) cannot follow a stiff stator or a deep start
+# (docs/stability.md). Each must carry a warning; every other run must be accurate.
+WRONG_BUT_SUCCESSFUL = {
+    ("sync-K176000", "analytic"): "energy residual",
+    ("sync-K1.75e+06", "analytic"): "energy residual",
+    ("fig3-K1760-mu0.05", "analytic"): "against the confirmed reference",
+    ("fig3-K1760-mu0.05", "analytic-polar"): "against the confirmed reference",
+    ("fig3-K176000-mu0.05", "analytic"): "against the confirmed reference",
+    ("fig3-K176000-mu0.05", "analytic-polar"): "against the confirmed reference",
+    ("fig3-K1.75e+06-mu0.1", "analytic"): "against the confirmed reference",
+    ("fig3-K1.75e+06-mu0.1", "analytic-polar"): "against the confirmed reference",
+    ("deep-start", "analytic"): "against the confirmed reference",
+    ("deep-start", "analytic-polar"): "against the confirmed reference",
+}
+
+
+def test_quick_suite_is_accurate_or_warns(quick_run):
+    """Every quick case is short enough to be predictable: its reference is exact or
+    confirmed by another method to 1e-4. Against it every run is within 1e-3 clearances
+    (the adaptive analytic methods at tol 1e-6 and the scipy methods at rtol 1e-8; the
+    fixed-step analytic ones within 1e-2), or, for the known failures of the fixed-step
+    analytic methods, carries a warning."""
+    _, _, rows = quick_run
+    for row in rows:
+        where = f"{row['case']} / {row['method']}: error {row['error']} {row['warning']}"
+        exact = row["reference"].startswith("exact")
+        assert exact or row["reference"] == "dop853-jit rtol=1e-12", where
+        expected = WRONG_BUT_SUCCESSFUL.get((row["case"], row["method"]))
+        if expected is None:
+            assert row["warning"] == "", where
+            # the fixed-step analytic methods' O(h^2) error reaches ~4e-3 (stick-slip)
+            fixed_step = row["method"] in ("analytic", "analytic-polar")
+            assert float(row["error"]) < (stress.SUSPECT_EXACT_ERROR if fixed_step else 1e-3), where
         else:
-            # a budget or the storm guard: a failure that says why, never a hang
-            assert "budget exhausted" in row["message"] or "storm" in row["message"], where
+            assert expected in row["warning"], where
+            assert float(row["error"]) > (1e-3 if "energy" in expected else 1e-2), where
 
 
 def test_quick_suite_measures_every_case_against_a_reference(quick_run):
@@ -111,6 +152,11 @@ def test_warnings_flag_a_wrong_success():
     run.energy_residual, run.error = 1e-9, 0.5
     assert stress.warning_of(run, exact_reference=False) == ""  # chaos: not a verdict
     assert "error 0.5 against the exact solution" in stress.warning_of(run, exact_reference=True)
+    confirmed = stress.warning_of(run, exact_reference=False, confirmed_reference=True)
+    assert confirmed == "error 0.5 against the confirmed reference"
+    run.error = 0.5 * stress.SUSPECT_EXACT_ERROR
+    assert stress.warning_of(run, exact_reference=False, confirmed_reference=True) == ""
+    run.error = 0.5
     run.status = "failed"
     assert stress.warning_of(run, exact_reference=True) == ""  # already says it failed
 

@@ -12,14 +12,19 @@ adaptive steps, ``analytic_tol = 1e-6``), under a per-run budget (``max_wall_tim
   (``analysis.reference.exact_reference``), including a free orbit that only *touches*
   the clearance (penetration below the grazing tolerance, so no contact force ever acts),
   and the synchronous full annular rub started on its orbit;
-- otherwise **numerical**: DOP853 at ``rtol = atol = 1e-12`` under the same budget; if
-  that run does not finish, Radau at ``1e-10``; failing both, the tightest successful
-  dop853/radau run of the suite itself. The reference used is named in every row.
+- otherwise **numerical**: DOP853 at ``rtol = atol = 1e-12`` under the same budget (run
+  as ``dop853-jit``: scipy's DOP853 step for step, compiled); if that run does not
+  finish, Radau at ``1e-10``; failing both, the tightest successful dop853/radau run of
+  the suite itself. The reference used is named in every row. A numerical reference is
+  *confirmed* over the case's horizon when a different method of the suite (rk45, radau
+  or lsoda at the suite's rtol 1e-8) agrees with it within ``CONFIRM_ERROR`` = 1e-4: the
+  horizon is then inside the horizon of predictability and the reference is trusted.
 
 Each run also gets its energy residual (``analysis.energy``), its largest penetration
 and a check for non-finite values. A run that reports success is given a *warning* when
 its energy balance fails by more than 1e-2 of the throughput or it is more than 1e-2
-clearances from an exact reference: a wrong orbit must not pass unremarked. Nothing here
+clearances from an exact or a confirmed reference: a wrong orbit must not pass
+unremarked. Nothing here
 writes files (``cli/stress.py`` does).
 
 The error is ``max |w - w_ref|`` over the samples the run and its reference share (a
@@ -45,6 +50,7 @@ from rubcli.analysis.regimes import time_in_regimes
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solution import SUCCESS, Solution
+from rubcli.solvers.registry import SPECS, options_for
 
 ERROR = "error"  # status of a run whose solver raised (a bug: never expected)
 
@@ -65,9 +71,12 @@ ADAPTIVE_TOL = 1e-6
 SUSPECT_ENERGY_RESIDUAL = 1e-2
 SUSPECT_EXACT_ERROR = 1e-2
 REFERENCE_RUNS = (
-    ("dop853", {"rtol": 1e-12, "atol": 1e-12}),
+    ("dop853-jit", {"rtol": 1e-12, "atol": 1e-12}),
     ("radau", {"rtol": 1e-10, "atol": 1e-12}),
 )
+# A numerical reference is trusted when one of these suite runs agrees with it this well.
+CONFIRM_METHODS = ("rk45", "radau", "lsoda")
+CONFIRM_ERROR = 1e-4
 TOUCH_CHECK_POINTS_PER_PERIOD = 4000  # grid on which a touching free orbit is checked
 
 
@@ -340,7 +349,9 @@ def stress_reference(
                 "exact free flight (touching)", problem.t_eval, states, exact=True
             )
     for method, options in REFERENCE_RUNS:
-        solution = solve(problem, method, **{**SOLVER_OPTIONS, **budget, **options})
+        solution = solve(
+            problem, method, **options_for(method, {**SOLVER_OPTIONS, **budget, **options})
+        )
         if solution.success and np.all(np.isfinite(solution.states)):
             return StressReference(
                 f"{method} rtol={options['rtol']:g}", solution.t, solution.states
@@ -391,19 +402,25 @@ def measure_run(case: StressCase, solution: Solution, target_periods: float) -> 
 
 
 def method_variants(methods: Iterable[str]) -> list[tuple[str, str, dict]]:
-    """(label, method, extra options): every method at the case defaults, and each analytic
-    method also with adaptive steps (``analytic_tol = ADAPTIVE_TOL``)."""
+    """(label, method, extra options): every method at the case defaults, and each
+    fixed-step method with an adaptive switch (the analytic methods' ``analytic_tol``)
+    also with adaptive steps at ``ADAPTIVE_TOL``."""
     variants = []
     for method in methods:
         variants.append((method, method, {}))
-        if method.startswith("analytic"):
+        adaptive = SPECS[method].adaptive  # a fixed-step method's adaptive switch
+        if adaptive is not None:
             label = f"{method} tol={ADAPTIVE_TOL:g}"
-            variants.append((label, method, {"analytic_tol": ADAPTIVE_TOL}))
+            variants.append((label, method, {adaptive: ADAPTIVE_TOL}))
     return variants
 
 
-def warning_of(run: StressRun, exact_reference: bool) -> str:
-    """Why a run that reports success should not be trusted ("" if nothing is wrong)."""
+def warning_of(run: StressRun, exact_reference: bool, confirmed_reference: bool = False) -> str:
+    """Why a run that reports success should not be trusted ("" if nothing is wrong).
+
+    Its error counts against an exact reference, or a numerical one that another method
+    confirms (``confirmed_reference``); against an unconfirmed one (a chaotic case beyond
+    its horizon) it is no verdict."""
     if run.status != SUCCESS:
         return ""
     reasons = []
@@ -413,6 +430,8 @@ def warning_of(run: StressRun, exact_reference: bool) -> str:
         reasons.append(f"energy residual {run.energy_residual:.2g}")
     if exact_reference and run.error is not None and not run.error <= SUSPECT_EXACT_ERROR:
         reasons.append(f"error {run.error:.2g} against the exact solution")
+    elif confirmed_reference and run.error is not None and not run.error <= SUSPECT_EXACT_ERROR:
+        reasons.append(f"error {run.error:.2g} against the confirmed reference")
     return "; ".join(reasons)
 
 
@@ -435,7 +454,9 @@ def run_case(
         try:
             # a run that blows up is reported in the table, not by numpy warnings
             with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-                solution = solve(problem, method, **{**SOLVER_OPTIONS, **budget, **extra})
+                solution = solve(
+                    problem, method, **options_for(method, {**SOLVER_OPTIONS, **budget, **extra})
+                )
         except Exception as exc:  # noqa: BLE001 - a solver that raises is a reported bug
             run = StressRun(
                 case=case.name, method=label, status=ERROR,
@@ -451,6 +472,7 @@ def run_case(
         if on_run is not None:
             on_run(run)
     reference = stress_reference(case, problem, budget, solve)
+    independent = reference is not None  # not one of the runs it would be confirmed by
     if reference is None:
         reference = _fallback_reference(solutions)
     for run in runs:
@@ -458,8 +480,22 @@ def run_case(
         if reference is not None and solution is not None:
             run.reference = reference.label
             run.error = position_error(solution, reference)
-        run.warning = warning_of(run, reference is not None and reference.exact)
+    exact = reference is not None and reference.exact
+    confirmed = independent and not exact and _confirmed(runs)
+    for run in runs:
+        run.warning = warning_of(run, exact, confirmed)
     return runs
+
+
+def _confirmed(runs: list[StressRun]) -> bool:
+    """Whether another method of the suite agrees with the reference within CONFIRM_ERROR."""
+    return any(
+        run.method in CONFIRM_METHODS
+        and run.status == SUCCESS
+        and run.error is not None
+        and run.error <= CONFIRM_ERROR
+        for run in runs
+    )
 
 
 def _fallback_reference(solutions: dict[str, Solution]) -> StressReference | None:

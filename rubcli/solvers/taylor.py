@@ -1,0 +1,182 @@
+"""``taylor``: an adaptive Taylor-series integrator of the rub equations, compiled.
+
+Scheme: Taylor's method of order N = ceil(-ln(rtol) / 2) + 1 (8 at rtol 1e-6, 13 at
+1e-10), its coefficients computed by the automatic-differentiation recurrences of the
+regime-locked right-hand side (``taylor_kernels.taylor_coefficients``: forcing, z =
+sqrt(x^2 + y^2), 1/z, the products of the contact law and of the rolling law), the step
+by Jorba and Zou's rule (the last two terms below max(atol, rtol |s|)), no rejected steps.
+It is the approach of heyoka (Biscani and Izzo 2021), written for this one system, with
+the events of the other methods located on each step's Taylor polynomial.
+
+Its order is N; its local error per step is about the tolerance, and its dense output
+(the polynomial) carries the same accuracy between steps, so samples and events come at
+no extra cost. The step is limited by the radius of convergence of the series, about
+1 / omega for the fastest frequency omega: on stiff stators (large K, omega ~ sqrt(K)) it
+takes many steps like every explicit method.
+
+Events follow the scipy methods' rules (``scipy_ivp``, ``dop853_jit``): one regime at a
+time, the events of the regime found on each step's polynomial by a transcription of
+``events.first_crossing`` on a scan grid and applied by ``events.apply_event``'s rule
+(Filippov at v_r = 0, rolling in stick); see ``taylor_kernels``. ``compiled_events=False``
+hands every step that might hold an event to the Python event code
+(``events.earliest_event`` on the step's polynomial, ``events.apply_event``): the tests
+check that both give the same events and states. ``compiled=False`` is the same as
+``compiled_events=False`` (the series themselves are always compiled).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rubcli import model
+from rubcli.problem import Problem
+from rubcli.solution import Solution, SwitchEvent
+from rubcli.solvers import compiled as kernels
+from rubcli.solvers import driver, register
+from rubcli.solvers.compiled import taylor as taylor_kernels
+from rubcli.solvers.dop853_jit import EVENT_BUFFER
+from rubcli.solvers.events import KIND_NAMES, NO_EVENT, earliest_event, start_flags
+from rubcli.solvers.scipy_ivp import RESTART_BAND_FLOOR, _rhs_functions, fill_samples
+
+CHUNK_STEPS = 2000  # steps per kernel call: budget and progress checks between
+
+
+class TaylorDense:
+    """A step's Taylor polynomial: the state at a scalar time (4,) or at times (4, n)."""
+
+    def __init__(self, t0: float, C: np.ndarray, order: int):
+        self.t0, self.C, self.order = t0, C[:, : order + 1].copy(), order
+
+    def __call__(self, t):
+        dt = np.asarray(t, dtype=float) - self.t0
+        if dt.ndim == 0:
+            dt = float(dt)
+            v = self.C[:, self.order].copy()
+            for k in range(self.order - 1, -1, -1):
+                v = v * dt + self.C[:, k]
+            return v
+        out = np.empty((4, dt.size))
+        for i in range(4):
+            v = np.full(dt.shape, self.C[i, self.order])
+            for k in range(self.order - 1, -1, -1):
+                v = v * dt + self.C[i, k]
+            out[i] = v
+        return out
+
+
+class TaylorStepper:
+    """The compiled Taylor method as a driver stepper (``driver.integrate``).
+
+    One ``advance`` is one call of ``taylor_kernels.advance_taylor``: up to
+    ``CHUNK_STEPS`` steps with the events it locates and applies itself (recorded here,
+    with the storm guard), or, with ``compiled_events=False`` (or a step the kernel hands
+    back), the pending step's events located by the Python event code on its polynomial.
+    """
+
+    def __init__(self, run: driver.Run, rtol: float, atol: float, compiled_events: bool):
+        self.pars = np.array(model.params_vector(run.params))
+        self.restart_band = max(RESTART_BAND_FLOOR, rtol)
+        self.rtol, self.atol = max(rtol, 100 * np.finfo(float).eps), atol
+        self.order = taylor_kernels.taylor_order(self.rtol)
+        self.compiled_events = compiled_events
+        self.C = np.zeros((4, taylor_kernels.MAX_ORDER + 1))
+        self.info = np.zeros(1, dtype=np.int64)
+        self.ev_tau = np.empty(EVENT_BUFFER)
+        self.ev_kind = np.empty(EVENT_BUFFER, dtype=np.int64)
+        self.ev_state = np.empty((EVENT_BUFFER, 4))
+        self.ev_regimes = np.empty((EVENT_BUFFER, 2), dtype=np.int64)
+        self.at_event = run.last_kind != NO_EVENT
+        run.state = np.ascontiguousarray(run.state, dtype=float)
+        run.stats.update(nfev=0, n_segments=1, python_steps=0, order=self.order)
+        self.settings = {
+            "rtol": self.rtol,
+            "atol": atol,
+            "order": self.order,
+            "max_steps": run.max_steps,
+            "max_wall_time_s": run.max_wall_time_s,
+            "compiled": True,
+            "compiled_events": compiled_events,
+        }
+
+    def advance(self, run: driver.Run) -> None:
+        stats = run.stats
+        starts = start_flags(run.last_kind if self.at_event else NO_EVENT)
+        chunk = max(1, min(CHUNK_STEPS, run.steps_left))
+        tau, t_new, run.k, steps, reason, run.regime, n_ev, self.at_event = (
+            taylor_kernels.advance_taylor(
+                run.tau, run.state, run.t_end, self.pars, run.regime, self.order, self.rtol,
+                self.atol, run.t_eval, run.states, run.regimes, run.k, chunk, starts, self.C,
+                self.restart_band, self.ev_tau, self.ev_kind, self.ev_state, self.ev_regimes,
+                self.compiled_events, self.info,
+            )
+        )  # fmt: skip
+        run.tau = tau  # the kernel updated the state in place
+        stats["nsteps"] += steps
+        stats["nfev"] = stats["nsteps"]  # one series expansion per step
+        stats["n_segments"] += n_ev
+        taus, kinds = self.ev_tau[:n_ev].tolist(), self.ev_kind[:n_ev].tolist()
+        ev_states, ev_regs = self.ev_state[:n_ev].tolist(), self.ev_regimes[:n_ev].tolist()
+        for i in range(n_ev):  # the events the kernel located and applied
+            run.last_kind = kinds[i]
+            before, after = ev_regs[i]
+            event = SwitchEvent(taus[i], KIND_NAMES[kinds[i]], tuple(ev_states[i]), before, after)
+            if not run.record(event):
+                run.k = int(np.searchsorted(run.t_eval, taus[i], side="right"))
+                return
+        if reason == kernels.STOP_SMALL_STEP:
+            run.fail(f"taylor failed at tau = {tau:.6g}: the step fell below 10 ulp of tau")
+        elif reason == kernels.STOP_PYTHON:
+            run.fail(f"non-finite state at tau = {t_new:.6g}")
+        elif reason == kernels.STOP_EVENT:
+            self._python_event_step(run, t_new)
+
+    def _python_event_step(self, run: driver.Run, t_new: float) -> None:
+        """The pending step [tau, t_new]: the shared event code decides."""
+        run.stats["nsteps"] += 1
+        run.stats["nfev"] = run.stats["nsteps"]
+        run.stats["python_steps"] += 1
+        tau = run.tau
+        dense = TaylorDense(tau, self.C, self.order)
+        grid = np.linspace(tau, t_new, int(self.info[0]) + 1)
+        derivatives = _rhs_functions(run.params, run.regime, True)[2]
+        event = earliest_event(
+            dense, derivatives, grid, run.regime, run.params,
+            run.last_kind if self.at_event else NO_EVENT, self.restart_band,
+        )  # fmt: skip
+        t_stop = event[0] if event else t_new
+        run.k = fill_samples(
+            dense, run.t_eval, run.k, t_stop, run.regime, run.params, run.states, run.regimes
+        )
+        if event is None:
+            run.tau, self.at_event = t_new, False
+            run.state[:] = dense(t_new)
+            return
+        run.stats["n_segments"] += 1
+        if run.switch(event[0], event[1], dense(event[0])):
+            run.state = np.array(run.state, dtype=float)
+            self.at_event = True
+
+
+def solve_taylor(
+    problem: Problem,
+    rtol: float = 1e-8,
+    atol: float = 1e-10,
+    max_steps: int = 5_000_000,
+    max_wall_time_s: float = 600.0,
+    progress=None,
+    compiled: bool = True,
+    compiled_events: bool = True,
+) -> Solution:
+    """Adaptive Taylor series (order from rtol, ``taylor_kernels.taylor_order``) with
+    located events. There is no pure-Python path: ``compiled=False`` only hands every
+    possible event to the Python event code (as ``compiled_events=False``)."""
+    kernels.ensure_fresh()
+    run = driver.Run(
+        problem, "taylor", max_steps=max_steps, max_wall_time_s=max_wall_time_s,
+        progress=progress,
+    )  # fmt: skip
+    stepper = TaylorStepper(run, rtol, atol, bool(compiled_events and compiled))
+    return driver.integrate(run, stepper)
+
+
+register("taylor")(solve_taylor)

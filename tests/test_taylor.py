@@ -1,0 +1,270 @@
+"""taylor: the adaptive Taylor-series method (rubcli/solvers/taylor.py, compiled/taylor.py).
+
+The series are checked by their order: the local error of the order-N polynomial of one
+step against exact solutions (free flight, the synchronous rub with friction, the rolling
+whirl in stick) must fall like h^(N+1). Whole runs must agree with the exact solutions
+to their tolerance, with the Figure 3 references (dop853-jit at 1e-12: the same events,
+states within the tolerance), locate contact switches on the surface, and give the same
+events and states whether the events are located in the kernel or by the Python event
+code (events.earliest_event on the step's polynomial).
+"""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from rubcli import model
+from rubcli.analysis.stress import touching_start
+from rubcli.model import ModelParams
+from rubcli.problem import Problem
+from rubcli.solution import FAILED, SUCCESS
+from rubcli.solvers import METHODS, options_for, solve
+from rubcli.solvers.compiled import taylor as tk
+
+FIG3 = {"nu": 0.009478, "eta": 0.7818, "e": 7.52, "K": 17.6, "Rp": 46.16}
+START = (0.88544, -0.8039, 0.0, 0.0)
+ROLLING = {"nu": 0.01, "eta": 1.0, "e": 0.0, "K": 100.0, "mu": 0.3, "Rp": 2.0}
+
+
+def fig3_problem(mu: float, periods: float, samples: int = 50, **overrides) -> Problem:
+    params = ModelParams(**{**FIG3, **overrides}, mu=mu)
+    return Problem.from_periods(params, START, periods, samples)
+
+
+def rolling_state(p: ModelParams, tau):
+    """The exact rolling backward whirl w = r exp(-i (Rp eta / r) tau) (e = 0)."""
+    r = model.rolling_whirl_radius(p)
+    omega = -p.Rp * p.eta / r
+    w = r * np.exp(1j * omega * np.asarray(tau, dtype=float))
+    v = 1j * omega * w
+    return np.array([w.real, w.imag, v.real, v.imag])
+
+
+def exact_cases():
+    """(name, params, regime, exact state at tau) for each regime's series."""
+    free = ModelParams(nu=0.05, eta=0.7, e=0.05, K=17.6, mu=0.03, Rp=1.0, phi0=0.3)
+    s0 = (0.2, -0.1, 0.3, 0.1)
+
+    def free_exact(tau):
+        return model.free_flight(tau, 0.0, s0, free)
+
+    rub = ModelParams(**FIG3, mu=0.03, phi0=0.4)
+
+    def rub_exact(tau):
+        return model.synchronous_rub(tau, rub)
+
+    rolling = ModelParams(**ROLLING)
+    # a general contact state (z, r', theta' all varying), slipping backwards: scipy's
+    # DOP853 at rtol 1e-13 on the regime-locked right-hand side as the reference
+    slip = ModelParams(**FIG3, mu=0.05, phi0=0.2)
+    s1, t1 = np.array([1.08, -0.35, 0.9, -1.3]), 0.37
+
+    def slip_reference(tau):
+        out = solve_ivp(
+            model.rhs, (t1, tau), s1, method="DOP853", rtol=1e-13, atol=1e-15,
+            args=(slip, model.SLIP_NEGATIVE),
+        )  # fmt: skip
+        return out.y[:, -1]
+
+    return [
+        ("free flight", free, model.FREE, free_exact),
+        ("synchronous rub, slip+", rub, model.SLIP_POSITIVE, rub_exact),
+        ("rolling whirl, stick", rolling, model.STICK, lambda tau: rolling_state(rolling, tau)),
+        ("general contact, slip-", slip, model.SLIP_NEGATIVE, slip_reference),
+    ]
+
+
+@pytest.mark.parametrize("case", exact_cases(), ids=lambda c: c[0])
+@pytest.mark.parametrize("order", [6, 10])
+def test_series_local_error_has_order_n_plus_1(case, order):
+    """One step of the order-N polynomial from an exact state: error ~ C h^(N+1)."""
+    name, params, regime, exact = case
+    pars = np.array(model.params_vector(params))
+    t0 = 0.37
+    C = np.zeros((4, tk.MAX_ORDER + 1))
+    W = np.zeros((tk.WORK_ROWS, tk.WORK_COLS))
+    tk.taylor_coefficients(t0, np.array(exact(t0), dtype=float), pars, regime, order, C, W)
+    out = np.empty(4)
+
+    def error(h):
+        tk.dense_at(t0 + h, t0, C, order, out)
+        return float(np.max(np.abs(out - exact(t0 + h))))
+
+    # the reference of the general case is good to ~1e-13: stay far above it
+    general = name.startswith("general")
+    order_floor, start = (1e-11, 1e-2) if general else (1e-13, 1e-4)
+    h = 4.0  # the largest step of the asymptotic range: error below ``start`` there
+    while error(h) > start:
+        h /= 2.0
+    errors = [error(h), error(h / 2), error(h / 4)]
+    observed = np.log(np.array(errors[:-1]) / errors[1:]) / np.log(2.0)
+    assert errors[-1] > order_floor, errors  # above round-off: the ratio measures truncation
+    assert np.all(np.abs(observed - (order + 1)) < 0.6), (errors, observed)
+
+
+@pytest.mark.parametrize("rtol", [1e-7, 1e-11])
+def test_free_flight_matches_closed_form(rtol):
+    p = ModelParams(nu=0.05, eta=0.7, e=0.05, K=17.6, mu=0.03, Rp=1.0, phi0=0.3)
+    prob = Problem.from_periods(p, (0.2, -0.1, 0.3, 0.1), 10, 20)
+    sol = solve(prob, "taylor", rtol=rtol, atol=rtol / 100)
+    assert sol.success and not sol.events
+    exact = model.free_flight(prob.t_eval, 0.0, prob.initial, p)
+    err = np.max(np.abs(sol.states.T - exact))
+    assert err < 30 * rtol
+    assert err > 1e-16  # not a closed form in disguise
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.03])
+def test_synchronous_rub_matches_exact_solution(mu):
+    p = ModelParams(**FIG3, mu=mu)
+    prob = Problem.from_periods(p, tuple(model.synchronous_rub(0.0, p)), 10, 20)
+    errors = []
+    for rtol in (1e-6, 1e-9, 1e-12):
+        sol = solve(prob, "taylor", rtol=rtol, atol=rtol / 100)
+        assert sol.success and not sol.events
+        errors.append(np.max(np.abs(sol.states.T - model.synchronous_rub(prob.t_eval, p))))
+        assert errors[-1] < 30 * rtol
+    # tolerance proportionality: each 1000x tighter rtol gains at least 100x
+    assert errors[1] < errors[0] / 100 and errors[2] < errors[1] / 100
+
+
+def test_stays_on_exact_rolling_whirl():
+    p = ModelParams(**ROLLING)
+    prob = Problem(p, tuple(rolling_state(p, 0.0)), np.linspace(0.0, 30.0, 301))
+    sol = solve(prob, "taylor", rtol=1e-10, atol=1e-12)
+    assert sol.success and not sol.events
+    assert np.all(sol.regimes == model.STICK)
+    assert np.max(np.abs(sol.states.T - rolling_state(p, prob.t_eval))) < 1e-8
+
+
+def dry_whip_problem(periods: float) -> Problem:
+    """Figure 3 with mu = 0.05 from period 67 of the reference run, just before the
+    rotor first sticks (at period 68.3; before it the transient is chaotic, so runs at
+    different tolerances part after some 60 periods and stick at different times)."""
+    p = ModelParams(**FIG3, mu=0.05)
+    lead = Problem.from_periods(p, START, 67, 1)
+    s0 = solve(lead, "dop853-jit", rtol=1e-13, atol=1e-15).states[-1]
+    t0 = float(lead.t_eval[-1])
+    return Problem(p, tuple(s0), np.linspace(t0, t0 + periods * p.period, 50 * periods + 1))
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.03, "stick"])
+def test_agrees_with_figure3_reference(mu):
+    """The Figure 3 case against dop853-jit at 1e-12 (the reference solver of compare):
+    the same events (contact, slip reversals; stick entries and exits in the dry whip)
+    within the tolerance, the same samples within it."""
+    prob = dry_whip_problem(3) if mu == "stick" else fig3_problem(mu, 10)
+    ref = solve(prob, "dop853-jit", rtol=1e-12, atol=1e-14)
+    sol = solve(prob, "taylor", rtol=1e-10, atol=1e-12)
+    assert sol.status == ref.status == SUCCESS
+    assert [e.kind for e in sol.events] == [e.kind for e in ref.events]
+    assert len(sol.events) > 0
+    if mu == "stick":
+        assert {"stick_entry", "stick_exit"} <= {e.kind for e in sol.events}
+    times = np.array([e.tau for e in sol.events]) - [e.tau for e in ref.events]
+    assert np.max(np.abs(times)) < 1e-6
+    assert np.array_equal(sol.regimes, ref.regimes)
+    assert np.max(np.abs(sol.w - ref.w)) < 1e-6
+
+
+def test_contact_switches_lie_on_the_surface():
+    sol = solve(fig3_problem(0.03, 10), "taylor", rtol=1e-9, atol=1e-11)
+    switches = [e for e in sol.events if e.kind in ("contact_entry", "contact_exit")]
+    assert len(switches) > 20
+    z = np.array([math.hypot(e.state[0], e.state[1]) for e in switches])
+    assert np.max(np.abs(z - 1.0)) < 1e-12
+
+
+@pytest.mark.parametrize(
+    ("K", "mu", "periods"), [(17.6, 0.03, 10), (17.6, 0.05, 10), (1.76e4, 0.03, 0.5)]
+)  # K = 1.76e4: impacts with slip reversals and stick
+def test_compiled_events_match_the_python_event_code(K, mu, periods):
+    """Events located in the kernel (a transcription of events.first_crossing on the
+    step's polynomial, roots._apply_event) against the same steps with every step that
+    may hold an event handed to events.earliest_event / apply_event: the same events at
+    the same times, the same steps, the same states to round-off."""
+    prob = fig3_problem(mu, periods, K=K)
+    fast = solve(prob, "taylor", rtol=1e-9, atol=1e-11)
+    slow = solve(prob, "taylor", rtol=1e-9, atol=1e-11, compiled_events=False)
+    assert fast.status == slow.status == SUCCESS
+    assert slow.stats["python_steps"] > 0 and fast.stats["python_steps"] == 0
+    assert [e.kind for e in fast.events] == [e.kind for e in slow.events]
+    assert len(fast.events) > 0
+    if K > 1e3:
+        assert {"stick_entry", "stick_exit", "slip_reversal"} <= {e.kind for e in fast.events}
+    times = np.array([e.tau for e in fast.events]) - [e.tau for e in slow.events]
+    assert np.max(np.abs(times)) < 1e-11
+    assert fast.stats["nsteps"] == slow.stats["nsteps"]
+    assert np.array_equal(fast.regimes, slow.regimes)
+    assert np.max(np.abs(fast.states - slow.states)) < 1e-9
+
+
+def test_stiff_persistent_contact_agrees_with_dop853_jit():
+    """K = 1.75e6 on the synchronous rub, raised off it: the fast contact mode rings."""
+    p = ModelParams(**{**FIG3, "K": 1.75e6}, mu=0.0)
+    r = model.synchronous_rub_radii(p)[-1]
+    s0 = model.synchronous_rub(0.0, p, r)
+    s0[:2] *= 1.0 + 0.5 * (r - 1.0)
+    prob = Problem.from_periods(p, tuple(s0), 0.1, 200)
+    ref = solve(prob, "dop853-jit", rtol=1e-12, atol=1e-14)
+    sol = solve(prob, "taylor", rtol=1e-10, atol=1e-12)
+    assert sol.success and ref.success and not sol.events
+    assert np.max(np.abs(sol.w - ref.w)) < 1e-8
+
+
+def test_budgets_progress_and_registration():
+    assert "taylor" in METHODS
+    assert options_for("taylor", {"rtol": 1e-6, "atol": 1e-8, "steps_per_period": 9}) == {
+        "rtol": 1e-6,
+        "atol": 1e-8,
+    }
+    prob = fig3_problem(0.03, 10)
+    short = solve(prob, "taylor", rtol=1e-8, atol=1e-10, max_steps=50)
+    assert short.status == FAILED and "step" in short.message
+    assert 1 < short.t.size < prob.t_eval.size
+    seen = []  # progress: between kernel chunks (2000 steps) and at the end
+    long = fig3_problem(0.03, 100)
+    sol = solve(long, "taylor", rtol=1e-8, atol=1e-10, progress=seen.append)
+    assert sol.success and seen[-1] == long.t_eval[-1] and len(seen) >= 2
+    assert np.all(np.diff(seen) > 0)
+    assert sol.settings["order"] == tk.taylor_order(1e-8) == sol.stats["order"]
+
+
+@pytest.mark.parametrize("depth", [1e-5, 1e-8])
+def test_shallow_contact_is_found_as_by_dop853_jit(depth):
+    """A free orbit scaled to penetrate the clearance by ``depth`` (e = 0: free flight is
+    linear, so scaling the start scales the orbit): the series pre-check must not clear
+    the step that holds the contact. Same events as dop853-jit, on the surface."""
+    p = ModelParams(nu=0.05, eta=0.7818, e=0.0, K=17.6, mu=0.1, Rp=46.16)
+    start, touch = touching_start(p, (0.3, -0.5, 0.4, 0.6))
+    prob = Problem.from_periods(p, tuple(np.array(start) * (1.0 + depth)), 3, 50)
+    ref = solve(prob, "dop853-jit", rtol=1e-12, atol=1e-14)
+    sol = solve(prob, "taylor", rtol=1e-12, atol=1e-14)
+    assert sol.success and ref.success
+    kinds = [e.kind for e in sol.events]
+    assert kinds[0] == "contact_entry" and kinds[-1] == "contact_exit"
+    assert kinds == [e.kind for e in ref.events]
+    assert abs(sol.events[0].tau - touch) < 0.1
+    times = np.array([e.tau for e in sol.events]) - [e.tau for e in ref.events]
+    assert np.max(np.abs(times)) < 1e-8
+
+
+def test_precheck_flags_a_shallow_crossing_and_clears_a_clear_step():
+    """The series pre-check on one short step over the apex of an orbit that penetrates
+    by 1e-5: it must flag the step (the surface polynomial peaks above zero there); on
+    the same orbit shrunk by 1% (the apex 1e-2 inside) it must clear it."""
+    p = ModelParams(nu=0.05, eta=0.7818, e=0.0, K=17.6, mu=0.1, Rp=46.16)
+    start, touch = touching_start(p, (0.3, -0.5, 0.4, 0.6))
+    pars = np.array(model.params_vector(p))
+    order, h = 16, 0.1
+    C = np.zeros((4, tk.MAX_ORDER + 1))
+    W = np.zeros((tk.WORK_ROWS, tk.WORK_COLS))
+    flags = []
+    for scale in (1.0 + 1e-5, 0.99):
+        t0 = touch - h / 2
+        s0 = model.free_flight(t0, 0.0, np.array(start) * scale, p)
+        tk.taylor_coefficients(t0, s0, pars, model.FREE, order, C, W)
+        flags.append(bool(tk._may_have_event(C, order, h, model.FREE, pars, W, 1e-14)))
+    assert flags == [True, False]
