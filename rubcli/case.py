@@ -45,7 +45,7 @@ from rubcli.solvers import registry
 MethodName = Literal[registry.NAMES]  # every method of the registry
 KNOWN_METHODS: tuple[str, ...] = get_args(MethodName)
 
-PlotName = Literal["orbit", "time", "energy"]
+PlotName = Literal["orbit", "time", "energy", "spectrum"]
 KNOWN_PLOTS: tuple[str, ...] = get_args(PlotName)
 DEFAULT_PLOTS: tuple[str, ...] = ("orbit", "time")  # "energy" only when asked
 

@@ -27,6 +27,7 @@ import numpy as np
 
 from rubcli.analysis import response as rsp
 from rubcli.analysis.reference import Reference, position_errors, reference_solution
+from rubcli.analysis.spectrum import FullSpectrum, steady_spectrum
 from rubcli.analysis.synchronous import synchronous_rubs
 from rubcli.problem import Problem
 from rubcli.solution import Solution
@@ -134,6 +135,8 @@ class MethodRun:
     error_final: float | None
     error_until_tau: float | None
     response: MethodResponse | None = None
+    spectrum: FullSpectrum | None = None  # full spectrum over the steady span
+    omega_scale: float | None = None  # rad/s per rad/tau ([physical] case)
 
     @property
     def method(self) -> str:
@@ -151,6 +154,9 @@ class MethodRun:
             "error_final": self.error_final,
             "error_until_tau": self.error_until_tau,
         }
+        entry["spectrum"] = (
+            None if self.spectrum is None else self.spectrum.to_dict(self.omega_scale)
+        )
         if self.response is not None:
             entry["response"] = self.response.to_dict()
         return entry
@@ -214,13 +220,13 @@ class OrbitPanel:
         return [run.response for run in self.runs if run.response is not None]
 
     def note(self) -> str:
-        """One line for the panel's title: response classes and the agreement."""
+        """One line for the panel's title: the response classes (the orbit figure states
+        the distance between the methods itself)."""
         parts = []
         for run in self.runs:
             if run.response is not None:
                 r = run.response.response
                 parts.append(f"{run.method}: {r.kind}" + (f" p{r.period}" if r.period else ""))
-        parts += [f"max|diff| {a.max_difference:.2g}" for a in self.agreements]
         return "; ".join(parts)
 
     def to_dict(self) -> dict[str, Any]:
@@ -275,10 +281,14 @@ def orbit_panel(
     quick: bool = False,
     reference: Reference | None = None,
     progress: ProgressFactory = no_progress,
+    transient_periods: float | None = None,
+    omega_scale: float | None = None,
 ) -> OrbitPanel:
     """Each method on ``problem`` at ``options``, errors against ``reference`` (built at
-    ``threshold`` if None), the agreement of every pair, the response class of each method
-    if ``response`` is given, and the synchronous rubs of the problem's parameters."""
+    ``threshold`` if None), its full spectrum over the steady span (after
+    ``transient_periods``: ``spectrum.default_transient``), the agreement of every pair,
+    the response class of each method if ``response`` is given, and the synchronous rubs
+    of the problem's parameters."""
     mu = problem.params.mu
     if reference is None:
         reference = reference_with_progress(problem, threshold, f"reference mu={mu:g}", progress)
@@ -291,6 +301,8 @@ def orbit_panel(
             error_max=float(err.max()) if err.size else None,
             error_final=float(err[-1]) if err.size else None,
             error_until_tau=float(reference.t[err.size - 1]) if err.size else None,
+            spectrum=steady_spectrum(sol, transient_periods),
+            omega_scale=omega_scale,
         )
         if response is not None:
             run.response = response_of(sol, response, quick=quick)

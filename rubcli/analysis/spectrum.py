@@ -122,12 +122,18 @@ def _refine_peak(amplitude: np.ndarray, peak: int) -> tuple[float, float]:
     350): with ``a`` the ratio of the larger neighbour to the peak bin, the line lies
     ``d = (2 a - 1) / (a + 1)`` bins towards that neighbour, and the window's response
     there, ``sinc(d) / (1 - d^2)``, restores its amplitude. Exact for a lone line; a peak
-    at the edge of the array is returned unrefined.
+    at the edge of the array, or one beside a larger bin (not a local maximum), is
+    returned unrefined.
     """
     b = float(amplitude[peak])
     if peak == 0 or peak == amplitude.size - 1 or b <= 0.0:
         return 0.0, b
     left, right = float(amplitude[peak - 1]), float(amplitude[peak + 1])
+    if max(left, right) > b:
+        # not a local maximum: the larger neighbour belongs to another line (the 0X one,
+        # excluded from the search), so the two-bin interpolation does not apply (and
+        # its offset would reach 1, where the window response formula divides by zero)
+        return 0.0, b
     side = 1.0 if right >= left else -1.0
     ratio = max(left, right) / b
     offset = min(1.0, max(0.0, (2.0 * ratio - 1.0) / (ratio + 1.0)))
@@ -152,3 +158,33 @@ def solution_spectrum(solution, transient_periods: float = 0.0) -> FullSpectrum:
         raise ValueError("less than one forcing period after the transient")
     keep = (t >= t0 - 1e-9 * period) & (t < t0 + whole * period - 1e-9 * period)
     return full_spectrum(t[keep], solution.w[keep], problem.params.eta)
+
+
+def default_transient(recorded_periods: float, transient_periods: float | None = None) -> float:
+    """Forcing periods taken as transient in a record of ``recorded_periods``.
+
+    ``transient_periods`` when given and shorter than the record; otherwise the first
+    half of the record, rounded down to whole periods (the figures' keyphasor dots and
+    the report's spectrum use the same rule).
+    """
+    if transient_periods is None or transient_periods >= recorded_periods:
+        return float(math.floor(recorded_periods / 2.0))
+    return float(transient_periods)
+
+
+def steady_spectrum(solution, transient_periods: float | None = None) -> FullSpectrum | None:
+    """The full spectrum of a successful Solution over its steady span, or None.
+
+    The steady span follows ``default_transient``; None for a failed run, a record of
+    less than two forcing periods or a non-finite one (nothing trustworthy to analyse).
+    """
+    if not solution.success or solution.t.size < 8:
+        return None
+    period = solution.problem.params.period
+    recorded = float(solution.t[-1] - solution.t[0]) / period
+    if recorded < 2.0 - 1e-9:
+        return None
+    try:
+        return solution_spectrum(solution, default_transient(recorded, transient_periods))
+    except ValueError:
+        return None

@@ -14,7 +14,9 @@ What it does, in order (docs/compare.md):
 3. **Orbits**: for the case's mu, or for each value of ``[compare] mu`` (the paper's
    Figure 3 is ``mu = [0, 0.01, ..., 0.05]``), each method at the case's ``[solver]``
    settings over ``[time] periods``, with its error against a reference of that mu and
-   the largest difference between the methods. Writes ``orbits.png`` (one panel per mu)
+   the largest difference between the methods. Writes ``orbits.png`` (one panel per mu:
+   transient faded, the last periods bold, keyphasor dots), ``spectrum.png`` (the full
+   spectrum of x + i y over the steady span, per mu; its dominant line in report.json)
    and, with a mu list, ``sweep.csv``. The synchronous full annular rub of each mu is
    reported with its stability (``rubcli.analysis.synchronous``).
 4. **Response** (only with ``[analysis] response = true``): the class of each method's
@@ -166,7 +168,33 @@ def orbit_panel(
         quick=quick,
         reference=reference,
         progress=console.progress_bar,
+        transient_periods=steady_transient(analysis, periods),
+        omega_scale=None if case.scale is None else case.scale.omega,
     )
+
+
+def steady_transient(analysis: AnalysisSection | None, periods: float) -> float | None:
+    """Start of the steady span of the orbit plots and spectra, in forcing periods.
+
+    ``[analysis] transient_periods`` when shorter than the run, 2/3 of the run when not
+    (as the response classes); None (half the run) without it.
+    """
+    transient = None if analysis is None else analysis.transient_periods
+    if transient is not None and transient >= periods:
+        transient = 2.0 * periods / 3.0
+    return transient
+
+
+def _spectrum_panels(panels: list[OrbitPanel]) -> list[tuple]:
+    """spectrum.png: per mu, the full spectrum of the first method that has one."""
+    out = []
+    for p in panels:
+        found = [(run.method, run.spectrum) for run in p.runs if run.spectrum is not None]
+        if found:
+            out.append((f"mu = {p.mu:g}, {found[0][0]}", found[0][1], ""))
+        else:
+            out.append((f"mu = {p.mu:g}", None, "no method succeeded over two periods"))
+    return out
 
 
 SWEEP_COLUMNS = (
@@ -397,11 +425,18 @@ def _compare(
             io.save_figure(plots.error_growth_figure(wp, title), staged.path("error_growth.png"))
             files += ["work_precision.csv", "work_precision.png", "error_growth.png"]
         orbit_panels = [
-            {"title": f"mu = {p.mu:g}", "solutions": p.solutions, "note": p.note()} for p in panels
-        ]
+            {"title": f"mu = {p.mu:g}", "solutions": p.solutions, "note": p.note(),
+             "transient_periods": steady_transient(analysis, p.problem.periods)}
+            for p in panels
+        ]  # fmt: skip
         sweep_title = parameters_title(case.name, case.params, vary_mu=len(panels) > 1)
         io.save_figure(plots.orbits_figure(orbit_panels, sweep_title), staged.path("orbits.png"))
         files.append("orbits.png")
+        from rubcli.plotting.spectrum import spectrum_figure
+
+        spectra = spectrum_figure(_spectrum_panels(panels), sweep_title, scale=case.scale)
+        io.save_figure(spectra, staged.path("spectrum.png"))
+        files.append("spectrum.png")
         if cfg.mu is not None:
             write_sweep_csv(staged.path("sweep.csv"), panels)
             files.append("sweep.csv")

@@ -6,12 +6,15 @@ only the products the case asks for are written into the output dir:
 - ``<method>.csv`` per method if ``[output] csv`` (streamed in blocks: any length fits);
 - ``orbit.png`` and/or ``time.png`` per ``[output] plots``;
 - ``energy.png`` if ``[output] plots`` lists ``energy`` (the energy balance, never by default);
+- ``spectrum.png`` if ``[output] plots`` lists ``spectrum`` (the full spectrum of x + i y);
 - ``poincare.png`` and the response classes with ``[analysis] response = true``;
 - ``report.json`` always: the case echoed, and per method its status, message, wall time,
   step/evaluation counts, contact switches, contact fraction, max penetration, the time
   spent in each regime (from the located switch times), the energy balance with its
-  ``energy_residual`` (``rubcli.analysis.energy``, docs/stability.md) and its plausibility
-  ``warnings`` (``rubcli.analysis.checks``). Its ``files`` list is the run's manifest.
+  ``energy_residual`` (``rubcli.analysis.energy``, docs/stability.md), its plausibility
+  ``warnings`` (``rubcli.analysis.checks``) and the dominant line of the full spectrum
+  over the steady span (``spectrum``: order, direction). Its ``files`` list is the run's
+  manifest.
 
 The output dir is checked before anything is solved (``rubcli.io.check_output_dir``):
 writable, and either new, empty or written by rubcli (else ``--force``); the files of a
@@ -163,12 +166,21 @@ def write_outputs(
                 entries[solution.method]["files"] = [name]
                 files.append(name)
         title = plots.parameters_title(case.name, case.params)
-        figures = {"orbit": plots.orbit_figure, "time": plots.time_figure}
+        failures = {n: e["message"] for n, e in entries.items() if e["status"] == ERROR}
+        transient = case.settings.analysis.transient_periods if case.settings.analysis else None
+        spectra = _spectra(case, solutions, entries, transient)
         for plot in output.plots:
             if plot == "energy":
-                figure = _energy_figure(solutions, title)
+                figure = _energy_figure(solutions, title, case.scale)
+            elif plot == "spectrum":
+                figure = _spectrum_figure(spectra, failures, title, case.scale)
+            elif plot == "orbit":
+                figure = plots.orbit_figure(
+                    solutions, title, scale=case.scale, transient_periods=transient,
+                    failures=failures,
+                )  # fmt: skip
             else:
-                figure = figures[plot](solutions, title, scale=case.scale)
+                figure = plots.time_figure(solutions, title, scale=case.scale, failures=failures)
             io.save_figure(figure, staged.path(f"{plot}.png"))
             files.append(f"{plot}.png")
         response = None
@@ -200,12 +212,39 @@ def _poincare_figure(case: Case, results: list[panels.MethodResponse]):
     return poincare_figure(sections, parameters_title(case.name, case.params))
 
 
-def _energy_figure(solutions: list[Solution], title: str):
+def _energy_figure(solutions: list[Solution], title: str, scale=None):
     """energy.png: the energy balance of every method (``plots = ["energy"]``)."""
     from rubcli.analysis.energy import energy_balance
     from rubcli.plotting.energy import energy_figure
 
-    return energy_figure(solutions, [energy_balance(s) for s in solutions], title)
+    return energy_figure(solutions, [energy_balance(s) for s in solutions], title, scale=scale)
+
+
+def _spectra(case: Case, solutions: list[Solution], entries: dict, transient: float | None):
+    """Full spectrum of each solution over its steady span (``analysis.spectrum``).
+
+    Adds ``entries[method]["spectrum"]`` (dominant whirl order, direction, amplitude; rad/s
+    for a [physical] case; null for a failed run) and returns the figure's panels.
+    """
+    from rubcli.analysis.spectrum import steady_spectrum
+
+    omega_scale = None if case.scale is None else case.scale.omega
+    panels = []
+    for sol in solutions:
+        spectrum = steady_spectrum(sol, transient)
+        summary = None if spectrum is None else spectrum.to_dict(omega_scale)
+        entries[sol.method]["spectrum"] = summary
+        note = "" if spectrum is not None else f"{sol.status}: {sol.message}"
+        panels.append((sol.method, spectrum, note))
+    return panels
+
+
+def _spectrum_figure(panels, failures: dict[str, str], title: str, scale=None):
+    """spectrum.png (``plots = [..., "spectrum"]``): one panel per method."""
+    from rubcli.plotting.spectrum import spectrum_figure
+
+    panels = panels + [(name, None, f"error: {why}") for name, why in failures.items()]
+    return spectrum_figure(panels, title, scale=scale)
 
 
 def _summary_rows(entries: dict[str, dict[str, Any]]) -> list[list[str]]:

@@ -14,7 +14,8 @@ from matplotlib.figure import Figure
 
 from rubcli.analysis.response import PoincareSection, Response
 from rubcli.analysis.work_precision import Row, WorkPrecision
-from rubcli.plotting.run import CLEARANCE_STYLE, _line_style, _new_figure
+from rubcli.plotting import display
+from rubcli.plotting.run import CLEARANCE_STYLE, _line_style, _new_figure, failure_message
 
 MARKERS = ("o", "s", "^", "v", "D", "P")
 
@@ -87,27 +88,44 @@ def error_growth_figure(wp: WorkPrecision, title: str) -> Figure:
 def orbits_figure(panels: Sequence[dict], title: str) -> Figure:
     """Orbits of several methods overlaid, one panel per case (a 2x3 grid for Figure 3).
 
-    Each panel is ``{"title": str, "solutions": [Solution, ...], "note": str}``.
+    Each panel is ``{"title": str, "solutions": [Solution, ...], "note": str}`` and may
+    give ``"transient_periods"`` (the start of the steady span of its keyphasor dots).
+    Drawn as ``plotting.orbit.draw_orbits``: the transient faded, the last periods bold,
+    keyphasor dots; the distance between the methods is stated in each panel's title.
     """
+    from rubcli.plotting.orbit import distance_text, draw_orbits, legend_handles
+
     n = len(panels)
     cols = 3 if n > 4 else max(1, n) if n <= 2 else 2
     rows = math.ceil(n / cols)
-    fig = _new_figure(max(6.4, 4.2 * cols), 4.2 * rows + 0.9)
+    fig = _new_figure(max(6.4, 4.4 * cols), 4.6 * rows + 1.6)
+    method_handles: dict[str, object] = {}
+    drawing = None
+    bold = display.BOLD_PERIODS
     for k, panel in enumerate(panels):
         ax = fig.add_subplot(rows, cols, k + 1)
-        _clearance(ax)
-        for index, sol in enumerate(panel["solutions"]):
-            label = sol.method if sol.success else f"{sol.method} (stopped)"
-            ax.plot(sol.x, sol.y, label=label, **_line_style(index))
-        ax.set_aspect("equal", adjustable="datalim")
+        solutions = panel["solutions"]
+        drawing = draw_orbits(ax, solutions, transient_periods=panel.get("transient_periods"))
+        spans = [display.recorded_periods(s) for s in solutions if s.success]
+        bold = min([bold, *spans])
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            method_handles.setdefault(label, handle)
         ax.set_xlabel("x / clearance")
         ax.set_ylabel("y / clearance")
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="upper right", fontsize="x-small")
-        text = panel["title"]
+        lines = [panel["title"]]
         if panel.get("note"):
-            text += f"\n{panel['note']}"
-        ax.set_title(f"({chr(ord('a') + k)}) {text}", fontsize="small")
+            lines.append(panel["note"])
+        distance = distance_text(drawing, "clearances").replace(" (clearances)", "")
+        if distance:
+            lines.append(distance.replace("max |Δw| ", "max|Δw| "))
+        message = failure_message(solutions)
+        if message:
+            lines.append("every method failed")
+        ax.set_title(f"({chr(ord('a') + k)}) " + "\n".join(lines), fontsize="small")
+    if drawing is not None:
+        styles, _ = legend_handles(drawing, bold, "clearances")
+        fig.legend(handles=list(method_handles.values()) + styles, loc="outside lower center",
+                   ncols=4, fontsize="small")  # fmt: skip
     fig.suptitle(title, fontsize="medium")
     return fig
 

@@ -7,7 +7,7 @@ them with ``rubcli.io.save_figure``. These functions only draw solutions; they n
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -53,58 +53,122 @@ def parameters_title(name: str, params: ModelParams, vary_mu: bool = False) -> s
 
 
 def orbit_figure(
-    solutions: Sequence[Solution], title: str, *, scale: units.PhysicalScale | None = None
+    solutions: Sequence[Solution],
+    title: str,
+    *,
+    scale: units.PhysicalScale | None = None,
+    transient_periods: float | None = None,
+    failures: Mapping[str, str] | None = None,
 ) -> Figure:
     """Orbits (y against x) of every solution overlaid, with the clearance circle.
 
-    Axes in clearances, or in metres when ``scale`` is given.
+    Drawn by ``plotting.orbit.draw_orbits``: transient faded, the last periods bold,
+    keyphasor dots over the steady span (after ``transient_periods``, default half the
+    run), failed methods clipped and labelled. ``failures`` are methods that produced no
+    solution at all (name: reason); when nothing succeeded the figure says so in place
+    of a blank plot. Axes in clearances, or in metres when ``scale`` is given.
     """
-    fig = _new_figure(6.4, 6.4)
+    from rubcli.plotting.orbit import draw_orbits, legend_handles
+
+    fig = _new_figure(6.6, 7.6)
     ax = fig.add_subplot()
     unit = 1.0 if scale is None else scale.clearance
-    circle = np.linspace(0.0, 2.0 * np.pi, 721)
-    ax.plot(unit * np.cos(circle), unit * np.sin(circle), label="clearance", **CLEARANCE_STYLE)
-    for index, solution in enumerate(solutions):
-        (line,) = ax.plot(
-            unit * solution.x, unit * solution.y, label=_label(solution), **_line_style(index)
-        )
-        if solution.t.size:
-            ax.plot(unit * solution.x[0], unit * solution.y[0], "o", color=line.get_color(), ms=4)
-    ax.set_aspect("equal", adjustable="datalim")
+    unit_name = "clearances" if scale is None else "m"
+    drawing = draw_orbits(ax, solutions, unit=unit, transient_periods=transient_periods)
     if scale is None:
         ax.set_xlabel("x / clearance")
         ax.set_ylabel("y / clearance")
     else:
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
-    ax.grid(True, alpha=0.3)
-    ax.legend(loc="upper right", fontsize="small")
-    ax.set_title(title, fontsize="medium")
+    handles, text = legend_handles(drawing, _bold_periods(solutions), unit_name)
+    method_handles, _ = ax.get_legend_handles_labels()
+    fig.legend(handles=method_handles + handles, loc="outside lower center", ncols=2,
+               fontsize="small", title=text or None, title_fontsize="small")  # fmt: skip
+    message = failure_message(solutions, failures)
+    if message:
+        _message_box(ax, message)
+    fig.suptitle(title, fontsize="medium")
     return fig
 
 
+def _bold_periods(solutions: Sequence[Solution]) -> float:
+    from rubcli.plotting import display
+
+    spans = [display.recorded_periods(s) for s in solutions if s.success]
+    return min([display.BOLD_PERIODS, *spans]) if spans else display.BOLD_PERIODS
+
+
+def failure_message(
+    solutions: Sequence[Solution], failures: Mapping[str, str] | None = None
+) -> str | None:
+    """The text a figure shows in place of data when no method succeeded (else None)."""
+    if any(s.success for s in solutions):
+        return None
+    lines = [f"{s.method}: {s.status}: {s.message}" for s in solutions]
+    lines += [f"{name}: {why}" for name, why in (failures or {}).items()]
+    if not lines:
+        lines = ["no method was run"]
+    short = [line if len(line) <= 90 else line[:87] + "..." for line in lines]
+    head = "Every method failed (any partial trace is drawn up to its failure):"
+    return head + "\n" + "\n".join(short)
+
+
+def _message_box(ax, message: str) -> None:
+    ax.text(0.5, 0.5, message, transform=ax.transAxes, ha="center", va="center",
+            fontsize="small", color="darkred", wrap=True, zorder=20,
+            bbox={"boxstyle": "round", "facecolor": "white", "edgecolor": "darkred",
+                  "alpha": 0.9})  # fmt: skip
+
+
 def time_figure(
-    solutions: Sequence[Solution], title: str, *, scale: units.PhysicalScale | None = None
+    solutions: Sequence[Solution],
+    title: str,
+    *,
+    scale: units.PhysicalScale | None = None,
+    failures: Mapping[str, str] | None = None,
 ) -> Figure:
     """x, y and z against time, three stacked axes, the clearance marked on z.
 
-    Time in tau and positions in clearances, or seconds and metres when ``scale`` is given.
+    Each trace is drawn as its min/max envelope over at most ``display.ENVELOPE_BINS``
+    groups of samples (what a screen can show), so a long run costs little memory. The
+    legend sits beside the axes, never over the data; the y limits come from the
+    successful methods (a diverged one is clipped). Time in tau and positions in
+    clearances, or seconds and metres when ``scale`` is given.
     """
-    fig = _new_figure(9.0, 7.5)
+    from rubcli.plotting import display
+
+    fig = _new_figure(10.0, 7.5)
     axes = fig.subplots(3, 1, sharex=True)
     unit = 1.0 if scale is None else scale.clearance
+    limits = [[np.inf, -np.inf] for _ in axes]
     for index, solution in enumerate(solutions):
-        t = solution.t if scale is None else units.seconds(solution.t, scale)
+        n = display.finite_length(solution)
+        t = solution.t[:n] if scale is None else units.seconds(solution.t[:n], scale)
         style = _line_style(index)
-        for ax, values in zip(axes, (solution.x, solution.y, solution.z), strict=True):
-            ax.plot(t, unit * values, label=_label(solution), **style)
+        label = _label(solution)
+        for k, (ax, values) in enumerate(
+            zip(axes, (solution.x, solution.y, solution.z), strict=True)
+        ):
+            te, ve = display.envelope(t, unit * values[:n])
+            ax.plot(te, ve, label=label, **style)
+            if solution.success and ve.size:
+                limits[k] = [min(limits[k][0], ve.min()), max(limits[k][1], ve.max())]
     axes[2].axhline(unit, label="clearance", **CLEARANCE_STYLE)
+    limits[2] = [min(limits[2][0], unit), max(limits[2][1], unit)]
+    for ax, (lo, hi) in zip(axes, limits, strict=True):
+        if np.isfinite(lo) and np.isfinite(hi) and hi > lo:
+            pad = 0.05 * (hi - lo)
+            ax.set_ylim(lo - pad, hi + pad)
     names = ("x", "y", "z")
     for ax, name in zip(axes, names, strict=True):
         ax.set_ylabel(f"{name} / clearance" if scale is None else f"{name} (m)")
         ax.grid(True, alpha=0.3)
     axes[-1].set_xlabel("tau = omega t" if scale is None else "t (s)")
-    axes[0].legend(loc="upper right", fontsize="small")
-    axes[2].legend(loc="upper right", fontsize="small")
+    handles, labels = axes[2].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside right upper", fontsize="small")
+    message = failure_message(solutions, failures)
+    if message:
+        _message_box(axes[1], message)
     axes[0].set_title(title, fontsize="medium")
     return fig

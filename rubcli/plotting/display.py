@@ -1,0 +1,258 @@
+"""What a figure draws of a solution: bounded point counts, fine orbits, spans and limits.
+
+A screen shows about a thousand pixels across a plot, so a figure never needs every
+sample of a long run (10,000 forcing periods at 100 samples per period are a million
+points; drawing them all costs memory and time and shows nothing more). The helpers
+here reduce what is drawn, each in a way that keeps what the eye reads:
+
+- ``envelope``: a time series as the min and max of each of at most ``bins`` consecutive
+  groups of samples (the envelope a raster plot of every sample would show);
+- ``period_subset``: the faded transient of a long orbit as whole forcing periods (all of
+  the first ones, then evenly spaced ones), separated by breaks, never chords;
+- ``hermite``: positions between samples from the sampled positions *and velocities*
+  (every state carries both), a cubic Hermite interpolant with error O(h^4) in the sample
+  spacing where the motion is smooth and O(h^2) times the jump of the acceleration across
+  a contact switch; the bold steady orbit is drawn from it at ``FINE_POINTS_PER_PERIOD``,
+  so that a whirl looks round even at a few samples per period, without solving again;
+- ``steady_start`` and ``keyphasor``: the steady span (after the transient) and the
+  once-per-revolution points (one per forcing period: the stroboscopic section);
+- ``orbit_radius``: the axis limits of an orbit plot from the successful methods and the
+  clearance only, so a failed or diverged trace never sets them.
+
+Pure numpy on ``Solution`` arrays; no matplotlib here.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from rubcli.analysis.response import section_from_solution
+from rubcli.analysis.spectrum import default_transient
+from rubcli.solution import Solution
+
+ENVELOPE_BINS = 2000  # time plots: at most 2 * ENVELOPE_BINS points per trace
+FADED_POINTS = 60_000  # orbit plots: at most this many points of the faded transient
+FADED_POINTS_PER_PERIOD = 200  # ... refined up to this many per period while they fit
+FINE_POINTS_PER_PERIOD = 720  # the bold steady orbit: points per forcing period
+FINE_POINTS = 20_000  # ... and at most this many in all
+BOLD_PERIODS = 10.0  # the bold steady orbit: the last this many forcing periods
+MARGIN = 1.08  # orbit axes: this much beyond the largest radius drawn
+
+
+def envelope(t: np.ndarray, values: np.ndarray, bins: int = ENVELOPE_BINS):
+    """``(t, values)`` reduced to the min and max of each of ``bins`` groups of samples.
+
+    Each group contributes its two extreme samples in time order, so the extremes of
+    the series and of every group survive and the result has at most ``2 * bins``
+    points. Non-finite values are dropped first. Short series are returned as they are.
+    """
+    t = np.asarray(t, dtype=float)
+    values = np.asarray(values, dtype=float)
+    finite = np.isfinite(values) & np.isfinite(t)
+    if not np.all(finite):
+        t, values = t[finite], values[finite]
+    n = t.size
+    if n <= 2 * bins:
+        return t, values
+    edges = np.linspace(0, n, bins + 1).astype(np.int64)
+    starts = edges[:-1]
+    lo = starts + _arg_reduce(values, edges, np.minimum)
+    hi = starts + _arg_reduce(values, edges, np.maximum)
+    first = np.minimum(lo, hi)
+    second = np.maximum(lo, hi)
+    idx = np.column_stack((first, second)).ravel()
+    return t[idx], values[idx]
+
+
+def _arg_reduce(values: np.ndarray, edges: np.ndarray, ufunc) -> np.ndarray:
+    """Offset, within each group ``edges[i]:edges[i+1]``, of the group's reduced value."""
+    reduced = ufunc.reduceat(values, edges[:-1])
+    group = np.repeat(np.arange(edges.size - 1), np.diff(edges))
+    hit = values == reduced[group]
+    # first hit of each group: the smallest index where hit is true, per group
+    positions = np.where(hit, np.arange(values.size), values.size)
+    return np.minimum.reduceat(positions, edges[:-1]) - edges[:-1]
+
+
+def finite_length(solution: Solution) -> int:
+    """Number of leading samples whose state is finite (a diverged run ends in inf/nan)."""
+    ok = np.all(np.isfinite(solution.states), axis=1) if solution.t.size else np.ones(0, bool)
+    bad = np.flatnonzero(~ok)
+    return int(bad[0]) if bad.size else int(solution.t.size)
+
+
+def recorded_periods(solution: Solution) -> float:
+    """Forcing periods covered by the solution's (finite) samples."""
+    n = finite_length(solution)
+    if n < 2:
+        return 0.0
+    return float(solution.t[n - 1] - solution.t[0]) / solution.problem.params.period
+
+
+def steady_start(solution: Solution, transient_periods: float | None = None) -> float:
+    """tau from which the response is taken as steady.
+
+    ``transient_periods`` after the problem's start when given and shorter than the
+    record; otherwise half the recorded span, rounded down to whole forcing periods
+    (``analysis.spectrum.default_transient``, the rule of the report's spectrum).
+    """
+    period = solution.problem.params.period
+    t0 = float(solution.problem.t_eval[0])
+    return t0 + default_transient(recorded_periods(solution), transient_periods) * period
+
+
+def keyphasor(solution: Solution, transient_periods: float | None = None) -> np.ndarray:
+    """Positions (k, 2) once per forcing period from ``steady_start`` to the end.
+
+    These are the stroboscopic section's points (``analysis.response``): one dot for a
+    periodic orbit of period one, p dots for period p, a closed curve for a quasi-periodic
+    orbit. Only the finite samples are used.
+    """
+    n = finite_length(solution)
+    if n < 2:
+        return np.empty((0, 2))
+    period = solution.problem.params.period
+    t0 = float(solution.problem.t_eval[0])
+    start = (steady_start(solution, transient_periods) - t0) / period
+    part = _head(solution, n)
+    return section_from_solution(part, transient_periods=start).points[:, :2].copy()
+
+
+def _head(solution: Solution, n: int) -> Solution:
+    if n == solution.t.size:
+        return solution
+    return Solution(
+        solution.problem, solution.method, solution.t[:n], solution.states[:n],
+        solution.regimes[:n], status=solution.status, message=solution.message,
+    )  # fmt: skip
+
+
+def hermite(t: np.ndarray, states: np.ndarray, tq: np.ndarray) -> np.ndarray:
+    """Positions (m, 2) at times ``tq`` from samples of (x, y, vx, vy) at ``t``.
+
+    Piecewise cubic Hermite: it passes through every sample with the sampled velocity.
+    ``tq`` must lie within ``[t[0], t[-1]]``.
+    """
+    t = np.asarray(t, dtype=float)
+    states = np.asarray(states, dtype=float)
+    tq = np.asarray(tq, dtype=float)
+    i = np.clip(np.searchsorted(t, tq, side="right") - 1, 0, t.size - 2)
+    h = t[i + 1] - t[i]
+    safe = np.where(h > 0.0, h, 1.0)
+    s = np.where(h > 0.0, (tq - t[i]) / safe, 0.0)[:, None]
+    s2, s3 = s * s, s * s * s
+    h00 = 2.0 * s3 - 3.0 * s2 + 1.0
+    h10 = s3 - 2.0 * s2 + s
+    h01 = -2.0 * s3 + 3.0 * s2
+    h11 = s3 - s2
+    p0, p1 = states[i, :2], states[i + 1, :2]
+    v0, v1 = states[i, 2:4], states[i + 1, 2:4]
+    hh = h[:, None]
+    return h00 * p0 + h10 * hh * v0 + h01 * p1 + h11 * hh * v1
+
+
+def fine_orbit(
+    solution: Solution,
+    t_from: float,
+    points_per_period: int = FINE_POINTS_PER_PERIOD,
+    max_points: int = FINE_POINTS,
+) -> np.ndarray:
+    """Positions (m, 2) from ``t_from`` to the last finite sample, at least
+    ``points_per_period`` per forcing period (at most ``max_points``), by ``hermite``."""
+    n = finite_length(solution)
+    if n < 2:
+        return solution.states[:n, :2].copy()
+    t = solution.t[:n]
+    t_from = min(max(float(t_from), float(t[0])), float(t[-1]))
+    period = solution.problem.params.period
+    m = int(min(max_points, max(2, math.ceil((t[-1] - t_from) / period * points_per_period))))
+    tq = np.linspace(t_from, float(t[-1]), m + 1)
+    return hermite(t, solution.states[:n], tq)
+
+
+def period_subset(
+    solution: Solution,
+    t_until: float,
+    max_points: int = FADED_POINTS,
+    points_per_period: int = FADED_POINTS_PER_PERIOD,
+) -> np.ndarray:
+    """Positions (m, 2) of the motion before ``t_until``, at most about ``max_points``.
+
+    When the samples before ``t_until`` fit the budget, all of them, each interval refined
+    by ``hermite`` up to ``points_per_period`` per forcing period while the budget allows
+    (so a faded transient sampled at 50 per period is no polygon). Otherwise whole forcing
+    periods of samples: the first half of the budget on the first periods (where the
+    transient changes most), the other half on periods evenly spaced over the rest;
+    non-adjacent periods are separated by a row of NaN (a break in the line) so that no
+    chord joins them.
+    """
+    n = finite_length(solution)
+    t = solution.t[:n]
+    stop = int(np.searchsorted(t, t_until, side="right"))
+    stop = min(n, stop + 1) if stop < n else n  # join the faded part to the bold one
+    if stop < 2:
+        return solution.states[:stop, :2].copy()
+    period = solution.problem.params.period
+    if stop <= max_points:
+        per_period = (stop - 1) / max((t[stop - 1] - t[0]) / period, 1e-300)
+        refine = int(min(max(1, max_points // stop), math.ceil(points_per_period / per_period)))
+        if refine <= 1:
+            return solution.states[:stop, :2].copy()
+        frac = np.arange(refine) / refine
+        tq = (t[: stop - 1, None] + frac * np.diff(t[:stop])[:, None]).ravel()
+        tq = np.append(tq, t[stop - 1])
+        return hermite(t[:stop], solution.states[:stop], tq)
+    k = np.floor((t[:stop] - t[0]) / period).astype(np.int64)
+    n_periods = int(k[-1]) + 1
+    per_period = max(1.0, stop / n_periods)
+    budget = max(2, int(max_points / per_period))
+    head = budget // 2
+    rest = np.unique(np.linspace(head, n_periods - 1, budget - head).round().astype(np.int64))
+    chosen = np.zeros(n_periods, dtype=bool)
+    chosen[:head] = True
+    chosen[rest] = True
+    idx = np.flatnonzero(chosen[k])
+    pts = solution.states[idx, :2]
+    breaks = np.flatnonzero(np.diff(idx) > 1) + 1
+    return np.insert(pts, breaks, np.nan, axis=0)
+
+
+def orbit_radius(solutions: Sequence[Solution], cap_failed: float = 10.0) -> float:
+    """Half-width of orbit axes, in clearances: the clearance and every successful orbit.
+
+    Failed methods count only when none succeeded: then the 99th percentile of their
+    finite radii, at most ``cap_failed`` clearances (a diverged trace is drawn clipped).
+    """
+    good = [s for s in solutions if s.success and s.t.size]
+    radius = 1.0
+    if good:
+        for s in good:
+            n = finite_length(s)
+            if n:
+                radius = max(radius, float(np.max(np.hypot(s.x[:n], s.y[:n]))))
+    else:
+        radii = [np.hypot(s.x[: finite_length(s)], s.y[: finite_length(s)]) for s in solutions]
+        radii = [r for r in radii if r.size]
+        if radii:
+            r99 = float(np.percentile(np.concatenate(radii), 99.0))
+            radius = min(max(radius, r99), cap_failed)
+    return MARGIN * radius
+
+
+def distance(a: Solution, b: Solution, t_from: float | None = None) -> float | None:
+    """Largest |w_a - w_b| over the samples both have (from ``t_from``), or None."""
+    n = min(finite_length(a), finite_length(b))
+    if n == 0:
+        return None
+    keep = slice(0, n)
+    if t_from is not None:
+        first = int(np.searchsorted(a.t[:n], t_from - 1e-9 * a.problem.params.period))
+        if first >= n:
+            return None
+        keep = slice(first, n)
+    if not np.allclose(a.t[keep], b.t[keep], rtol=1e-12, atol=0.0):
+        return None  # not sampled at the same times
+    return float(np.max(np.hypot(a.x[keep] - b.x[keep], a.y[keep] - b.y[keep])))
