@@ -11,7 +11,7 @@ from typing import Annotated
 import typer
 
 from rubcli import __version__
-from rubcli.cli import compare, forces_map, init, run, stress, validate
+from rubcli.cli import compare, forces_map, init, run, stress, sweep, validate
 
 app = typer.Typer(
     name="rubcli",
@@ -28,6 +28,7 @@ app.command("run")(run.command)
 app.command("forces-map")(forces_map.command)
 app.command("compare")(compare.command)
 app.command("stress")(stress.command)
+app.command("sweep")(sweep.command)
 
 
 def _version(value: bool) -> None:
