@@ -350,6 +350,7 @@ class SweepSection(_Section):
     lyapunov_periods: int = Field(default=100, gt=0)
     max_points: int = Field(default=DEFAULT_SWEEP_MAX_POINTS, ge=1)  # budget
     scheduler: str | None = Field(default=None, min_length=1)  # Dask scheduler address
+    scheduler_timeout_s: float = Field(default=10.0, gt=0, le=600)  # bounded connect wait
 
     _values_unique = field_validator("values")(_unique)
 

@@ -19,13 +19,14 @@ from pathlib import Path
 import numpy as np
 
 from rubcli import case as case_module
-from rubcli.analysis.sweep import SweepPlan, execute
+from rubcli.analysis.sweep import SweepPlan, connect, execute
 from rubcli.analysis.sweep.plan import Axis
 
 # --quick: every axis thinned to at most this many values (its ends kept), short runs.
 QUICK_VALUES = 5
 QUICK_TRANSIENT_PERIODS = 20
 QUICK_RECORD_PERIODS = 16
+QUICK_LYAPUNOV_PERIODS = 20
 
 
 def _thin(values: tuple[float, ...], n: int) -> tuple[float, ...]:
@@ -67,7 +68,9 @@ def plan_from_case(case: case_module.Case, quick: bool = False) -> SweepPlan:
         spectrum=cfg.spectrum,
         spectrum_max_order=cfg.spectrum_max_order,
         lyapunov=cfg.lyapunov,
-        lyapunov_periods=cfg.lyapunov_periods,
+        lyapunov_periods=min(cfg.lyapunov_periods, QUICK_LYAPUNOV_PERIODS)
+        if quick
+        else cfg.lyapunov_periods,
         name=case.name,
     )
 
@@ -111,7 +114,12 @@ def sweep(
     assert cfg is not None
     if client is None and scheduler is None:
         scheduler = cfg.scheduler
-    results, _stats, _where = execute(
-        plan, workers=workers, scheduler=scheduler, client=client, store_dir=store_dir
-    )
+    own = None
+    if client is None and scheduler is not None:
+        client = own = connect(scheduler, timeout=cfg.scheduler_timeout_s)
+    try:
+        results, _stats, _where = execute(plan, workers=workers, client=client, store_dir=store_dir)
+    finally:
+        if own is not None:
+            own.close()
     return build_dataset(plan, results, case_attrs(case))

@@ -55,7 +55,7 @@ def command(
         ),
     ] = None,
     quick: Annotated[
-        bool, typer.Option("--quick", help="At most 5 values per axis, 20+16 periods (CI).")
+        bool, typer.Option("--quick", help="At most 5 values per axis, 20+16 periods, Lyapunov over 20 (CI).")
     ] = False,
 ) -> None:
     """Sweep parameters: bifurcation diagrams, run-up/run-down, 2-D maps, basins."""
@@ -80,7 +80,7 @@ def command(
             if address == LOCAL_SCHEDULER:
                 client, cluster = _local_cluster(workers)
             else:
-                client = engine.connect(address)
+                client = engine.connect(address, timeout=cfg.scheduler_timeout_s)
         except engine.SchedulerError as exc:
             field = "--scheduler" if scheduler is not None else "sweep.scheduler"
             console.error(f"{case_file}: {field}: {exc}")
