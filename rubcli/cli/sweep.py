@@ -55,7 +55,10 @@ def command(
         ),
     ] = None,
     quick: Annotated[
-        bool, typer.Option("--quick", help="At most 5 values per axis, 20+16 periods, Lyapunov over 20 (CI).")
+        bool,
+        typer.Option(
+            "--quick", help="At most 5 values per axis, 20+16 periods, Lyapunov over 20 (CI)."
+        ),
     ] = False,
 ) -> None:
     """Sweep parameters: bifurcation diagrams, run-up/run-down, 2-D maps, basins."""
