@@ -136,7 +136,7 @@ def test_results_do_not_depend_on_the_executor(fig3_params):
     plan = _small_plan(fig3_params)
     one, _, where1 = execute(plan, workers=1)
     two, _, where2 = execute(plan, workers=2)
-    assert where1 == "in-process" and where2 == "process pool (2 workers)"
+    assert where1 == "this process (1 worker)" and where2 == "process pool (2 workers)"
     with (
         distributed.LocalCluster(
             n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
@@ -155,6 +155,45 @@ def test_results_do_not_depend_on_the_executor(fig3_params):
         assert csv_text(ds, plan) == csv_text(reference, plan)
         for key, result in other.items():
             assert result.final_state == one[key].final_state
+
+
+_DIE_MARKER = None
+
+
+def _die_once(task):
+    """A worker function that kills its process the first time (a lost worker)."""
+    from rubcli.analysis.sweep.point import compute_point
+
+    marker = Path(_DIE_MARKER)
+    if not marker.exists():
+        marker.write_text("died")
+        os._exit(1)
+    return compute_point(task)
+
+
+def test_a_lost_pool_worker_is_replaced_and_its_point_retried(fig3_params, tmp_path, monkeypatch):
+    """A worker process that dies breaks the pool: a new pool runs the lost points again,
+    and the results equal an in-process run."""
+    import multiprocessing
+
+    if multiprocessing.get_start_method() != "fork":
+        pytest.skip("the patched worker function reaches the workers only by fork")
+    from rubcli.analysis.sweep import engine
+
+    plan = _small_plan(fig3_params)
+    reference, _, _ = execute(plan, workers=1)
+    global _DIE_MARKER
+    _DIE_MARKER = str(tmp_path / "died")
+    monkeypatch.setattr(engine, "compute_point", _die_once)
+    results, stats, where = execute(plan, workers=2)
+    assert (tmp_path / "died").exists()
+    assert where == "process pool (2 workers)"
+    assert stats.pool_restarts >= 1 and stats.retried >= 1
+    assert stats.computed == plan.n_points == 6
+    for key, result in reference.items():
+        assert results[key].ok
+        assert results[key].final_state == result.final_state
+        np.testing.assert_equal(results[key].scalars, result.scalars)  # NaN == NaN here
 
 
 def test_a_failed_point_is_recorded_and_the_chain_goes_on(fig3_params):

@@ -97,13 +97,13 @@ def command(
     )
     started = time.perf_counter()
     try:
-        with console.progress_bar("sweep points          ", total=float(plan.n_points)) as bar:
+        with console.count_bar("sweep points", total=plan.n_points) as bar:
             results, stats, where = engine.execute(
                 plan,
                 workers=workers,
                 client=client,
                 store_dir=store_dir,
-                progress=lambda done, total: bar(float(done)),
+                progress=lambda done, total: bar(done),
             )
     finally:
         if client is not None:

@@ -38,6 +38,13 @@ def _new_figure(width: float, height: float) -> Figure:
     return fig
 
 
+def _class_note(ds) -> str:
+    """How the classes were decided: with Lyapunov exponents or the Birkhoff test alone."""
+    if np.isfinite(ds["lyapunov"].values).any():
+        return ""
+    return "\n(no Lyapunov: 'chaotic' = Birkhoff test only, unconfirmed)"
+
+
 def _axes_dims(ds) -> list[str]:
     return [d for d in ds["status"].dims if d != "direction"]
 
@@ -122,6 +129,8 @@ def summary_figure(ds, title: str) -> Figure:
     axes[3].set_yticks(range(len(RESPONSE_CLASSES)), RESPONSE_CLASSES)
     axes[3].set_ylim(-0.5, len(RESPONSE_CLASSES) - 0.5)
     axes[3].set_ylabel("response class")
+    if _class_note(ds):
+        axes[3].set_title(_class_note(ds).strip(), fontsize=8)
     if lyap:
         axes[4].axhline(0.0, color="0.3", linewidth=0.6)
         axes[4].set_ylabel("largest Lyapunov exponent (1/tau)")
@@ -184,7 +193,7 @@ def map_figure(ds, title: str) -> Figure:
         cls = np.where(ok, d["response_class"].values, np.nan)
         whirl = np.where(ok, d["whirl_direction"].values + 1.0, np.nan)
         _categorical(row[0], cls, x, y, list(CLASS_COLOURS), list(RESPONSE_CLASSES),
-                     f"response class ({direction})")  # fmt: skip
+                     f"response class ({direction}){_class_note(ds)}")  # fmt: skip
         codes = (-1, 0, 1)
         _categorical(row[1], whirl, x, y, [WHIRL_COLOURS[c] for c in codes],
                      [WHIRL_NAMES[c] for c in codes], f"whirl direction ({direction})")  # fmt: skip
@@ -253,6 +262,8 @@ def basins_figure(ds, title: str) -> Figure:
             t = np.linspace(0, 2 * np.pi, 200)
             ax.plot(np.cos(t), np.sin(t), color="k", linestyle="--", linewidth=0.8)
             ax.set_aspect("equal")
+            ax.set_title("attractor reached from each start (dashed: the clearance z = 1)",
+                         fontsize=9)  # fmt: skip
     ax.set_xlabel(_label(dims[0]))
     fig.suptitle(title, fontsize=10)
     return fig

@@ -111,7 +111,7 @@ def execute(
         n = workers or default_workers()
         if n == 1:
             results, stats = run_plan(plan, InProcessExecutor(), store=store, progress=progress)
-            return results, stats, "in-process"
+            return results, stats, "this process (1 worker)"
         pools: list[cf.ProcessPoolExecutor] = []
 
         def rebuild() -> cf.Executor:
