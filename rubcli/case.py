@@ -277,9 +277,6 @@ SweepParameter = Literal["nu", "eta", "e", "K", "mu", "Rp", "phi0", "x", "y", "v
 SWEEP_MODEL_PARAMETERS: tuple[str, ...] = ("nu", "eta", "e", "K", "mu", "Rp", "phi0")
 SWEEP_INITIAL_PARAMETERS: tuple[str, ...] = ("x", "y", "vx", "vy")
 SweepDirection = Literal["up", "down", "both", "independent"]
-SweepMethod = Literal[
-    "analytic", "analytic-polar", "rk45", "dop853", "radau", "bdf", "lsoda", "dop853-jit"
-]
 DEFAULT_SWEEP_MAX_POINTS = 20_000
 
 
@@ -342,7 +339,7 @@ class SweepSection(_Section):
     direction: SweepDirection = "independent"
     transient_periods: int = Field(default=200, ge=0)
     record_periods: int = Field(default=100, ge=8)  # section points (>= 8 to classify)
-    method: SweepMethod = "dop853-jit"  # its settings come from [solver]
+    method: MethodName = "dop853-jit"  # its settings come from [solver]
     energy: bool = True  # energy residual of the recorded window
     spectrum: bool = False  # keep each point's full spectrum (for the waterfall)
     spectrum_max_order: float = Field(default=3.0, gt=0)  # kept orders: -this ... +this

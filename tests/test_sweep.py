@@ -131,7 +131,8 @@ def _small_plan(fig3_params) -> SweepPlan:
 
 
 def test_results_do_not_depend_on_the_executor(fig3_params):
-    """1 worker, 2 local processes and a real 2-worker Dask LocalCluster: identical."""
+    """1 worker, 2 local processes, a real 2-worker Dask LocalCluster (processes, loopback)
+    and points batched into tasks: identical numbers."""
     distributed = pytest.importorskip("distributed")
     plan = _small_plan(fig3_params)
     one, _, where1 = execute(plan, workers=1)
@@ -146,10 +147,13 @@ def test_results_do_not_depend_on_the_executor(fig3_params):
     ):  # fmt: skip
         dask, _, where3 = execute(plan, client=client)
     assert where3.startswith("dask (2 workers")
+    from rubcli.analysis.sweep.engine import InProcessExecutor, run_plan
+
+    batched, _ = run_plan(plan, InProcessExecutor(), batch=4)  # 4 points per task
     reference = build_dataset(plan, one)
     assert (reference["status"].values == 0).all()
     assert reference["contact_fraction"].values.max() > 0.5  # there is rubbing to get right
-    for other in (two, dask):
+    for other in (two, dask, batched):
         ds = build_dataset(plan, other)
         assert ds.identical(reference)
         assert csv_text(ds, plan) == csv_text(reference, plan)
@@ -160,15 +164,15 @@ def test_results_do_not_depend_on_the_executor(fig3_params):
 _DIE_MARKER = None
 
 
-def _die_once(task):
+def _die_once(tasks):
     """A worker function that kills its process the first time (a lost worker)."""
-    from rubcli.analysis.sweep.point import compute_point
+    from rubcli.analysis.sweep.point import compute_points
 
     marker = Path(_DIE_MARKER)
     if not marker.exists():
         marker.write_text("died")
         os._exit(1)
-    return compute_point(task)
+    return compute_points(tasks)
 
 
 def test_a_lost_pool_worker_is_replaced_and_its_point_retried(fig3_params, tmp_path, monkeypatch):
@@ -184,7 +188,7 @@ def test_a_lost_pool_worker_is_replaced_and_its_point_retried(fig3_params, tmp_p
     reference, _, _ = execute(plan, workers=1)
     global _DIE_MARKER
     _DIE_MARKER = str(tmp_path / "died")
-    monkeypatch.setattr(engine, "compute_point", _die_once)
+    monkeypatch.setattr(engine, "compute_points", _die_once)
     results, stats, where = execute(plan, workers=2)
     assert (tmp_path / "died").exists()
     assert where == "process pool (2 workers)"
@@ -272,14 +276,14 @@ def test_a_killed_sweep_resumes_to_the_same_files(tmp_path):
     store = out.parent / f".{out.name}.sweep-{plan.digest()}"
     proc = _run_cli(["sweep", str(case), "--out", str(out), "--workers", "1"])
     deadline = time.monotonic() + 300
-    while len(list(store.glob("*.npz"))) < 3:
+    while len(list(store.glob("*.point"))) < 3:
         assert proc.poll() is None, proc.communicate()
         assert time.monotonic() < deadline
         time.sleep(0.05)
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
     assert not out.exists()  # nothing appears before the sweep is complete
-    stored = len(list(store.glob("*.npz")))
+    stored = len(list(store.glob("*.point")))
     assert 3 <= stored < total
 
     result = CliRunner().invoke(app, ["sweep", str(case), "--out", str(out), "--workers", "2"])

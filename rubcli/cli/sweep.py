@@ -12,7 +12,8 @@ Finished points are kept in a hidden store beside the output dir
 interruption computes only the missing points. The outputs appear together, when every
 point is done; the store is then removed.
 
-Exit codes: 0 done (failed points are results); 2 invalid input or unreachable scheduler.
+Exit codes: 0 done (failed points are results); 2 invalid input or unreachable scheduler;
+130 interrupted (Ctrl-C; the finished points are kept).
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from rubcli.cli import console
 from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 
 LOCAL_SCHEDULER = "local"
+EXIT_INTERRUPTED = 130  # Ctrl-C: the finished points are kept for the next run
 
 
 def store_dir_for(target: Path, digest: str) -> Path:
@@ -105,6 +107,13 @@ def command(
                 store_dir=store_dir,
                 progress=lambda done, total: bar(done),
             )
+    except KeyboardInterrupt:
+        kept = len(list(store_dir.glob("*.point"))) if store_dir.is_dir() else 0
+        console.error(
+            f"interrupted: {kept} of {plan.n_points} points are kept in {store_dir}; "
+            "run the same command again to compute only the others"
+        )
+        raise typer.Exit(EXIT_INTERRUPTED) from None
     finally:
         if client is not None:
             client.close()

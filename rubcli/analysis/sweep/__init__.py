@@ -3,7 +3,7 @@
 - ``plan``: the axes, points and continuation chains (``SweepPlan``);
 - ``point``: one point solved and analysed (``compute_point``, run by every executor);
 - ``engine``: the chains on an executor, finished points stored as they arrive;
-- ``store``: the resumable store (one ``.npz`` per point, keyed by the plan's digest);
+- ``store``: the resumable store (one ``.point`` file per point, keyed by the plan's digest);
 - ``dataset``: the results as an ``xarray.Dataset``, NetCDF and CSV.
 
 ``execute(plan, workers=..., scheduler=..., store_dir=...)`` picks the executor and runs
@@ -35,6 +35,7 @@ __all__ = [
 ]
 
 CONNECT_TIMEOUT_S = 10.0  # bounded wait for a Dask scheduler
+DASK_MAX_BATCH = 8  # points per Dask task at most: a round trip costs milliseconds
 
 
 class SchedulerError(Exception):
@@ -68,11 +69,16 @@ def connect(address: str, timeout: float = CONNECT_TIMEOUT_S):
 @contextlib.contextmanager
 def dask_executor(client) -> Iterator[cf.Executor]:
     """Dask's own ``concurrent.futures`` executor over ``client``."""
-    executor = client.get_executor()
+    executor = client.get_executor(pure=False)  # no hashing of the arguments per task
     try:
         yield executor
     finally:
         executor.shutdown(wait=False)
+
+
+def dask_batch(n_points: int, n_workers: int) -> int:
+    """Points per Dask task: up to DASK_MAX_BATCH, keeping >= 8 tasks per worker."""
+    return max(1, min(DASK_MAX_BATCH, n_points // (8 * n_workers)))
 
 
 def dask_workers(client) -> int:
@@ -105,8 +111,12 @@ def execute(
     try:
         if client is not None:
             n = dask_workers(client)
+            client.run(warm_up, plan.method, plan.options)  # kernels loaded on every worker
             with dask_executor(client) as executor:
-                results, stats = run_plan(plan, executor, store=store, workers=n, progress=progress)
+                results, stats = run_plan(
+                    plan, executor, store=store, workers=n, progress=progress,
+                    batch=dask_batch(plan.n_points, n),
+                )  # fmt: skip
             return results, stats, f"dask ({n} workers at {client.scheduler.address})"
         n = workers or default_workers()
         if n == 1:

@@ -28,7 +28,7 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 
 from rubcli.analysis.sweep.plan import Chain, Point, SweepPlan
-from rubcli.analysis.sweep.point import PointResult, PointTask, compute_point, failed
+from rubcli.analysis.sweep.point import PointResult, PointTask, compute_points, failed
 from rubcli.analysis.sweep.store import PointStore
 
 MAX_RETRIES = 3  # a point whose worker died this many times is recorded as failed
@@ -96,20 +96,23 @@ def run_plan(
     *,
     store: PointStore | None = None,
     workers: int = 1,
+    batch: int = 1,
     progress: Callable[[int, int], None] | None = None,
     rebuild: Callable[[], cf.Executor] | None = None,
 ) -> tuple[dict[str, PointResult], RunStats]:
     """Compute every missing point of ``plan``; returns all results by point key.
 
-    ``rebuild`` makes a new executor when the current one breaks (a local pool whose
-    worker died); ``progress(done, total)`` is called after every point.
+    ``batch`` points of different chains go in one task (fewer round trips on Dask; the
+    points of a batch are stored when it returns). ``rebuild`` makes a new executor when
+    the current one breaks (a local pool whose worker died); ``progress(done, total)`` is
+    called after every point.
     """
     results: dict[str, PointResult] = dict(store.load()) if store is not None else {}
     stats = RunStats(resumed=len(results))
     total = plan.n_points
     cursors = [_Cursor(chain) for chain in plan.chains()]
     ready = list(reversed(cursors))  # a stack: chains are started in plan order
-    in_flight: dict[cf.Future, tuple[_Cursor, Point, PointTask]] = {}
+    in_flight: dict[cf.Future, list[tuple[_Cursor, Point, PointTask]]] = {}
     attempts: dict[str, int] = {}
     limit = max(1, workers * IN_FLIGHT_PER_WORKER)
     done_count = len(results)
@@ -136,12 +139,25 @@ def run_plan(
 
     def fill() -> None:
         while ready and len(in_flight) < limit:
-            cursor = ready.pop()
-            found = next_task(cursor)
-            if found is None:
-                continue
-            point, task = found
-            in_flight[executor.submit(compute_point, task)] = (cursor, point, task)
+            group: list[tuple[_Cursor, Point, PointTask]] = []
+            while ready and len(group) < batch:
+                cursor = ready.pop()
+                found = next_task(cursor)
+                if found is not None:
+                    group.append((cursor, *found))
+            if group:
+                tasks = [task for _, _, task in group]
+                in_flight[executor.submit(compute_points, tasks)] = group
+
+    def record(point: Point, result: PointResult) -> None:
+        nonlocal done_count
+        results[point.key] = result
+        if store is not None:
+            store.save(point.key, result)
+        stats.computed += 1
+        done_count += 1
+        if progress is not None:
+            progress(done_count, total)
 
     try:
         fill()
@@ -149,35 +165,33 @@ def run_plan(
             finished, _ = cf.wait(list(in_flight), return_when=cf.FIRST_COMPLETED)
             broken = False
             for future in finished:
-                cursor, point, task = in_flight.pop(future)
+                group = in_flight.pop(future)
                 try:
-                    result = future.result()
+                    returned = future.result()
                 except BrokenProcessPool:
                     broken = True
-                    attempts[point.key] = attempts.get(point.key, 0) + 1
-                    if attempts[point.key] < MAX_RETRIES:
-                        ready.append(cursor)  # submitted again from the same state
-                        stats.retried += 1
-                        continue
-                    result = failed(f"worker died {MAX_RETRIES} times on this point")
+                    for cursor, point, _task in group:
+                        attempts[point.key] = attempts.get(point.key, 0) + 1
+                        if attempts[point.key] < MAX_RETRIES:
+                            stats.retried += 1  # submitted again from the same state
+                        else:
+                            record(point, failed(f"worker died {MAX_RETRIES} times on it"))
+                        ready.append(cursor)
+                    continue
                 except Exception as exc:  # Dask: KilledWorker after its own retries, ...
-                    result = failed(f"executor: {type(exc).__name__}: {exc}")
-                results[point.key] = result
-                if store is not None:
-                    store.save(point.key, result)
-                stats.computed += 1
-                done_count += 1
-                if progress is not None:
-                    progress(done_count, total)
-                ready.append(cursor)
+                    returned = [failed(f"executor: {type(exc).__name__}: {exc}")] * len(group)
+                for (cursor, point, _task), result in zip(group, returned, strict=True):
+                    record(point, result)
+                    ready.append(cursor)
             if broken:
                 if rebuild is None:
                     raise RuntimeError("the process pool broke and cannot be rebuilt")
                 # every point still held by the broken pool is lost: submit it again
-                for cursor, point, _task in in_flight.values():
-                    attempts[point.key] = attempts.get(point.key, 0) + 1
-                    ready.append(cursor)
-                    stats.retried += 1
+                for group in in_flight.values():
+                    for cursor, point, _task in group:
+                        attempts[point.key] = attempts.get(point.key, 0) + 1
+                        ready.append(cursor)
+                        stats.retried += 1
                 in_flight.clear()
                 executor.shutdown(wait=False, cancel_futures=True)
                 executor = rebuild()

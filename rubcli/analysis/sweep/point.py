@@ -118,6 +118,11 @@ def compute_point(task: PointTask) -> PointResult:
     return result
 
 
+def compute_points(tasks: list[PointTask]) -> list[PointResult]:
+    """Several points in one task (points of different chains; fewer round trips)."""
+    return [compute_point(task) for task in tasks]
+
+
 def _solve(params: ModelParams, start, periods: int, spp: int, task: PointTask):
     from rubcli.solvers import solve
 
