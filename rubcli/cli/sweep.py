@@ -203,7 +203,7 @@ def _title(case, plan) -> str:
     p = case.params
     swept = {a.parameter for a in plan.axes}
     fixed = ", ".join(f"{k}={v:g}" for k, v in p.as_dict().items() if k not in swept)
-    axes = " x ".join(a.parameter for a in plan.axes)
+    axes = " and ".join(a.parameter for a in plan.axes)
     return (
         f"{case.name}: sweep of {axes} ({plan.direction}; {plan.transient_periods} transient + "
         f"{plan.record_periods} recorded periods per point)\n{fixed}"
