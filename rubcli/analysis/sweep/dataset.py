@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rubcli.analysis.sweep.plan import STATE_NAMES, SweepPlan
+from rubcli.analysis.sweep.plan import STATE_NAMES, SweepPlan, point_key
 from rubcli.analysis.sweep.point import (
     RESPONSE_CLASSES,
     SCALARS,
@@ -44,8 +44,7 @@ def build_dataset(plan: SweepPlan, results: dict[str, PointResult], attrs: dict 
     spectrum = np.full((*shape, orders.size), np.nan) if orders is not None else None
     for d, direction in enumerate(directions):
         for index in np.ndindex(*plan.shape):
-            point = plan.point(direction, index)
-            result = results[point.key]
+            result = results[point_key(direction, index)]
             at = (d, *index)
             status[at] = STATUS_OK if result.ok else STATUS_FAILED
             messages[at] = result.message
@@ -108,18 +107,19 @@ def csv_text(ds, plan: SweepPlan) -> str:
     axes = [a.dim for a in plan.axes]
     names = list(SCALARS)
     writer.writerow(["direction", *axes, *names, "status", "message"])
-    for direction in ds["direction"].values:
-        sub = ds.sel(direction=direction)
+    coords = [ds[a].values for a in axes]
+    columns = {name: ds[name].values for name in names}
+    status, message = ds["status"].values, ds["message"].values
+    for d, direction in enumerate(ds["direction"].values):
         for index in np.ndindex(*plan.shape):
-            at = dict(zip(axes, index, strict=True))
-            point = sub.isel(at)
+            at = (d, *index)
             row = [str(direction)]
-            row += [_number(float(point[a].values)) for a in axes]
+            row += [_number(float(c[i])) for c, i in zip(coords, index, strict=True)]
             for name in names:
-                value = float(point[name].values)
+                value = float(columns[name][at])
                 row.append(_whole(value) if name in WHOLE else _number(value))
-            row.append("ok" if int(point["status"].values) == STATUS_OK else "failed")
-            row.append(str(point["message"].values))
+            row.append("ok" if int(status[at]) == STATUS_OK else "failed")
+            row.append(str(message[at]))
             writer.writerow(row)
     return buffer.getvalue()
 

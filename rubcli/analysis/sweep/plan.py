@@ -29,6 +29,11 @@ DIRECTIONS = ("up", "down", "both", "independent")
 STATE_NAMES = ("x", "y", "vx", "vy")
 
 
+def point_key(direction: str, index) -> str:
+    """The name of a point in results and in the store: ``up-3``, ``independent-2-7``."""
+    return f"{direction}-" + "-".join(str(int(i)) for i in index)
+
+
 def dim_name(parameter: str) -> str:
     """The dimension name of an axis: the model name, or ``x0`` ... for a start state."""
     return f"{parameter}0" if parameter in INITIAL_AXES else parameter
@@ -67,7 +72,7 @@ class Point:
 
     @property
     def key(self) -> str:
-        return f"{self.direction}-" + "-".join(str(i) for i in self.index)
+        return point_key(self.direction, self.index)
 
 
 @dataclass(frozen=True)
