@@ -53,10 +53,11 @@ import numba
 import numpy as np
 from machine import cpu_model
 
+import rubcli.solvers.compiled  # noqa: F401  (registers the model cores with numba)
 from rubcli import model
 from rubcli.model import ModelParams, rhs_entries
 from rubcli.problem import Problem
-from rubcli.solvers import kernels, solve  # noqa: F401  (kernels registers the model cores)
+from rubcli.solvers import solve
 
 HERE = Path(__file__).resolve().parent
 FIG3 = ModelParams(nu=0.009478, eta=0.7818, e=7.52, K=17.6, Rp=46.16, mu=0.02)
@@ -382,7 +383,7 @@ def render(args, floor: dict, contact: list[dict], rows: list[dict], compile_tim
         "",
         f"Importing rubcli.solvers (numba included): {warm['import_s']:.2f} s. The first "
         "compiled call in a process also runs the cache-freshness probe "
-        "(`kernels.ensure_fresh`). The analytic paths share most kernels, so the second "
+        "(`compiled.ensure_fresh`). The analytic paths share most kernels, so the second "
         "one compiles faster after the first.",
         "",
     ]

@@ -13,8 +13,8 @@ message has one line per problem, naming the file, the dotted field and what is 
     my.toml: model.K: Input should be greater than 0 (got -1.0)
 
 The key names are a contract with users (issue 2): add keys, don't rename them. The full
-reference is ``docs/cases.md``. This module does not import the solvers: the method
-names are a static tuple, ``KNOWN_METHODS``, that a test keeps equal to the registry.
+reference is ``docs/cases.md``. The method names come from the registry's data
+(``rubcli.solvers.registry``), which loads no solver.
 """
 
 from __future__ import annotations
@@ -40,10 +40,9 @@ from pydantic_core import PydanticCustomError
 from rubcli import units
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
+from rubcli.solvers import registry
 
-MethodName = Literal[
-    "analytic", "analytic-polar", "rk45", "dop853", "radau", "bdf", "lsoda", "dop853-jit"
-]
+MethodName = Literal[registry.NAMES]  # every method of the registry
 KNOWN_METHODS: tuple[str, ...] = get_args(MethodName)
 
 PlotName = Literal["orbit", "time", "energy"]
@@ -59,10 +58,30 @@ DEFAULT_FORCES_MAP_K_VALUES: tuple[float, ...] = (17.6, 1.76e3, 1.76e5, 1.75e6)
 # A run keeps every output sample in memory (8 floats of state per sample and method,
 # plus the CSV columns); beyond this many samples a case is refused as a likely typo.
 MAX_OUTPUT_SAMPLES = 10_000_000
+# Every size a case can set is bounded by a memory estimate, refused at validation:
+# - a run holds, per method and output sample, t, the state, the regime and the arrays of
+#   its report (energy balance, regimes): about RUN_BYTES_PER_SAMPLE bytes (measured: 580
+#   bytes per sample for the paper's case over 1,000,001 samples, benchmarks/RESULTS.md);
+# - `forces-map` holds about FORCES_MAP_ARRAYS float arrays of resolution^2 points.
+MAX_CASE_MEMORY_BYTES = 8 * 1024**3
+RUN_BYTES_PER_SAMPLE = 600
+FORCES_MAP_ARRAYS = 24
 
 CASE_NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._-]*$"
 
 PositiveFloat = Annotated[float, Field(gt=0)]
+
+
+def _gib(n_bytes: float) -> str:
+    return f"{n_bytes / 1024**3:.3g} GiB"
+
+
+def _short_repr(value: object, limit: int = 80) -> str:
+    """``repr(value)`` cut to ``limit`` characters (a 5 MB value is not echoed whole)."""
+    text = repr(value)
+    if len(text) <= limit:
+        return text
+    return f"{text[: limit - 25]}... ({len(text)} characters)"
 
 
 class CaseError(Exception):
@@ -161,10 +180,11 @@ class TimeSection(_Section):
     def _not_too_many_samples(self) -> TimeSection:
         n = self.periods * self.samples_per_period
         if n > MAX_OUTPUT_SAMPLES:
+            # pydantic fills {name} templates without format specs: format here
             raise PydanticCustomError(
                 "too_many_samples",
-                "periods * samples_per_period = {n:.3g} output samples, more than {limit}",
-                {"n": n, "limit": MAX_OUTPUT_SAMPLES},
+                f"periods * samples_per_period = {n:.3g} output samples, more than "
+                f"{MAX_OUTPUT_SAMPLES:,}",
             )
         return self
 
@@ -173,7 +193,7 @@ class TimeSection(_Section):
 
 
 class SolverSection(_Section):
-    """[solver]: which methods run and their settings (every method ignores what it can't use)."""
+    """[solver]: which methods run and their settings (each method takes the ones it uses)."""
 
     methods: list[MethodName] = Field(default_factory=lambda: ["analytic", "rk45"], min_length=1)
     rtol: float = Field(default=1e-8, gt=0, lt=1)  # scipy methods
@@ -188,7 +208,7 @@ class SolverSection(_Section):
     _methods_unique = field_validator("methods")(_unique)
 
     def options(self) -> dict[str, Any]:
-        """Keyword options for ``rubcli.solvers.solve`` (the same for every method)."""
+        """The settings as keyword options (``Case.options_for`` picks one method's)."""
         return self.model_dump(exclude={"methods"})
 
 
@@ -212,7 +232,7 @@ class ForcesMapSection(_Section):
     """[forces_map]: settings of ``rubcli forces-map`` (contact force and Taylor error maps)."""
 
     extent: float = Field(default=1.5, gt=1)  # half-width of the square grid, clearances
-    resolution: int = Field(default=201, ge=3)  # grid points per side
+    resolution: int = Field(default=201, ge=3)  # grid points per side (memory-bounded)
     products: list[ForcesMapProduct] = Field(
         default_factory=lambda: ["forces", "taylor_error", "eigen"], min_length=1
     )
@@ -220,6 +240,19 @@ class ForcesMapSection(_Section):
     K_values: list[PositiveFloat] | None = Field(default=None, min_length=1)
 
     _products_unique = field_validator("products")(_unique)
+
+    @field_validator("resolution")
+    @classmethod
+    def _resolution_fits_in_memory(cls, value: int) -> int:
+        need = FORCES_MAP_ARRAYS * 8 * value * value
+        if need > MAX_CASE_MEMORY_BYTES:
+            largest = math.isqrt(MAX_CASE_MEMORY_BYTES // (FORCES_MAP_ARRAYS * 8))
+            raise PydanticCustomError(
+                "too_much_memory",
+                f"a {value} x {value} grid needs about {_gib(need)} of memory, more than the "
+                f"{_gib(MAX_CASE_MEMORY_BYTES)} a case may ask for; at most {largest}",
+            )
+        return value
 
     def resolved_deltas(self) -> tuple[float, ...]:
         """``deltas`` or the default: 11 points logarithmically spaced over 1e-6 ... 1e-1."""
@@ -421,6 +454,74 @@ class SweepSection(_Section):
         return n * (2 if self.direction == "both" else 1)
 
 
+# ========================================================================== [orbits]
+# Owned by `rubcli orbits` (docs/orbits.md): periodic orbits, Floquet multipliers and
+# pseudo-arclength continuation in one nondimensional parameter.
+
+OrbitParameter = Literal["eta", "mu", "K", "e", "nu", "Rp"]
+OrbitStart = Literal["initial", "transient", "synchronous_rub"]
+OrbitDirections = Literal["both", "up", "down"]
+
+
+class OrbitsSection(_Section):
+    """[orbits]: the branch to continue (nondimensional, also for [physical] cases)."""
+
+    parameter: OrbitParameter
+    min: float  # parameter window; the case's value must lie in it
+    max: float
+    step: float = Field(gt=0)  # first step, parameter units
+    min_step: float | None = Field(default=None, gt=0)  # default step / 1000
+    max_step: float | None = Field(default=None, gt=0)  # default 5 step
+    max_points: int = Field(default=200, ge=1, le=100_000)  # per direction
+    directions: OrbitDirections = "both"
+    period: int = Field(default=1, ge=1, le=64)  # k: orbits of k forcing periods
+    start: OrbitStart = "initial"  # guess: [initial], after a transient, or the exact rub
+    transient_periods: int = Field(default=0, ge=0, le=100_000)  # with start = "transient"
+    newton_tol: float = Field(default=1e-10, gt=0, lt=1)
+    max_newton: int = Field(default=10, ge=1, le=100)
+    rtol: float = Field(default=1e-12, ge=1e-14, lt=1e-3)  # integration of the map
+    atol: float = Field(default=1e-12, gt=0, lt=1e-3)
+    locate: bool = True  # locate each detected bifurcation on its test function
+
+    @model_validator(mode="after")
+    def _window(self) -> OrbitsSection:
+        if not self.min < self.max:
+            raise PydanticCustomError(
+                "orbits_window", "min must be below max (got min = {lo}, max = {hi})",
+                {"lo": self.min, "hi": self.max},
+            )  # fmt: skip
+        lower = {"eta": 0.0, "K": 0.0}.get(self.parameter)
+        if lower is not None and self.min <= lower:
+            raise PydanticCustomError(
+                "orbits_window", "{name} must stay positive: min must be > 0 (got {lo})",
+                {"name": self.parameter, "lo": self.min},
+            )  # fmt: skip
+        if self.parameter in ("mu", "e", "nu", "Rp") and self.min < 0.0:
+            raise PydanticCustomError(
+                "orbits_window", "{name} cannot be negative: min must be >= 0 (got {lo})",
+                {"name": self.parameter, "lo": self.min},
+            )  # fmt: skip
+        width = self.max - self.min
+        if self.step > width:
+            raise PydanticCustomError(
+                "orbits_step", "step {step} is wider than the window max - min = {w}",
+                {"step": self.step, "w": width},
+            )  # fmt: skip
+        lo, hi = self.resolved_min_step(), self.resolved_max_step()
+        if not lo <= self.step <= hi:
+            raise PydanticCustomError(
+                "orbits_step", "need min_step <= step <= max_step (got {lo}, {s}, {hi})",
+                {"lo": lo, "s": self.step, "hi": hi},
+            )  # fmt: skip
+        return self
+
+    def resolved_min_step(self) -> float:
+        return self.min_step if self.min_step is not None else self.step / 1000.0
+
+    def resolved_max_step(self) -> float:
+        return self.max_step if self.max_step is not None else 5.0 * self.step
+
+
 # ======================================================================= whole file
 
 
@@ -438,6 +539,21 @@ class CaseFile(_Section):
     compare: CompareSection | None = None
     analysis: AnalysisSection | None = None
     sweep: SweepSection | None = None
+    orbits: OrbitsSection | None = None
+
+    @model_validator(mode="after")
+    def _run_fits_in_memory(self) -> CaseFile:
+        samples = self.time.periods * self.time.samples_per_period
+        methods = len(self.solver.methods)
+        need = samples * methods * RUN_BYTES_PER_SAMPLE
+        if samples <= MAX_OUTPUT_SAMPLES and need > MAX_CASE_MEMORY_BYTES:
+            raise PydanticCustomError(
+                "too_much_memory",
+                f"{samples:.3g} output samples x {methods} methods need about {_gib(need)} "
+                f"of memory, more than the {_gib(MAX_CASE_MEMORY_BYTES)} a case may ask for; "
+                "run fewer methods at a time or fewer time.samples_per_period",
+            )
+        return self
 
     @model_validator(mode="after")
     def _model_xor_physical(self) -> CaseFile:
@@ -482,8 +598,12 @@ class Case:
 
     @property
     def solver_options(self) -> dict[str, Any]:
-        """Options passed to ``rubcli.solvers.solve`` for every method."""
+        """The [solver] settings shared by every method (each takes its own part)."""
         return self.settings.solver.options()
+
+    def options_for(self, method: str) -> dict[str, Any]:
+        """The [solver] settings that ``method`` takes, for ``rubcli.solvers.solve``."""
+        return registry.options_for(method, self.solver_options)
 
     @property
     def output_dir(self) -> Path:
@@ -660,13 +780,14 @@ def _format_error(source: str, error: dict[str, Any]) -> str:
             message = "missing required key"
     elif kind == "string_pattern_mismatch" and loc == ("case", "name"):
         message = (
-            "must start with a letter or digit and hold only letters, digits, '.', '_' and '-'"
-            f" (it names the default output dir; got {error['input']!r})"
+            "must start with an ASCII letter or digit and hold only ASCII letters, digits, "
+            f"'.', '_' and '-' (it names the default output dir; got "
+            f"{_short_repr(error['input'])})"
         )
     elif kind == "extra_forbidden":
         message = "unknown key (not part of the case-file schema; see docs/cases.md)"
     else:
         message = error["msg"]
         if "input" in error and not isinstance(error["input"], dict | list):
-            message += f" (got {error['input']!r})"
+            message += f" (got {_short_repr(error['input'])})"
     return f"{source}: {field or '(file)'}: {message}"

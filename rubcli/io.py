@@ -1,23 +1,45 @@
-"""Writing results: atomic files, solution CSVs, JSON reports, figures, staged output dirs.
+"""Writing results: atomic files, CSV tables, JSON reports, figures, staged output dirs.
 
 Every writer goes through ``atomic_path``: the data are written to a temporary file in the
 target's own directory and moved over the target with ``os.replace``, so a reader never
 sees a half-written file. ``staged_output_dir`` does the same for a whole run: every file
-is written into a hidden staging directory beside the target and moved in only when the
-run got that far, so a run that fails part way (an exception, Ctrl-C) leaves no outputs.
-Files already in the target directory that the run does not write are left alone.
+is written into a hidden staging directory and moved in only when the run got that far,
+so a run that fails part way (an exception, Ctrl-C, SIGTERM) leaves no outputs.
+
+The rules of an output dir (``check_output_dir``, called by every command before it
+computes anything):
+
+- it must be a directory or not exist yet, and be creatable and writable (tried, not
+  guessed: a probe directory is made and removed);
+- a dir that holds files is used only if rubcli wrote it: its ``report.json`` is a rubcli
+  report whose ``files`` list is the *manifest* of the run that wrote it. Files of that
+  manifest which the new run does not write are removed after the new run committed
+  (they would be stale results beside a new report) and named in a warning;
+- a non-empty dir without a manifest (``--out .``, a home dir, someone's data) is refused
+  unless ``force``; with ``force`` rubcli writes its files and leaves the others alone.
+  Sub-directories that hold a rubcli manifest (the ``compare/`` and ``forces-map/`` dirs
+  inside a case's output dir) do not count.
+
+Every CSV goes through ``write_csv`` (one formatting rule: shortest round-trip floats,
+written in blocks of rows, so a 10-million-sample solution never sits in memory as
+text), every report through ``report_envelope`` + ``write_json``.
 """
 
 from __future__ import annotations
 
 import contextlib
+import datetime as dt
+import errno
 import json
 import math
 import os
 import shutil
+import signal
 import sys
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from dataclasses import dataclass, field
+from dataclasses import replace as _replace
 from pathlib import Path
 from typing import Any
 
@@ -52,8 +74,15 @@ CSV_PHYSICAL_COLUMNS = (
     "normal_force_N",
     "friction_force_N",
 )
-_INTEGER_COLUMNS = frozenset({"contact", "regime"})
-_TEXT_COLUMNS = frozenset({"regime_name"})  # free, slip+, slip-, stick (model.REGIME_NAMES)
+# Rows per block of a solution CSV: bounds the memory of the writer (about 40 MB of text
+# and columns per block) whatever the number of samples.
+CSV_BLOCK_ROWS = 65_536
+REPORT_NAME = "report.json"
+STAGING_PREFIX = ".rubcli-staging-"
+
+
+class OutputError(Exception):
+    """An output location that cannot be used; the message says which and why."""
 
 
 @contextlib.contextmanager
@@ -103,7 +132,7 @@ def solution_columns(
         "z": solution.z,
         "contact": solution.contact,
         "regime": np.asarray(solution.regimes, dtype=int),
-        "regime_name": np.array([REGIME_NAMES[int(r)] for r in solution.regimes], dtype=object),
+        "regime_name": _regime_names(solution.regimes),
         "v_r": solution.slip_velocity,
         "normal_force": solution.normal_force,
         "friction_force": solution.friction_force,
@@ -123,23 +152,154 @@ def solution_columns(
     return columns
 
 
+def _regime_names(regimes: np.ndarray) -> np.ndarray:
+    codes = np.asarray(regimes, dtype=int)
+    names = np.empty(codes.shape, dtype=object)
+    for code, name in REGIME_NAMES.items():
+        names[codes == code] = name
+    return names
+
+
+def solution_blocks(
+    solution: Solution,
+    scale: units.PhysicalScale | None = None,
+    rows: int | None = None,
+) -> Iterator[list[np.ndarray]]:
+    """The solution's CSV columns, ``rows`` (default ``CSV_BLOCK_ROWS``) samples at a time,
+    each column computed on the block only: the memory does not grow with the samples."""
+    rows = rows or CSV_BLOCK_ROWS
+    n = int(solution.t.size)
+    for a in range(0, n, rows):
+        b = min(n, a + rows)
+        part = _replace(
+            solution,
+            t=solution.t[a:b],
+            states=solution.states[a:b],
+            regimes=solution.regimes[a:b],
+            events=[],
+        )
+        yield list(solution_columns(part, scale).values())
+
+
+def solution_header(scale: units.PhysicalScale | None = None) -> tuple[str, ...]:
+    return CSV_COLUMNS + (CSV_PHYSICAL_COLUMNS if scale is not None else ())
+
+
 def write_solution_csv(
-    path: str | Path, solution: Solution, scale: units.PhysicalScale | None = None
+    path: str | Path,
+    solution: Solution,
+    scale: units.PhysicalScale | None = None,
+    *,
+    on_rows: Callable[[int], None] | None = None,
 ) -> Path:
-    """One row per output sample; floats with 17 significant digits (round-trip exact)."""
-    columns = solution_columns(solution, scale)
-    names = list(columns)
-    table = np.column_stack(
-        [np.asarray(columns[n], dtype=object if n in _TEXT_COLUMNS else float) for n in names]
+    """One row per output sample, streamed in blocks; floats in shortest round-trip form
+    (``repr``: exact), non-finite values as ``nan``/``inf``. ``on_rows(done)`` reports
+    progress after each block."""
+    return write_csv(
+        path, solution_header(scale), solution_blocks(solution, scale), on_rows=on_rows
     )
-    fmt = [
-        "%s" if n in _TEXT_COLUMNS else "%d" if n in _INTEGER_COLUMNS else "%.17g" for n in names
-    ]
+
+
+# ------------------------------------------------------------------------------ CSV
+
+
+def csv_field(value: object, nonfinite: str | None = None) -> str:
+    """One CSV field. Floats: shortest round-trip text; non-finite as ``repr`` (``nan``,
+    ``inf``) or as ``nonfinite`` if given. None: empty. Text is quoted when it must be."""
+    if value is None:
+        return ""
+    if isinstance(value, bool | np.bool_):
+        return "true" if value else "false"
+    if isinstance(value, float | np.floating):
+        value = float(value)
+        if nonfinite is not None and not math.isfinite(value):
+            return nonfinite
+        return repr(value)
+    if isinstance(value, int | np.integer):
+        return str(int(value))
+    text = str(value)
+    if any(c in text for c in ',"\n\r'):
+        text = '"' + text.replace('"', '""') + '"'
+    return text
+
+
+def _column_texts(column: Sequence[object] | np.ndarray, nonfinite: str | None) -> list[str]:
+    """The fields of one column (fast paths for float and integer arrays)."""
+    if isinstance(column, np.ndarray) and column.dtype.kind == "f":
+        texts = [repr(v) for v in column.astype(float, copy=False).tolist()]
+        if nonfinite is not None:
+            for i in np.flatnonzero(~np.isfinite(column)).tolist():
+                texts[i] = nonfinite
+        return texts
+    if isinstance(column, np.ndarray) and column.dtype.kind in "iu":
+        return [str(v) for v in column.tolist()]
+    if isinstance(column, np.ndarray) and column.dtype.kind in "OU":
+        values = column.tolist()
+        if all(type(v) is str for v in set(values)):  # e.g. regime names: few distinct texts
+            fields = {v: csv_field(v) for v in set(values)}
+            return [fields[v] for v in values]
+    return [csv_field(v, nonfinite) for v in column]
+
+
+def rows_to_block(rows: Iterable[Sequence[object]], width: int) -> list[list[object]]:
+    """Rows (lists of values) as a block of columns for ``write_csv``."""
+    columns: list[list[object]] = [[] for _ in range(width)]
+    for row in rows:
+        if len(row) != width:
+            raise ValueError(f"a CSV row has {len(row)} fields, the header {width}")
+        for column, value in zip(columns, row, strict=True):
+            column.append(value)
+    return columns
+
+
+def write_csv(
+    path: str | Path,
+    header: Sequence[str],
+    blocks: Iterable[Sequence[Sequence[object] | np.ndarray]],
+    *,
+    nonfinite: str | None = None,
+    on_rows: Callable[[int], None] | None = None,
+) -> Path:
+    """Write a CSV table atomically: the header, then each block of columns as rows.
+
+    The one CSV writer of rubcli. ``blocks`` yields lists of columns (numpy arrays or
+    lists, one per header name, of equal length); they are formatted and written one block
+    at a time, so the text of a large table is never held whole. ``nonfinite`` replaces
+    NaN/inf (default: written as ``nan``/``inf``); None is an empty field.
+    """
+    width = len(header)
+    done = 0
     with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8", newline="") as handle:
-        handle.write(",".join(names) + "\n")
-        if table.size:
-            np.savetxt(handle, table, fmt=fmt, delimiter=",")
+        handle.write(",".join(csv_field(h) for h in header) + "\n")
+        for block in blocks:
+            if len(block) != width:
+                raise ValueError(f"a CSV block has {len(block)} columns, the header {width}")
+            texts = [_column_texts(column, nonfinite) for column in block]
+            lengths = {len(t) for t in texts}
+            if len(lengths) > 1:
+                raise ValueError(f"CSV columns of unequal length {sorted(lengths)}")
+            if not texts or not texts[0]:
+                continue
+            handle.write("\n".join(map(",".join, zip(*texts, strict=True))))
+            handle.write("\n")
+            done += len(texts[0])
+            if on_rows is not None:
+                on_rows(done)
     return Path(path)
+
+
+def write_rows_csv(
+    path: str | Path,
+    header: Sequence[str],
+    rows: Iterable[Sequence[object]],
+    *,
+    nonfinite: str | None = None,
+) -> Path:
+    """``write_csv`` for a table given as rows (small tables: reports, sweeps)."""
+    return write_csv(path, header, [rows_to_block(rows, len(header))], nonfinite=nonfinite)
+
+
+# ----------------------------------------------------------------------------- JSON
 
 
 def to_jsonable(value: Any) -> Any:
@@ -161,10 +321,37 @@ def to_jsonable(value: Any) -> Any:
     return str(value)
 
 
+def json_text(data: Any) -> str:
+    """``data`` as indented JSON text (non-finite floats become null)."""
+    return json.dumps(to_jsonable(data), indent=2, allow_nan=False) + "\n"
+
+
 def write_json(path: str | Path, data: Any) -> Path:
     """Write ``data`` as indented JSON, atomically (non-finite floats become null)."""
-    text = json.dumps(to_jsonable(data), indent=2, allow_nan=False) + "\n"
-    return write_text(path, text)
+    return write_text(path, json_text(data))
+
+
+def report_envelope(
+    command: str, command_line: dict[str, Any], case: dict[str, Any] | None = None
+) -> dict[str, Any]:
+    """The first keys of every report.json: version, time, environment, what was run and
+    on which case (``Case.to_dict()``); each command adds its results after them."""
+    envelope = {
+        "rubcli_version": _version(),
+        "created_utc": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+        "environment": environment_info(),
+        "command": command,
+        "command_line": command_line,
+    }
+    if case is not None:
+        envelope["case"] = case
+    return envelope
+
+
+def _version() -> str:
+    from rubcli import __version__
+
+    return __version__
 
 
 def save_figure(fig, path: str | Path, *, dpi: int = 120, close: bool = True) -> Path:
@@ -179,14 +366,130 @@ def save_figure(fig, path: str | Path, *, dpi: int = 120, close: bool = True) ->
     return Path(path)
 
 
-class StagedOutput:
-    """A staging directory whose files are moved into ``target`` by ``commit()``."""
+# ----------------------------------------------------------------------- output dirs
 
-    def __init__(self, target: str | Path):
+
+@dataclass
+class OutputPlan:
+    """What ``check_output_dir`` found: where to write and what a previous run left."""
+
+    target: Path
+    previous: list[str] = field(default_factory=list)  # files of the previous manifest
+    foreign: list[str] = field(default_factory=list)  # files no rubcli manifest lists
+    removed: list[str] = field(default_factory=list)  # stale files removed at commit
+
+
+def read_manifest(directory: Path) -> list[str] | None:
+    """The ``files`` of a rubcli report.json in ``directory``, or None if it has none."""
+    try:
+        report = json.loads((directory / REPORT_NAME).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(report, dict) or "rubcli_version" not in report:
+        return None
+    files = report.get("files")
+    if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
+        return None
+    return [f for f in files if Path(f).name == f and f not in ("", ".", "..")]
+
+
+def _nearest_existing(path: Path) -> Path:
+    for candidate in (path, *path.parents):
+        if os.path.lexists(candidate):
+            return candidate
+    return Path(".")
+
+
+def check_output_dir(target: str | Path, *, force: bool = False) -> OutputPlan:
+    """Check an output dir before anything is computed; raise OutputError saying why not.
+
+    See the module docstring for the rules. Nothing is created or changed here (the probe
+    directory is removed again).
+    """
+    target = Path(target)
+    if target.exists() and not target.is_dir():
+        raise OutputError(f"{target}: output dir exists and is not a directory")
+    if os.path.lexists(target) and not target.exists():
+        raise OutputError(f"{target}: output dir is a broken symbolic link")
+    base = _nearest_existing(target.absolute())
+    if not base.is_dir():
+        raise OutputError(f"{target}: cannot create the output dir: {base} is not a directory")
+    try:
+        probe = tempfile.mkdtemp(dir=base, prefix=".rubcli-probe-")
+        os.rmdir(probe)
+    except OSError as exc:
+        reason = exc.strerror or str(exc)
+        raise OutputError(f"{target}: output dir is not writable ({base}: {reason})") from None
+    plan = OutputPlan(target=target)
+    if not target.is_dir():
+        return plan
+    entries = sorted(
+        p.name
+        for p in target.iterdir()
+        if not p.name.startswith(STAGING_PREFIX)
+        # a sub-dir written by rubcli (`compare/`, `forces-map/` of a case) is no obstacle
+        and not (p.is_dir() and read_manifest(p) is not None)
+    )
+    if not entries:
+        return plan
+    manifest = read_manifest(target)
+    if manifest is None:
+        if not force:
+            shown = ", ".join(entries[:5]) + (f" and {len(entries) - 5} more" if len(entries) > 5
+                                              else "")  # fmt: skip
+            raise OutputError(
+                f"{target}: output dir is not empty and was not written by rubcli (no rubcli "
+                f"report.json; it holds {shown}); choose a new or empty dir, or pass --force "
+                "to write beside these files"
+            )
+        plan.foreign = entries
+        return plan
+    plan.previous = manifest
+    plan.foreign = [e for e in entries if e not in manifest and e != REPORT_NAME]
+    return plan
+
+
+def _move(source: Path, destination: Path) -> None:
+    """Move a staged file over ``destination`` atomically, also across filesystems (a
+    copy to a temporary file beside the destination, then a rename there)."""
+    try:
+        os.replace(source, destination)
+    except OSError as exc:
+        if exc.errno != errno.EXDEV:
+            raise
+        with atomic_path(destination) as tmp:
+            shutil.copyfile(source, tmp)
+        source.unlink(missing_ok=True)
+
+
+def _same_device(a: Path, b: Path) -> bool:
+    try:
+        return os.stat(a).st_dev == os.stat(b).st_dev
+    except OSError:
+        return True
+
+
+class StagedOutput:
+    """A staging directory whose files are moved into ``target`` by ``commit()``.
+
+    The staging directory is made in the target's real parent (symbolic links resolved),
+    or inside the target itself when the target is a mount point, so that the final moves
+    are renames on one filesystem; a move that still crosses filesystems is copied.
+    """
+
+    def __init__(self, target: str | Path, plan: OutputPlan | None = None):
         self.target = Path(target)
-        parent = self.target.parent
-        parent.mkdir(parents=True, exist_ok=True)
-        self.staging = Path(tempfile.mkdtemp(dir=parent, prefix=f".{self.target.name}.staging-"))
+        self.plan = plan
+        self.created: list[Path] = []  # directories made for the target (removed on failure)
+        real = self.target.resolve()
+        parent = real.parent
+        for directory in reversed((real, *real.parents)):
+            if directory != real and not directory.exists():
+                directory.mkdir()
+                self.created.append(directory)
+        if real.is_dir() and not _same_device(real, parent):
+            parent = real
+        self.staging = Path(tempfile.mkdtemp(dir=parent, prefix=f"{STAGING_PREFIX}{real.name}-"))
         self.committed: list[Path] = []
 
     def path(self, name: str) -> Path:
@@ -195,29 +498,45 @@ class StagedOutput:
             raise ValueError(f"output names are plain file names, not {name!r}")
         return self.staging / name
 
-    def commit(self, last: tuple[str, ...] = ("report.json",)) -> list[Path]:
+    def commit(self, last: tuple[str, ...] = (REPORT_NAME,)) -> list[Path]:
         """Move every staged file into the target; the names in ``last`` go last.
 
-        Each move is an ``os.replace`` (atomic per file). A report written last marks
-        that the files before it are complete.
+        Each move is atomic per file. A report written last marks that the files before it
+        are complete. Then the files of the previous run's manifest that this run did not
+        write are removed (``plan.removed`` names them).
         """
-        self.target.mkdir(parents=True, exist_ok=True)
-        staged = sorted(p for p in self.staging.iterdir() if p.is_file())
-        staged.sort(key=lambda p: p.name in last)
-        for item in staged:
-            destination = self.target / item.name
-            os.replace(item, destination)
-            self.committed.append(destination)
-        self.discard()
+        try:
+            self.target.mkdir(parents=True, exist_ok=True)
+            staged = sorted(p for p in self.staging.iterdir() if p.is_file())
+            staged.sort(key=lambda p: p.name in last)
+            for item in staged:
+                destination = self.target / item.name
+                _move(item, destination)
+                self.committed.append(destination)
+            self.created.clear()
+            written = {p.name for p in self.committed}
+            if self.plan is not None:
+                for name in self.plan.previous:
+                    stale = self.target / name
+                    if name not in written and stale.is_file():
+                        stale.unlink()
+                        self.plan.removed.append(name)
+        finally:
+            self.discard()
         return self.committed
 
     def discard(self) -> None:
-        """Remove the staging directory and whatever is still in it."""
+        """Remove the staging directory and whatever is still in it, and the directories
+        made for a target that was never committed."""
         shutil.rmtree(self.staging, ignore_errors=True)
+        for directory in reversed(self.created):
+            with contextlib.suppress(OSError):
+                directory.rmdir()
+        self.created.clear()
 
 
 @contextlib.contextmanager
-def staged_output_dir(target: str | Path) -> Iterator[StagedOutput]:
+def staged_output_dir(target: str | Path, plan: OutputPlan | None = None) -> Iterator[StagedOutput]:
     """Stage a run's outputs; move them into ``target`` only if the block completes.
 
     ::
@@ -225,14 +544,59 @@ def staged_output_dir(target: str | Path) -> Iterator[StagedOutput]:
         with staged_output_dir("out/fig3a") as out:
             write_json(out.path("report.json"), report)
         # now out/fig3a/report.json exists; after an exception nothing would.
+
+    ``plan`` (from ``check_output_dir``) lets the commit remove the stale files of the
+    previous run.
     """
-    staged = StagedOutput(target)
+    staged = StagedOutput(target, plan)
     try:
         yield staged
     except BaseException:
         staged.discard()
         raise
     staged.commit()
+
+
+# --------------------------------------------------------------------------- signals
+
+
+class Terminated(BaseException):  # noqa: N818 - like KeyboardInterrupt, not an error
+    """Raised in the main thread when the process receives SIGTERM, SIGINT or SIGHUP, so
+    that staged outputs are removed on the way out; exit with ``exit_code``."""
+
+    def __init__(self, signum: int):
+        self.signum = signum
+        super().__init__(f"terminated by {signal.Signals(signum).name}")
+
+    @property
+    def exit_code(self) -> int:
+        return 128 + self.signum
+
+
+TERMINATION_SIGNALS = tuple(
+    getattr(signal, name) for name in ("SIGTERM", "SIGINT", "SIGHUP") if hasattr(signal, name)
+)
+
+
+@contextlib.contextmanager
+def termination_as_exception() -> Iterator[None]:
+    """Turn the termination signals into ``Terminated`` while the block runs (main thread
+    only; elsewhere a no-op). A compiled solver loop sees it at its next progress report."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: object) -> None:
+        raise Terminated(signum)
+
+    previous = {sig: signal.signal(sig, handler) for sig in TERMINATION_SIGNALS}
+    try:
+        yield
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
 
 
 def environment_info() -> dict[str, str]:

@@ -15,10 +15,10 @@ the rotor back towards the centre, and its tangential part opposes the slip ``v_
 State vectors are ``s = (x, y, vx, vy)`` with ``vx = dx/dtau``. The functions work on
 plain floats and numpy arrays; nothing here imports a solver, pydantic, matplotlib or numba.
 
-The formulas the compiled kernels need (``rubcli/solvers/kernels.py``) are written once,
+The formulas the compiled kernels need (``rubcli/solvers/compiled/``) are written once,
 as the ``*_entries`` / ``*_arrays`` / ``*_value`` cores below: plain functions on floats
 (some also on arrays) in the subset of Python that numba compiles. The public functions
-here call them, and the kernels module registers the same function objects with numba
+here call them, and ``compiled/jit.py`` registers the same function objects with numba
 (``register_jitable``), so the Python and the compiled paths share one definition.
 """
 
@@ -123,11 +123,16 @@ def normal_force(x, y, K: float):
     return out if np.ndim(out) else float(out)
 
 
+def slip_velocity_value(x, y, vx, vy, spin):
+    """v_r of one state from scalars, ``spin = Rp eta`` (compilable core; 0 whirl at z = 0)."""
+    z = math.hypot(x, y)
+    return spin + ((x * vy - y * vx) / z if z > 0.0 else 0.0)
+
+
 def slip_velocity(x, y, vx, vy, Rp: float, eta: float):
     """v_r = Rp eta + (x vy - y vx) / z: slip of the rotor surface on the stator (notes 1, 6)."""
     if isinstance(x, float) and isinstance(y, float):  # one state: the event code's case
-        z = math.hypot(x, y)
-        return float(Rp * eta + ((x * vy - y * vx) / z if z > 0.0 else 0.0))
+        return float(slip_velocity_value(x, y, vx, vy, Rp * eta))
     z = np.hypot(x, y)
     with np.errstate(divide="ignore", invalid="ignore"):
         whirl = np.where(z > 0.0, (x * vy - y * vx) / np.where(z > 0.0, z, 1.0), 0.0)
@@ -256,8 +261,15 @@ def tangential_force(tau, x, y, vx, vy, params: ModelParams, regime):
     z = np.hypot(x, y)
     slip = np.where(regime == SLIP_POSITIVE, 1.0, np.where(regime == SLIP_NEGATIVE, -1.0, 0.0))
     out = slip * params.mu * params.K * (z - 1.0)
-    if np.any(regime == STICK):
-        out = np.where(regime == STICK, stick_friction(tau, x, y, vx, vy, params), out)
+    stick = regime == STICK
+    if np.any(stick):  # evaluated on the stick samples only (z > 1 there, no 0/0 elsewhere)
+        if np.ndim(out):
+            out = np.array(out, dtype=float)
+            tau, x, y, vx, vy = np.broadcast_arrays(tau, x, y, vx, vy)
+            out[stick] = stick_friction(tau[stick], x[stick], y[stick], vx[stick], vy[stick],
+                                        params)  # fmt: skip
+        else:
+            out = stick_friction(tau, x, y, vx, vy, params)
     return out if np.ndim(out) else float(out)
 
 
@@ -345,6 +357,24 @@ def rhs_jacobian(tau: float, s, params: ModelParams, regime: int) -> np.ndarray:
     return rhs_jacobian_array(*_rhs_args(tau, s, params, regime))
 
 
+def entry_regime_value(x, y, vx, vy, mu, spin):
+    """The slip direction a contact starts in: the sign of v_r (compilable core)."""
+    if mu == 0.0:
+        return SLIP_POSITIVE
+    return SLIP_POSITIVE if slip_velocity_value(x, y, vx, vy, spin) >= 0.0 else SLIP_NEGATIVE
+
+
+def zero_slip_regime_value(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu):
+    """``regime_at_zero_slip`` from scalars: Filippov's rule (compilable core)."""
+    needed = stick_friction_value(tau, x, y, vx, vy, nu, eta, E, phi0)
+    limit = mu * K * (math.hypot(x, y) - 1.0)
+    if needed > limit:
+        return SLIP_POSITIVE
+    if needed < -limit:
+        return SLIP_NEGATIVE
+    return STICK
+
+
 def regime_of_state(s, params: ModelParams, tau: float | None = None) -> int:
     """The regime a state is in by position and slip (z > 1 means contact; v_r = 0 may stick)."""
     x, y, vx, vy = s[0], s[1], s[2], s[3]
@@ -366,13 +396,8 @@ def regime_at_zero_slip(tau: float, s, params: ModelParams) -> int:
     is taken only if v_r leaves zero in it: slip+ if T > L, slip- if T < -L; otherwise
     neither is consistent and the rotor sticks (rolls).
     """
-    needed = float(stick_friction(tau, s[0], s[1], s[2], s[3], params))
-    limit = params.mu * params.K * (math.hypot(s[0], s[1]) - 1.0)
-    if needed > limit:
-        return SLIP_POSITIVE
-    if needed < -limit:
-        return SLIP_NEGATIVE
-    return STICK
+    nu, eta, E, phi0, K, mu = params_vector(params)[:6]
+    return zero_slip_regime_value(float(tau), s[0], s[1], s[2], s[3], nu, eta, E, phi0, K, mu)
 
 
 def project_to_rolling(s, params: ModelParams) -> np.ndarray:

@@ -21,7 +21,11 @@ from typer.testing import CliRunner
 from rubcli import model
 from rubcli.case import load_case
 from rubcli.cli.app import app
-from rubcli.solvers import METHODS
+from rubcli.model import ModelParams
+from rubcli.problem import Problem
+from rubcli.solution import FAILED
+from rubcli.solvers import METHODS, solve
+from rubcli.solvers.registry import NAMES as ALL_METHODS
 
 runner = CliRunner()
 
@@ -149,3 +153,24 @@ def test_energy_plot_when_asked(tmp_path):
     assert (out / "energy.png").stat().st_size > 10_000
     assert "energy.png" in report["files"]
     assert "orbit.png" not in report["files"]
+
+
+ABSURD = {
+    "K = 1e200": {"K": 1e200},
+    "K = 1e308, e = 1e300": {"K": 1e308, "e": 1e300},
+}
+
+
+@pytest.mark.parametrize("method", sorted(ALL_METHODS))
+@pytest.mark.parametrize("label", list(ABSURD))
+def test_absurd_magnitudes_fail_cleanly_within_the_budget(method, label):
+    """Issue 12, defects 4 and 5: parameters beyond floating-point sense end as a failed
+    method with its reason, within the step budget: no hang (the analytic methods once
+    looped for ever balancing a matrix whose norm overflowed), no exception (dop853-jit
+    once raised ZeroDivisionError)."""
+    params = ModelParams(**{"nu": 0.009478, "eta": 0.7818, "e": 7.52, "Rp": 46.16, **ABSURD[label]})
+    problem = Problem.from_periods(params, (0.88544, -0.8039, 0.0, 0.0), 50, 100)
+    sol = solve(problem, method, max_steps=1000, max_wall_time_s=1e9)
+    assert sol.status == FAILED
+    assert sol.message and "Traceback" not in sol.message
+    assert sol.t.size >= 1 and sol.stats["nsteps"] <= 1000

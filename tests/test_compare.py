@@ -253,9 +253,10 @@ lyapunov = false
     case = tmp_path / "case.toml"
     case.write_text(_case_text(params, start, 10, extra).replace('"rk45", "analytic"', '"rk45"'))
     out = tmp_path / "sweep"
-    result = CliRunner().invoke(app, ["compare", str(case), "--out", str(out)])
+    result = CliRunner().invoke(app, ["compare", str(case), "--out", str(out), "--json"])
     assert result.exit_code == 0, result.output
     report = json.loads((out / "report.json").read_text())
+    assert json.loads(result.stdout) == report  # --json: stdout is the report, nothing else
     assert report["work_precision"] is None and not (out / "work_precision.csv").exists()
     # Started on the mu = 0 rub, which is stable: period 1.
     assert report["response"]["kind"] == "periodic" and report["response"]["period"] == 1

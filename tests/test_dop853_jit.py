@@ -122,3 +122,15 @@ def test_non_finite_start_of_divergence_fails_cleanly():
     prob = Problem.from_periods(p, (0.0, 0.0, 0.0, 0.0), 2, 10)
     sol = solve(prob, "dop853-jit", rtol=1e-6, atol=1e-8, max_wall_time_s=10)
     assert sol.status == FAILED
+
+
+def test_vendored_tableau_is_scipys():
+    """The vendored DOP853 coefficients equal scipy's, array for array (bitwise)."""
+    from scipy.integrate._ivp import dop853_coefficients as scipy_tableau
+
+    from rubcli.solvers import dop853_coefficients as vendored
+
+    for name in ("A", "B", "C", "D", "E3", "E5"):
+        assert np.array_equal(getattr(vendored, name), getattr(scipy_tableau, name)), name
+    assert vendored.N_STAGES == scipy_tableau.N_STAGES
+    assert vendored.INTERPOLATOR_POWER == scipy_tableau.INTERPOLATOR_POWER

@@ -1,4 +1,4 @@
-"""The numba kernels (rubcli/solvers/kernels.py) against the pure-Python path.
+"""The numba kernels (rubcli/solvers/compiled/) against the pure-Python path.
 
 The compiled path must give the Python path's numbers to round-off: the same events of
 the same kinds at the same times, the same regimes, the same states. Round-off differs
@@ -14,7 +14,8 @@ from rubcli import model
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solution import FAILED, SUCCESS
-from rubcli.solvers import analytic, kernels, solve
+from rubcli.solvers import analytic, compiled, control, solve
+from rubcli.solvers.compiled import cache, linalg, propagators
 
 ANALYTIC = ["analytic", "analytic-polar"]
 FIG3_INITIAL = (0.88544, -0.8039, 0.0, 0.0)
@@ -46,11 +47,11 @@ def both_paths(prob, method, **options):
 
 
 def test_compiled_cores_agree_with_model(fig3_params):
-    """kernels.rhs / rhs_jacobian / rhs_columns and the probe of every registered core
+    """compiled.rhs / rhs_jacobian / rhs_columns and the probe of every registered core
     against model.py's public functions, on random states in every regime."""
-    assert kernels.ensure_fresh()
+    assert compiled.ensure_fresh()
     np.testing.assert_allclose(
-        kernels._probe(kernels.PROBE_POINT), kernels._probe_values(kernels.PROBE_POINT), rtol=1e-13
+        cache._probe(cache.PROBE_POINT), cache._probe_values(cache.PROBE_POINT), rtol=1e-13
     )
     p = fig3_params(0.05, phi0=0.4)
     pars = np.array(model.params_vector(p))
@@ -60,11 +61,11 @@ def test_compiled_cores_agree_with_model(fig3_params):
         tau = rng.uniform(0.0, 50.0)
         for regime in (model.FREE, model.SLIP_POSITIVE, model.SLIP_NEGATIVE, model.STICK):
             expected = model.rhs(tau, s, p, regime)
-            np.testing.assert_allclose(kernels.rhs(tau, s, pars, regime), expected, rtol=1e-13)
-            columns = kernels.rhs_columns(np.array([tau]), s[:, None].copy(), pars, regime)
+            np.testing.assert_allclose(compiled.rhs(tau, s, pars, regime), expected, rtol=1e-13)
+            columns = compiled.rhs_columns(np.array([tau]), s[:, None].copy(), pars, regime)
             np.testing.assert_allclose(columns[:, 0], expected, rtol=1e-13)
             np.testing.assert_allclose(
-                kernels.rhs_jacobian(tau, s, pars, regime),
+                compiled.rhs_jacobian(tau, s, pars, regime),
                 model.rhs_jacobian(tau, s, p, regime),
                 rtol=1e-9 if regime == model.STICK else 1e-13,  # central differences
                 atol=1e-9 if regime == model.STICK else 0.0,
@@ -79,8 +80,8 @@ def test_kernel_step_data_agree_with_model(mu_c, fig3_params):
     pars = np.array(model.params_vector(p))
     s0 = np.array([1.02, -0.31, 0.4, 1.3])
     tau0 = 2.7
-    ws = kernels._workspace()
-    kernels._prepare_polar(tau0, s0, pars, mu_c, ws, False)
+    ws = propagators._workspace()
+    propagators._prepare_polar(tau0, s0, pars, mu_c, ws, False)
     real, M = ws[5], ws[6]
     p0 = model.to_polar(s0)
     J, f_tau = model.polar_jacobian(tau0, p0, p, mu_c)
@@ -88,7 +89,7 @@ def test_kernel_step_data_agree_with_model(mu_c, fig3_params):
     np.testing.assert_allclose(real[4:8], model.polar_rhs(tau0, p0, p, mu_c), rtol=1e-13)
     np.testing.assert_allclose(real[8:12], f_tau, rtol=1e-13)
     np.testing.assert_allclose(M, J, rtol=1e-13)
-    kernels._prepare_cartesian(tau0, s0, pars, mu_c, ws, False)
+    propagators._prepare_cartesian(tau0, s0, pars, mu_c, ws, False)
     A, b = model.linearised_contact_system(s0, p, mu_c)
     np.testing.assert_allclose(M, A, rtol=1e-13)
     np.testing.assert_allclose(real[4:8], b, rtol=1e-13)
@@ -106,27 +107,27 @@ def test_probe_mismatch_flushes_and_falls_back(monkeypatch):
             FakeDispatcher.recompiled += 1
 
     fakes = [FakeDispatcher(), FakeDispatcher()]
-    monkeypatch.setattr(kernels, "_CACHED", fakes)
-    monkeypatch.setattr(kernels, "_usable", None)
-    monkeypatch.setattr(kernels, "_probe_values", lambda x: kernels._probe(x) + 1.0)
+    monkeypatch.setattr(cache, "_dispatchers", lambda: fakes)
+    monkeypatch.setattr(cache, "_usable", None)
+    monkeypatch.setattr(cache, "_probe_values", lambda x: cache._probe(x) + 1.0)
     with pytest.warns(RuntimeWarning, match="pure-Python"):
-        assert kernels.ensure_fresh() is False
+        assert compiled.ensure_fresh() is False
     assert FakeDispatcher.recompiled == len(fakes)
     prob = Problem.from_periods(FORCED, (1.2, 0.0, 0.0, 1.0), 0.2, 10)
     assert solve(prob, "analytic-polar").settings["compiled"] is False
-    monkeypatch.setattr(kernels, "_usable", None)
-    monkeypatch.setattr(kernels, "_probe_values", kernels._probe)
-    assert kernels.ensure_fresh() is True
+    monkeypatch.setattr(cache, "_usable", None)
+    monkeypatch.setattr(cache, "_probe_values", cache._probe)
+    assert compiled.ensure_fresh() is True
 
 
 # ------------------------------------------------------------------ eigen-decomposition
 
 
 def _eig(M):
-    ws = kernels._workspace()
+    ws = propagators._workspace()
     lam, V, _, _, _, _, Mw, B, Q, H, Z, scale, x, _, _, _ = ws
     Mw[:, :] = M
-    ok = kernels._eig_small(Mw, lam, V, B, Q, H, Z, scale, x)
+    ok = linalg._eig_small(Mw, lam, V, B, Q, H, Z, scale, x)
     return ok, lam.copy(), V.copy(), ws
 
 
@@ -151,8 +152,8 @@ def test_eigensolver_matches_lapack_on_contact_matrices(K, mu, fig3_params):
         for value in lam:  # every eigenvalue is one of LAPACK's, to round-off
             assert np.min(np.abs(reference - value)) < 1e-13 * scale
         np.testing.assert_allclose(np.linalg.norm(V, axis=0), 1.0, rtol=1e-14)
-        # the residual relative to the balanced norm, as kernels._residual_ok checks it
-        assert kernels._residual_ok(M, lam, V, _eig(M)[3][11])
+        # the residual relative to the balanced norm, as linalg._residual_ok checks it
+        assert linalg._residual_ok(M, lam, V, _eig(M)[3][11])
 
 
 @pytest.mark.parametrize("K", [17.6, 1.75e6])
@@ -171,16 +172,16 @@ def test_warm_eigensolver_from_nearby_eigenvalues(K, mu, fig3_params):
         ok, previous, _, ws = _eig(M)
         assert ok
         lam, V, Vinv, B, scale = ws[0], ws[1], ws[15], ws[7], ws[11]
-        accepted = kernels._eig_warm(M_next, lam, V, Vinv, previous, B, scale)
+        accepted = linalg._eig_warm(M_next, lam, V, Vinv, previous, B, scale)
         assert accepted or not must_accept
         if accepted:
             reference = np.linalg.eigvals(M_next)
             for value in lam:
                 assert np.min(np.abs(reference - value)) < 1e-13 * np.abs(reference).max()
-            assert kernels._residual_ok(M_next, lam, V, scale)
+            assert linalg._residual_ok(M_next, lam, V, scale)
             np.testing.assert_allclose(Vinv @ V, np.eye(4), atol=1e-12)
         same = np.full(4, previous[0])
-        assert not kernels._eig_warm(M_next, lam, V, Vinv, same, B, scale)
+        assert not linalg._eig_warm(M_next, lam, V, Vinv, same, B, scale)
 
 
 def test_eigensolver_random_and_defective_matrices():
@@ -192,9 +193,9 @@ def test_eigensolver_random_and_defective_matrices():
         residual = np.abs(M @ V - V * lam).max()
         assert residual < 1e-12 * np.abs(M).sum(axis=0).max()
     jordan = np.diag(np.ones(3), 1)  # defective: no eigenbasis
-    ws = kernels._workspace()
+    ws = propagators._workspace()
     ws[6][:, :] = jordan
-    assert not kernels._eigenbasis(ws, False) < 1e10  # handed to Python's expm fallback
+    assert not propagators._eigenbasis(ws, False) < 1e10  # handed to Python's expm fallback
 
 
 # ------------------------------------------------------------------ kernel vs Python
@@ -357,18 +358,18 @@ def test_adaptive_kernel_hands_back_whole_pairs(fig3_params):
     t_eval = np.linspace(0.0, p.period, 11)
     pars = np.array(model.params_vector(p))
     h0 = p.period / 400
-    control = (
+    settings = (
         1e-7,
-        analytic.ADAPT_SAFETY,
-        analytic.ADAPT_MIN_FACTOR,
-        analytic.ADAPT_MAX_FACTOR,
-        p.period * analytic.MAX_STEP_FRACTION,
-        analytic.MIN_STEP_FRACTION * p.period,
+        control.SAFETY,
+        control.MIN_FACTOR,
+        control.MAX_FACTOR,
+        p.period * control.MAX_STEP_FRACTION,
+        control.MIN_STEP_FRACTION * p.period,
     )
 
     def advance(limit, t_end=t_eval[-1]):
         out = np.full((t_eval.size, 4), np.nan)
-        return kernels.advance_contact_adaptive(
+        return compiled.advance_contact_adaptive(
             True,
             0.0,
             s0,
@@ -383,17 +384,17 @@ def test_adaptive_kernel_hands_back_whole_pairs(fig3_params):
             analytic.CONTACT_SCAN_FRACTION,
             analytic.EIGVEC_COND_LIMIT,
             (False, False, False),
-            control,
+            settings,
         )
 
     tau, state, k, steps, rejected, h, reason = advance(1)
-    assert (tau, k, steps, rejected, h, reason) == (0.0, 1, 0, 0, h0, kernels.STOP_PYTHON)
+    assert (tau, k, steps, rejected, h, reason) == (0.0, 1, 0, 0, h0, compiled.STOP_PYTHON)
     np.testing.assert_array_equal(state, s0)
     tau, _, _, steps, _, h, reason = advance(3)
-    assert (steps, reason) == (2, kernels.STOP_LIMIT) and tau > 0.0 and h != h0
+    assert (steps, reason) == (2, compiled.STOP_LIMIT) and tau > 0.0 and h != h0
     tau, _, k, steps, _, h, reason = advance(10**9)
-    assert reason == kernels.STOP_END and tau >= t_eval[-1] and k == t_eval.size
-    assert steps % 2 == 0 and 0.0 < h <= 4 * control[4]
+    assert reason == compiled.STOP_END and tau >= t_eval[-1] and k == t_eval.size
+    assert steps % 2 == 0 and 0.0 < h <= 4 * settings[4]
 
 
 def test_kernel_stops_before_an_event_and_at_its_limits(fig3_params):
@@ -418,7 +419,7 @@ def test_kernel_stops_before_an_event_and_at_its_limits(fig3_params):
 
     def advance(t_end, limit):
         out = np.full((t_eval.size, 4), np.nan)
-        result = kernels.advance_contact(
+        result = compiled.advance_contact(
             True,
             tau0,
             s0,
@@ -437,7 +438,7 @@ def test_kernel_stops_before_an_event_and_at_its_limits(fig3_params):
         return (*result, out)
 
     tau, state, k, steps, reason, out = advance(t_eval[-1], 10**9)
-    assert reason == kernels.STOP_EVENT
+    assert reason == compiled.STOP_EVENT
     assert 0.0 <= exit_.tau - tau < 3 * h  # stopped just before the exit's step
     assert steps == round((tau - tau0) / h)
     assert t_eval[k - 1] <= tau < t_eval[k]
@@ -446,10 +447,10 @@ def test_kernel_stops_before_an_event_and_at_its_limits(fig3_params):
     assert model.regime_of_state(state, p) == model.SLIP_POSITIVE
 
     tau, _, _, steps, reason, _ = advance(t_eval[-1], 5)
-    assert (steps, reason) == (5, kernels.STOP_LIMIT) and tau == pytest.approx(tau0 + 5 * h)
+    assert (steps, reason) == (5, compiled.STOP_LIMIT) and tau == pytest.approx(tau0 + 5 * h)
     t_end = tau0 + 2.5 * h
     tau, _, _, steps, reason, _ = advance(t_end, 10**9)
-    assert (steps, reason, tau) == (3, kernels.STOP_END, t_end)
+    assert (steps, reason, tau) == (3, compiled.STOP_END, t_end)
 
 
 # ------------------------------------------------------------------ scipy right-hand sides

@@ -25,7 +25,7 @@ R_SYNC_MU0 = 1.23389475778  # model notes, section 5
 @pytest.mark.parametrize("method", ["analytic", "rk45"])
 def test_mu0_is_period_one_on_the_synchronous_rub(method):
     case = load_case(CASES / "fig3a.toml").with_overrides(periods=240)
-    sol = solve(case.problem, method, **case.solver_options)
+    sol = solve(case.problem, method, **case.options_for(method))
     assert sol.success, sol.message
     response = classify_solution(sol, transient_periods=200, lyapunov=False)
     assert response.kind == PERIODIC and response.period == 1, response.message
@@ -36,8 +36,8 @@ def test_mu0_is_period_one_on_the_synchronous_rub(method):
 @pytest.mark.parametrize("name", ["fig3a", "fig3b"])
 def test_analytic_and_ode45_agree_for_small_friction(name):
     case = load_case(CASES / f"{name}.toml")
-    analytic = solve(case.problem, "analytic", **case.solver_options)
-    ode45 = solve(case.problem, "rk45", **case.solver_options)
+    analytic = solve(case.problem, "analytic", **case.options_for("analytic"))
+    ode45 = solve(case.problem, "rk45", **case.options_for("rk45"))
     assert analytic.success and ode45.success
     assert np.max(np.abs(analytic.w - ode45.w)) < 5e-3
 

@@ -45,6 +45,7 @@ from rubcli.analysis.regimes import time_in_regimes
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solution import SUCCESS, Solution
+from rubcli.solvers.registry import SPECS, options_for
 
 ERROR = "error"  # status of a run whose solver raised (a bug: never expected)
 
@@ -340,7 +341,9 @@ def stress_reference(
                 "exact free flight (touching)", problem.t_eval, states, exact=True
             )
     for method, options in REFERENCE_RUNS:
-        solution = solve(problem, method, **{**SOLVER_OPTIONS, **budget, **options})
+        solution = solve(
+            problem, method, **options_for(method, {**SOLVER_OPTIONS, **budget, **options})
+        )
         if solution.success and np.all(np.isfinite(solution.states)):
             return StressReference(
                 f"{method} rtol={options['rtol']:g}", solution.t, solution.states
@@ -391,14 +394,16 @@ def measure_run(case: StressCase, solution: Solution, target_periods: float) -> 
 
 
 def method_variants(methods: Iterable[str]) -> list[tuple[str, str, dict]]:
-    """(label, method, extra options): every method at the case defaults, and each analytic
-    method also with adaptive steps (``analytic_tol = ADAPTIVE_TOL``)."""
+    """(label, method, extra options): every method at the case defaults, and each
+    fixed-step method with an adaptive switch (the analytic methods' ``analytic_tol``)
+    also with adaptive steps at ``ADAPTIVE_TOL``."""
     variants = []
     for method in methods:
         variants.append((method, method, {}))
-        if method.startswith("analytic"):
+        adaptive = SPECS[method].adaptive  # a fixed-step method's adaptive switch
+        if adaptive is not None:
             label = f"{method} tol={ADAPTIVE_TOL:g}"
-            variants.append((label, method, {"analytic_tol": ADAPTIVE_TOL}))
+            variants.append((label, method, {adaptive: ADAPTIVE_TOL}))
     return variants
 
 
@@ -435,7 +440,9 @@ def run_case(
         try:
             # a run that blows up is reported in the table, not by numpy warnings
             with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-                solution = solve(problem, method, **{**SOLVER_OPTIONS, **budget, **extra})
+                solution = solve(
+                    problem, method, **options_for(method, {**SOLVER_OPTIONS, **budget, **extra})
+                )
         except Exception as exc:  # noqa: BLE001 - a solver that raises is a reported bug
             run = StressRun(
                 case=case.name, method=label, status=ERROR,

@@ -34,8 +34,8 @@ import numpy as np
 
 from rubcli.analysis.reference import Reference, position_errors, truncate_problem
 from rubcli.problem import Problem
+from rubcli.solvers.registry import SPECS, STEPS_PER_PERIOD
 
-SCIPY_METHODS = ("rk45", "dop853", "radau", "bdf", "lsoda")
 DEFAULT_RTOLS = tuple(10.0**-k for k in range(3, 12))  # 1e-3 ... 1e-11
 DEFAULT_STEPS_PER_PERIOD = (25, 50, 100, 200, 400, 800, 1600, 3200, 6400)
 QUICK_RTOLS = (1e-3, 1e-6, 1e-9)
@@ -69,7 +69,7 @@ def ladder(
     """The settings for each method, loosest first (so a budget stop skips the dearest)."""
     out = []
     for method in methods:
-        if method.startswith("analytic"):  # analytic, analytic-polar: fixed steps
+        if SPECS[method].knob == STEPS_PER_PERIOD:  # the analytic methods: fixed steps
             for n in sorted(steps_per_period):
                 out.append(
                     Setting(method, "steps_per_period", int(n), {"steps_per_period": int(n)})

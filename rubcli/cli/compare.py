@@ -21,41 +21,50 @@ What it does, in order (docs/compare.md):
    steady response from the stroboscopic section after ``transient_periods``, backed by
    the largest Lyapunov exponent; ``poincare.png``.
 
-``report.md`` and ``report.json`` summarise everything. ``--quick`` (for CI) shortens the
+``report.md`` and ``report.json`` summarise everything (``--json``: the report on stdout
+only). The computing is in ``rubcli.analysis`` (``work_precision``, ``panels``); this
+module parses, calls, writes and prints. ``--quick`` (for CI) shortens the
 ladders (rtol 1e-3, 1e-6, 1e-9; steps_per_period 25, 100, 400), runs each setting once,
 caps the work-precision horizon at 5 periods, the orbit runs at 150 periods (a transient
 longer than the run is cut to 2/3 of it) and the Lyapunov run at 30 periods.
 
-Exit codes: 0 done (failed settings are results, listed in the report); 2 invalid input;
-1 if no reference could be built.
+Exit codes: 0 done (failed settings are results, listed in the report); 2 invalid input or
+unusable output dir (checked before anything is computed, ``rubcli.io.check_output_dir``);
+1 if no reference could be built; 128 + N when stopped by signal N.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import datetime as dt
 import math
 import time
 from pathlib import Path
 from typing import Annotated, Any
 
-import numpy as np
 import typer
 
-from rubcli import __version__, io
-from rubcli.analysis import response as rsp
+from rubcli import io
+from rubcli.analysis import panels as panel_study
 from rubcli.analysis import work_precision as wpm
-from rubcli.analysis.reference import Reference, ReferenceError, position_errors, reference_solution
-from rubcli.analysis.synchronous import synchronous_rubs
+from rubcli.analysis.panels import OrbitPanel
+from rubcli.analysis.reference import ReferenceError
 from rubcli.case import AnalysisSection, Case, CompareSection
 from rubcli.cli import console
+from rubcli.cli.common import (
+    ForceOption,
+    JsonOption,
+    emit,
+    machine_readable,
+    prepare_output,
+    report_stale,
+)
 from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 from rubcli.problem import Problem
-from rubcli.solution import Solution
+from rubcli.solvers.registry import SPECS, STEPS_PER_PERIOD
 
 EXIT_FAILED = 1
 QUICK_HORIZON_PERIODS = 5.0
-QUICK_LYAPUNOV_PERIODS = 30
+QUICK_LYAPUNOV_PERIODS = panel_study.QUICK_LYAPUNOV_PERIODS
 QUICK_ORBIT_PERIODS = 150.0
 CSV_COLUMNS = (
     "method", "setting", "wall_time_s", "error_max", "error_final", "setting_name",
@@ -77,25 +86,6 @@ def _problem(case: Case, periods: float, mu: float | None = None) -> Problem:
     )
 
 
-def _reference(problem: Problem, threshold: float, label: str) -> Reference:
-    t0, t1 = problem.t_span
-    with console.progress_bar(f"{label:<22}", total=2.0 * (t1 - t0)) as update:
-        offsets = {"reference": 0.0, "reference check": t1 - t0}
-        return reference_solution(
-            problem,
-            threshold=threshold,
-            progress=lambda which, tau: update(offsets[which] + tau - t0),
-        )
-
-
-def _solve(problem: Problem, method: str, options: dict[str, Any], label: str) -> Solution:
-    from rubcli.solvers import solve
-
-    t0, t1 = problem.t_span
-    with console.progress_bar(f"{label:<22}", total=t1 - t0) as update:
-        return solve(problem, method, progress=lambda tau: update(tau - t0), **options)
-
-
 def _fmt(value: float | None, spec: str = ".3g") -> str:
     if value is None or (isinstance(value, float) and not math.isfinite(value)):
         return "-"
@@ -111,7 +101,9 @@ def work_precision(case: Case, cfg: CompareSection, quick: bool, threshold: floa
     if quick:
         periods = min(periods, QUICK_HORIZON_PERIODS)
     problem = _problem(case, periods)
-    reference = _reference(problem, threshold, "reference")
+    reference = panel_study.reference_with_progress(
+        problem, threshold, "reference", console.progress_bar
+    )
     methods = list(cfg.methods or case.methods)
     if quick:
         rtols, steps, repeats = wpm.QUICK_RTOLS, wpm.QUICK_STEPS_PER_PERIOD, 1
@@ -135,74 +127,21 @@ def work_precision(case: Case, cfg: CompareSection, quick: bool, threshold: floa
 
 
 def write_work_precision_csv(path: Path, result: wpm.WorkPrecision) -> None:
-    lines = [",".join(CSV_COLUMNS)]
+    rows = []
     for row in result.rows:
         rec = row.record()
-        values = []
-        for name in CSV_COLUMNS:
-            value = rec["setting_name"] if name == "setting_name" else rec.get(name)
-            if name == "setting":
-                value = rec["setting"]
-            if value is None:
-                values.append("")
-            elif isinstance(value, float):
-                values.append("nan" if not math.isfinite(value) else f"{value:.17g}")
-            else:
-                values.append(str(value))
-        lines.append(",".join(values))
-    io.write_text(path, "\n".join(lines) + "\n")
+        rows.append([rec.get(name) for name in CSV_COLUMNS])
+    io.write_rows_csv(path, CSV_COLUMNS, rows, nonfinite="nan")
 
 
 # ------------------------------------------------------------------------ orbits
 
 
-def _response(solution: Solution, analysis: AnalysisSection, quick: bool):
-    periods = solution.problem.periods
-    transient = analysis.transient_periods
-    if transient is None or transient >= periods:
-        transient = 0.5 * periods if transient is None else 2.0 * periods / 3.0
-    lyap_periods = analysis.lyapunov_periods
-    if quick:
-        lyap_periods = min(lyap_periods, QUICK_LYAPUNOV_PERIODS)
-    result = rsp.classify_solution(
-        solution,
-        transient_periods=transient,
-        lyapunov=analysis.lyapunov,
-        lyapunov_periods=lyap_periods,
-        rel_tol=analysis.rel_tol,
-        max_period=analysis.max_period,
-    )
-    section = rsp.section_from_solution(solution, transient) if solution.t.size > 1 else None
-    return result, section
-
-
-def run_response(case: Case, solutions: list[Solution], entries: dict[str, dict]):
-    """``[analysis] response`` for `rubcli run`: classify each solution (no-op if not asked).
-
-    Adds ``entries[method]["response"]`` and returns ``(summary, poincare_figure)`` for the
-    report's top-level ``response`` (keys ``kind``, ``period``, ``lyapunov`` of the first
-    method, and ``by_method``), or ``(None, None)`` when the case does not ask for it.
-    """
-    analysis = case.settings.analysis
-    if analysis is None or not analysis.response or not solutions:
-        return None, None
-    from rubcli.plotting.compare import poincare_figure
-    from rubcli.plotting.run import parameters_title
-
-    sections, by_method = [], {}
-    for sol in solutions:
-        with console.progress_bar(f"response {sol.method:<13}", total=1.0) as update:
-            result, section = _response(sol, analysis, quick=False)
-            update(1.0)
-        entries[sol.method]["response"] = by_method[sol.method] = result.to_dict()
-        if section is not None:
-            sections.append((sol.method, section, result))
-    first = next(iter(by_method.values()))
-    summary = {"method": next(iter(by_method)), "kind": first["kind"],
-               "period": first["period"], "lyapunov": first["lyapunov"],
-               "by_method": by_method}  # fmt: skip
-    figure = poincare_figure(sections, parameters_title(case.name, case.params))
-    return summary, figure
+def response_settings(analysis: AnalysisSection | None) -> panel_study.ResponseSettings | None:
+    """``[analysis]`` as response settings (None unless ``response = true``)."""
+    if analysis is None or not analysis.response:
+        return None
+    return panel_study.ResponseSettings(**analysis.model_dump(exclude={"response"}))
 
 
 def orbit_panel(
@@ -212,120 +151,51 @@ def orbit_panel(
     threshold: float,
     analysis: AnalysisSection | None,
     quick: bool,
-    reference: Reference | None = None,
-) -> dict[str, Any]:
-    """One mu: each method at the [solver] settings, errors, agreement, response (step 3-4)."""
+    reference=None,
+) -> OrbitPanel:
+    """One mu (``rubcli.analysis.panels.orbit_panel`` on the case's problem of that mu)."""
     periods = case.settings.time.periods
     if quick:
         periods = min(periods, QUICK_ORBIT_PERIODS)
-    problem = _problem(case, periods, mu)
-    mu_value = problem.params.mu
-    if reference is None:
-        reference = _reference(problem, threshold, f"reference mu={mu_value:g}")
-    solutions, entries = [], {}
-    options = case.solver_options
-    for name in methods:
-        sol = _solve(problem, name, options, f"{name} mu={mu_value:g}")
-        solutions.append(sol)
-        err = position_errors(sol.t, sol.states, reference)
-        entry = {
-            "status": sol.status,
-            "message": sol.message,
-            "wall_time_s": sol.wall_time_s,
-            "stats": dict(sol.stats),
-            "tau_end": float(sol.t[-1]) if sol.t.size else None,
-            "error_max": float(err.max()) if err.size else None,
-            "error_final": float(err[-1]) if err.size else None,
-            "error_until_tau": float(reference.t[err.size - 1]) if err.size else None,
-        }
-        if analysis is not None and analysis.response:
-            result, section = _response(sol, analysis, quick)
-            entry["response"] = result.to_dict()
-            entry["_section"] = (section, result)
-        entries[name] = entry
-    agreement = {}
-    for i in range(len(solutions)):
-        for j in range(i + 1, len(solutions)):
-            a, b = solutions[i], solutions[j]
-            n = min(a.t.size, b.t.size)
-            diff = np.abs(a.w[:n] - b.w[:n]) if n else np.array([np.nan])
-            agreement[f"{a.method} vs {b.method}"] = {
-                "max_difference": float(np.max(diff)),
-                "until_tau": float(a.t[n - 1]) if n else None,
-                "first_tau_above_1e-2": _first_above(a.t[:n], diff, 1e-2),
-            }
-    rubs = [r.to_dict() for r in synchronous_rubs(problem.params)]
-    return {
-        "mu": mu_value,
-        "problem": problem,
-        "reference": reference,
-        "solutions": solutions,
-        "methods": entries,
-        "agreement": agreement,
-        "synchronous_rubs": rubs,
-    }
-
-
-def _first_above(t: np.ndarray, values: np.ndarray, level: float) -> float | None:
-    idx = np.nonzero(values > level)[0]
-    return float(t[idx[0]]) if idx.size else None
-
-
-def _panel_note(panel: dict) -> str:
-    parts = []
-    for name, entry in panel["methods"].items():
-        if "response" in entry:
-            r = entry["response"]
-            text = r["kind"] + (f" p{r['period']}" if r["period"] else "")
-            parts.append(f"{name}: {text}")
-    for a in panel["agreement"].values():
-        parts.append(f"max|diff| {a['max_difference']:.2g}")
-    return "; ".join(parts)
-
-
-def _panel_json(panel: dict) -> dict:
-    methods = {
-        name: {k: v for k, v in entry.items() if not k.startswith("_")}
-        for name, entry in panel["methods"].items()
-    }
-    return {
-        "mu": panel["mu"],
-        "periods": panel["problem"].periods,
-        "reference": panel["reference"].to_dict(),
-        "methods": methods,
-        "agreement": panel["agreement"],
-        "synchronous_rubs": panel["synchronous_rubs"],
-    }
-
-
-def write_sweep_csv(path: Path, panels: list[dict]) -> None:
-    header = (
-        "mu,method,status,wall_time_s,error_max,error_final,error_until_tau,response_kind,"
-        "response_period,lyapunov,lyapunov_stderr,sync_rub_r,sync_rub_stable,sync_rub_growth_rate"
+    return panel_study.orbit_panel(
+        _problem(case, periods, mu),
+        methods,
+        case.solver_options,
+        threshold=threshold,
+        response=response_settings(analysis),
+        quick=quick,
+        reference=reference,
+        progress=console.progress_bar,
     )
-    lines = [header]
+
+
+SWEEP_COLUMNS = (
+    "mu", "method", "status", "wall_time_s", "error_max", "error_final", "error_until_tau",
+    "response_kind", "response_period", "lyapunov", "lyapunov_stderr", "sync_rub_r",
+    "sync_rub_stable", "sync_rub_growth_rate",
+)  # fmt: skip
+
+
+def write_sweep_csv(path: Path, panels: list[OrbitPanel]) -> None:
+    rows = []
     for panel in panels:
-        rub = panel["synchronous_rubs"][-1] if panel["synchronous_rubs"] else None
-        for name, e in panel["methods"].items():
+        rub = panel.synchronous_rubs[-1] if panel.synchronous_rubs else {}
+        for run in panel.runs:
+            e = run.to_dict()
             r = e.get("response") or {}
-            cells = [
-                f"{panel['mu']:g}", name, e["status"], _fmt(e["wall_time_s"], ".6g"),
-                _fmt(e["error_max"], ".6g"), _fmt(e["error_final"], ".6g"),
-                _fmt(e["error_until_tau"], ".8g"), r.get("kind", ""),
-                "" if r.get("period") is None else str(r["period"]),
-                _fmt(r.get("lyapunov"), ".6g"), _fmt(r.get("lyapunov_stderr"), ".3g"),
-                "" if rub is None else f"{rub['r']:.12g}",
-                "" if rub is None else str(rub["stable"]).lower(),
-                "" if rub is None else f"{rub['growth_rate']:.6g}",
-            ]  # fmt: skip
-            lines.append(",".join("" if c == "-" else c for c in cells))
-    io.write_text(path, "\n".join(lines) + "\n")
+            rows.append([
+                panel.mu, run.method, e["status"], e["wall_time_s"], e["error_max"],
+                e["error_final"], e["error_until_tau"], r.get("kind"), r.get("period"),
+                r.get("lyapunov"), r.get("lyapunov_stderr"), rub.get("r"), rub.get("stable"),
+                rub.get("growth_rate"),
+            ])  # fmt: skip
+    io.write_rows_csv(path, SWEEP_COLUMNS, rows, nonfinite="")
 
 
 # ------------------------------------------------------------------------ report
 
 
-def report_markdown(case: Case, wp: wpm.WorkPrecision | None, panels: list[dict],
+def report_markdown(case: Case, wp: wpm.WorkPrecision | None, panels: list[OrbitPanel],
                     quick: bool, targets=wpm.TARGETS) -> str:  # fmt: skip
     """The human-readable summary (report.md)."""
     from rubcli.plotting.compare import table_rows
@@ -382,7 +252,7 @@ def report_markdown(case: Case, wp: wpm.WorkPrecision | None, panels: list[dict]
                     f"| {target:g} | {row.method} at {row.setting_name} = {row.label} | "
                     f"{row.wall_time_s:.4g} | {row.error_max:.3g} |"
                 )
-        for method in (m for m in wp.methods if m.startswith("analytic")):
+        for method in (m for m in wp.methods if SPECS[m].knob == STEPS_PER_PERIOD):
             order = wpm.observed_order(wp.rows_of(method))
             if order is not None:
                 out += ["", f"Observed order of `{method}` in its step (fit of log error_max "
@@ -397,12 +267,12 @@ def report_markdown(case: Case, wp: wpm.WorkPrecision | None, panels: list[dict]
         out += ["", "| mu | method | status | error max | response | period | Lyapunov | "
                 "synchronous rub r (stable?) |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
         for panel in panels:
-            rub = panel["synchronous_rubs"][-1] if panel["synchronous_rubs"] else None
+            rub = panel.synchronous_rubs[-1] if panel.synchronous_rubs else None
             rub_text = "none" if rub is None else (
                 f"{rub['r']:.6g} ({'stable' if rub['stable'] else 'unstable'}, "
                 f"growth {rub['growth_rate']:.2g})"
             )  # fmt: skip
-            for name, e in panel["methods"].items():
+            for name, e in panel.to_dict()["methods"].items():
                 r = e.get("response") or {}
                 lyap = r.get("lyapunov")
                 lyap_text = "-" if lyap is None else f"{lyap:.3g} +- {r['lyapunov_stderr']:.1g}"
@@ -410,45 +280,31 @@ def report_markdown(case: Case, wp: wpm.WorkPrecision | None, panels: list[dict]
                     e["status"] if e["status"] == "success" else f"{e['status']}: {e['message']}"
                 )
                 out.append(
-                    f"| {panel['mu']:g} | {name} | {status} | {_fmt(e['error_max'])} | "
+                    f"| {panel.mu:g} | {name} | {status} | {_fmt(e['error_max'])} | "
                     f"{r.get('kind', '-')} | {r.get('period') or '-'} | {lyap_text} | {rub_text} |"
                 )
         out.append("")
         for panel in panels:
-            ref = panel["reference"]
+            ref = panel.reference
             start = ref.problem.t_span[0]
             out.append(
-                f"- mu = {panel['mu']:g}: reference {ref.kind}, estimated error "
+                f"- mu = {panel.mu:g}: reference {ref.kind}, estimated error "
                 f"{ref.error_estimate:.2g}, trusted for "
                 f"{(ref.trusted_until - start) / ref.problem.params.period:.4g} of "
                 f"{ref.problem.periods:.4g} periods"
             )
         for panel in panels:
-            for pair, a in panel["agreement"].items():
+            for a in panel.agreements:
                 out.append(
-                    f"- mu = {panel['mu']:g}: {pair}: max |difference| {a['max_difference']:.3g}"
+                    f"- mu = {panel.mu:g}: {a.pair}: max |difference| {a.max_difference:.3g}"
                     + (
-                        f", first above 1e-2 at tau = {a['first_tau_above_1e-2']:.6g}"
-                        if a["first_tau_above_1e-2"] is not None
+                        f", first above 1e-2 at tau = {a.first_tau_above:.6g}"
+                        if a.first_tau_above is not None
                         else ""
                     )  # fmt: skip
                 )
         out.append("")
     return "\n".join(out)
-
-
-def _response_summary(panels: list[dict]) -> dict | None:
-    """Top-level ``response`` of report.json: the first method of the first panel, and all."""
-    if not panels:
-        return None
-    first = panels[0]
-    by_method = {n: e["response"] for n, e in first["methods"].items() if "response" in e}
-    if not by_method:
-        return None
-    name = next(iter(by_method))
-    r = by_method[name]
-    return {"method": name, "kind": r["kind"], "period": r["period"],
-            "lyapunov": r["lyapunov"], "by_method": by_method}  # fmt: skip
 
 
 # ------------------------------------------------------------------------ command
@@ -465,11 +321,12 @@ def command(
     quick: Annotated[
         bool, typer.Option("--quick", help="Short ladders, one run each, 5-period horizon (CI).")
     ] = False,
+    force: ForceOption = False,
+    json: JsonOption = False,
 ) -> None:
     """Reference solution, error against run time per method, orbits and response classes."""
     case = load_or_exit(case_file)
     cfg = case.settings.compare or CompareSection()
-    analysis = case.settings.analysis
     from rubcli import solvers
 
     methods = list(cfg.methods or case.methods)
@@ -478,12 +335,26 @@ def command(
         console.error(f"{case_file}: methods not available: {', '.join(unavailable)}")
         raise typer.Exit(EXIT_INVALID)
     target = out if out is not None else case.output_dir / "compare"
-    if target.exists() and not target.is_dir():
-        console.error(f"{target}: output dir exists and is not a directory")
-        raise typer.Exit(EXIT_INVALID)
+    plan = prepare_output(target, force)
+    command_line = {"case_file": str(case_file), "out": str(out) if out else None,
+                    "quick": quick}  # fmt: skip
+    with machine_readable(json):
+        report = _compare(case, cfg, methods, quick, target, plan, command_line)
+    emit(report, json)
 
+
+def _compare(
+    case: Case,
+    cfg: CompareSection,
+    methods: list[str],
+    quick: bool,
+    target: Path,
+    plan: io.OutputPlan,
+    command_line: dict[str, Any],
+) -> dict[str, Any]:
     started = time.perf_counter()
     threshold = cfg.reference_threshold
+    analysis = case.settings.analysis
     console.info(f"{case.name}: compare {', '.join(methods)}" + (" (quick)" if quick else ""))
     try:
         wp = work_precision(case, cfg, quick, threshold) if cfg.work_precision else None
@@ -517,7 +388,7 @@ def command(
 
     title = parameters_title(case.name, case.params)
     files: list[str] = []
-    with io.staged_output_dir(target) as staged:
+    with io.staged_output_dir(target, plan) as staged:
         if wp is not None:
             write_work_precision_csv(staged.path("work_precision.csv"), wp)
             io.save_figure(
@@ -526,8 +397,7 @@ def command(
             io.save_figure(plots.error_growth_figure(wp, title), staged.path("error_growth.png"))
             files += ["work_precision.csv", "work_precision.png", "error_growth.png"]
         orbit_panels = [
-            {"title": f"mu = {p['mu']:g}", "solutions": p["solutions"], "note": _panel_note(p)}
-            for p in panels
+            {"title": f"mu = {p.mu:g}", "solutions": p.solutions, "note": p.note()} for p in panels
         ]
         sweep_title = parameters_title(case.name, case.params, vary_mu=len(panels) > 1)
         io.save_figure(plots.orbits_figure(orbit_panels, sweep_title), staged.path("orbits.png"))
@@ -536,10 +406,10 @@ def command(
             write_sweep_csv(staged.path("sweep.csv"), panels)
             files.append("sweep.csv")
         sections = [
-            (f"{name}, mu = {p['mu']:g}", *e["_section"])
+            (f"{r.method}, mu = {p.mu:g}", r.section, r.response)
             for p in panels
-            for name, e in p["methods"].items()
-            if "_section" in e and e["_section"][0] is not None
+            for r in p.responses
+            if r.section is not None
         ]
         if sections:
             io.save_figure(
@@ -547,47 +417,19 @@ def command(
             )
             files.append("poincare.png")
         io.write_text(staged.path("report.md"), report_markdown(case, wp, panels, quick))
-        files += ["report.md", "report.json"]
+        files += ["report.md", io.REPORT_NAME]
         report = {
-            "rubcli_version": __version__,
-            "created_utc": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
-            "environment": io.environment_info(),
-            "command_line": {
-                "case_file": str(case_file),
-                "out": str(out) if out else None,
-                "quick": quick,
-            },  # fmt: skip
-            "case": case.to_dict(),
+            **io.report_envelope("compare", command_line, case.to_dict()),
             "quick": quick,
             "reference": None if wp is None else wp.reference.to_dict(),
-            "work_precision": None
-            if wp is None
-            else {
-                "periods": wp.problem.periods,
-                "repeats": wp.repeats,
-                "startup_s": wp.startup_s,
-                "skipped": wp.skipped,
-                "rows": [r.record() for r in wp.rows],
-                "cheapest": {
-                    f"{t:g}": None
-                    if r is None
-                    else {
-                        "method": r.method,
-                        "setting_name": r.setting_name,
-                        "setting": r.setting,
-                        "wall_time_s": r.wall_time_s,
-                        "error_max": r.error_max,
-                    }
-                    for t, r in wp.cheapest().items()
-                },
-                "observed_order_analytic": wpm.observed_order(wp.rows_of("analytic")),
-            },  # fmt: skip
-            "orbits": [_panel_json(p) for p in panels],
-            "response": _response_summary(panels),
+            "work_precision": None if wp is None else _work_precision_json(wp),
+            "orbits": [p.to_dict() for p in panels],
+            "response": panel_study.panels_response_summary(panels),
             "wall_time_s": time.perf_counter() - started,
             "files": files,
         }
-        io.write_json(staged.path("report.json"), report)
+        io.write_json(staged.path(io.REPORT_NAME), report)
+    report_stale(plan)
 
     if wp is not None:
         console.table(
@@ -608,12 +450,36 @@ def command(
             text = "-" if row is None else f"{row.method} {row.setting_name} = {row.label}"
             console.info(f"cheapest for error <= {t:g}: {text}")
     for panel in panels:
-        for name, e in panel["methods"].items():
-            if "response" in e:
-                r = e["response"]
-                console.info(f"mu = {panel['mu']:g} {name}: {r['kind']}"
-                             + (f", period {r['period']}" if r["period"] else "")
-                             + f" ({r['message']})")  # fmt: skip
-            if e["status"] != "success":
-                console.warning(f"mu = {panel['mu']:g} {name}: {e['message']}")
+        for run in panel.runs:
+            if run.response is not None:
+                r = run.response.response
+                console.info(f"mu = {panel.mu:g} {run.method}: {r.kind}"
+                             + (f", period {r.period}" if r.period else "")
+                             + f" ({r.message})")  # fmt: skip
+            if not run.solution.success:
+                console.warning(f"mu = {panel.mu:g} {run.method}: {run.solution.message}")
     console.info(f"wrote {len(files)} files to {target}: {', '.join(files)}")
+    return report
+
+
+def _work_precision_json(wp: wpm.WorkPrecision) -> dict[str, Any]:
+    return {
+        "periods": wp.problem.periods,
+        "repeats": wp.repeats,
+        "startup_s": wp.startup_s,
+        "skipped": wp.skipped,
+        "rows": [r.record() for r in wp.rows],
+        "cheapest": {
+            f"{t:g}": None
+            if r is None
+            else {
+                "method": r.method,
+                "setting_name": r.setting_name,
+                "setting": r.setting,
+                "wall_time_s": r.wall_time_s,
+                "error_max": r.error_max,
+            }
+            for t, r in wp.cheapest().items()
+        },
+        "observed_order_analytic": wpm.observed_order(wp.rows_of("analytic")),
+    }

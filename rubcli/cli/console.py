@@ -4,14 +4,21 @@ Results and plain text go to stdout, diagnostics (errors, warnings) to stderr. T
 consoles follow ``sys.stdout``/``sys.stderr`` at the time of each call, so output can be
 captured (typer's ``CliRunner``, pytest's capsys). Markup is off for text that comes from
 users or exceptions, so square brackets in ``[model]`` are printed as they are.
+
+Machine-readable mode (``--json``, ``machine_readable()``): stdout carries only the JSON
+result (``json_result``); text, tables and progress bars are not shown; warnings and
+errors still go to stderr. Python warnings (e.g. numpy's "invalid value encountered")
+are shown as one formatted ``warning:`` line (``show_python_warning``), never raw.
 """
 
 from __future__ import annotations
 
 import sys
 import time
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
+from pathlib import Path
 
 from rich import box
 from rich.console import Console
@@ -26,9 +33,55 @@ from rich.progress import (
 )
 from rich.table import Table
 
+_machine = [False]  # --json: stdout carries only the JSON result
+MAX_VALUE_CHARS = 200  # longer user values are shortened in messages (shorten())
+
 
 def _stdout() -> Console:
     return Console(file=sys.stdout, highlight=False)
+
+
+@contextmanager
+def machine_readable(enabled: bool = True) -> Iterator[None]:
+    """While the block runs, print nothing on stdout but ``json_result`` (if enabled)."""
+    previous = _machine[0]
+    _machine[0] = enabled or previous
+    try:
+        yield
+    finally:
+        _machine[0] = previous
+
+
+def is_machine_readable() -> bool:
+    return _machine[0]
+
+
+def json_result(text: str) -> None:
+    """The JSON result of a command (``--json``): on stdout, exactly as given."""
+    sys.stdout.write(text)
+    sys.stdout.flush()
+
+
+def shorten(text: str, limit: int = MAX_VALUE_CHARS) -> str:
+    """``text`` cut to ``limit`` characters, saying how long it was."""
+    if len(text) <= limit:
+        return text
+    return f"{text[: limit - 30]}... ({len(text)} characters)"
+
+
+def show_python_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """``warnings.showwarning`` replacement: one formatted line on stderr."""
+    where = f"{Path(filename).name}:{lineno}"
+    warning(f"{category.__name__}: {shorten(str(message))} ({where})")
+
+
+@contextmanager
+def formatted_python_warnings() -> Iterator[None]:
+    """Show Python warnings (numpy's included) through ``warning``, once per place."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("default")
+        warnings.showwarning = show_python_warning
+        yield
 
 
 def _stderr() -> Console:
@@ -42,11 +95,13 @@ def raw(text: str) -> None:
 
 
 def info(message: str) -> None:
-    _stdout().print(message, markup=False, soft_wrap=True)
+    if not _machine[0]:
+        _stdout().print(message, markup=False, soft_wrap=True)
 
 
 def success(message: str) -> None:
-    _stdout().print(message, style="green", markup=False, soft_wrap=True)
+    if not _machine[0]:
+        _stdout().print(message, style="green", markup=False, soft_wrap=True)
 
 
 def warning(message: str) -> None:
@@ -76,17 +131,26 @@ def exception(exc: BaseException) -> None:
 def table(
     title: str, columns: Sequence[str], rows: Sequence[Sequence[str]], caption: str | None = None
 ) -> None:
-    """A table of results on stdout. Cells keep their width (a header may fold instead)."""
+    """A table of results on stdout. Cells are never cut: a header may fold, and a table
+    wider than the terminal is printed at its full width (the terminal wraps it)."""
+    if _machine[0]:
+        return
     out = Table(
         title=title, title_justify="left", box=box.SIMPLE_HEAD, caption=caption,
         caption_justify="left", pad_edge=False, collapse_padding=True,
     )  # fmt: skip
+    widths = []
     for i, name in enumerate(columns):
         width = max((len(str(row[i])) for row in rows), default=0)
-        out.add_column(name, overflow="fold", min_width=width)
+        widths.append(max(width, min(len(name), 12)))
+        out.add_column(name, overflow="fold", min_width=width, no_wrap=True)
     for row in rows:
         out.add_row(*row)
-    _stdout().print(out)
+    console = _stdout()
+    needed = sum(widths) + 2 * len(widths) + 2
+    if needed > console.width:  # wider than the terminal: widen, never cut a number
+        console = Console(file=sys.stdout, highlight=False, width=needed)
+    console.print(out)
 
 
 @contextmanager
@@ -103,7 +167,7 @@ def progress_bar(description: str, total: float) -> Iterator[Callable[[float], N
         TaskProgressColumn(),
         TimeElapsedColumn(),
         console=console,
-        disable=not console.is_terminal,
+        disable=_machine[0] or not console.is_terminal,
         transient=False,
     )
     task = bar.add_task(description, total=total)

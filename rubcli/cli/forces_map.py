@@ -23,19 +23,18 @@ invalid input (nothing written). Files are staged and moved in at the end.
 
 from __future__ import annotations
 
-import datetime as dt
-import math
 from pathlib import Path
 from typing import Annotated, Any
 
 import numpy as np
 import typer
 
-from rubcli import __version__, io
+from rubcli import io
 from rubcli.analysis import forces
 from rubcli.case import Case, ForcesMapSection
 from rubcli.cli import console
-from rubcli.cli.validate import EXIT_INVALID, load_or_exit
+from rubcli.cli.common import ForceOption, prepare_output, report_stale
+from rubcli.cli.validate import load_or_exit
 
 FORCES_COLUMNS = ("x", "y", "Fx_exact", "Fy_exact", "Fx_taylor", "Fy_taylor", "Fx_diff", "Fy_diff")
 TAYLOR_COLUMNS = ("K", "delta", "direction", "max_abs_error")
@@ -54,24 +53,13 @@ def _grid_table(x: np.ndarray, y: np.ndarray, fields: list[np.ndarray]) -> np.nd
     return np.column_stack([X.ravel(), Y.ravel(), *(f.ravel() for f in fields)])
 
 
-def _number(value: float) -> str:
-    """A float as its shortest round-trip text (``repr``); NaN as an empty field."""
-    return "" if math.isnan(value) else repr(float(value))
-
-
 def write_table_csv(path: Path, columns: tuple[str, ...], table: np.ndarray) -> Path:
     """Numeric CSV, shortest round-trip repr of each float; NaN an empty field. Atomic."""
-    lines = [",".join(columns)]
-    for row in table.tolist():
-        lines.append(",".join(_number(v) for v in row))
-    return io.write_text(path, "\n".join(lines) + "\n")
+    return io.write_csv(path, columns, [list(table.T)], nonfinite="")
 
 
 def write_taylor_csv(path: Path, error: forces.TaylorError) -> Path:
-    lines = [",".join(TAYLOR_COLUMNS)]
-    for K, delta, direction, value in error.rows():
-        lines.append(f"{_number(K)},{_number(delta)},{direction},{_number(value)}")
-    return io.write_text(path, "\n".join(lines) + "\n")
+    return io.write_rows_csv(path, TAYLOR_COLUMNS, error.rows(), nonfinite="")
 
 
 def _forces_product(case: Case, settings: ForcesMapSection, title: str, staged) -> dict:
@@ -165,25 +153,22 @@ def _eigen_product(case: Case, settings: ForcesMapSection, title: str, staged) -
 PRODUCTS = {"forces": _forces_product, "taylor_error": _taylor_product, "eigen": _eigen_product}
 
 
-def make_outputs(case: Case, target: Path, command_line: dict[str, Any]) -> dict[str, Any]:
+def make_outputs(
+    case: Case, target: Path, command_line: dict[str, Any], plan: io.OutputPlan | None = None
+) -> dict[str, Any]:
     """Compute the requested products, write them and report.json into ``target`` (staged)."""
     settings = case.settings.forces_map or ForcesMapSection()
     p = case.params
     title = f"{case.name}: nu={p.nu:g}, eta={p.eta:g}, K={p.K:g}, mu={p.mu:g}"
     results: dict[str, Any] = {}
     files: list[str] = []
-    with io.staged_output_dir(target) as staged:
+    with io.staged_output_dir(target, plan) as staged:
         for product in settings.products:
             results[product] = PRODUCTS[product](case, settings, title, staged)
             files.extend(results[product]["files"])
         files.append("report.json")
         report = {
-            "rubcli_version": __version__,
-            "created_utc": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
-            "environment": io.environment_info(),
-            "command": "forces-map",
-            "command_line": command_line,
-            "case": case.to_dict(),
+            **io.report_envelope("forces-map", command_line, case.to_dict()),
             "forces_map": {
                 **settings.model_dump(mode="json"),
                 "resolved_deltas": settings.resolved_deltas(),
@@ -253,13 +238,12 @@ def command(
             help=f"Output dir (default: {OUTPUT_SUBDIR}/ inside the case's output dir).",
         ),
     ] = None,
+    force: ForceOption = False,
 ) -> None:
     """Contact force maps (paper Figure 2), Taylor error vs distance, contact eigenvalues."""
     case = load_or_exit(case_file)
     target = output_dir(case, out)
-    if target.exists() and not target.is_dir():
-        console.error(f"{target}: output dir exists and is not a directory")
-        raise typer.Exit(EXIT_INVALID)
+    plan = prepare_output(target, force)
     settings = case.settings.forces_map or ForcesMapSection()
     source = (
         "[forces_map]" if case.settings.forces_map is not None else "defaults (no [forces_map])"
@@ -269,6 +253,7 @@ def command(
         f"extent {settings.extent:g} clearances; settings from {source}"
     )
     command_line = {"case_file": str(case_file), "out": str(out) if out is not None else None}
-    report = make_outputs(case, target, command_line)
+    report = make_outputs(case, target, command_line, plan)
+    report_stale(plan)
     _print_summary(report)
     console.info(f"wrote {len(report['files'])} files to {target}: {', '.join(report['files'])}")

@@ -1,7 +1,7 @@
 """``rubcli init``: print a commented sample case file to stdout.
 
-The samples are tested to validate (tests/test_cli.py); keep them in step with the schema
-in ``rubcli/case.py`` and the reference in ``docs/cases.md``.
+The samples are tested to validate, to name every method and every table of the schema
+(tests/test_cli.py); keep them in step with ``rubcli/case.py`` and ``docs/cases.md``.
 """
 
 from __future__ import annotations
@@ -10,9 +10,32 @@ from typing import Annotated
 
 import typer
 
+from rubcli.case import KNOWN_METHODS, KNOWN_PLOTS
 from rubcli.cli import console
 
-SAMPLE_CASE = """\
+_METHODS = ", ".join(KNOWN_METHODS)
+_PLOTS = ", ".join(KNOWN_PLOTS)
+
+# The optional tables, commented out, shared by both samples.
+_OPTIONAL_TABLES = """
+# Optional tables (docs/cases.md, docs/compare.md, docs/forces-map.md); uncomment to use.
+
+# [analysis]                    # response class of each run (Poincare section, Lyapunov)
+# response = true
+# transient_periods = 10        # default: half the run
+
+# [compare]                     # `rubcli compare`: work-precision ladders, mu sweep
+# methods = ["analytic", "dop853-jit"]  # default: [solver] methods
+# mu = [0.0, 0.01, 0.02]        # one orbit panel per friction coefficient
+# work_precision = true
+
+# [forces_map]                  # `rubcli forces-map`: contact force maps (paper Figure 2)
+# extent = 1.5                  # half-width of the grid, clearances
+# resolution = 201              # grid points per side (bounded by a memory estimate)
+# products = ["forces", "taylor_error", "eigen"]
+"""
+
+SAMPLE_CASE = f"""\
 # A rubcli case file (TOML). Reference: docs/cases.md. Check it with `rubcli validate`.
 # Values: the paper's Figure 3(b) (El-Sayed et al., COBEM 2021), mu = 0.01.
 
@@ -40,41 +63,43 @@ periods = 20                    # duration in forcing periods 2 pi / eta, > 0
 samples_per_period = 100        # output samples per period (integer > 0)
 
 [solver]
-methods = ["analytic", "rk45"]  # any of: analytic, rk45, dop853, radau, bdf, lsoda
-rtol = 1e-8                     # scipy methods: relative tolerance
-atol = 1e-10                    # scipy methods: absolute tolerance
-steps_per_period = 400          # analytic: fixed step = forcing period / this
+# any of: {_METHODS}
+methods = ["analytic", "rk45"]
+rtol = 1e-8                     # rk45 ... lsoda, dop853-jit: relative tolerance
+atol = 1e-10                    # rk45 ... lsoda, dop853-jit: absolute tolerance
+steps_per_period = 400          # analytic methods: fixed step = forcing period / this
+# analytic_tol = 1e-8           # analytic methods: adaptive steps with this local error
 max_steps = 5000000             # give up after this many steps (status "failed")
 max_wall_time_s = 600           # give up after this many seconds, per method
 
 [output]
 # dir = "out/my-case"           # default out/<case name>, relative to the working dir
 csv = true                      # write <method>.csv for each method
-plots = ["orbit", "time"]       # any of: orbit, time ([] for none)
-"""
+plots = ["orbit", "time"]       # any of: {_PLOTS} ([] for none)
+{_OPTIONAL_TABLES}"""
 
-SAMPLE_PHYSICAL_CASE = """\
+SAMPLE_PHYSICAL_CASE = f"""\
 # A rubcli case file in SI units (TOML). Reference: docs/cases.md.
 # [physical] is converted once to the nondimensional model; outputs get SI columns too.
 
 [case]
 name = "my-machine"
-description = "A small test rig: 4 kg disc on a 4e5 N/m shaft, 0.2 mm clearance"
+description = "A small test rig: 4 kg disc on a 4e5 N/m shaft in a stiff casing, 0.2 mm clearance"
 
 [physical]
 m = 4.0                         # rotor (disc) mass, kg
 k_r = 4.0e5                     # shaft stiffness, N/m       -> omega = sqrt(k_r/m) = 316 rad/s
 d_r = 25.3                      # shaft damping, N s/m       -> nu = d_r/(2 omega m) = 0.01
-k_s = 4.0e6                     # stator stiffness, N/m      -> K = k_s/k_r = 10
+k_s = 1.0e8                     # stator stiffness, N/m      -> K = k_s/k_r = 250
 clearance = 2.0e-4              # radial clearance, m
 e = 2.5e-4                      # unbalance eccentricity, m  -> e/clearance = 1.25
 Omega = 250.0                   # spin speed, rad/s          -> eta = Omega/omega = 0.79
 Rp = 0.05                       # rotor radius at the rub, m (default 0)
-mu = 0.1                        # Coulomb friction coefficient (default 0)
+mu = 0.05                       # Coulomb friction coefficient (default 0)
 phi0 = 0.0                      # unbalance phase, rad (default 0)
 
-[initial]                       # at t = 0, in metres and m/s
-x = 0.0
+[initial]                       # at t = 0, in metres and m/s: at rest, half the clearance off
+x = 1.0e-4
 y = 0.0
 vx = 0.0
 vy = 0.0
@@ -84,17 +109,18 @@ periods = 20                    # duration in forcing periods 2 pi / Omega, > 0
 samples_per_period = 100
 
 [solver]
-methods = ["analytic", "rk45"]
+methods = ["analytic", "rk45"]  # any of: {_METHODS}
 
 [output]
 csv = true
-plots = ["orbit", "time"]
-"""
+plots = ["orbit", "time"]       # any of: {_PLOTS}
+{_OPTIONAL_TABLES}"""
 
 
 def command(
     physical: Annotated[
-        bool, typer.Option("--physical", help="Print a sample in SI units ([physical]).")
+        bool,
+        typer.Option("--physical", help="Print a sample in SI units (a \\[physical] table)."),
     ] = False,
 ) -> None:
     """Print a commented sample case file (redirect it: rubcli init > my.toml)."""

@@ -1,25 +1,34 @@
-"""``rubcli run CASE [--method NAME]... [--out DIR] [--periods P]``: solve and write outputs.
+"""``rubcli run CASE [--method NAME]... [--out DIR] [--periods P] [--force] [--json]``.
 
 Each method of the case (or of ``--method``) is solved with ``rubcli.solvers.solve``; then
 only the products the case asks for are written into the output dir:
 
-- ``<method>.csv`` per method if ``[output] csv``;
+- ``<method>.csv`` per method if ``[output] csv`` (streamed in blocks: any length fits);
 - ``orbit.png`` and/or ``time.png`` per ``[output] plots``;
 - ``energy.png`` if ``[output] plots`` lists ``energy`` (the energy balance, never by default);
+- ``poincare.png`` and the response classes with ``[analysis] response = true``;
 - ``report.json`` always: the case echoed, and per method its status, message, wall time,
   step/evaluation counts, contact switches, contact fraction, max penetration, the time
-  spent in each regime (from the located switch times) and the energy balance with its
-  ``energy_residual`` (``rubcli.analysis.energy``, docs/stability.md).
+  spent in each regime (from the located switch times), the energy balance with its
+  ``energy_residual`` (``rubcli.analysis.energy``, docs/stability.md) and its plausibility
+  ``warnings`` (``rubcli.analysis.checks``). Its ``files`` list is the run's manifest.
 
-Exit codes: 0 success; 2 invalid input (nothing is solved or written); 1 if any method
-failed (its failure is in report.json; the outputs of the run are still written). All
-files are staged and moved into place at the end, so an interrupted run writes nothing.
+The output dir is checked before anything is solved (``rubcli.io.check_output_dir``):
+writable, and either new, empty or written by rubcli (else ``--force``); the files of a
+previous run that this run does not write are removed, and named.
+
+Exit codes: 0 success; 2 invalid input or unusable output dir (nothing is solved or
+written); 1 if any method failed (its failure is in report.json; the outputs of the run
+are still written); 3 if every method finished but one or more failed a plausibility
+check (``status: warning`` in report.json: e.g. a tolerance so loose that the orbit ends
+deep inside the stator): the files are written, but the result must not be trusted.
+128 + N when stopped by signal N (nothing of this run is written). All files are staged
+and moved into place at the end.
 """
 
 from __future__ import annotations
 
 import contextlib
-import datetime as dt
 import math
 import time
 from pathlib import Path
@@ -27,13 +36,24 @@ from typing import Annotated, Any
 
 import typer
 
-from rubcli import __version__, io
+from rubcli import io
+from rubcli.analysis import panels
+from rubcli.analysis.checks import WARNING, method_summary
 from rubcli.case import KNOWN_METHODS, Case, CaseError
 from rubcli.cli import console
+from rubcli.cli.common import (
+    ForceOption,
+    JsonOption,
+    emit,
+    machine_readable,
+    prepare_output,
+    report_stale,
+)
 from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 from rubcli.solution import Solution
 
 EXIT_FAILED = 1
+EXIT_WARNING = 3
 ERROR = "error"  # status of a method whose solver raised an exception
 
 
@@ -79,7 +99,7 @@ def start_up(case: Case) -> float:
     start = time.perf_counter()
     for name in case.methods:
         with contextlib.suppress(Exception):  # the timed run reports any failure
-            solvers.solve(short, name, **case.solver_options)
+            solvers.solve(short, name, **case.options_for(name))
     return time.perf_counter() - start
 
 
@@ -98,7 +118,7 @@ def solve_method(case: Case, name: str) -> tuple[Solution | None, dict[str, Any]
             solution = solvers.solve(
                 case.problem,
                 name,
-                **case.solver_options,
+                **case.options_for(name),
                 progress=lambda tau: update(tau - t0),
             )
         except Exception as exc:  # noqa: BLE001 - reported with its traceback, run exits 1
@@ -107,39 +127,18 @@ def solve_method(case: Case, name: str) -> tuple[Solution | None, dict[str, Any]
                 "status": ERROR,
                 "message": f"{type(exc).__name__}: {exc}",
                 "wall_time_s": time.perf_counter() - start,
-                "settings": case.solver_options,
+                "settings": case.options_for(name),
             }
             return None, entry
-    return solution, method_report(solution)
+    return solution, method_summary(solution)
 
 
-def method_report(solution: Solution) -> dict[str, Any]:
-    """The report.json entry of one method.
-
-    ``time_in_regime`` comes from the located switch times (``analysis.regimes``);
-    ``energy_residual`` and ``energy`` from the energy balance (``analysis.energy``).
-    """
-    from rubcli.analysis.energy import energy_balance
-    from rubcli.analysis.regimes import time_in_regimes
-
-    t_end = float(solution.t[-1]) if solution.t.size else None
-    energy = energy_balance(solution).summary()
-    return {
-        "status": solution.status,
-        "message": solution.message,
-        "wall_time_s": solution.wall_time_s,
-        "stats": dict(solution.stats),
-        "n_contact_switches": solution.n_contact_switches,
-        "n_events": len(solution.events),
-        "contact_fraction": solution.contact_fraction(),
-        "max_penetration": solution.max_penetration(),
-        "time_in_regime": time_in_regimes(solution),
-        "energy_residual": energy["energy_residual"],
-        "energy": energy,
-        "n_samples": int(solution.t.size),
-        "tau_end": t_end,
-        "settings": dict(solution.settings),
-    }
+def response_settings(case: Case) -> panels.ResponseSettings | None:
+    """The case's ``[analysis]`` as response settings (None unless ``response = true``)."""
+    analysis = case.settings.analysis
+    if analysis is None or not analysis.response:
+        return None
+    return panels.ResponseSettings(**analysis.model_dump(exclude={"response"}))
 
 
 def write_outputs(
@@ -147,17 +146,20 @@ def write_outputs(
     solutions: list[Solution],
     entries: dict[str, dict[str, Any]],
     command_line: dict[str, Any],
-) -> list[Path]:
-    """Write the requested products and report.json into the case's output dir (staged)."""
+    plan: io.OutputPlan | None = None,
+) -> dict[str, Any]:
+    """Write the requested products and report.json into the case's output dir (staged);
+    return the report."""
     from rubcli.plotting import run as plots
 
     output = case.settings.output
     files: list[str] = []
-    with io.staged_output_dir(case.output_dir) as staged:
+    with io.staged_output_dir(case.output_dir, plan) as staged:
         if output.csv:
             for solution in solutions:
                 name = f"{solution.method}.csv"
-                io.write_solution_csv(staged.path(name), solution, case.scale)
+                with console.progress_bar(f"{name:<12}", float(solution.t.size)) as update:
+                    io.write_solution_csv(staged.path(name), solution, case.scale, on_rows=update)
                 entries[solution.method]["files"] = [name]
                 files.append(name)
         title = plots.parameters_title(case.name, case.params)
@@ -169,27 +171,33 @@ def write_outputs(
                 figure = figures[plot](solutions, title, scale=case.scale)
             io.save_figure(figure, staged.path(f"{plot}.png"))
             files.append(f"{plot}.png")
-        # [analysis] response = true (owned by cli/compare.py): classes and poincare.png
-        from rubcli.cli.compare import run_response
-
-        response, poincare = run_response(case, solutions, entries)
-        if poincare is not None:
-            io.save_figure(poincare, staged.path("poincare.png"))
+        response = None
+        settings = response_settings(case)
+        if settings is not None and solutions:
+            results = panels.run_responses(solutions, settings, progress=console.progress_bar)
+            for result in results:
+                entries[result.method]["response"] = result.to_dict()
+            response = panels.response_summary(results)
+            io.save_figure(_poincare_figure(case, results), staged.path("poincare.png"))
             files.append("poincare.png")
-        files.append("report.json")
+        files.append(io.REPORT_NAME)
         report = {
-            "rubcli_version": __version__,
-            "created_utc": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
-            "environment": io.environment_info(),
-            "command_line": command_line,
-            "case": case.to_dict(),
+            **io.report_envelope("run", command_line, case.to_dict()),
             "success": all(e["status"] == "success" for e in entries.values()),
             "methods": entries,
             "response": response,
             "files": files,
         }
-        io.write_json(staged.path("report.json"), report)
-    return [case.output_dir / name for name in files]
+        io.write_json(staged.path(io.REPORT_NAME), report)
+    return report
+
+
+def _poincare_figure(case: Case, results: list[panels.MethodResponse]):
+    from rubcli.plotting.compare import poincare_figure
+    from rubcli.plotting.run import parameters_title
+
+    sections = [(r.method, r.section, r.response) for r in results if r.section is not None]
+    return poincare_figure(sections, parameters_title(case.name, case.params))
 
 
 def _energy_figure(solutions: list[Solution], title: str):
@@ -248,14 +256,13 @@ def command(
             help="Duration in forcing periods instead of the case's time.periods (quick checks).",
         ),
     ] = None,
+    force: ForceOption = False,
+    json: JsonOption = False,
 ) -> None:
     """Solve a case with each of its methods and write CSVs, plots and report.json."""
     case = load_or_exit(case_file)
     case = _apply_overrides(case, _check_methods(method), out, periods)
     target = case.output_dir
-    if target.exists() and not target.is_dir():
-        console.error(f"{target}: output dir exists and is not a directory")
-        raise typer.Exit(EXIT_INVALID)
 
     from rubcli import solvers
 
@@ -263,7 +270,32 @@ def command(
     if unavailable:
         console.error(f"{case_file}: solver.methods: not available: {', '.join(unavailable)}")
         raise typer.Exit(EXIT_INVALID)
+    plan = prepare_output(target, force)
 
+    with machine_readable(json):
+        report = _run(case, case_file, method, out, periods, plan)
+    emit(report, json)
+    entries = report["methods"]
+    failed = {n: e for n, e in entries.items() if e["status"] not in ("success", WARNING)}
+    for name, entry in failed.items():
+        console.error(f"method {name} {entry['status']}: {entry['message']}")
+    warned = {n: e for n, e in entries.items() if e["status"] == WARNING}
+    for name, entry in warned.items():
+        console.warning(f"method {name}: do not trust this result: {'; '.join(entry['warnings'])}")
+    if failed:
+        raise typer.Exit(EXIT_FAILED)
+    if warned:
+        raise typer.Exit(EXIT_WARNING)
+
+
+def _run(
+    case: Case,
+    case_file: Path,
+    method: list[str] | None,
+    out: Path | None,
+    periods: float | None,
+    plan: io.OutputPlan,
+) -> dict[str, Any]:
     problem = case.problem
     console.info(
         f"{case.name}: {problem.periods:g} periods (tau 0 .. {problem.t_span[1]:.6g}), "
@@ -286,7 +318,8 @@ def command(
         "out": str(out) if out is not None else None,
         "periods": periods,
     }
-    written = write_outputs(case, solutions, entries, command_line)
+    report = write_outputs(case, solutions, entries, command_line, plan)
+    report_stale(plan)
 
     console.table(
         f"{case.name}: results",
@@ -295,9 +328,6 @@ def command(
         caption="events: located switches; contact: share of time in contact; max pen: "
         "largest penetration (clearances); E resid: energy-balance residual (report.json)",
     )
-    console.info(f"wrote {len(written)} files to {target}: {', '.join(p.name for p in written)}")
-    failed = {n: e for n, e in entries.items() if e["status"] != "success"}
-    for name, entry in failed.items():
-        console.error(f"method {name} {entry['status']}: {entry['message']}")
-    if failed:
-        raise typer.Exit(EXIT_FAILED)
+    files = report["files"]
+    console.info(f"wrote {len(files)} files to {case.output_dir}: {', '.join(files)}")
+    return report

@@ -7,18 +7,22 @@ Runs every case of ``rubcli.analysis.stress.stress_cases`` with every method (or
 - ``stress.csv``: one row per run: case, method, status, message, wall time, periods
   reached, steps, events, reference used, error against it, energy residual and its
   quadrature floor, max penetration, whether any state was not finite, stick fraction;
-- ``stress.md``: the same as a readable table, with the cases described.
+- ``stress.md``: the same as a readable table, with the cases described;
+- ``report.json``: the common report envelope, the runs as records, ``files`` (the
+  manifest of the output dir).
 
-``--quick`` shortens every horizon and budget (about a minute in all: the test suite
-runs it). Exit 0 when every run ended cleanly (``success``, or ``failed`` with a reason
-such as an exhausted budget, and no non-finite state); 1 if a solver raised or produced
-a non-finite state; 2 on invalid options. Warnings (a success whose energy balance or
-exact error says the orbit is wrong) are findings, shown in the table and in stress.md;
-they do not change the exit code. Files are staged and moved in at the end.
+``--json`` prints the report on stdout only. ``--quick`` shortens every horizon and
+budget (about a minute in all: the test suite runs it). Exit 0 when every run ended
+cleanly (``success``, or ``failed`` with a reason such as an exhausted budget, and no
+non-finite state); 1 if a solver raised or produced a non-finite state; 2 on invalid
+options or an unusable output dir. Warnings (a success whose energy balance or exact
+error says the orbit is wrong) are findings, shown in the table and in stress.md; they
+do not change the exit code. Files are staged and moved in at the end.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import math
 from pathlib import Path
@@ -29,29 +33,27 @@ import typer
 from rubcli import __version__, io
 from rubcli.analysis import stress
 from rubcli.cli import console
+from rubcli.cli.common import (
+    ForceOption,
+    JsonOption,
+    emit,
+    machine_readable,
+    prepare_output,
+    report_stale,
+)
 from rubcli.cli.validate import EXIT_INVALID
 
 EXIT_FAILED = 1
 
 
-def _field(value: object) -> str:
-    """A CSV field: shortest round-trip floats, empty for missing or non-finite numbers."""
-    if value is None:
-        return ""
-    if isinstance(value, bool):
-        return "1" if value else "0"
-    if isinstance(value, float):
-        return repr(value) if math.isfinite(value) else ""
-    text = str(value)
-    if any(c in text for c in ',"\n'):
-        text = '"' + text.replace('"', '""') + '"'
-    return text
+def _cell(value: object) -> object:
+    """stress.csv keeps flags as 1/0."""
+    return int(value) if isinstance(value, bool) else value
 
 
-def csv_text(runs: list[stress.StressRun]) -> str:
-    lines = [",".join(stress.RUN_COLUMNS)]
-    lines += [",".join(_field(v) for v in run.as_row().values()) for run in runs]
-    return "\n".join(lines) + "\n"
+def write_csv(path: Path, runs: list[stress.StressRun]) -> None:
+    rows = [[_cell(v) for v in run.as_row().values()] for run in runs]
+    io.write_rows_csv(path, stress.RUN_COLUMNS, rows, nonfinite="")
 
 
 def _short(value: float | None, fmt: str = ".2g") -> str:
@@ -122,6 +124,8 @@ def command(
         list[str] | None,
         typer.Option("--method", "-m", metavar="NAME", help="Run only this method (repeatable)."),
     ] = None,
+    force: ForceOption = False,
+    json: JsonOption = False,
 ) -> None:
     """Run the built-in suite of extreme cases with every method; write stress.csv and .md."""
     from rubcli.solvers import METHODS
@@ -144,10 +148,27 @@ def command(
             raise typer.Exit(EXIT_INVALID)
         methods = list(dict.fromkeys(method))
     target = out if out is not None else Path("out/stress-quick" if quick else "out/stress")
-    if target.exists() and not target.is_dir():
-        console.error(f"{target}: output dir exists and is not a directory")
-        raise typer.Exit(EXIT_INVALID)
+    plan = prepare_output(target, force)
+    with machine_readable(json):
+        runs, report = _stress(cases, methods, quick, target, plan, case, method)
+    emit(report, json)
+    bad = [r for r in runs if not stress.clean(r)]
+    for r in bad:
+        console.error(f"{r.case} / {r.method}: {r.status}: {r.message}"
+                      + (" (non-finite state)" if r.nan else ""))  # fmt: skip
+    if bad:
+        raise typer.Exit(EXIT_FAILED)
 
+
+def _stress(
+    cases: list[stress.StressCase],
+    methods: list[str],
+    quick: bool,
+    target: Path,
+    plan: io.OutputPlan,
+    case: list[str] | None,
+    method: list[str] | None,
+) -> tuple[list[stress.StressRun], dict]:
     console.info(
         f"stress ({'quick' if quick else 'full'}): {len(cases)} cases x {len(methods)} methods"
     )
@@ -167,9 +188,20 @@ def command(
 
     parts = ["rubcli stress"] + (["--quick"] if quick else [])
     parts += [f"--case {c}" for c in case or []] + [f"--method {m}" for m in method or []]
-    with io.staged_output_dir(target) as staged:
-        io.write_text(staged.path("stress.csv"), csv_text(runs))
+    files = ["stress.csv", "stress.md", io.REPORT_NAME]
+    command_line = {"quick": quick, "cases": case or None, "methods": method or None}
+    report = {
+        **io.report_envelope("stress", command_line),
+        "quick": quick,
+        "success": all(stress.clean(r) for r in runs),
+        "runs": [dataclasses.asdict(r) for r in runs],
+        "files": files,
+    }
+    with io.staged_output_dir(target, plan) as staged:
+        write_csv(staged.path("stress.csv"), runs)
         io.write_text(staged.path("stress.md"), markdown_text(runs, cases, quick, " ".join(parts)))
+        io.write_json(staged.path(io.REPORT_NAME), report)
+    report_stale(plan)
 
     rows = [
         [r.case, r.method, r.status, f"{r.wall_time_s:.2f}", _short(r.error),
@@ -181,10 +213,5 @@ def command(
         ["case", "method", "status", "wall s", "error", "energy res.", "NaN", "warning"],
         rows,
     )
-    console.info(f"wrote stress.csv and stress.md to {target}")
-    bad = [r for r in runs if not stress.clean(r)]
-    for r in bad:
-        console.error(f"{r.case} / {r.method}: {r.status}: {r.message}"
-                      + (" (non-finite state)" if r.nan else ""))  # fmt: skip
-    if bad:
-        raise typer.Exit(EXIT_FAILED)
+    console.info(f"wrote {', '.join(files)} to {target}")
+    return runs, report

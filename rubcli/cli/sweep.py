@@ -18,15 +18,15 @@ Exit codes: 0 done (failed points are results); 2 invalid input or unreachable s
 
 from __future__ import annotations
 
-import datetime as dt
 import time
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
-from rubcli import __version__, io
+from rubcli import io
 from rubcli.cli import console
+from rubcli.cli.common import ForceOption, JsonOption, emit, prepare_output, report_stale
 from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 
 LOCAL_SCHEDULER = "local"
@@ -62,6 +62,8 @@ def command(
             "--quick", help="At most 5 values per axis, 20+16 periods, Lyapunov over 20 (CI)."
         ),
     ] = False,
+    json: JsonOption = False,
+    force: ForceOption = False,
 ) -> None:
     """Sweep parameters: bifurcation diagrams, run-up/run-down, 2-D maps, basins."""
     case = load_or_exit(case_file)
@@ -71,12 +73,9 @@ def command(
         raise typer.Exit(EXIT_INVALID)
     from rubcli import sweeps
     from rubcli.analysis import sweep as engine
-    from rubcli.analysis.sweep.dataset import build_dataset, csv_text, write_netcdf
 
     target = out if out is not None else case.output_dir / "sweep"
-    if target.exists() and not target.is_dir():
-        console.error(f"{target}: output dir exists and is not a directory")
-        raise typer.Exit(EXIT_INVALID)
+    output = prepare_output(target, force)  # before any work: exit 2 if unusable
     plan = sweeps.plan_from_case(case, quick)
     address = scheduler if scheduler is not None else cfg.scheduler
     client = cluster = None
@@ -90,6 +89,18 @@ def command(
             field = "--scheduler" if scheduler is not None else "sweep.scheduler"
             console.error(f"{case_file}: {field}: {exc}")
             raise typer.Exit(EXIT_INVALID) from None
+
+    with console.machine_readable(json):
+        _sweep(case_file, case, plan, target, output, client, cluster, workers, scheduler, out,
+               quick, json)  # fmt: skip
+
+
+def _sweep(case_file, case, plan, target, output, client, cluster, workers, scheduler, out,
+           quick, json) -> None:  # fmt: skip
+    """The sweep itself, once its inputs, output dir and executor are checked."""
+    from rubcli import sweeps
+    from rubcli.analysis import sweep as engine
+    from rubcli.analysis.sweep.dataset import build_dataset, csv_text, write_netcdf
 
     store_dir = store_dir_for(target, plan.digest())
     console.info(
@@ -107,13 +118,14 @@ def command(
                 store_dir=store_dir,
                 progress=lambda done, total: bar(done),
             )
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, io.Terminated) as exc:
         kept = len(list(store_dir.glob("*.point"))) if store_dir.is_dir() else 0
         console.error(
             f"interrupted: {kept} of {plan.n_points} points are kept in {store_dir}; "
             "run the same command again to compute only the others"
         )
-        raise typer.Exit(EXIT_INTERRUPTED) from None
+        code = exc.exit_code if isinstance(exc, io.Terminated) else EXIT_INTERRUPTED
+        raise typer.Exit(code) from None
     finally:
         if client is not None:
             client.close()
@@ -126,7 +138,7 @@ def command(
 
     title = _title(case, plan)
     files: list[str] = []
-    with io.staged_output_dir(target) as staged:
+    with io.staged_output_dir(target, output) as staged:
         write_netcdf(ds, staged.path("sweep.nc"))
         io.write_text(staged.path("sweep.csv"), csv_text(ds, plan))
         files += ["sweep.nc", "sweep.csv"]
@@ -146,18 +158,10 @@ def command(
         files.append("report.json")
         n_failed = int((ds["status"].values != 0).sum())
         computed_s = sum(r.wall_time_s for r in results.values())
+        command_line = {"case_file": str(case_file), "out": str(out) if out else None,
+                        "workers": workers, "scheduler": scheduler, "quick": quick}  # fmt: skip
         report = {
-            "rubcli_version": __version__,
-            "created_utc": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
-            "environment": io.environment_info(),
-            "command_line": {
-                "case_file": str(case_file),
-                "out": str(out) if out else None,
-                "workers": workers,
-                "scheduler": scheduler,
-                "quick": quick,
-            },  # fmt: skip
-            "case": case.to_dict(),
+            **io.report_envelope("sweep", command_line, case.to_dict()),
             "plan": plan.to_dict(),
             "plan_digest": plan.digest(),
             "executor": where,
@@ -174,6 +178,8 @@ def command(
         }
         io.write_json(staged.path("report.json"), report)
     engine.PointStore(store_dir, plan.digest()).remove()
+    report_stale(output)
+    emit(report, json)
     console.info(
         f"{plan.n_points} points on {where} in {wall:.1f} s "
         f"({stats.computed} computed, {stats.resumed} resumed, {n_failed} failed)"

@@ -1,4 +1,9 @@
-"""``rubcli validate CASE``: check a case file and show what it resolves to."""
+"""``rubcli validate CASE [--json]``: check a case file and show what it resolves to.
+
+Exit 0 if valid, 2 with one line per problem if not. ``--json`` prints only
+``{"valid": true, "case": ...}`` (the case as report.json echoes it) or
+``{"valid": false, "problems": [...]}`` on stdout, with the same exit codes.
+"""
 
 from __future__ import annotations
 
@@ -7,10 +12,12 @@ from typing import Annotated
 
 import typer
 
+from rubcli import io
 from rubcli.case import Case, CaseError, load_case
 from rubcli.cli import console
+from rubcli.cli.common import EXIT_INVALID, JsonOption, emit
 
-EXIT_INVALID = 2
+__all__ = ["EXIT_INVALID", "command", "load_or_exit", "summary_lines"]
 
 
 def load_or_exit(path: Path) -> Case:
@@ -27,7 +34,11 @@ def summary_lines(case: Case) -> list[str]:
     p, problem = case.params, case.problem
     lines = [
         f"case      {case.name}"
-        + (f": {case.settings.case.description}" if case.settings.case.description else ""),
+        + (
+            f": {console.shorten(case.settings.case.description)}"
+            if case.settings.case.description
+            else ""
+        ),
         f"model     nu={p.nu:.6g} eta={p.eta:.6g} e={p.e:.6g} K={p.K:.6g} "
         f"mu={p.mu:.6g} Rp={p.Rp:.6g} phi0={p.phi0:.6g}",
         "initial   x={:.6g} y={:.6g} vx={:.6g} vy={:.6g}".format(*problem.initial),
@@ -48,8 +59,19 @@ def summary_lines(case: Case) -> list[str]:
 
 def command(
     case_file: Annotated[Path, typer.Argument(metavar="CASE", help="The case file (TOML).")],
+    json: JsonOption = False,
 ) -> None:
     """Validate a case file; exit 0 if valid, 2 with one line per problem if not."""
+    if json:
+        try:
+            case = load_case(case_file)
+        except CaseError as exc:
+            envelope = io.report_envelope("validate", {"case_file": str(case_file)})
+            emit({**envelope, "valid": False, "problems": exc.problems}, json)
+            raise typer.Exit(EXIT_INVALID) from None
+        envelope = io.report_envelope("validate", {"case_file": str(case_file)}, case.to_dict())
+        emit({**envelope, "valid": True, "summary": summary_lines(case)}, json)
+        return
     case = load_or_exit(case_file)
     for line in summary_lines(case):
         console.info(line)

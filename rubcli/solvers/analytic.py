@@ -38,21 +38,19 @@ flight, and each step or pair that might hold an event run in Python.
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import scipy.linalg
 
 from rubcli import model
 from rubcli.problem import Problem
-from rubcli.solution import FAILED, SUCCESS, Solution, SwitchEvent
-from rubcli.solvers import kernels, register
+from rubcli.solution import Solution
+from rubcli.solvers import compiled as kernels
+from rubcli.solvers import control, driver, register
 from rubcli.solvers.events import (
     MAX_SCAN_POINTS,
-    StormGuard,
-    apply_event,
+    NO_EVENT,
     earliest_event,
-    initial_kind,
     scan_spacing,
     start_flags,
 )
@@ -258,9 +256,6 @@ class _UnresolvedError(Exception):
 
 CONTACT_PROPAGATORS = {"cartesian": LinearisedContact, "polar": PolarLinearisedContact}
 # Adaptive steps (step doubling): local error ~ h^3, so h scales with (tol/err)^(1/3).
-ADAPT_SAFETY, ADAPT_MIN_FACTOR, ADAPT_MAX_FACTOR = 0.9, 0.2, 4.0
-MAX_STEP_FRACTION = 1.0 / 8.0  # of the forcing period, in adaptive mode
-MIN_STEP_FRACTION = 1e-12  # of the forcing period: a step this short is always accepted
 
 
 def _contact_step(linearisation: str, tau: float, state, h: float, params, regime: int):
@@ -283,9 +278,190 @@ def _doubling_error(linearisation, tau, state, h, params, regime):
     if regime == model.STICK:
         mid = model.project_to_rolling(mid, params)
     second = _contact_step(linearisation, tau + h / 2, mid, h / 2, params, regime)
-    diff = full.states(tau + h) - second.states(tau + h)
-    scale = 1.0 + np.abs(state)
-    return float(np.max(np.abs(diff) / scale)) * 4.0 / 3.0, first, second
+    error = control.doubling_error(full.states(tau + h), second.states(tau + h), state)
+    return error, first, second
+
+
+class PiecewiseStepper:
+    """The piecewise method as a driver stepper (``driver.integrate``).
+
+    One ``advance`` is one step of the method: a whole free flight up to its next event
+    (scanned chunk by chunk on the closed form), a compiled run of event-free slip
+    steps (``kernels.advance_contact`` or ``advance_contact_adaptive``), or one contact
+    step in Python (fixed, or the next accepted half step of the adaptive control) with
+    its events. ``linearisation`` is 'cartesian' (``analytic``) or 'polar'
+    (``analytic-polar``).
+    """
+
+    def __init__(
+        self,
+        run: driver.Run,
+        linearisation: str,
+        steps_per_period: int,
+        analytic_tol: float | None,
+        compiled: bool,
+    ):
+        params = run.params
+        self.linearisation, self.analytic_tol = linearisation, analytic_tol
+        self.h = params.period / steps_per_period
+        self.h_max = params.period * control.MAX_STEP_FRACTION
+        self.min_step = control.MIN_STEP_FRACTION * params.period
+        self.pending = []  # accepted half-step propagators still to be walked (adaptive)
+        run.stats.update(
+            n_free_segments=0, n_contact_steps=0, n_stick_steps=0, n_rejected_steps=0,
+            n_expm_fallbacks=0, n_compiled_steps=0,
+        )  # fmt: skip
+        self.use_kernel = compiled and kernels.ensure_fresh()
+        if self.use_kernel:
+            self.pars = np.array(model.params_vector(params))
+            self.t_eval_c = np.ascontiguousarray(run.t_eval, dtype=float)
+            self.control = (
+                float(analytic_tol) if analytic_tol is not None else 0.0,
+                control.SAFETY, control.MIN_FACTOR, control.MAX_FACTOR, self.h_max, self.min_step,
+            )  # fmt: skip
+        self.settings = {
+            "steps_per_period": steps_per_period,
+            "analytic_tol": analytic_tol,
+            "max_steps": run.max_steps,
+            "max_wall_time_s": run.max_wall_time_s,
+            "compiled": self.use_kernel,
+        }
+
+    def _fill(self, run: driver.Run, prop, t_stop: float) -> None:
+        """The samples of the propagator's span up to ``t_stop``."""
+        j = int(np.searchsorted(run.t_eval, t_stop, side="right"))
+        if j > run.k:
+            samples = prop.states(run.t_eval[run.k : j])
+            if run.regime == model.STICK:
+                samples = model.project_to_rolling(samples, run.params)
+            run.states[run.k : j] = samples.T
+            run.regimes[run.k : j] = run.regime
+            run.k = j
+
+    def _search(self, run: driver.Run, prop, ta: float, tb: float, fraction: float):
+        """The earliest event of the propagator in (ta, tb] on its scan grid."""
+        spacing = scan_spacing(prop.omega_max, fraction)
+        if (tb - ta) / spacing > MAX_SCAN_POINTS:
+            raise _UnresolvedError(
+                f"the linearised step at tau = {ta:.6g} has a frequency of "
+                f"{prop.omega_max:.3g} per tau, which a step of {tb - ta:.3g} cannot resolve "
+                f"(the linearisation has diverged; try a smaller step)"
+            )
+        grid = np.linspace(ta, tb, max(1, math.ceil((tb - ta) / spacing)) + 1)
+        try:
+            return earliest_event(
+                prop.states, prop.derivatives, grid, run.regime, run.params, run.last_kind
+            )
+        except ValueError:  # brentq met a NaN: the closed form overflowed
+            # (a NaN only past the step's first event is harmless and never reached)
+            raise _UnresolvedError(
+                f"the event search in the linearised step at tau = {ta:.6g} met a non-finite "
+                "state (the linearisation has diverged; try a smaller step)"
+            ) from None
+
+    def _free_flight(self, run: driver.Run):
+        """No steps in free flight: scan the closed form chunk by chunk for the entry."""
+        self.pending.clear()
+        prop = FreeFlight(run.tau, run.state, run.params)
+        run.stats["n_free_segments"] += 1
+        chunk = FREE_SCAN_CHUNK * scan_spacing(prop.omega_max, FREE_SCAN_FRACTION)
+        event, tb = None, run.tau
+        while tb < run.t_end and event is None:
+            ta, tb = tb, min(run.t_end, tb + chunk)
+            event = self._search(run, prop, ta, tb, FREE_SCAN_FRACTION)
+            run.last_kind = NO_EVENT
+            self._fill(run, prop, event[0] if event else tb)
+            if run.elapsed() > run.max_wall_time_s:
+                break
+        return prop, tb, event
+
+    def _compiled_slip_steps(self, run: driver.Run) -> bool:
+        """Event-free slip steps in the kernel; True if it took this advance's steps
+        (False: a possible event or a step it leaves to Python is next)."""
+        k0 = run.k
+        args = (
+            self.linearisation == "polar", run.tau,
+            np.ascontiguousarray(run.state, dtype=float), self.h, run.t_end, run.regime,
+            self.pars, self.t_eval_c, run.states, run.k,
+            min(KERNEL_CHUNK_STEPS, run.steps_left), CONTACT_SCAN_FRACTION,
+            EIGVEC_COND_LIMIT, start_flags(run.last_kind),
+        )  # fmt: skip
+        if self.analytic_tol is None:
+            tau, state, k, taken, reason = kernels.advance_contact(*args)
+        else:
+            # h comes back as the controller's next step (unchanged if no pair was
+            # taken); the rejections of the pairs it took
+            tau, state, k, taken, rejected, self.h, reason = kernels.advance_contact_adaptive(
+                *args, self.control
+            )
+            run.stats["n_rejected_steps"] += rejected
+        run.tau, run.state, run.k = tau, state, k
+        if taken:
+            run.last_kind = NO_EVENT
+        run.regimes[k0:k] = run.regime
+        run.stats["nsteps"] += taken
+        run.stats["n_contact_steps"] += taken
+        run.stats["n_compiled_steps"] += taken
+        # at a possible event (or a step the kernel leaves to Python) the Python step is
+        # taken from where the kernel stopped
+        return reason not in (kernels.STOP_EVENT, kernels.STOP_PYTHON)
+
+    def _contact_step(self, run: driver.Run):
+        """One contact step in Python (fixed, or the next accepted adaptive half step)."""
+        params, tau = run.params, run.tau
+        if self.analytic_tol is None:
+            tb = min(run.t_end, tau + self.h)
+            prop = _contact_step(self.linearisation, tau, run.state, tb - tau, params, run.regime)
+        else:
+            if not self.pending:
+                while True:
+                    step = min(self.h, self.h_max, run.t_end - tau)
+                    err, first, second = _doubling_error(
+                        self.linearisation, tau, run.state, step, params, run.regime
+                    )
+                    self.h, accept = control.next_step(
+                        step, err, self.analytic_tol, control.SAFETY, control.MIN_FACTOR,
+                        control.MAX_FACTOR, self.min_step,
+                    )  # fmt: skip
+                    if accept:
+                        break
+                    run.stats["n_rejected_steps"] += 1
+                self.pending.extend([(first, tau + step / 2), (second, tau + step)])
+            prop, tb = self.pending.pop(0)
+        if run.regime == model.STICK:
+            run.stats["n_stick_steps"] += 1
+        else:
+            run.stats["n_contact_steps"] += 1
+            run.stats["n_expm_fallbacks"] += int(prop.use_expm)
+        event = self._search(run, prop, tau, tb, CONTACT_SCAN_FRACTION)
+        run.last_kind = NO_EVENT
+        self._fill(run, prop, event[0] if event else tb)
+        return prop, tb, event
+
+    def advance(self, run: driver.Run) -> None:
+        try:
+            if run.regime == model.FREE:
+                prop, tb, event = self._free_flight(run)
+            else:
+                slip = run.regime in (model.SLIP_POSITIVE, model.SLIP_NEGATIVE)
+                # (adaptive: only between pairs of half steps, when `pending` is empty)
+                if self.use_kernel and slip and not self.pending and self._compiled_slip_steps(run):
+                    return  # the kernel advanced tau, the state, the samples and the counts
+                try:
+                    prop, tb, event = self._contact_step(run)
+                except np.linalg.LinAlgError as exc:
+                    run.fail(f"linearised contact system singular at tau = {run.tau:.6g}: {exc}")
+                    return
+        except _UnresolvedError as exc:
+            run.fail(str(exc))
+            return
+        run.stats["nsteps"] += 1
+        if event is None:
+            run.tau = tb
+            run.state = prop.states(tb)
+        else:
+            self.pending.clear()
+            run.switch(event[0], event[1], prop.states(event[0]))
 
 
 def solve_piecewise(
@@ -298,7 +474,6 @@ def solve_piecewise(
     max_wall_time_s: float = 600.0,
     progress=None,
     compiled: bool = True,
-    **_ignored,
 ) -> Solution:
     """The piecewise method with a given contact linearisation ('cartesian' or 'polar').
 
@@ -307,225 +482,14 @@ def solve_piecewise(
     stays below the tolerance (``steps_per_period`` then sets the first step).
     With ``compiled`` the event-free slip steps run in the numba kernels
     ``kernels.advance_contact`` (fixed) or ``kernels.advance_contact_adaptive`` (the
-    same step doubling and control as below); ``compiled=False`` is the pure-Python path.
+    same step doubling and control as ``PiecewiseStepper``); ``compiled=False`` is the
+    pure-Python path.
     """
-    params = problem.params
-    t_eval = problem.t_eval
-    t_end = float(t_eval[-1])
-    h = params.period / steps_per_period
-    h_max = params.period * MAX_STEP_FRACTION
-    start_clock = time.perf_counter()
-
-    out_states = np.empty((t_eval.size, 4))
-    out_regimes = np.empty(t_eval.size, dtype=int)
-    state = np.array(problem.initial, dtype=float)
-    tau = float(t_eval[0])
-    regime = model.regime_of_state(state, params)
-    out_states[0], out_regimes[0] = state, regime
-    k = 1
-    events: list[SwitchEvent] = []
-    stats = {
-        "nsteps": 0,
-        "n_free_segments": 0,
-        "n_contact_steps": 0,
-        "n_stick_steps": 0,
-        "n_rejected_steps": 0,
-        "n_expm_fallbacks": 0,
-    }
-    status, message = SUCCESS, "reached the end of the time span"
-    last_kind = initial_kind(state, regime, params)
-    storms = StormGuard()
-    next_progress = tau
-    pending = []  # accepted half-step propagators still to be walked (adaptive mode)
-    min_step = MIN_STEP_FRACTION * params.period
-    use_kernel = compiled and kernels.ensure_fresh()
-    if use_kernel:
-        pars = np.array(model.params_vector(params))
-        t_eval_c = np.ascontiguousarray(t_eval, dtype=float)
-        if analytic_tol is not None:
-            control = (
-                float(analytic_tol),
-                ADAPT_SAFETY,
-                ADAPT_MIN_FACTOR,
-                ADAPT_MAX_FACTOR,
-                h_max,
-                min_step,
-            )
-    stats["n_compiled_steps"] = 0
-
-    def fill(prop, t_stop, reg):
-        nonlocal k
-        j = int(np.searchsorted(t_eval, t_stop, side="right"))
-        if j > k:
-            samples = prop.states(t_eval[k:j])
-            if reg == model.STICK:
-                samples = model.project_to_rolling(samples, params)
-            out_states[k:j] = samples.T
-            out_regimes[k:j] = reg
-            k = j
-
-    def search(prop, ta, tb, fraction):
-        spacing = scan_spacing(prop.omega_max, fraction)
-        if (tb - ta) / spacing > MAX_SCAN_POINTS:
-            raise _UnresolvedError(
-                f"the linearised step at tau = {ta:.6g} has a frequency of "
-                f"{prop.omega_max:.3g} per tau, which a step of {tb - ta:.3g} cannot resolve "
-                f"(the linearisation has diverged; try a smaller step)"
-            )
-        grid = np.linspace(ta, tb, max(1, math.ceil((tb - ta) / spacing)) + 1)
-        try:
-            return earliest_event(prop.states, prop.derivatives, grid, regime, params, last_kind)
-        except ValueError:  # brentq met a NaN: the closed form overflowed
-            # (a NaN only past the step's first event is harmless and never reached)
-            raise _UnresolvedError(
-                f"the event search in the linearised step at tau = {ta:.6g} met a non-finite "
-                "state (the linearisation has diverged; try a smaller step)"
-            ) from None
-
-    try:
-        while tau < t_end:
-            bulk_only = False  # the compiled kernel took this iteration's steps
-            if regime == model.FREE:
-                # No steps in free flight: scan the closed form chunk by chunk for the entry.
-                pending.clear()
-                prop = FreeFlight(tau, state, params)
-                stats["n_free_segments"] += 1
-                chunk = FREE_SCAN_CHUNK * scan_spacing(prop.omega_max, FREE_SCAN_FRACTION)
-                event, tb = None, tau
-                while tb < t_end and event is None:
-                    ta, tb = tb, min(t_end, tb + chunk)
-                    event = search(prop, ta, tb, FREE_SCAN_FRACTION)
-                    last_kind = None
-                    fill(prop, event[0] if event else tb, regime)
-                    if time.perf_counter() - start_clock > max_wall_time_s:
-                        break
-            else:
-                # (adaptive: only between pairs of half steps, when `pending` is empty)
-                slip = regime in (model.SLIP_POSITIVE, model.SLIP_NEGATIVE)
-                if use_kernel and slip and not pending:
-                    k0 = k
-                    args = (
-                        linearisation == "polar",
-                        tau,
-                        np.ascontiguousarray(state, dtype=float),
-                        h,
-                        t_end,
-                        regime,
-                        pars,
-                        t_eval_c,
-                        out_states,
-                        k,
-                        min(KERNEL_CHUNK_STEPS, max_steps - stats["nsteps"]),
-                        CONTACT_SCAN_FRACTION,
-                        EIGVEC_COND_LIMIT,
-                        start_flags(last_kind),
-                    )
-                    if analytic_tol is None:
-                        tau, state, k, taken, reason = kernels.advance_contact(*args)
-                    else:
-                        # h comes back as the controller's next step (unchanged if no
-                        # pair was taken); the rejections of the pairs it took
-                        tau, state, k, taken, rejected, h, reason = (
-                            kernels.advance_contact_adaptive(*args, control)
-                        )
-                        stats["n_rejected_steps"] += rejected
-                    if taken:
-                        last_kind = None
-                    out_regimes[k0:k] = regime
-                    stats["nsteps"] += taken
-                    stats["n_contact_steps"] += taken
-                    stats["n_compiled_steps"] += taken
-                    # at a possible event (or a step the kernel leaves to Python) the Python
-                    # step below is taken from where the kernel stopped
-                    bulk_only = reason not in (kernels.STOP_EVENT, kernels.STOP_PYTHON)
-            if regime != model.FREE and not bulk_only:
-                try:
-                    if analytic_tol is None:
-                        tb = min(t_end, tau + h)
-                        prop = _contact_step(linearisation, tau, state, tb - tau, params, regime)
-                    else:
-                        if not pending:
-                            while True:
-                                step = min(h, h_max, t_end - tau)
-                                err, first, second = _doubling_error(
-                                    linearisation, tau, state, step, params, regime
-                                )
-                                factor = ADAPT_SAFETY * (analytic_tol / max(err, 1e-300)) ** (1 / 3)
-                                h = step * min(ADAPT_MAX_FACTOR, max(ADAPT_MIN_FACTOR, factor))
-                                if err <= analytic_tol or step <= min_step:
-                                    break
-                                stats["n_rejected_steps"] += 1
-                            pending.extend([(first, tau + step / 2), (second, tau + step)])
-                        prop, tb = pending.pop(0)
-                except np.linalg.LinAlgError as exc:
-                    status = FAILED
-                    message = f"linearised contact system singular at tau = {tau:.6g}: {exc}"
-                    break
-                if regime == model.STICK:
-                    stats["n_stick_steps"] += 1
-                else:
-                    stats["n_contact_steps"] += 1
-                    stats["n_expm_fallbacks"] += int(prop.use_expm)
-                event = search(prop, tau, tb, CONTACT_SCAN_FRACTION)
-                last_kind = None
-                fill(prop, event[0] if event else tb, regime)
-            if bulk_only:
-                pass  # the kernel has advanced tau, state, the samples and the step counts
-            elif event is None:
-                stats["nsteps"] += 1
-                tau = tb
-                state = prop.states(tau)
-            else:
-                stats["nsteps"] += 1
-                pending.clear()
-                tau = event[0]
-                state, regime, switch = apply_event(tau, event[1], prop.states(tau), regime, params)
-                events.append(switch)
-                last_kind = switch.kind
-                if storms.storm(tau):
-                    status, message = FAILED, storms.message()
-                    break
-            if not np.all(np.isfinite(state)):
-                status, message = FAILED, f"non-finite state at tau = {tau:.6g}"
-                break
-            if tau < t_end and stats["nsteps"] >= max_steps:
-                status = FAILED
-                message = f"step budget exhausted (max_steps = {max_steps}) at tau = {tau:.6g}"
-                break
-            if tau < t_end and time.perf_counter() - start_clock > max_wall_time_s:
-                status = FAILED
-                message = (
-                    f"wall-time budget exhausted (max_wall_time_s = {max_wall_time_s:g}) "
-                    f"at tau = {tau:.6g}"
-                )
-                break
-            if progress is not None and tau >= next_progress:
-                progress(tau)
-                next_progress = tau + 0.01 * (t_end - t_eval[0])
-    except _UnresolvedError as exc:
-        status, message = FAILED, str(exc)
-
-    if status == SUCCESS and progress is not None:
-        progress(t_end)
-    settings = {
-        "steps_per_period": steps_per_period,
-        "analytic_tol": analytic_tol,
-        "max_steps": max_steps,
-        "max_wall_time_s": max_wall_time_s,
-        "compiled": use_kernel,
-    }
-    return Solution.from_samples(
-        problem,
-        method,
-        k,
-        out_states,
-        out_regimes,
-        events=events,
-        stats=stats,
-        settings=settings,
-        status=status,
-        message=message,
+    run = driver.Run(
+        problem, method, max_steps=max_steps, max_wall_time_s=max_wall_time_s, progress=progress
     )
+    stepper = PiecewiseStepper(run, linearisation, steps_per_period, analytic_tol, compiled)
+    return driver.integrate(run, stepper)
 
 
 @register("analytic")

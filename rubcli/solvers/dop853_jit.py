@@ -31,24 +31,18 @@ import numpy as np
 
 from rubcli import model
 from rubcli.problem import Problem
-from rubcli.solution import FAILED, SUCCESS, Solution, SwitchEvent
-from rubcli.solvers import kernels, register
+from rubcli.solution import Solution, SwitchEvent
+from rubcli.solvers import compiled as kernels
+from rubcli.solvers import driver, register
 from rubcli.solvers.events import (
-    ENTRY,
-    EXIT,
-    REVERSAL,
-    STICK_ENTRY,
-    STICK_EXIT,
-    StormGuard,
-    apply_event,
+    KIND_NAMES,
+    NO_EVENT,
     earliest_event,
-    initial_kind,
     start_flags,
 )
 from rubcli.solvers.scipy_ivp import (
     RESTART_BAND_FLOOR,
     SCAN_POINTS,
-    Budget,
     _rhs_functions,
     fill_samples,
     solve_scipy,
@@ -56,13 +50,6 @@ from rubcli.solvers.scipy_ivp import (
 
 CHUNK_STEPS = 2000  # committed steps per kernel call: budget and progress checks between
 EVENT_BUFFER = 256  # events the kernel may apply before it returns to flush them
-KERNEL_KINDS = {
-    kernels.KIND_ENTRY: ENTRY,
-    kernels.KIND_EXIT: EXIT,
-    kernels.KIND_REVERSAL: REVERSAL,
-    kernels.KIND_STICK_ENTRY: STICK_ENTRY,
-    kernels.KIND_STICK_EXIT: STICK_EXIT,
-}
 
 
 class Dop853Dense:
@@ -78,6 +65,114 @@ class Dop853Dense:
         return kernels.dop853_dense_point(float(t), self.t_old, self.h, self.y_old, self.F)
 
 
+class Dop853Stepper:
+    """The compiled DOP853 as a driver stepper (``driver.integrate``).
+
+    One ``advance`` is one call of ``kernels.advance_dop853``: up to ``CHUNK_STEPS``
+    steps with the events it locates and applies itself (recorded here, with the storm
+    guard), or, with ``compiled_events=False`` (or a step the kernel hands back), the
+    pending step's events located by the Python event code.
+    """
+
+    def __init__(self, run: driver.Run, rtol: float, atol: float, compiled_events: bool):
+        self.pars = np.array(model.params_vector(run.params))
+        self.restart_band = max(RESTART_BAND_FLOOR, rtol)
+        # scipy raises a too small rtol to 100 eps (with a warning); so do we, silently
+        self.rtol, self.atol = max(rtol, 100 * np.finfo(float).eps), atol
+        self.compiled_events = compiled_events
+        self.y_new, self.f_new, self.F, self.f = (
+            np.empty(4),
+            np.empty(4),
+            np.empty((7, 4)),
+            np.empty(4),
+        )
+        self.ev_tau = np.empty(EVENT_BUFFER)
+        self.ev_kind = np.empty(EVENT_BUFFER, dtype=np.int64)
+        self.ev_state = np.empty((EVENT_BUFFER, 4))
+        self.ev_regimes = np.empty((EVENT_BUFFER, 2), dtype=np.int64)
+        self.new_segment, self.at_event = True, run.last_kind != NO_EVENT
+        self.h_abs = 0.0
+        run.stats.update(nfev=0, n_segments=0, python_steps=0)
+        self.settings = {
+            "rtol": self.rtol,
+            "atol": atol,
+            "max_steps": run.max_steps,
+            "max_wall_time_s": run.max_wall_time_s,
+            "compiled": True,
+            "compiled_events": compiled_events,
+        }
+
+    def advance(self, run: driver.Run) -> None:
+        stats, pars = run.stats, self.pars
+        if self.new_segment:  # as scipy starts a solver: f and the initial step
+            run.state = np.ascontiguousarray(run.state, dtype=float)
+            self.f[:] = kernels.rhs(run.tau, run.state, pars, run.regime)
+            self.h_abs = kernels.dop853_initial_step(
+                run.tau, run.state, self.f, run.t_end, pars, run.regime, self.rtol, self.atol
+            )
+            stats["nfev"] += 2
+            stats["n_segments"] += 1
+            self.new_segment = False
+        starts = start_flags(run.last_kind if self.at_event else NO_EVENT)
+        chunk = max(1, min(CHUNK_STEPS, run.steps_left))
+        tau0, state0 = run.tau, run.state
+        tau, t_new, self.h_abs, run.k, steps, nfev, reason, run.regime, n_ev, self.at_event = (
+            kernels.advance_dop853(
+                tau0, state0, self.f, self.h_abs, run.t_end, pars, run.regime, self.rtol,
+                self.atol, run.t_eval, run.states, run.regimes, run.k, chunk, starts,
+                self.y_new, self.f_new, self.F, self.restart_band, self.ev_tau, self.ev_kind,
+                self.ev_state, self.ev_regimes, self.compiled_events,
+            )
+        )  # fmt: skip
+        run.tau = tau  # the kernel updated the state in place
+        stats["nsteps"] += steps
+        stats["nfev"] += nfev
+        # segments the kernel started (with a full buffer the last one starts here)
+        stats["n_segments"] += n_ev - (reason == kernels.STOP_FULL)
+        for i in range(n_ev):  # the events the kernel located and applied
+            t_ev, run.last_kind = float(self.ev_tau[i]), int(self.ev_kind[i])
+            before, after = int(self.ev_regimes[i, 0]), int(self.ev_regimes[i, 1])
+            state_i = tuple(map(float, self.ev_state[i]))
+            if not run.record(SwitchEvent(t_ev, KIND_NAMES[run.last_kind], state_i, before, after)):
+                run.k = int(np.searchsorted(run.t_eval, t_ev, side="right"))
+                return
+        if reason == kernels.STOP_SMALL_STEP:
+            run.fail(
+                f"dop853-jit failed at tau = {tau:.6g}: "
+                "required step size is less than spacing between numbers"
+            )
+        elif reason == kernels.STOP_PYTHON:
+            run.fail(f"non-finite state at tau = {t_new:.6g}")
+        elif reason == kernels.STOP_FULL:
+            self.new_segment = True
+        elif reason == kernels.STOP_EVENT:
+            self._python_event_step(run, t_new)
+
+    def _python_event_step(self, run: driver.Run, t_new: float) -> None:
+        """The pending step [tau, t_new]: the shared event code decides."""
+        run.stats["nsteps"] += 1
+        run.stats["python_steps"] += 1
+        tau = run.tau
+        dense = Dop853Dense(tau, t_new, run.state, self.F)
+        grid = np.linspace(tau, t_new, SCAN_POINTS + 1)
+        derivatives = _rhs_functions(run.params, run.regime, True)[2]
+        event = earliest_event(
+            dense, derivatives, grid, run.regime, run.params,
+            run.last_kind if self.at_event else NO_EVENT, self.restart_band,
+        )  # fmt: skip
+        t_stop = event[0] if event else t_new
+        run.k = fill_samples(
+            dense, run.t_eval, run.k, t_stop, run.regime, run.params, run.states, run.regimes
+        )
+        if event is None:
+            run.tau, self.at_event = t_new, False
+            run.state[:], self.f[:] = self.y_new, self.f_new
+        else:
+            t_ev = event[0]
+            if run.switch(t_ev, event[1], dense(t_ev)):
+                self.at_event, self.new_segment = True, True
+
+
 def solve_dop853_jit(
     problem: Problem,
     rtol: float = 1e-8,
@@ -87,7 +182,6 @@ def solve_dop853_jit(
     progress=None,
     compiled: bool = True,
     compiled_events: bool = True,
-    **_ignored,
 ) -> Solution:
     """scipy's DOP853 in a compiled step loop; ``compiled_events=False`` hands every
     possible event to the Python event code (a check of the compiled one)."""
@@ -98,134 +192,11 @@ def solve_dop853_jit(
         )
         sol.method = "dop853-jit"
         return sol
-    params = problem.params
-    pars = np.array(model.params_vector(params))
-    t_eval = problem.t_eval
-    t_end = float(t_eval[-1])
-    budget = Budget(max_steps, max_wall_time_s)
-    restart_band = max(RESTART_BAND_FLOOR, rtol)
-    # scipy raises a too small rtol to 100 eps (with a warning); so do we, silently
-    rtol = max(rtol, 100 * np.finfo(float).eps)
-
-    out_states = np.empty((t_eval.size, 4))
-    out_regimes = np.empty(t_eval.size, dtype=int)
-    state = np.array(problem.initial, dtype=float)
-    tau = float(t_eval[0])
-    regime = model.regime_of_state(state, params)
-    out_states[0], out_regimes[0] = state, regime
-    k = 1
-    events: list[SwitchEvent] = []
-    stats = {"nsteps": 0, "nfev": 0, "n_segments": 0, "python_steps": 0}
-    status, message = SUCCESS, "reached the end of the time span"
-    last_kind = initial_kind(state, regime, params)
-    storms = StormGuard()
-    next_progress = tau
-    y_new, f_new, F = np.empty(4), np.empty(4), np.empty((7, 4))
-    f = np.empty(4)
-    ev_tau, ev_kind = np.empty(EVENT_BUFFER), np.empty(EVENT_BUFFER, dtype=np.int64)
-    ev_state, ev_regimes = np.empty((EVENT_BUFFER, 4)), np.empty((EVENT_BUFFER, 2), dtype=np.int64)
-    new_segment, at_event = True, last_kind is not None
-
-    while True:
-        if new_segment:  # as scipy starts a solver: f and the initial step
-            f[:] = kernels.rhs(tau, state, pars, regime)
-            h_abs = kernels.dop853_initial_step(tau, state, f, t_end, pars, regime, rtol, atol)
-            stats["nfev"] += 2
-            stats["n_segments"] += 1
-            new_segment = False
-        starts = start_flags(last_kind) if at_event else start_flags(None)
-        chunk = max(1, min(CHUNK_STEPS, max_steps - stats["nsteps"]))
-        tau, t_new, h_abs, k, steps, nfev, reason, regime, n_ev, at_event = (
-            kernels.advance_dop853(
-                tau, state, f, h_abs, t_end, pars, regime, rtol, atol, t_eval, out_states,
-                out_regimes, k, chunk, starts, y_new, f_new, F, restart_band, ev_tau, ev_kind,
-                ev_state, ev_regimes, compiled_events,
-            )
-        )  # fmt: skip
-        stats["nsteps"] += steps
-        stats["nfev"] += nfev
-        # segments the kernel started (with a full buffer the last one starts here)
-        stats["n_segments"] += n_ev - (reason == kernels.STOP_FULL)
-        for i in range(n_ev):  # the events the kernel located and applied
-            t_ev, kind = float(ev_tau[i]), KERNEL_KINDS[int(ev_kind[i])]
-            before, after = int(ev_regimes[i, 0]), int(ev_regimes[i, 1])
-            events.append(SwitchEvent(t_ev, kind, tuple(map(float, ev_state[i])), before, after))
-            last_kind = kind
-            if storms.storm(t_ev):
-                status, message = FAILED, storms.message()
-                k = int(np.searchsorted(t_eval, t_ev, side="right"))
-                break
-        if status == FAILED:
-            break
-        if reason == kernels.STOP_END:
-            break
-        if reason == kernels.STOP_SMALL_STEP:
-            status = FAILED
-            message = (
-                f"dop853-jit failed at tau = {tau:.6g}: "
-                "required step size is less than spacing between numbers"
-            )
-            break
-        if reason == kernels.STOP_PYTHON:
-            status, message = FAILED, f"non-finite state at tau = {t_new:.6g}"
-            break
-        if reason == kernels.STOP_FULL:
-            new_segment = True
-        elif reason == kernels.STOP_EVENT:
-            # the pending step [tau, t_new]: the shared event code decides
-            stats["nsteps"] += 1
-            stats["python_steps"] += 1
-            dense = Dop853Dense(tau, t_new, state, F)
-            grid = np.linspace(tau, t_new, SCAN_POINTS + 1)
-            derivatives = _rhs_functions(params, regime, True)[2]
-            event = earliest_event(
-                dense, derivatives, grid, regime, params, last_kind if at_event else None,
-                restart_band,
-            )  # fmt: skip
-            t_stop = event[0] if event else t_new
-            k = fill_samples(dense, t_eval, k, t_stop, regime, params, out_states, out_regimes)
-            if event is None:
-                tau, at_event = t_new, False
-                state[:], f[:] = y_new, f_new
-            else:
-                t_ev = event[0]
-                state, regime, switch = apply_event(t_ev, event[1], dense(t_ev), regime, params)
-                events.append(switch)
-                if storms.storm(t_ev):
-                    status, message = FAILED, storms.message()
-                    break
-                tau, last_kind, at_event, new_segment = t_ev, switch.kind, True, True
-                if tau >= t_end:
-                    break
-        over = budget.exceeded(stats["nsteps"])
-        if over:
-            status, message = FAILED, f"{over} at tau = {tau:.6g}"
-            break
-        if progress is not None and tau >= next_progress:
-            progress(tau)
-            next_progress = tau + 0.01 * (t_end - t_eval[0])
-
-    if status == SUCCESS and progress is not None:
-        progress(t_end)
-    return Solution.from_samples(
-        problem,
-        "dop853-jit",
-        k,
-        out_states,
-        out_regimes,
-        events=events,
-        stats=stats,
-        settings={
-            "rtol": rtol,
-            "atol": atol,
-            "max_steps": max_steps,
-            "max_wall_time_s": max_wall_time_s,
-            "compiled": True,
-            "compiled_events": compiled_events,
-        },
-        status=status,
-        message=message,
-    )
+    run = driver.Run(
+        problem, "dop853-jit", max_steps=max_steps, max_wall_time_s=max_wall_time_s,
+        progress=progress,
+    )  # fmt: skip
+    return driver.integrate(run, Dop853Stepper(run, rtol, atol, compiled_events))
 
 
 register("dop853-jit")(solve_dop853_jit)

@@ -166,14 +166,6 @@ def scan_spacing(omega_max: float, fraction: float = 1.0 / 16.0) -> float:
     return fraction * 2.0 * math.pi / max(omega_max, 1e-300)
 
 
-def entry_regime(s: np.ndarray, params: model.ModelParams) -> int:
-    """The slip direction a contact starts in: sign of v_r at the entry state."""
-    if params.mu == 0.0:
-        return model.SLIP_POSITIVE
-    v_r = model.slip_velocity(s[0], s[1], s[2], s[3], params.Rp, params.eta)
-    return model.SLIP_POSITIVE if v_r >= 0.0 else model.SLIP_NEGATIVE
-
-
 class StormGuard:
     """Counts switch events at one instant; too many is a switch storm (a clean failure)."""
 
@@ -195,23 +187,46 @@ class StormGuard:
         return f"switch storm at tau = {self.tau:.6g}: {self.count} events at one instant"
 
 
-# Event kinds, and which restart flag each sets for the next segment.
-ENTRY, EXIT, REVERSAL, STICK_ENTRY, STICK_EXIT = (
-    "contact_entry",
-    "contact_exit",
-    "slip_reversal",
-    "stick_entry",
-    "stick_exit",
-)
-SURFACE_KINDS = (ENTRY, EXIT)
-SLIP_KINDS = (REVERSAL, STICK_EXIT)  # the next segment starts at v_r = 0
+# Event kinds: one code each (what compiled code passes around), and the name a
+# SwitchEvent carries (``KIND_NAMES[code]``). NO_EVENT: a segment not begun by an event.
+ENTRY, EXIT, REVERSAL, STICK_ENTRY, STICK_EXIT = 0, 1, 2, 3, 4
+NO_EVENT = -1
+KIND_NAMES = ("contact_entry", "contact_exit", "slip_reversal", "stick_entry", "stick_exit")
 
 
-def start_flags(last_kind: str | None) -> tuple[bool, bool, bool]:
+def start_flags(last_kind: int) -> tuple[bool, bool, bool]:
     """(on the contact surface, on the slip surface, slip start immediate) of a segment
-    begun by the event ``last_kind``: how the compiled event pre-checks see its start
-    (the same reading of ``last_kind`` as ``earliest_event``'s)."""
-    return last_kind in SURFACE_KINDS, last_kind in SLIP_KINDS, last_kind != STICK_EXIT
+    begun by the event ``last_kind`` (``NO_EVENT`` if none): the segment starts on that
+    event's surface (contact entry/exit: z = 1; slip reversal, stick exit: v_r = 0), and
+    after a stick exit the slip leaves v_r = 0 with zero rate (compilable core)."""
+    return (
+        last_kind in (ENTRY, EXIT),
+        last_kind in (REVERSAL, STICK_EXIT),
+        last_kind != STICK_EXIT,
+    )
+
+
+def switch_regime(kind, tau, x, y, vx, vy, regime, nu, eta, E, phi0, K, mu, Rp):
+    """The switch at a located event of ``kind`` (compilable core).
+
+    Returns ``(new regime, kind as recorded, project)``: contact exit -> free; contact
+    entry -> the sign of v_r; stick exit -> the slip the needed friction points to;
+    slip reversal -> Filippov's rule (``model.zero_slip_regime_value``), recorded as a
+    stick entry when it ends in stick. ``project``: the state must be projected onto the
+    rolling constraint (stick begins or ends in contact).
+    """
+    if kind == EXIT:
+        new = model.FREE
+    elif kind == ENTRY:
+        new = model.entry_regime_value(x, y, vx, vy, mu, Rp * eta)
+    elif kind == STICK_EXIT:
+        needed = model.stick_friction_value(tau, x, y, vx, vy, nu, eta, E, phi0)
+        new = model.SLIP_POSITIVE if needed > 0.0 else model.SLIP_NEGATIVE
+    else:  # slip reversal
+        new = model.zero_slip_regime_value(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu)
+    recorded = STICK_ENTRY if new == model.STICK else kind
+    stick = regime == model.STICK or new == model.STICK
+    return new, recorded, stick and regime != model.FREE and new != model.FREE
 
 
 def earliest_event(states, derivatives, grid, regime, params, last_kind, restart_band=1e-12):
@@ -219,7 +234,7 @@ def earliest_event(states, derivatives, grid, regime, params, last_kind, restart
 
     ``states(t)`` gives the segment's state at a scalar or array time (shape (4,) or
     (4, n)); ``derivatives(t, S)`` its time derivative. ``last_kind`` is the event that
-    started the segment (None otherwise): the segment then starts on that event's
+    started the segment (``NO_EVENT`` otherwise): the segment then starts on that event's
     surface. Events by regime: free -> contact entry; slip -> contact exit, slip
     reversal (v_r = 0, if mu > 0); stick -> contact exit, stick exit (|T| = mu F_N).
 
@@ -231,8 +246,7 @@ def earliest_event(states, derivatives, grid, regime, params, last_kind, restart
     clearance wanders across z = 1 by that much), so such a touch is not a contact.
     """
     S = states(grid)
-    on_surface = last_kind in SURFACE_KINDS
-    on_slip = last_kind in SLIP_KINDS
+    on_surface, on_slip, immediate = start_flags(last_kind)
 
     def surface(sign):
         def h(t):
@@ -276,7 +290,7 @@ def earliest_event(states, derivatives, grid, regime, params, last_kind, restart
             on_slip,
             0.0,
             restart_band * scale,
-            immediate=last_kind != STICK_EXIT,
+            immediate=immediate,
         )
         if tau is not None:
             found.append((tau, REVERSAL))
@@ -311,20 +325,7 @@ def _stick_margin(t, S, params, sign):
     return sign * T - limit * (1.0 + model.STICK_EXIT_MARGIN)
 
 
-def next_regime(kind: str, tau: float, s: np.ndarray, regime: int, params) -> int:
-    """The regime after an event of ``kind`` at state ``s``."""
-    if kind == EXIT:
-        return model.FREE
-    if kind == ENTRY:
-        return entry_regime(s, params)
-    if kind == STICK_EXIT:
-        needed = float(model.stick_friction(tau, s[0], s[1], s[2], s[3], params))
-        return model.SLIP_POSITIVE if needed > 0.0 else model.SLIP_NEGATIVE
-    # slip reversal
-    return model.regime_at_zero_slip(tau, s, params)
-
-
-def initial_kind(s, regime: int, params) -> str | None:
+def initial_kind(s, regime: int, params) -> int:
     """The event surface an initial state lies on, if any (so it is not re-detected)."""
     if abs(math.hypot(s[0], s[1]) - 1.0) <= 1e-14:
         return ENTRY if regime != model.FREE else EXIT
@@ -332,22 +333,22 @@ def initial_kind(s, regime: int, params) -> str | None:
         v_r = model.slip_velocity(s[0], s[1], s[2], s[3], params.Rp, params.eta)
         if abs(v_r) <= 1e-12 * (1.0 + abs(params.Rp * params.eta)):
             return STICK_EXIT
-    return None
+    return NO_EVENT
 
 
-def apply_event(tau: float, kind: str, state, regime: int, params):
-    """The switch at a located event: the new regime, and the event as recorded.
+def apply_event(tau: float, kind: int, state, regime: int, params):
+    """The switch at a located event (``switch_regime``), applied to a Python state.
 
-    A slip reversal that ends in stick is recorded as a stick entry; the state is
-    projected onto the rolling constraint when stick begins or ends in contact.
-    Returns ``(state, new_regime, SwitchEvent)``.
+    Returns ``(state, new_regime, recorded kind, SwitchEvent)``; the state is projected
+    onto the rolling constraint when stick begins or ends in contact.
     """
     from rubcli.solution import SwitchEvent
 
     state = np.asarray(state, dtype=float)
-    new_regime = next_regime(kind, tau, state, regime, params)
-    if new_regime == model.STICK:
-        kind = STICK_ENTRY
-    if model.STICK in (regime, new_regime) and model.FREE not in (regime, new_regime):
+    new_regime, recorded, project = switch_regime(
+        kind, tau, state[0], state[1], state[2], state[3], regime, *model.params_vector(params)
+    )
+    if project:
         state = model.project_to_rolling(state, params)
-    return state, new_regime, SwitchEvent(tau, kind, tuple(state), regime, new_regime)
+    event = SwitchEvent(tau, KIND_NAMES[recorded], tuple(state), regime, new_regime)
+    return state, new_regime, recorded, event

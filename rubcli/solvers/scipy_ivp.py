@@ -30,7 +30,6 @@ output is caught).
 
 from __future__ import annotations
 
-import time
 from functools import partial
 
 import numpy as np
@@ -38,13 +37,12 @@ from scipy import integrate
 
 from rubcli import model
 from rubcli.problem import Problem
-from rubcli.solution import FAILED, SUCCESS, Solution, SwitchEvent
-from rubcli.solvers import kernels, register
+from rubcli.solution import Solution
+from rubcli.solvers import compiled as kernels
+from rubcli.solvers import driver, register
 from rubcli.solvers.events import (
-    StormGuard,
-    apply_event,
+    NO_EVENT,
     earliest_event,
-    initial_kind,
 )
 
 SCIPY_CLASSES = {
@@ -59,20 +57,6 @@ RESTART_BAND_FLOOR = 1e-12
 SCAN_POINTS = 4  # sub-intervals per step in which events are scanned on the dense output
 
 
-class Budget:
-    def __init__(self, max_steps: int, max_wall_time_s: float):
-        self.max_steps = max_steps
-        self.max_wall_time_s = max_wall_time_s
-        self.start = time.perf_counter()
-
-    def exceeded(self, steps: int) -> str | None:
-        if steps >= self.max_steps:
-            return f"step budget exhausted (max_steps = {self.max_steps})"
-        if time.perf_counter() - self.start > self.max_wall_time_s:
-            return f"wall-time budget exhausted (max_wall_time_s = {self.max_wall_time_s:g})"
-        return None
-
-
 def _column_derivatives(fun):
     """derivatives(t, S) for states S of shape (4, n) from a rhs of one state."""
 
@@ -81,6 +65,80 @@ def _column_derivatives(fun):
         return np.array([fun(t[k], S[:, k]) for k in range(S.shape[1])]).T
 
     return derivatives
+
+
+class ScipyStepper:
+    """One of scipy's ``OdeSolver`` classes as a driver stepper (``driver.integrate``).
+
+    One ``advance`` is one accepted scipy step: a solver is started at each segment
+    (the regime-locked right-hand side), the step's dense output is scanned for the
+    regime's events, the samples up to the step's end (or the event) are filled, and a
+    located event is applied, which ends the segment.
+    """
+
+    def __init__(self, run: driver.Run, name: str, rtol: float, atol: float, compiled: bool):
+        self.name, self.rtol, self.atol = name, rtol, atol
+        self.cls = SCIPY_CLASSES[name]
+        # Right after a restart the dense output is consistent with the located state only
+        # to the solver's tolerance, not to round-off: a new crossing must clear that band.
+        self.restart_band = max(RESTART_BAND_FLOOR, rtol)
+        self.compiled = compiled and kernels.ensure_fresh()
+        self.solver = None  # the segment's scipy solver (None: a segment is to start)
+        run.stats.update(nfev=0, njev=0, nlu=0, n_segments=0)
+        self.settings = {
+            "rtol": rtol,
+            "atol": atol,
+            "max_steps": run.max_steps,
+            "max_wall_time_s": run.max_wall_time_s,
+            "compiled": self.compiled,
+        }
+
+    def _start_segment(self, run: driver.Run) -> None:
+        fun, jac, self.derivatives = _rhs_functions(run.params, run.regime, self.compiled)
+        options = {"rtol": self.rtol, "atol": self.atol}
+        if self.name in IMPLICIT and run.regime != model.STICK:
+            options["jac"] = jac
+        self.solver = self.cls(fun, run.tau, run.state, run.t_end, **options)
+        run.stats["n_segments"] += 1
+
+    def _end_segment(self, run: driver.Run) -> None:
+        solver, self.solver = self.solver, None
+        run.stats["nfev"] += int(solver.nfev)
+        run.stats["njev"] += int(getattr(solver, "njev", 0) or 0)
+        run.stats["nlu"] += int(getattr(solver, "nlu", 0) or 0)
+
+    def advance(self, run: driver.Run) -> None:
+        if self.solver is None:
+            self._start_segment(run)
+        solver = self.solver
+        msg = solver.step()
+        run.stats["nsteps"] += 1
+        if solver.status == "failed":
+            self._end_segment(run)
+            run.fail(f"{self.name} failed at tau = {solver.t:.6g}: {msg}")
+            return
+        if not np.all(np.isfinite(solver.y)):
+            self._end_segment(run)
+            run.fail(f"non-finite state at tau = {solver.t:.6g}")
+            return
+        dense = solver.dense_output()
+        grid = np.linspace(solver.t_old, solver.t, SCAN_POINTS + 1)
+        event = earliest_event(
+            dense, self.derivatives, grid, run.regime, run.params, run.last_kind,
+            self.restart_band,
+        )  # fmt: skip
+        run.last_kind = NO_EVENT
+        t_stop = event[0] if event else solver.t
+        run.k = fill_samples(
+            dense, run.t_eval, run.k, t_stop, run.regime, run.params, run.states, run.regimes
+        )
+        if event is None:
+            run.tau, run.state = solver.t, solver.y
+            if solver.status == "finished":
+                self._end_segment(run)
+            return
+        self._end_segment(run)
+        run.switch(event[0], event[1], dense(event[0]))
 
 
 def solve_scipy(
@@ -92,100 +150,11 @@ def solve_scipy(
     max_wall_time_s: float = 600.0,
     progress=None,
     compiled: bool = True,
-    **_ignored,
 ) -> Solution:
-    params = problem.params
-    t_eval = problem.t_eval
-    t_end = float(t_eval[-1])
-    cls = SCIPY_CLASSES[name]
-    budget = Budget(max_steps, max_wall_time_s)
-    # Right after a restart the dense output is consistent with the located state only
-    # to the solver's tolerance, not to round-off: a new crossing must clear that band.
-    restart_band = max(RESTART_BAND_FLOOR, rtol)
-
-    out_states = np.empty((t_eval.size, 4))
-    out_regimes = np.empty(t_eval.size, dtype=int)
-    state = np.array(problem.initial, dtype=float)
-    tau = float(t_eval[0])
-    regime = model.regime_of_state(state, params)
-    out_states[0], out_regimes[0] = state, regime
-    k = 1  # next sample to fill
-    events: list[SwitchEvent] = []
-    stats = {"nsteps": 0, "nfev": 0, "njev": 0, "nlu": 0, "n_segments": 0}
-    status, message = SUCCESS, "reached the end of the time span"
-    last_kind = initial_kind(state, regime, params)
-    storms = StormGuard()
-    next_progress = tau
-
-    compiled = compiled and kernels.ensure_fresh()
-    while tau < t_end:
-        fun, jac, derivatives = _rhs_functions(params, regime, compiled)
-        options = {"rtol": rtol, "atol": atol}
-        if name in IMPLICIT and regime != model.STICK:
-            options["jac"] = jac
-        solver = cls(fun, tau, state, t_end, **options)
-        stats["n_segments"] += 1
-        event = None
-        while True:
-            msg = solver.step()
-            stats["nsteps"] += 1
-            if solver.status == "failed":
-                status, message = FAILED, f"{name} failed at tau = {solver.t:.6g}: {msg}"
-                break
-            if not np.all(np.isfinite(solver.y)):
-                status, message = FAILED, f"non-finite state at tau = {solver.t:.6g}"
-                break
-            dense = solver.dense_output()
-            grid = np.linspace(solver.t_old, solver.t, SCAN_POINTS + 1)
-            event = earliest_event(
-                dense, derivatives, grid, regime, params, last_kind, restart_band
-            )
-            last_kind = None
-            t_stop = event[0] if event else solver.t
-            k = fill_samples(dense, t_eval, k, t_stop, regime, params, out_states, out_regimes)
-            if event is not None or solver.status == "finished":
-                break
-            reason = budget.exceeded(stats["nsteps"])
-            if reason:
-                status, message = FAILED, f"{reason} at tau = {solver.t:.6g}"
-                break
-            if progress is not None and solver.t >= next_progress:
-                progress(solver.t)
-                next_progress = solver.t + 0.01 * (t_end - t_eval[0])
-        stats["nfev"] += int(solver.nfev)
-        stats["njev"] += int(getattr(solver, "njev", 0) or 0)
-        stats["nlu"] += int(getattr(solver, "nlu", 0) or 0)
-        if status == FAILED or event is None:
-            break
-        t_ev = event[0]
-        state, regime, switch = apply_event(t_ev, event[1], dense(t_ev), regime, params)
-        events.append(switch)
-        if storms.storm(t_ev):
-            status = FAILED
-            message = storms.message()
-            break
-        tau, last_kind = t_ev, switch.kind
-
-    if status == SUCCESS and progress is not None:
-        progress(t_end)
-    return Solution.from_samples(
-        problem,
-        name,
-        k,
-        out_states,
-        out_regimes,
-        events=events,
-        stats=stats,
-        settings={
-            "rtol": rtol,
-            "atol": atol,
-            "max_steps": max_steps,
-            "max_wall_time_s": max_wall_time_s,
-            "compiled": compiled,
-        },
-        status=status,
-        message=message,
+    run = driver.Run(
+        problem, name, max_steps=max_steps, max_wall_time_s=max_wall_time_s, progress=progress
     )
+    return driver.integrate(run, ScipyStepper(run, name, rtol, atol, compiled))
 
 
 def fill_samples(dense, t_eval, k, t_stop, regime, params, out_states, out_regimes) -> int:

@@ -1,0 +1,635 @@
+"""Pseudo-arclength continuation of periodic orbits and bifurcation detection (docs/orbits.md).
+
+Unknowns ``X = (x0, q)``: the state on the section and the continued parameter scaled as
+``q = p / scale`` (``scale`` the width of the parameter window, so a step weighs state and
+parameter alike). A branch point solves ``G(x0, p) = P^k(x0; p) - x0 = 0`` and the
+pseudo-arclength condition ``t . (X - X_pred) = 0`` by Newton with the bordered Jacobian
+``[[Phi - I, dP/dq], [t^T]]``; ``Phi`` comes from the variational equations through every
+switch (``rubcli.analysis.orbits``), ``dP/dq`` from central differences of the map. Steps
+grow after easy corrections and halve after failed ones, within ``[min_step, max_step]``.
+
+Between two consecutive points the test functions are compared:
+
+- fold (a multiplier through +1): ``det(Phi - I) = prod(lambda - 1)`` changes sign;
+- period doubling (through -1): ``det(Phi + I)`` changes sign;
+- Neimark-Sacker (a complex pair through the unit circle): the bialternate product
+  ``prod_{i<j} (lambda_i lambda_j - 1)`` changes sign and the pair at the located point is
+  complex (a real pair with product 1 is a neutral saddle, not reported);
+- grazing: ``max z - 1`` changes sign (the orbit touches the stator from inside), or the
+  number of contact phases per period changes (a phase shrinks to zero length);
+- stick onset: the time spent rolling without slip becomes positive (or zero).
+
+Each detected point is located on the segment between its two neighbours (a corrected
+point on the hyperplane through ``X_a + theta (X_b - X_a)`` orthogonal to ``X_b - X_a``):
+by Brent's method on the continuous test functions, by bisection on the counts.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import brentq
+
+from rubcli import model
+from rubcli.analysis import orbits as ob
+from rubcli.model import ModelParams
+
+FOLD, FLIP, NEIMARK_SACKER, GRAZING, STICK_ONSET = (
+    "fold",
+    "period_doubling",
+    "neimark_sacker",
+    "grazing",
+    "stick_onset",
+)
+KINDS = (FOLD, FLIP, NEIMARK_SACKER, GRAZING, STICK_ONSET)
+# A located Neimark-Sacker pair must be this far from the real axis (else: neutral saddle).
+COMPLEX_PAIR_TOL = 1e-6
+# Bisection on a count stops at this fraction of the segment.
+BISECTION_TOL = 1e-7
+# A bifurcation bracketed this tightly (relative, in the parameter) counts as located.
+LOCATED_WIDTH = 1e-6
+# Step halvings of the damped Newton corrector.
+MAX_HALVINGS = 4
+
+
+@dataclass(frozen=True)
+class ContinuationSettings:
+    """What to continue and how (the [orbits] table, nondimensional)."""
+
+    parameter: str
+    p_min: float
+    p_max: float
+    step: float  # first step, parameter units
+    min_step: float
+    max_step: float
+    max_points: int = 200  # per direction
+    directions: tuple[int, ...] = (1, -1)
+    k: int = 1
+    newton_tol: float = 1e-10
+    max_newton: int = 10
+    rtol: float = ob.RTOL
+    atol: float = ob.ATOL
+    locate: bool = True
+    locate_xtol: float = 1e-12  # Brent tolerance on the segment fraction
+
+    @property
+    def scale(self) -> float:
+        return self.p_max - self.p_min
+
+
+@dataclass
+class BranchPoint:
+    """One periodic orbit on the branch."""
+
+    parameter: float
+    state: np.ndarray
+    k: int
+    multipliers: np.ndarray
+    max_z: float
+    min_z: float
+    contact_fraction: float
+    stick_fraction: float
+    contact_phases: int
+    newton_iterations: int
+    label: str = ""  # a bifurcation kind for located points
+    monodromy: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def stable(self) -> bool:
+        return bool(np.max(np.abs(self.multipliers)) < 1.0)
+
+    @property
+    def n_unstable(self) -> int:
+        return int(np.sum(np.abs(self.multipliers) > 1.0))
+
+    def to_dict(self) -> dict:
+        return {
+            "parameter": self.parameter,
+            "state": [float(v) for v in self.state],
+            "k": self.k,
+            "max_z": self.max_z,
+            "min_z": self.min_z,
+            "contact_fraction": self.contact_fraction,
+            "stick_fraction": self.stick_fraction,
+            "contact_phases": self.contact_phases,
+            "multipliers": [[float(m.real), float(m.imag)] for m in self.multipliers],
+            "multiplier_moduli": [float(abs(m)) for m in self.multipliers],
+            "stable": self.stable,
+            "label": self.label,
+        }
+
+
+@dataclass
+class Bifurcation:
+    """A detected (and, if ``located``, located) bifurcation between two branch points."""
+
+    kind: str
+    point: BranchPoint
+    between: tuple[int, int]  # indices of the neighbours in Branch.points
+    located: bool
+    test_value: float
+    note: str = ""
+
+    @property
+    def parameter(self) -> float:
+        return self.point.parameter
+
+    def to_dict(self) -> dict:
+        return {
+            "kind": self.kind,
+            "parameter": self.parameter,
+            "located": self.located,
+            "test_value": self.test_value,
+            "between_points": list(self.between),
+            "note": self.note,
+            "point": self.point.to_dict(),
+        }
+
+
+@dataclass
+class Branch:
+    """A continued branch: points in branch order, bifurcations, why each direction stopped."""
+
+    parameter: str
+    settings: ContinuationSettings
+    points: list[BranchPoint]
+    bifurcations: list[Bifurcation]
+    stops: dict[str, str]  # direction ("forward"/"backward") -> reason
+    start_index: int
+    status: str = "ok"  # "ok" or "failed" (no starting orbit)
+    message: str = ""
+
+    def rows(self) -> list[BranchPoint]:
+        """Branch points with the located bifurcation points inserted in branch order."""
+        extra: dict[int, list[BranchPoint]] = {}
+        for bif in self.bifurcations:
+            if bif.located:
+                extra.setdefault(bif.between[0], []).append(bif.point)
+        rows: list[BranchPoint] = []
+        for i, pt in enumerate(self.points):
+            rows.append(pt)
+            inserted = extra.get(i, [])
+            if inserted and i + 1 < len(self.points):
+                up = self.points[i + 1].parameter >= pt.parameter
+                inserted = sorted(inserted, key=lambda q: q.parameter, reverse=not up)
+            rows.extend(inserted)
+        return rows
+
+    def to_dict(self) -> dict:
+        return {
+            "parameter": self.parameter,
+            "status": self.status,
+            "message": self.message,
+            "n_points": len(self.points),
+            "start_index": self.start_index,
+            "stops": self.stops,
+            "bifurcations": [b.to_dict() for b in self.bifurcations],
+        }
+
+
+# ----------------------------------------------------------------- test functions
+
+
+def fold_test(multipliers: np.ndarray) -> float:
+    """det(Phi - I) from the multipliers."""
+    return float(np.real(np.prod(multipliers - 1.0)))
+
+
+def flip_test(multipliers: np.ndarray) -> float:
+    """det(Phi + I) from the multipliers."""
+    return float(np.real(np.prod(multipliers + 1.0)))
+
+
+def neimark_sacker_test(multipliers: np.ndarray) -> float:
+    """prod_{i<j} (lambda_i lambda_j - 1): the bialternate-product test function."""
+    lam = np.asarray(multipliers)
+    out = 1.0 + 0j
+    for i in range(lam.size):
+        for j in range(i + 1, lam.size):
+            out *= lam[i] * lam[j] - 1.0
+    return float(out.real)
+
+
+def grazing_test(point: BranchPoint) -> float:
+    """max z - 1: negative while the orbit stays inside the clearance."""
+    return point.max_z - 1.0
+
+
+CONTINUOUS_TESTS: dict[str, Callable[[BranchPoint], float]] = {
+    FOLD: lambda pt: fold_test(pt.multipliers),
+    FLIP: lambda pt: flip_test(pt.multipliers),
+    NEIMARK_SACKER: lambda pt: neimark_sacker_test(pt.multipliers),
+    GRAZING: grazing_test,
+}
+
+
+def _has_stick(point: BranchPoint) -> bool:
+    return point.stick_fraction > 0.0
+
+
+# ------------------------------------------------------------------- the corrector
+
+
+class CorrectorError(Exception):
+    """A corrector (Newton on the branch) that did not converge."""
+
+
+class _Problem:
+    """G(X) and its Jacobian for one parameter, in scaled coordinates X = (x0, q)."""
+
+    def __init__(
+        self, params: ModelParams, settings: ContinuationSettings, locked: int | None = None
+    ):
+        self.params = params
+        self.s = settings
+        self.locked = locked  # a regime to integrate in without switches (grazing location)
+        self.evaluations = 0
+        self.last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    def params_at(self, q: float) -> ModelParams:
+        return ob.with_parameter(self.params, self.s.parameter, q * self.s.scale)
+
+    def evaluate(self, X: np.ndarray, derivative: bool = True):
+        """(flow result, G, dP/dq or None) at X."""
+        p = self.params_at(X[4])
+        fl = ob.stroboscopic_map(
+            p, X[:4], self.s.k, rtol=self.s.rtol, atol=self.s.atol, locked=self.locked
+        )
+        self.evaluations += 1
+        dPdq = self.derivative(X) if derivative else None
+        return fl, fl.state - X[:4], dPdq
+
+    def derivative(self, X: np.ndarray) -> np.ndarray:
+        """dP/dq at X by central differences of the map."""
+        q = X[4]
+        h = 1e-6 * max(1.0, abs(q))
+        plus = ob.stroboscopic_map(
+            self.params_at(q + h), X[:4], self.s.k, variational=False,
+            rtol=self.s.rtol, atol=self.s.atol, locked=self.locked,
+        ).state  # fmt: skip
+        minus = ob.stroboscopic_map(
+            self.params_at(q - h), X[:4], self.s.k, variational=False,
+            rtol=self.s.rtol, atol=self.s.atol, locked=self.locked,
+        ).state  # fmt: skip
+        return (plus - minus) / (2.0 * h)
+
+    def point(self, X: np.ndarray, fl: ob.FlowResult, iterations: int) -> BranchPoint:
+        return BranchPoint(
+            parameter=float(X[4] * self.s.scale),
+            state=X[:4].copy(),
+            k=self.s.k,
+            multipliers=ob.floquet_multipliers(fl.monodromy),
+            max_z=fl.max_z,
+            min_z=fl.min_z,
+            contact_fraction=fl.contact_fraction,
+            stick_fraction=fl.stick_fraction,
+            contact_phases=fl.contact_phases,
+            newton_iterations=iterations,
+            monodromy=fl.monodromy,
+        )
+
+    def correct(self, X_pred: np.ndarray, normal: np.ndarray) -> tuple[np.ndarray, BranchPoint]:
+        """Newton on G = 0, normal . (X - X_pred) = 0 from X_pred.
+
+        A step that does not reduce the residual is halved (up to ``MAX_HALVINGS`` times):
+        the map is only piecewise smooth where an orbit grazes, and full Newton steps can
+        cycle across the kink there.
+        """
+        X = X_pred.copy()
+        fl, G = self._residual(X)
+        dPdq = self._dPdq(X)
+        res = float(np.max(np.abs(G)))
+        for it in range(self.s.max_newton + 1):
+            if res <= self.s.newton_tol * ob.residual_scale(X[:4]):
+                self.last = (X.copy(), fl.monodromy, dPdq)  # reused by tangent()
+                return X, self.point(X, fl, it)
+            if it == self.s.max_newton:
+                break
+            A = np.zeros((5, 5))
+            A[:4, :4] = fl.monodromy - np.eye(4)
+            A[:4, 4] = dPdq
+            A[4] = normal
+            rhs = np.concatenate([-G, [-float(normal @ (X - X_pred))]])
+            try:
+                dX = np.linalg.solve(A, rhs)
+            except np.linalg.LinAlgError:
+                raise CorrectorError("singular bordered Jacobian") from None
+            lam = 1.0
+            for halving in range(MAX_HALVINGS + 1):
+                X_new = X + lam * dX
+                fl_new, G_new = self._residual(X_new)
+                res_new = float(np.max(np.abs(G_new)))
+                if res_new < res or halving == MAX_HALVINGS:
+                    break
+                lam /= 2.0
+            X, fl, G, res = X_new, fl_new, G_new, res_new
+            dPdq = self._dPdq(X)
+        raise CorrectorError(f"no convergence in {self.s.max_newton} iterations ({res:.3g})")
+
+    def _residual(self, X: np.ndarray):
+        try:
+            fl, G, _ = self.evaluate(X, derivative=False)
+        except ob.OrbitError as exc:
+            raise CorrectorError(str(exc)) from None
+        if not np.all(np.isfinite(G)):
+            raise CorrectorError("non-finite residual")
+        return fl, G
+
+    def _dPdq(self, X: np.ndarray) -> np.ndarray:
+        try:
+            return self.derivative(X)
+        except ob.OrbitError as exc:
+            raise CorrectorError(str(exc)) from None
+
+    def tangent(self, X: np.ndarray, previous: np.ndarray | None, direction: int) -> np.ndarray:
+        """Unit tangent of the branch at a solution X, oriented along ``previous``/direction."""
+        last = self.last
+        if last is not None and np.array_equal(last[0], X):
+            monodromy, dPdq = last[1], last[2]
+        else:
+            fl, _, dPdq = self.evaluate(X)
+            monodromy = fl.monodromy
+        J = np.zeros((4, 5))
+        J[:, :4] = monodromy - np.eye(4)
+        J[:, 4] = dPdq
+        t = np.linalg.svd(J)[2][-1]
+        if previous is not None:
+            sign = np.sign(t @ previous)
+        else:
+            sign = np.sign(t[4]) * direction if t[4] != 0.0 else direction
+        return t * (sign if sign != 0.0 else 1.0)
+
+
+# --------------------------------------------------------------------- continuation
+
+
+def continue_branch(
+    params: ModelParams,
+    start_state,
+    settings: ContinuationSettings,
+    progress: Callable[[int], None] | None = None,
+) -> Branch:
+    """Continue the periodic orbit through ``start_state`` in ``settings.parameter``.
+
+    ``params`` holds the starting value of the parameter, which must lie within the bounds.
+    A starting orbit that cannot be found gives a Branch with status "failed" and the
+    reason; a direction that stops early keeps its points and says why in ``stops``.
+    ``progress(n)`` is called with the number of points computed so far.
+    """
+    s = settings
+    prob = _Problem(params, s)
+    p0 = float(getattr(params, s.parameter))
+    try:
+        orbit = ob.shoot(
+            params, start_state, s.k, tol=s.newton_tol, max_iter=s.max_newton,
+            rtol=s.rtol, atol=s.atol,
+        )  # fmt: skip
+    except ob.NewtonError as exc:
+        return Branch(s.parameter, s, [], [], {}, 0, "failed", f"no starting orbit: {exc}")
+    X0 = np.concatenate([orbit.state, [p0 / s.scale]])
+    first = prob.point(X0, orbit.flow, orbit.newton_iterations)
+    done = [1]
+    arms: dict[int, list[tuple[np.ndarray, BranchPoint]]] = {}
+    stops: dict[str, str] = {}
+    for direction in s.directions:
+        name = "forward" if direction > 0 else "backward"
+        arm, reason = _one_direction(prob, X0, direction, done, progress)
+        arms[direction] = arm
+        stops[name] = reason
+    backward = arms.get(-1, [])
+    forward = arms.get(1, [])
+    ordered = [*reversed(backward), (X0, first), *forward]
+    Xs = [X for X, _ in ordered]
+    points = [pt for _, pt in ordered]
+    bifurcations = detect(prob, Xs, points, locate=s.locate)
+    return Branch(s.parameter, s, points, bifurcations, stops, len(backward))
+
+
+def _one_direction(prob: _Problem, X0, direction, done, progress):
+    s = prob.s
+    out: list[tuple[np.ndarray, BranchPoint]] = []
+    ds = s.step / s.scale
+    ds_min, ds_max = s.min_step / s.scale, s.max_step / s.scale
+    q_min, q_max = s.p_min / s.scale, s.p_max / s.scale
+    X = X0
+    try:
+        t = prob.tangent(X, None, direction)
+    except ob.OrbitError as exc:
+        return out, f"tangent failed at the start: {exc}"
+    while True:
+        if len(out) >= s.max_points:
+            return out, f"point budget used ({s.max_points} points)"
+        X_pred = X + ds * t
+        try:
+            X_new, pt = prob.correct(X_pred, t)
+        except CorrectorError as exc:
+            if ds / 2.0 < ds_min:
+                return out, f"corrector failed at the minimum step: {exc}"
+            ds /= 2.0
+            continue
+        q = X_new[4]
+        if q > q_max or q < q_min:
+            bound = q_max if q > q_max else q_min
+            end = _at_bound(prob, X, X_new, bound)
+            if end is not None:
+                out.append(end)
+                done[0] += 1
+                if progress:
+                    progress(done[0])
+            which = "upper" if bound == q_max else "lower"
+            return out, f"reached the {which} bound {s.parameter} = {bound * s.scale:.6g}"
+        try:
+            t_new = prob.tangent(X_new, t, direction)
+        except ob.OrbitError as exc:
+            out.append((X_new, pt))
+            return out, f"tangent failed: {exc}"
+        out.append((X_new, pt))
+        done[0] += 1
+        if progress:
+            progress(done[0])
+        if pt.newton_iterations <= 2:
+            ds = min(ds * 1.5, ds_max)
+        elif pt.newton_iterations >= 5:
+            ds = max(ds * 0.6, ds_min)
+        X, t = X_new, t_new
+
+
+def _at_bound(prob: _Problem, X_a, X_b, bound: float):
+    """The branch point with q = bound between X_a and X_b (Newton with q fixed), or None."""
+    if abs(bound - X_a[4]) <= 1e-12 * max(1.0, abs(bound)):
+        return None  # the last point is on the bound already
+    theta = (bound - X_a[4]) / (X_b[4] - X_a[4])
+    guess = X_a + theta * (X_b - X_a)
+    normal = np.zeros(5)
+    normal[4] = 1.0
+    guess[4] = bound
+    try:
+        return prob.correct(guess, normal)
+    except CorrectorError:
+        return None
+
+
+# -------------------------------------------------------------------- detection
+
+
+def detect(
+    prob: _Problem, Xs: list[np.ndarray], points: list[BranchPoint], locate: bool = True
+) -> list[Bifurcation]:
+    """Bifurcations between consecutive points, each located if ``locate``.
+
+    Where the orbit grazes between two points, ``Phi`` jumps (the flow on one side has no
+    contact phase): a sign change of the fold or flip test function in that segment is a
+    nonsmooth (discontinuous) bifurcation at the grazing point, reported there.
+    """
+    found: list[Bifurcation] = []
+    for i in range(len(points) - 1):
+        a, b = points[i], points[i + 1]
+        graze = None
+        if (a.max_z - 1.0) * (b.max_z - 1.0) < 0.0:
+            graze = _locate_grazing(prob, Xs, points, i, locate)
+        elif a.contact_phases != b.contact_phases:
+            graze = _locate_count(prob, Xs, points, i, GRAZING, _phases, locate)
+        if graze is not None:
+            found.append(graze)
+        for kind in (FOLD, FLIP, NEIMARK_SACKER):
+            test = CONTINUOUS_TESTS[kind]
+            ta, tb = test(a), test(b)
+            if ta == 0.0 or tb == 0.0 or (ta > 0.0) == (tb > 0.0):
+                continue
+            if kind == NEIMARK_SACKER and a.n_unstable == b.n_unstable:
+                continue  # no pair crossed the circle: a neutral saddle or a jump of Phi
+            if graze is not None:
+                note = (
+                    f"at the grazing point: Phi jumps there and {a.n_unstable} -> "
+                    f"{b.n_unstable} multipliers lie outside the unit circle (nonsmooth {kind})"
+                )
+                found.append(Bifurcation(kind, _labelled(graze.point, kind), (i, i + 1),
+                                         graze.located, test(graze.point), note))  # fmt: skip
+                continue
+            found.extend(_locate_continuous(prob, Xs, points, i, kind, test, locate))
+        if _has_stick(a) != _has_stick(b):
+            found.append(_locate_count(prob, Xs, points, i, STICK_ONSET, _has_stick, locate))
+    return found
+
+
+def _locate_grazing(prob: _Problem, Xs, points, i, locate) -> Bifurcation:
+    """Grazing between points i and i+1 (one of them free), located on the smooth side.
+
+    The orbit on the free side is continued with contact switched off (its smooth
+    extension: ``locked`` free flow), and the root of its max z - 1 is where it touches
+    the stator. Newton on the switching map itself cycles near a grazing orbit; if the
+    smooth side cannot be corrected, bisection on "touches or not" is used instead.
+    """
+    if not locate:
+        return _locate_continuous(prob, Xs, points, i, GRAZING, grazing_test, False)[0]
+    side = _Problem(prob.params, prob.s, locked=model.FREE)
+    cache: dict[float, BranchPoint] = {}
+    try:
+        for theta in (0.0, 1.0):
+            cache[theta] = _on_segment(side, Xs[i], Xs[i + 1], theta)
+    except CorrectorError as exc:
+        return _locate_count(prob, Xs, points, i, GRAZING, _touches, locate, f"{exc}; ")
+    return _locate_continuous(side, Xs, points, i, GRAZING, grazing_test, locate, cache)[0]
+
+
+def _touches(point: BranchPoint) -> bool:
+    return point.max_z > 1.0
+
+
+def _phases(point: BranchPoint) -> int:
+    return point.contact_phases
+
+
+def _on_segment(prob: _Problem, Xa, Xb, theta: float) -> BranchPoint:
+    d = Xb - Xa
+    X_pred = Xa + theta * d
+    _, pt = prob.correct(X_pred, d / float(np.linalg.norm(d)))
+    return pt
+
+
+def _locate_continuous(prob, Xs, points, i, kind, test, locate, cache=None) -> list[Bifurcation]:
+    """Brent's method on ``test`` along the segment i -> i+1 (``cache``: known ends)."""
+    cache = dict(cache) if cache is not None else {0.0: points[i], 1.0: points[i + 1]}
+    a, b = cache[0.0], cache[1.0]
+    between = (i, i + 1)
+    if not locate or (test(a) > 0.0) == (test(b) > 0.0):
+        mid = a if abs(test(a)) < abs(test(b)) else b
+        note = "" if not locate else "no sign change of the test function on the smooth side"
+        return [Bifurcation(kind, _labelled(mid, kind), between, False, test(mid), note)]
+
+    def g(theta: float) -> float:
+        if theta not in cache:
+            cache[theta] = _on_segment(prob, Xs[i], Xs[i + 1], theta)
+        return test(cache[theta])
+
+    try:
+        theta = brentq(g, 0.0, 1.0, xtol=prob.s.locate_xtol, rtol=1e-14, maxiter=60)
+    except (CorrectorError, ValueError, RuntimeError) as exc:
+        # the corrector fails close to a nonsmooth point (a corner of the branch at a
+        # grazing): keep the tightest bracket found and report its better end
+        lo, hi = _bracket(cache, test, test(a))
+        pl, ph = cache[lo], cache[hi]
+        best = pl if abs(test(pl)) <= abs(test(ph)) else ph
+        width = abs(ph.parameter - pl.parameter)
+        note = f"bracketed to {width:.2g} in {prob.s.parameter} (corrector: {exc})"
+        located = width <= LOCATED_WIDTH * max(1.0, abs(best.parameter))
+        return [Bifurcation(kind, _labelled(best, kind), between, located, test(best), note)]
+    pt = cache[theta]
+    note = ""
+    if kind == NEIMARK_SACKER:
+        pair = _unit_pair(pt.multipliers)
+        if pair is None:
+            return []  # a neutral saddle (real pair with product 1), not a bifurcation
+        note = f"critical pair {pair.real:.6g} +- {abs(pair.imag):.6g}i"
+        note += f", angle {math.degrees(abs(math.atan2(pair.imag, pair.real))):.4g} deg"
+    elif kind in (FOLD, FLIP) and a.n_unstable == b.n_unstable:
+        note = "test function changes sign without a change of stability (a jump of Phi)"
+    return [Bifurcation(kind, _labelled(pt, kind), between, True, test(pt), note)]
+
+
+def _bracket(cache: dict[float, BranchPoint], test, value_a: float) -> tuple[float, float]:
+    """The tightest [lo, hi] among evaluated fractions with the sign change inside."""
+    side_a = [t for t, pt in cache.items() if (test(pt) > 0.0) == (value_a > 0.0)]
+    lo = max(side_a)
+    hi = min(t for t, pt in cache.items() if t > lo and (test(pt) > 0.0) != (value_a > 0.0))
+    return lo, hi
+
+
+def _unit_pair(multipliers: np.ndarray) -> complex | None:
+    """The complex multiplier nearest the unit circle, if it is truly complex."""
+    lam = np.asarray(multipliers)
+    complex_ones = lam[np.abs(lam.imag) > COMPLEX_PAIR_TOL]
+    if complex_ones.size == 0:
+        return None
+    return complex(complex_ones[np.argmin(np.abs(np.abs(complex_ones) - 1.0))])
+
+
+def _locate_count(prob, Xs, points, i, kind, predicate, locate, why="") -> Bifurcation:
+    a, b = points[i], points[i + 1]
+    between = (i, i + 1)
+    if not locate:
+        return Bifurcation(kind, _labelled(b, kind), between, False, 0.0)
+    lo, hi, pa = 0.0, 1.0, predicate(a)
+    best = b
+    try:
+        while hi - lo > BISECTION_TOL:
+            mid = 0.5 * (lo + hi)
+            pt = _on_segment(prob, Xs[i], Xs[i + 1], mid)
+            if predicate(pt) == pa:
+                lo = mid
+            else:
+                hi, best = mid, pt
+    except CorrectorError as exc:
+        note = f"{why}not located: {exc}"
+        return Bifurcation(kind, _labelled(best, kind), between, False, 0.0, note)
+    note = f"{why}located by bisection to {BISECTION_TOL:g} of the segment"
+    return Bifurcation(kind, _labelled(best, kind), between, True, 0.0, note)
+
+
+def _labelled(point: BranchPoint, kind: str) -> BranchPoint:
+    out = BranchPoint(**{**point.__dict__})
+    out.label = kind
+    return out

@@ -1,0 +1,52 @@
+"""The compiled (numba) code of the solvers, split by concern.
+
+- ``jit.py``: compile settings, the model and event cores registered with numba (the
+  physics and the event rules are written once, in ``model.py`` and ``events.py``), the
+  stop codes every kernel returns;
+- ``linalg.py``: LU and a small eigensolver for the 4x4 linearised contact systems;
+- ``propagators.py``: the analytic methods' linearised contact steps (Cartesian, polar);
+- ``precheck.py``: the conservative event pre-check of a step;
+- ``contact.py``: the analytic methods' compiled bulk of event-free slip steps;
+- ``rhs.py``: the regime-locked right-hand side for scipy and the compiled DOP853;
+- ``dop853.py``: scipy's DOP853 step, error norm, dense output and initial step;
+- ``roots.py``: events located and applied on a DOP853 step's dense output;
+- ``dop853_loop.py``: the compiled DOP853 loop (``dop853-jit``);
+- ``cache.py``: numba's cache kept fresh when model.py or events.py change.
+
+What the drivers call is re-exported here.
+"""
+
+from rubcli.solvers.compiled.cache import ensure_fresh
+from rubcli.solvers.compiled.contact import advance_contact, advance_contact_adaptive
+from rubcli.solvers.compiled.dop853 import dop853_dense, dop853_dense_point, dop853_initial_step
+from rubcli.solvers.compiled.dop853_loop import advance_dop853
+from rubcli.solvers.compiled.jit import (
+    STOP_END,
+    STOP_EVENT,
+    STOP_FULL,
+    STOP_LIMIT,
+    STOP_PYTHON,
+    STOP_REASONS,
+    STOP_SMALL_STEP,
+)
+from rubcli.solvers.compiled.rhs import rhs, rhs_columns, rhs_jacobian
+
+__all__ = [
+    "STOP_END",
+    "STOP_EVENT",
+    "STOP_FULL",
+    "STOP_LIMIT",
+    "STOP_PYTHON",
+    "STOP_REASONS",
+    "STOP_SMALL_STEP",
+    "advance_contact",
+    "advance_contact_adaptive",
+    "advance_dop853",
+    "dop853_dense",
+    "dop853_dense_point",
+    "dop853_initial_step",
+    "ensure_fresh",
+    "rhs",
+    "rhs_columns",
+    "rhs_jacobian",
+]

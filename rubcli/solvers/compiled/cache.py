@@ -1,0 +1,152 @@
+"""Freshness of numba's cache of the compiled sub-package.
+
+Every kernel is compiled with ``cache=True``; the first call on a machine compiles
+(seconds), later processes load the machine code from ``__pycache__``. numba does not
+notice that a *called* function in another file changed (model.py's and events.py's
+cores), so ``ensure_fresh`` (run once per process before the first kernel call)
+evaluates the registered cores through a cached probe and recompiles every kernel if the
+probe disagrees with Python.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+from numba.core.dispatcher import Dispatcher
+
+from rubcli.model import (
+    cartesian_entries,
+    entry_regime_value,
+    linearised_contact_arrays,
+    polar_entries,
+    polar_jacobian_arrays,
+    polar_rhs_entries,
+    rhs_entries,
+    rhs_jacobian_array,
+    slip_velocity_rate,
+    slip_velocity_value,
+    zero_slip_regime_value,
+)
+from rubcli.solvers.compiled.jit import (
+    jit,
+)
+from rubcli.solvers.events import start_flags, switch_regime
+
+
+def _probe_values(x):
+    """The registered model and event cores evaluated at one point (``ensure_fresh``).
+
+    A plain function, run as it is by the interpreter and compiled as ``_probe``.
+    """
+    nu, eta, E, phi0, K, mu, Rp = x[0], x[1], x[2], x[3], x[4], x[5], x[6]
+    tau, px, py, vx, vy = x[7], x[8], x[9], x[10], x[11]
+    out = np.empty(128)
+    n = 0
+    for regime in (0, 1, -1, 2):
+        for v in rhs_entries(tau, px, py, vx, vy, nu, eta, E, phi0, K, mu, Rp, regime):
+            out[n] = v
+            n += 1
+    for v in rhs_jacobian_array(tau, px, py, vx, vy, nu, eta, E, phi0, K, mu, Rp, 1).ravel():
+        out[n] = v
+        n += 1
+    A, b = linearised_contact_arrays(px, py, K, nu, mu)
+    for v in A.ravel():
+        out[n] = v
+        n += 1
+    for v in b:
+        out[n] = v
+        n += 1
+    out[n] = slip_velocity_rate(px, py, vx, vy, 0.3, -0.2)
+    n += 1
+    r, theta, u, omega = polar_entries(px, py, vx, vy)
+    for v in cartesian_entries(r, theta, u, omega):
+        out[n] = v
+        n += 1
+    for v in polar_rhs_entries(tau, r, theta, u, omega, nu, eta, E, phi0, K, mu):
+        out[n] = v
+        n += 1
+    J, f_tau = polar_jacobian_arrays(tau, r, theta, u, omega, nu, eta, E, phi0, K, mu)
+    for v in J.ravel():
+        out[n] = v
+        n += 1
+    for v in f_tau:
+        out[n] = v
+        n += 1
+    # the event rules: v_r, the entry direction, Filippov's rule, the switch at each kind
+    out[n] = slip_velocity_value(px, py, vx, vy, Rp * eta)
+    out[n + 1] = entry_regime_value(px, py, vx, vy, mu, Rp * eta)
+    out[n + 2] = zero_slip_regime_value(tau, px, py, vx, vy, nu, eta, E, phi0, K, mu)
+    n += 3
+    for kind in range(5):
+        new, recorded, project = switch_regime(
+            kind, tau, px, py, vx, vy, 1, nu, eta, E, phi0, K, mu, Rp
+        )
+        flags = start_flags(kind)
+        out[n] = new
+        out[n + 1] = recorded
+        out[n + 2] = 1.0 if project else 0.0
+        out[n + 3] = 4.0 * flags[0] + 2.0 * flags[1] + 1.0 * flags[2]
+        n += 4
+    return out[:n]
+
+
+_probe = jit(_probe_values)
+# nu, eta, E, phi0, K, mu, Rp, tau, x, y, vx, vy: a contact state with friction
+PROBE_POINT = np.array([0.013, 0.71, 2.9, 0.37, 123.0, 0.07, 3.1, 1.3, 1.05, -0.42, 0.61, 1.7])
+PROBE_RTOL = 1e-12  # the two evaluations differ by round-off (libm vs CPython's hypot)
+_usable: bool | None = None
+
+
+def _probe_agrees() -> bool:
+    compiled = _probe(PROBE_POINT)
+    expected = _probe_values(PROBE_POINT)
+    return bool(np.allclose(compiled, expected, rtol=PROBE_RTOL, atol=PROBE_RTOL))
+
+
+def ensure_fresh() -> bool:
+    """Make sure the cached kernels run model.py's current cores; True if they do.
+
+    numba invalidates a cached function when its own file changes, not when a function
+    it calls in another file (model.py's cores) does. Once per process, the probe
+    (cached like the kernels) is compared with the interpreter's evaluation of the same
+    cores; if they disagree, every kernel's cache is flushed and the probe compared
+    again. Should they still disagree (a core that numba compiles differently), the
+    kernels are not used: False, with a warning, and the callers run pure Python.
+    """
+    global _usable
+    if _usable is None:
+        usable = _probe_agrees()
+        if not usable:
+            for dispatcher in _dispatchers():
+                dispatcher.recompile()  # flushes its cache; compiled afresh on next call
+            usable = _probe_agrees()
+        if not usable:
+            warnings.warn(
+                "rubcli: the compiled kernels disagree with model.py; using the pure-Python "
+                "path (please report this)",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+        _usable = usable
+    return _usable
+
+
+def _dispatchers() -> list:
+    """Every compiled function of the sub-package (the kernels and the probe)."""
+    from rubcli.solvers.compiled import (
+        contact,
+        dop853,
+        dop853_loop,
+        linalg,
+        precheck,
+        propagators,
+        rhs,
+        roots,
+    )  # fmt: skip
+
+    modules = (linalg, propagators, precheck, contact, rhs, dop853, roots, dop853_loop)
+    found = [_probe]
+    for module in modules:
+        found += [v for v in vars(module).values() if isinstance(v, Dispatcher)]
+    return found

@@ -1,0 +1,333 @@
+"""The compiled bulk of the analytic methods: consecutive event-free slip steps.
+
+``advance_contact`` advances consecutive fixed-length contact steps in one slip regime
+with the Cartesian (``analytic``) or polar (``analytic-polar``) linearisation, exactly
+as the Python propagators do, and fills the output samples of each step from its closed
+form. ``advance_contact_adaptive`` does the same for adaptive steps (``analytic_tol``),
+pair of half steps by pair, with the step doubling and control of analytic.py's Python
+loop. Both hand control back before any step that might contain an event (the
+pre-check, ``precheck.py``), or that needs Python (an ill-conditioned eigenbasis, a
+singular system, a non-finite state), so every event is located, and every regime
+change decided, by the driver's stepper in analytic.py.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rubcli.model import (
+    friction_sign,
+)
+from rubcli.solvers.compiled.jit import (
+    STOP_END,
+    STOP_EVENT,
+    STOP_LIMIT,
+    STOP_PYTHON,
+    jit,
+    jit_inline,
+)
+from rubcli.solvers.compiled.precheck import (
+    _step_may_have_event,
+)
+from rubcli.solvers.compiled.propagators import (
+    _evaluate,
+    _prepare,
+    _workspace,
+)
+from rubcli.solvers.control import doubling_error, next_step
+from rubcli.solvers.events import (
+    MAX_SCAN_POINTS,
+)
+
+STEP_CLEAR = -1  # _check_step: no event can occur in the step, the kernel may take it
+
+
+@jit
+def _scan_buffers(size):
+    """(grid, S, dS, hv, hd) of a scan grid of ``size`` points."""
+    return (
+        np.empty(size),
+        np.empty((size, 4)),
+        np.empty((size, 4)),
+        np.empty(size),
+        np.empty(size),
+    )
+
+
+@jit
+def _scan_points(tau, tb, omega_max, scan_fraction):
+    """Intervals of the step's scan grid (analytic.py's ``search``), -1 beyond MAX_SCAN_POINTS."""
+    spacing = scan_fraction * 2.0 * math.pi / max(omega_max, 1e-300)
+    if (tb - tau) / spacing > MAX_SCAN_POINTS:
+        return -1
+    return max(1, math.ceil((tb - tau) / spacing))
+
+
+@jit_inline
+def _check_step(polar, tau, tb, n, ws, cond, pars, event_args, scan, end, work):
+    """The event pre-check of one prepared contact step [tau, tb] (propagator in ``ws``).
+
+    The lines of ``advance_contact``'s step (kept inline there: this call, with the
+    workspace, costs its fixed steps ~10% more): the step is evaluated on its scan grid
+    of ``n`` intervals (``np.linspace(tau, tb, n + 1)``, ``n`` from ``_scan_points``)
+    and ``_step_may_have_event`` decides. ``event_args`` = (sign, check_slip, spin,
+    starts); ``scan`` = (grid, S, dS, hv, hd) of at least n + 1 points
+    (``_scan_buffers``); ``end`` receives the state at tb (the grid's last point);
+    ``work`` = (out, dout). Returns ``STEP_CLEAR`` if no event can occur, ``STOP_EVENT``
+    if one might, ``STOP_PYTHON`` if a state is not finite (Python fails the run).
+    """
+    sign, check_slip, spin, starts = event_args
+    grid, S, dS, hv, hd = scan
+    out, dout = work
+    delta = (tb - tau) / n  # np.linspace(tau, tb, n + 1)
+    for i in range(n):
+        grid[i] = i * delta + tau
+    grid[n] = tb
+    finite = True
+    for i in range(n + 1):
+        _evaluate(polar, tau, grid[i], pars, ws, out, dout)
+        for j in range(4):
+            S[i, j] = out[j]
+            dS[i, j] = dout[j]
+            finite = finite and math.isfinite(out[j]) and math.isfinite(dout[j])
+    if not finite:
+        return STOP_PYTHON
+    for j in range(4):
+        end[j] = S[n, j]
+    if _step_may_have_event(grid, S, dS, n, sign, check_slip, spin, cond, hv, hd, starts):
+        return STOP_EVENT
+    return STEP_CLEAR
+
+
+@jit_inline
+def _fill_samples(polar, tau, tb, pars, ws, t_eval, out_states, k, work):
+    """Write the samples of ``t_eval[k:]`` in (.., tb] from the step prepared at tau
+    (as ``advance_contact`` does); returns the new k. ``work`` = (out, dout)."""
+    out, dout = work
+    while k < t_eval.shape[0] and t_eval[k] <= tb:
+        _evaluate(polar, tau, t_eval[k], pars, ws, out, dout)
+        for j in range(4):
+            out_states[k, j] = out[j]
+        k += 1
+    return k
+
+
+@jit
+def _event_args(regime, pars, starts):
+    """(sign, check_slip, spin, starts) of a slip regime, for ``_check_step``."""
+    eta, mu, Rp = pars[1], pars[5], pars[6]
+    return float(regime), mu > 0.0, Rp * eta, starts
+
+
+@jit
+def advance_contact(
+    polar,
+    tau,
+    state,
+    h,
+    t_end,
+    regime,
+    pars,
+    t_eval,
+    out_states,
+    k,
+    max_steps,
+    scan_fraction,
+    cond_limit,
+    starts,
+):
+    """Fixed contact steps of length h in one slip regime while no event can occur.
+
+    ``polar`` selects the linearisation (``PolarLinearisedContact`` or
+    ``LinearisedContact``); ``pars`` is ``model.params_vector``; each step is
+    ``[tau, min(t_end, tau + h)]`` and ``out_states[k:]`` receives the samples of
+    ``t_eval[k:]`` that it covers. ``scan_fraction`` and ``cond_limit`` are analytic.py's
+    ``CONTACT_SCAN_FRACTION`` and ``EIGVEC_COND_LIMIT``. At most ``max_steps`` steps.
+    ``starts`` = (on the contact surface, on the slip surface, slip start immediate)
+    says whether the first step starts at an event (as ``earliest_event``'s last_kind).
+
+    Returns ``(tau, state, k, steps, reason)`` (reason: a ``STOP_*`` code); the step
+    from ``(tau, state)`` has not been taken.
+    """
+    eta, mu, Rp = pars[1], pars[5], pars[6]
+    mu_c = mu * friction_sign(regime)
+    check_slip = mu > 0.0
+    sign = float(regime)
+    spin = Rp * eta
+    s = state.copy()
+    n_out = t_eval.shape[0]
+    ws = _workspace()
+    out = np.empty(4)
+    dout = np.empty(4)
+    size = 2
+    grid = np.empty(size)
+    S = np.empty((size, 4))
+    dS = np.empty((size, 4))
+    hv = np.empty(size)
+    hd = np.empty(size)
+    steps = 0
+    while True:
+        if tau >= t_end:
+            return tau, s, k, steps, STOP_END
+        if steps >= max_steps:
+            return tau, s, k, steps, STOP_LIMIT
+        tb = min(t_end, tau + h)
+        # from the second step on, the previous eigenvalues start the eigensolver
+        cond, omega_max = _prepare(polar, tau, s, pars, mu_c, ws, steps > 0)
+        # Python uses the eigenbasis while cond2(V) <= cond_limit, and cond2 <= 4 cond1:
+        # proceed only where Python surely uses it too.
+        if not 8.0 * cond <= cond_limit:
+            return tau, s, k, steps, STOP_PYTHON
+        spacing = scan_fraction * 2.0 * math.pi / max(omega_max, 1e-300)
+        if (tb - tau) / spacing > MAX_SCAN_POINTS:
+            return tau, s, k, steps, STOP_PYTHON  # Python fails the run cleanly
+        n = max(1, math.ceil((tb - tau) / spacing))
+        if size < n + 1:
+            size = n + 1
+            grid = np.empty(size)
+            S = np.empty((size, 4))
+            dS = np.empty((size, 4))
+            hv = np.empty(size)
+            hd = np.empty(size)
+        delta = (tb - tau) / n  # np.linspace(tau, tb, n + 1)
+        for i in range(n):
+            grid[i] = i * delta + tau
+        grid[n] = tb
+        finite = True
+        for i in range(n + 1):
+            _evaluate(polar, tau, grid[i], pars, ws, out, dout)
+            for j in range(4):
+                S[i, j] = out[j]
+                dS[i, j] = dout[j]
+                finite = finite and math.isfinite(out[j]) and math.isfinite(dout[j])
+        if not finite:
+            return tau, s, k, steps, STOP_PYTHON
+        if steps > 0:
+            starts = (False, False, False)
+        if _step_may_have_event(grid, S, dS, n, sign, check_slip, spin, cond, hv, hd, starts):
+            return tau, s, k, steps, STOP_EVENT
+        while k < n_out and t_eval[k] <= tb:
+            _evaluate(polar, tau, t_eval[k], pars, ws, out, dout)
+            for j in range(4):
+                out_states[k, j] = out[j]
+            k += 1
+        for j in range(4):
+            s[j] = S[n, j]
+        tau = tb
+        steps += 1
+
+
+@jit
+def advance_contact_adaptive(
+    polar,
+    tau,
+    state,
+    h,
+    t_end,
+    regime,
+    pars,
+    t_eval,
+    out_states,
+    k,
+    max_steps,
+    scan_fraction,
+    cond_limit,
+    starts,
+    control,
+):
+    """Adaptive (step-doubling) contact steps in one slip regime while no event can occur.
+
+    The step control of analytic.py's Python loop (``_doubling_error`` and the loop in
+    ``solve_piecewise``), pair of half steps by pair: from (tau, s) a step of
+    ``step = min(h, h_max, t_end - tau)`` is compared with two of ``step / 2``,
+    ``err = max(|full - second| / (1 + |s|)) * 4/3``; the proposed next step is
+    ``step * min(max_factor, max(min_factor, safety * (tol / err)^(1/3)))``, and the step
+    is rejected (and retried with that step) unless ``err <= tol`` or
+    ``step <= min_step``. An accepted pair is taken as its two half steps, each checked
+    for events and sampled as ``advance_contact`` checks and samples one step, each
+    counted as one step. ``control`` = (tol, safety, min_factor, max_factor, h_max,
+    min_step); the other arguments are ``advance_contact``'s.
+
+    A pair is committed whole or not at all: if either half might hold an event, needs
+    Python (conditioning, scan size, non-finite states), or the pair does not fit in
+    ``max_steps``, the kernel returns *before* the pair, with the ``h`` it started the
+    pair with, so Python's own adaptive loop recomputes that pair (its rejections
+    included) exactly as it would have without the kernel.
+
+    Returns ``(tau, state, k, steps, rejected, h, reason)``: ``rejected`` counts the
+    rejected tries of the committed pairs only, ``h`` is the controller's proposed next
+    step; with ``steps == 0`` and a limit too small for a pair the reason is
+    ``STOP_PYTHON``, else ``STOP_LIMIT``.
+    """
+    tol, safety, min_factor, max_factor, h_max, min_step = control
+    mu_c = pars[5] * friction_sign(regime)
+    first_args = _event_args(regime, pars, starts)
+    later_args = _event_args(regime, pars, (False, False, False))
+    s = state.copy()
+    ws1 = _workspace()  # the full step and the first half: one propagator, at (tau, s)
+    ws2 = _workspace()  # the second half, at (tau + step / 2, mid)
+    full = np.empty(4)
+    mid = np.empty(4)
+    end = np.empty(4)
+    dout = np.empty(4)
+    work = (np.empty(4), dout)
+    grid, S, dS, hv, hd = _scan_buffers(2)
+    steps = 0
+    rejected = 0
+    while True:
+        if tau >= t_end:
+            return tau, s, k, steps, rejected, h, STOP_END
+        if steps + 2 > max_steps:
+            return tau, s, k, steps, rejected, h, STOP_LIMIT if steps > 0 else STOP_PYTHON
+        if steps > 0:  # start the eigensolver from the last mid-point's eigenvalues
+            for i in range(4):
+                ws1[0][i] = ws2[0][i]
+        cond1, omega1 = _prepare(polar, tau, s, pars, mu_c, ws1, steps > 0)
+        if not 8.0 * cond1 <= cond_limit:  # as in advance_contact
+            return tau, s, k, steps, rejected, h, STOP_PYTHON
+        h_next = h
+        tries = 0
+        while True:
+            step = min(h_next, h_max, t_end - tau)
+            t_mid = tau + step / 2
+            t_next = tau + step
+            _evaluate(polar, tau, t_next, pars, ws1, full, dout)
+            _evaluate(polar, tau, t_mid, pars, ws1, mid, dout)
+            for i in range(4):
+                ws2[0][i] = ws1[0][i]
+            cond2, omega2 = _prepare(polar, t_mid, mid, pars, mu_c, ws2, True)
+            if not 8.0 * cond2 <= cond_limit:
+                return tau, s, k, steps, rejected, h, STOP_PYTHON
+            _evaluate(polar, t_mid, t_next, pars, ws2, end, dout)
+            err = doubling_error(full, end, s)
+            if not math.isfinite(err):
+                return tau, s, k, steps, rejected, h, STOP_PYTHON
+            h_next, accept = next_step(step, err, tol, safety, min_factor, max_factor, min_step)
+            if accept:
+                break
+            tries += 1
+        # both halves are checked before either is taken (Python may redo the pair)
+        n1 = _scan_points(tau, t_mid, omega1, scan_fraction)
+        n2 = _scan_points(t_mid, t_next, omega2, scan_fraction)
+        if n1 < 0 or n2 < 0:
+            return tau, s, k, steps, rejected, h, STOP_PYTHON  # Python fails the run cleanly
+        if grid.shape[0] < max(n1, n2) + 1:
+            grid, S, dS, hv, hd = _scan_buffers(max(n1, n2) + 1)
+        scan = (grid, S, dS, hv, hd)
+        args = first_args if steps == 0 else later_args
+        code = _check_step(polar, tau, t_mid, n1, ws1, cond1, pars, args, scan, mid, work)
+        if code != STEP_CLEAR:
+            return tau, s, k, steps, rejected, h, code
+        code = _check_step(polar, t_mid, t_next, n2, ws2, cond2, pars, later_args, scan, end, work)
+        if code != STEP_CLEAR:
+            return tau, s, k, steps, rejected, h, code
+        k = _fill_samples(polar, tau, t_mid, pars, ws1, t_eval, out_states, k, work)
+        k = _fill_samples(polar, t_mid, t_next, pars, ws2, t_eval, out_states, k, work)
+        for j in range(4):
+            s[j] = end[j]
+        tau = t_next
+        h = h_next
+        steps += 2
+        rejected += tries

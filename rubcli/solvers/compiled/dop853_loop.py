@@ -1,0 +1,183 @@
+"""The compiled DOP853 loop with its events: ``advance_dop853`` (``dop853-jit``)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rubcli.model import (
+    rolling_velocity,
+)
+from rubcli.solvers.compiled.dop853 import (
+    DOP_A,
+    DOP_ERROR_EXPONENT,
+    DOP_MAX_FACTOR,
+    DOP_MIN_FACTOR,
+    DOP_SAFETY,
+    DOP_SCAN_POINTS,
+    DOP_STAGES,
+    _dop853_dense_at,
+    _dop853_dense_coefficients,
+    _dop853_error_norm,
+    _dop853_try,
+    dop853_initial_step,
+)
+from rubcli.solvers.compiled.jit import (
+    STOP_END,
+    STOP_EVENT,
+    STOP_FULL,
+    STOP_LIMIT,
+    STOP_PYTHON,
+    STOP_SMALL_STEP,
+    jit,
+)
+from rubcli.solvers.compiled.rhs import (
+    _rhs_into,
+)
+from rubcli.solvers.compiled.roots import (
+    STICK_REGIME,
+    _apply_event,
+    _dop853_locate,
+    _dop853_may_have_event,
+)
+from rubcli.solvers.events import (
+    start_flags,
+)
+
+
+@jit
+def advance_dop853(
+    tau, y, f, h_abs, t_end, pars, regime, rtol, atol, t_eval, out_states, out_regimes, k,
+    max_steps, starts, y_new, f_new, F, band, events_tau, events_kind, events_state,
+    events_regimes, compiled_events,
+):  # fmt: skip
+    """Adaptive DOP853 steps with their events (scipy's algorithm, the scipy methods' events).
+
+    Each step is scipy's DOP853 step exactly: the same tableau, error norm, step-size
+    rule (safety 0.9, factors 0.2-10, no growth right after a rejection) and minimum
+    step. After each accepted step its dense output goes through the conservative event
+    pre-check (which treats the first step against the event that began the segment,
+    ``starts``, as ``earliest_event`` does). A step where no event is possible is
+    committed, and the samples ``t_eval[k:]`` it covers go to ``out_states`` and
+    ``out_regimes`` (projected in stick). Otherwise:
+
+    - with ``compiled_events``: the kernel runs ``events.earliest_event`` itself
+      (``_dop853_locate``: a transcription of ``first_crossing`` for each event function
+      of the regime, ``band`` the restart band) and, at an event, ``events.apply_event``
+      (``_apply_event``), records it in ``events_*`` and starts the next segment as the
+      Python driver would (new f, scipy's initial step);
+    - without: the step is *not* committed; it is returned for Python, with ``y_new``,
+      ``f_new`` and the dense coefficients ``F`` filled.
+
+    ``y`` and ``f`` hold the last committed state. Returns ``(tau, t_new, h_abs, k,
+    steps, nfev, reason, regime, n_events, at_event)``: reason END, LIMIT (``max_steps``
+    steps), EVENT (a pending step from ``tau`` to ``t_new``), FULL (the event buffers
+    are full; the state is at the last event, its segment not yet started), PYTHON (a
+    non-finite state) or SMALL_STEP; ``at_event``: ``tau`` is the last event's time.
+    """
+    Kst = np.empty((DOP_A.shape[0], 4))
+    tmp = np.empty(4)
+    row = np.empty(4)
+    drow = np.empty(4)
+    n = DOP_SCAN_POINTS
+    grid = np.empty(n + 1)
+    S = np.empty((n + 1, 4))
+    dS = np.empty((n + 1, 4))
+    hv = np.empty(n + 1)
+    hd = np.empty(n + 1)
+    n_out = t_eval.shape[0]
+    capacity = events_tau.shape[0]
+    steps = 0
+    nfev = 0
+    n_events = 0
+    while True:
+        at_event = starts[0] or starts[1]
+        if tau >= t_end:
+            return tau, tau, h_abs, k, steps, nfev, STOP_END, regime, n_events, at_event
+        if steps >= max_steps:
+            return tau, tau, h_abs, k, steps, nfev, STOP_LIMIT, regime, n_events, at_event
+        min_step = 10.0 * abs(np.nextafter(tau, np.inf) - tau)
+        h_abs = max(h_abs, min_step)
+        rejected = False
+        while True:
+            if h_abs < min_step:
+                return (
+                    tau, tau, h_abs, k, steps, nfev, STOP_SMALL_STEP, regime, n_events,
+                    at_event,
+                )  # fmt: skip
+            t_new = min(tau + h_abs, t_end)
+            h = t_new - tau
+            h_abs = abs(h)
+            for i in range(4):
+                Kst[0, i] = f[i]
+            _dop853_try(tau, y, h, pars, regime, Kst, y_new, tmp)
+            nfev += DOP_STAGES
+            error = _dop853_error_norm(Kst, h, y, y_new, rtol, atol)
+            if error < 1.0:
+                if error == 0.0:
+                    factor = DOP_MAX_FACTOR
+                else:
+                    factor = min(DOP_MAX_FACTOR, DOP_SAFETY * error**DOP_ERROR_EXPONENT)
+                if rejected:
+                    factor = min(1.0, factor)
+                h_abs *= factor
+                break
+            if not math.isfinite(error):
+                h_abs *= DOP_MIN_FACTOR
+            else:
+                h_abs *= max(DOP_MIN_FACTOR, DOP_SAFETY * error**DOP_ERROR_EXPONENT)
+            rejected = True
+        for i in range(4):
+            f_new[i] = Kst[DOP_STAGES, i]
+        _dop853_dense_coefficients(tau, h, y, y_new, pars, regime, Kst, F, tmp)
+        nfev += Kst.shape[0] - DOP_STAGES - 1
+        finite = True
+        for i in range(4):
+            finite = finite and math.isfinite(y_new[i])
+        if not finite:
+            return tau, t_new, h_abs, k, steps, nfev, STOP_PYTHON, regime, n_events, at_event
+        kind = -1
+        t_stop = t_new
+        if _dop853_may_have_event(tau, h, y, F, pars, regime, grid, S, dS, hv, hd, row, starts):
+            if not compiled_events:
+                return tau, t_new, h_abs, k, steps, nfev, STOP_EVENT, regime, n_events, at_event
+            t_ev, kind = _dop853_locate(
+                tau, h, y, F, pars, regime, grid, hv, hd, row, drow, starts, band
+            )
+            if kind >= 0:
+                t_stop = t_ev
+        while k < n_out and t_eval[k] <= t_stop:
+            _dop853_dense_at(t_eval[k], tau, h, y, F, row)
+            if regime == STICK_REGIME:  # samples in stick are reported projected
+                row[2], row[3] = rolling_velocity(row[0], row[1], row[2], row[3], pars[6] * pars[1])
+            for i in range(4):
+                out_states[k, i] = row[i]
+            out_regimes[k] = regime
+            k += 1
+        steps += 1
+        if kind < 0:
+            for i in range(4):
+                y[i] = y_new[i]
+                f[i] = f_new[i]
+            tau = t_new
+            starts = (False, False, True)
+            continue
+        # the event: events.apply_event, then a new segment as the driver starts one
+        _dop853_dense_at(t_stop, tau, h, y, F, row)
+        new_regime, kind = _apply_event(kind, t_stop, row, regime, pars)
+        events_tau[n_events] = t_stop
+        events_kind[n_events] = kind
+        events_regimes[n_events, 0] = regime
+        events_regimes[n_events, 1] = new_regime
+        for i in range(4):
+            events_state[n_events, i] = row[i]
+            y[i] = row[i]
+        n_events += 1
+        tau, regime = t_stop, new_regime
+        starts = start_flags(kind)
+        if n_events == capacity:
+            return tau, tau, h_abs, k, steps, nfev, STOP_FULL, regime, n_events, True
+        _rhs_into(tau, y, pars, regime, f)
+        h_abs = dop853_initial_step(tau, y, f, t_end, pars, regime, rtol, atol)
+        nfev += 2

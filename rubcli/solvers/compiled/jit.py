@@ -1,0 +1,68 @@
+"""Compile settings of the compiled sub-package, the model and event cores registered
+with numba, the stop codes every kernel returns, and the constants they share.
+
+The physics and the event rules are not written in this sub-package: they are
+``model.py``'s and ``events.py``'s compilable cores (plain functions in the subset of
+Python numba compiles), registered here with ``register_jitable`` so that compiled code
+calls the very functions the Python paths call.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from numba.extending import register_jitable
+
+from rubcli import model
+from rubcli.solvers import control, events
+
+# The model's compilable cores, registered so that compiled code calls the same functions.
+COMPILABLE_CORES = (
+    model.friction_sign,
+    model.force_jacobian_entries,
+    model.linearised_contact_arrays,
+    model.stick_friction_value,
+    model.rolling_velocity,
+    model.rhs_entries,
+    model.rhs_jacobian_array,
+    model.slip_velocity_rate,
+    model.polar_entries,
+    model.cartesian_entries,
+    model.polar_rhs_entries,
+    model.polar_jacobian_arrays,
+    model.slip_velocity_value,
+    model.entry_regime_value,
+    model.zero_slip_regime_value,
+    events.start_flags,
+    events.switch_regime,
+    control.doubling_error,
+    control.next_step,
+)
+
+
+for _core in COMPILABLE_CORES:
+    register_jitable(_core)
+
+
+# Why a kernel stopped (advance_contact, advance_contact_adaptive, advance_dop853).
+STOP_END = 0  # reached t_end
+STOP_EVENT = 1  # the next step may contain an event: Python takes it
+STOP_PYTHON = 2  # the next step needs Python (conditioning, singular system, non-finite)
+STOP_LIMIT = 3  # the step limit it was given is reached
+STOP_SMALL_STEP = 4  # DOP853: the step size fell below scipy's minimum (10 ulp of tau)
+STOP_FULL = 5  # DOP853: the kernel's event buffers are full
+
+
+STOP_REASONS = {
+    STOP_END: "end",
+    STOP_EVENT: "event",
+    STOP_PYTHON: "python",
+    STOP_LIMIT: "limit",
+    STOP_SMALL_STEP: "small step",
+    STOP_FULL: "event buffer full",
+}
+
+
+EPS = np.finfo(float).eps
+jit = numba.njit(cache=True)
+jit_inline = numba.njit(cache=True, inline="always")  # inlined in numba IR
