@@ -32,6 +32,7 @@ __all__ = [
     "__version__",
     "load_case",
     "solve",
+    "sweep",
 ]
 
 _LAZY = {
@@ -40,11 +41,13 @@ _LAZY = {
     "load_case": "rubcli.case",
     "Case": "rubcli.case",
     "CaseError": "rubcli.case",
+    "sweep": "rubcli.sweeps",
 }
 
 if TYPE_CHECKING:
     from rubcli.case import Case, CaseError, load_case
     from rubcli.solvers import METHODS, solve
+    from rubcli.sweeps import sweep
 
 
 def __getattr__(name: str) -> Any:

@@ -303,6 +303,157 @@ class AnalysisSection(_Section):
     max_period: int = Field(default=16, ge=1)
 
 
+# =========================================================================== [sweep]
+# Owned by `rubcli sweep` (docs/sweeps.md). The engine is rubcli.sweep; this is its schema.
+
+SweepParameter = Literal["nu", "eta", "e", "K", "mu", "Rp", "phi0", "x", "y", "vx", "vy"]
+SWEEP_MODEL_PARAMETERS: tuple[str, ...] = ("nu", "eta", "e", "K", "mu", "Rp", "phi0")
+SWEEP_INITIAL_PARAMETERS: tuple[str, ...] = ("x", "y", "vx", "vy")
+SweepDirection = Literal["up", "down", "both", "independent"]
+DEFAULT_SWEEP_MAX_POINTS = 20_000
+
+
+class SweepAxis(_Section):
+    """One swept axis: a parameter and its values (a list, or start/stop/num)."""
+
+    parameter: SweepParameter
+    values: list[float] | None = Field(default=None, min_length=1)
+    start: float | None = None
+    stop: float | None = None
+    num: int | None = Field(default=None, ge=1, le=1_000_000)
+    spacing: Literal["linear", "log"] = "linear"
+
+    _values_unique = field_validator("values")(_unique)
+
+    @model_validator(mode="after")
+    def _values_or_range(self) -> SweepAxis:
+        ranged = (self.start, self.stop, self.num)
+        if self.values is not None:
+            if any(v is not None for v in ranged):
+                raise PydanticCustomError(
+                    "sweep_values", "give either values or start/stop/num, not both"
+                )
+        elif any(v is None for v in ranged):
+            raise PydanticCustomError(
+                "sweep_values", "give values = [...] or all of start, stop and num"
+            )
+        elif self.spacing == "log" and not (self.start > 0 and self.stop > 0):
+            raise PydanticCustomError("sweep_values", "log spacing needs start > 0 and stop > 0")
+        elif self.num == 1 and self.start != self.stop:
+            raise PydanticCustomError("sweep_values", "num = 1 needs start = stop")
+        return self
+
+    def resolved_values(self) -> tuple[float, ...]:
+        """The axis values in the order given (a range from start to stop)."""
+        if self.values is not None:
+            return tuple(float(v) for v in self.values)
+        assert self.start is not None and self.stop is not None and self.num is not None
+        if self.spacing == "log":
+            grid = np.geomspace(self.start, self.stop, self.num)
+        else:
+            grid = np.linspace(self.start, self.stop, self.num)
+        return tuple(float(v) for v in grid)
+
+
+class SweepSection(_Section):
+    """[sweep]: settings of `rubcli sweep` (bifurcation diagrams, maps, basins).
+
+    A 1-D sweep can be written inline (``parameter`` with ``values`` or start/stop/num);
+    a 2-D map or an initial-condition grid lists its axes as ``[[sweep.axes]]``.
+    """
+
+    parameter: SweepParameter | None = None
+    values: list[float] | None = Field(default=None, min_length=1)
+    start: float | None = None
+    stop: float | None = None
+    num: int | None = Field(default=None, ge=1, le=1_000_000)
+    spacing: Literal["linear", "log"] = "linear"
+    axes: list[SweepAxis] | None = Field(default=None, min_length=1, max_length=2)
+    direction: SweepDirection = "independent"
+    transient_periods: int = Field(default=200, ge=0)
+    record_periods: int = Field(default=100, ge=8)  # section points (>= 8 to classify)
+    method: MethodName = "dop853-jit"  # its settings come from [solver]
+    energy: bool = True  # energy residual of the recorded window
+    spectrum: bool = False  # keep each point's full spectrum (for the waterfall)
+    spectrum_max_order: float = Field(default=3.0, gt=0)  # kept orders: -this ... +this
+    lyapunov: bool = False  # largest Lyapunov exponent of every point (costly)
+    lyapunov_periods: int = Field(default=100, gt=0)
+    max_points: int = Field(default=DEFAULT_SWEEP_MAX_POINTS, ge=1)  # budget
+    scheduler: str | None = Field(default=None, min_length=1)  # Dask scheduler address
+    scheduler_timeout_s: float = Field(default=10.0, gt=0, le=600)  # bounded connect wait
+
+    _values_unique = field_validator("values")(_unique)
+
+    @model_validator(mode="after")
+    def _check(self) -> SweepSection:
+        inline = (self.values, self.start, self.stop, self.num)
+        if self.axes is not None:
+            if self.parameter is not None or any(v is not None for v in inline):
+                raise PydanticCustomError(
+                    "sweep_axes",
+                    "give the axes either inline (parameter, values or start/stop/num) or as "
+                    "[[sweep.axes]], not both",
+                )
+        elif self.parameter is None:
+            raise PydanticCustomError(
+                "sweep_axes", "missing parameter (or [[sweep.axes]]): what is swept?"
+            )
+        try:
+            axes = self.resolved_axes()
+        except ValidationError as exc:
+            raise PydanticCustomError("sweep_values", exc.errors()[0]["msg"]) from None
+        names = [a.parameter for a in axes]
+        if len(set(names)) != len(names):
+            raise PydanticCustomError("sweep_axes", "the two axes sweep the same parameter")
+        initial = [n in SWEEP_INITIAL_PARAMETERS for n in names]
+        if any(initial) and not all(initial):
+            raise PydanticCustomError(
+                "sweep_axes",
+                "mixes a model parameter and an initial-state axis; sweep either model "
+                "parameters or the initial state (a basin grid), not both",
+            )
+        if all(initial) and self.direction != "independent":
+            raise PydanticCustomError(
+                "sweep_direction",
+                "an initial-state grid (basins) starts every point from its own state: "
+                "direction must be 'independent'",
+            )
+        for axis in axes:
+            values = axis.resolved_values()
+            if axis.parameter in ("eta", "K") and min(values) <= 0:
+                raise PydanticCustomError(
+                    "sweep_values", "{name} must be > 0 at every point", {"name": axis.parameter}
+                )
+            if axis.parameter in ("nu", "e", "mu", "Rp") and min(values) < 0:
+                raise PydanticCustomError(
+                    "sweep_values", "{name} must be >= 0 at every point", {"name": axis.parameter}
+                )
+        n = self.n_points()
+        if n > self.max_points:
+            raise PydanticCustomError(
+                "sweep_budget",
+                "{n} points (values x directions) is more than max_points = {limit}",
+                {"n": n, "limit": self.max_points},
+            )
+        return self
+
+    def resolved_axes(self) -> list[SweepAxis]:
+        """The axes, whichever way they were written."""
+        if self.axes is not None:
+            return list(self.axes)
+        assert self.parameter is not None
+        given = {"values": self.values, "start": self.start, "stop": self.stop, "num": self.num}
+        given = {k: v for k, v in given.items() if v is not None}
+        return [SweepAxis(parameter=self.parameter, spacing=self.spacing, **given)]
+
+    def n_points(self) -> int:
+        """Points to compute: product of the axis sizes, twice for direction = both."""
+        n = 1
+        for axis in self.resolved_axes():
+            n *= len(axis.resolved_values())
+        return n * (2 if self.direction == "both" else 1)
+
+
 # ========================================================================== [orbits]
 # Owned by `rubcli orbits` (docs/orbits.md): periodic orbits, Floquet multipliers and
 # pseudo-arclength continuation in one nondimensional parameter.
@@ -387,6 +538,7 @@ class CaseFile(_Section):
     forces_map: ForcesMapSection | None = None
     compare: CompareSection | None = None
     analysis: AnalysisSection | None = None
+    sweep: SweepSection | None = None
     orbits: OrbitsSection | None = None
 
     @model_validator(mode="after")

@@ -12,7 +12,7 @@ from typing import Annotated
 import typer
 
 from rubcli import __version__, io
-from rubcli.cli import compare, forces_map, init, orbits, run, stress, validate
+from rubcli.cli import compare, forces_map, init, orbits, run, stress, sweep, validate
 
 app = typer.Typer(
     name="rubcli",
@@ -29,6 +29,7 @@ app.command("run")(run.command)
 app.command("forces-map")(forces_map.command)
 app.command("compare")(compare.command)
 app.command("stress")(stress.command)
+app.command("sweep")(sweep.command)
 app.command("orbits")(orbits.command)
 
 

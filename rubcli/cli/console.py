@@ -14,6 +14,7 @@ are shown as one formatted ``warning:`` line (``show_python_warning``), never ra
 from __future__ import annotations
 
 import sys
+import time
 import warnings
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -23,10 +24,12 @@ from rich import box
 from rich.console import Console
 from rich.progress import (
     BarColumn,
+    MofNCompleteColumn,
     Progress,
     TaskProgressColumn,
     TextColumn,
     TimeElapsedColumn,
+    TimeRemainingColumn,
 )
 from rich.table import Table
 
@@ -179,3 +182,37 @@ def progress_bar(description: str, total: float) -> Iterator[Callable[[float], N
     with bar:
         yield update
         bar.update(task, completed=last[0] if last[0] > 0 else 0.0)
+
+
+@contextmanager
+def count_bar(description: str, total: int) -> Iterator[Callable[[int], None]]:
+    """A bar of ``total`` items (done/total, rate, elapsed, ETA); yields ``update(done)``.
+
+    For work counted in items (the points of a sweep). Shown only on a terminal.
+    """
+    console = _stderr()
+    bar = Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[rate]}"),
+        TimeElapsedColumn(),
+        TextColumn("ETA"),
+        TimeRemainingColumn(),
+        console=console,
+        disable=not console.is_terminal,
+        transient=False,
+    )
+    task = bar.add_task(description, total=total, rate="")
+    started: list = [None]
+
+    def update(done: int) -> None:
+        now = time.perf_counter()
+        if started[0] is None:
+            started[0] = (now, done)
+        t0, d0 = started[0]
+        rate = (done - d0) / (now - t0) if now > t0 and done > d0 else 0.0
+        bar.update(task, completed=done, rate=f"{rate:.2f} points/s" if rate else "")
+
+    with bar:
+        yield update

@@ -18,7 +18,7 @@ _PLOTS = ", ".join(KNOWN_PLOTS)
 
 # The optional tables, commented out, shared by both samples.
 _OPTIONAL_TABLES = """
-# Optional tables (docs/cases.md, compare.md, forces-map.md, orbits.md); uncomment to use.
+# Optional tables (docs/cases.md and the docs of each command); uncomment to use.
 
 # [analysis]                    # response class of each run (Poincare section, Lyapunov)
 # response = true
@@ -40,6 +40,15 @@ _OPTIONAL_TABLES = """
 # max = 0.06
 # step = 0.002                  # first continuation step
 # start = "synchronous_rub"     # guess: "initial", "transient" or "synchronous_rub"
+
+# [sweep]                       # `rubcli sweep`: bifurcation diagrams, maps, basins
+# parameter = "mu"              # nu, eta, e, K, mu, Rp, phi0 (or x, y, vx, vy: basins)
+# start = 0.0                   # values: start/stop/num, or values = [...]
+# stop = 0.06
+# num = 31
+# direction = "both"            # up, down, both (run-up and run-down) or independent
+# transient_periods = 200       # discarded at every point
+# record_periods = 100          # recorded at every point
 """
 
 SAMPLE_CASE = f"""\

@@ -1,0 +1,141 @@
+"""Parameter sweeps: bifurcation diagrams, run-up/run-down, 2-D maps and basins.
+
+- ``plan``: the axes, points and continuation chains (``SweepPlan``);
+- ``point``: one point solved and analysed (``compute_point``, run by every executor);
+- ``engine``: the chains on an executor, finished points stored as they arrive;
+- ``store``: the resumable store (one ``.point`` file per point, keyed by the plan's digest);
+- ``dataset``: the results as an ``xarray.Dataset``, NetCDF and CSV.
+
+``execute(plan, workers=..., scheduler=..., store_dir=...)`` picks the executor and runs
+the plan; ``rubcli.sweeps.sweep`` does the same from a case file. docs/sweeps.md.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import contextlib
+import os
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+from rubcli.analysis.sweep.engine import InProcessExecutor, RunStats, run_plan, warm_up
+from rubcli.analysis.sweep.plan import Axis, SweepPlan
+from rubcli.analysis.sweep.store import PointStore
+
+__all__ = [
+    "Axis",
+    "PointStore",
+    "RunStats",
+    "SchedulerError",
+    "SweepPlan",
+    "dask_executor",
+    "default_workers",
+    "execute",
+    "run_plan",
+]
+
+CONNECT_TIMEOUT_S = 10.0  # bounded wait for a Dask scheduler
+DASK_MAX_BATCH = 8  # points per Dask task at most: a round trip costs milliseconds
+
+
+class SchedulerError(Exception):
+    """The Dask scheduler cannot be reached (or Dask is not installed)."""
+
+
+def default_workers() -> int:
+    """All cores this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def connect(address: str, timeout: float = CONNECT_TIMEOUT_S):
+    """A ``distributed.Client`` of the scheduler at ``address``; SchedulerError if not."""
+    try:
+        from distributed import Client
+    except ImportError:
+        raise SchedulerError(
+            'Dask is not installed: pip install -e ".[dask]" (or "rubcli[dask]")'
+        ) from None
+    try:
+        return Client(address, timeout=timeout, set_as_default=False)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise SchedulerError(
+            f"cannot reach the Dask scheduler at {address!r} within {timeout:g} s: {exc}"
+        ) from None
+
+
+@contextlib.contextmanager
+def dask_executor(client) -> Iterator[cf.Executor]:
+    """Dask's own ``concurrent.futures`` executor over ``client``."""
+    executor = client.get_executor(pure=False)  # no hashing of the arguments per task
+    try:
+        yield executor
+    finally:
+        executor.shutdown(wait=False)
+
+
+def dask_batch(n_points: int, n_workers: int) -> int:
+    """Points per Dask task: up to DASK_MAX_BATCH, keeping >= 8 tasks per worker."""
+    return max(1, min(DASK_MAX_BATCH, n_points // (8 * n_workers)))
+
+
+def dask_workers(client) -> int:
+    try:
+        return max(1, len(client.scheduler_info(n_workers=-1)["workers"]))
+    except TypeError:  # older distributed without n_workers
+        return max(1, len(client.scheduler_info()["workers"]))
+
+
+def execute(
+    plan: SweepPlan,
+    *,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    client=None,
+    store_dir: str | Path | None = None,
+    progress: Callable[[int, int], None] | None = None,
+):
+    """Run ``plan``; returns ``(results by point key, RunStats, executor description)``.
+
+    ``client`` (a ``distributed.Client``) or ``scheduler`` (its address) runs the points
+    on Dask; otherwise ``workers`` local processes (default: all cores; 1 runs here).
+    ``store_dir`` keeps finished points so that an interrupted run resumes.
+    """
+    store = PointStore(store_dir, plan.digest(), plan.to_dict()) if store_dir else None
+    warm_up(plan.method, plan.options)
+    own_client = None
+    if client is None and scheduler is not None:
+        client = own_client = connect(scheduler)
+    try:
+        if client is not None:
+            n = dask_workers(client)
+            client.run(warm_up, plan.method, plan.options)  # kernels loaded on every worker
+            with dask_executor(client) as executor:
+                results, stats = run_plan(
+                    plan, executor, store=store, workers=n, progress=progress,
+                    batch=dask_batch(plan.n_points, n),
+                )  # fmt: skip
+            return results, stats, f"dask ({n} workers at {client.scheduler.address})"
+        n = workers or default_workers()
+        if n == 1:
+            results, stats = run_plan(plan, InProcessExecutor(), store=store, progress=progress)
+            return results, stats, "this process (1 worker)"
+        pools: list[cf.ProcessPoolExecutor] = []
+
+        def rebuild() -> cf.Executor:
+            pools.append(cf.ProcessPoolExecutor(max_workers=n))
+            return pools[-1]
+
+        try:
+            results, stats = run_plan(
+                plan, rebuild(), store=store, workers=n, progress=progress, rebuild=rebuild
+            )
+        finally:
+            for pool in pools:
+                pool.shutdown(wait=True, cancel_futures=True)
+        return results, stats, f"process pool ({n} workers)"
+    finally:
+        if own_client is not None:
+            own_client.close()

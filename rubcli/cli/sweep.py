@@ -1,0 +1,237 @@
+"""``rubcli sweep CASE [--out DIR] [--workers N] [--scheduler ADDRESS] [--quick]``.
+
+Runs the case's ``[sweep]`` (docs/sweeps.md): every point solved and analysed, on all
+local cores (``--workers``, 1 = in this process) or on a Dask cluster (``--scheduler``,
+or ``[sweep] scheduler``; ``--scheduler local`` starts a local Dask cluster to try it).
+Writes ``sweep.nc``, ``sweep.csv``, ``bifurcation.png`` and ``summary.png`` (1-D model
+sweeps), ``cascade.png`` (with ``spectrum = true``), ``map.png`` (2-D model sweeps),
+``basins.png`` (initial-state grids) and ``report.json``.
+
+Finished points are kept in a hidden store beside the output dir
+(``.<dir name>.sweep-<digest>``) as they finish; running the same command again after an
+interruption computes only the missing points. The outputs appear together, when every
+point is done; the store is then removed.
+
+Exit codes: 0 done (failed points are results); 2 invalid input or unreachable scheduler;
+130 interrupted (Ctrl-C; the finished points are kept).
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from rubcli import io
+from rubcli.cli import console
+from rubcli.cli.common import ForceOption, JsonOption, emit, prepare_output, report_stale
+from rubcli.cli.validate import EXIT_INVALID, load_or_exit
+
+LOCAL_SCHEDULER = "local"
+EXIT_INTERRUPTED = 130  # Ctrl-C: the finished points are kept for the next run
+
+
+def store_dir_for(target: Path, digest: str) -> Path:
+    """The hidden store of finished points, beside the output dir."""
+    return target.parent / f".{target.name}.sweep-{digest}"
+
+
+def command(
+    case_file: Annotated[Path, typer.Argument(metavar="CASE", help="The case file (TOML).")],
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", "-o", metavar="DIR", help="Output dir (default: <case dir>/sweep)."),
+    ] = None,
+    workers: Annotated[
+        int | None,
+        typer.Option("--workers", "-w", min=1, help="Local processes (default: all cores)."),
+    ] = None,
+    scheduler: Annotated[
+        str | None,
+        typer.Option(
+            "--scheduler",
+            metavar="ADDRESS",
+            help="Dask scheduler (tcp://host:port); 'local' starts a local Dask cluster.",
+        ),
+    ] = None,
+    quick: Annotated[
+        bool,
+        typer.Option(
+            "--quick", help="At most 5 values per axis, 20+16 periods, Lyapunov over 20 (CI)."
+        ),
+    ] = False,
+    json: JsonOption = False,
+    force: ForceOption = False,
+) -> None:
+    """Sweep parameters: bifurcation diagrams, run-up/run-down, 2-D maps, basins."""
+    case = load_or_exit(case_file)
+    cfg = case.settings.sweep
+    if cfg is None:
+        console.error(f"{case_file}: sweep: missing table [sweep] (see docs/sweeps.md)")
+        raise typer.Exit(EXIT_INVALID)
+    from rubcli import sweeps
+    from rubcli.analysis import sweep as engine
+
+    target = out if out is not None else case.output_dir / "sweep"
+    output = prepare_output(target, force)  # before any work: exit 2 if unusable
+    plan = sweeps.plan_from_case(case, quick)
+    address = scheduler if scheduler is not None else cfg.scheduler
+    client = cluster = None
+    if address is not None:
+        try:
+            if address == LOCAL_SCHEDULER:
+                client, cluster = _local_cluster(workers)
+            else:
+                client = engine.connect(address, timeout=cfg.scheduler_timeout_s)
+        except engine.SchedulerError as exc:
+            field = "--scheduler" if scheduler is not None else "sweep.scheduler"
+            console.error(f"{case_file}: {field}: {exc}")
+            raise typer.Exit(EXIT_INVALID) from None
+
+    with console.machine_readable(json):
+        _sweep(case_file, case, plan, target, output, client, cluster, workers, scheduler, out,
+               quick, json)  # fmt: skip
+
+
+def _sweep(case_file, case, plan, target, output, client, cluster, workers, scheduler, out,
+           quick, json) -> None:  # fmt: skip
+    """The sweep itself, once its inputs, output dir and executor are checked."""
+    from rubcli import sweeps
+    from rubcli.analysis import sweep as engine
+    from rubcli.analysis.sweep.dataset import build_dataset, csv_text, write_netcdf
+
+    store_dir = store_dir_for(target, plan.digest())
+    console.info(
+        f"{case.name}: sweep of {', '.join(a.parameter for a in plan.axes)} "
+        f"({plan.n_points} points, {plan.direction}, {plan.transient_periods} + "
+        f"{plan.record_periods} periods each, {plan.method})" + (" (quick)" if quick else "")
+    )
+    started = time.perf_counter()
+    try:
+        with console.count_bar("sweep points", total=plan.n_points) as bar:
+            results, stats, where = engine.execute(
+                plan,
+                workers=workers,
+                client=client,
+                store_dir=store_dir,
+                progress=lambda done, total: bar(done),
+            )
+    except (KeyboardInterrupt, io.Terminated) as exc:
+        kept = len(list(store_dir.glob("*.point"))) if store_dir.is_dir() else 0
+        console.error(
+            f"interrupted: {kept} of {plan.n_points} points are kept in {store_dir}; "
+            "run the same command again to compute only the others"
+        )
+        code = exc.exit_code if isinstance(exc, io.Terminated) else EXIT_INTERRUPTED
+        raise typer.Exit(code) from None
+    finally:
+        if client is not None:
+            client.close()
+        if cluster is not None:
+            cluster.close()
+    wall = time.perf_counter() - started
+    ds = build_dataset(plan, results, sweeps.case_attrs(case))
+
+    from rubcli.plotting import sweep as plots
+
+    title = _title(case, plan)
+    files: list[str] = []
+    with io.staged_output_dir(target, output) as staged:
+        write_netcdf(ds, staged.path("sweep.nc"))
+        io.write_text(staged.path("sweep.csv"), csv_text(ds, plan))
+        files += ["sweep.nc", "sweep.csv"]
+        figures = []
+        if plan.is_basin:
+            figures.append(("basins.png", plots.basins_figure))
+        elif len(plan.axes) == 1:
+            figures += [("bifurcation.png", plots.bifurcation_figure),
+                        ("summary.png", plots.summary_figure)]  # fmt: skip
+            if plan.spectrum:
+                figures.append(("cascade.png", plots.cascade_figure))
+        else:
+            figures.append(("map.png", plots.map_figure))
+        for name, make in figures:
+            io.save_figure(make(ds, title), staged.path(name))
+            files.append(name)
+        files.append("report.json")
+        n_failed = int((ds["status"].values != 0).sum())
+        computed_s = sum(r.wall_time_s for r in results.values())
+        command_line = {"case_file": str(case_file), "out": str(out) if out else None,
+                        "workers": workers, "scheduler": scheduler, "quick": quick}  # fmt: skip
+        report = {
+            **io.report_envelope("sweep", command_line, case.to_dict()),
+            "plan": plan.to_dict(),
+            "plan_digest": plan.digest(),
+            "executor": where,
+            "points": plan.n_points,
+            "points_computed_this_run": stats.computed,
+            "points_resumed": stats.resumed,
+            "points_retried": stats.retried,
+            "points_failed": n_failed,
+            "failed": _failures(ds),
+            "class_counts": _class_counts(ds),
+            "compute_time_s": computed_s,
+            "wall_time_s": wall,
+            "files": files,
+        }
+        io.write_json(staged.path("report.json"), report)
+    engine.PointStore(store_dir, plan.digest()).remove()
+    report_stale(output)
+    emit(report, json)
+    console.info(
+        f"{plan.n_points} points on {where} in {wall:.1f} s "
+        f"({stats.computed} computed, {stats.resumed} resumed, {n_failed} failed)"
+    )
+    for counts in _class_counts(ds).items():
+        console.info(f"  {counts[0]}: {counts[1]}")
+    console.info(f"wrote {len(files)} files to {target}: {', '.join(files)}")
+
+
+def _local_cluster(workers: int | None):
+    """A local Dask cluster of processes on loopback (for trying the Dask path)."""
+    from rubcli.analysis import sweep as engine
+
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise engine.SchedulerError('Dask is not installed: pip install -e ".[dask]"') from None
+    n = workers or engine.default_workers()
+    cluster = LocalCluster(
+        n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+        dashboard_address=None,
+    )  # fmt: skip
+    return Client(cluster, set_as_default=False), cluster
+
+
+def _title(case, plan) -> str:
+    p = case.params
+    swept = {a.parameter for a in plan.axes}
+    fixed = ", ".join(f"{k}={v:g}" for k, v in p.as_dict().items() if k not in swept)
+    axes = " and ".join(a.parameter for a in plan.axes)
+    return (
+        f"{case.name}: sweep of {axes} ({plan.direction}; {plan.transient_periods} transient + "
+        f"{plan.record_periods} recorded periods per point)\n{fixed}"
+    )
+
+
+def _failures(ds) -> list[dict]:
+    out = []
+    status = ds["status"]
+    dims = status.dims
+    for index in zip(*(status.values != 0).nonzero(), strict=True):
+        at = {d: ds[d].values[i].item() for d, i in zip(dims, index, strict=True)}
+        at["message"] = str(ds["message"].values[index])
+        out.append(at)
+    return out
+
+
+def _class_counts(ds) -> dict[str, int]:
+    from rubcli.analysis.sweep.point import RESPONSE_CLASSES
+
+    ok = ds["status"].values == 0
+    codes = ds["response_class"].values[ok].astype(int)
+    counts = {name: int((codes == i).sum()) for i, name in enumerate(RESPONSE_CLASSES)}
+    counts["failed"] = int((~ok).sum())
+    return {k: v for k, v in counts.items() if v}

@@ -1,0 +1,409 @@
+"""`rubcli sweep` and `rubcli.sweep`: numbers against exact solutions, executors that agree
+bit for bit, resumption after a kill, and bad sweep tables (issue 11, docs/sweeps.md).
+
+The sweeps here are tiny (a few points, a few dozen forcing periods each)."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+import rubcli
+from rubcli import model
+from rubcli.analysis.sweep import Axis, SweepPlan, execute
+from rubcli.analysis.sweep.dataset import build_dataset, csv_text
+from rubcli.analysis.sweep.point import RESPONSE_CLASSES
+from rubcli.case import load_case
+from rubcli.cli.app import app
+from rubcli.sweeps import plan_from_case
+
+REPO = Path(__file__).resolve().parents[1]
+SWEEP_CASES = sorted(
+    p for p in (REPO / "cases").rglob("*.toml") if load_case(p).settings.sweep is not None
+)
+
+FREE_CASE = """
+[case]
+name = "free"
+[model]
+nu = 0.1
+eta = 1.0
+e = 0.05
+K = 10.0
+mu = 0.1
+Rp = 2.0
+[initial]
+x = 0.0
+y = 0.0
+[time]
+periods = 10
+samples_per_period = 32
+[solver]
+rtol = 1e-10
+atol = 1e-12
+[sweep]
+parameter = "eta"
+values = [0.5, 0.8, 1.0, 1.3, 2.0]
+transient_periods = 80
+record_periods = 8
+"""
+
+
+def _write(tmp_path: Path, text: str, name: str = "case.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_a_rotor_that_never_touches_follows_the_linear_response(tmp_path):
+    """r = e eta^2 / |1 - eta^2 + 2 i nu eta| at every point (notes, free steady state)."""
+    ds = rubcli.sweep(_write(tmp_path, FREE_CASE), workers=1)
+    eta = ds["eta"].values
+    assert eta.tolist() == [0.5, 0.8, 1.0, 1.3, 2.0]
+    r = 0.05 * eta**2 / np.abs(1.0 - eta**2 + 2j * 0.1 * eta)
+    assert r.max() < 0.26  # never near the clearance
+    d = ds.sel(direction="independent")
+    assert (d["status"].values == 0).all()
+    # transient >= 80 periods: the free decay exp(-nu tau) is below 1e-13 of e
+    np.testing.assert_allclose(d["section_z"].values, r[:, None] * np.ones(8), rtol=1e-8)
+    np.testing.assert_allclose(d["z_max"].values, r, rtol=1e-8)
+    np.testing.assert_allclose(d["z_min"].values, r, rtol=1e-8)
+    # forward synchronous whirl (1X) of that radius, never in contact
+    np.testing.assert_allclose(d["whirl_order"].values, 1.0, atol=1e-9)
+    np.testing.assert_allclose(d["whirl_amplitude"].values, r, rtol=1e-6)
+    assert (d["whirl_direction"].values == 1).all()
+    assert (d["contact_fraction"].values == 0).all()
+    assert (d["n_contact_switches"].values == 0).all()
+    assert [RESPONSE_CLASSES[int(c)] for c in d["response_class"].values] == ["periodic"] * 5
+    assert (d["response_period"].values == 1).all()
+    assert (d["energy_residual"].values < 1e-6).all()
+    # the phase too: the steady state is w = A exp(i (eta tau + phi0)) at tau = k T
+    amp = 0.05 * eta**2 / (1.0 - eta**2 + 2j * 0.1 * eta)
+    np.testing.assert_allclose(d["section_x"].values[:, -1], amp.real, atol=1e-9)
+    np.testing.assert_allclose(d["section_y"].values[:, -1], amp.imag, atol=1e-9)
+
+
+def test_full_annular_rub_sits_on_the_closed_form_radius(fig3_params):
+    """mu = 0, the paper's machine swept in e by continuation: every point in permanent
+    contact lies on the synchronous rub radius (the quadratic of notes section 5)."""
+    values = (7.48, 7.5, 7.52, 7.54, 7.56)
+    base = fig3_params(mu=0.0)
+    import dataclasses
+
+    first = dataclasses.replace(base, e=values[0])
+    (r0,) = model.synchronous_rub_radii(first)
+    start = model.synchronous_rub(np.array([0.0]), first, r0)[:, 0]
+    plan = SweepPlan(
+        base, tuple(start), (Axis("e", values),), direction="up", transient_periods=150,
+        record_periods=8, samples_per_period=32, options={"rtol": 1e-10, "atol": 1e-12},
+        energy=False,
+    )  # fmt: skip
+    results, stats, _ = execute(plan, workers=1)
+    assert stats.computed == 5
+    ds = build_dataset(plan, results)
+    d = ds.sel(direction="up")
+    assert (d["contact_fraction"].values == 1.0).all()  # the test is about these points
+    for i, e in enumerate(values):
+        radii = model.synchronous_rub_radii(dataclasses.replace(base, e=e))
+        assert len(radii) == 1
+        np.testing.assert_allclose(d["section_z"].values[i], radii[0], rtol=1e-8)
+    assert (d["whirl_direction"].values == 1).all()
+    np.testing.assert_allclose(d["whirl_order"].values, 1.0, atol=1e-9)
+
+
+def _small_plan(fig3_params) -> SweepPlan:
+    return SweepPlan(
+        fig3_params(mu=0.0), (0.88544, -0.8039, 0.0, 0.0),
+        (Axis("mu", (0.0, 0.02, 0.04)),), direction="both", transient_periods=10,
+        record_periods=8, samples_per_period=16, options={"rtol": 1e-8, "atol": 1e-10},
+        spectrum=True,
+    )  # fmt: skip
+
+
+def test_results_do_not_depend_on_the_executor(fig3_params):
+    """1 worker, 2 local processes, a real 2-worker Dask LocalCluster (processes, loopback)
+    and points batched into tasks: identical numbers."""
+    distributed = pytest.importorskip("distributed")
+    plan = _small_plan(fig3_params)
+    one, _, where1 = execute(plan, workers=1)
+    two, _, where2 = execute(plan, workers=2)
+    assert where1 == "this process (1 worker)" and where2 == "process pool (2 workers)"
+    with (
+        distributed.LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+            dashboard_address=None,
+        ) as cluster,
+        distributed.Client(cluster, set_as_default=False) as client,
+    ):  # fmt: skip
+        dask, _, where3 = execute(plan, client=client)
+    assert where3.startswith("dask (2 workers")
+    from rubcli.analysis.sweep.engine import InProcessExecutor, run_plan
+
+    batched, _ = run_plan(plan, InProcessExecutor(), batch=4)  # 4 points per task
+    reference = build_dataset(plan, one)
+    assert (reference["status"].values == 0).all()
+    assert reference["contact_fraction"].values.max() > 0.5  # there is rubbing to get right
+    for other in (two, dask, batched):
+        ds = build_dataset(plan, other)
+        assert ds.identical(reference)
+        assert csv_text(ds, plan) == csv_text(reference, plan)
+        for key, result in other.items():
+            assert result.final_state == one[key].final_state
+
+
+_DIE_MARKER = None
+
+
+def _die_once(tasks):
+    """A worker function that kills its process the first time (a lost worker)."""
+    from rubcli.analysis.sweep.point import compute_points
+
+    marker = Path(_DIE_MARKER)
+    if not marker.exists():
+        marker.write_text("died")
+        os._exit(1)
+    return compute_points(tasks)
+
+
+def test_a_lost_pool_worker_is_replaced_and_its_point_retried(fig3_params, tmp_path, monkeypatch):
+    """A worker process that dies breaks the pool: a new pool runs the lost points again,
+    and the results equal an in-process run."""
+    import multiprocessing
+
+    if multiprocessing.get_start_method() != "fork":
+        pytest.skip("the patched worker function reaches the workers only by fork")
+    from rubcli.analysis.sweep import engine
+
+    plan = _small_plan(fig3_params)
+    reference, _, _ = execute(plan, workers=1)
+    global _DIE_MARKER
+    _DIE_MARKER = str(tmp_path / "died")
+    monkeypatch.setattr(engine, "compute_points", _die_once)
+    results, stats, where = execute(plan, workers=2)
+    assert (tmp_path / "died").exists()
+    assert where == "process pool (2 workers)"
+    assert stats.pool_restarts >= 1 and stats.retried >= 1
+    assert stats.computed == plan.n_points == 6
+    for key, result in reference.items():
+        assert results[key].ok
+        assert results[key].final_state == result.final_state
+        np.testing.assert_equal(results[key].scalars, result.scalars)  # NaN == NaN here
+
+
+def test_a_failed_point_is_recorded_and_the_chain_goes_on(fig3_params):
+    """A step budget that eta = 0.7818 (about 500 steps in 8 periods, rubbing) cannot meet
+    fails that point, not the sweep; eta = 3 (about 130 steps, free) then starts again
+    from [initial]."""
+    plan = SweepPlan(
+        fig3_params(mu=0.0), (0.88544, -0.8039, 0.0, 0.0), (Axis("eta", (0.7818, 3.0)),),
+        direction="up", transient_periods=0, record_periods=8, samples_per_period=16,
+        options={"rtol": 1e-8, "atol": 1e-10, "max_steps": 300}, energy=False,
+    )  # fmt: skip
+    results, stats, _ = execute(plan, workers=1)
+    assert stats.computed == 2
+    ds = build_dataset(plan, results)
+    d = ds.sel(direction="up")
+    assert d["eta"].values.tolist() == [0.7818, 3.0]
+    assert d["status"].values.tolist() == [1, 0]
+    message = str(d["message"].values[0])
+    assert message.startswith("record:") and "300" in message
+    assert math.isnan(float(d["z_max"].values[0]))
+    assert np.isnan(d["section_z"].values[0]).all()
+    # the next point ran from the case's initial state: the same as a fresh run of it
+    alone = SweepPlan(
+        fig3_params(mu=0.0), (0.88544, -0.8039, 0.0, 0.0), (Axis("eta", (3.0,)),),
+        direction="up", transient_periods=0, record_periods=8, samples_per_period=16,
+        options={"rtol": 1e-8, "atol": 1e-10, "max_steps": 300}, energy=False,
+    )  # fmt: skip
+    fresh, _, _ = execute(alone, workers=1)
+    assert results["up-1"].final_state == fresh["up-0"].final_state
+
+
+RESUME_CASE = """
+[case]
+name = "resume"
+[model]
+nu = 0.009478
+eta = 0.7818
+e = 7.52
+K = 17.6
+mu = 0.0
+Rp = 46.16
+[initial]
+x = 0.88544
+y = -0.8039
+[time]
+periods = 10
+samples_per_period = 16
+[solver]
+rtol = 1e-8
+atol = 1e-10
+[sweep]
+parameter = "mu"
+start = 0.0
+stop = 0.05
+num = 7
+direction = "both"
+transient_periods = 40
+record_periods = 16
+"""
+
+
+def _run_cli(args: list[str]) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, "-m", "rubcli", *args],
+        cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+
+
+def test_a_killed_sweep_resumes_to_the_same_files(tmp_path):
+    """SIGKILL part way, run again: only the missing points are computed, and the files
+    are identical to an uninterrupted run's."""
+    case = _write(tmp_path, RESUME_CASE)
+    plan = plan_from_case(load_case(case))
+    total = plan.n_points
+    out = tmp_path / "killed"
+    store = out.parent / f".{out.name}.sweep-{plan.digest()}"
+    proc = _run_cli(["sweep", str(case), "--out", str(out), "--workers", "1"])
+    deadline = time.monotonic() + 300
+    while len(list(store.glob("*.point"))) < 3:
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert not out.exists()  # nothing appears before the sweep is complete
+    stored = len(list(store.glob("*.point")))
+    assert 3 <= stored < total
+
+    result = CliRunner().invoke(app, ["sweep", str(case), "--out", str(out), "--workers", "2"])
+    assert result.exit_code == 0, result.output
+    report = json.loads((out / "report.json").read_text())
+    assert report["points_resumed"] == stored
+    assert report["points_computed_this_run"] == total - stored
+    assert not store.exists()  # the store is removed once the outputs are in place
+
+    fresh = tmp_path / "fresh"
+    result = CliRunner().invoke(app, ["sweep", str(case), "--out", str(fresh), "--workers", "1"])
+    assert result.exit_code == 0, result.output
+    assert json.loads((fresh / "report.json").read_text())["points_resumed"] == 0
+    assert (out / "sweep.csv").read_bytes() == (fresh / "sweep.csv").read_bytes()
+    import xarray as xr
+
+    with (
+        xr.open_dataset(out / "sweep.nc", engine="h5netcdf") as a,
+        xr.open_dataset(fresh / "sweep.nc", engine="h5netcdf") as b,
+    ):
+        assert a.identical(b)
+        assert int(a.sizes["mu"]) == 7 and int(a.sizes["section"]) == 16
+
+
+BAD_TABLES = [
+    ('parameter = "omega"\nvalues = [1.0]', "sweep.parameter", "Input should be"),
+    ('parameter = "mu"\nvalues = []', "sweep.values", "at least 1 item"),
+    ('parameter = "mu"\nvalues = [0.1, nan]', "sweep.values[1]", "finite"),
+    ('parameter = "mu"\nstart = 0.0\nstop = 0.1', "sweep", "start, stop and num"),
+    ('parameter = "eta"\nvalues = [0.0, 1.0]', "sweep", "eta must be > 0"),
+    (
+        'direction = "independent"\n[[sweep.axes]]\nparameter = "mu"\nvalues = [0.0]\n'
+        '[[sweep.axes]]\nparameter = "x"\nvalues = [0.5]',
+        "sweep",
+        "mixes a model parameter and an initial-state axis",
+    ),
+    ('parameter = "x"\nvalues = [0.5]\ndirection = "up"', "sweep", "must be 'independent'"),
+    (
+        'parameter = "mu"\nstart = 0.0\nstop = 0.1\nnum = 600\ndirection = "both"\n'
+        "max_points = 1000",
+        "sweep",
+        "1200 points",
+    ),
+    ('parameter = "mu"\nvalues = [0.1]\nsteps = 3', "sweep.steps", "unknown key"),
+]
+
+
+@pytest.mark.parametrize("table,field,problem", BAD_TABLES, ids=[b[2] for b in BAD_TABLES])
+def test_bad_sweep_tables_exit_2_and_write_nothing(tmp_path, table, field, problem):
+    text = FREE_CASE.split("[sweep]")[0] + "[sweep]\n" + table + "\n"
+    case = _write(tmp_path, text)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(app, ["sweep", str(case), "--out", str(out)])
+    assert result.exit_code == 2
+    assert f"{case}: {field}: " in result.output
+    assert problem in result.output
+    assert "Traceback" not in result.output
+    assert not out.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["case.toml"]
+
+
+def test_a_case_without_sweep_table_exits_2(tmp_path):
+    case = _write(tmp_path, FREE_CASE.split("[sweep]")[0])
+    result = CliRunner().invoke(app, ["sweep", str(case), "--out", str(tmp_path / "out")])
+    assert result.exit_code == 2
+    assert "missing table [sweep]" in result.output
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_unreachable_scheduler_is_a_clear_error_in_bounded_time(tmp_path):
+    text = FREE_CASE + "scheduler_timeout_s = 1.0\n"
+    case = _write(tmp_path, text)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(
+        app, ["sweep", str(case), "--out", str(out), "--scheduler", "tcp://127.0.0.1:9"]
+    )
+    assert result.exit_code == 2
+    assert f"{case}: --scheduler: cannot reach the Dask scheduler" in result.output
+    assert "within 1 s" in result.output
+    assert "Traceback" not in result.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["case.toml"]
+
+
+def test_plan_chains_and_quick_mode():
+    """Chains: one per direction (1-D), one per row (2-D), one per point (independent)."""
+    case = load_case(REPO / "cases" / "examples" / "mu-eta-map.toml")
+    plan = plan_from_case(case)
+    chains = plan.chains()
+    assert len(chains) == 16 and all(len(c.points) == 36 for c in chains)
+    assert chains[0].points[0].start is not None and chains[0].points[1].start is None
+    quick = plan_from_case(case, quick=True)
+    assert quick.shape == (5, 5)
+    assert quick.axes[0].values == (0.5, 1.4, 2.3, 3.1, 4.0)  # 36 values: indices 0 9 18 26 35
+    assert (quick.transient_periods, quick.record_periods) == (20, 16)
+    basins = plan_from_case(load_case(REPO / "cases" / "examples" / "basins.toml"))
+    assert len(basins.chains()) == 31 * 31
+    point = basins.point("independent", (0, 30))
+    assert point.start == (-1.5, 1.5, 0.0, 0.0)
+
+
+@pytest.mark.parametrize("path", SWEEP_CASES, ids=lambda p: p.name)
+def test_shipped_sweep_cases_run_quick(path, tmp_path):
+    """Every case with a [sweep] table runs `rubcli sweep --quick` and writes its files."""
+    out = tmp_path / "out"
+    args = ["sweep", str(path), "--out", str(out), "--workers", "1", "--quick"]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 0, result.output
+    plan = plan_from_case(load_case(path), quick=True)
+    expected = {"sweep.nc", "sweep.csv", "report.json"}
+    if plan.is_basin:
+        expected.add("basins.png")
+    elif len(plan.axes) == 2:
+        expected.add("map.png")
+    else:
+        expected |= {"bifurcation.png", "summary.png"}
+        if plan.spectrum:
+            expected.add("cascade.png")
+    assert {p.name for p in out.iterdir()} == expected
+    report = json.loads((out / "report.json").read_text())
+    assert report["points"] == plan.n_points == report["points_computed_this_run"]
+    assert report["points_failed"] == 0
+    lines = (out / "sweep.csv").read_text().splitlines()
+    assert len(lines) == 1 + plan.n_points
