@@ -129,13 +129,9 @@ class Dop853Stepper:
         stats["nfev"] += nfev
         # segments the kernel started (with a full buffer the last one starts here)
         stats["n_segments"] += n_ev - (reason == kernels.STOP_FULL)
-        for i in range(n_ev):  # the events the kernel located and applied
-            t_ev, run.last_kind = float(self.ev_tau[i]), int(self.ev_kind[i])
-            before, after = int(self.ev_regimes[i, 0]), int(self.ev_regimes[i, 1])
-            state_i = tuple(map(float, self.ev_state[i]))
-            if not run.record(SwitchEvent(t_ev, KIND_NAMES[run.last_kind], state_i, before, after)):
-                run.k = int(np.searchsorted(run.t_eval, t_ev, side="right"))
-                return
+        events = (self.ev_tau, self.ev_kind, self.ev_state, self.ev_regimes)
+        if not record_kernel_events(run, n_ev, *events):
+            return
         if reason == kernels.STOP_SMALL_STEP:
             run.fail(
                 f"dop853-jit failed at tau = {tau:.6g}: "
@@ -150,27 +146,45 @@ class Dop853Stepper:
 
     def _python_event_step(self, run: driver.Run, t_new: float) -> None:
         """The pending step [tau, t_new]: the shared event code decides."""
-        run.stats["nsteps"] += 1
-        run.stats["python_steps"] += 1
-        tau = run.tau
-        dense = Dop853Dense(tau, t_new, run.state, self.F)
-        grid = np.linspace(tau, t_new, SCAN_POINTS + 1)
-        derivatives = _rhs_functions(run.params, run.regime, True)[2]
-        event = earliest_event(
-            dense, derivatives, grid, run.regime, run.params,
-            run.last_kind if self.at_event else NO_EVENT, self.restart_band,
-        )  # fmt: skip
-        t_stop = event[0] if event else t_new
-        run.k = fill_samples(
-            dense, run.t_eval, run.k, t_stop, run.regime, run.params, run.states, run.regimes
-        )
+        dense = Dop853Dense(run.tau, t_new, run.state, self.F)
+        last_kind = run.last_kind if self.at_event else NO_EVENT
+        event = locate_in_python(run, dense, t_new, SCAN_POINTS, last_kind, self.restart_band)
         if event is None:
             run.tau, self.at_event = t_new, False
             run.state[:], self.f[:] = self.y_new, self.f_new
-        else:
-            t_ev = event[0]
-            if run.switch(t_ev, event[1], dense(t_ev)):
-                self.at_event, self.new_segment = True, True
+        elif run.switch(event[0], event[1], dense(event[0])):
+            self.at_event, self.new_segment = True, True
+
+
+def record_kernel_events(run: driver.Run, n: int, taus, kinds, states, regimes) -> bool:
+    """Record the ``n`` events a compiled loop located and applied itself (its event
+    buffers); False on a switch storm, with the samples past the storm dropped."""
+    for i in range(n):
+        run.last_kind = int(kinds[i])
+        before, after = int(regimes[i, 0]), int(regimes[i, 1])
+        state = tuple(map(float, states[i]))
+        t_ev = float(taus[i])
+        if not run.record(SwitchEvent(t_ev, KIND_NAMES[run.last_kind], state, before, after)):
+            run.k = int(np.searchsorted(run.t_eval, t_ev, side="right"))
+            return False
+    return True
+
+
+def locate_in_python(run: driver.Run, dense, t_new: float, intervals: int, last_kind, band):
+    """A compiled loop's pending step [run.tau, t_new] with its dense output ``dense``:
+    the Python event code (``events.earliest_event`` on ``intervals`` scan intervals)
+    finds its earliest event, and its samples up to that event (or t_new) are filled.
+    Returns the event ``(tau, kind)`` or None; the caller moves the run on."""
+    run.stats["nsteps"] += 1
+    run.stats["python_steps"] += 1
+    grid = np.linspace(run.tau, t_new, intervals + 1)
+    derivatives = _rhs_functions(run.params, run.regime, True)[2]
+    event = earliest_event(dense, derivatives, grid, run.regime, run.params, last_kind, band)
+    t_stop = event[0] if event else t_new
+    run.k = fill_samples(
+        dense, run.t_eval, run.k, t_stop, run.regime, run.params, run.states, run.regimes
+    )
+    return event
 
 
 def solve_dop853_jit(

@@ -30,13 +30,13 @@ import numpy as np
 
 from rubcli import model
 from rubcli.problem import Problem
-from rubcli.solution import Solution, SwitchEvent
+from rubcli.solution import Solution
 from rubcli.solvers import compiled as kernels
 from rubcli.solvers import driver, register
 from rubcli.solvers.compiled import taylor as taylor_kernels
-from rubcli.solvers.dop853_jit import EVENT_BUFFER
-from rubcli.solvers.events import KIND_NAMES, NO_EVENT, earliest_event, start_flags
-from rubcli.solvers.scipy_ivp import RESTART_BAND_FLOOR, _rhs_functions, fill_samples
+from rubcli.solvers.dop853_jit import EVENT_BUFFER, locate_in_python, record_kernel_events
+from rubcli.solvers.events import NO_EVENT, start_flags
+from rubcli.solvers.scipy_ivp import RESTART_BAND_FLOOR
 
 CHUNK_STEPS = 2000  # steps per kernel call: budget and progress checks between
 
@@ -114,15 +114,9 @@ class TaylorStepper:
         stats["nsteps"] += steps
         stats["nfev"] = stats["nsteps"]  # one series expansion per step
         stats["n_segments"] += n_ev
-        taus, kinds = self.ev_tau[:n_ev].tolist(), self.ev_kind[:n_ev].tolist()
-        ev_states, ev_regs = self.ev_state[:n_ev].tolist(), self.ev_regimes[:n_ev].tolist()
-        for i in range(n_ev):  # the events the kernel located and applied
-            run.last_kind = kinds[i]
-            before, after = ev_regs[i]
-            event = SwitchEvent(taus[i], KIND_NAMES[kinds[i]], tuple(ev_states[i]), before, after)
-            if not run.record(event):
-                run.k = int(np.searchsorted(run.t_eval, taus[i], side="right"))
-                return
+        events = (self.ev_tau, self.ev_kind, self.ev_state, self.ev_regimes)
+        if not record_kernel_events(run, n_ev, *events):
+            return
         if reason == kernels.STOP_SMALL_STEP:
             run.fail(f"taylor failed at tau = {tau:.6g}: the step fell below 10 ulp of tau")
         elif reason == kernels.STOP_PYTHON:
@@ -132,21 +126,11 @@ class TaylorStepper:
 
     def _python_event_step(self, run: driver.Run, t_new: float) -> None:
         """The pending step [tau, t_new]: the shared event code decides."""
-        run.stats["nsteps"] += 1
+        dense = TaylorDense(run.tau, self.C, self.order)
+        last_kind = run.last_kind if self.at_event else NO_EVENT
+        intervals = int(self.info[0])
+        event = locate_in_python(run, dense, t_new, intervals, last_kind, self.restart_band)
         run.stats["nfev"] = run.stats["nsteps"]
-        run.stats["python_steps"] += 1
-        tau = run.tau
-        dense = TaylorDense(tau, self.C, self.order)
-        grid = np.linspace(tau, t_new, int(self.info[0]) + 1)
-        derivatives = _rhs_functions(run.params, run.regime, True)[2]
-        event = earliest_event(
-            dense, derivatives, grid, run.regime, run.params,
-            run.last_kind if self.at_event else NO_EVENT, self.restart_band,
-        )  # fmt: skip
-        t_stop = event[0] if event else t_new
-        run.k = fill_samples(
-            dense, run.t_eval, run.k, t_stop, run.regime, run.params, run.states, run.regimes
-        )
         if event is None:
             run.tau, self.at_event = t_new, False
             run.state[:] = dense(t_new)
