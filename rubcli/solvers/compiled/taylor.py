@@ -60,7 +60,6 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from rubcli.model import rolling_velocity
@@ -71,6 +70,8 @@ from rubcli.solvers.compiled.jit import (
     STOP_LIMIT,
     STOP_PYTHON,
     STOP_SMALL_STEP,
+    jit,
+    jit_fast,
 )
 from rubcli.solvers.compiled.rhs import _rhs_into
 from rubcli.solvers.compiled.roots import (
@@ -98,12 +99,11 @@ from rubcli.solvers.events import (
     start_flags,
 )
 
-jit = numba.njit(cache=True)
-# The series and the pre-check bound may be reassociated (their sums are latency-bound
-# chains otherwise: 3-4x slower). They are computed here only, never again in Python,
-# so the compiled and the Python event paths still see the same coefficients; the
-# dense output and the event functions, which both paths evaluate, are not reassociated.
-fast = numba.njit(cache=True, fastmath={"reassoc", "contract", "nsz", "arcp"})
+# ``jit_fast`` (compiled/jit.py) for the series and the pre-check bound only: they are
+# computed here only, never again in Python, so the compiled and the Python event paths
+# still see the same coefficients; the dense output and the event functions, which both
+# paths evaluate, use plain ``jit``.
+fast = jit_fast
 
 MAX_ORDER = 30
 MIN_ORDER = 4
