@@ -47,6 +47,7 @@ from rubcli.problem import Problem
 from rubcli.solution import Solution
 from rubcli.solvers import compiled as kernels
 from rubcli.solvers import control, driver, register
+from rubcli.solvers.compiled import piecewise
 from rubcli.solvers.events import (
     MAX_SCAN_POINTS,
     NO_EVENT,
@@ -215,39 +216,39 @@ class StickStep:
 
     The paper has no stick regime; rolling phases (notes section 4) are integrated
     with RK4 on ``model.rhs(..., STICK)`` at the method's step (local error O(h^5)).
+    The arithmetic is ``compiled/piecewise.py``'s (``stick_prepare``, ``stick_at``,
+    ``stick_sample``: plain functions registered with numba), run here as Python, so
+    the compiled loop takes the same steps bitwise.
     """
 
     def __init__(self, tau0: float, s0: np.ndarray, h: float, params: model.ModelParams):
         self.tau0, self.h, self.params = tau0, h, params
-        f = self._f
-        s0 = np.asarray(s0, dtype=float)
-        k1 = f(tau0, s0)
-        k2 = f(tau0 + h / 2, s0 + h / 2 * k1)
-        k3 = f(tau0 + h / 2, s0 + h / 2 * k2)
-        k4 = f(tau0 + h, s0 + h * k3)
-        self.s0, self.s1 = s0, s0 + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        self.f0, self.f1 = k1, f(tau0 + h, self.s1)
-        self.omega_max = max(params.eta, 1.0, math.sqrt(1.0 + params.K))
-
-    def _f(self, t, s):
-        return model.rhs(t, s, self.params, model.STICK)
+        self.pars = model.params_vector(params)
+        self.st, self.meta = np.empty((4, 4)), np.empty(2)
+        piecewise.stick_prepare(
+            float(tau0), np.asarray(s0, dtype=float), float(h), self.pars, self.st, self.meta
+        )
+        self.s0, self.s1, self.f0, self.f1 = self.st
+        self.omega_max = piecewise.stick_omega_max(self.pars)
 
     def states(self, t):
-        u = (np.asarray(t, dtype=float) - self.tau0) / self.h
-        h00, h10 = 2 * u**3 - 3 * u**2 + 1, u**3 - 2 * u**2 + u
-        h01, h11 = -2 * u**3 + 3 * u**2, u**3 - u**2
-        if np.ndim(u) == 0:
-            return h00 * self.s0 + h10 * self.h * self.f0 + h01 * self.s1 + h11 * self.h * self.f1
-        return (
-            np.outer(self.s0, h00)
-            + np.outer(self.h * self.f0, h10)
-            + np.outer(self.s1, h01)
-            + np.outer(self.h * self.f1, h11)
-        )
+        t = np.asarray(t, dtype=float)
+        if t.ndim == 0:
+            out = np.empty(4)
+            piecewise.stick_at(float(t), self.st, self.meta, out)
+            return out
+        out = np.empty((4, t.size))
+        row = np.empty(4)
+        for i, ti in enumerate(t.tolist()):
+            piecewise.stick_sample(ti, self.st, self.meta, row)
+            out[:, i] = row
+        return out
 
     def derivatives(self, t, S):
         t = np.broadcast_to(np.asarray(t, dtype=float), (S.shape[1],))
-        return np.array([self._f(t[j], S[:, j]) for j in range(S.shape[1])]).T
+        return np.array(
+            [model.rhs(t[j], S[:, j], self.params, model.STICK) for j in range(S.shape[1])]
+        ).T
 
 
 class _UnresolvedError(Exception):

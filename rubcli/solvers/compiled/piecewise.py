@@ -1,0 +1,188 @@
+"""The analytic methods' free flight and stick propagators, compiled, with their ``ev``
+functions for the event search (``events.locate``).
+
+- Free flight: the closed form of ``model.free_flight`` (eq. 7-8 with the corrections),
+  written on scalars: ``_free_prepare`` stores the homogeneous part's start (tau0, w0 -
+  w_p(tau0), v0 - v_p(tau0)) in a 5-array, ``_free_at`` evaluates the state at any tau.
+- Stick: one classical RK4 step of the rolling law (``model.rhs_entries`` in
+  ``STICK``) with cubic Hermite dense output: ``stick_prepare`` stores (s0, s1, f0,
+  f1) and (tau0, h); ``stick_at`` evaluates the cubic at an event-search time,
+  ``stick_sample`` at an output sample (the terms summed in the order of the former
+  numpy expression of the samples; the two agree to round-off). These are the one
+  definition of the stick step: plain functions registered with ``register_jitable``,
+  which ``analytic.StickStep`` (the Python path) calls as Python and the loop calls
+  compiled, so the two paths are the same arithmetic, bitwise.
+- The contact steps' ``ev`` (``_contact_ev``) wraps ``propagators._evaluate``.
+
+Every ``ev(t, deriv, ctx, row, drow)`` fills ``row`` with the state at ``t`` and, when
+``deriv``, ``drow`` with its time derivative (what the Python propagators'
+``derivatives`` return).
+"""
+
+from __future__ import annotations
+
+import cmath
+import math
+
+from numba.extending import register_jitable
+
+from rubcli.model import STICK, rhs_entries
+from rubcli.solvers.compiled.jit import jit
+from rubcli.solvers.compiled.propagators import _evaluate
+
+
+@jit
+def _free_steady(tau, nu, eta, E, phi0):
+    """``model.free_steady_state`` at a scalar tau: (w_p, v_p)."""
+    denom = complex(1.0 - eta**2, 2.0 * nu * eta)
+    rot = cmath.exp(1j * (eta * tau + phi0))
+    if denom == 0.0:  # undamped exact resonance: the secular particular solution
+        w = E / 2j * tau * rot
+        return w, E / 2j * rot * (1.0 + 1j * tau)
+    w = E / denom * rot
+    return w, 1j * eta * w
+
+
+@jit
+def _damped_basis(dt, nu):
+    """``model._damped_basis`` at a scalar dt: (C, S)."""
+    beta2 = 1.0 - nu * nu
+    if beta2 > 0.0:
+        beta = math.sqrt(beta2)
+        return math.cos(beta * dt), math.sin(beta * dt) / beta
+    if beta2 < 0.0:
+        kappa = math.sqrt(-beta2)
+        return math.cosh(kappa * dt), math.sinh(kappa * dt) / kappa
+    return 1.0, dt
+
+
+@jit
+def free_omega_max(pars):
+    """``analytic.FreeFlight.omega_max``: max(eta, sqrt|1 - nu^2|, 1)."""
+    nu, eta = pars[0], pars[1]
+    return max(eta, math.sqrt(abs(1.0 - nu * nu)), 1.0)
+
+
+@jit
+def _free_prepare(tau0, s0, pars, ff):
+    """The free flight from (tau0, s0): ff = (tau0, Re d0, Im d0, Re dv0, Im dv0)."""
+    wp0, vp0 = _free_steady(tau0, pars[0], pars[1], pars[2], pars[3])
+    d0 = complex(s0[0], s0[1]) - wp0
+    dv0 = complex(s0[2], s0[3]) - vp0
+    ff[0] = tau0
+    ff[1] = d0.real
+    ff[2] = d0.imag
+    ff[3] = dv0.real
+    ff[4] = dv0.imag
+
+
+@jit
+def _free_at(t, ff, pars, row):
+    """``model.free_flight`` at a scalar time t, into row."""
+    nu, eta, E, phi0 = pars[0], pars[1], pars[2], pars[3]
+    d0 = complex(ff[1], ff[2])
+    dv0 = complex(ff[3], ff[4])
+    dt = t - ff[0]
+    C, S = _damped_basis(dt, nu)
+    decay = math.exp(-nu * dt)
+    wh = decay * (d0 * C + (dv0 + nu * d0) * S)
+    vh = decay * (dv0 * C - (d0 + nu * dv0) * S)
+    wp, vp = _free_steady(t, nu, eta, E, phi0)
+    w = wp + wh
+    v = vp + vh
+    row[0] = w.real
+    row[1] = w.imag
+    row[2] = v.real
+    row[3] = v.imag
+
+
+@jit
+def _free_ev(t, deriv, ctx, row, drow):
+    """ev of the free flight: ctx = (ff, pars); drow as ``FreeFlight.derivatives``."""
+    ff, pars = ctx
+    _free_at(t, ff, pars, row)
+    if deriv:
+        nu, eta, E, phi0 = pars[0], pars[1], pars[2], pars[3]
+        phase = eta * t + phi0
+        drow[0] = row[2]
+        drow[1] = row[3]
+        drow[2] = E * math.cos(phase) - 2.0 * nu * row[2] - row[0]
+        drow[3] = E * math.sin(phase) - 2.0 * nu * row[3] - row[1]
+
+
+@register_jitable
+def _stick_f(t, x, y, vx, vy, pars):
+    return rhs_entries(
+        t, x, y, vx, vy, pars[0], pars[1], pars[2], pars[3], pars[4], pars[5], pars[6], STICK
+    )
+
+
+@register_jitable
+def stick_omega_max(pars):
+    """``analytic.StickStep.omega_max``: max(eta, 1, sqrt(1 + K))."""
+    return max(pars[1], 1.0, math.sqrt(1.0 + pars[4]))
+
+
+@register_jitable
+def stick_prepare(tau0, s0, h, pars, st, meta):
+    """``StickStep(tau0, s0, h)``: st rows (s0, s1, f0, f1), meta = (tau0, h)."""
+    x, y, vx, vy = s0[0], s0[1], s0[2], s0[3]
+    k1 = _stick_f(tau0, x, y, vx, vy, pars)
+    h2 = h / 2
+    k2 = _stick_f(tau0 + h2, x + h2 * k1[0], y + h2 * k1[1], vx + h2 * k1[2], vy + h2 * k1[3], pars)
+    k3 = _stick_f(tau0 + h2, x + h2 * k2[0], y + h2 * k2[1], vx + h2 * k2[2], vy + h2 * k2[3], pars)
+    k4 = _stick_f(tau0 + h, x + h * k3[0], y + h * k3[1], vx + h * k3[2], vy + h * k3[3], pars)
+    h6 = h / 6
+    for j in range(4):
+        st[0, j] = s0[j]
+        st[1, j] = s0[j] + h6 * (k1[j] + 2 * k2[j] + 2 * k3[j] + k4[j])
+        st[2, j] = k1[j]
+    f1 = _stick_f(tau0 + h, st[1, 0], st[1, 1], st[1, 2], st[1, 3], pars)
+    for j in range(4):
+        st[3, j] = f1[j]
+    meta[0] = tau0
+    meta[1] = h
+
+
+@register_jitable
+def _hermite(t, meta):
+    u = (t - meta[0]) / meta[1]
+    u2 = u * u
+    u3 = u2 * u
+    return 2 * u3 - 3 * u2 + 1, u3 - 2 * u2 + u, -2 * u3 + 3 * u2, u3 - u2
+
+
+@register_jitable
+def stick_at(t, st, meta, row):
+    """``StickStep.states`` at a scalar time (the order of its scalar expression)."""
+    h = meta[1]
+    h00, h10, h01, h11 = _hermite(t, meta)
+    for j in range(4):
+        row[j] = h00 * st[0, j] + h10 * h * st[2, j] + h01 * st[1, j] + h11 * h * st[3, j]
+
+
+@register_jitable
+def stick_sample(t, st, meta, row):
+    """``StickStep.states`` on an array of times (``np.outer`` terms), one time."""
+    h = meta[1]
+    h00, h10, h01, h11 = _hermite(t, meta)
+    for j in range(4):
+        row[j] = st[0, j] * h00 + h * st[2, j] * h10 + st[1, j] * h01 + h * st[3, j] * h11
+
+
+@jit
+def _stick_ev(t, deriv, ctx, row, drow):
+    """ev of a stick step: ctx = (st, meta, pars); drow = the rolling law's rhs there."""
+    st, meta, pars = ctx
+    stick_at(t, st, meta, row)
+    if deriv:
+        f = _stick_f(t, row[0], row[1], row[2], row[3], pars)
+        for j in range(4):
+            drow[j] = f[j]
+
+
+@jit
+def _contact_ev(t, deriv, ctx, row, drow):
+    """ev of a linearised contact step: ctx = (polar, tau0, pars, ws) (``_evaluate``)."""
+    polar, tau0, pars, ws = ctx
+    _evaluate(polar, tau0, t, pars, ws, row, drow)
