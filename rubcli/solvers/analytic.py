@@ -25,14 +25,16 @@ Stick (rolling, notes section 4) has no closed form in the paper: when v_r reach
 and the needed friction is within mu F_N, the rolling law is integrated by RK4 steps
 (``StickStep``) until it leaves the friction cone or contact ends.
 
-Compiled bulk (``compiled=True``, the default): runs of slip steps in which no event can
-occur are taken by ``kernels.advance_contact`` (fixed steps) or
-``kernels.advance_contact_adaptive`` (``analytic_tol``: the step doubling and control
-below, pair of half steps by pair), the same closed forms compiled with numba; they hand
-back to the Python propagators below before any step (adaptive: any pair of half steps)
-that might hold an event, so events and regime changes are always decided here. The two
-paths agree to round-off, with the same steps (tests/test_kernels.py). Stick, free
-flight, and each step or pair that might hold an event run in Python.
+Compiled (``compiled=True``, the default). Fixed steps run in the compiled loop
+``kernels.advance_piecewise`` (compiled/piecewise_loop.py): free flight, slip and stick
+steps, the event search (``events.locate``) and the switches, with the same propagators
+(compiled/propagators.py, compiled/piecewise.py) and the same scan grids as the Python
+code below; it hands back to the Python step only what it cannot do (an ill-conditioned
+eigenbasis: LAPACK or the ``expm`` fallback; a diverged linearisation: the failure
+message). Adaptive steps (``analytic_tol``): runs of slip steps in which no event can
+occur are taken by ``kernels.advance_contact_adaptive`` (the step doubling and control
+below, pair of half steps by pair); events, stick steps and free flights run in Python.
+The paths agree to round-off (tests/test_kernels.py, tests/test_piecewise_loop.py).
 """
 
 from __future__ import annotations
@@ -48,6 +50,7 @@ from rubcli.solution import Solution
 from rubcli.solvers import compiled as kernels
 from rubcli.solvers import control, driver, register
 from rubcli.solvers.compiled import piecewise
+from rubcli.solvers.dop853_jit import record_kernel_events
 from rubcli.solvers.events import (
     MAX_SCAN_POINTS,
     NO_EVENT,
@@ -58,9 +61,14 @@ from rubcli.solvers.events import (
 
 FREE_SCAN_FRACTION = 1.0 / 32.0  # scan spacing in free flight, fraction of fastest period
 CONTACT_SCAN_FRACTION = 1.0 / 16.0  # scan spacing inside a contact step
-FREE_SCAN_CHUNK = 512  # scan points evaluated at once in free flight
+FREE_SCAN_CHUNK = 512  # scan intervals evaluated at once in free flight, at most
+# the first chunk of a free flight, doubled chunk by chunk up to FREE_SCAN_CHUNK: most free
+# flights between impacts end within a period, and each chunk is evaluated whole
+FREE_FIRST_CHUNK = 16
 EIGVEC_COND_LIMIT = 1e10  # above this the eigenbasis is not trusted: use expm
 KERNEL_CHUNK_STEPS = 4096  # compiled steps per call between wall-time and progress checks
+RESTART_BAND = 1e-12  # the event search's restart band (earliest_event's default)
+EVENT_BUFFER = 256  # events the compiled loop may apply before it returns to record them
 
 
 class FreeFlight:
@@ -320,6 +328,18 @@ class PiecewiseStepper:
                 float(analytic_tol) if analytic_tol is not None else 0.0,
                 control.SAFETY, control.MIN_FACTOR, control.MAX_FACTOR, self.h_max, self.min_step,
             )  # fmt: skip
+        # fixed steps: the compiled loop takes every regime, its events included
+        self.use_loop = (
+            self.use_kernel and analytic_tol is None and hasattr(kernels, "advance_piecewise")
+        )  # TEMPORARY
+        self.python_next = False  # the loop handed the next step to Python
+        if self.use_loop:
+            self.free = np.empty(6)  # the free flight in progress (advance_piecewise's ff)
+            self.free_active = False
+            self.events = (
+                np.empty(EVENT_BUFFER), np.empty(EVENT_BUFFER, dtype=np.int64),
+                np.empty((EVENT_BUFFER, 4)), np.empty((EVENT_BUFFER, 2), dtype=np.int64),
+            )  # fmt: skip
         self.settings = {
             "steps_per_period": steps_per_period,
             "analytic_tol": analytic_tol,
@@ -365,10 +385,12 @@ class PiecewiseStepper:
         self.pending.clear()
         prop = FreeFlight(run.tau, run.state, run.params)
         run.stats["n_free_segments"] += 1
-        chunk = FREE_SCAN_CHUNK * scan_spacing(prop.omega_max, FREE_SCAN_FRACTION)
+        spacing = scan_spacing(prop.omega_max, FREE_SCAN_FRACTION)
+        intervals = float(FREE_FIRST_CHUNK)
         event, tb = None, run.tau
         while tb < run.t_end and event is None:
-            ta, tb = tb, min(run.t_end, tb + chunk)
+            ta, tb = tb, min(run.t_end, tb + intervals * spacing)
+            intervals = min(2.0 * intervals, FREE_SCAN_CHUNK)
             event = self._search(run, prop, ta, tb, FREE_SCAN_FRACTION)
             run.last_kind = NO_EVENT
             self._fill(run, prop, event[0] if event else tb)
@@ -439,7 +461,38 @@ class PiecewiseStepper:
         self._fill(run, prop, event[0] if event else tb)
         return prop, tb, event
 
+    def _compiled_loop(self, run: driver.Run) -> None:
+        """Up to ``KERNEL_CHUNK_STEPS`` steps (and free-flight scan chunks) in the
+        compiled loop, ``kernels.advance_piecewise``, with the events it applies."""
+        counts = np.zeros(kernels.N_COUNTS, dtype=np.int64)
+        state = np.array(run.state, dtype=float)
+        fractions = (
+            FREE_SCAN_FRACTION, CONTACT_SCAN_FRACTION, float(FREE_FIRST_CHUNK),
+            float(FREE_SCAN_CHUNK),
+        )  # fmt: skip
+        tau, regime, last_kind, k, n_ev, self.free_active, reason = kernels.advance_piecewise(
+            self.linearisation == "polar", run.tau, state, self.h, run.t_end, run.regime,
+            run.last_kind, self.pars, self.t_eval_c, run.states, run.regimes, run.k,
+            min(KERNEL_CHUNK_STEPS, run.steps_left), fractions, EIGVEC_COND_LIMIT,
+            RESTART_BAND, self.free, self.free_active, *self.events, counts,
+        )  # fmt: skip
+        stats = run.stats
+        for key, i in kernels.PIECEWISE_COUNTS.items():
+            stats[key] += int(counts[i])
+        run.tau, run.state, run.regime, run.k = tau, state, regime, k
+        if not record_kernel_events(run, n_ev, *self.events):
+            return
+        run.last_kind = last_kind
+        # a step the loop leaves to Python (conditioning, scan size, a non-finite
+        # state): the Python step below is taken next, from where the loop stopped
+        self.python_next = reason == kernels.STOP_PYTHON
+
     def advance(self, run: driver.Run) -> None:
+        if self.use_loop:
+            if not self.python_next:
+                self._compiled_loop(run)
+                return
+            self.python_next = self.free_active = False
         try:
             if run.regime == model.FREE:
                 prop, tb, event = self._free_flight(run)

@@ -6,7 +6,12 @@
 - ``linalg.py``: LU and a small eigensolver for the 4x4 linearised contact systems;
 - ``propagators.py``: the analytic methods' linearised contact steps (Cartesian, polar);
 - ``precheck.py``: the conservative event pre-check of a step;
-- ``contact.py``: the analytic methods' compiled bulk of event-free slip steps;
+- ``contact.py``: the analytic methods' compiled bulk of event-free slip steps (the
+  adaptive steps, ``analytic_tol``);
+- ``piecewise.py``: the analytic methods' free flight and stick step, and the ``ev``
+  functions of their propagators for the event search;
+- ``piecewise_loop.py``: the analytic methods' compiled loop (fixed steps): every
+  regime, events located by ``events.locate`` and applied in the loop;
 - ``rhs.py``: the regime-locked right-hand side for scipy and the compiled DOP853;
 - ``dop853.py``: scipy's DOP853 step, error norm, dense output and initial step;
 - ``roots.py``: events located and applied on a DOP853 step's dense output;
@@ -24,6 +29,11 @@ from rubcli.solvers.compiled.cache import ensure_fresh
 from rubcli.solvers.compiled.contact import advance_contact, advance_contact_adaptive
 from rubcli.solvers.compiled.dop853 import dop853_dense, dop853_dense_point, dop853_initial_step
 from rubcli.solvers.compiled.dop853_loop import advance_dop853
+
+try:  # TEMPORARY until events.locate lands
+    from rubcli.solvers.compiled.piecewise_loop import N_COUNTS, PIECEWISE_COUNTS, advance_piecewise  # noqa
+except ImportError:
+    pass
 from rubcli.solvers.compiled.jit import (
     STOP_END,
     STOP_EVENT,
@@ -46,6 +56,9 @@ __all__ = [
     "advance_contact",
     "advance_contact_adaptive",
     "advance_dop853",
+    "advance_piecewise",
+    "N_COUNTS",
+    "PIECEWISE_COUNTS",
     "dop853_dense",
     "dop853_dense_point",
     "dop853_initial_step",

@@ -139,13 +139,18 @@ def _dispatchers() -> list:
         dop853,
         dop853_loop,
         linalg,
+        piecewise,
+        piecewise_loop,
         precheck,
         propagators,
         rhs,
         roots,
     )  # fmt: skip
 
-    modules = (linalg, propagators, precheck, contact, rhs, dop853, roots, dop853_loop)
+    modules = (
+        linalg, propagators, precheck, contact, rhs, dop853, roots, dop853_loop, piecewise,
+        piecewise_loop,
+    )  # fmt: skip
     found = [_probe]
     for module in modules:
         found += [v for v in vars(module).values() if isinstance(v, Dispatcher)]

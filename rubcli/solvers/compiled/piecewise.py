@@ -12,7 +12,7 @@ functions for the event search (``events.locate``).
   definition of the stick step: plain functions registered with ``register_jitable``,
   which ``analytic.StickStep`` (the Python path) calls as Python and the loop calls
   compiled, so the two paths are the same arithmetic, bitwise.
-- The contact steps' ``ev`` (``_contact_ev``) wraps ``propagators._evaluate``.
+- The contact steps' ``ev`` (``contact_ev``) wraps ``propagators._evaluate``.
 
 Every ``ev(t, deriv, ctx, row, drow)`` fills ``row`` with the state at ``t`` and, when
 ``deriv``, ``drow`` with its time derivative (what the Python propagators'
@@ -97,7 +97,7 @@ def _free_at(t, ff, pars, row):
 
 
 @jit
-def _free_ev(t, deriv, ctx, row, drow):
+def free_ev(t, deriv, ctx, row, drow):
     """ev of the free flight: ctx = (ff, pars); drow as ``FreeFlight.derivatives``."""
     ff, pars = ctx
     _free_at(t, ff, pars, row)
@@ -171,7 +171,7 @@ def stick_sample(t, st, meta, row):
 
 
 @jit
-def _stick_ev(t, deriv, ctx, row, drow):
+def stick_ev(t, deriv, ctx, row, drow):
     """ev of a stick step: ctx = (st, meta, pars); drow = the rolling law's rhs there."""
     st, meta, pars = ctx
     stick_at(t, st, meta, row)
@@ -182,7 +182,7 @@ def _stick_ev(t, deriv, ctx, row, drow):
 
 
 @jit
-def _contact_ev(t, deriv, ctx, row, drow):
+def contact_ev(t, deriv, ctx, row, drow):
     """ev of a linearised contact step: ctx = (polar, tau0, pars, ws) (``_evaluate``)."""
     polar, tau0, pars, ws = ctx
     _evaluate(polar, tau0, t, pars, ws, row, drow)

@@ -1,0 +1,310 @@
+"""The compiled loop of the analytic methods (fixed steps): ``advance_piecewise``.
+
+It advances ``analytic`` (Cartesian linearisation) and ``analytic-polar`` through every
+regime as ``analytic.PiecewiseStepper`` does in Python, advance for advance:
+
+- free flight: no steps; the closed form (``piecewise._free_at``) is scanned chunk by
+  chunk for the contact entry (intervals of 1/32 of the fastest period, ``FREE_FIRST_CHUNK``
+  of them in the first chunk, twice as many in each next, up to ``FREE_SCAN_CHUNK``);
+- slip: one linearised step of ``h`` (``propagators._prepare``); the conservative
+  pre-check (``precheck._step_may_have_event``) clears the steps with no possible event,
+  the others go to the event search;
+- stick: one RK4 step of the rolling law (``piecewise.stick_prepare``), searched for
+  its events on every step.
+
+Events are located by the one generic search, ``events.locate``, on the propagator's
+``ev`` function and the scan grid the Python stepper builds (``np.linspace`` element for
+element), and applied by ``events.switch_regime`` (``roots._apply_event``); they are
+recorded in the caller's buffers, and the stepper records them in the run (with the
+storm guard). What the loop leaves to Python, before taking the step: an eigenbasis
+too ill-conditioned for the kernel (LAPACK's eig and the ``expm`` fallback), a singular
+system, a scan finer than ``MAX_SCAN_POINTS`` or a non-finite state on the grid (the
+Python step fails the run with its message).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rubcli.model import FREE, STICK, friction_sign, rolling_velocity
+
+# the ev functions are passed as piecewise.<name>: a dispatcher bound to a global name of
+# this module and passed as an argument makes numba refuse to cache the loop
+from rubcli.solvers.compiled import piecewise
+from rubcli.solvers.compiled.jit import STOP_END, STOP_FULL, STOP_LIMIT, STOP_PYTHON, jit
+from rubcli.solvers.compiled.piecewise import (
+    _free_at,
+    _free_prepare,
+    free_omega_max,
+    stick_at,
+    stick_omega_max,
+    stick_prepare,
+    stick_sample,
+)
+from rubcli.solvers.compiled.precheck import _step_may_have_event
+from rubcli.solvers.compiled.propagators import _evaluate, _prepare, _workspace
+from rubcli.solvers.compiled.roots import _apply_event
+from rubcli.solvers.events import MAX_SCAN_POINTS, NO_EVENT, locate, start_flags
+
+# counts[] entries, and the run.stats key each adds to
+C_STEPS, C_FREE, C_CONTACT, C_STICK, C_COMPILED = 0, 1, 2, 3, 4
+N_COUNTS = 5
+PIECEWISE_COUNTS = {
+    "nsteps": C_STEPS,
+    "n_free_segments": C_FREE,
+    "n_contact_steps": C_CONTACT,
+    "n_stick_steps": C_STICK,
+    "n_compiled_steps": C_COMPILED,
+}
+
+
+@jit
+def _grid_fill(grid, ta, tb, n):
+    """np.linspace(ta, tb, n + 1), element for element."""
+    delta = (tb - ta) / n
+    for i in range(n):
+        grid[i] = i * delta + ta
+    grid[n] = tb
+
+
+@jit
+def _intervals(ta, tb, omega_max, fraction):
+    """Scan intervals of [ta, tb] (``events.scan_spacing``); -1 beyond MAX_SCAN_POINTS."""
+    spacing = fraction * 2.0 * math.pi / max(omega_max, 1e-300)
+    if (tb - ta) / spacing > MAX_SCAN_POINTS:
+        return -1
+    return max(1, math.ceil((tb - ta) / spacing))
+
+
+@jit
+def _record(tau, kind, row, regime, pars, ev_tau, ev_kind, ev_state, ev_regimes, n):
+    """Apply the located event (projecting ``row`` in place if stick begins or ends) and
+    record it in slot n; returns (new regime, recorded kind)."""
+    new, recorded = _apply_event(kind, tau, row, regime, pars)
+    ev_tau[n] = tau
+    ev_kind[n] = recorded
+    ev_regimes[n, 0] = regime
+    ev_regimes[n, 1] = new
+    for j in range(4):
+        ev_state[n, j] = row[j]
+    return new, recorded
+
+
+@jit
+def advance_piecewise(
+    polar, tau, state, h, t_end, regime, last_kind, pars, t_eval, out_states, out_regimes,
+    k, max_work, fractions, cond_limit, band, ff, free_active, ev_tau, ev_kind, ev_state,
+    ev_regimes, counts,
+):  # fmt: skip
+    """Advance the piecewise method from (tau, state) in ``regime`` (fixed steps ``h``).
+
+    ``last_kind``: the event that began the segment (``NO_EVENT`` if none);
+    ``fractions`` = (free scan fraction, contact scan fraction, first and largest free
+    scan chunk in intervals) (analytic.py's ``FREE_SCAN_FRACTION``,
+    ``CONTACT_SCAN_FRACTION``, ``FREE_FIRST_CHUNK``, ``FREE_SCAN_CHUNK``); ``cond_limit`` = ``EIGVEC_COND_LIMIT``; ``band`` the restart
+    band of the event search (``earliest_event``'s default, 1e-12). ``ff`` holds the
+    free flight in progress (``_free_prepare``; ``ff[5]``: the intervals of its next
+    scan chunk); with ``free_active`` the call continues
+    it (a free flight the previous call left at its work limit) instead of starting a
+    new one. Samples ``t_eval[k:]`` go to ``out_states``/``out_regimes`` (stick samples
+    projected onto rolling), events to ``ev_*``; ``counts`` (int64, ``N_COUNTS``)
+    accumulates the stats. At most ``max_work`` steps and free-flight scan chunks.
+
+    ``state`` is updated in place. Returns ``(tau, regime, last_kind, k, n_events,
+    free_active, reason)``: reason END, LIMIT (work limit; possibly inside a free
+    flight, then ``free_active``), FULL (event buffers full, the state at the last
+    event) or PYTHON (the next step, from ``(tau, state)`` in ``regime``, needs Python).
+    """
+    free_frac, contact_frac, first_chunk, free_chunk = fractions
+    capacity = ev_tau.shape[0]
+    n_out = t_eval.shape[0]
+    spin = pars[6] * pars[1]
+    check_slip = pars[5] > 0.0
+    ws = _workspace()
+    st = np.empty((4, 4))
+    meta = np.empty(2)
+    row = np.empty(4)
+    drow = np.empty(4)
+    size = 2
+    grid = np.empty(size)
+    S = np.empty((size, 4))
+    dS = np.empty((size, 4))
+    hv = np.empty(size)
+    hd = np.empty(size)
+    work = 0
+    n_events = 0
+    warm = False  # the eigensolver may start from the last slip step's eigenvalues
+    while True:
+        if tau >= t_end:
+            return tau, regime, last_kind, k, n_events, free_active, STOP_END
+        if work >= max_work:
+            return tau, regime, last_kind, k, n_events, free_active, STOP_LIMIT
+        starts = start_flags(last_kind)
+        kind = NO_EVENT
+        if regime == FREE:
+            warm = False
+            if not free_active:  # a new free flight (PiecewiseStepper._free_flight)
+                _free_prepare(tau, state, pars, ff)
+                ff[5] = first_chunk  # the next chunk's intervals
+                counts[C_FREE] += 1
+                counts[C_STEPS] += 1
+                free_active = True
+            omega = free_omega_max(pars)
+            spacing = free_frac * 2.0 * math.pi / max(omega, 1e-300)
+            tb = tau
+            ctx = (ff, pars)
+            while tb < t_end and work < max_work:
+                ta = tb
+                tb = min(t_end, tb + ff[5] * spacing)
+                ff[5] = min(2.0 * ff[5], free_chunk)
+                n = max(1, math.ceil((tb - ta) / spacing))
+                if size < n + 1:
+                    size = n + 1
+                    grid, S, dS, hv, hd = _buffers(size)
+                _grid_fill(grid, ta, tb, n)
+                t_ev, kind = locate(
+                    piecewise.free_ev, ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow
+                )
+                work += 1
+                starts = start_flags(NO_EVENT)
+                last_kind = NO_EVENT
+                t_stop = t_ev if kind != NO_EVENT else tb
+                while k < n_out and t_eval[k] <= t_stop:
+                    _free_at(t_eval[k], ff, pars, row)
+                    for j in range(4):
+                        out_states[k, j] = row[j]
+                    out_regimes[k] = regime
+                    k += 1
+                if kind != NO_EVENT:
+                    break
+            if kind == NO_EVENT:  # the end, or the work limit inside the free flight
+                _free_at(tb, ff, pars, row)
+                for j in range(4):
+                    state[j] = row[j]
+                tau = tb
+                continue
+            free_active = False
+            _free_at(t_ev, ff, pars, row)
+        elif regime == STICK:
+            warm = False
+            tb = min(t_end, tau + h)
+            stick_prepare(tau, state, tb - tau, pars, st, meta)
+            n = _intervals(tau, tb, stick_omega_max(pars), contact_frac)
+            if n < 0:
+                return tau, regime, last_kind, k, n_events, free_active, STOP_PYTHON
+            if size < n + 1:
+                size = n + 1
+                grid, S, dS, hv, hd = _buffers(size)
+            _grid_fill(grid, tau, tb, n)
+            finite = True
+            for i in range(n + 1):
+                stick_at(grid[i], st, meta, row)
+                for j in range(4):
+                    finite = finite and math.isfinite(row[j])
+            if not finite:
+                return tau, regime, last_kind, k, n_events, free_active, STOP_PYTHON
+            ctx = (st, meta, pars)
+            t_ev, kind = locate(
+                piecewise.stick_ev, ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow
+            )
+            counts[C_STEPS] += 1
+            counts[C_STICK] += 1
+            counts[C_COMPILED] += 1
+            work += 1
+            last_kind = NO_EVENT
+            t_stop = t_ev if kind != NO_EVENT else tb
+            while k < n_out and t_eval[k] <= t_stop:
+                stick_sample(t_eval[k], st, meta, row)
+                row[2], row[3] = rolling_velocity(row[0], row[1], row[2], row[3], spin)
+                for j in range(4):
+                    out_states[k, j] = row[j]
+                out_regimes[k] = regime
+                k += 1
+            if kind == NO_EVENT:
+                stick_at(tb, st, meta, row)
+                for j in range(4):
+                    state[j] = row[j]
+                tau = tb
+                continue
+            stick_at(t_ev, st, meta, row)
+        else:  # slip: one linearised contact step
+            tb = min(t_end, tau + h)
+            mu_c = pars[5] * friction_sign(regime)
+            cond, omega = _prepare(polar, tau, state, pars, mu_c, ws, warm)
+            # Python uses the eigenbasis while cond2(V) <= cond_limit, and cond2 <= 4
+            # cond1: proceed only where Python surely uses it too (advance_contact)
+            if not 8.0 * cond <= cond_limit:
+                return tau, regime, last_kind, k, n_events, free_active, STOP_PYTHON
+            n = _intervals(tau, tb, omega, contact_frac)
+            if n < 0:
+                return tau, regime, last_kind, k, n_events, free_active, STOP_PYTHON
+            if size < n + 1:
+                size = n + 1
+                grid, S, dS, hv, hd = _buffers(size)
+            _grid_fill(grid, tau, tb, n)
+            finite = True
+            for i in range(n + 1):
+                _evaluate(polar, tau, grid[i], pars, ws, row, drow)
+                for j in range(4):
+                    S[i, j] = row[j]
+                    dS[i, j] = drow[j]
+                    finite = finite and math.isfinite(row[j]) and math.isfinite(drow[j])
+            if not finite:
+                return tau, regime, last_kind, k, n_events, free_active, STOP_PYTHON
+            warm = True
+            counts[C_STEPS] += 1
+            counts[C_CONTACT] += 1
+            counts[C_COMPILED] += 1
+            work += 1
+            sign = float(regime)
+            if _step_may_have_event(grid, S, dS, n, sign, check_slip, spin, cond, hv, hd, starts):
+                ctx = (polar, tau, pars, ws)
+                t_ev, kind = locate(
+                    piecewise.contact_ev,
+                    ctx,
+                    regime,
+                    pars,
+                    grid,
+                    n,
+                    starts,
+                    band,
+                    hv,
+                    hd,
+                    row,
+                    drow,
+                )
+            last_kind = NO_EVENT
+            t_stop = t_ev if kind != NO_EVENT else tb
+            while k < n_out and t_eval[k] <= t_stop:
+                _evaluate(polar, tau, t_eval[k], pars, ws, row, drow)
+                for j in range(4):
+                    out_states[k, j] = row[j]
+                out_regimes[k] = regime
+                k += 1
+            if kind == NO_EVENT:
+                for j in range(4):
+                    state[j] = S[n, j]
+                tau = tb
+                continue
+            _evaluate(polar, tau, t_ev, pars, ws, row, drow)
+        # the event located at t_ev, the state there in row: apply and record it
+        regime_before = regime
+        regime, last_kind = _record(
+            t_ev, kind, row, regime, pars, ev_tau, ev_kind, ev_state, ev_regimes, n_events
+        )
+        n_events += 1
+        for j in range(4):
+            state[j] = row[j]
+        tau = t_ev
+        if regime != regime_before:
+            warm = False
+        if n_events == capacity:
+            return tau, regime, last_kind, k, n_events, free_active, STOP_FULL
+
+
+@jit
+def _buffers(size):
+    """(grid, S, dS, hv, hd) of a scan grid of ``size`` points."""
+    return np.empty(size), np.empty((size, 4)), np.empty((size, 4)), np.empty(size), np.empty(size)
