@@ -2,7 +2,7 @@
 
 - **Free flight** (z < 1): the closed form of eq. (7-8) (``model.free_flight``), exact for
   all time. No steps are taken inside it; the contact entry is sought on the closed form
-  by a vectorised scan (1/32 of the fastest period, ``events.first_crossing``) followed
+  by a vectorised scan (1/32 of the fastest period, ``events.earliest_event``) followed
   by Brent's method, so an entry is located to ~1e-14 in tau and a brief touch inside a
   scan interval is found through the extremum of ``z``.
 - **Contact** (z > 1): every step of length ``h = period / steps_per_period`` expands the
