@@ -120,6 +120,31 @@ def test_probe_mismatch_flushes_and_falls_back(monkeypatch):
     assert compiled.ensure_fresh() is True
 
 
+def test_changed_core_source_recompiles_every_kernel(monkeypatch, tmp_path):
+    """ensure_fresh: a cache built from other sources of the compiled-in files (model.py,
+    events.py, control.py: a changed event rule the probe cannot see) is flushed, and
+    the new fingerprint stored; the next process with the same sources keeps it."""
+
+    class FakeDispatcher:
+        recompiled = 0
+
+        def recompile(self):
+            FakeDispatcher.recompiled += 1
+
+    fakes = [FakeDispatcher(), FakeDispatcher()]
+    stored = tmp_path / "cores.fingerprint"
+    stored.write_text("built from other sources\n")
+    monkeypatch.setattr(cache, "FINGERPRINT", stored)
+    monkeypatch.setattr(cache, "_dispatchers", lambda: fakes)
+    monkeypatch.setattr(cache, "_usable", None)
+    assert compiled.ensure_fresh() is True
+    assert FakeDispatcher.recompiled == len(fakes)
+    assert stored.read_text().strip() == cache._fingerprint()
+    monkeypatch.setattr(cache, "_usable", None)
+    assert compiled.ensure_fresh() is True
+    assert FakeDispatcher.recompiled == len(fakes)  # same sources: nothing flushed
+
+
 # ------------------------------------------------------------------ eigen-decomposition
 
 

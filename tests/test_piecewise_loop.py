@@ -9,7 +9,6 @@ step written out independently. The free flight has a compiled copy of ``model.f
 exp/cos/sin with its own vectorised routines, which may differ from libm's by an ulp.
 """
 
-import numba
 import numpy as np
 import pytest
 
@@ -89,13 +88,7 @@ def test_stick_step_compiled_python_and_independent(params):
             piecewise.stick_ev(t, True, (st, meta, pars), row, drow)
             np.testing.assert_array_equal(row, prop.states(t))
             np.testing.assert_array_equal(drow, model.rhs(t, row, params, model.STICK))
-            _sample_compiled(t, st, meta, row)
             np.testing.assert_array_equal(row, samples[:, i])
-
-
-@numba.njit
-def _sample_compiled(t, st, meta, row):
-    piecewise.stick_sample(t, st, meta, row)
 
 
 # ------------------------------------------------------------------ the compiled loop

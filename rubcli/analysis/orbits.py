@@ -98,10 +98,9 @@ def _slip_gradient(s: np.ndarray) -> np.ndarray:
 
 
 def _stick_margin(tau: float, s: np.ndarray, params: ModelParams, sign: float) -> float:
-    """sign * T - mu K (z - 1) (1 + margin): stick ends where it rises through zero."""
-    T = float(model.stick_friction(tau, s[0], s[1], s[2], s[3], params))
-    limit = params.mu * params.K * (math.hypot(s[0], s[1]) - 1.0)
-    return sign * T - limit * (1.0 + model.STICK_EXIT_MARGIN)
+    """``events.stick_margin``: stick ends where it rises through zero."""
+    pars = model.params_vector(params)
+    return float(ev.stick_margin(tau, s[0], s[1], s[2], s[3], pars, sign))
 
 
 def _numerical_gradient(fun, tau: float, s: np.ndarray) -> tuple[np.ndarray, float]:

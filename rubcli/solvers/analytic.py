@@ -2,7 +2,7 @@
 
 - **Free flight** (z < 1): the closed form of eq. (7-8) (``model.free_flight``), exact for
   all time. No steps are taken inside it; the contact entry is sought on the closed form
-  by a vectorised scan (1/32 of the fastest period, ``events.first_crossing``) followed
+  by a vectorised scan (1/32 of the fastest period, ``events.earliest_event``) followed
   by Brent's method, so an entry is located to ~1e-14 in tau and a brief touch inside a
   scan interval is found through the extremum of ``z``.
 - **Contact** (z > 1): every step of length ``h = period / steps_per_period`` expands the
@@ -27,7 +27,7 @@ and the needed friction is within mu F_N, the rolling law is integrated by RK4 s
 
 Compiled (``compiled=True``, the default). Fixed steps run in the compiled loop
 ``kernels.advance_piecewise`` (compiled/piecewise_loop.py): free flight, slip and stick
-steps, the event search (``events.locate``) and the switches, with the same propagators
+steps, the event search (``events.event_search``) and the switches, with the same propagators
 (compiled/propagators.py, compiled/piecewise.py) and the same scan grids as the Python
 code below; it hands back to the Python step only what it cannot do (an ill-conditioned
 eigenbasis: LAPACK or the ``expm`` fallback; a diverged linearisation: the failure
@@ -224,9 +224,9 @@ class StickStep:
 
     The paper has no stick regime; rolling phases (notes section 4) are integrated
     with RK4 on ``model.rhs(..., STICK)`` at the method's step (local error O(h^5)).
-    The arithmetic is ``compiled/piecewise.py``'s (``stick_prepare``, ``stick_at``,
-    ``stick_sample``: plain functions registered with numba), run here as Python, so
-    the compiled loop takes the same steps bitwise.
+    The arithmetic is ``compiled/piecewise.py``'s (``stick_prepare``, ``stick_at``:
+    plain functions registered with numba), run here as Python, so the compiled loop
+    takes the same steps bitwise.
     """
 
     def __init__(self, tau0: float, s0: np.ndarray, h: float, params: model.ModelParams):
@@ -248,7 +248,7 @@ class StickStep:
         out = np.empty((4, t.size))
         row = np.empty(4)
         for i, ti in enumerate(t.tolist()):
-            piecewise.stick_sample(ti, self.st, self.meta, row)
+            piecewise.stick_at(ti, self.st, self.meta, row)
             out[:, i] = row
         return out
 
@@ -329,9 +329,7 @@ class PiecewiseStepper:
                 control.SAFETY, control.MIN_FACTOR, control.MAX_FACTOR, self.h_max, self.min_step,
             )  # fmt: skip
         # fixed steps: the compiled loop takes every regime, its events included
-        self.use_loop = (
-            self.use_kernel and analytic_tol is None and hasattr(kernels, "advance_piecewise")
-        )  # TEMPORARY
+        self.use_loop = self.use_kernel and analytic_tol is None
         self.python_next = False  # the loop handed the next step to Python
         if self.use_loop:
             self.free = np.empty(6)  # the free flight in progress (advance_piecewise's ff)

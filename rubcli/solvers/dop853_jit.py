@@ -11,9 +11,10 @@ Events follow the scipy methods' rules (``scipy_ivp``): one regime at a time, th
 of the regime sought on each step's dense output on the same scan grid, located by
 Brent's method, and applied by the same rule. After each accepted step the kernel runs a
 conservative pre-check of the events ``events.earliest_event`` could find in it; if one
-is possible it runs a compiled transcription of ``earliest_event`` (``first_crossing``
-for each event function of the regime: the contact surface, the slip reversal, the two
-sides of the friction cone in stick; scipy's Brent iteration) and of ``apply_event``
+is possible it runs the event search itself (``events.event_search`` compiled on the
+dense output: the crossing of each event function of the regime, the contact surface,
+the slip reversal, the two sides of the friction cone in stick; scipy's Brent
+iteration) and ``apply_event``'s rule
 (Filippov's rule at v_r = 0, the projection onto the rolling constraint), records the
 event and starts the next segment as this driver would. ``compiled_events=False`` hands
 every step that might hold an event to the Python event code instead: the tests check

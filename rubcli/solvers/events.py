@@ -18,7 +18,6 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-from scipy.optimize import brentq
 
 from rubcli import model
 
@@ -72,107 +71,20 @@ def first_crossing(
     tolerance: float = 0.0,
     start_tolerance: float = 1e-12,
     immediate: bool = True,
-    refine: bool = True,
 ) -> float | None:
-    """First time in (grid[0], grid[-1]] where h goes from < 0 to >= 0, or None.
+    """First time in (grid[0], grid[-1]] where a scalar h goes from < 0 to >= 0, or None.
 
-    ``hv`` and ``hd`` are h and dh/dtau on ``grid``; ``h`` and ``dh`` evaluate them at
-    any time of the segment. The grid must be fine enough that h has at most one
-    extremum per interval (callers use 1/16 of the fastest period or less).
-
-    A sign change between grid points is located by Brent's method. An interior
-    maximum of h between two negative values (a dip across the surface and back inside
-    one interval) is found as the root of dh; it counts only if h there exceeds
-    ``tolerance`` (a grazing touch below it is ignored).
-
-    With ``start_on_surface`` the segment begins on this very surface (the event that
-    started it): if dh >= 0 there, and still a moment later (``LOOK_AHEAD``), the
-    crossing is at the start itself (a zero-duration phase; ``immediate=False`` skips
-    this for phases that begin with dh = 0 by construction, such as leaving stick).
-    The second reading matters at a tangential start, where dh is zero to round-off
-    and its sign means nothing: at an exit located at the apex of a graze, both the
-    free and the contact segment read dh >= 0 and would hand over to each other at
-    that instant for ever (a switch storm); the rate a moment later says which side
-    the orbit really goes to.
-
-    A crossing must clear ``start_tolerance`` (the noise band of h: round-off for a
-    closed form, the tolerance of an adaptive solver's dense output), so noise around
-    the surface, after a restart or anywhere, is not a crossing; the crossing is then
-    located between the last point truly below zero and the first beyond the band.
-
-    A segment that starts on the surface is never bracketed from its start, where h is
-    zero only to round-off and could read as a zero-duration phase: if it leaves the
-    surface and comes back before any grid point is truly below zero (a coarse step at
-    a loose tolerance, with the return inside the band at the first grid point), the
-    return is sought past the minimum of h in the first interval; if h is beyond the
-    band at the first grid point and still falling there (it turned twice within that
-    interval), on a finer grid of ``REFINE_POINTS`` sub-intervals (``refine``).
+    ``crossing`` for a given function: ``hv`` and ``hd`` are h and dh/dtau on ``grid``;
+    ``h`` and ``dh`` evaluate them at any time of the segment (``FN_GIVEN``).
     """
     n = len(grid) - 1
-    hv = np.array(hv, dtype=float)
-    level = start_tolerance
-    if start_on_surface:
-        if immediate and hd[0] >= 0.0 and dh(_ahead(grid)) >= 0.0:
-            return float(grid[0])
-        hv[0] = -max(abs(hv[0]), np.finfo(float).tiny)  # strictly below: -0.0 >= 0.0
-    below = 0  # the last grid point where h was truly below zero (not in the band)
-    for i in range(n):
-        a, b = float(grid[i]), float(grid[i + 1])
-        if hv[i + 1] >= level:
-            if start_on_surface and below == 0 and hd[1] > 0.0:
-                # h left the surface downwards and came back before any grid point was
-                # truly below zero: search past its minimum in the first interval
-                a = _extremum(dh, float(grid[0]), float(grid[1])) or float(grid[0])
-            elif i == 0 and start_on_surface and refine:
-                sub = np.linspace(a, b, REFINE_POINTS + 1)
-                sv = np.array([h(t) for t in sub])
-                sd = np.array([dh(t) for t in sub])
-                return first_crossing(
-                    h, sub, sv, sd, dh, True, tolerance, start_tolerance, False, False
-                )
-            elif below < i:
-                a = float(grid[below])  # h sat in the restart band: bracket from below
-            return _root(h, a, b)
-        if hv[i + 1] < 0.0:
-            below = i + 1
-        if hd[i] > 0.0 and hd[i + 1] < 0.0:
-            # h can rise at most ~ rate * length above its end values within one
-            # interval (factor 2 for safety): skip maxima that cannot reach the level.
-            rise = 2.0 * (b - a) * max(hd[i], -hd[i + 1])
-            if max(hv[i], hv[i + 1]) + rise <= max(tolerance, level):
-                continue
-            tm = _extremum(dh, a, b)
-            if tm is not None and h(tm) > max(tolerance, level):
-                return _root(h, a, tm)
-    return None
-
-
-def _ahead(grid: np.ndarray) -> float:
-    """The look-ahead time of the zero-duration test (``LOOK_AHEAD``)."""
-    return float(grid[0]) + LOOK_AHEAD * (float(grid[1]) - float(grid[0]))
-
-
-def _root(h: Callable[[float], float], a: float, b: float) -> float:
-    """Root of h in [a, b] where h(b) >= 0; ``a`` itself if h(a) is not below zero there.
-
-    The grid values that chose [a, b] and the pointwise h can differ by round-off at a
-    restart point; then the crossing is at ``a``.
-    """
-    if h(a) >= 0.0:
-        return a
-    if h(b) < 0.0:
-        return b
-    return brentq(h, a, b, xtol=XTOL, rtol=RTOL)
-
-
-def _extremum(dh: Callable[[float], float], a: float, b: float) -> float | None:
-    """Root of dh in [a, b] if dh brackets one there (a noisy rate may not)."""
-    da, db = dh(a), dh(b)
-    if da == 0.0:
-        return a
-    if da * db > 0.0:
-        return None
-    return brentq(dh, a, b, xtol=XTOL, rtol=RTOL)
+    values, rates = np.array(hv, dtype=float), np.array(hd, dtype=float)
+    tau = _python_crossing(
+        _GivenFunction(h, dh), FN_GIVEN, 1.0, np.asarray(grid, dtype=float), values, rates, n,
+        start_on_surface, tolerance, start_tolerance, immediate, None, 0.0, np.zeros(4),
+        np.zeros(4),
+    )  # fmt: skip
+    return None if math.isnan(tau) else float(tau)
 
 
 def scan_spacing(omega_max: float, fraction: float = 1.0 / 16.0) -> float:
@@ -243,100 +155,382 @@ def switch_regime(kind, tau, x, y, vx, vy, regime, nu, eta, E, phi0, K, mu, Rp):
     return new, recorded, stick and regime != model.FREE and new != model.FREE
 
 
+# ---------------------------------------------------------------------------------------
+# The event search (``event_search``): one definition, run as Python by the Python paths
+# and compiled by numba for each compiled loop's kind of segment.
+# ---------------------------------------------------------------------------------------
+
+# The event functions h (a crossing is h going from < 0 to >= 0):
+# FN_SURFACE: sign (z^2 - 1), rate sign 2 (x vx + y vy);
+# FN_SLIP: -sign v_r, rate -sign dv_r/dtau (with the segment's derivative);
+# FN_STICK: the stick margin of side sign (``stick_margin``), rate by central differences
+# of half-width d;
+# FN_GIVEN: the segment's ev writes h itself into row[0] (and dh into drow[0]).
+FN_SURFACE, FN_SLIP, FN_STICK, FN_GIVEN = 0, 1, 2, 3
+TINY = np.finfo(float).tiny
+BRENT_ITERATIONS = 100
+
+
+def stick_margin(t, x, y, vx, vy, pars, sign):
+    """sign T - mu K (z - 1) (1 + STICK_EXIT_MARGIN): stick ends on side ``sign`` where
+    this rises through 0 (the needed friction leaves the friction cone); scalars or
+    arrays (compilable core)."""
+    T = model.stick_friction_value(t, x, y, vx, vy, pars[0], pars[1], pars[2], pars[3])
+    limit = pars[5] * pars[4] * (np.hypot(x, y) - 1.0)
+    return sign * T - limit * (1.0 + model.STICK_EXIT_MARGIN)
+
+
+def event_search(ev, fill=None, compile=None):
+    """The event search over one kind of segment: ``(locate, crossing)``.
+
+    ``ev(t, deriv, ctx, row, drow)`` evaluates the segment: it writes the state at t into
+    row[:4] and, if ``deriv``, its tau-derivative into drow[:4] (a scipy dense output, a
+    DOP853 or Taylor step's polynomial, a closed-form propagator); ``ctx`` is whatever
+    it needs. ``fill(ctx, fn, sign, grid, n, pars, d, row, drow, hv, hd)`` writes an
+    event function and its rate on a scan grid (default: ``fill_values``, point by
+    point; the Python paths fill vectorised). ``pars`` is ``model.params_vector``.
+
+    One definition for every path: the Python paths run these functions as they are
+    (``compile=None``); a compiled loop builds its own search with ``compile=jit``, and
+    numba compiles the same functions with ``ev`` fixed (a closure constant, so no
+    function object is passed at run time and the kernels stay cachable).
+    """
+
+    def event_value(ctx, t, fn, sign, deriv, pars, d, row, drow):
+        """The event function ``fn`` (or its rate, ``deriv``) of the segment at t."""
+        if fn == FN_STICK:
+            if not deriv:
+                ev(t, False, ctx, row, drow)
+                return stick_margin(t, row[0], row[1], row[2], row[3], pars, sign)
+            ev(t + d, False, ctx, row, drow)
+            up = stick_margin(t + d, row[0], row[1], row[2], row[3], pars, sign)
+            ev(t - d, False, ctx, row, drow)
+            down = stick_margin(t - d, row[0], row[1], row[2], row[3], pars, sign)
+            return (up - down) / (2.0 * d)
+        ev(t, deriv and fn != FN_SURFACE, ctx, row, drow)
+        if fn == FN_GIVEN:
+            return drow[0] if deriv else row[0]
+        x, y, vx, vy = row[0], row[1], row[2], row[3]
+        if fn == FN_SURFACE:
+            if deriv:
+                return sign * (2.0 * (x * vx + y * vy))
+            return sign * (x**2 + y**2 - 1.0)
+        if deriv:
+            return -sign * model.slip_velocity_rate(x, y, vx, vy, drow[2], drow[3])
+        return -sign * model.slip_velocity_value(x, y, vx, vy, pars[6] * pars[1])
+
+    def fill_values(ctx, fn, sign, grid, n, pars, d, row, drow, hv, hd):
+        """The event function and its rate on ``grid[:n + 1]``, point by point."""
+        for i in range(n + 1):
+            hv[i] = event_value(ctx, grid[i], fn, sign, False, pars, d, row, drow)
+            hd[i] = event_value(ctx, grid[i], fn, sign, True, pars, d, row, drow)
+
+    def brentq(ctx, a, b, fa, fb, fn, sign, deriv, pars, d, row, drow):
+        """Root of the event function (or of its rate) in [a, b], fa and fb of opposite
+        signs: scipy's ``brentq`` (scipy/optimize/Zeros/brentq.c, Brent's method with its
+        extrapolation formula) transcribed, with ``XTOL`` and ``RTOL``."""
+        if not (math.isfinite(fa) and math.isfinite(fb)):
+            raise ValueError("the event function is not finite")
+        xpre, xcur, fpre, fcur = a, b, fa, fb
+        if fpre == 0.0:
+            return xpre
+        if fcur == 0.0:
+            return xcur
+        xblk, fblk, spre, scur = 0.0, 0.0, 0.0, 0.0
+        for _ in range(BRENT_ITERATIONS):
+            if fpre != 0.0 and fcur != 0.0 and ((fpre < 0.0) != (fcur < 0.0)):
+                xblk, fblk = xpre, fpre
+                spre = scur = xcur - xpre
+            if abs(fblk) < abs(fcur):
+                xpre, xcur, xblk = xcur, xblk, xcur
+                fpre, fcur, fblk = fcur, fblk, fcur
+            delta = (XTOL + RTOL * abs(xcur)) / 2.0
+            sbis = (xblk - xcur) / 2.0
+            if fcur == 0.0 or abs(sbis) < delta:
+                return xcur
+            if abs(spre) > delta and abs(fcur) < abs(fpre):
+                if xpre == xblk:  # interpolate
+                    stry = -fcur * (xcur - xpre) / (fcur - fpre)
+                else:  # extrapolate
+                    dpre = (fpre - fcur) / (xpre - xcur)
+                    dblk = (fblk - fcur) / (xblk - xcur)
+                    stry = -fcur * (fblk * dblk - fpre * dpre) / (dblk * dpre * (fblk - fpre))
+                if 2.0 * abs(stry) < min(abs(spre), 3.0 * abs(sbis) - delta):
+                    spre, scur = scur, stry  # good short step
+                else:
+                    spre, scur = sbis, sbis
+            else:
+                spre, scur = sbis, sbis
+            xpre, fpre = xcur, fcur
+            if abs(scur) > delta:
+                xcur += scur
+            else:
+                xcur += delta if sbis > 0.0 else -delta
+            fcur = event_value(ctx, xcur, fn, sign, deriv, pars, d, row, drow)
+            if not math.isfinite(fcur):
+                raise ValueError("the event function is not finite")
+        return xcur
+
+    def _root(ctx, a, b, fn, sign, pars, d, row, drow):
+        """Root of h in [a, b] where h(b) >= 0; ``a`` itself if h(a) is not below zero there
+        (the grid values that chose [a, b] and the pointwise h can differ by round-off at a
+        restart point; then the crossing is at ``a``)."""
+        fa = event_value(ctx, a, fn, sign, False, pars, d, row, drow)
+        if fa >= 0.0:
+            return a
+        fb = event_value(ctx, b, fn, sign, False, pars, d, row, drow)
+        if fb < 0.0:
+            return b
+        return brentq(ctx, a, b, fa, fb, fn, sign, False, pars, d, row, drow)
+
+    def _extremum(ctx, a, b, fn, sign, pars, d, row, drow):
+        """Root of dh in [a, b] if dh brackets one there (a noisy rate may not), else NaN."""
+        da = event_value(ctx, a, fn, sign, True, pars, d, row, drow)
+        db = event_value(ctx, b, fn, sign, True, pars, d, row, drow)
+        if da == 0.0:
+            return a
+        if da * db > 0.0:
+            return math.nan
+        return brentq(ctx, a, b, da, db, fn, sign, True, pars, d, row, drow)
+
+    def crossing(
+        ctx, fn, sign, grid, hv, hd, n, on_surface, tolerance, level, immediate, pars, d,
+        row, drow,
+    ):  # fmt: skip
+        """First time in (grid[0], grid[n]] where the event function goes from < 0 to >= 0,
+        or NaN; ``hv`` and ``hd`` hold it and its rate on the grid (``hv[0]`` is changed).
+
+        The grid must be fine enough that h has at most one extremum per interval (callers
+        use 1/8 of the fastest period or less). A sign change between grid points is located
+        by Brent's method. An interior maximum of h between two negative values (a dip
+        across the surface and back inside one interval) is found as the root of dh; it
+        counts only if h there exceeds ``tolerance`` (a grazing touch below it is ignored).
+
+        With ``on_surface`` the segment begins on this very surface (the event that started
+        it): if dh >= 0 there, and still a moment later (``LOOK_AHEAD``), the crossing is at
+        the start itself (a zero-duration phase; ``immediate=False`` skips this for phases
+        that begin with dh = 0 by construction, such as leaving stick). The second reading
+        matters at a tangential start, where dh is zero to round-off and its sign means
+        nothing: at an exit located at the apex of a graze, both the free and the contact
+        segment read dh >= 0 and would hand over to each other at that instant for ever (a
+        switch storm); the rate a moment later says which side the orbit really goes to.
+
+        A crossing must clear ``level`` (the noise band of h: round-off for a closed form,
+        the tolerance of an adaptive solver's dense output), so noise around the surface,
+        after a restart or anywhere, is not a crossing; the crossing is then located between
+        the last point truly below zero and the first beyond the band.
+
+        A segment that starts on the surface is never bracketed from its start, where h is
+        zero only to round-off and could read as a zero-duration phase: if it leaves the
+        surface and comes back before any grid point is truly below zero (a coarse step at
+        a loose tolerance, with the return inside the band at the first grid point), the
+        return is sought past the minimum of h in the first interval; if h is beyond the
+        band at the first grid point and still falling there (it turned twice within that
+        interval), on a finer grid of ``REFINE_POINTS`` sub-intervals.
+        """
+        t, a, b = _crossing_scan(
+            ctx, fn, sign, grid, hv, hd, n, on_surface, tolerance, level, immediate, True,
+            pars, d, row, drow,
+        )  # fmt: skip
+        if math.isnan(a):
+            return t
+        m = REFINE_POINTS
+        sub, sv, sd = np.empty(m + 1), np.empty(m + 1), np.empty(m + 1)
+        step = (b - a) / m  # np.linspace(a, b, m + 1), element for element
+        for k in range(m):
+            sub[k] = k * step + a
+        sub[m] = b
+        fill_values(ctx, fn, sign, sub, m, pars, d, row, drow, sv, sd)
+        t, a, b = _crossing_scan(
+            ctx, fn, sign, sub, sv, sd, m, True, tolerance, level, False, False, pars, d,
+            row, drow,
+        )  # fmt: skip
+        return t
+
+    def _crossing_scan(
+        ctx, fn, sign, grid, hv, hd, n, on_surface, tolerance, level, immediate, refine,
+        pars, d, row, drow,
+    ):  # fmt: skip
+        """The scan of ``crossing``: ``(t, NaN, NaN)`` (t the crossing or NaN), or
+        ``(NaN, a, b)`` when the first interval [a, b] must be refined (``refine``)."""
+        if on_surface:
+            if immediate and hd[0] >= 0.0:
+                ahead = grid[0] + LOOK_AHEAD * (grid[1] - grid[0])
+                if event_value(ctx, ahead, fn, sign, True, pars, d, row, drow) >= 0.0:
+                    return grid[0], math.nan, math.nan
+            hv[0] = -max(abs(hv[0]), TINY)  # strictly below: -0.0 >= 0.0
+        below = 0  # the last grid point where h was truly below zero (not in the band)
+        for i in range(n):
+            a, b = grid[i], grid[i + 1]
+            if hv[i + 1] >= level:
+                if on_surface and below == 0 and hd[1] > 0.0:
+                    # h left the surface downwards and came back before any grid point was
+                    # truly below zero: search past its minimum in the first interval
+                    tm = _extremum(ctx, grid[0], grid[1], fn, sign, pars, d, row, drow)
+                    a = tm if not math.isnan(tm) and tm != 0.0 else grid[0]
+                elif i == 0 and on_surface and refine:
+                    return math.nan, a, b
+                elif below < i:
+                    a = grid[below]  # h sat in the restart band: bracket from below
+                return _root(ctx, a, b, fn, sign, pars, d, row, drow), math.nan, math.nan
+            if hv[i + 1] < 0.0:
+                below = i + 1
+            if hd[i] > 0.0 and hd[i + 1] < 0.0:
+                # h can rise at most ~ rate * length above its end values within one
+                # interval (factor 2 for safety): skip maxima that cannot reach the level.
+                rise = 2.0 * (b - a) * max(hd[i], -hd[i + 1])
+                if max(hv[i], hv[i + 1]) + rise <= max(tolerance, level):
+                    continue
+                tm = _extremum(ctx, a, b, fn, sign, pars, d, row, drow)
+                if math.isnan(tm):
+                    continue
+                if event_value(ctx, tm, fn, sign, False, pars, d, row, drow) > max(
+                    tolerance, level
+                ):
+                    return _root(ctx, a, tm, fn, sign, pars, d, row, drow), math.nan, math.nan
+        return math.nan, math.nan, math.nan
+
+    def locate(ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow):
+        """Earliest event of ``regime`` in (grid[0], grid[n]]: ``(tau, kind)``, or
+        ``(NaN, NO_EVENT)``; the first of equal times in the order below is kept.
+
+        Events by regime: free -> contact entry; slip -> contact exit, slip reversal
+        (v_r = 0, if mu > 0); stick -> contact exit, stick exit (|T| = mu F_N). ``starts`` =
+        ``start_flags`` of the event that began the segment. ``band`` (the restart band): a
+        slip reversal must clear it times 1 + Rp eta in v_r, the position-level surface
+        g = z^2 - 1 times ``SURFACE_BAND``. A closed form gives v_r to round-off (1e-12); an
+        adaptive solver's dense output gives it only to its tolerance, so scipy methods pass
+        rtol; a solver at tolerance rtol cannot tell a contact whose penetration is below
+        ~rtol from none (an orbit riding the clearance wanders across z = 1 by that much),
+        so such a touch is not a contact.
+        """
+        d = 1e-6 * max(1.0, grid[n] - grid[0])
+        if regime == model.FREE:
+            fill(ctx, FN_SURFACE, 1.0, grid, n, pars, d, row, drow, hv, hd)
+            t = crossing(
+                ctx, FN_SURFACE, 1.0, grid, hv, hd, n, starts[0], GRAZING_TOLERANCE,
+                SURFACE_BAND * band, True, pars, d, row, drow,
+            )  # fmt: skip
+            return (t, ENTRY) if not math.isnan(t) else (t, NO_EVENT)
+        best, kind = math.nan, NO_EVENT
+        fill(ctx, FN_SURFACE, -1.0, grid, n, pars, d, row, drow, hv, hd)
+        t = crossing(
+            ctx, FN_SURFACE, -1.0, grid, hv, hd, n, starts[0], 0.0, SURFACE_BAND * band, True,
+            pars, d, row, drow,
+        )  # fmt: skip
+        if not math.isnan(t):
+            best, kind = t, EXIT
+        if pars[5] > 0.0 and regime != model.STICK:
+            sign = float(regime)
+            level = band * (1.0 + abs(pars[6] * pars[1]))
+            fill(ctx, FN_SLIP, sign, grid, n, pars, d, row, drow, hv, hd)
+            t = crossing(
+                ctx, FN_SLIP, sign, grid, hv, hd, n, starts[1], 0.0, level, starts[2], pars,
+                d, row, drow,
+            )  # fmt: skip
+            if not math.isnan(t) and (math.isnan(best) or t < best):
+                best, kind = t, REVERSAL
+        if regime == model.STICK:
+            for sign in (1.0, -1.0):
+                fill(ctx, FN_STICK, sign, grid, n, pars, d, row, drow, hv, hd)
+                t = crossing(
+                    ctx, FN_STICK, sign, grid, hv, hd, n, False, 0.0, STICK_EXIT_LEVEL, True,
+                    pars, d, row, drow,
+                )  # fmt: skip
+                if not math.isnan(t) and (math.isnan(best) or t < best):
+                    best, kind = t, STICK_EXIT
+        return best, kind
+
+    if compile is not None:
+        event_value = compile(event_value)
+        fill_values = compile(fill_values)
+        brentq = compile(brentq)
+        _root = compile(_root)
+        _extremum = compile(_extremum)
+        crossing = compile(crossing)
+        _crossing_scan = compile(_crossing_scan)
+        locate = compile(locate)
+    if fill is None:
+        fill = fill_values
+    return locate, crossing
+
+
 def earliest_event(states, derivatives, grid, regime, params, last_kind, restart_band=1e-12):
     """Earliest event of ``regime`` in (grid[0], grid[-1]]: (tau, kind) or None.
 
-    ``states(t)`` gives the segment's state at a scalar or array time (shape (4,) or
-    (4, n)); ``derivatives(t, S)`` its time derivative. ``last_kind`` is the event that
-    started the segment (``NO_EVENT`` otherwise): the segment then starts on that event's
-    surface. Events by regime: free -> contact entry; slip -> contact exit, slip
-    reversal (v_r = 0, if mu > 0); stick -> contact exit, stick exit (|T| = mu F_N).
-
-    ``restart_band``: a slip reversal must clear this band (times 1 + Rp eta) in v_r.
-    A closed form gives v_r to round-off (1e-12); an adaptive solver's dense output gives
-    the velocity-level v_r only to its tolerance, so scipy methods pass rtol. The
-    position-level surface g = z^2 - 1 gets the same band: a solver at tolerance rtol
-    cannot tell a contact whose penetration is below ~rtol from none (an orbit riding the
-    clearance wanders across z = 1 by that much), so such a touch is not a contact.
+    The event search on a Python segment: ``states(t)`` gives its state at a scalar or
+    array time (shape (4,) or (4, n)), ``derivatives(t, S)`` its time derivative; the
+    scan grid is filled vectorised (``_PythonSegment.fill``). ``last_kind`` is the event
+    that started the segment (``NO_EVENT`` otherwise). Raises ValueError if the search
+    meets a non-finite value.
     """
-    S = states(grid)
-    on_surface, on_slip, immediate = start_flags(last_kind)
+    grid = np.asarray(grid, dtype=float)
+    n = len(grid) - 1
+    segment = _PythonSegment(states, derivatives, grid, params)
+    tau, kind = _python_locate(
+        segment, regime, segment.pars, grid, n, start_flags(last_kind), restart_band,
+        np.empty(n + 1), np.empty(n + 1), np.empty(4), np.empty(4),
+    )  # fmt: skip
+    return None if kind == NO_EVENT else (float(tau), kind)
 
-    def surface(sign):
-        def h(t):
-            return sign * float(surface_value(states(t)))
 
-        def dh(t):
-            return sign * float(surface_rate(states(t)))
+class _PythonSegment:
+    """A segment given by Python callables: ``ev`` at one time, ``fill`` on the whole
+    grid at once (one vectorised call of ``states`` and ``derivatives``)."""
 
-        return h, sign * surface_value(S), sign * surface_rate(S), dh
+    def __init__(self, states, derivatives, grid, params):
+        self.states, self.derivatives, self.grid, self.params = states, derivatives, grid, params
+        self.pars = np.array(model.params_vector(params))
+        self.S = states(grid)
+        self.dS = None
 
-    found = []
-    if regime == model.FREE:
-        h, hv, hd, dh = surface(+1.0)
-        tau = first_crossing(
-            h, grid, hv, hd, dh, on_surface, GRAZING_TOLERANCE, SURFACE_BAND * restart_band
-        )
-        return None if tau is None else (tau, ENTRY)
+    def ev(self, t, deriv, row, drow):
+        s = self.states(t)
+        row[:] = s
+        if deriv:
+            drow[:] = self.derivatives(t, s[:, None])[:, 0]
 
-    h, hv, hd, dh = surface(-1.0)
-    tau = first_crossing(h, grid, hv, hd, dh, on_surface, 0.0, SURFACE_BAND * restart_band)
-    if tau is not None:
-        found.append((tau, EXIT))
-    if params.mu > 0.0 and regime in (model.SLIP_POSITIVE, model.SLIP_NEGATIVE):
-        sign = float(regime)
-        dS = derivatives(grid, S)
-
-        def hv_fn(t):
-            return -sign * float(slip_value(states(t), params))
-
-        def dhv_fn(t):
-            s = states(t)
-            return -sign * float(slip_rate(s[:, None], derivatives(t, s[:, None]))[0])
-
-        scale = 1.0 + abs(params.Rp * params.eta)
-        tau = first_crossing(
-            hv_fn,
-            grid,
-            -sign * slip_value(S, params),
-            -sign * slip_rate(S, dS),
-            dhv_fn,
-            on_slip,
-            0.0,
-            restart_band * scale,
-            immediate=immediate,
-        )
-        if tau is not None:
-            found.append((tau, REVERSAL))
-    if regime == model.STICK:
-        for sign in (+1.0, -1.0):
-            # h = sign * T - mu K (z - 1): crosses 0 upwards when the needed friction
-            # leaves the friction cone on that side.
-            def hs(t, sign=sign):
-                s = states(t)
-                return _stick_margin(t, s, params, sign)
-
-            def dhs(t, sign=sign):
-                d = 1e-6 * max(1.0, grid[-1] - grid[0])
-                return (hs(t + d) - hs(t - d)) / (2 * d)
-
-            values = _stick_margin(grid, S, params, sign)
-            d = 1e-6 * max(1.0, grid[-1] - grid[0])
-            rates = (
-                _stick_margin(grid + d, states(grid + d), params, sign)
-                - _stick_margin(grid - d, states(grid - d), params, sign)
+    def fill(self, fn, sign, grid, n, pars, d, row, drow, hv, hd):
+        S = self.S
+        if fn == FN_SURFACE:
+            hv[:] = sign * surface_value(S)
+            hd[:] = sign * surface_rate(S)
+        elif fn == FN_SLIP:
+            if self.dS is None:
+                self.dS = self.derivatives(grid, S)
+            hv[:] = -sign * slip_value(S, self.params)
+            hd[:] = -sign * slip_rate(S, self.dS)
+        else:
+            hv[:] = stick_margin(grid, *S, pars, sign)
+            up, down = grid + d, grid - d
+            hd[:] = (
+                stick_margin(up, *self.states(up), pars, sign)
+                - stick_margin(down, *self.states(down), pars, sign)
             ) / (2 * d)
-            tau = first_crossing(hs, grid, values, rates, dhs, False, 0.0, STICK_EXIT_LEVEL)
-            if tau is not None:
-                found.append((tau, STICK_EXIT))
-    return min(found, key=lambda item: item[0]) if found else None
 
 
-def _stick_margin(t, S, params, sign):
-    """sign * T - L (1 + STICK_EXIT_MARGIN): stick ends where this rises through 0."""
-    T = model.stick_friction(t, S[0], S[1], S[2], S[3], params)
-    limit = params.mu * params.K * (np.hypot(S[0], S[1]) - 1.0)
-    return sign * T - limit * (1.0 + model.STICK_EXIT_MARGIN)
+class _GivenFunction:
+    """``first_crossing``'s h and dh as a segment (``FN_GIVEN``)."""
+
+    def __init__(self, h, dh):
+        self.h, self.dh = h, dh
+
+    def ev(self, t, deriv, row, drow):
+        row[0] = self.h(t)
+        if deriv:
+            drow[0] = self.dh(t)
+
+
+def _python_ev(t, deriv, segment, row, drow):
+    segment.ev(t, deriv, row, drow)
+
+
+def _python_fill(segment, fn, sign, grid, n, pars, d, row, drow, hv, hd):
+    segment.fill(fn, sign, grid, n, pars, d, row, drow, hv, hd)
+
+
+# The event search of the Python paths (the same functions the kernels compile)
+_python_locate, _python_crossing = event_search(_python_ev, _python_fill)
 
 
 def initial_kind(s, regime: int, params) -> int:

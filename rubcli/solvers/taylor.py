@@ -15,10 +15,11 @@ no extra cost. The step is limited by the radius of convergence of the series, a
 takes many steps like every explicit method.
 
 Events follow the scipy methods' rules (``scipy_ivp``, ``dop853_jit``): one regime at a
-time, the events of the regime found on each step's polynomial by a transcription of
-``events.first_crossing`` on a scan grid and applied by ``events.apply_event``'s rule
-(Filippov at v_r = 0, rolling in stick); see ``taylor_kernels``. ``compiled_events=False``
-hands every step that might hold an event to the Python event code
+time, the events of the regime found on each step's polynomial by the shared event
+search (``events.event_search``, compiled) on a scan grid and applied by
+``events.apply_event``'s rule (Filippov at v_r = 0, rolling in stick); see
+``taylor_kernels``. ``compiled_events=False`` hands every step that might hold an event
+to the Python event code
 (``events.earliest_event`` on the step's polynomial, ``events.apply_event``): the tests
 check that both give the same events and states. ``compiled=False`` is the same as
 ``compiled_events=False`` (the series themselves are always compiled).

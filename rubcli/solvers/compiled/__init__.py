@@ -1,8 +1,9 @@
 """The compiled (numba) code of the solvers, split by concern.
 
 - ``jit.py``: compile settings, the model and event cores registered with numba (the
-  physics and the event rules are written once, in ``model.py`` and ``events.py``), the
-  stop codes every kernel returns;
+  physics and the event rules are written once, in ``model.py`` and ``events.py``; the
+  event search is ``events.event_search``, built per kind of segment), the stop codes
+  every kernel returns;
 - ``linalg.py``: LU and a small eigensolver for the 4x4 linearised contact systems;
 - ``propagators.py``: the analytic methods' linearised contact steps (Cartesian, polar);
 - ``precheck.py``: the conservative event pre-check of a step;
@@ -11,16 +12,16 @@
 - ``piecewise.py``: the analytic methods' free flight and stick step, and the ``ev``
   functions of their propagators for the event search;
 - ``piecewise_loop.py``: the analytic methods' compiled loop (fixed steps): every
-  regime, events located by ``events.locate`` and applied in the loop;
+  regime, events located by ``events.event_search`` and applied in the loop;
 - ``rhs.py``: the regime-locked right-hand side for scipy and the compiled DOP853;
 - ``dop853.py``: scipy's DOP853 step, error norm, dense output and initial step;
-- ``roots.py``: events located and applied on a DOP853 step's dense output;
+- ``roots.py``: the event pre-check and the event search (``events.event_search``) on a
+  DOP853 step's dense output, and the application of an event;
 - ``dop853_loop.py``: the compiled DOP853 loop (``dop853-jit``);
-- ``taylor.py``: the ``taylor`` method's series, step size, event location and loop
-  (one file of about 700 lines: its event search is a transcription of ``roots.py``'s
-  for the step polynomial, to be merged with it when the event search becomes one
-  compilable function, issue 10);
-- ``cache.py``: numba's cache kept fresh when model.py or events.py change.
+- ``taylor.py``: the ``taylor`` method's series, step size, event pre-check, the event
+  search (``events.event_search``) on the step polynomial, and its loop;
+- ``cache.py``: numba's cache kept fresh when model.py, events.py or control.py change
+  (a fingerprint of their sources and a probe).
 
 What the drivers call is re-exported here.
 """
@@ -29,11 +30,6 @@ from rubcli.solvers.compiled.cache import ensure_fresh
 from rubcli.solvers.compiled.contact import advance_contact, advance_contact_adaptive
 from rubcli.solvers.compiled.dop853 import dop853_dense, dop853_dense_point, dop853_initial_step
 from rubcli.solvers.compiled.dop853_loop import advance_dop853
-
-try:  # TEMPORARY until events.locate lands
-    from rubcli.solvers.compiled.piecewise_loop import N_COUNTS, PIECEWISE_COUNTS, advance_piecewise  # noqa
-except ImportError:
-    pass
 from rubcli.solvers.compiled.jit import (
     STOP_END,
     STOP_EVENT,
@@ -43,6 +39,7 @@ from rubcli.solvers.compiled.jit import (
     STOP_REASONS,
     STOP_SMALL_STEP,
 )
+from rubcli.solvers.compiled.piecewise_loop import N_COUNTS, PIECEWISE_COUNTS, advance_piecewise
 from rubcli.solvers.compiled.rhs import rhs, rhs_columns, rhs_jacobian
 
 __all__ = [

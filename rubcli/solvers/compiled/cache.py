@@ -2,19 +2,23 @@
 
 Every kernel is compiled with ``cache=True``; the first call on a machine compiles
 (seconds), later processes load the machine code from ``__pycache__``. numba does not
-notice that a *called* function in another file changed (model.py's and events.py's
-cores), so ``ensure_fresh`` (run once per process before the first kernel call)
-evaluates the registered cores through a cached probe and recompiles every kernel if the
-probe disagrees with Python.
+notice that a *called* function in another file changed (model.py's, events.py's and
+control.py's cores, among them the whole event search), so ``ensure_fresh`` (run once
+per process before the first kernel call) compares a fingerprint of those files with the
+one the cache was built from, and evaluates the registered cores through a cached probe;
+if either disagrees, every kernel is recompiled.
 """
 
 from __future__ import annotations
 
+import hashlib
 import warnings
+from pathlib import Path
 
 import numpy as np
 from numba.core.dispatcher import Dispatcher
 
+from rubcli import model
 from rubcli.model import (
     cartesian_entries,
     entry_regime_value,
@@ -28,10 +32,14 @@ from rubcli.model import (
     slip_velocity_value,
     zero_slip_regime_value,
 )
-from rubcli.solvers.compiled.jit import (
-    jit,
-)
+from rubcli.solvers import control, events
+from rubcli.solvers.compiled.jit import jit
 from rubcli.solvers.events import start_flags, switch_regime
+
+# The files whose functions the kernels compile in (``jit.COMPILABLE_CORES``), and where
+# the fingerprint of the sources the cache was built from is kept.
+CORE_FILES = (Path(model.__file__), Path(events.__file__), Path(control.__file__))
+FINGERPRINT = Path(__file__).parent / "__pycache__" / "cores.fingerprint"
 
 
 def _probe_values(x):
@@ -116,11 +124,14 @@ def ensure_fresh() -> bool:
     """
     global _usable
     if _usable is None:
-        usable = _probe_agrees()
+        fingerprint = _fingerprint()
+        usable = _stored_fingerprint() == fingerprint and _probe_agrees()
         if not usable:
             for dispatcher in _dispatchers():
                 dispatcher.recompile()  # flushes its cache; compiled afresh on next call
             usable = _probe_agrees()
+            if usable:
+                _store_fingerprint(fingerprint)
         if not usable:
             warnings.warn(
                 "rubcli: the compiled kernels disagree with model.py; using the pure-Python "
@@ -130,6 +141,32 @@ def ensure_fresh() -> bool:
             )
         _usable = usable
     return _usable
+
+
+def _fingerprint() -> str:
+    """SHA-256 of the source files compiled into the kernels (``CORE_FILES``)."""
+    digest = hashlib.sha256()
+    for path in CORE_FILES:
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def _stored_fingerprint() -> str | None:
+    try:
+        return FINGERPRINT.read_text().strip()
+    except OSError:
+        return None
+
+
+def _store_fingerprint(fingerprint: str) -> None:
+    """Written atomically; a read-only install keeps only the probe's protection."""
+    try:
+        FINGERPRINT.parent.mkdir(exist_ok=True)
+        tmp = FINGERPRINT.with_suffix(f".{id(fingerprint)}.tmp")
+        tmp.write_text(fingerprint + "\n")
+        tmp.replace(FINGERPRINT)
+    except OSError:
+        pass
 
 
 def _dispatchers() -> list:
@@ -145,11 +182,12 @@ def _dispatchers() -> list:
         propagators,
         rhs,
         roots,
+        taylor,
     )  # fmt: skip
 
     modules = (
-        linalg, propagators, precheck, contact, rhs, dop853, roots, dop853_loop, piecewise,
-        piecewise_loop,
+        linalg, propagators, precheck, contact, rhs, dop853, roots, dop853_loop, taylor,
+        piecewise, piecewise_loop,
     )  # fmt: skip
     found = [_probe]
     for module in modules:

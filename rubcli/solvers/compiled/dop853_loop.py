@@ -63,8 +63,8 @@ def advance_dop853(
     ``out_regimes`` (projected in stick). Otherwise:
 
     - with ``compiled_events``: the kernel runs ``events.earliest_event`` itself
-      (``_dop853_locate``: a transcription of ``first_crossing`` for each event function
-      of the regime, ``band`` the restart band) and, at an event, ``events.apply_event``
+      (``_dop853_locate``: ``events.event_search`` compiled on the dense output, ``band``
+      the restart band) and, at an event, ``events.apply_event``
       (``_apply_event``), records it in ``events_*`` and starts the next segment as the
       Python driver would (new f, scipy's initial step);
     - without: the step is *not* committed; it is returned for Python, with ``y_new``,

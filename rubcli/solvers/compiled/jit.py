@@ -37,6 +37,7 @@ COMPILABLE_CORES = (
     events.switch_regime,
     control.doubling_error,
     control.next_step,
+    events.stick_margin,
 )
 
 

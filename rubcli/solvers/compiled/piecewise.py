@@ -1,14 +1,12 @@
 """The analytic methods' free flight and stick propagators, compiled, with their ``ev``
-functions for the event search (``events.locate``).
+functions for the event search (``events.event_search``).
 
 - Free flight: the closed form of ``model.free_flight`` (eq. 7-8 with the corrections),
   written on scalars: ``_free_prepare`` stores the homogeneous part's start (tau0, w0 -
   w_p(tau0), v0 - v_p(tau0)) in a 5-array, ``_free_at`` evaluates the state at any tau.
 - Stick: one classical RK4 step of the rolling law (``model.rhs_entries`` in
   ``STICK``) with cubic Hermite dense output: ``stick_prepare`` stores (s0, s1, f0,
-  f1) and (tau0, h); ``stick_at`` evaluates the cubic at an event-search time,
-  ``stick_sample`` at an output sample (the terms summed in the order of the former
-  numpy expression of the samples; the two agree to round-off). These are the one
+  f1) and (tau0, h); ``stick_at`` evaluates the cubic. These are the one
   definition of the stick step: plain functions registered with ``register_jitable``,
   which ``analytic.StickStep`` (the Python path) calls as Python and the loop calls
   compiled, so the two paths are the same arithmetic, bitwise.
@@ -16,7 +14,7 @@ functions for the event search (``events.locate``).
 
 Every ``ev(t, deriv, ctx, row, drow)`` fills ``row`` with the state at ``t`` and, when
 ``deriv``, ``drow`` with its time derivative (what the Python propagators'
-``derivatives`` return).
+``derivatives`` return): the segment of the event search (``events.event_search``).
 """
 
 from __future__ import annotations
@@ -159,15 +157,6 @@ def stick_at(t, st, meta, row):
     h00, h10, h01, h11 = _hermite(t, meta)
     for j in range(4):
         row[j] = h00 * st[0, j] + h10 * h * st[2, j] + h01 * st[1, j] + h11 * h * st[3, j]
-
-
-@register_jitable
-def stick_sample(t, st, meta, row):
-    """``StickStep.states`` on an array of times (``np.outer`` terms), one time."""
-    h = meta[1]
-    h00, h10, h01, h11 = _hermite(t, meta)
-    for j in range(4):
-        row[j] = st[0, j] * h00 + h * st[2, j] * h10 + st[1, j] * h01 + h * st[3, j] * h11
 
 
 @jit

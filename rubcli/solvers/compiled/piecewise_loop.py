@@ -9,12 +9,14 @@ regime as ``analytic.PiecewiseStepper`` does in Python, advance for advance:
 - slip: one linearised step of ``h`` (``propagators._prepare``); the conservative
   pre-check (``precheck._step_may_have_event``) clears the steps with no possible event,
   the others go to the event search;
-- stick: one RK4 step of the rolling law (``piecewise.stick_prepare``), searched for
-  its events on every step.
+- stick: one RK4 step of the rolling law (``piecewise.stick_prepare``); a pre-check
+  like the slip step's (``_stick_may_have_event``) clears the steps with no possible
+  event, the others go to the event search.
 
-Events are located by the one generic search, ``events.locate``, on the propagator's
-``ev`` function and the scan grid the Python stepper builds (``np.linspace`` element for
-element), and applied by ``events.switch_regime`` (``roots._apply_event``); they are
+Events are located by the one event search, ``events.event_search`` compiled over the
+propagator's ``ev`` function (``_locate_free``, ``_locate_stick``, ``_locate_contact``),
+on the scan grid the Python stepper builds (``np.linspace`` element for element), and
+applied by ``events.switch_regime`` (``roots._apply_event``); they are
 recorded in the caller's buffers, and the stepper records them in the run (with the
 storm guard). What the loop leaves to Python, before taking the step: an eigenbasis
 too ill-conditioned for the kernel (LAPACK's eig and the ``expm`` fallback), a singular
@@ -28,25 +30,43 @@ import math
 
 import numpy as np
 
-from rubcli.model import FREE, STICK, friction_sign, rolling_velocity
+from rubcli.model import (
+    FREE,
+    STICK,
+    STICK_EXIT_MARGIN,
+    friction_sign,
+    rolling_velocity,
+    stick_friction_value,
+)
 
 # the ev functions are passed as piecewise.<name>: a dispatcher bound to a global name of
 # this module and passed as an argument makes numba refuse to cache the loop
-from rubcli.solvers.compiled import piecewise
 from rubcli.solvers.compiled.jit import STOP_END, STOP_FULL, STOP_LIMIT, STOP_PYTHON, jit
 from rubcli.solvers.compiled.piecewise import (
     _free_at,
     _free_prepare,
+    contact_ev,
+    free_ev,
     free_omega_max,
     stick_at,
+    stick_ev,
     stick_omega_max,
     stick_prepare,
-    stick_sample,
 )
-from rubcli.solvers.compiled.precheck import _step_may_have_event
+from rubcli.solvers.compiled.precheck import (
+    EVENT_MARGIN,
+    _may_cross,
+    _step_may_have_event,
+    _surface_may_cross,
+)
 from rubcli.solvers.compiled.propagators import _evaluate, _prepare, _workspace
 from rubcli.solvers.compiled.roots import _apply_event
-from rubcli.solvers.events import MAX_SCAN_POINTS, NO_EVENT, locate, start_flags
+from rubcli.solvers.events import MAX_SCAN_POINTS, NO_EVENT, event_search, start_flags
+
+# The one event search (events.event_search), compiled over each kind of segment
+_locate_free, _ = event_search(free_ev, compile=jit)
+_locate_stick, _ = event_search(stick_ev, compile=jit)
+_locate_contact, _ = event_search(contact_ev, compile=jit)
 
 # counts[] entries, and the run.stats key each adds to
 C_STEPS, C_FREE, C_CONTACT, C_STICK, C_COMPILED = 0, 1, 2, 3, 4
@@ -103,14 +123,15 @@ def advance_piecewise(
     ``last_kind``: the event that began the segment (``NO_EVENT`` if none);
     ``fractions`` = (free scan fraction, contact scan fraction, first and largest free
     scan chunk in intervals) (analytic.py's ``FREE_SCAN_FRACTION``,
-    ``CONTACT_SCAN_FRACTION``, ``FREE_FIRST_CHUNK``, ``FREE_SCAN_CHUNK``); ``cond_limit`` = ``EIGVEC_COND_LIMIT``; ``band`` the restart
-    band of the event search (``earliest_event``'s default, 1e-12). ``ff`` holds the
-    free flight in progress (``_free_prepare``; ``ff[5]``: the intervals of its next
-    scan chunk); with ``free_active`` the call continues
-    it (a free flight the previous call left at its work limit) instead of starting a
-    new one. Samples ``t_eval[k:]`` go to ``out_states``/``out_regimes`` (stick samples
-    projected onto rolling), events to ``ev_*``; ``counts`` (int64, ``N_COUNTS``)
-    accumulates the stats. At most ``max_work`` steps and free-flight scan chunks.
+    ``CONTACT_SCAN_FRACTION``, ``FREE_FIRST_CHUNK``, ``FREE_SCAN_CHUNK``);
+    ``cond_limit`` = ``EIGVEC_COND_LIMIT``; ``band`` the restart band of the event search
+    (``earliest_event``'s default, 1e-12). ``ff`` holds the free flight in progress
+    (``_free_prepare``; ``ff[5]``: the intervals of its next scan chunk); with
+    ``free_active`` the call continues it (a free flight the previous call left at its
+    work limit) instead of starting a new one. Samples ``t_eval[k:]`` go to
+    ``out_states``/``out_regimes`` (stick samples projected onto rolling), events to
+    ``ev_*``; ``counts`` (int64, ``N_COUNTS``) accumulates the stats. At most ``max_work``
+    steps and free-flight scan chunks.
 
     ``state`` is updated in place. Returns ``(tau, regime, last_kind, k, n_events,
     free_active, reason)``: reason END, LIMIT (work limit; possibly inside a free
@@ -164,8 +185,8 @@ def advance_piecewise(
                     size = n + 1
                     grid, S, dS, hv, hd = _buffers(size)
                 _grid_fill(grid, ta, tb, n)
-                t_ev, kind = locate(
-                    piecewise.free_ev, ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow
+                t_ev, kind = _locate_free(
+                    ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow
                 )
                 work += 1
                 starts = start_flags(NO_EVENT)
@@ -202,13 +223,15 @@ def advance_piecewise(
             for i in range(n + 1):
                 stick_at(grid[i], st, meta, row)
                 for j in range(4):
+                    S[i, j] = row[j]
                     finite = finite and math.isfinite(row[j])
             if not finite:
                 return tau, regime, last_kind, k, n_events, free_active, STOP_PYTHON
-            ctx = (st, meta, pars)
-            t_ev, kind = locate(
-                piecewise.stick_ev, ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow
-            )
+            if _stick_may_have_event(grid, n, st, meta, pars, S, dS, hv, hd, row, starts[0]):
+                ctx = (st, meta, pars)
+                t_ev, kind = _locate_stick(
+                    ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow
+                )
             counts[C_STEPS] += 1
             counts[C_STICK] += 1
             counts[C_COMPILED] += 1
@@ -216,7 +239,7 @@ def advance_piecewise(
             last_kind = NO_EVENT
             t_stop = t_ev if kind != NO_EVENT else tb
             while k < n_out and t_eval[k] <= t_stop:
-                stick_sample(t_eval[k], st, meta, row)
+                stick_at(t_eval[k], st, meta, row)
                 row[2], row[3] = rolling_velocity(row[0], row[1], row[2], row[3], spin)
                 for j in range(4):
                     out_states[k, j] = row[j]
@@ -261,19 +284,8 @@ def advance_piecewise(
             sign = float(regime)
             if _step_may_have_event(grid, S, dS, n, sign, check_slip, spin, cond, hv, hd, starts):
                 ctx = (polar, tau, pars, ws)
-                t_ev, kind = locate(
-                    piecewise.contact_ev,
-                    ctx,
-                    regime,
-                    pars,
-                    grid,
-                    n,
-                    starts,
-                    band,
-                    hv,
-                    hd,
-                    row,
-                    drow,
+                t_ev, kind = _locate_contact(
+                    ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow
                 )
             last_kind = NO_EVENT
             t_stop = t_ev if kind != NO_EVENT else tb
@@ -302,6 +314,48 @@ def advance_piecewise(
             warm = False
         if n_events == capacity:
             return tau, regime, last_kind, k, n_events, free_active, STOP_FULL
+
+
+@jit
+def _stick_may_have_event(grid, n, st, meta, pars, S, W, hv, hd, row, on_surface):
+    """Whether the event search might find an event in a stick step (its states on the
+    grid in ``S``): False only if it surely finds none, as ``precheck`` decides for a slip
+    step (margins ``EVENT_MARGIN``, relative). The contact exit on the grid values; the
+    stick exit on both sides of the friction cone, the margins ``sign T - mu K (z - 1)
+    (1 + STICK_EXIT_MARGIN)`` (``events.stick_margin``) and their rates by the search's
+    central differences, with the needed friction T and the cone evaluated once for both
+    sides (half the work of the search's fill). ``W`` (n + 1, >= 4): work.
+    """
+    if _surface_may_cross(grid, S, n, -1.0, 1.0, hv, hd, on_surface):
+        return True
+    nu, eta, E, phi0 = pars[0], pars[1], pars[2], pars[3]
+    cone = pars[5] * pars[4] * (1.0 + STICK_EXIT_MARGIN)
+    d = 1e-6 * max(1.0, grid[n] - grid[0])
+    for i in range(n + 1):
+        t = grid[i]
+        x, y = S[i, 0], S[i, 1]
+        W[i, 0] = stick_friction_value(t, x, y, S[i, 2], S[i, 3], nu, eta, E, phi0)
+        W[i, 1] = cone * (math.hypot(x, y) - 1.0)
+        stick_at(t + d, st, meta, row)
+        up_T = stick_friction_value(t + d, row[0], row[1], row[2], row[3], nu, eta, E, phi0)
+        up_L = cone * (math.hypot(row[0], row[1]) - 1.0)
+        stick_at(t - d, st, meta, row)
+        down_T = stick_friction_value(t - d, row[0], row[1], row[2], row[3], nu, eta, E, phi0)
+        down_L = cone * (math.hypot(row[0], row[1]) - 1.0)
+        W[i, 2] = (up_T - down_T) / (2.0 * d)
+        W[i, 3] = (up_L - down_L) / (2.0 * d)
+    for sign in (1.0, -1.0):
+        value_scale = 0.0
+        rate_scale = 0.0
+        for i in range(n + 1):
+            hv[i] = sign * W[i, 0] - W[i, 1]
+            hd[i] = sign * W[i, 2] - W[i, 3]
+            value_scale = max(value_scale, abs(hv[i]))
+            rate_scale = max(rate_scale, abs(hd[i]))
+        margin_v = EVENT_MARGIN * (1.0 + value_scale)
+        if _may_cross(grid, hv, hd, n, margin_v, EVENT_MARGIN * (1.0 + rate_scale), False, True):
+            return True
+    return False
 
 
 @jit

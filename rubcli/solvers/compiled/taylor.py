@@ -39,9 +39,10 @@ never rejected. The step's Taylor polynomial is its dense output (samples and ev
 Events
 ------
 Each step's event functions (``events.earliest_event``: the surface ``z^2 - 1``, the
-slip ``v_r`` with friction, the stick margin) are located on the step's polynomial by a
-transcription of ``events.first_crossing`` (the same grid logic, scipy's Brent iteration),
-and applied by ``roots._apply_event`` (Filippov's rule, the projection onto rolling).
+slip ``v_r`` with friction, the stick margin) are located on the step's polynomial by
+the event search of every method (``events.event_search``, compiled here with the
+polynomial as its segment: the same grid logic, scipy's Brent iteration), and applied
+by ``roots._apply_event`` (Filippov's rule, the projection onto rolling).
 Most steps are cleared without a scan. The surface and the slip have Taylor series of
 their own (``q - 1`` above; ``v_r = Rp eta + (x vy - y vx) u``). They differ from the
 event functions of the state polynomials (what ``locate`` evaluates) by terms above
@@ -53,7 +54,7 @@ second derivative (``_stays_below``). The first step of every segment and every 
 step are scanned. The scan grid has ``max(4, ceil(8 h omega / 2 pi))`` intervals, omega
 a bound on the fastest frequency (1 + eta in free flight, sqrt(1 + K) + 1 + eta +
 |theta'| in contact): the extrema of an event function are half a period of it apart,
-so it turns at most once per interval, as ``first_crossing`` requires.
+so it turns at most once per interval, as the crossing search requires.
 """
 
 from __future__ import annotations
@@ -74,30 +75,8 @@ from rubcli.solvers.compiled.jit import (
     jit_fast,
 )
 from rubcli.solvers.compiled.rhs import _rhs_into
-from rubcli.solvers.compiled.roots import (
-    FN_SLIP,
-    FN_STICK,
-    FN_SURFACE,
-    FREE_REGIME,
-    STICK_REGIME,
-    TINY,
-    _apply_event,
-    _stick_margin_at,
-)
-from rubcli.solvers.events import (
-    ENTRY,
-    EXIT,
-    GRAZING_TOLERANCE,
-    LOOK_AHEAD,
-    REFINE_POINTS,
-    REVERSAL,
-    RTOL,
-    STICK_EXIT,
-    STICK_EXIT_LEVEL,
-    SURFACE_BAND,
-    XTOL,
-    start_flags,
-)
+from rubcli.solvers.compiled.roots import FREE_REGIME, STICK_REGIME, _apply_event
+from rubcli.solvers.events import event_search, start_flags
 
 # ``jit_fast`` (compiled/jit.py) for the series and the pre-check bound only: they are
 # computed here only, never again in Python, so the compiled and the Python event paths
@@ -430,210 +409,28 @@ def scan_points(h, regime, pars, s):
     return min(MAX_SCAN, max(MIN_SCAN, n))
 
 
-# ------------------------------------------------- events.first_crossing on the polynomial
+# ------------------------------------------------------- events.locate on the polynomial
 
 
 @jit
-def _event_fn(t, fn, sign, deriv, t0, C, order, pars, regime, d, row, drow):
-    """An event function of ``events.earliest_event`` (or its rate) on the polynomial,
-    evaluated as the Python code evaluates it (``roots._event_fn``'s rules)."""
-    if fn == FN_STICK:
-        if not deriv:
-            dense_at(t, t0, C, order, row)
-            return _stick_margin_at(t, row, pars, sign)
-        dense_at(t + d, t0, C, order, row)
-        up = _stick_margin_at(t + d, row, pars, sign)
-        dense_at(t - d, t0, C, order, row)
-        down = _stick_margin_at(t - d, row, pars, sign)
-        return (up - down) / (2.0 * d)
+def _taylor_ev(t, deriv, ctx, row, drow):
+    """The step's polynomial as a segment of ``events.locate``: the state at t and, with
+    ``deriv``, the regime's right-hand side there (as the Python path's)."""
+    t0, C, order, pars, regime = ctx
     dense_at(t, t0, C, order, row)
-    x, y, vx, vy = row[0], row[1], row[2], row[3]
-    if fn == FN_SURFACE:
-        if deriv:
-            return sign * (2.0 * (x * vx + y * vy))
-        return sign * (x**2 + y**2 - 1.0)
     if deriv:
         _rhs_into(t, row, pars, regime, drow)
-        z = math.hypot(x, y)
-        whirl = x * vy - y * vx
-        zdot = (x * vx + y * vy) / z
-        return -sign * ((x * drow[3] - y * drow[2]) / z - whirl * zdot / (z * z))
-    return -sign * (pars[6] * pars[1] + (x * vy - y * vx) / math.hypot(x, y))
 
 
-@jit
-def _brentq(a, b, fa, fb, fn, sign, deriv, t0, C, order, pars, regime, d, row, drow):
-    """scipy's ``brentq`` (roots._brentq) on ``_event_fn``."""
-    xpre, xcur, fpre, fcur = a, b, fa, fb
-    if fpre == 0.0:
-        return xpre
-    if fcur == 0.0:
-        return xcur
-    xblk, fblk, spre, scur = 0.0, 0.0, 0.0, 0.0
-    for _ in range(100):
-        if fpre != 0.0 and fcur != 0.0 and ((fpre < 0.0) != (fcur < 0.0)):
-            xblk, fblk = xpre, fpre
-            spre = scur = xcur - xpre
-        if abs(fblk) < abs(fcur):
-            xpre, xcur, xblk = xcur, xblk, xcur
-            fpre, fcur, fblk = fcur, fblk, fcur
-        delta = (XTOL + RTOL * abs(xcur)) / 2.0
-        sbis = (xblk - xcur) / 2.0
-        if fcur == 0.0 or abs(sbis) < delta:
-            return xcur
-        if abs(spre) > delta and abs(fcur) < abs(fpre):
-            if xpre == xblk:
-                stry = -fcur * (xcur - xpre) / (fcur - fpre)
-            else:
-                dpre = (fpre - fcur) / (xpre - xcur)
-                dblk = (fblk - fcur) / (xblk - xcur)
-                stry = -fcur * (fblk * dblk - fpre * dpre) / (dblk * dpre * (fblk - fpre))
-            if 2.0 * abs(stry) < min(abs(spre), 3.0 * abs(sbis) - delta):
-                spre, scur = scur, stry
-            else:
-                spre, scur = sbis, sbis
-        else:
-            spre, scur = sbis, sbis
-        xpre, fpre = xcur, fcur
-        if abs(scur) > delta:
-            xcur += scur
-        else:
-            xcur += delta if sbis > 0.0 else -delta
-        fcur = _event_fn(xcur, fn, sign, deriv, t0, C, order, pars, regime, d, row, drow)
-    return xcur
-
-
-@jit
-def _root(a, b, fn, sign, t0, C, order, pars, regime, d, row, drow):
-    """``events._root``."""
-    fa = _event_fn(a, fn, sign, False, t0, C, order, pars, regime, d, row, drow)
-    if fa >= 0.0:
-        return a
-    fb = _event_fn(b, fn, sign, False, t0, C, order, pars, regime, d, row, drow)
-    if fb < 0.0:
-        return b
-    return _brentq(a, b, fa, fb, fn, sign, False, t0, C, order, pars, regime, d, row, drow)
-
-
-@jit
-def _extremum(a, b, fn, sign, t0, C, order, pars, regime, d, row, drow):
-    """``events._extremum``: NaN if the rate does not bracket a root."""
-    da = _event_fn(a, fn, sign, True, t0, C, order, pars, regime, d, row, drow)
-    db = _event_fn(b, fn, sign, True, t0, C, order, pars, regime, d, row, drow)
-    if da == 0.0:
-        return a
-    if da * db > 0.0:
-        return math.nan
-    return _brentq(a, b, da, db, fn, sign, True, t0, C, order, pars, regime, d, row, drow)
-
-
-@jit
-def _crossing_scan(
-    fn, sign, grid, hv, hd, n, on_surface, tolerance, level, immediate, refine,
-    t0, C, order, pars, regime, d, row, drow,
-):  # fmt: skip
-    """The loop of ``events.first_crossing`` (roots._crossing_scan)."""
-    if on_surface:
-        if immediate and hd[0] >= 0.0:
-            ahead = grid[0] + LOOK_AHEAD * (grid[1] - grid[0])  # events._ahead
-            rate = _event_fn(ahead, fn, sign, True, t0, C, order, pars, regime, d, row, drow)
-            if rate >= 0.0:
-                return grid[0], math.nan, math.nan
-        hv[0] = -max(abs(hv[0]), TINY)
-    below = 0
-    for i in range(n):
-        a, b = grid[i], grid[i + 1]
-        if hv[i + 1] >= level:
-            if on_surface and below == 0 and hd[1] > 0.0:
-                tm = _extremum(grid[0], grid[1], fn, sign, t0, C, order, pars, regime, d, row, drow)
-                a = tm if not math.isnan(tm) and tm != 0.0 else grid[0]
-            elif i == 0 and on_surface and refine:
-                return math.nan, a, b
-            elif below < i:
-                a = grid[below]
-            t = _root(a, b, fn, sign, t0, C, order, pars, regime, d, row, drow)
-            return t, math.nan, math.nan
-        if hv[i + 1] < 0.0:
-            below = i + 1
-        if hd[i] > 0.0 and hd[i + 1] < 0.0:
-            rise = 2.0 * (b - a) * max(hd[i], -hd[i + 1])
-            if max(hv[i], hv[i + 1]) + rise <= max(tolerance, level):
-                continue
-            tm = _extremum(a, b, fn, sign, t0, C, order, pars, regime, d, row, drow)
-            if math.isnan(tm):
-                continue
-            peak = _event_fn(tm, fn, sign, False, t0, C, order, pars, regime, d, row, drow)
-            if peak > max(tolerance, level):
-                t = _root(a, tm, fn, sign, t0, C, order, pars, regime, d, row, drow)
-                return t, math.nan, math.nan
-    return math.nan, math.nan, math.nan
-
-
-@jit
-def _first_crossing(
-    fn, sign, grid, hv, hd, n, on_surface, tolerance, level, immediate,
-    t0, C, order, pars, regime, d, row, drow,
-):  # fmt: skip
-    """``events.first_crossing`` for one event function on the step's polynomial."""
-    for i in range(n + 1):
-        hv[i] = _event_fn(grid[i], fn, sign, False, t0, C, order, pars, regime, d, row, drow)
-        hd[i] = _event_fn(grid[i], fn, sign, True, t0, C, order, pars, regime, d, row, drow)
-    t, a, b = _crossing_scan(
-        fn, sign, grid, hv, hd, n, on_surface, tolerance, level, immediate, True,
-        t0, C, order, pars, regime, d, row, drow,
-    )  # fmt: skip
-    if not math.isnan(a):
-        m = REFINE_POINTS
-        sub, sv, sd = np.empty(m + 1), np.empty(m + 1), np.empty(m + 1)
-        step = (b - a) / m
-        for k in range(m):
-            sub[k] = k * step + a
-        sub[m] = b
-        for k in range(m + 1):
-            sv[k] = _event_fn(sub[k], fn, sign, False, t0, C, order, pars, regime, d, row, drow)
-            sd[k] = _event_fn(sub[k], fn, sign, True, t0, C, order, pars, regime, d, row, drow)
-        t, a, b = _crossing_scan(
-            fn, sign, sub, sv, sd, m, True, tolerance, level, False, False,
-            t0, C, order, pars, regime, d, row, drow,
-        )  # fmt: skip
-    return t
+_locate_polynomial, _ = event_search(_taylor_ev, compile=jit)
 
 
 @jit
 def locate(t0, C, order, pars, regime, grid, n, hv, hd, row, drow, starts, band):
-    """``events.earliest_event`` on one step's polynomial (roots._dop853_locate):
-    (tau, kind) of the earliest event in (grid[0], grid[n]], or (NaN, -1)."""
-    d = 1e-6 * max(1.0, grid[n] - grid[0])
-    if regime == FREE_REGIME:
-        t = _first_crossing(
-            FN_SURFACE, 1.0, grid, hv, hd, n, starts[0], GRAZING_TOLERANCE,
-            SURFACE_BAND * band, True, t0, C, order, pars, regime, d, row, drow,
-        )  # fmt: skip
-        return (t, ENTRY) if not math.isnan(t) else (t, -1)
-    best, kind = math.nan, -1
-    t = _first_crossing(
-        FN_SURFACE, -1.0, grid, hv, hd, n, starts[0], 0.0, SURFACE_BAND * band, True,
-        t0, C, order, pars, regime, d, row, drow,
-    )  # fmt: skip
-    if not math.isnan(t):
-        best, kind = t, EXIT
-    if pars[5] > 0.0 and regime != STICK_REGIME:
-        level = band * (1.0 + abs(pars[6] * pars[1]))
-        t = _first_crossing(
-            FN_SLIP, float(regime), grid, hv, hd, n, starts[1], 0.0, level, starts[2],
-            t0, C, order, pars, regime, d, row, drow,
-        )  # fmt: skip
-        if not math.isnan(t) and (math.isnan(best) or t < best):
-            best, kind = t, REVERSAL
-    if regime == STICK_REGIME:
-        for sign in (1.0, -1.0):
-            t = _first_crossing(
-                FN_STICK, sign, grid, hv, hd, n, False, 0.0, STICK_EXIT_LEVEL, True,
-                t0, C, order, pars, regime, d, row, drow,
-            )  # fmt: skip
-            if not math.isnan(t) and (math.isnan(best) or t < best):
-                best, kind = t, STICK_EXIT
-    return best, kind
+    """``events.locate`` on one step's polynomial (scan grid ``grid[:n + 1]``): (tau,
+    kind) of the earliest event, or (NaN, NO_EVENT)."""
+    ctx = (t0, C, order, pars, regime)
+    return _locate_polynomial(ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow)
 
 
 # ------------------------------------------------------------------------ the step loop
