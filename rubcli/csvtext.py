@@ -294,8 +294,8 @@ def format_int(value, out, pos):
 def _format_rows(floats, float_bits, ints, texts, kinds, index, table, table_len, fallback, out):
     """The rows of a block: column c is ``floats[index[c]]`` (kind 0), ``ints[index[c]]``
     (kind 1) or ``table[texts[index[c]]]`` (kind 2). A float that needs Python's repr is
-    written as one NUL byte and its (column, row) recorded in ``fallback``; returns the
-    bytes written and the number of fallbacks."""
+    left out, its (column, row, byte position) recorded in ``fallback``; returns the bytes
+    written and the number of fallbacks."""
     n_rows = floats.shape[1] if floats.shape[0] else (ints.shape[1] if ints.shape[0]
                                                         else texts.shape[1])  # fmt: skip
     digits = np.empty(32, dtype=np.uint8)
@@ -312,12 +312,12 @@ def _format_rows(floats, float_bits, ints, texts, kinds, index, table, table_len
                 end = format_float(floats[index[c], r], float_bits[index[c], r], out, pos,
                                    digits)  # fmt: skip
                 if end < 0:
-                    out[pos] = 0
-                    end = pos + 1
                     fallback[n_fallback, 0] = c
                     fallback[n_fallback, 1] = r
+                    fallback[n_fallback, 2] = pos
                     n_fallback += 1
-                pos = end
+                else:
+                    pos = end
             elif kind == 1:
                 pos = format_int(ints[index[c], r], out, pos)
             else:
@@ -375,8 +375,6 @@ def format_block(columns, text_field, nonfinite: str | None = None) -> bytes | N
                 encoded[v] = len(encoded)
         texts[i] = [encoded[v] for v in values]
     fields = [text_field(v).encode("utf-8") for v in encoded]
-    if any(b"\0" in f for f in fields):  # NUL marks the fallback fields below
-        return None
     width = max((len(f) for f in fields), default=0)
     table = np.zeros((max(1, len(fields)), max(1, width)), dtype=np.uint8)
     table_len = np.zeros(max(1, len(fields)), dtype=np.int64)
@@ -391,23 +389,24 @@ def format_block(columns, text_field, nonfinite: str | None = None) -> bytes | N
     row_width = (len(float_cols) * FLOAT_WIDTH + len(int_cols) * INT_WIDTH
                  + len(text_cols) * width + len(kinds))  # fmt: skip
     out = np.empty(n * row_width, dtype=np.uint8)
-    fallback = np.empty((n * len(float_cols), 2), dtype=np.int64)
+    fallback = np.empty((n * len(float_cols), 3), dtype=np.int64)
     codes = np.asarray(kinds, dtype=np.int64)
     bits = floats.view(np.uint64)
     size, n_fallback = _format_rows(
         floats, bits, ints, texts, codes, index, table, table_len, fallback, out
     )
-    data = out[:size].tobytes()
     if n_fallback == 0:
-        return data
-    # The few fields Grisu3 left (and NaN/inf): Python's repr, in order of appearance.
-    pieces = data.split(b"\0")
+        return out[:size].tobytes()
+    # The few fields Grisu3 left (and NaN/inf): Python's repr, spliced in at their places.
+    view = memoryview(out)
     filled = []
-    for (c, r), piece in zip(fallback[:n_fallback].tolist(), pieces, strict=False):
+    start = 0
+    for c, r, at in fallback[:n_fallback].tolist():
         value = float(floats[index[c], r])
         nan_or_inf = not math.isfinite(value)
         text = nonfinite if nonfinite is not None and nan_or_inf else repr(value)
-        filled.append(piece)
+        filled.append(view[start:at])
         filled.append(text.encode("utf-8"))
-    filled.append(pieces[-1])
+        start = at
+    filled.append(view[start:size])
     return b"".join(filled)
