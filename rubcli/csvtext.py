@@ -334,7 +334,8 @@ FLOAT, INT, TEXT = 0, 1, 2
 
 
 def column_kind(column: object) -> int | None:
-    """How ``format_block`` formats a column (FLOAT, INT, TEXT), or None if it cannot."""
+    """How ``format_block`` formats a column (FLOAT, INT, TEXT), or None if it cannot.
+    An object column is TEXT only if its values are all ``str`` (``format_block`` checks)."""
     if not isinstance(column, np.ndarray) or column.ndim != 1:
         return None
     if column.dtype.kind == "f":
@@ -370,7 +371,13 @@ def format_block(columns, text_field, nonfinite: str | None = None) -> bytes | N
     encoded: dict[object, int] = {}
     for i, c in enumerate(text_cols):
         values = c.tolist()
-        for v in set(values):
+        try:
+            distinct = set(values)
+        except TypeError:  # unhashable objects: the caller's general path
+            return None
+        if not all(type(v) is str for v in distinct):  # e.g. floats in an object array
+            return None
+        for v in distinct:
             if v not in encoded:
                 encoded[v] = len(encoded)
         texts[i] = [encoded[v] for v in values]

@@ -140,3 +140,23 @@ def test_compiled_and_python_csv_writers_give_the_same_bytes(tmp_path, monkeypat
     compiled = (tmp_path / "compiled.csv").read_bytes()
     assert compiled == (tmp_path / "python.csv").read_bytes()
     assert compiled.count(b"\n") == 2 * n + 1
+
+
+def test_compiled_csv_leaves_mixed_object_columns_to_the_general_path():
+    """An object column of floats (NaN replaced by ``nonfinite``), None or unhashable
+    values is not text: ``format_block`` declines it and ``write_csv`` formats it as
+    before, with the same result as for a short table."""
+    from rubcli import csvtext
+
+    mixed = np.array([1.5, float("nan"), None, "a,b"] * 300, dtype=object)
+    assert csvtext.format_block([mixed], io.csv_field, "") is None
+    assert csvtext.format_block([np.array([[1], [2]] * 600 + [None], dtype=object)],
+                                io.csv_field) is None  # fmt: skip
+    assert csvtext.format_block([np.array(["x", "y"] * 600)], io.csv_field) is not None
+
+
+def test_write_csv_of_mixed_object_columns_matches_rows(tmp_path):
+    mixed = np.array([1.5, float("nan"), None, "a,b"] * 300, dtype=object)
+    io.write_csv(tmp_path / "m.csv", ["v", "i"], [[mixed, np.arange(mixed.size)]], nonfinite="")
+    lines = (tmp_path / "m.csv").read_text().splitlines()
+    assert lines[:5] == ["v,i", "1.5,0", ",1", ",2", '"a,b",3'] and len(lines) == 1201
