@@ -22,7 +22,8 @@ computes anything):
 
 Every CSV goes through ``write_csv`` (one formatting rule: shortest round-trip floats,
 written in blocks of rows, so a 10-million-sample solution never sits in memory as
-text), every report through ``report_envelope`` + ``write_json``.
+text; large numpy blocks are formatted by compiled code, ``rubcli.csvtext``, to the same
+bytes), every report through ``report_envelope`` + ``write_json``.
 """
 
 from __future__ import annotations

@@ -50,6 +50,11 @@ from the trapezoid rule. **A residual is informative only when it is well above 
 quadrature error**: when the output samples do not resolve the motion (a stiff stator's
 contact oscillates with frequency ``~ sqrt(K)``; raise ``samples_per_period``), both are
 large and the residual says nothing about the solver.
+
+**Cost.** ``energy_balance`` and ``energy_totals`` run in one compiled pass over the
+nodes (``analysis.energy_kernel``), with the arithmetic of the whole-array numpy path
+``energy_balance_numpy`` (kept as the tests' reference); ``energy_totals``, all a report
+needs, keeps no per-sample array.
 """
 
 from __future__ import annotations
