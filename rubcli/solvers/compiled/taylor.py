@@ -117,6 +117,8 @@ SCAN_PER_PERIOD = 8  # scan intervals per period of the fastest frequency
 MIN_SCAN = 4
 PRECHECK_GRID = 16  # intervals of the pre-check's second, finer bound
 MAX_SCAN = 4096
+START_ROUNDOFF = 1e-13  # relative round-off of H near the start of a step on the surface
+SCAN_NONE, SCAN_SURFACE, SCAN_ALL = 0, 1, 2  # step_events: what locate must scan
 
 
 def taylor_order(rtol: float) -> int:
@@ -165,74 +167,118 @@ def taylor_coefficients(t0, s, pars, regime, order, C, W):
     of the regime-locked solution through ``s`` at ``t0``; ``W`` (WORK_ROWS,
     WORK_COLS) is work space, left holding the series of q = z^2 (row 0) up to
     ``order`` in every regime and of u = 1 / z (row 2) in contact."""
-    nu, eta, E, phi0, K, mu = pars[0], pars[1], pars[2], pars[3], pars[4], pars[5]
-    x, y, vx, vy = C[0], C[1], C[2], C[3]
+    x, y = C[0], C[1]
     q, u = W[0], W[2]
     for i in range(4):
         C[i, 0] = s[i]
-    phase = eta * t0 + phi0
+    phase = pars[1] * t0 + pars[3]
     fr, fi = math.cos(phase), math.sin(phase)
-    contact = regime != FREE_REGIME
     if regime == STICK_REGIME:
         _stick_coefficients(fr, fi, pars, order, C, W)
         _inverse_radius_terms(x, y, q, u, order)
         return
-    mu_c = mu * float(regime) if contact else 0.0
-    nu2 = 2.0 * nu
-    # Reversed copies (xr[M - j] = x_j) turn every Cauchy sum into a forward dot
-    # product, sum_j a_j b_{k-j} = sum_j a_j br[M - k + j], which vectorises.
+    if regime == FREE_REGIME:
+        _free_coefficients(fr, fi, pars, order, C, W)
+    else:
+        _slip_coefficients(fr, fi, pars, float(regime), order, C, W)
+
+
+# Reversed copies (xr[M - j] = x_j) turn every Cauchy sum into a forward dot product,
+# sum_j a_j b_{k-j} = sum_j a_j br[M - k + j], which vectorises; the sums of one order
+# (q, u and the contact force) share one pass over j.
+
+
+@fast
+def _free_coefficients(fr, fi, pars, order, C, W):
+    """``taylor_coefficients`` in free flight, with the series of q = x^2 + y^2 (W[0],
+    for the pre-check)."""
+    nu2, eta, E = 2.0 * pars[0], pars[1], pars[2]
+    x, y, vx, vy = C[0], C[1], C[2], C[3]
+    q = W[0]
     M = MAX_ORDER
-    xr, yr, ur, jq = W[23], W[24], W[25], W[26]
-    xr[M], yr[M] = s[0], s[1]
+    xr, yr = W[23], W[24]
+    x0, y0 = x[0], y[0]
+    xr[M], yr[M] = x0, y0
+    q[0] = x0 * x0 + y0 * y0
     for k in range(order):
         ax = E * fr - nu2 * vx[k] - x[k]
         ay = E * fi - nu2 * vy[k] - y[k]
         fr, fi = -fi * eta / (k + 1), fr * eta / (k + 1)
-        if contact:
-            # q = x^2 + y^2 and u = q^(-1/2) (``_inverse_radius_terms``, written out:
-            # k q_0 u_k = sum_{j=1}^{k} (j / 2 - k) q_j u_{k-j})
-            off = M - k
-            acc = 0.0
-            for j in range(k + 1):
-                acc += x[j] * xr[off + j] + y[j] * yr[off + j]
-            q[k] = acc
-            jq[k] = k * acc
-            if k == 0:
-                u[0] = 1.0 / math.sqrt(acc)
-            else:
-                acc1 = 0.0
-                acc2 = 0.0
-                for j in range(1, k + 1):
-                    acc1 += jq[j] * ur[off + j]
-                    acc2 += q[j] * ur[off + j]
-                u[k] = (0.5 * acc1 - k * acc2) / (k * q[0])
-            ur[off] = u[k]
-            # K (1 - u) (x - mu_c y, y + mu_c x): sum_j K (delta_j0 - u_j) (x, y)_{k-j}
-            gx = 0.0
-            gy = 0.0
-            for j in range(k + 1):
-                gx += u[j] * xr[off + j]
-                gy += u[j] * yr[off + j]
-            gx = x[k] - gx
-            gy = y[k] - gy
-            ax -= K * (gx - mu_c * gy)
-            ay -= K * (gy + mu_c * gx)
         inv = 1.0 / (k + 1)
-        C[0, k + 1] = vx[k] * inv
-        C[1, k + 1] = vy[k] * inv
+        xm = vx[k] * inv
+        ym = vy[k] * inv
+        C[0, k + 1] = xm
+        C[1, k + 1] = ym
         C[2, k + 1] = ax * inv
         C[3, k + 1] = ay * inv
-        xr[M - k - 1] = C[0, k + 1]
-        yr[M - k - 1] = C[1, k + 1]
-    if contact:
-        _inverse_radius_terms(x, y, q, u, order)
-    else:
-        for k in range(order + 1):
-            acc = 0.0
-            off = M - k
-            for j in range(k + 1):
-                acc += x[j] * xr[off + j] + y[j] * yr[off + j]
-            q[k] = acc
+        m = k + 1
+        off = M - m
+        xr[off], yr[off] = xm, ym
+        sq = 0.0
+        for j in range(1, m):
+            sq += x[j] * xr[off + j] + y[j] * yr[off + j]
+        q[m] = sq + 2.0 * (x0 * xm + y0 * ym)
+
+
+@fast
+def _slip_coefficients(fr, fi, pars, sign, order, C, W):
+    """``taylor_coefficients`` in slip (``sign`` the regime, +1 or -1), with the series
+    of q (W[0]) and u = 1 / z (W[2])."""
+    nu2, eta, E, K = 2.0 * pars[0], pars[1], pars[2], pars[4]
+    mu_c = pars[5] * sign
+    x, y, vx, vy = C[0], C[1], C[2], C[3]
+    q, u = W[0], W[2]
+    M = MAX_ORDER
+    xr, yr, ur, jq = W[23], W[24], W[25], W[26]
+    x0, y0 = x[0], y[0]
+    xr[M], yr[M] = x0, y0
+    q0 = x0 * x0 + y0 * y0
+    q[0] = q0
+    jq[0] = 0.0
+    u0 = 1.0 / math.sqrt(q0)
+    u[0] = u0
+    ur[M] = u0
+    # g = (1 - u) w: the contact force is K g (1 + i mu_c); its order 0
+    gx, gy = x0 - u0 * x0, y0 - u0 * y0
+    for k in range(order):
+        ax = E * fr - nu2 * vx[k] - x[k] - K * (gx - mu_c * gy)
+        ay = E * fi - nu2 * vy[k] - y[k] - K * (gy + mu_c * gx)
+        fr, fi = -fi * eta / (k + 1), fr * eta / (k + 1)
+        inv = 1.0 / (k + 1)
+        xm = vx[k] * inv
+        ym = vy[k] * inv
+        C[0, k + 1] = xm
+        C[1, k + 1] = ym
+        C[2, k + 1] = ax * inv
+        C[3, k + 1] = ay * inv
+        m = k + 1
+        off = M - m
+        xr[off], yr[off] = xm, ym
+        # order m of q = x^2 + y^2, of u = q^(-1/2) by the power rule (m q_0 u_m =
+        # sum_{j=1}^{m} (j / 2 - m) q_j u_{m-j}) and of g = (1 - u) w: their inner
+        # terms j = 1..m-1 in one pass, the end terms (j = 0, m) after it
+        sq = 0.0
+        a1 = 0.0
+        a2 = 0.0
+        sx = 0.0
+        sy = 0.0
+        for j in range(1, m):
+            xa = xr[off + j]
+            ya = yr[off + j]
+            ua = ur[off + j]
+            sq += x[j] * xa + y[j] * ya
+            a1 += jq[j] * ua
+            a2 += q[j] * ua
+            sx += u[j] * xa
+            sy += u[j] * ya
+        qm = sq + 2.0 * (x0 * xm + y0 * ym)
+        q[m] = qm
+        jq[m] = m * qm
+        um = (0.5 * (a1 + m * qm * u0) - m * (a2 + qm * u0)) / (m * q0)
+        u[m] = um
+        ur[off] = um
+        gx = xm - (sx + u0 * xm + um * x0)
+        gy = ym - (sy + u0 * ym + um * y0)
 
 
 @fast
@@ -298,11 +344,15 @@ def step_size(C, order, rtol, atol):
 def dense_at(t, t0, C, order, out):
     """The step's Taylor polynomial at t (Horner), into out (4,)."""
     dt = t - t0
-    for i in range(4):
-        v = C[i, order]
-        for k in range(order - 1, -1, -1):
-            v = v * dt + C[i, k]
-        out[i] = v
+    # the four rows' Horner chains side by side (each the same operations as alone):
+    # four independent chains in flight instead of one latency-bound chain at a time
+    v0, v1, v2, v3 = C[0, order], C[1, order], C[2, order], C[3, order]
+    for k in range(order - 1, -1, -1):
+        v0 = v0 * dt + C[0, k]
+        v1 = v1 * dt + C[1, k]
+        v2 = v2 * dt + C[2, k]
+        v3 = v3 * dt + C[3, k]
+    out[0], out[1], out[2], out[3] = v0, v1, v2, v3
 
 
 @jit
@@ -383,12 +433,13 @@ def _product_tail_bound(a, order, h, A, R):
 
 
 @fast
-def _may_have_event(C, order, h, regime, pars, W, eps):
-    """False if no event function of the regime can reach zero in [t0, t0 + h]: the
-    surface's series (and the slip's) stays below zero by a margin (``_stays_below``)."""
+def _surface_may_cross(C, order, h, regime, W):
+    """False if the surface's series stays below zero by a margin on [0, h]."""
     # The surface's series q - 1 (W[0]), against x(s)^2 + y(s)^2 - 1 of the state
     # polynomials that locate evaluates: they differ by the product terms of degree
     # above N, bounded by _product_tail_bound; the margin adds round-off.
+    if _surface_clear_quick(C, order, h, regime, W):
+        return False
     x, y, q, H = C[0], C[1], W[0], W[10]
     direction = 1.0 if regime == FREE_REGIME else -1.0
     for k in range(order + 1):
@@ -397,10 +448,50 @@ def _may_have_event(C, order, h, regime, pars, W, eps):
     tail = _product_tail_bound(x, order, h, W[11], W[12])
     tail += _product_tail_bound(y, order, h, W[11], W[12])
     margin = PRECHECK_MARGIN * (1.0 + abs(H[0]) + _series_bound(H, order, h)) + tail
-    if not _stays_below(H, order, h, margin):
+    return not _stays_below(H, order, h, margin)
+
+
+@fast
+def _surface_clear_quick(C, order, h, regime, W):
+    """The first test of ``_surface_may_cross`` in one pass: H_0 + sum_k |H_k| h^k plus
+    the margin below zero, with the product tail bounded by 2 (sum_{i>N/2} A_i) (sum_j
+    A_j) (a pair i + j > N has one index above N/2), above ``_product_tail_bound``'s.
+    True only where the full test clears the step too."""
+    q = W[0]
+    direction = 1.0 if regime == FREE_REGIME else -1.0
+    h0 = direction * (q[0] - 1.0)
+    half = order // 2
+    sb = 0.0
+    ax = abs(C[0, 0])
+    ay = abs(C[1, 0])
+    p = 1.0
+    for k in range(1, half + 1):
+        p *= h
+        sb += abs(q[k]) * p
+        ax += abs(C[0, k]) * p
+        ay += abs(C[1, k]) * p
+    hx = 0.0
+    hy = 0.0
+    for k in range(half + 1, order + 1):
+        p *= h
+        sb += abs(q[k]) * p
+        hx += abs(C[0, k]) * p
+        hy += abs(C[1, k]) * p
+    tail = 2.0 * (hx * (ax + hx) + hy * (ay + hy))
+    margin = PRECHECK_MARGIN * (1.0 + abs(h0) + sb) + tail
+    return h0 + sb + margin < 0.0
+
+
+@fast
+def _may_have_event(C, order, h, regime, pars, W, eps):
+    """False if no event function of the regime can reach zero in [t0, t0 + h]: the
+    surface's series (and the slip's) stays below zero by a margin (``_stays_below``)."""
+    if _surface_may_cross(C, order, h, regime, W):
         return True
     if regime == FREE_REGIME or pars[5] == 0.0:
         return False
+    x, y = C[0], C[1]
+    H = W[10]
     # v_r = Rp eta + (x vy - y vx) u: its series (u is W[2]); the margin covers the
     # terms beyond order N, by which it differs from v_r of the state polynomials
     vx, vy = C[2], C[3]
@@ -415,6 +506,84 @@ def _may_have_event(C, order, h, regime, pars, W, eps):
     scale = 1.0 + abs(spin) + abs(H[0])
     margin = PRECHECK_MARGIN * scale + 100.0 * eps * scale
     return not _stays_below(H, order, h, margin)
+
+
+@fast
+def _surface_start_may_cross(C, order, h, regime, W, level):
+    """The surface pre-check of a step that starts on the surface (the contact entry
+    or exit that began the segment), where H = direction (q - 1) is zero to round-off:
+    ``events.first_crossing`` finds no crossing if the start rate (its ``hd[0]``) is
+    clearly negative and H stays below its ``level`` (the restart band) on (0, h].
+    With H(s) = H_0 + s G(s), G_k = H_{k+1}: G below -(tail / h + margin) on [0, h]
+    keeps the state polynomials' H below |H_0| + round-off, the product terms of degree
+    above N included (they grow at least like s^(N+1), so below s tail / h)."""
+    x, y, q, H, G = C[0], C[1], W[0], W[10], W[13]
+    direction = 1.0 if regime == FREE_REGIME else -1.0
+    rate = direction * 2.0 * (C[0, 0] * C[2, 0] + C[1, 0] * C[3, 0])  # locate's hd[0]
+    if rate >= -PRECHECK_MARGIN * (1.0 + abs(rate)):
+        return True
+    for k in range(order + 1):
+        H[k] = direction * q[k]
+    H[0] -= direction
+    if abs(H[0]) + START_ROUNDOFF * (1.0 + abs(q[0]) + _series_bound(H, order, h)) > 0.5 * level:
+        return True
+    for k in range(order):
+        G[k] = H[k + 1]
+    tail = _product_tail_bound(x, order, h, W[11], W[12])
+    tail += _product_tail_bound(y, order, h, W[11], W[12])
+    margin = tail / h + PRECHECK_MARGIN * (1.0 + abs(G[0]) + _series_bound(G, order - 1, h))
+    return not _stays_below(G, order - 1, h, margin)
+
+
+@fast
+def _slip_clear(C, order, h, regime, pars):
+    """True if the slip velocity of the state polynomials (what ``locate`` evaluates:
+    v_r = Rp eta + (x vy - y vx) / hypot(x, y)) surely keeps its sign on [0, h]: with
+    D_a = sum_{k>=1} |a_k| h^k the spread of each polynomial, P = x vy - y vx moves by
+    at most dP = |x_0| D_vy + |vy_0| D_x + D_x D_vy + (the same for y vx), z by at most
+    dz = hypot(D_x, D_y), so P / z by at most dP / (z_0 - dz) + |P_0| dz / (z_0 (z_0 -
+    dz)). O(N), against the O(N^2) series of v_r (``_may_have_event``)."""
+    d0 = d1 = d2 = d3 = 0.0
+    p = 1.0
+    for k in range(1, order + 1):
+        p *= h
+        d0 += abs(C[0, k]) * p
+        d1 += abs(C[1, k]) * p
+        d2 += abs(C[2, k]) * p
+        d3 += abs(C[3, k]) * p
+    x, y, vx, vy = C[0, 0], C[1, 0], C[2, 0], C[3, 0]
+    z = math.hypot(x, y)
+    dz = math.hypot(d0, d1)
+    if not dz < 0.5 * z:
+        return False
+    whirl = x * vy - y * vx
+    dp = abs(x) * d3 + abs(vy) * d0 + d0 * d3 + abs(y) * d2 + abs(vx) * d1 + d1 * d2
+    spread = dp / (z - dz) + abs(whirl) * dz / (z * (z - dz))
+    spin = pars[6] * pars[1]
+    v_r = spin + whirl / z
+    scale = 1.0 + abs(spin) + abs(v_r) + spread
+    return float(regime) * v_r - spread > PRECHECK_MARGIN * scale
+
+
+@fast
+def step_events(C, order, h, regime, pars, W, eps, starts, band):
+    """Which event functions ``locate`` must scan on a step: SCAN_NONE (none can reach
+    its level: the step is clear), SCAN_SURFACE (the slip reversal surely cannot occur)
+    or SCAN_ALL. Stick steps and steps that start on the slip surface are always
+    scanned; a step that starts on the contact surface by ``_surface_start_may_cross``;
+    every other by ``_may_have_event``, its slip part first by the O(N) ``_slip_clear``."""
+    if regime == STICK_REGIME or starts[1]:
+        return SCAN_ALL
+    slip = regime != FREE_REGIME and pars[5] > 0.0
+    slip_clear = (not slip) or _slip_clear(C, order, h, regime, pars)
+    if starts[0]:
+        surface = _surface_start_may_cross(C, order, h, regime, W, SURFACE_BAND * band)
+        if slip_clear:
+            return SCAN_SURFACE if surface else SCAN_NONE
+        return SCAN_ALL
+    if slip_clear:
+        return SCAN_SURFACE if _surface_may_cross(C, order, h, regime, W) else SCAN_NONE
+    return SCAN_ALL if _may_have_event(C, order, h, regime, pars, W, eps) else SCAN_NONE
 
 
 @jit
@@ -668,6 +837,8 @@ def advance_taylor(
     grid = np.empty(MAX_SCAN + 1)
     hv = np.empty(MAX_SCAN + 1)
     hd = np.empty(MAX_SCAN + 1)
+    pars_surface = pars.copy()
+    pars_surface[5] = 0.0
     n_out = t_eval.shape[0]
     capacity = events_tau.shape[0]
     steps = 0
@@ -693,7 +864,8 @@ def advance_taylor(
             return tau, t_new, k, steps, STOP_PYTHON, regime, n_events, at_event
         kind = -1
         t_stop = t_new
-        if at_event or regime == STICK_REGIME or _may_have_event(C, order, h, regime, pars, W, eps):
+        scan = step_events(C, order, h, regime, pars, W, eps, starts, band)
+        if scan != SCAN_NONE:
             n = scan_points(h, regime, pars, y)
             info[0] = n
             if not compiled_events:
@@ -702,8 +874,11 @@ def advance_taylor(
             for j in range(n):
                 grid[j] = j * step + tau
             grid[n] = t_new
+            # no slip reversal possible: locate reads mu only to decide whether to scan
+            # the slip, so it is handed the parameters with mu = 0
+            scan_pars = pars if scan == SCAN_ALL else pars_surface
             t_ev, kind = locate(
-                tau, C, order, pars, regime, grid, n, hv, hd, row, drow, starts, band
+                tau, C, order, scan_pars, regime, grid, n, hv, hd, row, drow, starts, band
             )
             if kind >= 0:
                 t_stop = t_ev
