@@ -268,3 +268,34 @@ def test_precheck_flags_a_shallow_crossing_and_clears_a_clear_step():
         tk.taylor_coefficients(t0, s0, pars, model.FREE, order, C, W)
         flags.append(bool(tk._may_have_event(C, order, h, model.FREE, pars, W, 1e-14)))
     assert flags == [True, False]
+
+
+@pytest.mark.parametrize("storm", [False, True])
+def test_batch_event_record_equals_the_event_by_event_record(storm):
+    """taylor.record_events (one batch, SwitchEvents built field by field) against
+    dop853_jit.record_kernel_events (event by event through the storm guard): the same
+    SwitchEvents, last kind, status and message; with 21 events at one instant (a switch
+    storm) both fail at the same event."""
+    from rubcli.solvers import driver
+    from rubcli.solvers.dop853_jit import record_kernel_events
+    from rubcli.solvers.taylor import record_events
+
+    rng = np.random.default_rng(3)
+    n = 40
+    taus = np.sort(rng.uniform(0.0, 50.0, n))
+    if storm:
+        taus[10:32] = taus[10]  # 22 events at one instant: the 21st is a storm
+    kinds = rng.integers(0, 5, n)
+    states = rng.normal(size=(n, 4))
+    regimes = rng.integers(-1, 3, (n, 2))
+    runs = []
+    for record in (record_events, record_kernel_events):
+        run = driver.Run(fig3_problem(0.03, 10), "taylor", max_steps=10, max_wall_time_s=10.0)
+        ok = record(run, 20, taus, kinds, states, regimes)  # two batches of 20
+        ok = ok and record(run, n - 20, taus[20:], kinds[20:], states[20:], regimes[20:])
+        runs.append((ok, run))
+    (ok_a, a), (ok_b, b) = runs
+    assert ok_a == ok_b == (not storm)
+    assert a.events == b.events and len(a.events) == (31 if storm else n)
+    assert all(type(e) is type(b.events[0]) for e in a.events)
+    assert (a.status, a.message, a.last_kind) == (b.status, b.message, b.last_kind)

@@ -107,8 +107,8 @@ fast = jit_fast
 
 MAX_ORDER = 30
 MIN_ORDER = 4
-ORDER_FACTOR = 0.9  # N = ceil(-0.9 ln(rtol)) + 3 (Jorba & Zou's rule: 0.5 and + 1)
-ORDER_OFFSET = 3
+ORDER_FACTOR = 0.5  # N = ceil(-0.5 ln(rtol)) + 6 (Jorba & Zou's rule: 0.5 and + 1)
+ORDER_OFFSET = 6
 WORK_ROWS = 27
 WORK_COLS = 2 * MAX_ORDER + 1  # the surface's polynomial has degree 2N
 STEP_SAFETY_EXPONENT = 0.7  # h *= exp(-0.7 / (N - 1)) (heyoka)
@@ -122,7 +122,7 @@ SCAN_NONE, SCAN_SURFACE, SCAN_ALL = 0, 1, 2  # step_events: what locate must sca
 
 
 def taylor_order(rtol: float) -> int:
-    """The order for a tolerance: ceil(-0.9 ln(rtol)) + 3, within [MIN_ORDER, MAX_ORDER]
+    """The order for a tolerance: ceil(-0.5 ln(rtol)) + 6, within [MIN_ORDER, MAX_ORDER]
     (module docstring)."""
     order = math.ceil(-ORDER_FACTOR * math.log(rtol)) + ORDER_OFFSET
     return int(min(MAX_ORDER, max(MIN_ORDER, order)))
@@ -166,7 +166,8 @@ def taylor_coefficients(t0, s, pars, regime, order, C, W):
     """The Taylor coefficients C[:, 0..order] (rows x, y, vx, vy; columns the orders)
     of the regime-locked solution through ``s`` at ``t0``; ``W`` (WORK_ROWS,
     WORK_COLS) is work space, left holding the series of q = z^2 (row 0) up to
-    ``order`` in every regime and of u = 1 / z (row 2) in contact."""
+    ``order`` in every regime, of P = w / z (rows 4, 5) in slip and of u = 1 / z (row 2)
+    in stick."""
     x, y = C[0], C[1]
     q, u = W[0], W[2]
     for i in range(4):
@@ -223,23 +224,30 @@ def _free_coefficients(fr, fi, pars, order, C, W):
 @fast
 def _slip_coefficients(fr, fi, pars, sign, order, C, W):
     """``taylor_coefficients`` in slip (``sign`` the regime, +1 or -1), with the series
-    of q (W[0]) and u = 1 / z (W[2])."""
+    of q = x^2 + y^2 (W[0]), z = sqrt(q) (W[3]) and P = w / z (W[4], W[5]).
+
+    The contact force is K (w - P) (1 + i mu_c). Per order m: q_m and z_m by their
+    symmetric sums (z^2 = q: 2 z_0 z_m = q_m - sum_{j=1}^{m-1} z_j z_{m-j}), then P_m by
+    the division rule (z P = w: z_0 P_m = w_m - sum_{j=1}^{m} z_j P_{m-j}); 3.5 m
+    multiply-adds an order, against 6 m for q, u = q^(-1/2) and u w."""
     nu2, eta, E, K = 2.0 * pars[0], pars[1], pars[2], pars[4]
     mu_c = pars[5] * sign
     x, y, vx, vy = C[0], C[1], C[2], C[3]
-    q, u = W[0], W[2]
+    q, z, px, py = W[0], W[3], W[4], W[5]
     M = MAX_ORDER
-    xr, yr, ur, jq = W[23], W[24], W[25], W[26]
+    xr, yr, zr, pxr, pyr = W[23], W[24], W[25], W[26], W[22]
     x0, y0 = x[0], y[0]
     xr[M], yr[M] = x0, y0
     q0 = x0 * x0 + y0 * y0
     q[0] = q0
-    jq[0] = 0.0
-    u0 = 1.0 / math.sqrt(q0)
-    u[0] = u0
-    ur[M] = u0
-    # g = (1 - u) w: the contact force is K g (1 + i mu_c); its order 0
-    gx, gy = x0 - u0 * x0, y0 - u0 * y0
+    z0 = math.sqrt(q0)
+    z[0] = z0
+    zr[M] = z0
+    inv_z0 = 1.0 / z0
+    p0x, p0y = x0 * inv_z0, y0 * inv_z0
+    px[0], py[0] = p0x, p0y
+    pxr[M], pyr[M] = p0x, p0y
+    gx, gy = x0 - p0x, y0 - p0y  # w - P, order 0
     for k in range(order):
         ax = E * fr - nu2 * vx[k] - x[k] - K * (gx - mu_c * gy)
         ay = E * fi - nu2 * vy[k] - y[k] - K * (gy + mu_c * gx)
@@ -254,31 +262,33 @@ def _slip_coefficients(fr, fi, pars, sign, order, C, W):
         m = k + 1
         off = M - m
         xr[off], yr[off] = xm, ym
-        # order m of q = x^2 + y^2, of u = q^(-1/2) by the power rule (m q_0 u_m =
-        # sum_{j=1}^{m} (j / 2 - m) q_j u_{m-j}) and of g = (1 - u) w: their inner
-        # terms j = 1..m-1 in one pass, the end terms (j = 0, m) after it
         sq = 0.0
-        a1 = 0.0
-        a2 = 0.0
+        sz = 0.0
+        for j in range(1, (m + 1) // 2):
+            sq += x[j] * xr[off + j] + y[j] * yr[off + j]
+            sz += z[j] * zr[off + j]
+        sq *= 2.0
+        sz *= 2.0
+        if m % 2 == 0:
+            c = m // 2
+            sq += x[c] * x[c] + y[c] * y[c]
+            sz += z[c] * z[c]
+        qm = sq + 2.0 * (x0 * xm + y0 * ym)
+        q[m] = qm
+        zm = (qm - sz) * (0.5 * inv_z0)
+        z[m] = zm
+        zr[off] = zm
         sx = 0.0
         sy = 0.0
         for j in range(1, m):
-            xa = xr[off + j]
-            ya = yr[off + j]
-            ua = ur[off + j]
-            sq += x[j] * xa + y[j] * ya
-            a1 += jq[j] * ua
-            a2 += q[j] * ua
-            sx += u[j] * xa
-            sy += u[j] * ya
-        qm = sq + 2.0 * (x0 * xm + y0 * ym)
-        q[m] = qm
-        jq[m] = m * qm
-        um = (0.5 * (a1 + m * qm * u0) - m * (a2 + qm * u0)) / (m * q0)
-        u[m] = um
-        ur[off] = um
-        gx = xm - (sx + u0 * xm + um * x0)
-        gy = ym - (sy + u0 * ym + um * y0)
+            sx += z[j] * pxr[off + j]
+            sy += z[j] * pyr[off + j]
+        pxm = (xm - sx - zm * p0x) * inv_z0
+        pym = (ym - sy - zm * p0y) * inv_z0
+        px[m], py[m] = pxm, pym
+        pxr[off], pyr[off] = pxm, pym
+        gx = xm - pxm
+        gy = ym - pym
 
 
 @fast
@@ -330,14 +340,16 @@ def step_size(C, order, rtol, atol):
     for i in range(4):
         scale = max(scale, abs(C[i, 0]))
     eps = max(atol, rtol * scale)
-    h = math.inf
+    # h = min_k (eps / |a_k|)^(1/k) exp(-0.7 / (N - 1)), as one exponential
+    log_eps = math.log(eps)
+    exponent = math.inf
     for k in (order - 1, order):
         norm = 0.0
         for i in range(4):
             norm = max(norm, abs(C[i, k]))
         if norm > 0.0:
-            h = min(h, (eps / norm) ** (1.0 / k))
-    return h * math.exp(-STEP_SAFETY_EXPONENT / (order - 1)), eps
+            exponent = min(exponent, (log_eps - math.log(norm)) / k)
+    return math.exp(exponent - STEP_SAFETY_EXPONENT / (order - 1)), eps
 
 
 @jit
@@ -390,9 +402,9 @@ def _poly_at(H, order, s):
 @fast
 def _stays_below(H, order, h, margin):
     """True if the polynomial H (its series) stays below -margin on [0, h]: first by
-    |H(s) - H_0| <= sum_{k>=1} |H_k| h^k; failing that, on PRECHECK_GRID intervals of
-    length delta, by the chord bound max H <= max(H_a, H_b) + M2 delta^2 / 8 with M2 =
-    sum_k k (k - 1) |H_k| h^(k-2) a bound of |H''| on the step."""
+    |H(s) - H_0| <= sum_{k>=1} |H_k| h^k; failing that, on 4 and then PRECHECK_GRID
+    intervals of length delta, by the chord bound max H <= max(H_a, H_b) + M2 delta^2 / 8
+    with M2 = sum_k k (k - 1) |H_k| h^(k-2) a bound of |H''| on the step."""
     spread = _series_bound(H, order, h)
     if H[0] + spread + margin < 0.0:
         return True
@@ -403,6 +415,19 @@ def _stays_below(H, order, h, margin):
     for k in range(2, order + 1):
         m2 += k * (k - 1) * abs(H[k]) * p
         p *= h
+    # first on 4 intervals, the four values by Horner chains side by side
+    delta = 0.25 * h
+    rise = m2 * delta * delta / 8.0
+    s1, s2, s3, s4 = delta, 2.0 * delta, 3.0 * delta, h
+    v1 = v2 = v3 = v4 = H[order]
+    for k in range(order - 1, -1, -1):
+        v1 = v1 * s1 + H[k]
+        v2 = v2 * s2 + H[k]
+        v3 = v3 * s3 + H[k]
+        v4 = v4 * s4 + H[k]
+    top = max(max(H[0], v1), max(v2, max(v3, v4)))
+    if top + rise + margin < 0.0:
+        return True
     delta = h / PRECHECK_GRID
     rise = m2 * delta * delta / 8.0
     left = H[0]
@@ -453,33 +478,55 @@ def _surface_may_cross(C, order, h, regime, W):
 
 @fast
 def _surface_clear_quick(C, order, h, regime, W):
-    """The first test of ``_surface_may_cross`` in one pass: H_0 + sum_k |H_k| h^k plus
-    the margin below zero, with the product tail bounded by 2 (sum_{i>N/2} A_i) (sum_j
-    A_j) (a pair i + j > N has one index above N/2), above ``_product_tail_bound``'s.
-    True only where the full test clears the step too."""
+    """``_surface_may_cross``'s tests in two passes: H_0 + sum_k |H_k| h^k plus the
+    margin below zero, or else the chord bound on 4 intervals (``_stays_below``), with
+    the product tail bounded by 2 (sum_{i>N/2} A_i) (sum_j A_j) (a pair i + j > N has
+    one index above N/2), above ``_product_tail_bound``'s. True only where the full
+    test clears the step too; False leaves the decision to it."""
     q = W[0]
     direction = 1.0 if regime == FREE_REGIME else -1.0
     h0 = direction * (q[0] - 1.0)
     half = order // 2
     sb = 0.0
+    m2 = 0.0  # sum_k k (k - 1) |H_k| h^k; / h^2 below
     ax = abs(C[0, 0])
     ay = abs(C[1, 0])
     p = 1.0
     for k in range(1, half + 1):
         p *= h
-        sb += abs(q[k]) * p
+        a = abs(q[k]) * p
+        sb += a
+        m2 += k * (k - 1) * a
         ax += abs(C[0, k]) * p
         ay += abs(C[1, k]) * p
     hx = 0.0
     hy = 0.0
     for k in range(half + 1, order + 1):
         p *= h
-        sb += abs(q[k]) * p
+        a = abs(q[k]) * p
+        sb += a
+        m2 += k * (k - 1) * a
         hx += abs(C[0, k]) * p
         hy += abs(C[1, k]) * p
     tail = 2.0 * (hx * (ax + hx) + hy * (ay + hy))
     margin = PRECHECK_MARGIN * (1.0 + abs(h0) + sb) + tail
-    return h0 + sb + margin < 0.0
+    if h0 + sb + margin < 0.0:
+        return True
+    if h0 >= -margin:
+        return False
+    # the chord bound on 4 intervals of h / 4: rise = M2 (h / 4)^2 / 8, M2 = m2 / h^2
+    rise = m2 / 128.0
+    s1, s2, s3 = 0.25 * h, 0.5 * h, 0.75 * h
+    v1 = v2 = v3 = v4 = q[order]
+    for k in range(order - 1, -1, -1):
+        v1 = v1 * s1 + q[k]
+        v2 = v2 * s2 + q[k]
+        v3 = v3 * s3 + q[k]
+        v4 = v4 * h + q[k]
+    top = direction * (max(max(v1, v2), max(v3, v4)) - 1.0)
+    if direction < 0.0:
+        top = direction * (min(min(v1, v2), min(v3, v4)) - 1.0)
+    return max(h0, top) + rise + margin < 0.0
 
 
 @fast
@@ -490,17 +537,15 @@ def _may_have_event(C, order, h, regime, pars, W, eps):
         return True
     if regime == FREE_REGIME or pars[5] == 0.0:
         return False
-    x, y = C[0], C[1]
     H = W[10]
-    # v_r = Rp eta + (x vy - y vx) u: its series (u is W[2]); the margin covers the
-    # terms beyond order N, by which it differs from v_r of the state polynomials
+    # v_r = Rp eta + P_x vy - P_y vx, P = w / z (W[4], W[5]): its series; the margin
+    # covers the terms beyond order N, by which it differs from v_r of the state
+    # polynomials
     vx, vy = C[2], C[3]
-    wv, u = W[8], W[2]
+    px, py = W[4], W[5]
     sign = float(regime)
     for k in range(order + 1):
-        wv[k] = _cauchy(x, vy, k) - _cauchy(y, vx, k)
-    for k in range(order + 1):
-        H[k] = -sign * _cauchy(wv, u, k)
+        H[k] = -sign * (_cauchy(px, vy, k) - _cauchy(py, vx, k))
     spin = pars[6] * pars[1]
     H[0] -= sign * spin
     scale = 1.0 + abs(spin) + abs(H[0])
