@@ -1,9 +1,9 @@
 """``taylor``: an adaptive Taylor-series integrator of the rub equations, compiled.
 
-Scheme: Taylor's method of order N = ceil(-ln(rtol) / 2) + 1 (8 at rtol 1e-6, 13 at
+Scheme: Taylor's method of order N = ceil(-ln(rtol) / 2) + 6 (13 at rtol 1e-6, 18 at
 1e-10), its coefficients computed by the automatic-differentiation recurrences of the
 regime-locked right-hand side (``taylor_kernels.taylor_coefficients``: forcing, z =
-sqrt(x^2 + y^2), 1/z, the products of the contact law and of the rolling law), the step
+sqrt(x^2 + y^2), w / z, the products of the contact law and of the rolling law), the step
 by Jorba and Zou's rule (the last two terms below max(atol, rtol |s|)), no rejected steps.
 It is the approach of heyoka (Biscani and Izzo 2021), written for this one system, with
 the events of the other methods located on each step's Taylor polynomial.
@@ -61,15 +61,18 @@ def record_events(run: driver.Run, n: int, taus, kinds, states, regimes) -> bool
     prev[0] = run.events[-1].tau if run.events else -np.inf
     if np.any(np.abs(t - prev) <= STORM_INSTANT * np.maximum(1.0, np.abs(t))):
         return record_kernel_events(run, n, taus, kinds, states, regimes)
-    tl, kl, sl, rl = t.tolist(), kinds[:n].tolist(), states[:n].tolist(), regimes[:n].tolist()
-    names = KIND_NAMES
-    run.events.extend(
-        _switch_event(tl[i], names[kl[i]], tuple(sl[i]), rl[i][0], rl[i][1]) for i in range(n - 1)
-    )
+    # flat lists: no list per event for the garbage collector to count and traverse
+    tl, kl = t.tolist(), kinds[:n].tolist()
+    sl, rl = states[:n].ravel().tolist(), regimes[:n].ravel().tolist()
+    names, make = KIND_NAMES, _switch_event
+    events = [
+        make(tl[i], names[kl[i]], tuple(sl[4 * i : 4 * i + 4]), rl[2 * i], rl[2 * i + 1])
+        for i in range(n)
+    ]
     run.last_kind = kl[-1]
     # the last through the guard (which it resets): it holds the instant of the last event
-    last = _switch_event(tl[-1], names[kl[-1]], tuple(sl[-1]), rl[-1][0], rl[-1][1])
-    return run.record(last)
+    run.events.extend(events[:-1])
+    return run.record(events[-1])
 
 
 def _switch_event_fields(tau, kind, state, before, after) -> SwitchEvent:

@@ -10,31 +10,35 @@ differentiation, Moore 1966; Jorba & Zou 2005, section 3). With ``a_k`` the norm
 coefficient of order k (``a(tau0 + s) = sum a_k s^k``) and ``(a b)_k = sum_j a_j b_{k-j}``:
 
 - forcing: ``F_k = F_{k-1} i eta / k`` with ``F_0 = exp(i (eta tau0 + phi0))``;
-- ``q = x^2 + y^2``; ``z = sqrt(q)``: ``z_k = (q_k - sum_{j=1}^{k-1} z_j z_{k-j}) / (2 z_0)``;
-- ``u = 1 / z``: ``u_k = -(sum_{j=1}^{k} z_j u_{k-j}) / z_0``; the force factor
-  ``K (1 - 1/z)`` has coefficients ``K (delta_k0 - u_k)``;
-- slip: ``a = E F - 2 nu v - w - K (1 - u) (w + i mu_c w)`` (w = x + i y);
-- stick: the rolling law of ``model.rhs_entries`` term by term: the velocity projected
-  onto ``r theta' = -Rp eta``, the needed friction ``stick_friction_value`` on it, the
-  normal force ``K (z - 1) / z`` and the tangential force ``T / z``;
+- ``q = x^2 + y^2``; ``z = sqrt(q)``: ``z_k = (q_k - sum_{j=1}^{k-1} z_j z_{k-j}) / (2 z_0)``
+  (both sums symmetric: half of each is summed);
+- slip: ``P = w / z`` (w = x + i y) by the division rule, ``P_k = (w_k - sum_{j=1}^{k}
+  z_j P_{k-j}) / z_0``, and ``a = E F - 2 nu v - w - K (w - P) (1 + i mu_c)``; per order
+  k about 3.5 k multiply-adds (q, z and P in two passes over j);
+- stick: the rolling law of ``model.rhs_entries`` term by term with ``u = 1 / z`` by the
+  power rule (``k q_0 u_k = sum_{j=1}^{k} (j / 2 - k) q_j u_{k-j}``): the velocity
+  projected onto ``r theta' = -Rp eta``, the needed friction ``stick_friction_value`` on
+  it, the normal force ``K (z - 1) / z`` and the tangential force ``T / z``;
 - ``x_{k+1} = vx_k / (k + 1)``, ``vx_{k+1} = ax_k / (k + 1)`` (and the same for y).
 
-A step of order N costs O(N^2) operations and no right-hand-side calls.
+A step of order N costs O(N^2) operations and no right-hand-side calls: about 0.26 us
+at N = 16 in slip (a 2-core Xeon, shared), 0.45-0.5 us a step with the step size, the
+pre-check and the dense output.
 
 Order and step (Jorba & Zou 2005, section 3.2.2; heyoka's rule)
 ---------------------------------------------------------------
-The order is fixed for a run by the tolerance: ``N = ceil(-0.9 ln(rtol)) + 3`` (16 at
-1e-6, 24 at 1e-10, 30 at 1e-13). Jorba and Zou's rule ``ceil(-ln(rtol) / 2) + 1`` (8,
-13, 16) minimises the operation count of the recurrences alone; measured here, higher
-orders pay (fewer, longer steps; each step also carries the event pre-check, the
-samples and the loop overheads of short recurrences). On the paper's case (K = 17.6,
-mu = 0, 100 periods, CPU time, minimum of 5) orders 10 / 13 / 16 / 20 / 24 / 28 took
-1.83 / 1.34 / 1.22 / 1.20 / 1.30 / 1.51 ms at rtol 1e-6 and 4.86 / 2.89 / 2.26 / 1.92 /
-1.93 / 2.07 ms at rtol 1e-10, at about the same error (``benchmarks/peers.py`` measures
-the method as registered). With the state tolerance ``eps = max(atol, rtol |s_0|_inf)``
-the step is ``h = exp(-0.7 / (N - 1)) min((eps / |a_{N-1}|)^(1/(N-1)),
-(eps / |a_N|)^(1/N))``, so that the last terms of the series are below eps; steps are
-never rejected. The step's Taylor polynomial is its dense output (samples and events).
+The order is fixed for a run by the tolerance: ``N = ceil(-0.5 ln(rtol)) + 6`` (13 at
+1e-6, 18 at 1e-10, 21 at 1e-13): Jorba and Zou's slope (their ``ceil(-ln(rtol) / 2) +
+1`` minimises the operation count of the recurrences alone) with a larger offset, since
+each step also carries the step size, the pre-check and the loop overheads. Measured at
+equal final error (the cheapest setting of a half-decade tolerance ladder reaching it,
+CPU time): against the former ``ceil(-0.9 ln(rtol)) + 3`` (16, 24, 30) it is 1.3x
+faster on the paper's case with friction (mu = 0.03, 941 switches: a lower order is more
+accurate at a given tolerance there) and the same within noise at mu = 0; offsets 5 and
+7 were no better. With the state tolerance ``eps = max(atol, rtol |s_0|_inf)`` the step
+is ``h = exp(-0.7 / (N - 1)) min((eps / |a_{N-1}|)^(1/(N-1)), (eps / |a_N|)^(1/N))``, so
+that the last terms of the series are below eps; steps are never rejected. The step's
+Taylor polynomial is its dense output (samples and events).
 
 Events
 ------
@@ -42,18 +46,28 @@ Each step's event functions (``events.earliest_event``: the surface ``z^2 - 1``,
 slip ``v_r`` with friction, the stick margin) are located on the step's polynomial by a
 transcription of ``events.first_crossing`` (the same grid logic, scipy's Brent iteration),
 and applied by ``roots._apply_event`` (Filippov's rule, the projection onto rolling).
-Most steps are cleared without a scan. The surface and the slip have Taylor series of
-their own (``q - 1`` above; ``v_r = Rp eta + (x vy - y vx) u``). They differ from the
-event functions of the state polynomials (what ``locate`` evaluates) by terms above
-order N: for the surface these are bounded exactly (``_product_tail_bound``), for the
-slip a margin of 100 state tolerances covers them. With ``|H(s) - H_0| <= sum_k |H_k|
-s^k``, a step whose bound stays below zero by the margin holds no event of it; failing
-that, the series is evaluated on 16 sub-intervals and bounded between them by its
-second derivative (``_stays_below``). The first step of every segment and every stick
-step are scanned. The scan grid has ``max(4, ceil(8 h omega / 2 pi))`` intervals, omega
-a bound on the fastest frequency (1 + eta in free flight, sqrt(1 + K) + 1 + eta +
-|theta'| in contact): the extrema of an event function are half a period of it apart,
-so it turns at most once per interval, as ``first_crossing`` requires.
+Most steps are cleared without a scan (``step_events``):
+
+- the surface: its Taylor series ``q - 1`` differs from ``z^2 - 1`` of the state
+  polynomials (what ``locate`` evaluates) by the product terms above order N, bounded
+  (``_product_tail_bound``, or more loosely in one pass). With ``|H(s) - H_0| <= sum_k
+  |H_k| s^k``, a step whose bound stays below zero by the margin holds no event of it;
+  failing that, the series is evaluated on 4, then 16 sub-intervals and bounded between
+  them by its second derivative (``_surface_clear_quick``, ``_stays_below``);
+- a step that starts on the surface (the first of a segment begun by a contact entry or
+  exit) by ``H(s) = H_0 + s G(s)``: a clearly negative start rate and G below zero on
+  the step keep H within round-off of zero, below the restart band the scan needs;
+- the slip: first an O(N) bound of ``v_r = Rp eta + (x vy - y vx) / hypot(x, y)`` on the
+  state polynomials themselves (``_slip_clear``: the spread of each polynomial bounds
+  that of v_r); failing that, the series ``v_r = Rp eta + P_x vy - P_y vx``, whose terms
+  beyond order N a margin of 100 state tolerances covers. A step whose slip is cleared
+  this way is scanned for the surface alone (``locate`` is handed mu = 0).
+
+Every stick step and every step that starts on the slip surface (after a slip reversal
+or a stick exit) is scanned. The scan grid has ``max(4, ceil(8 h omega / 2 pi))``
+intervals, omega a bound on the fastest frequency (1 + eta in free flight, sqrt(1 + K) +
+1 + eta + |theta'| in contact): the extrema of an event function are half a period of it
+apart, so it turns at most once per interval, as ``first_crossing`` requires.
 """
 
 from __future__ import annotations
