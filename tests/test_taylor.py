@@ -21,8 +21,8 @@ from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solution import FAILED, SUCCESS
 from rubcli.solvers import METHODS, options_for, solve
-from rubcli.solvers.events import ENTRY
 from rubcli.solvers.compiled import taylor as tk
+from rubcli.solvers.events import ENTRY
 
 FIG3 = {"nu": 0.009478, "eta": 0.7818, "e": 7.52, "K": 17.6, "Rp": 46.16}
 START = (0.88544, -0.8039, 0.0, 0.0)
