@@ -133,6 +133,8 @@ PRECHECK_GRID = 16  # intervals of the pre-check's second, finer bound
 MAX_SCAN = 4096
 START_ROUNDOFF = 1e-13  # relative round-off of H near the start of a step on the surface
 SCAN_NONE, SCAN_SURFACE, SCAN_ALL = 0, 1, 2  # step_events: what locate must scan
+# 1 / k for the recurrences (a constant table: no division on the series' chain)
+RECIPROCALS = np.array([0.0] + [1.0 / k for k in range(1, MAX_ORDER + 2)])
 
 
 def taylor_order(rtol: float) -> int:
@@ -218,8 +220,9 @@ def _free_coefficients(fr, fi, pars, order, C, W):
     for k in range(order):
         ax = E * fr - nu2 * vx[k] - x[k]
         ay = E * fi - nu2 * vy[k] - y[k]
-        fr, fi = -fi * eta / (k + 1), fr * eta / (k + 1)
-        inv = 1.0 / (k + 1)
+        inv = RECIPROCALS[k + 1]
+        rotate = eta * inv
+        fr, fi = -fi * rotate, fr * rotate
         xm = vx[k] * inv
         ym = vy[k] * inv
         C[0, k + 1] = xm
@@ -265,8 +268,9 @@ def _slip_coefficients(fr, fi, pars, sign, order, C, W):
     for k in range(order):
         ax = E * fr - nu2 * vx[k] - x[k] - K * (gx - mu_c * gy)
         ay = E * fi - nu2 * vy[k] - y[k] - K * (gy + mu_c * gx)
-        fr, fi = -fi * eta / (k + 1), fr * eta / (k + 1)
-        inv = 1.0 / (k + 1)
+        inv = RECIPROCALS[k + 1]
+        rotate = eta * inv
+        fr, fi = -fi * rotate, fr * rotate
         xm = vx[k] * inv
         ym = vy[k] * inv
         C[0, k + 1] = xm
