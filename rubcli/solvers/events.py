@@ -96,13 +96,14 @@ class StormGuard:
     """Counts switch events at one instant; too many is a switch storm (a clean failure)."""
 
     LIMIT = 20
+    INSTANT = 1e-12  # events within INSTANT * max(1, |tau|) of each other are one instant
 
     def __init__(self) -> None:
         self.tau: float | None = None
         self.count = 0
 
     def storm(self, tau: float) -> bool:
-        if self.tau is not None and abs(tau - self.tau) <= 1e-12 * max(1.0, abs(tau)):
+        if self.tau is not None and abs(tau - self.tau) <= self.INSTANT * max(1.0, abs(tau)):
             self.count += 1
         else:
             self.tau, self.count = tau, 1
