@@ -1,17 +1,21 @@
 """End to end: the wall time and peak memory of a whole `rubcli run` (issue 13, target 2).
 
 Runs ``rubcli run CASE --method METHOD --periods P`` in a fresh process for each P, and
-measures the process's wall time and peak resident memory (``os.wait4``: the child's own
-``ru_maxrss``), beside the solve time and start-up the run reports in its report.json.
+measures the process's wall time, CPU time (user + system) and peak resident memory
+(``os.wait4``: the child's own ``ru_utime``, ``ru_stime``, ``ru_maxrss``), beside the solve
+time and the start-up (numba cache load, the first compiled call) that the run reports in
+its report.json; ``ratio`` is wall / (solve + start-up), issue 13's measure (target: 3).
 With ``--source DIR`` the CLI is imported from another source tree (e.g. an older commit
 extracted with ``git archive``), so that two versions are measured in one run, alternating
 per horizon::
 
-    git archive b79379c rubcli | tar -x -C out/before
+    git archive 62d4633 rubcli | tar -x -C out/before
     python benchmarks/end_to_end.py --periods 5000 10000 20000 \\
         --source out/before --label before --source . --label after
 
-Prints a table and writes ``benchmarks/end_to_end.md`` and ``.csv`` (``--tag`` names them).
+``--max-steps N`` runs a copy of the case with ``[solver] max_steps = N`` (the 10M-sample
+run needs more than the default 5,000,000 steps). Prints a table and writes
+``benchmarks/end_to_end.md`` and ``.csv`` (``--tag`` names them).
 """
 
 from __future__ import annotations
@@ -54,6 +58,7 @@ def run_once(source: Path, args: list[str]) -> dict:
     return {
         "returncode": os.waitstatus_to_exitcode(status),
         "wall_s": wall,
+        "cpu_s": usage.ru_utime + usage.ru_stime,
         "peak_rss_mb": usage.ru_maxrss / 1024.0,  # Linux: kilobytes
         "stderr_tail": err.strip().splitlines()[-1:] if err.strip() else [],
     }
@@ -71,6 +76,8 @@ def main() -> int:
     parser.add_argument(
         "--no-plots", action="store_true", help="a copy of the case with plots = [] (CSV only)"
     )
+    parser.add_argument("--max-steps", type=int, default=None,
+                        help="a copy of the case with [solver] max_steps = N")  # fmt: skip
     opts = parser.parse_args()
     sources = [Path(s) for s in (opts.source or ["."])]
     labels = opts.label or [str(s) for s in sources]
@@ -85,6 +92,11 @@ def main() -> int:
                  for line in text.splitlines()]  # fmt: skip
         case = str(scratch / ("csv-only-" + Path(case).name))
         Path(case).write_text("\n".join(lines) + "\n")
+    if opts.max_steps is not None:
+        text = (ROOT / case).read_text()
+        text = text.replace("[solver]\n", f"[solver]\nmax_steps = {opts.max_steps}\n", 1)
+        case = str(scratch / (f"steps{opts.max_steps}-" + Path(case).name))
+        Path(case).write_text(text)
     rows = []
     for source, label in zip(sources, labels, strict=True):  # warm each tree's numba cache
         shutil.rmtree(scratch / f"warm-{label}", ignore_errors=True)
@@ -101,14 +113,18 @@ def main() -> int:
             report = json.loads(report_path.read_text()) if report_path.exists() else {}
             entry = report.get("methods", {}).get(opts.method, {})
             csv_path = target / f"{opts.method}.csv"
+            solve, startup = entry.get("wall_time_s"), entry.get("startup_s")
+            base = solve + startup if solve is not None and startup is not None else None
             row = {
                 "version": label,
                 "periods": periods,
                 "samples": entry.get("n_samples"),
                 "exit": result["returncode"],
                 "wall_s": round(result["wall_s"], 2),
-                "solve_s": entry.get("wall_time_s"),
-                "startup_s": entry.get("startup_s"),
+                "cpu_s": round(result["cpu_s"], 2),
+                "solve_s": None if solve is None else round(solve, 3),
+                "startup_s": None if startup is None else round(startup, 3),
+                "ratio": None if base is None else round(result["wall_s"] / base, 2),
                 "peak_rss_mb": round(result["peak_rss_mb"]),
                 "csv_mb": round(csv_path.stat().st_size / 1e6, 1) if csv_path.exists() else None,
                 "note": "; ".join(result["stderr_tail"]) if result["returncode"] else "",
@@ -120,6 +136,8 @@ def main() -> int:
     columns = list(rows[0])
     command = "python benchmarks/end_to_end.py " + " ".join(sys.argv[1:])
     what = " (plots = [], CSV only)" if opts.no_plots else ""
+    if opts.max_steps is not None:
+        what += f" (max_steps = {opts.max_steps})"
     lines = [f"# End to end: `rubcli run {opts.case} -m {opts.method}`{what}", "",
              f"Command: `{command}`", "",
              "| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]  # fmt: skip

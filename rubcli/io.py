@@ -22,7 +22,8 @@ computes anything):
 
 Every CSV goes through ``write_csv`` (one formatting rule: shortest round-trip floats,
 written in blocks of rows, so a 10-million-sample solution never sits in memory as
-text), every report through ``report_envelope`` + ``write_json``.
+text; large numpy blocks are formatted by compiled code, ``rubcli.csvtext``, to the same
+bytes), every report through ``report_envelope`` + ``write_json``.
 """
 
 from __future__ import annotations
@@ -77,6 +78,9 @@ CSV_PHYSICAL_COLUMNS = (
 # Rows per block of a solution CSV: bounds the memory of the writer (about 40 MB of text
 # and columns per block) whatever the number of samples.
 CSV_BLOCK_ROWS = 65_536
+# Blocks with at least this many rows are formatted by compiled code (rubcli.csvtext);
+# smaller tables (reports, sweeps) need no numba.
+CSV_COMPILED_MIN_ROWS = 1024
 REPORT_NAME = "report.json"
 STAGING_PREFIX = ".rubcli-staging-"
 
@@ -269,23 +273,37 @@ def write_csv(
     """
     width = len(header)
     done = 0
-    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8", newline="") as handle:
-        handle.write(",".join(csv_field(h) for h in header) + "\n")
+    with atomic_path(path) as tmp, open(tmp, "wb") as handle:
+        handle.write((",".join(csv_field(h) for h in header) + "\n").encode("utf-8"))
         for block in blocks:
             if len(block) != width:
                 raise ValueError(f"a CSV block has {len(block)} columns, the header {width}")
-            texts = [_column_texts(column, nonfinite) for column in block]
-            lengths = {len(t) for t in texts}
+            lengths = {len(column) for column in block}
             if len(lengths) > 1:
                 raise ValueError(f"CSV columns of unequal length {sorted(lengths)}")
-            if not texts or not texts[0]:
+            rows = lengths.pop() if lengths else 0
+            if rows == 0:
                 continue
-            handle.write("\n".join(map(",".join, zip(*texts, strict=True))))
-            handle.write("\n")
-            done += len(texts[0])
+            handle.write(_block_bytes(block, rows, nonfinite))
+            done += rows
             if on_rows is not None:
                 on_rows(done)
     return Path(path)
+
+
+def _block_bytes(block: Sequence[Sequence[object] | np.ndarray], rows: int,
+                 nonfinite: str | None) -> bytes:  # fmt: skip
+    """The rows of one block as UTF-8 text. Blocks of ``CSV_COMPILED_MIN_ROWS`` rows or
+    more whose columns are numpy arrays are formatted by compiled code
+    (``rubcli.csvtext``: the same text, about 5x faster); the others here."""
+    if rows >= CSV_COMPILED_MIN_ROWS and all(isinstance(c, np.ndarray) for c in block):
+        from rubcli import csvtext
+
+        data = csvtext.format_block(list(block), csv_field, nonfinite)
+        if data is not None:
+            return data
+    texts = [_column_texts(column, nonfinite) for column in block]
+    return ("\n".join(map(",".join, zip(*texts, strict=True))) + "\n").encode("utf-8")
 
 
 def write_rows_csv(

@@ -22,6 +22,7 @@ from rubcli.problem import Problem
 from rubcli.solution import FAILED, SUCCESS
 from rubcli.solvers import METHODS, options_for, solve
 from rubcli.solvers.compiled import taylor as tk
+from rubcli.solvers.events import ENTRY
 
 FIG3 = {"nu": 0.009478, "eta": 0.7818, "e": 7.52, "K": 17.6, "Rp": 46.16}
 START = (0.88544, -0.8039, 0.0, 0.0)
@@ -268,3 +269,113 @@ def test_precheck_flags_a_shallow_crossing_and_clears_a_clear_step():
         tk.taylor_coefficients(t0, s0, pars, model.FREE, order, C, W)
         flags.append(bool(tk._may_have_event(C, order, h, model.FREE, pars, W, 1e-14)))
     assert flags == [True, False]
+
+
+@pytest.mark.parametrize("storm", [False, True])
+def test_batch_event_record_equals_the_event_by_event_record(storm):
+    """driver.record_kernel_events (one batch, SwitchEvents built field by field) against
+    the event-by-event record through the storm guard (driver._record_one_by_one): the same
+    SwitchEvents, last kind, status and message; with 21 events at one instant (a switch
+    storm) both fail at the same event."""
+    from rubcli.solvers import driver
+
+    rng = np.random.default_rng(3)
+    n = 40
+    taus = np.sort(rng.uniform(0.0, 50.0, n))
+    if storm:
+        taus[10:32] = taus[10]  # 22 events at one instant: the 21st is a storm
+    kinds = rng.integers(0, 5, n)
+    states = rng.normal(size=(n, 4))
+    regimes = rng.integers(-1, 3, (n, 2))
+    runs = []
+    for record in (driver.record_kernel_events, driver._record_one_by_one):
+        run = driver.Run(fig3_problem(0.03, 10), "taylor", max_steps=10, max_wall_time_s=10.0)
+        ok = record(run, 20, taus, kinds, states, regimes)  # two batches of 20
+        ok = ok and record(run, n - 20, taus[20:], kinds[20:], states[20:], regimes[20:])
+        runs.append((ok, run))
+    (ok_a, a), (ok_b, b) = runs
+    assert ok_a == ok_b == (not storm)
+    assert a.events == b.events and len(a.events) == (31 if storm else n)
+    assert all(type(e) is type(b.events[0]) for e in a.events)
+    assert (a.status, a.message, a.last_kind) == (b.status, b.message, b.last_kind)
+
+
+def _scan_step(pars, regime, s0, rtol, starts, band, n=64):
+    """One step of taylor from s0 at tau = 0.3: its coefficients, length, the pre-check's
+    decision (compiled/taylor.step_events) and the event locate finds on a fine grid."""
+    order = tk.taylor_order(rtol)
+    C = np.zeros((4, tk.MAX_ORDER + 1))
+    W = np.zeros((tk.WORK_ROWS, tk.WORK_COLS))
+    t0 = 0.3
+    tk.taylor_coefficients(t0, np.asarray(s0, dtype=float), pars, regime, order, C, W)
+    h, eps = tk.step_size(C, order, rtol, rtol * 1e-2)
+    scan = tk.step_events(C, order, h, regime, pars, W, eps, starts, band)
+    grid = np.linspace(t0, t0 + h, n + 1)
+    buffers = np.empty(n + 1), np.empty(n + 1), np.empty(4), np.empty(4)
+    t_ev, kind = tk.locate(t0, C, order, pars, regime, grid, n, *buffers, starts, band)
+    return scan, kind
+
+
+def test_start_precheck_clears_only_steps_without_events():
+    """Steps that start on the contact surface (after an exit, in free flight; after an
+    entry, in slip), from states on z = 1 with radial rates from clearly inward to
+    tangential and outward: a step the pre-check clears (SCAN_NONE) holds no event that
+    locate finds on a grid 16x finer than taylor's; tangential and wrong-way starts and
+    quick returns are flagged; clearly inward starts are cleared."""
+    p = ModelParams(nu=0.01, eta=0.7818, e=0.3, K=17.6, mu=0.1, Rp=46.16)
+    pars = np.array(model.params_vector(p))
+    starts = (True, False, True)  # the segment starts at a contact entry or exit
+    decisions = {}
+    for regime, inward in ((model.FREE, -1.0), (model.SLIP_POSITIVE, 1.0)):
+        for theta in (0.3, 2.0, 4.4):
+            for rate in (1.0, 0.1, 1e-3, 1e-7, 0.0, -1e-3, -0.5):
+                for tangential in (0.5, 2.0):
+                    radial = np.array([math.cos(theta), math.sin(theta)])
+                    v = inward * rate * radial + tangential * np.array([-radial[1], radial[0]])
+                    s0 = (*radial, *v)
+                    scan, kind = _scan_step(pars, regime, s0, 1e-8, starts, 1e-8)
+                    if scan == tk.SCAN_NONE:
+                        assert kind < 0, (regime, theta, rate, tangential)
+                    decisions[(regime, theta, rate, tangential)] = scan
+                    if regime == model.FREE and rate == 1e-3 and tangential == 2.0:
+                        assert kind == ENTRY  # it turns back out within the step
+    # outward (wrong-way) and tangential starts are always flagged
+    assert all(d != tk.SCAN_NONE for k, d in decisions.items() if k[2] <= 1e-7)
+    # free flight on the surface turning back out within the step (fast whirl): flagged
+    assert all(d != tk.SCAN_NONE for k, d in decisions.items() if k[0] == model.FREE
+               and k[2] == 1e-3 and k[3] == 2.0)  # fmt: skip
+    # clearly inward starts are cleared where the step holds no event (the check does
+    # its job): into contact at rate 1, into free flight at rate 0.1 (at rate 1 the long
+    # free step reaches the surface again: flagged, and locate finds that entry)
+    assert all(d == tk.SCAN_NONE for k, d in decisions.items() if k[0] != model.FREE
+               and k[2] == 1.0)  # fmt: skip
+    assert all(d == tk.SCAN_NONE for k, d in decisions.items() if k[0] == model.FREE
+               and k[2] == 0.1 and k[3] == 0.5)  # fmt: skip
+    assert sum(d == tk.SCAN_NONE for d in decisions.values()) >= 12
+
+
+def test_slip_bound_clears_only_steps_without_a_reversal():
+    """_slip_clear, the O(N) bound of v_r on the state polynomials: contact steps with
+    v_r from far from zero to through zero (the whirl against the spin Rp eta): cleared
+    steps hold no slip reversal (v_r keeps its sign on a fine grid of the polynomials),
+    steps across v_r = 0 are flagged, and steps far from it are cleared."""
+    p = ModelParams(nu=0.01, eta=0.7818, e=0.3, K=17.6, mu=0.1, Rp=1.0)
+    pars = np.array(model.params_vector(p))
+    order, rtol = tk.taylor_order(1e-8), 1e-8
+    C = np.zeros((4, tk.MAX_ORDER + 1))
+    W = np.zeros((tk.WORK_ROWS, tk.WORK_COLS))
+    cleared = flagged = 0
+    for whirl in np.linspace(-3.0, 3.0, 61):  # theta' z: v_r = Rp eta + whirl
+        s0 = np.array([1.02, 0.0, 0.05, whirl])
+        regime = model.SLIP_POSITIVE if p.Rp * p.eta + whirl / 1.02 >= 0 else model.SLIP_NEGATIVE
+        tk.taylor_coefficients(0.0, s0, pars, regime, order, C, W)
+        h, _ = tk.step_size(C, order, rtol, rtol * 1e-2)
+        S = tk.dense(np.linspace(0.0, h, 401), 0.0, C, order)
+        v_r = model.slip_velocity(S[0], S[1], S[2], S[3], p.Rp, p.eta)
+        keeps_sign = bool(np.all(regime * v_r > 0.0))
+        if tk._slip_clear(C, order, h, regime, pars):
+            assert keeps_sign, whirl
+            cleared += 1
+        elif not keeps_sign:
+            flagged += 1
+    assert cleared > 30 and flagged > 0

@@ -97,19 +97,27 @@ def plausibility_warnings(solution: Solution, energy: dict[str, Any] | None) -> 
     return reasons
 
 
-def method_summary(solution: Solution) -> dict[str, Any]:
+def method_summary(solution: Solution, balance: Any = None) -> dict[str, Any]:
     """The report.json entry of one method, with its plausibility warnings.
 
     ``time_in_regime`` comes from the located switch times (``analysis.regimes``);
-    ``energy_residual`` and ``energy`` from the energy balance (``analysis.energy``).
+    ``energy_residual`` and ``energy`` from the energy balance (``analysis.energy``):
+    ``balance`` if given (an ``EnergyBalance`` or ``EnergyTotals`` of this solution,
+    computed once for the energy figure too), else its totals (``energy_totals``: one
+    compiled pass, no per-sample arrays).
     """
-    from rubcli.analysis.energy import energy_balance
+    from rubcli.analysis.energy import energy_totals
     from rubcli.analysis.regimes import time_in_regimes
 
     t_end = float(solution.t[-1]) if solution.t.size else None
     finite = bool(np.all(np.isfinite(solution.states)))
     with np.errstate(all="ignore"):
-        energy = energy_balance(solution).summary() if finite else None
+        if not finite:
+            energy = None
+        elif balance is not None:
+            energy = balance.summary()
+        else:
+            energy = energy_totals(solution).summary()
         penetration = solution.max_penetration()
     warnings = plausibility_warnings(solution, energy)
     return {

@@ -36,38 +36,92 @@ class Piece:
         return float(self.tau[-1] - self.tau[0])
 
 
-def solution_pieces(solution: Solution) -> list[Piece]:
-    """The solution's smooth pieces in time order, from its located events.
+@dataclass(frozen=True)
+class PieceBounds:
+    """Where each smooth piece starts and ends, without copying the samples.
+
+    Piece ``p`` runs from ``start_tau[p]`` (state ``start_state[p]``) through the samples
+    ``t[lo[p]:hi[p]]`` to ``end_tau[p]`` (state ``end_state[p]``), in regime
+    ``regime[p]``; ``solution_pieces`` assembles the same nodes into arrays. Compiled
+    code walks these bounds over the solution's own arrays (``analysis.energy``).
+    """
+
+    regime: np.ndarray  # (m,) int64
+    start_tau: np.ndarray  # (m,)
+    start_state: np.ndarray  # (m, 4)
+    end_tau: np.ndarray  # (m,)
+    end_state: np.ndarray  # (m, 4)
+    lo: np.ndarray  # (m,) int64
+    hi: np.ndarray  # (m,) int64
+
+    @property
+    def size(self) -> int:
+        return int(self.regime.size)
+
+    @property
+    def n_nodes(self) -> int:
+        """Nodes of all pieces together (each piece: its start, inner samples, end)."""
+        return int(np.sum(self.hi - self.lo) + 2 * self.size)
+
+
+def piece_bounds(solution: Solution) -> PieceBounds:
+    """The bounds of the solution's smooth pieces in time order, from its located events.
 
     The pieces cover ``[t[0], t[-1]]`` (a failed run's partial span). Events after the
     last sample (a failed run may locate one before it stops) are ignored, and so are
     pieces of zero duration (two events at one instant, e.g. a grazing touch).
     """
     t = np.asarray(solution.t, dtype=float)
-    if t.size == 0:
-        return []
     states = np.asarray(solution.states, dtype=float)
-    t_end = float(t[-1])
-    bounds: list[tuple[float, np.ndarray, int]] = [
-        (float(t[0]), states[0], int(solution.regimes[0]))
-    ]
-    for event in solution.events:
-        if event.tau > t_end:
-            break
-        bounds.append((float(event.tau), np.asarray(event.state, dtype=float), event.regime_after))
+    regime, start_tau, start_state, end_tau, end_state, lo, hi = [], [], [], [], [], [], []
+    if t.size:
+        t_end = float(t[-1])
+        bounds: list[tuple[float, np.ndarray, int]] = [
+            (float(t[0]), states[0], int(solution.regimes[0]))
+        ]
+        for event in solution.events:
+            if event.tau > t_end:
+                break
+            bounds.append(
+                (float(event.tau), np.asarray(event.state, dtype=float), event.regime_after)
+            )
+        for i, (start, state, code) in enumerate(bounds):
+            if i + 1 < len(bounds):
+                end, final = bounds[i + 1][0], bounds[i + 1][1]
+            else:
+                end, final = t_end, states[-1]
+            if not end > start:
+                continue
+            regime.append(code)
+            start_tau.append(start)
+            start_state.append(state)
+            end_tau.append(end)
+            end_state.append(final)
+            lo.append(int(np.searchsorted(t, start, side="right")))
+            hi.append(int(np.searchsorted(t, end, side="left")))
+    return PieceBounds(
+        regime=np.asarray(regime, dtype=np.int64),
+        start_tau=np.asarray(start_tau, dtype=float),
+        start_state=np.asarray(start_state, dtype=float).reshape(-1, 4),
+        end_tau=np.asarray(end_tau, dtype=float),
+        end_state=np.asarray(end_state, dtype=float).reshape(-1, 4),
+        lo=np.asarray(lo, dtype=np.int64),
+        hi=np.asarray(hi, dtype=np.int64),
+    )
+
+
+def solution_pieces(solution: Solution) -> list[Piece]:
+    """The solution's smooth pieces in time order, from its located events
+    (``piece_bounds``), each with its nodes copied into arrays."""
+    t = np.asarray(solution.t, dtype=float)
+    states = np.asarray(solution.states, dtype=float)
+    b = piece_bounds(solution)
     pieces = []
-    for i, (start, start_state, regime) in enumerate(bounds):
-        if i + 1 < len(bounds):
-            end, end_state = bounds[i + 1][0], bounds[i + 1][1]
-        else:
-            end, end_state = t_end, states[-1]
-        if not end > start:
-            continue
-        lo = int(np.searchsorted(t, start, side="right"))
-        hi = int(np.searchsorted(t, end, side="left"))
-        tau = np.concatenate(([start], t[lo:hi], [end]))
-        piece_states = np.vstack((start_state, states[lo:hi], end_state))
-        pieces.append(Piece(regime=regime, tau=tau, states=piece_states))
+    for p in range(b.size):
+        lo, hi = int(b.lo[p]), int(b.hi[p])
+        tau = np.concatenate(([b.start_tau[p]], t[lo:hi], [b.end_tau[p]]))
+        piece_states = np.vstack((b.start_state[p], states[lo:hi], b.end_state[p]))
+        pieces.append(Piece(regime=int(b.regime[p]), tau=tau, states=piece_states))
     return pieces
 
 
@@ -78,6 +132,7 @@ def time_in_regimes(solution: Solution) -> dict[str, float]:
     simulated span ``t[-1] - t[0]``.
     """
     out = {name: 0.0 for name in model.REGIME_NAMES.values()}
-    for piece in solution_pieces(solution):
-        out[model.REGIME_NAMES[piece.regime]] += piece.duration
+    b = piece_bounds(solution)
+    for regime, start, end in zip(b.regime.tolist(), b.start_tau, b.end_tau, strict=True):
+        out[model.REGIME_NAMES[regime]] += float(end - start)
     return out

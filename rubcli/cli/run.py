@@ -37,6 +37,7 @@ import time
 from pathlib import Path
 from typing import Annotated, Any
 
+import numpy as np
 import typer
 
 from rubcli import io
@@ -106,11 +107,15 @@ def start_up(case: Case) -> float:
     return time.perf_counter() - start
 
 
-def solve_method(case: Case, name: str) -> tuple[Solution | None, dict[str, Any]]:
+def solve_method(
+    case: Case, name: str, balances: dict[str, Any] | None = None
+) -> tuple[Solution | None, dict[str, Any]]:
     """Solve the case with one method behind a progress bar; return it and its report entry.
 
     A solver that raises is recorded with status ``error`` and its traceback printed:
-    the other methods still run and the run exits 1.
+    the other methods still run and the run exits 1. When the case plots ``energy`` and
+    ``balances`` is given, the method's energy balance is computed once here, for its
+    report entry and kept in ``balances[name]`` for energy.png.
     """
     from rubcli import solvers
 
@@ -133,7 +138,22 @@ def solve_method(case: Case, name: str) -> tuple[Solution | None, dict[str, Any]
                 "settings": case.options_for(name),
             }
             return None, entry
-    return solution, method_summary(solution)
+    balance = None
+    if balances is not None and "energy" in case.settings.output.plots:
+        balance = _balance_or_none(solution)
+        if balance is not None:
+            balances[name] = balance
+    return solution, method_summary(solution, balance)
+
+
+def _balance_or_none(solution: Solution):
+    """The energy balance with its series (None if a state is not finite)."""
+    from rubcli.analysis.energy import energy_balance
+
+    if not np.all(np.isfinite(solution.states)):
+        return None
+    with np.errstate(all="ignore"):
+        return energy_balance(solution)
 
 
 def response_settings(case: Case) -> panels.ResponseSettings | None:
@@ -150,9 +170,10 @@ def write_outputs(
     entries: dict[str, dict[str, Any]],
     command_line: dict[str, Any],
     plan: io.OutputPlan | None = None,
+    balances: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Write the requested products and report.json into the case's output dir (staged);
-    return the report."""
+    return the report. ``balances``: energy balances already computed, by method."""
     from rubcli.plotting import run as plots
 
     output = case.settings.output
@@ -171,7 +192,7 @@ def write_outputs(
         spectra = _spectra(case, solutions, entries, transient)
         for plot in output.plots:
             if plot == "energy":
-                figure = _energy_figure(solutions, title, case.scale)
+                figure = _energy_figure(solutions, title, case.scale, balances)
             elif plot == "spectrum":
                 figure = _spectrum_figure(spectra, failures, title, case.scale)
             elif plot == "orbit":
@@ -212,12 +233,15 @@ def _poincare_figure(case: Case, results: list[panels.MethodResponse]):
     return poincare_figure(sections, parameters_title(case.name, case.params))
 
 
-def _energy_figure(solutions: list[Solution], title: str, scale=None):
-    """energy.png: the energy balance of every method (``plots = ["energy"]``)."""
+def _energy_figure(solutions: list[Solution], title: str, scale=None, balances=None):
+    """energy.png: the energy balance of every method (``plots = ["energy"]``), reusing
+    the balances computed for the report (``balances``, by method) where there are."""
     from rubcli.analysis.energy import energy_balance
     from rubcli.plotting.energy import energy_figure
 
-    return energy_figure(solutions, [energy_balance(s) for s in solutions], title, scale=scale)
+    balances = balances or {}
+    drawn = [balances[s.method] if s.method in balances else energy_balance(s) for s in solutions]
+    return energy_figure(solutions, drawn, title, scale=scale)
 
 
 def _spectra(case: Case, solutions: list[Solution], entries: dict, transient: float | None):
@@ -345,8 +369,9 @@ def _run(
     startup = start_up(case)
     if startup > 0.05:
         console.info(f"start-up (compiled kernels loaded or compiled): {startup:.2f} s")
+    balances: dict[str, Any] = {}
     for name in case.methods:
-        solution, entries[name] = solve_method(case, name)
+        solution, entries[name] = solve_method(case, name, balances)
         if solution is not None:
             solutions.append(solution)
             entries[name]["startup_s"] = startup
@@ -357,7 +382,7 @@ def _run(
         "out": str(out) if out is not None else None,
         "periods": periods,
     }
-    report = write_outputs(case, solutions, entries, command_line, plan)
+    report = write_outputs(case, solutions, entries, command_line, plan, balances)
     report_stale(plan)
 
     console.table(

@@ -32,11 +32,10 @@ import numpy as np
 
 from rubcli import model
 from rubcli.problem import Problem
-from rubcli.solution import Solution, SwitchEvent
+from rubcli.solution import Solution
 from rubcli.solvers import compiled as kernels
 from rubcli.solvers import driver, register
 from rubcli.solvers.events import (
-    KIND_NAMES,
     NO_EVENT,
     earliest_event,
     start_flags,
@@ -131,7 +130,7 @@ class Dop853Stepper:
         # segments the kernel started (with a full buffer the last one starts here)
         stats["n_segments"] += n_ev - (reason == kernels.STOP_FULL)
         events = (self.ev_tau, self.ev_kind, self.ev_state, self.ev_regimes)
-        if not record_kernel_events(run, n_ev, *events):
+        if not driver.record_kernel_events(run, n_ev, *events):
             return
         if reason == kernels.STOP_SMALL_STEP:
             run.fail(
@@ -155,20 +154,6 @@ class Dop853Stepper:
             run.state[:], self.f[:] = self.y_new, self.f_new
         elif run.switch(event[0], event[1], dense(event[0])):
             self.at_event, self.new_segment = True, True
-
-
-def record_kernel_events(run: driver.Run, n: int, taus, kinds, states, regimes) -> bool:
-    """Record the ``n`` events a compiled loop located and applied itself (its event
-    buffers); False on a switch storm, with the samples past the storm dropped."""
-    for i in range(n):
-        run.last_kind = int(kinds[i])
-        before, after = int(regimes[i, 0]), int(regimes[i, 1])
-        state = tuple(map(float, states[i]))
-        t_ev = float(taus[i])
-        if not run.record(SwitchEvent(t_ev, KIND_NAMES[run.last_kind], state, before, after)):
-            run.k = int(np.searchsorted(run.t_eval, t_ev, side="right"))
-            return False
-    return True
 
 
 def locate_in_python(run: driver.Run, dense, t_new: float, intervals: int, last_kind, band):

@@ -96,13 +96,14 @@ class StormGuard:
     """Counts switch events at one instant; too many is a switch storm (a clean failure)."""
 
     LIMIT = 20
+    INSTANT = 1e-12  # events within INSTANT * max(1, |tau|) of each other are one instant
 
     def __init__(self) -> None:
         self.tau: float | None = None
         self.count = 0
 
     def storm(self, tau: float) -> bool:
-        if self.tau is not None and abs(tau - self.tau) <= 1e-12 * max(1.0, abs(tau)):
+        if self.tau is not None and abs(tau - self.tau) <= self.INSTANT * max(1.0, abs(tau)):
             self.count += 1
         else:
             self.tau, self.count = tau, 1
@@ -194,6 +195,12 @@ def event_search(ev, fill=None, compile=None):
     (``compile=None``); a compiled loop builds its own search with ``compile=jit``, and
     numba compiles the same functions with ``ev`` fixed (a closure constant, so no
     function object is passed at run time and the kernels stay cachable).
+
+    The search itself does not check for non-finite values (a NaN compares false and
+    ends no scan): the Python segments raise ValueError when asked for a non-finite
+    state (a diverged closed form; the analytic methods end the run cleanly on it, as
+    scipy's ``brentq`` made them do before), the compiled loops fail their own finite
+    check of the next state.
     """
 
     def event_value(ctx, t, fn, sign, deriv, pars, d, row, drow):
@@ -229,8 +236,6 @@ def event_search(ev, fill=None, compile=None):
         """Root of the event function (or of its rate) in [a, b], fa and fb of opposite
         signs: scipy's ``brentq`` (scipy/optimize/Zeros/brentq.c, Brent's method with its
         extrapolation formula) transcribed, with ``XTOL`` and ``RTOL``."""
-        if not (math.isfinite(fa) and math.isfinite(fb)):
-            raise ValueError("the event function is not finite")
         xpre, xcur, fpre, fcur = a, b, fa, fb
         if fpre == 0.0:
             return xpre
@@ -267,8 +272,6 @@ def event_search(ev, fill=None, compile=None):
             else:
                 xcur += delta if sbis > 0.0 else -delta
             fcur = event_value(ctx, xcur, fn, sign, deriv, pars, d, row, drow)
-            if not math.isfinite(fcur):
-                raise ValueError("the event function is not finite")
         return xcur
 
     def _root(ctx, a, b, fn, sign, pars, d, row, drow):
@@ -462,7 +465,7 @@ def earliest_event(states, derivatives, grid, regime, params, last_kind, restart
     array time (shape (4,) or (4, n)), ``derivatives(t, S)`` its time derivative; the
     scan grid is filled vectorised (``_PythonSegment.fill``). ``last_kind`` is the event
     that started the segment (``NO_EVENT`` otherwise). Raises ValueError if the search
-    meets a non-finite value.
+    meets a non-finite state.
     """
     grid = np.asarray(grid, dtype=float)
     n = len(grid) - 1
@@ -489,6 +492,8 @@ class _PythonSegment:
         row[:] = s
         if deriv:
             drow[:] = self.derivatives(t, s[:, None])[:, 0]
+        if not (np.all(np.isfinite(row)) and (not deriv or np.all(np.isfinite(drow)))):
+            raise ValueError(f"the segment is not finite at tau = {t!r}")
 
     def fill(self, fn, sign, grid, n, pars, d, row, drow, hv, hd):
         S = self.S
@@ -519,6 +524,8 @@ class _GivenFunction:
         row[0] = self.h(t)
         if deriv:
             drow[0] = self.dh(t)
+        if not (math.isfinite(row[0]) and (not deriv or math.isfinite(drow[0]))):
+            raise ValueError(f"the event function is not finite at tau = {t!r}")
 
 
 def _python_ev(t, deriv, segment, row, drow):

@@ -1,9 +1,9 @@
 """``taylor``: an adaptive Taylor-series integrator of the rub equations, compiled.
 
-Scheme: Taylor's method of order N = ceil(-ln(rtol) / 2) + 1 (8 at rtol 1e-6, 13 at
+Scheme: Taylor's method of order N = ceil(-ln(rtol) / 2) + 6 (13 at rtol 1e-6, 18 at
 1e-10), its coefficients computed by the automatic-differentiation recurrences of the
 regime-locked right-hand side (``taylor_kernels.taylor_coefficients``: forcing, z =
-sqrt(x^2 + y^2), 1/z, the products of the contact law and of the rolling law), the step
+sqrt(x^2 + y^2), w / z, the products of the contact law and of the rolling law), the step
 by Jorba and Zou's rule (the last two terms below max(atol, rtol |s|)), no rejected steps.
 It is the approach of heyoka (Biscani and Izzo 2021), written for this one system, with
 the events of the other methods located on each step's Taylor polynomial.
@@ -35,11 +35,15 @@ from rubcli.solution import Solution
 from rubcli.solvers import compiled as kernels
 from rubcli.solvers import driver, register
 from rubcli.solvers.compiled import taylor as taylor_kernels
-from rubcli.solvers.dop853_jit import EVENT_BUFFER, locate_in_python, record_kernel_events
+from rubcli.solvers.dop853_jit import locate_in_python
 from rubcli.solvers.events import NO_EVENT, start_flags
 from rubcli.solvers.scipy_ivp import RESTART_BAND_FLOOR
 
 CHUNK_STEPS = 2000  # steps per kernel call: budget and progress checks between
+# events the kernel may apply before it returns to flush them (dop853-jit: 256); a
+# kernel call costs ~20 us of dispatch, so a run with an event every 3 steps returns
+# only every 4096 events (and CHUNK_STEPS steps)
+EVENT_BUFFER = 4096
 
 
 class TaylorDense:
@@ -115,8 +119,9 @@ class TaylorStepper:
         stats["nsteps"] += steps
         stats["nfev"] = stats["nsteps"]  # one series expansion per step
         stats["n_segments"] += n_ev
-        events = (self.ev_tau, self.ev_kind, self.ev_state, self.ev_regimes)
-        if not record_kernel_events(run, n_ev, *events):
+        if not driver.record_kernel_events(
+            run, n_ev, self.ev_tau, self.ev_kind, self.ev_state, self.ev_regimes
+        ):
             return
         if reason == kernels.STOP_SMALL_STEP:
             run.fail(f"taylor failed at tau = {tau:.6g}: the step fell below 10 ulp of tau")

@@ -37,9 +37,9 @@ from rubcli.solvers.compiled.rhs import (
 )
 from rubcli.solvers.compiled.roots import (
     STICK_REGIME,
-    _apply_event,
     _dop853_locate,
     _dop853_may_have_event,
+    apply_and_record,
 )
 from rubcli.solvers.events import (
     start_flags,
@@ -165,13 +165,11 @@ def advance_dop853(
             continue
         # the event: events.apply_event, then a new segment as the driver starts one
         _dop853_dense_at(t_stop, tau, h, y, F, row)
-        new_regime, kind = _apply_event(kind, t_stop, row, regime, pars)
-        events_tau[n_events] = t_stop
-        events_kind[n_events] = kind
-        events_regimes[n_events, 0] = regime
-        events_regimes[n_events, 1] = new_regime
+        new_regime, kind = apply_and_record(
+            kind, t_stop, row, regime, pars, events_tau, events_kind, events_state,
+            events_regimes, n_events,
+        )  # fmt: skip
         for i in range(4):
-            events_state[n_events, i] = row[i]
             y[i] = row[i]
         n_events += 1
         tau, regime = t_stop, new_regime

@@ -97,7 +97,7 @@ _locate_dense, _ = event_search(_dop853_ev, compile=jit)
 
 @jit
 def _dop853_locate(t_old, h, y_old, F, pars, regime, grid, hv, hd, row, drow, starts, band):
-    """``events.locate`` on one step's dense output (scan grid ``grid[:DOP_SCAN_POINTS +
+    """The event search's ``locate`` on one step's dense output (scan grid ``grid[:DOP_SCAN_POINTS +
     1]``): (tau, kind) of the earliest event, or (NaN, NO_EVENT)."""
     ctx = (t_old, h, y_old, F, pars, regime)
     return _locate_dense(ctx, regime, pars, grid, DOP_SCAN_POINTS, starts, band, hv, hd, row, drow)
@@ -114,3 +114,19 @@ def _apply_event(kind, t, s, regime, pars):
     if project:
         s[2], s[3] = rolling_velocity(s[0], s[1], s[2], s[3], pars[6] * pars[1])
     return new, recorded
+
+
+@jit
+def apply_and_record(kind, t, s, regime, pars, events_tau, events_kind, events_state,
+                     events_regimes, n_events):  # fmt: skip
+    """A compiled loop's event: ``_apply_event`` on the state ``s`` at t (in place),
+    recorded as entry ``n_events`` of the loop's event buffers. Returns (new regime,
+    kind as recorded)."""
+    new_regime, recorded = _apply_event(kind, t, s, regime, pars)
+    events_tau[n_events] = t
+    events_kind[n_events] = recorded
+    events_regimes[n_events, 0] = regime
+    events_regimes[n_events, 1] = new_regime
+    for i in range(4):
+        events_state[n_events, i] = s[i]
+    return new_regime, recorded

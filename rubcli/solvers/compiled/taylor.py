@@ -10,31 +10,35 @@ differentiation, Moore 1966; Jorba & Zou 2005, section 3). With ``a_k`` the norm
 coefficient of order k (``a(tau0 + s) = sum a_k s^k``) and ``(a b)_k = sum_j a_j b_{k-j}``:
 
 - forcing: ``F_k = F_{k-1} i eta / k`` with ``F_0 = exp(i (eta tau0 + phi0))``;
-- ``q = x^2 + y^2``; ``z = sqrt(q)``: ``z_k = (q_k - sum_{j=1}^{k-1} z_j z_{k-j}) / (2 z_0)``;
-- ``u = 1 / z``: ``u_k = -(sum_{j=1}^{k} z_j u_{k-j}) / z_0``; the force factor
-  ``K (1 - 1/z)`` has coefficients ``K (delta_k0 - u_k)``;
-- slip: ``a = E F - 2 nu v - w - K (1 - u) (w + i mu_c w)`` (w = x + i y);
-- stick: the rolling law of ``model.rhs_entries`` term by term: the velocity projected
-  onto ``r theta' = -Rp eta``, the needed friction ``stick_friction_value`` on it, the
-  normal force ``K (z - 1) / z`` and the tangential force ``T / z``;
+- ``q = x^2 + y^2``; ``z = sqrt(q)``: ``z_k = (q_k - sum_{j=1}^{k-1} z_j z_{k-j}) / (2 z_0)``
+  (both sums symmetric: half of each is summed);
+- slip: ``P = w / z`` (w = x + i y) by the division rule, ``P_k = (w_k - sum_{j=1}^{k}
+  z_j P_{k-j}) / z_0``, and ``a = E F - 2 nu v - w - K (w - P) (1 + i mu_c)``; per order
+  k about 3.5 k multiply-adds (q, z and P in two passes over j);
+- stick: the rolling law of ``model.rhs_entries`` term by term with ``u = 1 / z`` by the
+  power rule (``k q_0 u_k = sum_{j=1}^{k} (j / 2 - k) q_j u_{k-j}``): the velocity
+  projected onto ``r theta' = -Rp eta``, the needed friction ``stick_friction_value`` on
+  it, the normal force ``K (z - 1) / z`` and the tangential force ``T / z``;
 - ``x_{k+1} = vx_k / (k + 1)``, ``vx_{k+1} = ax_k / (k + 1)`` (and the same for y).
 
-A step of order N costs O(N^2) operations and no right-hand-side calls.
+A step of order N costs O(N^2) operations and no right-hand-side calls: about 0.26 us
+at N = 16 in slip (a 2-core Xeon, shared), 0.45-0.5 us a step with the step size, the
+pre-check and the dense output.
 
 Order and step (Jorba & Zou 2005, section 3.2.2; heyoka's rule)
 ---------------------------------------------------------------
-The order is fixed for a run by the tolerance: ``N = ceil(-0.9 ln(rtol)) + 3`` (16 at
-1e-6, 24 at 1e-10, 30 at 1e-13). Jorba and Zou's rule ``ceil(-ln(rtol) / 2) + 1`` (8,
-13, 16) minimises the operation count of the recurrences alone; measured here, higher
-orders pay (fewer, longer steps; each step also carries the event pre-check, the
-samples and the loop overheads of short recurrences). On the paper's case (K = 17.6,
-mu = 0, 100 periods, CPU time, minimum of 5) orders 10 / 13 / 16 / 20 / 24 / 28 took
-1.83 / 1.34 / 1.22 / 1.20 / 1.30 / 1.51 ms at rtol 1e-6 and 4.86 / 2.89 / 2.26 / 1.92 /
-1.93 / 2.07 ms at rtol 1e-10, at about the same error (``benchmarks/peers.py`` measures
-the method as registered). With the state tolerance ``eps = max(atol, rtol |s_0|_inf)``
-the step is ``h = exp(-0.7 / (N - 1)) min((eps / |a_{N-1}|)^(1/(N-1)),
-(eps / |a_N|)^(1/N))``, so that the last terms of the series are below eps; steps are
-never rejected. The step's Taylor polynomial is its dense output (samples and events).
+The order is fixed for a run by the tolerance: ``N = ceil(-0.5 ln(rtol)) + 6`` (13 at
+1e-6, 18 at 1e-10, 21 at 1e-13): Jorba and Zou's slope (their ``ceil(-ln(rtol) / 2) +
+1`` minimises the operation count of the recurrences alone) with a larger offset, since
+each step also carries the step size, the pre-check and the loop overheads. Measured at
+equal final error (the cheapest setting of a half-decade tolerance ladder reaching it,
+CPU time): against the former ``ceil(-0.9 ln(rtol)) + 3`` (16, 24, 30) it is 1.3x
+faster on the paper's case with friction (mu = 0.03, 941 switches: a lower order is more
+accurate at a given tolerance there) and the same within noise at mu = 0; offsets 5 and
+7 were no better. With the state tolerance ``eps = max(atol, rtol |s_0|_inf)`` the step
+is ``h = exp(-0.7 / (N - 1)) min((eps / |a_{N-1}|)^(1/(N-1)), (eps / |a_N|)^(1/N))``, so
+that the last terms of the series are below eps; steps are never rejected. The step's
+Taylor polynomial is its dense output (samples and events).
 
 Events
 ------
@@ -43,18 +47,28 @@ slip ``v_r`` with friction, the stick margin) are located on the step's polynomi
 the event search of every method (``events.event_search``, compiled here with the
 polynomial as its segment: the same grid logic, scipy's Brent iteration), and applied
 by ``roots._apply_event`` (Filippov's rule, the projection onto rolling).
-Most steps are cleared without a scan. The surface and the slip have Taylor series of
-their own (``q - 1`` above; ``v_r = Rp eta + (x vy - y vx) u``). They differ from the
-event functions of the state polynomials (what ``locate`` evaluates) by terms above
-order N: for the surface these are bounded exactly (``_product_tail_bound``), for the
-slip a margin of 100 state tolerances covers them. With ``|H(s) - H_0| <= sum_k |H_k|
-s^k``, a step whose bound stays below zero by the margin holds no event of it; failing
-that, the series is evaluated on 16 sub-intervals and bounded between them by its
-second derivative (``_stays_below``). The first step of every segment and every stick
-step are scanned. The scan grid has ``max(4, ceil(8 h omega / 2 pi))`` intervals, omega
-a bound on the fastest frequency (1 + eta in free flight, sqrt(1 + K) + 1 + eta +
-|theta'| in contact): the extrema of an event function are half a period of it apart,
-so it turns at most once per interval, as the crossing search requires.
+Most steps are cleared without a scan (``step_events``):
+
+- the surface: its Taylor series ``q - 1`` differs from ``z^2 - 1`` of the state
+  polynomials (what ``locate`` evaluates) by the product terms above order N, bounded
+  (``_product_tail_bound``, or more loosely in one pass). With ``|H(s) - H_0| <= sum_k
+  |H_k| s^k``, a step whose bound stays below zero by the margin holds no event of it;
+  failing that, the series is evaluated on 4, then 16 sub-intervals and bounded between
+  them by its second derivative (``_surface_clear_quick``, ``_stays_below``);
+- a step that starts on the surface (the first of a segment begun by a contact entry or
+  exit) by ``H(s) = H_0 + s G(s)``: a clearly negative start rate and G below zero on
+  the step keep H within round-off of zero, below the restart band the scan needs;
+- the slip: first an O(N) bound of ``v_r = Rp eta + (x vy - y vx) / hypot(x, y)`` on the
+  state polynomials themselves (``_slip_clear``: the spread of each polynomial bounds
+  that of v_r); failing that, the series ``v_r = Rp eta + P_x vy - P_y vx``, whose terms
+  beyond order N a margin of 100 state tolerances covers. A step whose slip is cleared
+  this way is scanned for the surface alone (``locate`` is handed mu = 0).
+
+Every stick step and every step that starts on the slip surface (after a slip reversal
+or a stick exit) is scanned. The scan grid has ``max(4, ceil(8 h omega / 2 pi))``
+intervals, omega a bound on the fastest frequency (1 + eta in free flight, sqrt(1 + K) +
+1 + eta + |theta'| in contact): the extrema of an event function are half a period of it
+apart, so it turns at most once per interval, as the crossing search requires.
 """
 
 from __future__ import annotations
@@ -75,8 +89,8 @@ from rubcli.solvers.compiled.jit import (
     jit_fast,
 )
 from rubcli.solvers.compiled.rhs import _rhs_into
-from rubcli.solvers.compiled.roots import FREE_REGIME, STICK_REGIME, _apply_event
-from rubcli.solvers.events import event_search, start_flags
+from rubcli.solvers.compiled.roots import FREE_REGIME, STICK_REGIME, apply_and_record
+from rubcli.solvers.events import SURFACE_BAND, event_search, start_flags
 
 # ``jit_fast`` (compiled/jit.py) for the series and the pre-check bound only: they are
 # computed here only, never again in Python, so the compiled and the Python event paths
@@ -86,8 +100,8 @@ fast = jit_fast
 
 MAX_ORDER = 30
 MIN_ORDER = 4
-ORDER_FACTOR = 0.9  # N = ceil(-0.9 ln(rtol)) + 3 (Jorba & Zou's rule: 0.5 and + 1)
-ORDER_OFFSET = 3
+ORDER_FACTOR = 0.5  # N = ceil(-0.5 ln(rtol)) + 6 (Jorba & Zou's rule: 0.5 and + 1)
+ORDER_OFFSET = 6
 WORK_ROWS = 27
 WORK_COLS = 2 * MAX_ORDER + 1  # the surface's polynomial has degree 2N
 STEP_SAFETY_EXPONENT = 0.7  # h *= exp(-0.7 / (N - 1)) (heyoka)
@@ -96,10 +110,14 @@ SCAN_PER_PERIOD = 8  # scan intervals per period of the fastest frequency
 MIN_SCAN = 4
 PRECHECK_GRID = 16  # intervals of the pre-check's second, finer bound
 MAX_SCAN = 4096
+START_ROUNDOFF = 1e-13  # relative round-off of H near the start of a step on the surface
+SCAN_NONE, SCAN_SURFACE, SCAN_ALL = 0, 1, 2  # step_events: what locate must scan
+# 1 / k for the recurrences (a constant table: no division on the series' chain)
+RECIPROCALS = np.array([0.0] + [1.0 / k for k in range(1, MAX_ORDER + 2)])
 
 
 def taylor_order(rtol: float) -> int:
-    """The order for a tolerance: ceil(-0.9 ln(rtol)) + 3, within [MIN_ORDER, MAX_ORDER]
+    """The order for a tolerance: ceil(-0.5 ln(rtol)) + 6, within [MIN_ORDER, MAX_ORDER]
     (module docstring)."""
     order = math.ceil(-ORDER_FACTOR * math.log(rtol)) + ORDER_OFFSET
     return int(min(MAX_ORDER, max(MIN_ORDER, order)))
@@ -143,75 +161,131 @@ def taylor_coefficients(t0, s, pars, regime, order, C, W):
     """The Taylor coefficients C[:, 0..order] (rows x, y, vx, vy; columns the orders)
     of the regime-locked solution through ``s`` at ``t0``; ``W`` (WORK_ROWS,
     WORK_COLS) is work space, left holding the series of q = z^2 (row 0) up to
-    ``order`` in every regime and of u = 1 / z (row 2) in contact."""
-    nu, eta, E, phi0, K, mu = pars[0], pars[1], pars[2], pars[3], pars[4], pars[5]
-    x, y, vx, vy = C[0], C[1], C[2], C[3]
+    ``order`` in every regime, of P = w / z (rows 4, 5) in slip and of u = 1 / z (row 2)
+    in stick."""
+    x, y = C[0], C[1]
     q, u = W[0], W[2]
     for i in range(4):
         C[i, 0] = s[i]
-    phase = eta * t0 + phi0
+    phase = pars[1] * t0 + pars[3]
     fr, fi = math.cos(phase), math.sin(phase)
-    contact = regime != FREE_REGIME
     if regime == STICK_REGIME:
         _stick_coefficients(fr, fi, pars, order, C, W)
         _inverse_radius_terms(x, y, q, u, order)
         return
-    mu_c = mu * float(regime) if contact else 0.0
-    nu2 = 2.0 * nu
-    # Reversed copies (xr[M - j] = x_j) turn every Cauchy sum into a forward dot
-    # product, sum_j a_j b_{k-j} = sum_j a_j br[M - k + j], which vectorises.
+    if regime == FREE_REGIME:
+        _free_coefficients(fr, fi, pars, order, C, W)
+    else:
+        _slip_coefficients(fr, fi, pars, float(regime), order, C, W)
+
+
+# Reversed copies (xr[M - j] = x_j) turn every Cauchy sum into a forward dot product,
+# sum_j a_j b_{k-j} = sum_j a_j br[M - k + j], which vectorises; the sums of one order
+# (q, u and the contact force) share one pass over j.
+
+
+@fast
+def _free_coefficients(fr, fi, pars, order, C, W):
+    """``taylor_coefficients`` in free flight, with the series of q = x^2 + y^2 (W[0],
+    for the pre-check)."""
+    nu2, eta, E = 2.0 * pars[0], pars[1], pars[2]
+    x, y, vx, vy = C[0], C[1], C[2], C[3]
+    q = W[0]
     M = MAX_ORDER
-    xr, yr, ur, jq = W[23], W[24], W[25], W[26]
-    xr[M], yr[M] = s[0], s[1]
+    xr, yr = W[23], W[24]
+    x0, y0 = x[0], y[0]
+    xr[M], yr[M] = x0, y0
+    q[0] = x0 * x0 + y0 * y0
     for k in range(order):
         ax = E * fr - nu2 * vx[k] - x[k]
         ay = E * fi - nu2 * vy[k] - y[k]
-        fr, fi = -fi * eta / (k + 1), fr * eta / (k + 1)
-        if contact:
-            # q = x^2 + y^2 and u = q^(-1/2) (``_inverse_radius_terms``, written out:
-            # k q_0 u_k = sum_{j=1}^{k} (j / 2 - k) q_j u_{k-j})
-            off = M - k
-            acc = 0.0
-            for j in range(k + 1):
-                acc += x[j] * xr[off + j] + y[j] * yr[off + j]
-            q[k] = acc
-            jq[k] = k * acc
-            if k == 0:
-                u[0] = 1.0 / math.sqrt(acc)
-            else:
-                acc1 = 0.0
-                acc2 = 0.0
-                for j in range(1, k + 1):
-                    acc1 += jq[j] * ur[off + j]
-                    acc2 += q[j] * ur[off + j]
-                u[k] = (0.5 * acc1 - k * acc2) / (k * q[0])
-            ur[off] = u[k]
-            # K (1 - u) (x - mu_c y, y + mu_c x): sum_j K (delta_j0 - u_j) (x, y)_{k-j}
-            gx = 0.0
-            gy = 0.0
-            for j in range(k + 1):
-                gx += u[j] * xr[off + j]
-                gy += u[j] * yr[off + j]
-            gx = x[k] - gx
-            gy = y[k] - gy
-            ax -= K * (gx - mu_c * gy)
-            ay -= K * (gy + mu_c * gx)
-        inv = 1.0 / (k + 1)
-        C[0, k + 1] = vx[k] * inv
-        C[1, k + 1] = vy[k] * inv
+        inv = RECIPROCALS[k + 1]
+        rotate = eta * inv
+        fr, fi = -fi * rotate, fr * rotate
+        xm = vx[k] * inv
+        ym = vy[k] * inv
+        C[0, k + 1] = xm
+        C[1, k + 1] = ym
         C[2, k + 1] = ax * inv
         C[3, k + 1] = ay * inv
-        xr[M - k - 1] = C[0, k + 1]
-        yr[M - k - 1] = C[1, k + 1]
-    if contact:
-        _inverse_radius_terms(x, y, q, u, order)
-    else:
-        for k in range(order + 1):
-            acc = 0.0
-            off = M - k
-            for j in range(k + 1):
-                acc += x[j] * xr[off + j] + y[j] * yr[off + j]
-            q[k] = acc
+        m = k + 1
+        off = M - m
+        xr[off], yr[off] = xm, ym
+        sq = 0.0
+        for j in range(1, m):
+            sq += x[j] * xr[off + j] + y[j] * yr[off + j]
+        q[m] = sq + 2.0 * (x0 * xm + y0 * ym)
+
+
+@fast
+def _slip_coefficients(fr, fi, pars, sign, order, C, W):
+    """``taylor_coefficients`` in slip (``sign`` the regime, +1 or -1), with the series
+    of q = x^2 + y^2 (W[0]), z = sqrt(q) (W[3]) and P = w / z (W[4], W[5]).
+
+    The contact force is K (w - P) (1 + i mu_c). Per order m: q_m and z_m by their
+    symmetric sums (z^2 = q: 2 z_0 z_m = q_m - sum_{j=1}^{m-1} z_j z_{m-j}), then P_m by
+    the division rule (z P = w: z_0 P_m = w_m - sum_{j=1}^{m} z_j P_{m-j}); 3.5 m
+    multiply-adds an order, against 6 m for q, u = q^(-1/2) and u w."""
+    nu2, eta, E, K = 2.0 * pars[0], pars[1], pars[2], pars[4]
+    mu_c = pars[5] * sign
+    x, y, vx, vy = C[0], C[1], C[2], C[3]
+    q, z, px, py = W[0], W[3], W[4], W[5]
+    M = MAX_ORDER
+    xr, yr, zr, pxr, pyr = W[23], W[24], W[25], W[26], W[22]
+    x0, y0 = x[0], y[0]
+    xr[M], yr[M] = x0, y0
+    q0 = x0 * x0 + y0 * y0
+    q[0] = q0
+    z0 = math.sqrt(q0)
+    z[0] = z0
+    zr[M] = z0
+    inv_z0 = 1.0 / z0
+    p0x, p0y = x0 * inv_z0, y0 * inv_z0
+    px[0], py[0] = p0x, p0y
+    pxr[M], pyr[M] = p0x, p0y
+    gx, gy = x0 - p0x, y0 - p0y  # w - P, order 0
+    for k in range(order):
+        ax = E * fr - nu2 * vx[k] - x[k] - K * (gx - mu_c * gy)
+        ay = E * fi - nu2 * vy[k] - y[k] - K * (gy + mu_c * gx)
+        inv = RECIPROCALS[k + 1]
+        rotate = eta * inv
+        fr, fi = -fi * rotate, fr * rotate
+        xm = vx[k] * inv
+        ym = vy[k] * inv
+        C[0, k + 1] = xm
+        C[1, k + 1] = ym
+        C[2, k + 1] = ax * inv
+        C[3, k + 1] = ay * inv
+        m = k + 1
+        off = M - m
+        xr[off], yr[off] = xm, ym
+        sq = 0.0
+        sz = 0.0
+        for j in range(1, (m + 1) // 2):
+            sq += x[j] * xr[off + j] + y[j] * yr[off + j]
+            sz += z[j] * zr[off + j]
+        sq *= 2.0
+        sz *= 2.0
+        if m % 2 == 0:
+            c = m // 2
+            sq += x[c] * x[c] + y[c] * y[c]
+            sz += z[c] * z[c]
+        qm = sq + 2.0 * (x0 * xm + y0 * ym)
+        q[m] = qm
+        zm = (qm - sz) * (0.5 * inv_z0)
+        z[m] = zm
+        zr[off] = zm
+        sx = 0.0
+        sy = 0.0
+        for j in range(1, m):
+            sx += z[j] * pxr[off + j]
+            sy += z[j] * pyr[off + j]
+        pxm = (xm - sx - zm * p0x) * inv_z0
+        pym = (ym - sy - zm * p0y) * inv_z0
+        px[m], py[m] = pxm, pym
+        pxr[off], pyr[off] = pxm, pym
+        gx = xm - pxm
+        gy = ym - pym
 
 
 @fast
@@ -263,25 +337,31 @@ def step_size(C, order, rtol, atol):
     for i in range(4):
         scale = max(scale, abs(C[i, 0]))
     eps = max(atol, rtol * scale)
-    h = math.inf
+    # h = min_k (eps / |a_k|)^(1/k) exp(-0.7 / (N - 1)), as one exponential
+    log_eps = math.log(eps)
+    exponent = math.inf
     for k in (order - 1, order):
         norm = 0.0
         for i in range(4):
             norm = max(norm, abs(C[i, k]))
         if norm > 0.0:
-            h = min(h, (eps / norm) ** (1.0 / k))
-    return h * math.exp(-STEP_SAFETY_EXPONENT / (order - 1)), eps
+            exponent = min(exponent, (log_eps - math.log(norm)) / k)
+    return math.exp(exponent - STEP_SAFETY_EXPONENT / (order - 1)), eps
 
 
 @jit
 def dense_at(t, t0, C, order, out):
     """The step's Taylor polynomial at t (Horner), into out (4,)."""
     dt = t - t0
-    for i in range(4):
-        v = C[i, order]
-        for k in range(order - 1, -1, -1):
-            v = v * dt + C[i, k]
-        out[i] = v
+    # the four rows' Horner chains side by side (each the same operations as alone):
+    # four independent chains in flight instead of one latency-bound chain at a time
+    v0, v1, v2, v3 = C[0, order], C[1, order], C[2, order], C[3, order]
+    for k in range(order - 1, -1, -1):
+        v0 = v0 * dt + C[0, k]
+        v1 = v1 * dt + C[1, k]
+        v2 = v2 * dt + C[2, k]
+        v3 = v3 * dt + C[3, k]
+    out[0], out[1], out[2], out[3] = v0, v1, v2, v3
 
 
 @jit
@@ -319,9 +399,9 @@ def _poly_at(H, order, s):
 @fast
 def _stays_below(H, order, h, margin):
     """True if the polynomial H (its series) stays below -margin on [0, h]: first by
-    |H(s) - H_0| <= sum_{k>=1} |H_k| h^k; failing that, on PRECHECK_GRID intervals of
-    length delta, by the chord bound max H <= max(H_a, H_b) + M2 delta^2 / 8 with M2 =
-    sum_k k (k - 1) |H_k| h^(k-2) a bound of |H''| on the step."""
+    |H(s) - H_0| <= sum_{k>=1} |H_k| h^k; failing that, on 4 and then PRECHECK_GRID
+    intervals of length delta, by the chord bound max H <= max(H_a, H_b) + M2 delta^2 / 8
+    with M2 = sum_k k (k - 1) |H_k| h^(k-2) a bound of |H''| on the step."""
     spread = _series_bound(H, order, h)
     if H[0] + spread + margin < 0.0:
         return True
@@ -332,6 +412,19 @@ def _stays_below(H, order, h, margin):
     for k in range(2, order + 1):
         m2 += k * (k - 1) * abs(H[k]) * p
         p *= h
+    # first on 4 intervals, the four values by Horner chains side by side
+    delta = 0.25 * h
+    rise = m2 * delta * delta / 8.0
+    s1, s2, s3, s4 = delta, 2.0 * delta, 3.0 * delta, h
+    v1 = v2 = v3 = v4 = H[order]
+    for k in range(order - 1, -1, -1):
+        v1 = v1 * s1 + H[k]
+        v2 = v2 * s2 + H[k]
+        v3 = v3 * s3 + H[k]
+        v4 = v4 * s4 + H[k]
+    top = max(max(H[0], v1), max(v2, max(v3, v4)))
+    if top + rise + margin < 0.0:
+        return True
     delta = h / PRECHECK_GRID
     rise = m2 * delta * delta / 8.0
     left = H[0]
@@ -362,12 +455,13 @@ def _product_tail_bound(a, order, h, A, R):
 
 
 @fast
-def _may_have_event(C, order, h, regime, pars, W, eps):
-    """False if no event function of the regime can reach zero in [t0, t0 + h]: the
-    surface's series (and the slip's) stays below zero by a margin (``_stays_below``)."""
+def _surface_may_cross(C, order, h, regime, W):
+    """False if the surface's series stays below zero by a margin on [0, h]."""
     # The surface's series q - 1 (W[0]), against x(s)^2 + y(s)^2 - 1 of the state
     # polynomials that locate evaluates: they differ by the product terms of degree
     # above N, bounded by _product_tail_bound; the margin adds round-off.
+    if _surface_clear_quick(C, order, h, regime, W):
+        return False
     x, y, q, H = C[0], C[1], W[0], W[10]
     direction = 1.0 if regime == FREE_REGIME else -1.0
     for k in range(order + 1):
@@ -376,24 +470,162 @@ def _may_have_event(C, order, h, regime, pars, W, eps):
     tail = _product_tail_bound(x, order, h, W[11], W[12])
     tail += _product_tail_bound(y, order, h, W[11], W[12])
     margin = PRECHECK_MARGIN * (1.0 + abs(H[0]) + _series_bound(H, order, h)) + tail
-    if not _stays_below(H, order, h, margin):
+    return not _stays_below(H, order, h, margin)
+
+
+@fast
+def _surface_clear_quick(C, order, h, regime, W):
+    """``_surface_may_cross``'s tests in two passes: H_0 + sum_k |H_k| h^k plus the
+    margin below zero, or else the chord bound on 4 intervals (``_stays_below``), with
+    the product tail bounded by 2 (sum_{i>N/2} A_i) (sum_j A_j) (a pair i + j > N has
+    one index above N/2), above ``_product_tail_bound``'s. True only where the full
+    test clears the step too; False leaves the decision to it."""
+    q = W[0]
+    direction = 1.0 if regime == FREE_REGIME else -1.0
+    h0 = direction * (q[0] - 1.0)
+    half = order // 2
+    sb = 0.0
+    m2 = 0.0  # sum_k k (k - 1) |H_k| h^k; / h^2 below
+    ax = abs(C[0, 0])
+    ay = abs(C[1, 0])
+    p = 1.0
+    for k in range(1, half + 1):
+        p *= h
+        a = abs(q[k]) * p
+        sb += a
+        m2 += k * (k - 1) * a
+        ax += abs(C[0, k]) * p
+        ay += abs(C[1, k]) * p
+    hx = 0.0
+    hy = 0.0
+    for k in range(half + 1, order + 1):
+        p *= h
+        a = abs(q[k]) * p
+        sb += a
+        m2 += k * (k - 1) * a
+        hx += abs(C[0, k]) * p
+        hy += abs(C[1, k]) * p
+    tail = 2.0 * (hx * (ax + hx) + hy * (ay + hy))
+    margin = PRECHECK_MARGIN * (1.0 + abs(h0) + sb) + tail
+    if h0 + sb + margin < 0.0:
+        return True
+    if h0 >= -margin:
+        return False
+    # the chord bound on 4 intervals of h / 4: rise = M2 (h / 4)^2 / 8, M2 = m2 / h^2
+    rise = m2 / 128.0
+    s1, s2, s3 = 0.25 * h, 0.5 * h, 0.75 * h
+    v1 = v2 = v3 = v4 = q[order]
+    for k in range(order - 1, -1, -1):
+        v1 = v1 * s1 + q[k]
+        v2 = v2 * s2 + q[k]
+        v3 = v3 * s3 + q[k]
+        v4 = v4 * h + q[k]
+    top = direction * (max(max(v1, v2), max(v3, v4)) - 1.0)
+    if direction < 0.0:
+        top = direction * (min(min(v1, v2), min(v3, v4)) - 1.0)
+    return max(h0, top) + rise + margin < 0.0
+
+
+@fast
+def _may_have_event(C, order, h, regime, pars, W, eps):
+    """False if no event function of the regime can reach zero in [t0, t0 + h]: the
+    surface's series (and the slip's) stays below zero by a margin (``_stays_below``)."""
+    if _surface_may_cross(C, order, h, regime, W):
         return True
     if regime == FREE_REGIME or pars[5] == 0.0:
         return False
-    # v_r = Rp eta + (x vy - y vx) u: its series (u is W[2]); the margin covers the
-    # terms beyond order N, by which it differs from v_r of the state polynomials
+    H = W[10]
+    # v_r = Rp eta + P_x vy - P_y vx, P = w / z (W[4], W[5]): its series; the margin
+    # covers the terms beyond order N, by which it differs from v_r of the state
+    # polynomials
     vx, vy = C[2], C[3]
-    wv, u = W[8], W[2]
+    px, py = W[4], W[5]
     sign = float(regime)
     for k in range(order + 1):
-        wv[k] = _cauchy(x, vy, k) - _cauchy(y, vx, k)
-    for k in range(order + 1):
-        H[k] = -sign * _cauchy(wv, u, k)
+        H[k] = -sign * (_cauchy(px, vy, k) - _cauchy(py, vx, k))
     spin = pars[6] * pars[1]
     H[0] -= sign * spin
     scale = 1.0 + abs(spin) + abs(H[0])
     margin = PRECHECK_MARGIN * scale + 100.0 * eps * scale
     return not _stays_below(H, order, h, margin)
+
+
+@fast
+def _surface_start_may_cross(C, order, h, regime, W, level):
+    """The surface pre-check of a step that starts on the surface (the contact entry
+    or exit that began the segment), where H = direction (q - 1) is zero to round-off:
+    ``events.first_crossing`` finds no crossing if the start rate (its ``hd[0]``) is
+    clearly negative and H stays below its ``level`` (the restart band) on (0, h].
+    With H(s) = H_0 + s G(s), G_k = H_{k+1}: G below -(tail / h + margin) on [0, h]
+    keeps the state polynomials' H below |H_0| + round-off, the product terms of degree
+    above N included (they grow at least like s^(N+1), so below s tail / h)."""
+    x, y, q, H, G = C[0], C[1], W[0], W[10], W[13]
+    direction = 1.0 if regime == FREE_REGIME else -1.0
+    rate = direction * 2.0 * (C[0, 0] * C[2, 0] + C[1, 0] * C[3, 0])  # locate's hd[0]
+    if rate >= -PRECHECK_MARGIN * (1.0 + abs(rate)):
+        return True
+    for k in range(order + 1):
+        H[k] = direction * q[k]
+    H[0] -= direction
+    if abs(H[0]) + START_ROUNDOFF * (1.0 + abs(q[0]) + _series_bound(H, order, h)) > 0.5 * level:
+        return True
+    for k in range(order):
+        G[k] = H[k + 1]
+    tail = _product_tail_bound(x, order, h, W[11], W[12])
+    tail += _product_tail_bound(y, order, h, W[11], W[12])
+    margin = tail / h + PRECHECK_MARGIN * (1.0 + abs(G[0]) + _series_bound(G, order - 1, h))
+    return not _stays_below(G, order - 1, h, margin)
+
+
+@fast
+def _slip_clear(C, order, h, regime, pars):
+    """True if the slip velocity of the state polynomials (what ``locate`` evaluates:
+    v_r = Rp eta + (x vy - y vx) / hypot(x, y)) surely keeps its sign on [0, h]: with
+    D_a = sum_{k>=1} |a_k| h^k the spread of each polynomial, P = x vy - y vx moves by
+    at most dP = |x_0| D_vy + |vy_0| D_x + D_x D_vy + (the same for y vx), z by at most
+    dz = hypot(D_x, D_y), so P / z by at most dP / (z_0 - dz) + |P_0| dz / (z_0 (z_0 -
+    dz)). O(N), against the O(N^2) series of v_r (``_may_have_event``)."""
+    d0 = d1 = d2 = d3 = 0.0
+    p = 1.0
+    for k in range(1, order + 1):
+        p *= h
+        d0 += abs(C[0, k]) * p
+        d1 += abs(C[1, k]) * p
+        d2 += abs(C[2, k]) * p
+        d3 += abs(C[3, k]) * p
+    x, y, vx, vy = C[0, 0], C[1, 0], C[2, 0], C[3, 0]
+    z = math.hypot(x, y)
+    dz = math.hypot(d0, d1)
+    if not dz < 0.5 * z:
+        return False
+    whirl = x * vy - y * vx
+    dp = abs(x) * d3 + abs(vy) * d0 + d0 * d3 + abs(y) * d2 + abs(vx) * d1 + d1 * d2
+    spread = dp / (z - dz) + abs(whirl) * dz / (z * (z - dz))
+    spin = pars[6] * pars[1]
+    v_r = spin + whirl / z
+    scale = 1.0 + abs(spin) + abs(v_r) + spread
+    return float(regime) * v_r - spread > PRECHECK_MARGIN * scale
+
+
+@fast
+def step_events(C, order, h, regime, pars, W, eps, starts, band):
+    """Which event functions ``locate`` must scan on a step: SCAN_NONE (none can reach
+    its level: the step is clear), SCAN_SURFACE (the slip reversal surely cannot occur)
+    or SCAN_ALL. Stick steps and steps that start on the slip surface are always
+    scanned; a step that starts on the contact surface by ``_surface_start_may_cross``;
+    every other by ``_may_have_event``, its slip part first by the O(N) ``_slip_clear``."""
+    if regime == STICK_REGIME or starts[1]:
+        return SCAN_ALL
+    slip = regime != FREE_REGIME and pars[5] > 0.0
+    slip_clear = (not slip) or _slip_clear(C, order, h, regime, pars)
+    if starts[0]:
+        surface = _surface_start_may_cross(C, order, h, regime, W, SURFACE_BAND * band)
+        if slip_clear:
+            return SCAN_SURFACE if surface else SCAN_NONE
+        return SCAN_ALL
+    if slip_clear:
+        return SCAN_SURFACE if _surface_may_cross(C, order, h, regime, W) else SCAN_NONE
+    return SCAN_ALL if _may_have_event(C, order, h, regime, pars, W, eps) else SCAN_NONE
 
 
 @jit
@@ -465,6 +697,8 @@ def advance_taylor(
     grid = np.empty(MAX_SCAN + 1)
     hv = np.empty(MAX_SCAN + 1)
     hd = np.empty(MAX_SCAN + 1)
+    pars_surface = pars.copy()
+    pars_surface[5] = 0.0
     n_out = t_eval.shape[0]
     capacity = events_tau.shape[0]
     steps = 0
@@ -490,7 +724,8 @@ def advance_taylor(
             return tau, t_new, k, steps, STOP_PYTHON, regime, n_events, at_event
         kind = -1
         t_stop = t_new
-        if at_event or regime == STICK_REGIME or _may_have_event(C, order, h, regime, pars, W, eps):
+        scan = step_events(C, order, h, regime, pars, W, eps, starts, band)
+        if scan != SCAN_NONE:
             n = scan_points(h, regime, pars, y)
             info[0] = n
             if not compiled_events:
@@ -499,8 +734,11 @@ def advance_taylor(
             for j in range(n):
                 grid[j] = j * step + tau
             grid[n] = t_new
+            # no slip reversal possible: locate reads mu only to decide whether to scan
+            # the slip, so it is handed the parameters with mu = 0
+            scan_pars = pars if scan == SCAN_ALL else pars_surface
             t_ev, kind = locate(
-                tau, C, order, pars, regime, grid, n, hv, hd, row, drow, starts, band
+                tau, C, order, scan_pars, regime, grid, n, hv, hd, row, drow, starts, band
             )
             if kind >= 0:
                 t_stop = t_ev
@@ -520,13 +758,11 @@ def advance_taylor(
             starts = (False, False, True)
             continue
         dense_at(t_stop, tau, C, order, row)
-        new_regime, kind = _apply_event(kind, t_stop, row, regime, pars)
-        events_tau[n_events] = t_stop
-        events_kind[n_events] = kind
-        events_regimes[n_events, 0] = regime
-        events_regimes[n_events, 1] = new_regime
+        new_regime, kind = apply_and_record(
+            kind, t_stop, row, regime, pars, events_tau, events_kind, events_state,
+            events_regimes, n_events,
+        )  # fmt: skip
         for i in range(4):
-            events_state[n_events, i] = row[i]
             y[i] = row[i]
         n_events += 1
         tau, regime = t_stop, new_regime

@@ -1,0 +1,240 @@
+"""The compiled one-pass core of the energy balance (``analysis.energy``).
+
+``balance_pass`` walks the nodes of every smooth piece (``analysis.regimes.piece_bounds``)
+over the solution's own arrays, without copying them, and computes, node by node, what
+``energy._interval_integrals`` and ``energy._coarse_estimate`` compute on whole arrays:
+the powers, their central-difference rates along the motion, the corrected trapezoid
+integrals and the every-other-node estimate of the quadrature error. The totals need
+no memory that grows with the samples; the cumulative series are written only when
+output arrays are given (the energy figure). The arithmetic is that of the numpy path,
+operation by operation, so the two agree to round-off (tests/test_energy.py checks
+1e-12 relative); the physics comes from the model's compilable cores
+(``model.stick_friction_value``, ``model.friction_sign``).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from rubcli import model
+
+jit = numba.njit(cache=True)
+
+_stick_friction = jit(model.stick_friction_value)
+_friction_sign = jit(model.friction_sign)
+
+FREE, STICK = model.FREE, model.STICK
+# Columns, as energy._IN ... energy._ABS_FRIC
+_IN, _DAMP, _FRIC, _SLIP, _SPIN, _ABS_IN, _ABS_FRIC = range(7)
+N_TERMS = 7
+
+
+@jit
+def _node(k, n, p, t, states, start_tau, start_state, end_tau, end_state, lo, out):
+    """Node k of piece p (of n nodes) into out[0:5] = tau, x, y, vx, vy."""
+    if k == 0:
+        out[0] = start_tau[p]
+        for i in range(4):
+            out[1 + i] = start_state[p, i]
+    elif k == n - 1:
+        out[0] = end_tau[p]
+        for i in range(4):
+            out[1 + i] = end_state[p, i]
+    else:
+        j = lo[p] + k - 1
+        out[0] = t[j]
+        for i in range(4):
+            out[1 + i] = states[j, i]
+
+
+@jit
+def _powers(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu, Rp, regime, out):
+    """``energy.powers`` of one state into out[0:7]."""
+    phase = eta * tau + phi0
+    p_in = E * (np.cos(phase) * vx + np.sin(phase) * vy)
+    out[_IN] = p_in
+    out[_DAMP] = 2.0 * nu * (vx * vx + vy * vy)
+    out[_ABS_IN] = abs(p_in)
+    if regime == FREE:
+        out[_FRIC] = 0.0
+        out[_SLIP] = 0.0
+        out[_SPIN] = 0.0
+        out[_ABS_FRIC] = 0.0
+        return
+    z = np.hypot(x, y)
+    if regime == STICK:
+        T = _stick_friction(tau, x, y, vx, vy, nu, eta, E, phi0)
+    else:
+        T = _friction_sign(regime) * mu * K * (z - 1.0)
+    whirl = (x * vy - y * vx) / z
+    v_r = Rp * eta + ((x * vy - y * vx) / z if z > 0.0 else 0.0)
+    out[_FRIC] = -T * whirl
+    out[_SLIP] = T * v_r
+    out[_SPIN] = T * Rp * eta
+    out[_ABS_FRIC] = abs(T * whirl)
+
+
+@jit
+def _accelerations(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu, regime):
+    """``energy.accelerations`` of one state: (ax, ay)."""
+    phase = eta * tau + phi0
+    ax = E * np.cos(phase) - 2.0 * nu * vx - x
+    ay = E * np.sin(phase) - 2.0 * nu * vy - y
+    if regime == STICK:
+        z = np.hypot(x, y)
+        normal = K * (z - 1.0) if z > 1.0 else 0.0
+        tangential = _stick_friction(tau, x, y, vx, vy, nu, eta, E, phi0)
+        ax = ax - (normal * x - tangential * y) / z
+        ay = ay - (normal * y + tangential * x) / z
+    elif regime != FREE:
+        mu_c = mu * _friction_sign(regime)
+        z = np.hypot(x, y)
+        factor = 1.0 - 1.0 / z if z > 1.0 else 0.0
+        ax = ax + -K * factor * (x - mu_c * y)
+        ay = ay + -K * factor * (y + mu_c * x)
+    return ax, ay
+
+
+@jit
+def _power_and_rate(node, spacing, pv, regime, P, dP, shifted):
+    """Powers P at a node and their rates dP (central differences along the motion)."""
+    nu, eta, E, phi0, K, mu, Rp = pv[0], pv[1], pv[2], pv[3], pv[4], pv[5], pv[6]
+    tau, x, y, vx, vy = node[0], node[1], node[2], node[3], node[4]
+    _powers(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu, Rp, regime, P)
+    ax, ay = _accelerations(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu, regime)
+    delta = 1e-5 * spacing
+    _powers(tau + delta, x + delta * vx, y + delta * vy, vx + delta * ax, vy + delta * ay,
+            nu, eta, E, phi0, K, mu, Rp, regime, shifted)  # fmt: skip
+    for i in range(N_TERMS):
+        dP[i] = shifted[i]
+    _powers(tau - delta, x - delta * vx, y - delta * vy, vx - delta * ax, vy - delta * ay,
+            nu, eta, E, phi0, K, mu, Rp, regime, shifted)  # fmt: skip
+    for i in range(N_TERMS):
+        dP[i] = (dP[i] - shifted[i]) / (2.0 * delta)
+    dP[_ABS_IN] = 0.0
+    dP[_ABS_FRIC] = 0.0
+
+
+@jit
+def _piece_integrals(p, n, stride, t, states, bounds, pv, regime, totals, cum_out, offset):
+    """Integrals over piece p on every ``stride``-th node (and the last): their sum into
+    ``totals``; with ``cum_out`` (stride 1 only) the cumulative sums at each node, from
+    ``cum_out[offset]`` on, relative to the piece's start."""
+    start_tau, start_state, end_tau, end_state, lo = bounds
+    prev = np.empty(5)
+    cur = np.empty(5)
+    nxt = np.empty(5)
+    P_prev, dP_prev = np.empty(N_TERMS), np.empty(N_TERMS)
+    P, dP, shifted = np.empty(N_TERMS), np.empty(N_TERMS), np.empty(N_TERMS)
+    local = np.zeros(N_TERMS)
+    store = cum_out.shape[0] > 0
+    # the nodes k = 0, stride, 2 stride, ... and the last, n - 1 (no index array)
+    m = (n - 1) // stride + (1 if (n - 1) % stride == 0 else 2)
+    _node(0, n, p, t, states, start_tau, start_state, end_tau, end_state, lo, cur)
+    _node(min(stride, n - 1), n, p, t, states, start_tau, start_state, end_tau, end_state, lo,
+          nxt)  # fmt: skip
+    if store:
+        for i in range(N_TERMS):
+            cum_out[offset, i] = 0.0
+    for q in range(m):
+        h_prev = cur[0] - prev[0] if q > 0 else np.inf
+        h_next = nxt[0] - cur[0] if q < m - 1 else np.inf
+        _power_and_rate(cur, min(h_next, h_prev), pv, regime, P, dP, shifted)
+        if q > 0:
+            h = h_prev
+            for i in range(N_TERMS):
+                value = 0.5 * h * (P_prev[i] + P[i]) + (h * h / 12.0) * (dP_prev[i] - dP[i])
+                local[i] += value
+                if store:
+                    cum_out[offset + q, i] = local[i]
+        for i in range(N_TERMS):
+            P_prev[i] = P[i]
+            dP_prev[i] = dP[i]
+        for i in range(5):
+            prev[i] = cur[i]
+            cur[i] = nxt[i]
+        if q + 2 < m:
+            k = min((q + 2) * stride, n - 1)
+            _node(k, n, p, t, states, start_tau, start_state, end_tau, end_state, lo, nxt)
+    for i in range(N_TERMS):
+        totals[i] = local[i]
+
+
+@jit
+def _two_node_trapezoid(p, t, states, bounds, pv, regime, out):
+    """Plain trapezoid of the powers over a piece of two nodes (no interior sample)."""
+    start_tau, start_state, end_tau, end_state, lo = bounds
+    nu, eta, E, phi0, K, mu, Rp = pv[0], pv[1], pv[2], pv[3], pv[4], pv[5], pv[6]
+    a = np.empty(N_TERMS)
+    b = np.empty(N_TERMS)
+    node = np.empty(5)
+    _node(0, 2, p, t, states, start_tau, start_state, end_tau, end_state, lo, node)
+    _powers(node[0], node[1], node[2], node[3], node[4], nu, eta, E, phi0, K, mu, Rp, regime, a)
+    _node(1, 2, p, t, states, start_tau, start_state, end_tau, end_state, lo, node)
+    _powers(node[0], node[1], node[2], node[3], node[4], nu, eta, E, phi0, K, mu, Rp, regime, b)
+    span = end_tau[p] - start_tau[p]
+    for i in range(N_TERMS):
+        out[i] = 0.5 * (a[i] + b[i]) * span
+
+
+@jit
+def balance_pass(t, states, regimes, start_tau, start_state, end_tau, end_state, lo, hi, pv,
+                 cum_out, energy_out):  # fmt: skip
+    """The energy balance over every piece in one pass.
+
+    Returns ``(running, quad_sum, energy_first, energy_last, energy_max_abs)``: the
+    integrals of the 7 power columns over the whole span, the summed |W - D + F| of the
+    per-piece quadrature-error estimates, and the mechanical energy at the first and last
+    node and its largest magnitude. With ``cum_out`` of shape (nodes, 7) and
+    ``energy_out`` of shape (nodes, 3) (else shape (0, ...)) the cumulative integrals and
+    the kinetic, rotor-spring and stator energies at every node are written too.
+    """
+    K = pv[4]
+    bounds = (start_tau, start_state, end_tau, end_state, lo)
+    running = np.zeros(N_TERMS)
+    fine = np.zeros(N_TERMS)
+    coarse = np.zeros(N_TERMS)
+    quad_sum = 0.0
+    energy_first = 0.0
+    energy_last = 0.0
+    energy_max = 0.0
+    node = np.empty(5)
+    store = cum_out.shape[0] > 0
+    offset = 0
+    for p in range(regimes.size):
+        regime = regimes[p]
+        n = hi[p] - lo[p] + 2
+        _piece_integrals(p, n, 1, t, states, bounds, pv, regime, fine, cum_out, offset)
+        if n >= 3:
+            _piece_integrals(p, n, 2, t, states, bounds, pv, regime, coarse, cum_out[:0],
+                             0)  # fmt: skip
+            for i in range(N_TERMS):
+                coarse[i] = abs(fine[i] - coarse[i]) / 15.0
+        else:
+            _two_node_trapezoid(p, t, states, bounds, pv, regime, coarse)
+            for i in range(N_TERMS):
+                coarse[i] = abs(fine[i] - coarse[i])
+        quad_sum += abs(coarse[_IN] - coarse[_DAMP] + coarse[_FRIC])
+        for k in range(n):
+            _node(k, n, p, t, states, start_tau, start_state, end_tau, end_state, lo, node)
+            x, y, vx, vy = node[1], node[2], node[3], node[4]
+            z = np.hypot(x, y)
+            kinetic = 0.5 * (vx * vx + vy * vy)
+            spring = 0.5 * z * z
+            stator = 0.5 * K * (z - 1.0) ** 2 if regime != FREE else 0.0
+            energy = kinetic + spring + stator
+            if p == 0 and k == 0:
+                energy_first = energy
+            energy_last = energy
+            energy_max = max(energy_max, abs(energy))
+            if store:
+                energy_out[offset + k, 0] = kinetic
+                energy_out[offset + k, 1] = spring
+                energy_out[offset + k, 2] = stator
+                for i in range(N_TERMS):
+                    cum_out[offset + k, i] += running[i]
+        for i in range(N_TERMS):
+            running[i] += fine[i]
+        offset += n
+    return running, quad_sum, energy_first, energy_last, energy_max
