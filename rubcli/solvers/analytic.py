@@ -50,7 +50,6 @@ from rubcli.solution import Solution
 from rubcli.solvers import compiled as kernels
 from rubcli.solvers import control, driver, register
 from rubcli.solvers.compiled import piecewise
-from rubcli.solvers.dop853_jit import record_kernel_events
 from rubcli.solvers.events import (
     MAX_SCAN_POINTS,
     NO_EVENT,
@@ -478,7 +477,7 @@ class PiecewiseStepper:
         for key, i in kernels.PIECEWISE_COUNTS.items():
             stats[key] += int(counts[i])
         run.tau, run.state, run.regime, run.k = tau, state, regime, k
-        if not record_kernel_events(run, n_ev, *self.events):
+        if not driver.record_kernel_events(run, n_ev, *self.events):
             return
         run.last_kind = last_kind
         # a step the loop leaves to Python (conditioning, scan size, a non-finite
