@@ -523,30 +523,48 @@ def free_steady_state(tau, params: ModelParams):
     exact resonance the secular particular solution is returned instead.
     """
     tau = np.asarray(tau, dtype=float)
-    denom = complex(1.0 - params.eta**2, 2.0 * params.nu * params.eta)
-    rot = np.exp(1j * (params.eta * tau + params.phi0))
+    return free_steady_value(tau, params.nu, params.eta, params.E, params.phi0)
+
+
+def free_steady_value(tau, nu, eta, E, phi0):
+    """``free_steady_state`` from scalars, tau a scalar or an array (compilable core)."""
+    denom = complex(1.0 - eta**2, 2.0 * nu * eta)
+    rot = np.exp(1j * (eta * tau + phi0))
     if denom == 0.0:
         # Undamped exact resonance (nu = 0, eta = 1): w_p = (E / 2i) tau exp(i(tau + phi0)).
-        w = params.E / 2j * tau * rot
-        return w, params.E / 2j * rot * (1.0 + 1j * tau)
-    w = params.E / denom * rot
-    return w, 1j * params.eta * w
+        w = E / 2j * tau * rot
+        return w, E / 2j * rot * (1.0 + 1j * tau)
+    w = E / denom * rot
+    return w, 1j * eta * w
 
 
-def _damped_basis(dt, nu: float):
-    """C(t) = cos(beta t), S(t) = sin(beta t)/beta with beta^2 = 1 - nu^2, for any nu >= 0.
+def damped_basis(dt, nu):
+    """C(t) = cos(beta t), S(t) = sin(beta t)/beta with beta^2 = 1 - nu^2, for any nu >= 0;
+    dt a scalar or an array (compilable core).
 
     Written so that over-damped (nu > 1) and critically damped (nu = 1) rotors work too.
     """
     beta2 = 1.0 - nu * nu
-    dt = np.asarray(dt, dtype=float)
     if beta2 > 0.0:
         beta = math.sqrt(beta2)
         return np.cos(beta * dt), np.sin(beta * dt) / beta
     if beta2 < 0.0:
         kappa = math.sqrt(-beta2)
         return np.cosh(kappa * dt), np.sinh(kappa * dt) / kappa
-    return np.ones_like(dt), dt.copy()
+    return 0.0 * dt + 1.0, dt + 0.0
+
+
+def free_flight_value(tau, tau0, d0, dv0, nu, eta, E, phi0):
+    """(w, v) = (x + i y, vx + i vy) at tau (a scalar or an array) of the free flight
+    whose homogeneous part is d0, dv0 at tau0 (the start minus ``free_steady_value``
+    there): eq. (7-8) with exp(-nu tau), correction 4 (compilable core)."""
+    dt = tau - tau0
+    C, S = damped_basis(dt, nu)
+    decay = np.exp(-nu * dt)
+    wh = decay * (d0 * C + (dv0 + nu * d0) * S)
+    vh = decay * (dv0 * C - (d0 + nu * dv0) * S)
+    wp, vp = free_steady_value(tau, nu, eta, E, phi0)
+    return wp + wh, vp + vh
 
 
 def free_flight(tau, tau0: float, s0, params: ModelParams) -> np.ndarray:
@@ -559,14 +577,9 @@ def free_flight(tau, tau0: float, s0, params: ModelParams) -> np.ndarray:
     v0 = complex(s0[2], s0[3])
     wp0, vp0 = free_steady_state(tau0, params)
     d0, dv0 = w0 - complex(wp0), v0 - complex(vp0)
-    dt = np.asarray(tau, dtype=float) - tau0
-    C, S = _damped_basis(dt, params.nu)
-    decay = np.exp(-params.nu * dt)
-    nu = params.nu
-    wh = decay * (d0 * C + (dv0 + nu * d0) * S)
-    vh = decay * (dv0 * C - (d0 + nu * dv0) * S)
-    wp, vp = free_steady_state(tau, params)
-    w, v = wp + wh, vp + vh
+    p = params
+    tau = np.asarray(tau, dtype=float)
+    w, v = free_flight_value(tau, tau0, d0, dv0, p.nu, p.eta, p.E, p.phi0)
     return np.array([np.real(w), np.imag(w), np.real(v), np.imag(v)])
 
 

@@ -226,11 +226,28 @@ def event_search(ev, fill=None, compile=None):
             return -sign * model.slip_velocity_rate(x, y, vx, vy, drow[2], drow[3])
         return -sign * model.slip_velocity_value(x, y, vx, vy, pars[6] * pars[1])
 
+    def event_values(ctx, t, fn, sign, pars, d, row, drow):
+        """``event_value`` and its rate at t from one evaluation of the segment (three
+        for the stick margin's central differences): the same numbers."""
+        if fn == FN_STICK:
+            ev(t, False, ctx, row, drow)
+            value = stick_margin(t, row[0], row[1], row[2], row[3], pars, sign)
+            return value, event_value(ctx, t, fn, sign, True, pars, d, row, drow)
+        ev(t, fn != FN_SURFACE, ctx, row, drow)
+        if fn == FN_GIVEN:
+            return row[0], drow[0]
+        x, y, vx, vy = row[0], row[1], row[2], row[3]
+        if fn == FN_SURFACE:
+            return sign * (x**2 + y**2 - 1.0), sign * (2.0 * (x * vx + y * vy))
+        return (
+            -sign * model.slip_velocity_value(x, y, vx, vy, pars[6] * pars[1]),
+            -sign * model.slip_velocity_rate(x, y, vx, vy, drow[2], drow[3]),
+        )
+
     def fill_values(ctx, fn, sign, grid, n, pars, d, row, drow, hv, hd):
         """The event function and its rate on ``grid[:n + 1]``, point by point."""
         for i in range(n + 1):
-            hv[i] = event_value(ctx, grid[i], fn, sign, False, pars, d, row, drow)
-            hd[i] = event_value(ctx, grid[i], fn, sign, True, pars, d, row, drow)
+            hv[i], hd[i] = event_values(ctx, grid[i], fn, sign, pars, d, row, drow)
 
     def brentq(ctx, a, b, fa, fb, fn, sign, deriv, pars, d, row, drow):
         """Root of the event function (or of its rate) in [a, b], fa and fb of opposite
@@ -446,6 +463,7 @@ def event_search(ev, fill=None, compile=None):
 
     if compile is not None:
         event_value = compile(event_value)
+        event_values = compile(event_values)
         fill_values = compile(fill_values)
         brentq = compile(brentq)
         _root = compile(_root)

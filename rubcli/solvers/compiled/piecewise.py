@@ -2,8 +2,9 @@
 functions for the event search (``events.event_search``).
 
 - Free flight: the closed form of ``model.free_flight`` (eq. 7-8 with the corrections),
-  written on scalars: ``_free_prepare`` stores the homogeneous part's start (tau0, w0 -
-  w_p(tau0), v0 - v_p(tau0)) in a 5-array, ``_free_at`` evaluates the state at any tau.
+  the same definition (``model.free_flight_value``, a compilable core): ``_free_prepare``
+  stores the homogeneous part's start (tau0, w0 - w_p(tau0), v0 - v_p(tau0)) in a
+  5-array, ``_free_at`` evaluates the state at any tau.
 - Stick: one classical RK4 step of the rolling law (``model.rhs_entries`` in
   ``STICK``) with cubic Hermite dense output: ``stick_prepare`` stores (s0, s1, f0,
   f1) and (tau0, h); ``stick_at`` evaluates the cubic. These are the one
@@ -19,39 +20,13 @@ Every ``ev(t, deriv, ctx, row, drow)`` fills ``row`` with the state at ``t`` and
 
 from __future__ import annotations
 
-import cmath
 import math
 
 from numba.extending import register_jitable
 
-from rubcli.model import STICK, rhs_entries
+from rubcli.model import STICK, free_flight_value, free_steady_value, rhs_entries
 from rubcli.solvers.compiled.jit import jit
 from rubcli.solvers.compiled.propagators import _evaluate
-
-
-@jit
-def _free_steady(tau, nu, eta, E, phi0):
-    """``model.free_steady_state`` at a scalar tau: (w_p, v_p)."""
-    denom = complex(1.0 - eta**2, 2.0 * nu * eta)
-    rot = cmath.exp(1j * (eta * tau + phi0))
-    if denom == 0.0:  # undamped exact resonance: the secular particular solution
-        w = E / 2j * tau * rot
-        return w, E / 2j * rot * (1.0 + 1j * tau)
-    w = E / denom * rot
-    return w, 1j * eta * w
-
-
-@jit
-def _damped_basis(dt, nu):
-    """``model._damped_basis`` at a scalar dt: (C, S)."""
-    beta2 = 1.0 - nu * nu
-    if beta2 > 0.0:
-        beta = math.sqrt(beta2)
-        return math.cos(beta * dt), math.sin(beta * dt) / beta
-    if beta2 < 0.0:
-        kappa = math.sqrt(-beta2)
-        return math.cosh(kappa * dt), math.sinh(kappa * dt) / kappa
-    return 1.0, dt
 
 
 @jit
@@ -64,7 +39,7 @@ def free_omega_max(pars):
 @jit
 def _free_prepare(tau0, s0, pars, ff):
     """The free flight from (tau0, s0): ff = (tau0, Re d0, Im d0, Re dv0, Im dv0)."""
-    wp0, vp0 = _free_steady(tau0, pars[0], pars[1], pars[2], pars[3])
+    wp0, vp0 = free_steady_value(tau0, pars[0], pars[1], pars[2], pars[3])
     d0 = complex(s0[0], s0[1]) - wp0
     dv0 = complex(s0[2], s0[3]) - vp0
     ff[0] = tau0
@@ -77,17 +52,9 @@ def _free_prepare(tau0, s0, pars, ff):
 @jit
 def _free_at(t, ff, pars, row):
     """``model.free_flight`` at a scalar time t, into row."""
-    nu, eta, E, phi0 = pars[0], pars[1], pars[2], pars[3]
     d0 = complex(ff[1], ff[2])
     dv0 = complex(ff[3], ff[4])
-    dt = t - ff[0]
-    C, S = _damped_basis(dt, nu)
-    decay = math.exp(-nu * dt)
-    wh = decay * (d0 * C + (dv0 + nu * d0) * S)
-    vh = decay * (dv0 * C - (d0 + nu * dv0) * S)
-    wp, vp = _free_steady(t, nu, eta, E, phi0)
-    w = wp + wh
-    v = vp + vh
+    w, v = free_flight_value(t, ff[0], d0, dv0, pars[0], pars[1], pars[2], pars[3])
     row[0] = w.real
     row[1] = w.imag
     row[2] = v.real
