@@ -49,8 +49,14 @@ class Solution:
         cls, problem: Problem, method: str, k: int, states, regimes, **fields
     ) -> Solution:
         """The solution of a solver that filled ``states``/``regimes`` (buffers of the
-        problem's sample count) up to sample ``k``; ``fields`` are the other fields."""
+        problem's sample count) up to sample ``k``; ``fields`` are the other fields.
+
+        Full buffers become the solution's arrays as they are (the solver hands them
+        over: a copy would double the peak memory of a long run, 40 bytes a sample);
+        the filled part of partly filled ones is copied, so the rest can be freed."""
         t = problem.t_eval[:k].copy()
+        if k == len(states) and k == len(regimes):
+            return cls(problem, method, t, states, regimes, **fields)
         return cls(problem, method, t, states[:k].copy(), regimes[:k].copy(), **fields)
 
     @property

@@ -141,6 +141,7 @@ class Run:
             self._next_progress = self.tau + PROGRESS_FRACTION * (self.t_end - self.t_eval[0])
 
     def solution(self, settings: dict) -> Solution:
+        """The run's Solution; it takes over the sample buffers (the run ends here)."""
         return Solution.from_samples(
             self.problem,
             self.method,
