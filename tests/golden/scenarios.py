@@ -59,6 +59,11 @@ def settings() -> dict[str, tuple[str, dict]]:
         "dop853-jit",
         {**base, "rtol": 1e-8, "atol": 1e-10, "compiled_events": False},
     )
+    out["taylor"] = ("taylor", {**base, "rtol": 1e-8, "atol": 1e-10})
+    out["taylor-python-events"] = (
+        "taylor",
+        {**base, "rtol": 1e-8, "atol": 1e-10, "compiled_events": False},
+    )
     return out
 
 
