@@ -63,6 +63,36 @@ def failed_copy(solution: Solution, n: int, blow_up: float = 1e6) -> Solution:
 # ------------------------------------------------------------------ display helpers
 
 
+def test_envelope_in_chunks_equals_the_whole_reduction_with_bounded_memory(monkeypatch):
+    """``envelope`` reduces runs of groups at a time: the same points as one reduction
+    over the whole series (ties and a spike included), and its temporaries do not grow
+    with the series (tracemalloc: 4x the samples, about the same peak)."""
+    import tracemalloc
+
+    rng = np.random.default_rng(11)
+    t = np.linspace(0.0, 50.0, 300_001)
+    values = np.round(rng.normal(size=t.size), 1)  # many ties within each group
+    values[77_777] = 40.0
+    monkeypatch.setattr(display, "ENVELOPE_CHUNK", 10**12)  # one run: the whole series
+    whole = display.envelope(t, values, bins=500)
+    monkeypatch.setattr(display, "ENVELOPE_CHUNK", 1_000)
+    chunked = display.envelope(t, values, bins=500)
+    np.testing.assert_array_equal(whole[0], chunked[0])
+    np.testing.assert_array_equal(whole[1], chunked[1])
+    assert 40.0 in chunked[1]
+    monkeypatch.setattr(display, "ENVELOPE_CHUNK", 65_536)
+    peaks = []
+    for n in (1_000_000, 4_000_000):
+        tt, vv = np.linspace(0.0, 1.0, n), np.sin(np.linspace(0.0, 900.0, n))
+        tracemalloc.start()
+        display.envelope(tt, vv)
+        peaks.append(tracemalloc.get_traced_memory()[1])
+        tracemalloc.stop()
+    # the finite-value mask (1 byte a sample) grows; the per-sample int64 temporaries
+    # (group, positions: 16+ bytes a sample) must not
+    assert peaks[1] < peaks[0] + 4 * 3_000_000
+
+
 def test_envelope_keeps_every_extreme_and_bounds_the_points():
     t = np.linspace(0.0, 1000.0, 1_000_001)
     values = np.sin(t) * (1.0 + 0.001 * t)

@@ -40,6 +40,7 @@ FINE_POINTS_PER_PERIOD = 720  # the bold steady orbit: points per forcing period
 FINE_POINTS = 20_000  # ... and at most this many in all
 BOLD_PERIODS = 10.0  # the bold steady orbit: the last this many forcing periods
 MARGIN = 1.08  # orbit axes: this much beyond the largest radius drawn
+ENVELOPE_CHUNK = 65_536  # samples reduced at a time by ``envelope``
 
 
 def envelope(t: np.ndarray, values: np.ndarray, bins: int = ENVELOPE_BINS):
@@ -58,13 +59,29 @@ def envelope(t: np.ndarray, values: np.ndarray, bins: int = ENVELOPE_BINS):
     if n <= 2 * bins:
         return t, values
     edges = np.linspace(0, n, bins + 1).astype(np.int64)
-    starts = edges[:-1]
-    lo = starts + _arg_reduce(values, edges, np.minimum)
-    hi = starts + _arg_reduce(values, edges, np.maximum)
+    lo, hi = _extreme_indices(values, edges)
     first = np.minimum(lo, hi)
     second = np.maximum(lo, hi)
     idx = np.column_stack((first, second)).ravel()
     return t[idx], values[idx]
+
+
+def _extreme_indices(values: np.ndarray, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Index of the first minimum and of the first maximum of each group
+    ``edges[i]:edges[i+1]``, computed on runs of groups of about ``ENVELOPE_CHUNK``
+    samples, so the temporaries stay bounded whatever the length of the series."""
+    groups = edges.size - 1
+    lo = np.empty(groups, dtype=np.int64)
+    hi = np.empty(groups, dtype=np.int64)
+    per_group = max(1, int(edges[-1] - edges[0]) // max(groups, 1))
+    step = max(1, ENVELOPE_CHUNK // per_group)
+    for a in range(0, groups, step):
+        b = min(groups, a + step)
+        local = edges[a : b + 1] - edges[a]
+        part = values[edges[a] : edges[b]]
+        lo[a:b] = edges[a:b] + _arg_reduce(part, local, np.minimum)
+        hi[a:b] = edges[a:b] + _arg_reduce(part, local, np.maximum)
+    return lo, hi
 
 
 def _arg_reduce(values: np.ndarray, edges: np.ndarray, ufunc) -> np.ndarray:

@@ -150,7 +150,8 @@ def time_figure(
         for k, (ax, values) in enumerate(
             zip(axes, (solution.x, solution.y, solution.z), strict=True)
         ):
-            te, ve = display.envelope(t, unit * values[:n])
+            te, ve = display.envelope(t, values[:n])  # (reduced first, then scaled)
+            ve = unit * ve
             ax.plot(te, ve, label=label, **style)
             if solution.success and ve.size:
                 limits[k] = [min(limits[k][0], ve.min()), max(limits[k][1], ve.max())]
