@@ -38,6 +38,7 @@ from rubcli.model import (
     rolling_velocity,
     stick_friction_value,
 )
+from rubcli.solvers.compiled.contact import _scan_points
 
 # the ev functions are passed as piecewise.<name>: a dispatcher bound to a global name of
 # this module and passed as an argument makes numba refuse to cache the loop
@@ -60,8 +61,8 @@ from rubcli.solvers.compiled.precheck import (
     _surface_may_cross,
 )
 from rubcli.solvers.compiled.propagators import _evaluate, _prepare, _workspace
-from rubcli.solvers.compiled.roots import _apply_event
-from rubcli.solvers.events import MAX_SCAN_POINTS, NO_EVENT, event_search, start_flags
+from rubcli.solvers.compiled.roots import apply_and_record
+from rubcli.solvers.events import NO_EVENT, event_search, start_flags
 
 # The one event search (events.event_search), compiled over each kind of segment
 _locate_free, _ = event_search(free_ev, compile=jit)
@@ -87,29 +88,6 @@ def _grid_fill(grid, ta, tb, n):
     for i in range(n):
         grid[i] = i * delta + ta
     grid[n] = tb
-
-
-@jit
-def _intervals(ta, tb, omega_max, fraction):
-    """Scan intervals of [ta, tb] (``events.scan_spacing``); -1 beyond MAX_SCAN_POINTS."""
-    spacing = fraction * 2.0 * math.pi / max(omega_max, 1e-300)
-    if (tb - ta) / spacing > MAX_SCAN_POINTS:
-        return -1
-    return max(1, math.ceil((tb - ta) / spacing))
-
-
-@jit
-def _record(tau, kind, row, regime, pars, ev_tau, ev_kind, ev_state, ev_regimes, n):
-    """Apply the located event (projecting ``row`` in place if stick begins or ends) and
-    record it in slot n; returns (new regime, recorded kind)."""
-    new, recorded = _apply_event(kind, tau, row, regime, pars)
-    ev_tau[n] = tau
-    ev_kind[n] = recorded
-    ev_regimes[n, 0] = regime
-    ev_regimes[n, 1] = new
-    for j in range(4):
-        ev_state[n, j] = row[j]
-    return new, recorded
 
 
 @jit
@@ -212,7 +190,7 @@ def advance_piecewise(
             warm = False
             tb = min(t_end, tau + h)
             stick_prepare(tau, state, tb - tau, pars, st, meta)
-            n = _intervals(tau, tb, stick_omega_max(pars), contact_frac)
+            n = _scan_points(tau, tb, stick_omega_max(pars), contact_frac)
             if n < 0:
                 return tau, regime, last_kind, k, n_events, free_active, STOP_PYTHON
             if size < n + 1:
@@ -260,7 +238,7 @@ def advance_piecewise(
             # cond1: proceed only where Python surely uses it too (advance_contact)
             if not 8.0 * cond <= cond_limit:
                 return tau, regime, last_kind, k, n_events, free_active, STOP_PYTHON
-            n = _intervals(tau, tb, omega, contact_frac)
+            n = _scan_points(tau, tb, omega, contact_frac)
             if n < 0:
                 return tau, regime, last_kind, k, n_events, free_active, STOP_PYTHON
             if size < n + 1:
@@ -303,8 +281,8 @@ def advance_piecewise(
             _evaluate(polar, tau, t_ev, pars, ws, row, drow)
         # the event located at t_ev, the state there in row: apply and record it
         regime_before = regime
-        regime, last_kind = _record(
-            t_ev, kind, row, regime, pars, ev_tau, ev_kind, ev_state, ev_regimes, n_events
+        regime, last_kind = apply_and_record(
+            kind, t_ev, row, regime, pars, ev_tau, ev_kind, ev_state, ev_regimes, n_events
         )
         n_events += 1
         for j in range(4):
