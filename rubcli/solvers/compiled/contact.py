@@ -162,11 +162,7 @@ def advance_contact(
     out = np.empty(4)
     dout = np.empty(4)
     size = 2
-    grid = np.empty(size)
-    S = np.empty((size, 4))
-    dS = np.empty((size, 4))
-    hv = np.empty(size)
-    hd = np.empty(size)
+    grid, S, dS, hv, hd = _scan_buffers(size)
     steps = 0
     while True:
         if tau >= t_end:

@@ -38,7 +38,7 @@ from rubcli.model import (
     rolling_velocity,
     stick_friction_value,
 )
-from rubcli.solvers.compiled.contact import _scan_points
+from rubcli.solvers.compiled.contact import _scan_buffers, _scan_points
 
 # the ev functions are passed as piecewise.<name>: a dispatcher bound to a global name of
 # this module and passed as an argument makes numba refuse to cache the loop
@@ -127,11 +127,7 @@ def advance_piecewise(
     row = np.empty(4)
     drow = np.empty(4)
     size = 2
-    grid = np.empty(size)
-    S = np.empty((size, 4))
-    dS = np.empty((size, 4))
-    hv = np.empty(size)
-    hd = np.empty(size)
+    grid, S, dS, hv, hd = _scan_buffers(size)
     work = 0
     n_events = 0
     warm = False  # the eigensolver may start from the last slip step's eigenvalues
@@ -161,7 +157,7 @@ def advance_piecewise(
                 n = max(1, math.ceil((tb - ta) / spacing))
                 if size < n + 1:
                     size = n + 1
-                    grid, S, dS, hv, hd = _buffers(size)
+                    grid, S, dS, hv, hd = _scan_buffers(size)
                 _grid_fill(grid, ta, tb, n)
                 t_ev, kind = _locate_free(
                     ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow
@@ -195,7 +191,7 @@ def advance_piecewise(
                 return tau, regime, last_kind, k, n_events, free_active, STOP_PYTHON
             if size < n + 1:
                 size = n + 1
-                grid, S, dS, hv, hd = _buffers(size)
+                grid, S, dS, hv, hd = _scan_buffers(size)
             _grid_fill(grid, tau, tb, n)
             finite = True
             for i in range(n + 1):
@@ -243,7 +239,7 @@ def advance_piecewise(
                 return tau, regime, last_kind, k, n_events, free_active, STOP_PYTHON
             if size < n + 1:
                 size = n + 1
-                grid, S, dS, hv, hd = _buffers(size)
+                grid, S, dS, hv, hd = _scan_buffers(size)
             _grid_fill(grid, tau, tb, n)
             finite = True
             for i in range(n + 1):
@@ -334,9 +330,3 @@ def _stick_may_have_event(grid, n, st, meta, pars, S, W, hv, hd, row, on_surface
         if _may_cross(grid, hv, hd, n, margin_v, EVENT_MARGIN * (1.0 + rate_scale), False, True):
             return True
     return False
-
-
-@jit
-def _buffers(size):
-    """(grid, S, dS, hv, hd) of a scan grid of ``size`` points."""
-    return np.empty(size), np.empty((size, 4)), np.empty((size, 4)), np.empty(size), np.empty(size)
