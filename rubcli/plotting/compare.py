@@ -15,7 +15,8 @@ from matplotlib.figure import Figure
 from rubcli.analysis.response import PoincareSection, Response
 from rubcli.analysis.work_precision import Row, WorkPrecision
 from rubcli.plotting import display
-from rubcli.plotting.run import CLEARANCE_STYLE, _line_style, _new_figure, failure_message
+from rubcli.plotting.display import CLEARANCE_STYLE
+from rubcli.plotting.run import _line_style, _new_figure, failure_message
 
 MARKERS = ("o", "s", "^", "v", "D", "P")
 

@@ -41,6 +41,8 @@ FINE_POINTS = 20_000  # ... and at most this many in all
 BOLD_PERIODS = 10.0  # the bold steady orbit: the last this many forcing periods
 MARGIN = 1.08  # orbit axes: this much beyond the largest radius drawn
 ENVELOPE_CHUNK = 65_536  # samples reduced at a time by ``envelope``
+# The clearance (z = 1) drawn in the orbit, time and comparison figures
+CLEARANCE_STYLE = {"color": "0.2", "linestyle": "--", "linewidth": 1.0, "zorder": 5}
 
 
 def envelope(t: np.ndarray, values: np.ndarray, bins: int = ENVELOPE_BINS):

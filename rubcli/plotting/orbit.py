@@ -30,7 +30,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rubcli.plotting import display
-from rubcli.plotting.run import CLEARANCE_STYLE
 from rubcli.solution import Solution
 
 COLORS = ("C0", "C3", "C2", "C1", "C4", "C5", "C6", "C8")
@@ -67,7 +66,9 @@ def draw_orbits(
     ``transient_periods`` fixes the start of the steady span (default: half the record).
     """
     circle = np.linspace(0.0, 2.0 * np.pi, 721)
-    ax.plot(unit * np.cos(circle), unit * np.sin(circle), label="clearance", **CLEARANCE_STYLE)
+    ax.plot(
+        unit * np.cos(circle), unit * np.sin(circle), label="clearance", **display.CLEARANCE_STYLE
+    )
     radius = unit * display.orbit_radius(solutions)
     drawing = OrbitDrawing(radius=radius)
     good = [s for s in solutions if s.success and display.finite_length(s) >= 2]

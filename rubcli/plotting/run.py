@@ -18,7 +18,6 @@ from rubcli.model import ModelParams
 from rubcli.solution import Solution
 
 LINE_STYLES = ("-", "--", ":", "-.")
-CLEARANCE_STYLE = {"color": "0.2", "linestyle": "--", "linewidth": 1.0, "zorder": 5}
 
 
 def _new_figure(width: float, height: float) -> Figure:
@@ -155,7 +154,7 @@ def time_figure(
             ax.plot(te, ve, label=label, **style)
             if solution.success and ve.size:
                 limits[k] = [min(limits[k][0], ve.min()), max(limits[k][1], ve.max())]
-    axes[2].axhline(unit, label="clearance", **CLEARANCE_STYLE)
+    axes[2].axhline(unit, label="clearance", **display.CLEARANCE_STYLE)
     limits[2] = [min(limits[2][0], unit), max(limits[2][1], unit)]
     for ax, (lo, hi) in zip(axes, limits, strict=True):
         if np.isfinite(lo) and np.isfinite(hi) and hi > lo:
