@@ -78,14 +78,25 @@ def energy_figure(
             (balance.damping, {"lw": 1.0, "label": "D_damp"}),
             (balance.friction, {"lw": 1.0, "label": "D_fric (on translation)"}),
         ]
-        if np.any(balance.spin_drive != 0.0):
-            series.append((balance.spin_drive, {"lw": 0.8, "ls": ":",
-                                                "label": "spin drive T Rp eta"}))  # fmt: skip
         for values, style in series:
             terms.plot(*display.envelope(tau, k * values), **style)
         terms.set_ylabel(f"{label}\nenergy ({unit_name})")
         terms.grid(True, alpha=0.3)
-        terms.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="x-small")
+        anchor = (1.01, 1.0)
+        if np.any(balance.spin_drive != 0.0):
+            # the work of the spin on the contact is not in the balance and can be 10-100x
+            # its terms: on its own axis, so that it does not flatten them
+            spin = terms.twinx()
+            spin.plot(*display.envelope(tau, k * balance.spin_drive), color="tab:red", lw=0.8,
+                      ls=":", label="spin drive T Rp eta (right axis)")  # fmt: skip
+            spin.set_ylabel(f"spin drive ({unit_name})", color="tab:red", fontsize="small")
+            spin.tick_params(axis="y", colors="tab:red", labelsize="small")
+            handles, labels = terms.get_legend_handles_labels()
+            more, more_labels = spin.get_legend_handles_labels()
+            terms.legend(handles + more, labels + more_labels, loc="upper left",
+                         bbox_to_anchor=(1.16, 1.0), fontsize="x-small")  # fmt: skip
+        else:
+            terms.legend(loc="upper left", bbox_to_anchor=anchor, fontsize="x-small")
         norm = balance.throughput if balance.throughput > 0 else 1.0
         relative = np.abs(balance.residual) / norm
         bottom, top = residual_limits(relative, balance.quadrature_error)
