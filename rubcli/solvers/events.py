@@ -172,6 +172,16 @@ TINY = np.finfo(float).tiny
 BRENT_ITERATIONS = 100
 
 
+def linspace_into(grid, a, b, n):
+    """``np.linspace(a, b, n + 1)`` into ``grid[:n + 1]``, element for element (numpy's
+    ``k * step + a`` with the exact end point): the scan grids of the compiled loops are
+    the Python paths' (compilable core)."""
+    step = (b - a) / n
+    for k in range(n):
+        grid[k] = k * step + a
+    grid[n] = b
+
+
 def stick_margin(t, x, y, vx, vy, pars, sign):
     """sign T - mu K (z - 1) (1 + STICK_EXIT_MARGIN): stick ends on side ``sign`` where
     this rises through 0 (the needed friction leaves the friction cone); scalars or
@@ -356,10 +366,7 @@ def event_search(ev, fill=None, compile=None):
             return t
         m = REFINE_POINTS
         sub, sv, sd = np.empty(m + 1), np.empty(m + 1), np.empty(m + 1)
-        step = (b - a) / m  # np.linspace(a, b, m + 1), element for element
-        for k in range(m):
-            sub[k] = k * step + a
-        sub[m] = b
+        linspace_into(sub, a, b, m)
         fill_values(ctx, fn, sign, sub, m, pars, d, row, drow, sv, sd)
         t, a, b = _crossing_scan(
             ctx, fn, sign, sub, sv, sd, m, True, tolerance, level, False, False, pars, d,

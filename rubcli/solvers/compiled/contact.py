@@ -37,9 +37,7 @@ from rubcli.solvers.compiled.propagators import (
     _workspace,
 )
 from rubcli.solvers.control import doubling_error, next_step
-from rubcli.solvers.events import (
-    MAX_SCAN_POINTS,
-)
+from rubcli.solvers.events import MAX_SCAN_POINTS, linspace_into
 
 STEP_CLEAR = -1  # _check_step: no event can occur in the step, the kernel may take it
 
@@ -81,10 +79,7 @@ def _check_step(polar, tau, tb, n, ws, cond, pars, event_args, scan, end, work):
     sign, check_slip, spin, starts = event_args
     grid, S, dS, hv, hd = scan
     out, dout = work
-    delta = (tb - tau) / n  # np.linspace(tau, tb, n + 1)
-    for i in range(n):
-        grid[i] = i * delta + tau
-    grid[n] = tb
+    linspace_into(grid, tau, tb, n)
     finite = True
     for i in range(n + 1):
         _evaluate(polar, tau, grid[i], pars, ws, out, dout)
@@ -187,10 +182,7 @@ def advance_contact(
             dS = np.empty((size, 4))
             hv = np.empty(size)
             hd = np.empty(size)
-        delta = (tb - tau) / n  # np.linspace(tau, tb, n + 1)
-        for i in range(n):
-            grid[i] = i * delta + tau
-        grid[n] = tb
+        linspace_into(grid, tau, tb, n)
         finite = True
         for i in range(n + 1):
             _evaluate(polar, tau, grid[i], pars, ws, out, dout)

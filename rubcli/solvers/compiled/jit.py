@@ -41,6 +41,7 @@ COMPILABLE_CORES = (
     control.doubling_error,
     control.next_step,
     events.stick_margin,
+    events.linspace_into,
 )
 
 

@@ -62,7 +62,7 @@ from rubcli.solvers.compiled.precheck import (
 )
 from rubcli.solvers.compiled.propagators import _evaluate, _prepare, _workspace
 from rubcli.solvers.compiled.roots import apply_and_record
-from rubcli.solvers.events import NO_EVENT, event_search, start_flags
+from rubcli.solvers.events import NO_EVENT, event_search, linspace_into, start_flags
 
 # The one event search (events.event_search), compiled over each kind of segment
 _locate_free, _ = event_search(free_ev, compile=jit)
@@ -79,15 +79,6 @@ PIECEWISE_COUNTS = {
     "n_stick_steps": C_STICK,
     "n_compiled_steps": C_COMPILED,
 }
-
-
-@jit
-def _grid_fill(grid, ta, tb, n):
-    """np.linspace(ta, tb, n + 1), element for element."""
-    delta = (tb - ta) / n
-    for i in range(n):
-        grid[i] = i * delta + ta
-    grid[n] = tb
 
 
 @jit
@@ -158,7 +149,7 @@ def advance_piecewise(
                 if size < n + 1:
                     size = n + 1
                     grid, S, dS, hv, hd = _scan_buffers(size)
-                _grid_fill(grid, ta, tb, n)
+                linspace_into(grid, ta, tb, n)
                 t_ev, kind = _locate_free(
                     ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow
                 )
@@ -192,7 +183,7 @@ def advance_piecewise(
             if size < n + 1:
                 size = n + 1
                 grid, S, dS, hv, hd = _scan_buffers(size)
-            _grid_fill(grid, tau, tb, n)
+            linspace_into(grid, tau, tb, n)
             finite = True
             for i in range(n + 1):
                 stick_at(grid[i], st, meta, row)
@@ -240,7 +231,7 @@ def advance_piecewise(
             if size < n + 1:
                 size = n + 1
                 grid, S, dS, hv, hd = _scan_buffers(size)
-            _grid_fill(grid, tau, tb, n)
+            linspace_into(grid, tau, tb, n)
             finite = True
             for i in range(n + 1):
                 _evaluate(polar, tau, grid[i], pars, ws, row, drow)

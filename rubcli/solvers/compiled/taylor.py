@@ -90,7 +90,7 @@ from rubcli.solvers.compiled.jit import (
 )
 from rubcli.solvers.compiled.rhs import _rhs_into
 from rubcli.solvers.compiled.roots import FREE_REGIME, STICK_REGIME, apply_and_record
-from rubcli.solvers.events import SURFACE_BAND, event_search, start_flags
+from rubcli.solvers.events import SURFACE_BAND, event_search, linspace_into, start_flags
 
 # ``jit_fast`` (compiled/jit.py) for the series and the pre-check bound only: they are
 # computed here only, never again in Python, so the compiled and the Python event paths
@@ -730,10 +730,7 @@ def advance_taylor(
             info[0] = n
             if not compiled_events:
                 return tau, t_new, k, steps, STOP_EVENT, regime, n_events, at_event
-            step = h / n  # np.linspace(tau, t_new, n + 1), element for element
-            for j in range(n):
-                grid[j] = j * step + tau
-            grid[n] = t_new
+            linspace_into(grid, tau, t_new, n)
             # no slip reversal possible: locate reads mu only to decide whether to scan
             # the slip, so it is handed the parameters with mu = 0
             scan_pars = pars if scan == SCAN_ALL else pars_surface
