@@ -167,10 +167,8 @@ def advance_dop853(
         _dop853_dense_at(t_stop, tau, h, y, F, row)
         new_regime, kind = apply_and_record(
             kind, t_stop, row, regime, pars, events_tau, events_kind, events_state,
-            events_regimes, n_events,
+            events_regimes, n_events, y,
         )  # fmt: skip
-        for i in range(4):
-            y[i] = row[i]
         n_events += 1
         tau, regime = t_stop, new_regime
         starts = start_flags(kind)

@@ -269,11 +269,9 @@ def advance_piecewise(
         # the event located at t_ev, the state there in row: apply and record it
         regime_before = regime
         regime, last_kind = apply_and_record(
-            kind, t_ev, row, regime, pars, ev_tau, ev_kind, ev_state, ev_regimes, n_events
+            kind, t_ev, row, regime, pars, ev_tau, ev_kind, ev_state, ev_regimes, n_events, state
         )
         n_events += 1
-        for j in range(4):
-            state[j] = row[j]
         tau = t_ev
         if regime != regime_before:
             warm = False

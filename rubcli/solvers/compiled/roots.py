@@ -118,10 +118,11 @@ def _apply_event(kind, t, s, regime, pars):
 
 @jit
 def apply_and_record(kind, t, s, regime, pars, events_tau, events_kind, events_state,
-                     events_regimes, n_events):  # fmt: skip
+                     events_regimes, n_events, y):  # fmt: skip
     """A compiled loop's event: ``_apply_event`` on the state ``s`` at t (in place),
-    recorded as entry ``n_events`` of the loop's event buffers. Returns (new regime,
-    kind as recorded)."""
+    recorded as entry ``n_events`` of the loop's event buffers, and copied into the
+    loop's state ``y``, from which the next segment starts. Returns (new regime, kind
+    as recorded)."""
     new_regime, recorded = _apply_event(kind, t, s, regime, pars)
     events_tau[n_events] = t
     events_kind[n_events] = recorded
@@ -129,4 +130,5 @@ def apply_and_record(kind, t, s, regime, pars, events_tau, events_kind, events_s
     events_regimes[n_events, 1] = new_regime
     for i in range(4):
         events_state[n_events, i] = s[i]
+        y[i] = s[i]
     return new_regime, recorded
