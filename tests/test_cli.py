@@ -18,6 +18,8 @@ from rubcli.case import load_case
 from rubcli.cli.app import app
 from rubcli.io import CSV_COLUMNS, CSV_PHYSICAL_COLUMNS
 
+ROOT_CASE = Path(__file__).resolve().parents[1] / "cases" / "paper" / "fig3a.toml"
+
 runner = CliRunner()
 
 CASE = """\
@@ -384,3 +386,23 @@ def test_interrupted_run_writes_nothing(tmp_path, monkeypatch):
     assert result.exit_code == 130  # typer's exit code for an interrupt (128 + SIGINT)
     assert not out.exists()
     assert files_in(tmp_path) == {"case.toml"}
+
+
+def test_a_run_of_a_compiled_method_loads_no_scipy_integrator(tmp_path):
+    """`rubcli run` imports scipy's integrators only for a scipy method (they cost about
+    0.3 s of every run's start): the registry, the analysis modules and the CLI import
+    them when a function needs them."""
+    out = tmp_path / "out"
+    script = (
+        "import sys\n"
+        "from rubcli.cli.app import main\n"
+        f"sys.argv = ['rubcli', 'run', {str(ROOT_CASE)!r}, '-m', 'dop853-jit', '--periods',"
+        f" '0.5', '--out', {str(out)!r}]\n"
+        "try:\n    main()\nexcept SystemExit as exc:\n    assert not exc.code, exc.code\n"
+        "loaded = [m for m in ('scipy.integrate', 'scipy.optimize', 'scipy.interpolate')"
+        " if m in sys.modules]\n"
+        "assert loaded == [], loaded\n"
+    )
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert (out / "dop853-jit.csv").is_file() and (out / "orbit.png").is_file()

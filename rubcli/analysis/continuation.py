@@ -31,7 +31,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import brentq
 
 from rubcli import model
 from rubcli.analysis import orbits as ob
@@ -566,6 +565,8 @@ def _locate_continuous(prob, Xs, points, i, kind, test, locate, cache=None) -> l
         return test(cache[theta])
 
     try:
+        from scipy.optimize import brentq
+
         theta = brentq(g, 0.0, 1.0, xtol=prob.s.locate_xtol, rtol=1e-14, maxiter=60)
     except (CorrectorError, ValueError, RuntimeError) as exc:
         # the corrector fails close to a nonsmooth point (a corner of the branch at a

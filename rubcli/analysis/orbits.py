@@ -29,8 +29,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.integrate import solve_ivp
-from scipy.optimize import minimize_scalar
 
 from rubcli import model
 from rubcli.model import ModelParams
@@ -270,6 +268,8 @@ def flow(
 
             Y0 = s.copy()
         evs = _event_functions(params, reg) if locked is None else []
+        from scipy.integrate import solve_ivp  # on use: a `rubcli run` never loads scipy
+
         sol = solve_ivp(
             fun, (tau, tau1), Y0, method="DOP853", rtol=rtol, atol=atol, events=evs,
             dense_output=True,
@@ -348,6 +348,8 @@ def _refine_extreme(best, sign: float) -> float:
     def neg(t):
         y = dense(t)
         return -sign * math.hypot(y[0], y[1])
+
+    from scipy.optimize import minimize_scalar
 
     res = minimize_scalar(neg, bounds=(ta, tb), method="bounded", options={"xatol": 1e-12})
     return max(value, -res.fun) if sign > 0 else min(value, res.fun)

@@ -42,8 +42,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.integrate import solve_ivp
-from scipy.interpolate import CubicSpline
 
 PERIODIC = "periodic"
 QUASI_PERIODIC = "quasi-periodic"
@@ -120,6 +118,8 @@ def stroboscopic_section(
     points[exact] = states[nearest[exact]]
     if not np.all(exact):
         finite = np.all(np.isfinite(states), axis=1)
+        from scipy.interpolate import CubicSpline  # on use: a `rubcli run` never loads scipy
+
         spline = CubicSpline(t[finite], states[finite], axis=0)
         points[~exact] = spline(times[~exact])
     return PoincareSection(times, points, period, transient_periods)
@@ -289,6 +289,8 @@ def propagator_from_rhs(
     """A propagator for a smooth ``ds/dt = fun(t, s)`` by ``scipy.integrate.solve_ivp``."""
 
     def propagate(t: float, s: np.ndarray, dt: float) -> np.ndarray:
+        from scipy.integrate import solve_ivp
+
         sol = solve_ivp(fun, (t, t + dt), s, method=method, rtol=rtol, atol=atol)
         if not sol.success:
             raise FloatingPointError(sol.message)

@@ -42,7 +42,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.linalg
 
 from rubcli import model
 from rubcli.problem import Problem
@@ -57,6 +56,14 @@ from rubcli.solvers.events import (
     scan_spacing,
     start_flags,
 )
+
+
+def _expm(M: np.ndarray) -> np.ndarray:
+    """scipy.linalg.expm, imported on first use (the eigenvector fallback only)."""
+    import scipy.linalg
+
+    return scipy.linalg.expm(M)
+
 
 FREE_SCAN_FRACTION = 1.0 / 32.0  # scan spacing in free flight, fraction of fastest period
 CONTACT_SCAN_FRACTION = 1.0 / 16.0  # scan spacing inside a contact step
@@ -123,9 +130,9 @@ class LinearisedContact:
         dt = t - self.tau0
         if self.use_expm:
             if dt.ndim == 0:
-                hom = scipy.linalg.expm(self.A * float(dt)) @ self.d0
+                hom = _expm(self.A * float(dt)) @ self.d0
             else:
-                hom = np.array([scipy.linalg.expm(self.A * d) @ self.d0 for d in dt]).T
+                hom = np.array([_expm(self.A * d) @ self.d0 for d in dt]).T
         elif dt.ndim == 0:
             hom = np.real(self.V @ (self.c * np.exp(self.lam * float(dt))))
         else:
@@ -187,7 +194,7 @@ class PolarLinearisedContact:
             M[:4, :4], M[:4, 4], M[:4, 5], M[4, 5] = self.J, self.f_tau, self.f0, 1.0
             e5 = np.zeros(6)
             e5[5] = 1.0
-            y = np.array([(scipy.linalg.expm(M * d) @ e5)[:4] for d in dt]).T
+            y = np.array([(_expm(M * d) @ e5)[:4] for d in dt]).T
         else:
             z = np.outer(self.lam, dt)
             phi1, phi2 = _phi12(z)

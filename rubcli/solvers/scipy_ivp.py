@@ -33,7 +33,6 @@ from __future__ import annotations
 from functools import partial
 
 import numpy as np
-from scipy import integrate
 
 from rubcli import model
 from rubcli.problem import Problem
@@ -45,12 +44,14 @@ from rubcli.solvers.events import (
     earliest_event,
 )
 
+# The class of ``scipy.integrate`` for each method: scipy is imported when a scipy
+# method runs, not with the registry (a `rubcli run` of a compiled method never loads it).
 SCIPY_CLASSES = {
-    "rk45": integrate.RK45,
-    "dop853": integrate.DOP853,
-    "radau": integrate.Radau,
-    "bdf": integrate.BDF,
-    "lsoda": integrate.LSODA,
+    "rk45": "RK45",
+    "dop853": "DOP853",
+    "radau": "Radau",
+    "bdf": "BDF",
+    "lsoda": "LSODA",
 }
 IMPLICIT = {"radau", "bdf", "lsoda"}
 RESTART_BAND_FLOOR = 1e-12
@@ -78,7 +79,9 @@ class ScipyStepper:
 
     def __init__(self, run: driver.Run, name: str, rtol: float, atol: float, compiled: bool):
         self.name, self.rtol, self.atol = name, rtol, atol
-        self.cls = SCIPY_CLASSES[name]
+        from scipy import integrate
+
+        self.cls = getattr(integrate, SCIPY_CLASSES[name])
         # Right after a restart the dense output is consistent with the located state only
         # to the solver's tolerance, not to round-off: a new crossing must clear that band.
         self.restart_band = max(RESTART_BAND_FLOOR, rtol)
