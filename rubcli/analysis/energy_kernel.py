@@ -19,7 +19,7 @@ import numpy as np
 
 from rubcli import model
 
-jit = numba.njit(cache=True)
+jit = numba.njit(cache=True, nogil=True)  # runs beside the CSV thread (io.Background)
 
 _stick_friction = jit(model.stick_friction_value)
 _friction_sign = jit(model.friction_sign)

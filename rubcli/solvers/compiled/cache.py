@@ -38,7 +38,12 @@ from rubcli.solvers.events import start_flags, switch_regime
 
 # The files whose functions the kernels compile in (``jit.COMPILABLE_CORES``), and where
 # the fingerprint of the sources the cache was built from is kept.
-CORE_FILES = (Path(model.__file__), Path(events.__file__), Path(control.__file__))
+CORE_FILES = (
+    Path(model.__file__),
+    Path(events.__file__),
+    Path(control.__file__),
+    Path(__file__).parent / "jit.py",  # the decorators' flags (numba's cache key omits them)
+)
 FINGERPRINT = Path(__file__).parent / "__pycache__" / "cores.fingerprint"
 
 

@@ -69,8 +69,10 @@ STOP_REASONS = {
 
 
 EPS = np.finfo(float).eps
-jit = numba.njit(cache=True)
-jit_inline = numba.njit(cache=True, inline="always")  # inlined in numba IR
+# nogil: a kernel releases the GIL while it runs, so that `rubcli run`'s background
+# thread (rubcli/io.py ``Background``: CSV files, imports) works beside a solve.
+jit = numba.njit(cache=True, nogil=True)
+jit_inline = numba.njit(cache=True, nogil=True, inline="always")  # inlined in numba IR
 # Reassociation allowed: for sums that are latency-bound chains otherwise (3-4x slower),
 # in code whose results no Python path recomputes (the taylor series, compiled/taylor.py)
-jit_fast = numba.njit(cache=True, fastmath={"reassoc", "contract", "nsz", "arcp"})
+jit_fast = numba.njit(cache=True, nogil=True, fastmath={"reassoc", "contract", "nsz", "arcp"})
