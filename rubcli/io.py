@@ -38,7 +38,10 @@ import shutil
 import signal
 import sys
 import tempfile
+import threading
 from collections.abc import Callable, Iterable, Iterator, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import wait as wait_for
 from dataclasses import dataclass, field
 from dataclasses import replace as _replace
 from pathlib import Path
@@ -573,6 +576,80 @@ def staged_output_dir(target: str | Path, plan: OutputPlan | None = None) -> Ite
         staged.discard()
         raise
     staged.commit()
+
+
+# ------------------------------------------------------------------ background work
+
+
+class Cancelled(Exception):  # noqa: N818 - not an error: the job was told to stop
+    """A background job stopped because the command is leaving on an exception."""
+
+
+class Background:
+    """One worker thread for a command's output work, beside the main thread.
+
+    ``rubcli run`` writes each method's CSV here while the main thread solves the next
+    method, computes the energy balance and draws the figures: the compiled solvers,
+    the energy kernel and the CSV formatter release the GIL (``nogil``), so on two
+    cores the two threads overlap. Jobs run one at a time in submission order.
+
+    Leaving the block normally waits for every job and re-raises the first job's
+    exception. Leaving it on an exception (a signal's ``Terminated`` included) drops
+    the queued jobs and stops a running one at its next progress report (``Cancelled``),
+    then waits for the thread: nothing writes into a staged dir after it is discarded.
+    """
+
+    POLL_S = 0.05  # how often ``wait`` refreshes a progress bar
+
+    def __init__(self) -> None:
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="rubcli-output")
+        self._cancel = threading.Event()
+        self._jobs: list[tuple[Future, str | None, float, list[float]]] = []
+
+    def submit(self, fn: Callable[..., Any], *args: Any, progress: tuple[str, float] | None
+               = None, **kwargs: Any) -> Future:  # fmt: skip
+        """Run ``fn(*args, **kwargs)`` in the worker. With ``progress = (label, total)``,
+        ``fn`` also gets ``on_rows=`` (``write_csv``'s callback), which records the work
+        done for ``wait``'s progress bar and stops the job when the command is leaving."""
+        done = [0.0]
+        if progress is not None:
+
+            def on_rows(count: float) -> None:
+                if self._cancel.is_set():
+                    raise Cancelled
+                done[0] = count
+
+            kwargs["on_rows"] = on_rows
+        future = self._pool.submit(fn, *args, **kwargs)
+        label, total = progress if progress is not None else (None, 0.0)
+        self._jobs.append((future, label, total, done))
+        return future
+
+    def wait(self, bar: Callable[[str, float], Any] | None = None) -> None:
+        """Wait for every job, in order; a job still running shows ``bar(label, total)``
+        (a context manager yielding ``update(done)``, as ``console.progress_bar``).
+        Re-raises the first failed job's exception."""
+        for future, label, total, done in self._jobs:
+            if not future.done() and bar is not None and label is not None:
+                with bar(label, total) as update:
+                    while not wait_for([future], timeout=self.POLL_S).done:
+                        update(done[0])
+                    update(total)
+            future.result()
+
+    def __enter__(self) -> Background:
+        return self
+
+    def __exit__(self, kind, value, traceback) -> None:
+        if kind is not None:
+            self._cancel.set()
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            return
+        try:
+            self.wait()
+        finally:
+            self._cancel.set()
+            self._pool.shutdown(wait=True, cancel_futures=True)
 
 
 # --------------------------------------------------------------------------- signals

@@ -160,3 +160,80 @@ def test_write_csv_of_mixed_object_columns_matches_rows(tmp_path):
     io.write_csv(tmp_path / "m.csv", ["v", "i"], [[mixed, np.arange(mixed.size)]], nonfinite="")
     lines = (tmp_path / "m.csv").read_text().splitlines()
     assert lines[:5] == ["v,i", "1.5,0", ",1", ",2", '"a,b",3'] and len(lines) == 1201
+
+
+def test_a_block_formatted_in_two_halves_is_the_same_bytes(monkeypatch):
+    """``format_block`` formats a large block in two halves, the second in a helper
+    thread: the bytes are those of one pass, the values Grisu3 leaves to ``repr`` and
+    the non-finite replacement included; a column it cannot format in either half makes
+    it decline the block."""
+    from rubcli import csvtext
+
+    values = _awkward_floats(3_000, seed=3)
+    n = values.size
+    names = np.where(np.arange(n) % 3, "free", 'say "x"').astype(object)
+    block = [values, np.arange(n), names, values[::-1].copy()]
+    monkeypatch.setattr(csvtext, "SPLIT_ROWS", 10**9)
+    whole = csvtext.format_block(block, io.csv_field, "")
+    monkeypatch.setattr(csvtext, "SPLIT_ROWS", 500)
+    assert n >= 2 * 500
+    assert csvtext.format_block(block, io.csv_field, "") == whole
+    mixed = np.array(["a"] * (n - 1) + [None], dtype=object)  # None only in the second half
+    assert csvtext.format_block([values, mixed], io.csv_field) is None
+
+
+def test_background_jobs_run_in_order_and_a_failure_reaches_the_caller():
+    done = []
+    with pytest.raises(ValueError, match="second"), io.Background() as background:
+        background.submit(done.append, 1)
+        background.submit(lambda: (_ for _ in ()).throw(ValueError("second")))
+        background.submit(done.append, 3)
+    assert done == [1, 3]  # every job ran; the first failure is raised on leaving
+
+
+def test_background_stops_its_job_when_the_block_fails():
+    """On an exception in the block (a signal's Terminated, a failed figure), the
+    running job stops at its next progress report and the queued ones never start:
+    nothing writes into a staged dir after it is discarded."""
+    import threading
+    import time
+
+    started, reports, ran = threading.Event(), [], []
+
+    def long_job(on_rows):
+        started.set()
+        for i in range(10_000):  # 100 s unless stopped
+            on_rows(i)
+            reports.append(i)
+            time.sleep(0.01)
+
+    background = io.Background()
+    with pytest.raises(KeyboardInterrupt), background:
+        future = background.submit(long_job, progress=("job", 10_000.0))
+        background.submit(ran.append, "queued")
+        started.wait(5.0)
+        raise KeyboardInterrupt
+    assert isinstance(future.exception(timeout=0), io.Cancelled)
+    assert len(reports) < 500 and ran == []
+
+
+def test_background_wait_shows_the_progress_of_a_running_job():
+    import contextlib
+    import threading
+
+    release, seen = threading.Event(), []
+
+    def job(on_rows):
+        on_rows(10.0)
+        release.wait(5.0)
+
+    @contextlib.contextmanager
+    def bar(label, total):
+        seen.append((label, total))
+        release.set()  # let the job finish once the bar is up
+        yield seen.append
+
+    with io.Background() as background:
+        background.submit(job, progress=("a.csv", 20.0))
+        background.wait(bar)
+    assert seen[0] == ("a.csv", 20.0) and seen[-1] == 20.0
