@@ -110,6 +110,34 @@ def test_envelope_keeps_every_extreme_and_bounds_the_points():
     assert np.array_equal(short_v, values[:100])
 
 
+def test_envelope_band_covers_the_envelope_of_every_group():
+    """The time figure's band: per group, the min and the max of ``envelope`` (the same
+    extremes), as steps spanning the whole record; None for a short series."""
+    t = np.linspace(0.0, 1000.0, 1_000_001)
+    values = np.sin(t) * (1.0 + 0.001 * t)
+    values[123_457] = 50.0
+    values[5] = np.nan  # dropped, as by envelope
+    steps, lo, hi = display.envelope_band(t, values, bins=500)
+    te, ve = display.envelope(t, values, bins=500)
+    assert steps.size == lo.size == hi.size == 501
+    np.testing.assert_array_equal(lo[:-1], np.minimum(ve[0::2], ve[1::2]))
+    np.testing.assert_array_equal(hi[:-1], np.maximum(ve[0::2], ve[1::2]))
+    assert steps[0] == t[0] and steps[-1] == t[-1] and np.all(np.diff(steps) > 0.0)
+    assert hi.max() == 50.0 and lo[-1] == lo[-2]
+    assert display.envelope_band(t[:1000], values[:1000], bins=500) is None
+
+
+def test_finite_length_with_and_without_non_finite_states():
+    sol = exact_rub(periods=4, spp=40)
+    n = sol.t.size
+    assert display.finite_length(sol) == n
+    huge = failed_copy(sol, n)
+    huge.states[:] = 1e308  # finite, but their sum overflows: the exact test decides
+    assert display.finite_length(huge) == n
+    huge.states[17, 2] = np.inf
+    assert display.finite_length(huge) == 17
+
+
 def test_hermite_is_exact_on_cubics_and_of_order_four_on_a_whirl():
     t = np.linspace(0.0, 2.0, 9)
     x, vx = 1.0 - 2.0 * t + 0.5 * t**3, -2.0 + 1.5 * t**2

@@ -30,6 +30,9 @@ def _label(solution: Solution) -> str:
     return solution.method if solution.success else f"{solution.method} (failed)"
 
 
+BAND_ALPHA = 0.25  # the fill of a time trace's min/max band (``time_figure``)
+
+
 def _line_style(index: int) -> dict:
     """Overlaid methods that agree stay visible: dashes differ and later lines are thinner."""
     return {
@@ -129,8 +132,10 @@ def time_figure(
 ) -> Figure:
     """x, y and z against time, three stacked axes, the clearance marked on z.
 
-    Each trace is drawn as its min/max envelope over at most ``display.ENVELOPE_BINS``
-    groups of samples (what a screen can show), so a long run costs little memory. The
+    A long trace is drawn as the band between its min and max over each of
+    ``display.ENVELOPE_BINS`` groups of samples (what a screen can show): filled lightly,
+    its edges in the method's line style, so an overlaid method stays visible and a long
+    run costs little memory and drawing time. The
     legend sits beside the axes, never over the data; the y limits come from the
     successful methods (a diverged one is clipped). Time in tau and positions in
     clearances, or seconds and metres when ``scale`` is given.
@@ -149,9 +154,17 @@ def time_figure(
         for k, (ax, values) in enumerate(
             zip(axes, (solution.x, solution.y, solution.z), strict=True)
         ):
-            te, ve = display.envelope(t, values[:n])  # (reduced first, then scaled)
-            ve = unit * ve
-            ax.plot(te, ve, label=label, **style)
+            band = display.envelope_band(t, values[:n])  # (reduced first, then scaled)
+            if band is None:
+                ve = unit * values[:n]
+                ax.plot(t, ve, label=label, **style)
+            else:  # the min/max band: filled, its edges in the method's line style
+                steps, lo, hi = band[0], unit * band[1], unit * band[2]
+                (edge,) = ax.plot(steps, hi, drawstyle="steps-post", label=label, **style)
+                ax.plot(steps, lo, drawstyle="steps-post", color=edge.get_color(), **style)
+                ax.fill_between(steps, lo, hi, step="post", color=edge.get_color(),
+                                alpha=BAND_ALPHA, linewidth=0)  # fmt: skip
+                ve = np.concatenate((lo, hi))
             if solution.success and ve.size:
                 limits[k] = [min(limits[k][0], ve.min()), max(limits[k][1], ve.max())]
     axes[2].axhline(unit, label="clearance", **display.CLEARANCE_STYLE)
