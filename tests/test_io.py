@@ -237,3 +237,68 @@ def test_background_wait_shows_the_progress_of_a_running_job():
         background.submit(job, progress=("a.csv", 20.0))
         background.wait(bar)
     assert seen[0] == ("a.csv", 20.0) and seen[-1] == 20.0
+
+
+class _Listener:
+    """A solve's progress that hands the samples to a stream and counts the handovers."""
+
+    def __init__(self, stream):
+        self.handed = []
+        self._stream = stream
+
+    def __call__(self, tau):
+        pass
+
+    def samples(self, k, states, regimes):
+        self.handed.append(k)
+        self._stream.update(k, states, regimes)
+
+
+@pytest.mark.parametrize(
+    "method", ["analytic", "analytic-polar", "dop853-jit", "taylor", "rk45", "radau"]
+)
+def test_a_csv_streamed_while_solving_is_the_file_of_the_solution(tmp_path, monkeypatch, method):
+    """``write_streamed_csv`` fed by a solve's progress (rows below k handed over as final,
+    ``driver.Run.report_progress``) writes the bytes of ``write_solution_csv`` of the
+    finished solution, for every kind of stepper; blocks of 40 rows, so that most are
+    written while the solver still runs (a stepper that rewrote a handed-over sample
+    would show here). The dry whip of Figure 3(f): slip, stick and free flight."""
+    from rubcli.case import load_case
+    from rubcli.solvers import solve
+
+    monkeypatch.setattr(io, "CSV_BLOCK_ROWS", 40)
+    case = load_case("cases/paper/fig3f.toml").with_overrides(periods=12)
+    stream = io.SampleStream(case.problem, method)
+    listener = _Listener(stream)
+    with io.Background() as background:
+        background.submit(io.write_streamed_csv, tmp_path / "streamed.csv", stream,
+                          progress=("streamed", 1.0))  # fmt: skip
+        solution = solve(case.problem, method, progress=listener, **case.options_for(method))
+        stream.finish(solution)
+    assert solution.success and max(listener.handed) >= 10 * 40
+    io.write_solution_csv(tmp_path / "whole.csv", solution)
+    assert (tmp_path / "streamed.csv").read_bytes() == (tmp_path / "whole.csv").read_bytes()
+
+
+def test_a_stream_without_a_solution_leaves_no_file(tmp_path):
+    """A method that raised (``finish(None)``): no file and no temporary; a stream
+    still waiting when the command leaves on an exception stops (``Cancelled``)."""
+    import time
+
+    from rubcli.case import load_case
+
+    problem = load_case("cases/paper/fig3a.toml").with_overrides(periods=1).problem
+    stream = io.SampleStream(problem, "rk45")
+    stream.finish(None)
+    assert io.write_streamed_csv(tmp_path / "x.csv", stream) is None
+    assert list(tmp_path.iterdir()) == []
+    background = io.Background()
+    with pytest.raises(KeyboardInterrupt), background:
+        waiting = io.SampleStream(problem, "rk45", background.cancelled)
+        future = background.submit(io.write_streamed_csv, tmp_path / "y.csv", waiting,
+                                   progress=("y", 1.0))  # fmt: skip
+        while not future.running():  # (a job cancelled before it started is no test)
+            time.sleep(0.001)
+        raise KeyboardInterrupt
+    assert isinstance(future.exception(timeout=0), io.Cancelled)
+    assert list(tmp_path.iterdir()) == []

@@ -35,7 +35,6 @@ import contextlib
 import math
 import time
 from collections.abc import Callable
-from concurrent.futures import Future
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -109,20 +108,33 @@ def start_up(case: Case) -> float:
     return time.perf_counter() - start
 
 
+class _Progress:
+    """A solve's progress: the bar's ``update`` of tau, and the samples filled so far
+    to the method's CSV stream, if any (``driver.Run.report_progress``)."""
+
+    def __init__(self, update: Callable[[float], None], t0: float, stream):
+        self._update, self._t0, self._stream = update, t0, stream
+        if stream is not None:
+            self.samples = stream.update
+
+    def __call__(self, tau: float) -> None:
+        self._update(tau - self._t0)
+
+
 def solve_method(
     case: Case,
     name: str,
     balances: dict[str, Any] | None = None,
-    solved: Callable[[Solution], None] | None = None,
+    stream: io.SampleStream | None = None,
 ) -> tuple[Solution | None, dict[str, Any]]:
     """Solve the case with one method behind a progress bar; return it and its report entry.
 
     A solver that raises is recorded with status ``error`` and its traceback printed:
     the other methods still run and the run exits 1. When the case plots ``energy`` and
     ``balances`` is given, the method's energy balance is computed once here, for its
-    report entry and kept in ``balances[name]`` for energy.png. ``solved(solution)`` is
-    called as soon as the solution exists, before its report entry is computed (the run
-    starts writing its CSV there, in the background).
+    report entry and kept in ``balances[name]`` for energy.png. ``stream``: the method's
+    CSV, written in the background from the samples as the solver fills them, then from
+    the solution (``finish``) while its report entry is computed here.
     """
     from rubcli import solvers
 
@@ -131,12 +143,12 @@ def solve_method(
     with console.progress_bar(f"{name:<8}", total=t1 - t0) as update:
         try:
             solution = solvers.solve(
-                case.problem,
-                name,
-                **case.options_for(name),
-                progress=lambda tau: update(tau - t0),
-            )
+                case.problem, name, **case.options_for(name),
+                progress=_Progress(update, t0, stream),
+            )  # fmt: skip
         except Exception as exc:  # noqa: BLE001 - reported with its traceback, run exits 1
+            if stream is not None:
+                stream.finish(None)
             console.exception(exc)
             entry = {
                 "status": ERROR,
@@ -145,8 +157,8 @@ def solve_method(
                 "settings": case.options_for(name),
             }
             return None, entry
-    if solved is not None:
-        solved(solution)
+    if stream is not None:
+        stream.finish(solution)
     balance = None
     if balances is not None and "energy" in case.settings.output.plots:
         balance = _balance_or_none(solution)
@@ -173,34 +185,22 @@ def response_settings(case: Case) -> panels.ResponseSettings | None:
     return panels.ResponseSettings(**analysis.model_dump(exclude={"response"}))
 
 
-class BackgroundOutputs:
-    """What a run hands to its background thread (``io.Background``) as each method is
-    solved (``solved``, ``solve_method``'s hook): after the first solve, the import of
-    matplotlib and the figure modules (about 0.3 s; not during the solve, whose Python
-    parts would wait for the GIL and read slower); then each solution's CSV. The main
-    thread meanwhile computes the report entry (the energy balance, compiled and free of
-    the GIL), solves the next method and draws the figures."""
-
-    def __init__(self, case: Case, staged: io.StagedOutput, background: io.Background):
-        self.case, self.staged, self.background = case, staged, background
-        self.imports: Future | None = None
-
-    def solved(self, solution: Solution) -> None:
-        output = self.case.settings.output
-        if output.plots and self.imports is None:
-            self.imports = self.background.submit(_import_plotting)
-        if output.csv:
-            name = f"{solution.method}.csv"
-            self.background.submit(
-                io.write_solution_csv, self.staged.path(name), solution, self.case.scale,
-                progress=(f"{name:<12}", float(solution.t.size)),
-            )  # fmt: skip
-
-    def imported(self) -> None:
-        """Wait for the figure modules (the main thread must not import them while the
-        worker does)."""
-        if self.imports is not None:
-            self.imports.result()
+def csv_stream(
+    case: Case, name: str, staged: io.StagedOutput, background: io.Background
+) -> io.SampleStream | None:
+    """The method's CSV, written by the background thread (``io.Background``) while the
+    method solves and afterwards (``io.SampleStream``), or None if the case writes no
+    CSV. The compiled solvers, the energy kernel and the CSV formatter release the GIL,
+    so on two cores the file is mostly written by the time the main thread has solved,
+    computed the report entry and drawn the figures."""
+    if not case.settings.output.csv:
+        return None
+    stream = io.SampleStream(case.problem, name, background.cancelled)
+    path = staged.path(f"{name}.csv")
+    label = f"{name + '.csv':<12}"
+    background.submit(io.write_streamed_csv, path, stream, case.scale,
+                      progress=(label, float(case.problem.t_eval.size)))  # fmt: skip
+    return stream
 
 
 def write_outputs(
@@ -213,9 +213,9 @@ def write_outputs(
     balances: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Write the requested figures and report.json into the staged output dir, the CSVs
-    having been handed to ``background`` (``BackgroundOutputs``) as each method was
-    solved; waits for them; return the report. ``balances``: energy balances already
-    computed, by method."""
+    having been handed to ``background`` (``csv_stream``) as each method was solved;
+    waits for them; return the report. ``balances``: energy balances already computed,
+    by method."""
     from rubcli.plotting import run as plots
 
     output = case.settings.output
@@ -263,12 +263,6 @@ def write_outputs(
     }
     io.write_json(staged.path(io.REPORT_NAME), report)
     return report
-
-
-def _import_plotting() -> None:
-    """Import matplotlib and the run's figure modules (in the background, during the
-    solve: about 0.3 s of a run's start)."""
-    import rubcli.plotting.run  # noqa: F401
 
 
 def _poincare_figure(case: Case, results: list[panels.MethodResponse]):
@@ -419,19 +413,18 @@ def _run(
         "periods": periods,
     }
     # The output dir is staged from the start: each method's CSV is written in the
-    # background as soon as it is solved (BackgroundOutputs).
+    # background while it solves (csv_stream).
     with io.staged_output_dir(case.output_dir, plan) as staged, io.Background() as background:
         startup = start_up(case)
         if startup > 0.05:
             console.info(f"start-up (compiled kernels loaded or compiled): {startup:.2f} s")
         balances: dict[str, Any] = {}
-        outputs = BackgroundOutputs(case, staged, background)
         for name in case.methods:
-            solution, entries[name] = solve_method(case, name, balances, outputs.solved)
+            stream = csv_stream(case, name, staged, background)
+            solution, entries[name] = solve_method(case, name, balances, stream)
             if solution is not None:
                 solutions.append(solution)
                 entries[name]["startup_s"] = startup
-        outputs.imported()
         report = write_outputs(case, solutions, entries, command_line, staged, background, balances)
     report_stale(plan)
 
