@@ -30,7 +30,7 @@ from fractions import Fraction
 import numba
 import numpy as np
 
-jit = numba.njit(cache=True, nogil=True)  # formats beside the figures (io.Background)
+jit = numba.njit(cache=True, nogil=True)  # formats beside a solve and the figures (io.Background)
 
 FLOAT_WIDTH = 24  # longest repr of a double: '-2.2250738585072014e-308'
 INT_WIDTH = 20  # longest int64: '-9223372036854775808'
@@ -349,42 +349,14 @@ def column_kind(column: object) -> int | None:
     return None
 
 
-SPLIT_ROWS = 16_384  # a block of at least twice this many rows is formatted in two halves
-_helper: list = []  # the thread that formats the second half (made on first use)
-
-
 def format_block(columns, text_field, nonfinite: str | None = None) -> bytes | None:
     """The CSV rows of a block of columns (numpy arrays of equal length) as UTF-8 bytes,
     each float field exactly ``repr(value)`` (``nonfinite`` for NaN/inf if given), each
     integer ``str(value)``, each text ``text_field(value)`` (the caller's quoting rule).
-    None when a column is of another kind (the caller formats the block itself).
-
-    A large block is formatted in two halves, the second by a helper thread: the
-    compiled formatter releases the GIL, so on two cores the halves take half the time
-    (the same bytes: a row's text does not depend on the other rows)."""
+    None when a column is of another kind (the caller formats the block itself)."""
     kinds = [column_kind(c) for c in columns]
     if not columns or any(k is None for k in kinds):
         return None
-    n = len(columns[0])
-    if n < 2 * SPLIT_ROWS:
-        return _format_columns(columns, kinds, text_field, nonfinite)
-    if not _helper:
-        from concurrent.futures import ThreadPoolExecutor
-
-        _helper.append(ThreadPoolExecutor(max_workers=1, thread_name_prefix="rubcli-csv"))
-    half = n // 2
-    second = _helper[0].submit(
-        _format_columns, [c[half:] for c in columns], kinds, text_field, nonfinite
-    )
-    first = _format_columns([c[:half] for c in columns], kinds, text_field, nonfinite)
-    rest = second.result()
-    if first is None or rest is None:
-        return None
-    return first + rest
-
-
-def _format_columns(columns, kinds, text_field, nonfinite) -> bytes | None:
-    """``format_block`` of one block (its columns' kinds known), in the calling thread."""
     n = len(columns[0])
     float_cols = [c for c, k in zip(columns, kinds, strict=True) if k == FLOAT]
     int_cols = [c for c, k in zip(columns, kinds, strict=True) if k == INT]

@@ -162,26 +162,6 @@ def test_write_csv_of_mixed_object_columns_matches_rows(tmp_path):
     assert lines[:5] == ["v,i", "1.5,0", ",1", ",2", '"a,b",3'] and len(lines) == 1201
 
 
-def test_a_block_formatted_in_two_halves_is_the_same_bytes(monkeypatch):
-    """``format_block`` formats a large block in two halves, the second in a helper
-    thread: the bytes are those of one pass, the values Grisu3 leaves to ``repr`` and
-    the non-finite replacement included; a column it cannot format in either half makes
-    it decline the block."""
-    from rubcli import csvtext
-
-    values = _awkward_floats(3_000, seed=3)
-    n = values.size
-    names = np.where(np.arange(n) % 3, "free", 'say "x"').astype(object)
-    block = [values, np.arange(n), names, values[::-1].copy()]
-    monkeypatch.setattr(csvtext, "SPLIT_ROWS", 10**9)
-    whole = csvtext.format_block(block, io.csv_field, "")
-    monkeypatch.setattr(csvtext, "SPLIT_ROWS", 500)
-    assert n >= 2 * 500
-    assert csvtext.format_block(block, io.csv_field, "") == whole
-    mixed = np.array(["a"] * (n - 1) + [None], dtype=object)  # None only in the second half
-    assert csvtext.format_block([values, mixed], io.csv_field) is None
-
-
 def test_background_jobs_run_in_order_and_a_failure_reaches_the_caller():
     done = []
     with pytest.raises(ValueError, match="second"), io.Background() as background:
