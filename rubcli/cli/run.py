@@ -113,7 +113,7 @@ class _Progress:
     to the method's CSV stream, if any (``driver.Run.report_progress``)."""
 
     def __init__(self, update: Callable[[float], None], t0: float, stream):
-        self._update, self._t0, self._stream = update, t0, stream
+        self._update, self._t0 = update, t0
         if stream is not None:
             self.samples = stream.update
 
