@@ -53,19 +53,11 @@ def envelope(t: np.ndarray, values: np.ndarray, bins: int = ENVELOPE_BINS):
     the series and of every group survive and the result has at most ``2 * bins``
     points. Non-finite values are dropped first. Short series are returned as they are.
     """
-    t = np.asarray(t, dtype=float)
-    values = np.asarray(values, dtype=float)
-    finite = np.isfinite(values) & np.isfinite(t)
-    if not np.all(finite):
-        t, values = t[finite], values[finite]
-    n = t.size
-    if n <= 2 * bins:
+    t, values, groups = _group_extremes(t, values, bins)
+    if groups is None:
         return t, values
-    edges = np.linspace(0, n, bins + 1).astype(np.int64)
-    lo, hi = _extreme_indices(values, edges)
-    first = np.minimum(lo, hi)
-    second = np.maximum(lo, hi)
-    idx = np.column_stack((first, second)).ravel()
+    _, lo, hi = groups
+    idx = np.column_stack((np.minimum(lo, hi), np.maximum(lo, hi))).ravel()
     return t[idx], values[idx]
 
 
@@ -76,18 +68,28 @@ def envelope_band(t: np.ndarray, values: np.ndarray, bins: int = ENVELOPE_BINS):
     rule). A figure fills it and draws its two edges: the same region as the min/max
     zigzag of ``envelope``, at a fraction of the drawing cost (a zigzag of long
     vertical strokes is what Agg is slowest at). Non-finite values are dropped first."""
+    t, values, groups = _group_extremes(t, values, bins)
+    if groups is None:
+        return None
+    edges, lo, hi = groups
+    steps = np.append(t[edges[:-1]], t[-1])
+    return steps, np.append(values[lo], values[lo[-1]]), np.append(values[hi], values[hi[-1]])
+
+
+def _group_extremes(t: np.ndarray, values: np.ndarray, bins: int):
+    """The finite samples ``(t, values)`` and, for a series of more than ``2 * bins`` of
+    them, ``(edges, lo, hi)``: ``bins`` groups and the index of each one's first min and
+    first max (else None)."""
     t = np.asarray(t, dtype=float)
     values = np.asarray(values, dtype=float)
     finite = np.isfinite(values) & np.isfinite(t)
     if not np.all(finite):
         t, values = t[finite], values[finite]
-    n = t.size
-    if n <= 2 * bins:
-        return None
-    edges = np.linspace(0, n, bins + 1).astype(np.int64)
+    if t.size <= 2 * bins:
+        return t, values, None
+    edges = np.linspace(0, t.size, bins + 1).astype(np.int64)
     lo, hi = _extreme_indices(values, edges)
-    steps = np.append(t[edges[:-1]], t[-1])
-    return steps, np.append(values[lo], values[lo[-1]]), np.append(values[hi], values[hi[-1]])
+    return t, values, (edges, lo, hi)
 
 
 def _extreme_indices(values: np.ndarray, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
