@@ -30,7 +30,7 @@ from fractions import Fraction
 import numba
 import numpy as np
 
-jit = numba.njit(cache=True, nogil=True)  # formats beside a solve and the figures (io.Background)
+jit = numba.njit(cache=True, nogil=True)  # formats beside the figures (io.Background)
 
 FLOAT_WIDTH = 24  # longest repr of a double: '-2.2250738585072014e-308'
 INT_WIDTH = 20  # longest int64: '-9223372036854775808'

@@ -171,14 +171,12 @@ def solution_blocks(
     solution: Solution,
     scale: units.PhysicalScale | None = None,
     rows: int | None = None,
-    start: int = 0,
 ) -> Iterator[list[np.ndarray]]:
-    """The solution's CSV columns, ``rows`` (default ``CSV_BLOCK_ROWS``) samples at a time
-    from sample ``start``, each column computed on the block only: the memory does not
-    grow with the samples."""
+    """The solution's CSV columns, ``rows`` (default ``CSV_BLOCK_ROWS``) samples at a time,
+    each column computed on the block only: the memory does not grow with the samples."""
     rows = rows or CSV_BLOCK_ROWS
     n = int(solution.t.size)
-    for a in range(start, n, rows):
+    for a in range(0, n, rows):
         b = min(n, a + rows)
         part = _replace(
             solution,
@@ -207,84 +205,6 @@ def write_solution_csv(
     return write_csv(
         path, solution_header(scale), solution_blocks(solution, scale), on_rows=on_rows
     )
-
-
-class Cancelled(Exception):  # noqa: N818 - not an error: the job was told to stop
-    """A background job stopped because the command is leaving on an exception."""
-
-
-class Discarded(Exception):  # noqa: N818 - not an error: the method had no solution
-    """A ``SampleStream`` whose method raised instead of returning a solution."""
-
-
-class SampleStream:
-    """The samples of a solution while a solver fills them, for a CSV written meanwhile.
-
-    The solver's progress hands over its buffers (``update``: rows below k are final,
-    ``driver.Run.report_progress``); ``blocks`` yields full blocks of CSV columns as they
-    become final, then, once ``finish`` gives the solution, the rest from the solution
-    itself (the same rows: it took over the buffers or copied them). So a background
-    thread formats the first rows while the solver computes the last ones. ``finish(None)``
-    (the method raised) makes ``blocks`` raise ``Discarded``; ``cancelled`` (an Event,
-    ``Background``'s) stops a wait.
-    """
-
-    WAIT_S = 0.05
-
-    def __init__(self, problem, method: str, cancelled: threading.Event | None = None):
-        self.problem, self.method = problem, method
-        self._cancelled = cancelled or threading.Event()
-        self._ready = threading.Condition()
-        self._k, self._states, self._regimes = 0, None, None
-        self._done, self._solution = False, None
-
-    def update(self, k: int, states: np.ndarray, regimes: np.ndarray) -> None:
-        with self._ready:
-            self._k, self._states, self._regimes = k, states, regimes
-            self._ready.notify_all()
-
-    def finish(self, solution: Solution | None) -> None:
-        with self._ready:
-            self._done, self._solution = True, solution
-            self._ready.notify_all()
-
-    def blocks(
-        self, scale: units.PhysicalScale | None = None, rows: int | None = None
-    ) -> Iterator[list[np.ndarray]]:
-        rows = rows or CSV_BLOCK_ROWS
-        a = 0
-        while True:
-            with self._ready:
-                while not (self._done or self._k - a >= rows or self._cancelled.is_set()):
-                    self._ready.wait(self.WAIT_S)
-                if self._cancelled.is_set():
-                    raise Cancelled
-                if self._done:
-                    break
-                states, regimes = self._states, self._regimes
-            b = a + rows
-            part = Solution(self.problem, self.method, self.problem.t_eval[a:b],
-                            states[a:b], regimes[a:b])  # fmt: skip
-            yield list(solution_columns(part, scale).values())
-            a = b
-        if self._solution is None:
-            raise Discarded(self.method)
-        yield from solution_blocks(self._solution, scale, rows, start=a)
-
-
-def write_streamed_csv(
-    path: str | Path,
-    stream: SampleStream,
-    scale: units.PhysicalScale | None = None,
-    *,
-    on_rows: Callable[[int], None] | None = None,
-) -> Path | None:
-    """``write_solution_csv`` of a solution still being solved (``SampleStream``): the
-    same file; None, and no file, if its method raised."""
-    try:
-        return write_csv(path, solution_header(scale), stream.blocks(scale), on_rows=on_rows)
-    except Discarded:
-        return None
 
 
 # ------------------------------------------------------------------------------ CSV
@@ -661,13 +581,18 @@ def staged_output_dir(target: str | Path, plan: OutputPlan | None = None) -> Ite
 # ------------------------------------------------------------------ background work
 
 
+class Cancelled(Exception):  # noqa: N818 - not an error: the job was told to stop
+    """A background job stopped because the command is leaving on an exception."""
+
+
 class Background:
     """One worker thread for a command's output work, beside the main thread.
 
-    ``rubcli run`` writes each method's CSV here while the main thread solves the next
-    method, computes the energy balance and draws the figures: the compiled solvers,
-    the energy kernel and the CSV formatter release the GIL (``nogil``), so on two
-    cores the two threads overlap. Jobs run one at a time in submission order.
+    ``rubcli run`` writes the methods' CSVs here while the main thread computes the
+    report entries (the energy balance) and draws the figures, once every method is
+    solved (a timed solve never shares the machine with it): the CSV formatter and the
+    energy kernel are compiled ``nogil``, so on two cores the two threads overlap. Jobs
+    run one at a time in submission order.
 
     Leaving the block normally waits for every job and re-raises the first job's
     exception. Leaving it on an exception (a signal's ``Terminated`` included) drops
@@ -680,7 +605,6 @@ class Background:
     def __init__(self) -> None:
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="rubcli-output")
         self._cancel = threading.Event()
-        self.cancelled = self._cancel  # set when the block is left (a SampleStream waits on it)
         self._jobs: list[tuple[Future, str | None, float, list[float]]] = []
 
     def submit(self, fn: Callable[..., Any], *args: Any, progress: tuple[str, float] | None

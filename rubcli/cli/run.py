@@ -34,7 +34,6 @@ from __future__ import annotations
 import contextlib
 import math
 import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -108,34 +107,10 @@ def start_up(case: Case) -> float:
     return time.perf_counter() - start
 
 
-class _Progress:
-    """A solve's progress: the bar's ``update`` of tau, and the samples filled so far
-    to the method's CSV stream, if any (``driver.Run.report_progress``)."""
-
-    def __init__(self, update: Callable[[float], None], t0: float, stream):
-        self._update, self._t0 = update, t0
-        if stream is not None:
-            self.samples = stream.update
-
-    def __call__(self, tau: float) -> None:
-        self._update(tau - self._t0)
-
-
-def solve_method(
-    case: Case,
-    name: str,
-    balances: dict[str, Any] | None = None,
-    stream: io.SampleStream | None = None,
-) -> tuple[Solution | None, dict[str, Any]]:
-    """Solve the case with one method behind a progress bar; return it and its report entry.
-
-    A solver that raises is recorded with status ``error`` and its traceback printed:
-    the other methods still run and the run exits 1. When the case plots ``energy`` and
-    ``balances`` is given, the method's energy balance is computed once here, for its
-    report entry and kept in ``balances[name]`` for energy.png. ``stream``: the method's
-    CSV, written in the background from the samples as the solver fills them, then from
-    the solution (``finish``) while its report entry is computed here.
-    """
+def solve_method(case: Case, name: str) -> tuple[Solution | None, dict[str, Any] | None]:
+    """Solve the case with one method behind a progress bar: ``(solution, None)``, or
+    ``(None, entry)`` if the solver raised (status ``error``, its traceback printed: the
+    other methods still run and the run exits 1)."""
     from rubcli import solvers
 
     t0, t1 = case.problem.t_span
@@ -143,12 +118,12 @@ def solve_method(
     with console.progress_bar(f"{name:<8}", total=t1 - t0) as update:
         try:
             solution = solvers.solve(
-                case.problem, name, **case.options_for(name),
-                progress=_Progress(update, t0, stream),
-            )  # fmt: skip
+                case.problem,
+                name,
+                **case.options_for(name),
+                progress=lambda tau: update(tau - t0),
+            )
         except Exception as exc:  # noqa: BLE001 - reported with its traceback, run exits 1
-            if stream is not None:
-                stream.finish(None)
             console.exception(exc)
             entry = {
                 "status": ERROR,
@@ -157,14 +132,21 @@ def solve_method(
                 "settings": case.options_for(name),
             }
             return None, entry
-    if stream is not None:
-        stream.finish(solution)
+    return solution, None
+
+
+def method_entry(
+    case: Case, solution: Solution, balances: dict[str, Any] | None = None
+) -> dict[str, Any]:
+    """The report entry of a solution. When the case plots ``energy`` and ``balances`` is
+    given, the energy balance is computed once here, for the entry, and kept in
+    ``balances[method]`` for energy.png."""
     balance = None
     if balances is not None and "energy" in case.settings.output.plots:
         balance = _balance_or_none(solution)
         if balance is not None:
-            balances[name] = balance
-    return solution, method_summary(solution, balance)
+            balances[solution.method] = balance
+    return method_summary(solution, balance)
 
 
 def _balance_or_none(solution: Solution):
@@ -185,22 +167,20 @@ def response_settings(case: Case) -> panels.ResponseSettings | None:
     return panels.ResponseSettings(**analysis.model_dump(exclude={"response"}))
 
 
-def csv_stream(
-    case: Case, name: str, staged: io.StagedOutput, background: io.Background
-) -> io.SampleStream | None:
-    """The method's CSV, written by the background thread (``io.Background``) while the
-    method solves and afterwards (``io.SampleStream``), or None if the case writes no
-    CSV. The compiled solvers, the energy kernel and the CSV formatter release the GIL,
-    so on two cores the file is mostly written by the time the main thread has solved,
-    computed the report entry and drawn the figures."""
+def write_csvs_in_background(
+    case: Case, solutions: list[Solution], staged: io.StagedOutput, background: io.Background
+) -> None:
+    """Hand each solution's CSV (if the case writes CSV) to the background thread
+    (``io.Background``). Called once every method is solved: a method's timing is never
+    shared with the writer. The main thread meanwhile computes the report entries (the
+    compiled energy balance) and draws the figures; the CSV formatter and the energy
+    kernel release the GIL, so on two cores they run side by side."""
     if not case.settings.output.csv:
-        return None
-    stream = io.SampleStream(case.problem, name, background.cancelled)
-    path = staged.path(f"{name}.csv")
-    label = f"{name + '.csv':<12}"
-    background.submit(io.write_streamed_csv, path, stream, case.scale,
-                      progress=(label, float(case.problem.t_eval.size)))  # fmt: skip
-    return stream
+        return
+    for solution in solutions:
+        name = f"{solution.method}.csv"
+        background.submit(io.write_solution_csv, staged.path(name), solution, case.scale,
+                          progress=(f"{name:<12}", float(solution.t.size)))  # fmt: skip
 
 
 def write_outputs(
@@ -213,9 +193,8 @@ def write_outputs(
     balances: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Write the requested figures and report.json into the staged output dir, the CSVs
-    having been handed to ``background`` (``csv_stream``) as each method was solved;
-    waits for them; return the report. ``balances``: energy balances already computed,
-    by method."""
+    having been handed to ``background`` (``write_csvs_in_background``); waits for them;
+    return the report. ``balances``: energy balances already computed, by method."""
     from rubcli.plotting import run as plots
 
     output = case.settings.output
@@ -412,19 +391,22 @@ def _run(
         "out": str(out) if out is not None else None,
         "periods": periods,
     }
-    # The output dir is staged from the start: each method's CSV is written in the
-    # background while it solves (csv_stream).
+    # Solved first, every method alone (its timing is its own); then the CSVs are written
+    # in the background while the report entries are computed and the figures drawn.
     with io.staged_output_dir(case.output_dir, plan) as staged, io.Background() as background:
         startup = start_up(case)
         if startup > 0.05:
             console.info(f"start-up (compiled kernels loaded or compiled): {startup:.2f} s")
-        balances: dict[str, Any] = {}
         for name in case.methods:
-            stream = csv_stream(case, name, staged, background)
-            solution, entries[name] = solve_method(case, name, balances, stream)
+            solution, failure = solve_method(case, name)
+            entries[name] = failure if solution is None else {}  # (the report's order)
             if solution is not None:
                 solutions.append(solution)
-                entries[name]["startup_s"] = startup
+        write_csvs_in_background(case, solutions, staged, background)
+        balances: dict[str, Any] = {}
+        for solution in solutions:
+            entries[solution.method] = method_entry(case, solution, balances)
+            entries[solution.method]["startup_s"] = startup
         report = write_outputs(case, solutions, entries, command_line, staged, background, balances)
     report_stale(plan)
 

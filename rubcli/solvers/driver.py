@@ -131,12 +131,7 @@ class Run:
         return None
 
     def report_progress(self, final: bool = False) -> None:
-        """Report tau (about every 1 % of the span), and the end once (``final``).
-
-        A ``progress`` object with a ``samples`` method is also handed the samples filled
-        so far, ``samples(k, states, regimes)`` (the run's buffers; rows below k are final:
-        a stepper writes each sample once), so that a caller can write them out while the
-        run goes on (``rubcli run``'s CSV, ``io.SampleStream``)."""
+        """Report tau (about every 1 % of the span), and the end once (``final``)."""
         if self._progress is None:
             return
         if final:
@@ -144,11 +139,6 @@ class Run:
         elif self._next_progress <= self.tau < self.t_end:
             self._progress(self.tau)
             self._next_progress = self.tau + PROGRESS_FRACTION * (self.t_end - self.t_eval[0])
-        else:
-            return
-        samples = getattr(self._progress, "samples", None)
-        if samples is not None:
-            samples(self.k, self.states, self.regimes)
 
     def solution(self, settings: dict) -> Solution:
         """The run's Solution; it takes over the sample buffers (the run ends here)."""
