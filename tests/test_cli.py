@@ -406,3 +406,30 @@ def test_a_run_of_a_compiled_method_loads_no_scipy_integrator(tmp_path):
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr[-2000:]
     assert (out / "dop853-jit.csv").is_file() and (out / "orbit.png").is_file()
+
+
+def test_no_output_work_runs_beside_a_timed_solve(tmp_path, monkeypatch):
+    """`rubcli run` solves every method alone (a method's reported time is its own) and
+    only then hands the CSVs to its background writer."""
+    from rubcli import io
+
+    log = []
+    original_solve, original_submit = solvers.solve, io.Background.submit
+
+    def solve(problem, method, **options):
+        log.append(("solve", method))
+        return original_solve(problem, method, **options)
+
+    def submit(self, fn, *args, **kwargs):
+        log.append(("background", fn.__name__))
+        return original_submit(self, fn, *args, **kwargs)
+
+    monkeypatch.setattr(solvers, "solve", solve)
+    monkeypatch.setattr(io.Background, "submit", submit)
+    out = tmp_path / "out"
+    result = invoke("run", write_case(tmp_path, CASE), "-m", "dop853", "-m", "rk45", "--out", out)
+    assert result.exit_code == 0, result.output
+    timed = [i for i, (kind, _) in enumerate(log) if kind == "solve"][-2:]  # (after start-up)
+    background = [i for i, (kind, _) in enumerate(log) if kind == "background"]
+    assert len(background) == 2 and min(background) > max(timed)
+    assert (out / "dop853.csv").is_file() and (out / "rk45.csv").is_file()
