@@ -268,7 +268,7 @@ def flow(
 
             Y0 = s.copy()
         evs = _event_functions(params, reg) if locked is None else []
-        from scipy.integrate import solve_ivp  # on use: a `rubcli run` never loads scipy
+        from scipy.integrate import solve_ivp  # on use: `rubcli run` needs no scipy integrator
 
         sol = solve_ivp(
             fun, (tau, tau1), Y0, method="DOP853", rtol=rtol, atol=atol, events=evs,

@@ -118,7 +118,9 @@ def stroboscopic_section(
     points[exact] = states[nearest[exact]]
     if not np.all(exact):
         finite = np.all(np.isfinite(states), axis=1)
-        from scipy.interpolate import CubicSpline  # on use: a `rubcli run` never loads scipy
+        from scipy.interpolate import (
+            CubicSpline,
+        )  # on use: `rubcli run` needs no scipy interpolator
 
         spline = CubicSpline(t[finite], states[finite], axis=0)
         points[~exact] = spline(times[~exact])

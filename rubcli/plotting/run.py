@@ -135,10 +135,10 @@ def time_figure(
     A long trace is drawn as the band between its min and max over each of
     ``display.ENVELOPE_BINS`` groups of samples (what a screen can show): filled lightly,
     its edges in the method's line style, so an overlaid method stays visible and a long
-    run costs little memory and drawing time. The
-    legend sits beside the axes, never over the data; the y limits come from the
-    successful methods (a diverged one is clipped). Time in tau and positions in
-    clearances, or seconds and metres when ``scale`` is given.
+    run costs little memory and drawing time. The legend sits beside the axes, never
+    over the data; the y limits come from the successful methods (a diverged one is
+    clipped). Time in tau and positions in clearances, or seconds and metres when
+    ``scale`` is given.
     """
     from rubcli.plotting import display
 
