@@ -21,9 +21,17 @@ coefficient of order k (``a(tau0 + s) = sum a_k s^k``) and ``(a b)_k = sum_j a_j
   it, the normal force ``K (z - 1) / z`` and the tangential force ``T / z``;
 - ``x_{k+1} = vx_k / (k + 1)``, ``vx_{k+1} = ax_k / (k + 1)`` (and the same for y).
 
-A step of order N costs O(N^2) operations and no right-hand-side calls: about 0.26 us
-at N = 16 in slip (a 2-core Xeon, shared), 0.45-0.5 us a step with the step size, the
-pre-check and the dense output.
+A step of order N costs O(N^2) operations and no right-hand-side calls: about 0.16 us
+for the slip series at N = 13 (a 2-core Xeon, shared), 0.29 us a whole step with the
+step size, the pre-check and the dense output.
+
+Reference counts. numba counts the references of every array a compiled function
+takes, with atomic operations, in any function that also calls another (a leaf's
+counts are pruned). They were a fifth of a run's time under ``perf``; so the step loop
+calls the free and slip series (leaves, indexing C and W directly, no row views)
+itself, its O(N) pre-check ``step_clear`` is inlined into it, and ``locate`` gets the
+step's polynomial as one flat array (``fill_context``) and fills its scan grid in one
+call (``_taylor_fill``).
 
 Order and step (Jorba & Zou 2005, section 3.2.2; heyoka's rule)
 ---------------------------------------------------------------
@@ -47,7 +55,7 @@ slip ``v_r`` with friction, the stick margin) are located on the step's polynomi
 the event search of every method (``events.event_search``, compiled here with the
 polynomial as its segment: the same grid logic, scipy's Brent iteration), and applied
 by ``roots._apply_event`` (Filippov's rule, the projection onto rolling).
-Most steps are cleared without a scan (``step_events``):
+Most steps are cleared without a scan (``step_clear``, then ``step_events``):
 
 - the surface: its Taylor series ``q - 1`` differs from ``z^2 - 1`` of the state
   polynomials (what ``locate`` evaluates) by the product terms above order N, bounded
@@ -791,7 +799,8 @@ def advance_taylor(
 
     Like ``dop853_loop.advance_dop853``: each step's coefficients (``taylor_coefficients``)
     and step (``step_size``, cut at t_end); the step goes through the event pre-check
-    (``_may_have_event``; the first step of a segment and stick steps always scan). A
+    (``step_clear``, then ``step_events``; stick steps and steps that start on the slip
+    surface always scan). A
     clear step is committed and fills the samples it covers (projected in stick).
     Otherwise, with ``compiled_events``, ``locate`` finds the earliest event on the
     scan grid, the samples up to it are filled, the event is applied
