@@ -379,3 +379,97 @@ def test_slip_bound_clears_only_steps_without_a_reversal():
         elif not keeps_sign:
             flagged += 1
     assert cleared > 30 and flagged > 0
+
+
+def _walk_steps(p, regime, s0, rtol, n_steps):
+    """Up to n_steps regime-locked taylor steps from s0 at tau = 0: (C, W, h, eps) of each
+    (copies), by the kernels the step loop uses."""
+    pars = np.array(model.params_vector(p))
+    order = tk.taylor_order(rtol)
+    C = np.zeros((4, tk.MAX_ORDER + 1))
+    W = np.zeros((tk.WORK_ROWS, tk.WORK_COLS))
+    s, tau, steps = np.asarray(s0, dtype=float), 0.0, []
+    for _ in range(n_steps):
+        tk.taylor_coefficients(tau, s, pars, regime, order, C, W)
+        h, eps = tk.step_size(C, order, rtol, rtol * 1e-2)
+        steps.append((tau, C.copy(), W.copy(), h, eps))
+        s = np.empty(4)
+        tk.dense_at(tau + h, tau, C, order, s)
+        tau += h
+        if regime != model.FREE and math.hypot(s[0], s[1]) < 1.0:
+            break  # the contact ended: the regime-locked series no longer applies
+    return pars, order, steps
+
+
+def test_step_clear_clears_only_what_step_events_clears():
+    """step_clear (the O(N) pre-check inlined into the step loop) against step_events (the
+    full pre-check): on free-flight, slip and stick steps and every start flag, a step it
+    clears is one step_events clears too, it never clears a step that starts on an event
+    surface or a stick step, and it clears most plain free and slip steps."""
+    free = ModelParams(nu=0.05, eta=0.7, e=0.05, K=17.6, mu=0.03, Rp=1.0)
+    rub = ModelParams(**{**FIG3, "K": 1.75e6}, mu=0.03)  # stiff: short steps
+    s_rub = model.synchronous_rub(0.0, rub)
+    v_r = model.slip_velocity(*s_rub, rub.Rp, rub.eta)
+    slip = model.SLIP_POSITIVE if v_r > 0.0 else model.SLIP_NEGATIVE
+    rolling = ModelParams(**ROLLING)
+    cases = [
+        (free, model.FREE, (0.2, -0.1, 0.3, 0.1), 1e-8),
+        (rub, slip, s_rub, 1e-6),
+        (rolling, model.STICK, rolling_state(rolling, 0.0), 1e-8),
+    ]
+    cleared = {}
+    for p, regime, s0, rtol in cases:
+        pars, order, steps = _walk_steps(p, regime, s0, rtol, 150)
+        for starts in ((False, False, True), (True, False, True), (False, True, True)):
+            for _, C, W, h, eps in steps:
+                clear = tk.step_clear(C, order, h, regime, pars, W, starts)
+                if clear:
+                    assert tk.step_events(C, order, h, regime, pars, W, eps, starts, 1e-12) == 0
+                cleared.setdefault((regime, starts), []).append(clear)
+    for (regime, starts), flags in cleared.items():
+        if regime == model.STICK or starts[0] or starts[1]:
+            assert not any(flags)
+        else:
+            assert np.mean(flags) > 0.5, (regime, np.mean(flags))
+
+
+def test_taylor_fill_equals_the_event_functions_point_by_point():
+    """_taylor_fill (the scan grid of locate in one call) gives, bit for bit, the event
+    functions of events.event_search (sign (z^2 - 1), -sign v_r, the stick margin) and
+    their rates evaluated point by point on the step's polynomial (_taylor_ev)."""
+    from rubcli.solvers import events
+
+    for p, regime, s0 in (
+        (ModelParams(**FIG3, mu=0.03), model.SLIP_NEGATIVE, (1.02, -0.1, 0.3, 0.9)),
+        (ModelParams(**ROLLING), model.STICK, rolling_state(ModelParams(**ROLLING), 0.0)),
+    ):
+        pars, order, steps = _walk_steps(p, regime, s0, 1e-8, 1)
+        t0, C, _, h, _ = steps[0]
+        ctx = np.empty(tk.CTX_SIZE)
+        tk.fill_context(ctx, t0, C, order, pars, regime)
+        n, d = 7, 1e-6
+        grid = np.linspace(t0, t0 + h, n + 1)
+        row, drow = np.empty(4), np.empty(4)
+        fns = [(events.FN_SURFACE, -1.0), (events.FN_SLIP, float(regime))]
+        if regime == model.STICK:
+            fns = [(events.FN_SURFACE, -1.0), (events.FN_STICK, 1.0), (events.FN_STICK, -1.0)]
+        for fn, sign in fns:
+            hv, hd = np.empty(n + 1), np.empty(n + 1)
+            tk._taylor_fill(ctx, fn, sign, grid, n, pars, d, row, drow, hv, hd)
+            for i, t in enumerate(grid):
+                if fn == events.FN_STICK:
+                    margin = []
+                    for u in (t, t + d, t - d):
+                        tk._taylor_ev(u, False, ctx, row, drow)
+                        margin.append(events.stick_margin(u, *row, pars, sign))
+                    value, rate = margin[0], (margin[1] - margin[2]) / (2.0 * d)
+                else:
+                    tk._taylor_ev(t, fn == events.FN_SLIP, ctx, row, drow)
+                    x, y, vx, vy = row
+                    if fn == events.FN_SURFACE:
+                        value, rate = sign * (x**2 + y**2 - 1.0), sign * (2.0 * (x * vx + y * vy))
+                    else:
+                        spin = pars[6] * pars[1]
+                        value = -sign * model.slip_velocity_value(x, y, vx, vy, spin)
+                        rate = -sign * model.slip_velocity_rate(x, y, vx, vy, drow[2], drow[3])
+                assert (hv[i], hd[i]) == (value, rate), (fn, sign, i)

@@ -76,4 +76,8 @@ jit = numba.njit(cache=True, nogil=True)
 jit_inline = numba.njit(cache=True, nogil=True, inline="always")  # inlined in numba IR
 # Reassociation allowed: for sums that are latency-bound chains otherwise (3-4x slower),
 # in code whose results no Python path recomputes (the taylor series, compiled/taylor.py)
-jit_fast = numba.njit(cache=True, nogil=True, fastmath={"reassoc", "contract", "nsz", "arcp"})
+FASTMATH = {"reassoc", "contract", "nsz", "arcp"}
+jit_fast = numba.njit(cache=True, nogil=True, fastmath=FASTMATH)
+# jit_fast inlined in numba IR into its caller (and compiled with the caller's flags):
+# no call, so the arrays it takes are not reference-counted again (taylor's pre-checks)
+jit_fast_inline = numba.njit(cache=True, nogil=True, fastmath=FASTMATH, inline="always")

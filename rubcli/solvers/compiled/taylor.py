@@ -21,9 +21,17 @@ coefficient of order k (``a(tau0 + s) = sum a_k s^k``) and ``(a b)_k = sum_j a_j
   it, the normal force ``K (z - 1) / z`` and the tangential force ``T / z``;
 - ``x_{k+1} = vx_k / (k + 1)``, ``vx_{k+1} = ax_k / (k + 1)`` (and the same for y).
 
-A step of order N costs O(N^2) operations and no right-hand-side calls: about 0.26 us
-at N = 16 in slip (a 2-core Xeon, shared), 0.45-0.5 us a step with the step size, the
-pre-check and the dense output.
+A step of order N costs O(N^2) operations and no right-hand-side calls: about 0.16 us
+for the slip series at N = 13 (a 2-core Xeon, shared), 0.29 us a whole step with the
+step size, the pre-check and the dense output.
+
+Reference counts. numba counts the references of every array a compiled function
+takes, with atomic operations, in any function that also calls another (a leaf's
+counts are pruned). They were a fifth of a run's time under ``perf``; so the step loop
+calls the free and slip series (leaves, indexing C and W directly, no row views)
+itself, its O(N) pre-check ``step_clear`` is inlined into it, and ``locate`` gets the
+step's polynomial as one flat array (``fill_context``) and fills its scan grid in one
+call (``_taylor_fill``).
 
 Order and step (Jorba & Zou 2005, section 3.2.2; heyoka's rule)
 ---------------------------------------------------------------
@@ -47,7 +55,7 @@ slip ``v_r`` with friction, the stick margin) are located on the step's polynomi
 the event search of every method (``events.event_search``, compiled here with the
 polynomial as its segment: the same grid logic, scipy's Brent iteration), and applied
 by ``roots._apply_event`` (Filippov's rule, the projection onto rolling).
-Most steps are cleared without a scan (``step_events``):
+Most steps are cleared without a scan (``step_clear``, then ``step_events``):
 
 - the surface: its Taylor series ``q - 1`` differs from ``z^2 - 1`` of the state
   polynomials (what ``locate`` evaluates) by the product terms above order N, bounded
@@ -77,7 +85,7 @@ import math
 
 import numpy as np
 
-from rubcli.model import rolling_velocity
+from rubcli.model import rhs_entries, rolling_velocity, slip_velocity_rate, slip_velocity_value
 from rubcli.solvers.compiled.jit import (
     STOP_END,
     STOP_EVENT,
@@ -87,16 +95,26 @@ from rubcli.solvers.compiled.jit import (
     STOP_SMALL_STEP,
     jit,
     jit_fast,
+    jit_fast_inline,
+    jit_inline,
 )
-from rubcli.solvers.compiled.rhs import _rhs_into
 from rubcli.solvers.compiled.roots import FREE_REGIME, STICK_REGIME, apply_and_record
-from rubcli.solvers.events import SURFACE_BAND, event_search, linspace_into, start_flags
+from rubcli.solvers.events import (
+    FN_STICK,
+    FN_SURFACE,
+    SURFACE_BAND,
+    event_search,
+    linspace_into,
+    start_flags,
+    stick_margin,
+)
 
 # ``jit_fast`` (compiled/jit.py) for the series and the pre-check bound only: they are
 # computed here only, never again in Python, so the compiled and the Python event paths
 # still see the same coefficients; the dense output and the event functions, which both
 # paths evaluate, use plain ``jit``.
 fast = jit_fast
+fast_inline = jit_fast_inline  # the per-step pre-checks, inlined into their callers
 
 MAX_ORDER = 30
 MIN_ORDER = 4
@@ -157,21 +175,26 @@ def _inverse_radius_terms(x, y, q, u, k):
 
 
 @fast
+def _forcing(eta, phi0, t0):
+    """exp(i (eta t0 + phi0)): (cos, sin) of the forcing phase at the step's start."""
+    phase = eta * t0 + phi0
+    return math.cos(phase), math.sin(phase)
+
+
+@fast
 def taylor_coefficients(t0, s, pars, regime, order, C, W):
     """The Taylor coefficients C[:, 0..order] (rows x, y, vx, vy; columns the orders)
     of the regime-locked solution through ``s`` at ``t0``; ``W`` (WORK_ROWS,
     WORK_COLS) is work space, left holding the series of q = z^2 (row 0) up to
     ``order`` in every regime, of P = w / z (rows 4, 5) in slip and of u = 1 / z (row 2)
-    in stick."""
-    x, y = C[0], C[1]
-    q, u = W[0], W[2]
+    in stick. (The step loop, ``advance_taylor``, calls the free and slip series
+    itself: see there.)"""
     for i in range(4):
         C[i, 0] = s[i]
-    phase = pars[1] * t0 + pars[3]
-    fr, fi = math.cos(phase), math.sin(phase)
+    fr, fi = _forcing(pars[1], pars[3], t0)
     if regime == STICK_REGIME:
         _stick_coefficients(fr, fi, pars, order, C, W)
-        _inverse_radius_terms(x, y, q, u, order)
+        _inverse_radius_terms(C[0], C[1], W[0], W[2], order)
         return
     if regime == FREE_REGIME:
         _free_coefficients(fr, fi, pars, order, C, W)
@@ -189,32 +212,29 @@ def _free_coefficients(fr, fi, pars, order, C, W):
     """``taylor_coefficients`` in free flight, with the series of q = x^2 + y^2 (W[0],
     for the pre-check)."""
     nu2, eta, E = 2.0 * pars[0], pars[1], pars[2]
-    x, y, vx, vy = C[0], C[1], C[2], C[3]
-    q = W[0]
     M = MAX_ORDER
-    xr, yr = W[23], W[24]
-    x0, y0 = x[0], y[0]
-    xr[M], yr[M] = x0, y0
-    q[0] = x0 * x0 + y0 * y0
+    x0, y0 = C[0, 0], C[1, 0]
+    W[23, M], W[24, M] = x0, y0
+    W[0, 0] = x0 * x0 + y0 * y0
     for k in range(order):
-        ax = E * fr - nu2 * vx[k] - x[k]
-        ay = E * fi - nu2 * vy[k] - y[k]
+        ax = E * fr - nu2 * C[2, k] - C[0, k]
+        ay = E * fi - nu2 * C[3, k] - C[1, k]
         inv = RECIPROCALS[k + 1]
         rotate = eta * inv
         fr, fi = -fi * rotate, fr * rotate
-        xm = vx[k] * inv
-        ym = vy[k] * inv
+        xm = C[2, k] * inv
+        ym = C[3, k] * inv
         C[0, k + 1] = xm
         C[1, k + 1] = ym
         C[2, k + 1] = ax * inv
         C[3, k + 1] = ay * inv
         m = k + 1
         off = M - m
-        xr[off], yr[off] = xm, ym
+        W[23, off], W[24, off] = xm, ym
         sq = 0.0
         for j in range(1, m):
-            sq += x[j] * xr[off + j] + y[j] * yr[off + j]
-        q[m] = sq + 2.0 * (x0 * xm + y0 * ym)
+            sq += C[0, j] * W[23, off + j] + C[1, j] * W[24, off + j]
+        W[0, m] = sq + 2.0 * (x0 * xm + y0 * ym)
 
 
 @fast
@@ -228,62 +248,59 @@ def _slip_coefficients(fr, fi, pars, sign, order, C, W):
     multiply-adds an order, against 6 m for q, u = q^(-1/2) and u w."""
     nu2, eta, E, K = 2.0 * pars[0], pars[1], pars[2], pars[4]
     mu_c = pars[5] * sign
-    x, y, vx, vy = C[0], C[1], C[2], C[3]
-    q, z, px, py = W[0], W[3], W[4], W[5]
     M = MAX_ORDER
-    xr, yr, zr, pxr, pyr = W[23], W[24], W[25], W[26], W[22]
-    x0, y0 = x[0], y[0]
-    xr[M], yr[M] = x0, y0
+    x0, y0 = C[0, 0], C[1, 0]
+    W[23, M], W[24, M] = x0, y0
     q0 = x0 * x0 + y0 * y0
-    q[0] = q0
+    W[0, 0] = q0
     z0 = math.sqrt(q0)
-    z[0] = z0
-    zr[M] = z0
+    W[3, 0] = z0
+    W[25, M] = z0
     inv_z0 = 1.0 / z0
     p0x, p0y = x0 * inv_z0, y0 * inv_z0
-    px[0], py[0] = p0x, p0y
-    pxr[M], pyr[M] = p0x, p0y
+    W[4, 0], W[5, 0] = p0x, p0y
+    W[26, M], W[22, M] = p0x, p0y
     gx, gy = x0 - p0x, y0 - p0y  # w - P, order 0
     for k in range(order):
-        ax = E * fr - nu2 * vx[k] - x[k] - K * (gx - mu_c * gy)
-        ay = E * fi - nu2 * vy[k] - y[k] - K * (gy + mu_c * gx)
+        ax = E * fr - nu2 * C[2, k] - C[0, k] - K * (gx - mu_c * gy)
+        ay = E * fi - nu2 * C[3, k] - C[1, k] - K * (gy + mu_c * gx)
         inv = RECIPROCALS[k + 1]
         rotate = eta * inv
         fr, fi = -fi * rotate, fr * rotate
-        xm = vx[k] * inv
-        ym = vy[k] * inv
+        xm = C[2, k] * inv
+        ym = C[3, k] * inv
         C[0, k + 1] = xm
         C[1, k + 1] = ym
         C[2, k + 1] = ax * inv
         C[3, k + 1] = ay * inv
         m = k + 1
         off = M - m
-        xr[off], yr[off] = xm, ym
+        W[23, off], W[24, off] = xm, ym
         sq = 0.0
         sz = 0.0
         for j in range(1, (m + 1) // 2):
-            sq += x[j] * xr[off + j] + y[j] * yr[off + j]
-            sz += z[j] * zr[off + j]
+            sq += C[0, j] * W[23, off + j] + C[1, j] * W[24, off + j]
+            sz += W[3, j] * W[25, off + j]
         sq *= 2.0
         sz *= 2.0
         if m % 2 == 0:
             c = m // 2
-            sq += x[c] * x[c] + y[c] * y[c]
-            sz += z[c] * z[c]
+            sq += C[0, c] * C[0, c] + C[1, c] * C[1, c]
+            sz += W[3, c] * W[3, c]
         qm = sq + 2.0 * (x0 * xm + y0 * ym)
-        q[m] = qm
+        W[0, m] = qm
         zm = (qm - sz) * (0.5 * inv_z0)
-        z[m] = zm
-        zr[off] = zm
+        W[3, m] = zm
+        W[25, off] = zm
         sx = 0.0
         sy = 0.0
         for j in range(1, m):
-            sx += z[j] * pxr[off + j]
-            sy += z[j] * pyr[off + j]
+            sx += W[3, j] * W[26, off + j]
+            sy += W[3, j] * W[22, off + j]
         pxm = (xm - sx - zm * p0x) * inv_z0
         pym = (ym - sy - zm * p0y) * inv_z0
-        px[m], py[m] = pxm, pym
-        pxr[off], pyr[off] = pxm, pym
+        W[4, m], W[5, m] = pxm, pym
+        W[26, off], W[22, off] = pxm, pym
         gx = xm - pxm
         gy = ym - pym
 
@@ -473,16 +490,15 @@ def _surface_may_cross(C, order, h, regime, W):
     return not _stays_below(H, order, h, margin)
 
 
-@fast
+@fast_inline
 def _surface_clear_quick(C, order, h, regime, W):
     """``_surface_may_cross``'s tests in two passes: H_0 + sum_k |H_k| h^k plus the
     margin below zero, or else the chord bound on 4 intervals (``_stays_below``), with
     the product tail bounded by 2 (sum_{i>N/2} A_i) (sum_j A_j) (a pair i + j > N has
     one index above N/2), above ``_product_tail_bound``'s. True only where the full
     test clears the step too; False leaves the decision to it."""
-    q = W[0]
     direction = 1.0 if regime == FREE_REGIME else -1.0
-    h0 = direction * (q[0] - 1.0)
+    h0 = direction * (W[0, 0] - 1.0)
     half = order // 2
     sb = 0.0
     m2 = 0.0  # sum_k k (k - 1) |H_k| h^k; / h^2 below
@@ -491,7 +507,7 @@ def _surface_clear_quick(C, order, h, regime, W):
     p = 1.0
     for k in range(1, half + 1):
         p *= h
-        a = abs(q[k]) * p
+        a = abs(W[0, k]) * p
         sb += a
         m2 += k * (k - 1) * a
         ax += abs(C[0, k]) * p
@@ -500,7 +516,7 @@ def _surface_clear_quick(C, order, h, regime, W):
     hy = 0.0
     for k in range(half + 1, order + 1):
         p *= h
-        a = abs(q[k]) * p
+        a = abs(W[0, k]) * p
         sb += a
         m2 += k * (k - 1) * a
         hx += abs(C[0, k]) * p
@@ -514,12 +530,12 @@ def _surface_clear_quick(C, order, h, regime, W):
     # the chord bound on 4 intervals of h / 4: rise = M2 (h / 4)^2 / 8, M2 = m2 / h^2
     rise = m2 / 128.0
     s1, s2, s3 = 0.25 * h, 0.5 * h, 0.75 * h
-    v1 = v2 = v3 = v4 = q[order]
+    v1 = v2 = v3 = v4 = W[0, order]
     for k in range(order - 1, -1, -1):
-        v1 = v1 * s1 + q[k]
-        v2 = v2 * s2 + q[k]
-        v3 = v3 * s3 + q[k]
-        v4 = v4 * h + q[k]
+        v1 = v1 * s1 + W[0, k]
+        v2 = v2 * s2 + W[0, k]
+        v3 = v3 * s3 + W[0, k]
+        v4 = v4 * h + W[0, k]
     top = direction * (max(max(v1, v2), max(v3, v4)) - 1.0)
     if direction < 0.0:
         top = direction * (min(min(v1, v2), min(v3, v4)) - 1.0)
@@ -577,7 +593,7 @@ def _surface_start_may_cross(C, order, h, regime, W, level):
     return not _stays_below(G, order - 1, h, margin)
 
 
-@fast
+@fast_inline
 def _slip_clear(C, order, h, regime, pars):
     """True if the slip velocity of the state polynomials (what ``locate`` evaluates:
     v_r = Rp eta + (x vy - y vx) / hypot(x, y)) surely keeps its sign on [0, h]: with
@@ -605,6 +621,24 @@ def _slip_clear(C, order, h, regime, pars):
     v_r = spin + whirl / z
     scale = 1.0 + abs(spin) + abs(v_r) + spread
     return float(regime) * v_r - spread > PRECHECK_MARGIN * scale
+
+
+@jit_inline
+def step_clear(C, order, h, regime, pars, W, starts):
+    """True where ``step_events`` would return SCAN_NONE by its O(N) tests alone (a step
+    that does not start on an event surface, the slip cleared by ``_slip_clear``, the
+    surface by ``_surface_clear_quick``): most steps; False leaves the step to
+    ``step_events``. Inlined, with both tests, into the step loop (numba IR): a call
+    taking the step's arrays reference-counts each of them (atomic operations) on every
+    step. Inlined there the tests run with the loop's plain IEEE arithmetic rather than
+    ``fast``'s reassociation: the bounds differ by round-off, and each is a bound with a
+    margin, so either clears only steps that hold no event."""
+    clear = not (regime == STICK_REGIME or starts[0] or starts[1])
+    if clear and regime != FREE_REGIME and pars[5] > 0.0:
+        clear = _slip_clear(C, order, h, regime, pars)
+    if clear:
+        clear = _surface_clear_quick(C, order, h, regime, W)
+    return clear
 
 
 @fast
@@ -644,25 +678,112 @@ def scan_points(h, regime, pars, s):
 # ------------------------------------------------------- events.locate on the polynomial
 
 
+CTX_T0, CTX_ORDER, CTX_REGIME, CTX_PARS = 0, 1, 2, 3  # the flat segment (_taylor_ev)
+CTX_COEFFICIENTS = CTX_PARS + 7  # C[i, k] at CTX_COEFFICIENTS + 4 k + i
+CTX_SIZE = CTX_COEFFICIENTS + 4 * (MAX_ORDER + 1)
+
+
+@jit
+def fill_context(ctx, t0, C, order, pars, regime):
+    """The step's polynomial as ``events.locate``'s segment: one flat float64 array
+    (t0, order, regime, the 7 parameters, C by orders), so that the search passes one
+    array through its calls instead of a tuple holding two (fewer reference counts: a
+    located step costs about 2/3 of the time)."""
+    ctx[CTX_T0] = t0
+    ctx[CTX_ORDER] = order
+    ctx[CTX_REGIME] = regime
+    for i in range(7):
+        ctx[CTX_PARS + i] = pars[i]
+    for k in range(order + 1):
+        base = CTX_COEFFICIENTS + 4 * k
+        for i in range(4):
+            ctx[base + i] = C[i, k]
+
+
 @jit
 def _taylor_ev(t, deriv, ctx, row, drow):
-    """The step's polynomial as a segment of ``events.locate``: the state at t and, with
-    ``deriv``, the regime's right-hand side there (as the Python path's)."""
-    t0, C, order, pars, regime = ctx
-    dense_at(t, t0, C, order, row)
+    """The step's polynomial (``fill_context``) as a segment of ``events.locate``: the
+    state at t (``dense_at``'s Horner chains) and, with ``deriv``, the regime's
+    right-hand side there (as the Python path's)."""
+    order = int(ctx[CTX_ORDER])
+    dt = t - ctx[CTX_T0]
+    base = CTX_COEFFICIENTS + 4 * order
+    v0, v1, v2, v3 = ctx[base], ctx[base + 1], ctx[base + 2], ctx[base + 3]
+    for _ in range(order):
+        base -= 4
+        v0 = v0 * dt + ctx[base]
+        v1 = v1 * dt + ctx[base + 1]
+        v2 = v2 * dt + ctx[base + 2]
+        v3 = v3 * dt + ctx[base + 3]
+    row[0], row[1], row[2], row[3] = v0, v1, v2, v3
     if deriv:
-        _rhs_into(t, row, pars, regime, drow)
+        p = CTX_PARS
+        vx, vy, ax, ay = rhs_entries(
+            t, v0, v1, v2, v3, ctx[p], ctx[p + 1], ctx[p + 2], ctx[p + 3], ctx[p + 4],
+            ctx[p + 5], ctx[p + 6], int(ctx[CTX_REGIME]),
+        )  # fmt: skip
+        drow[0], drow[1], drow[2], drow[3] = vx, vy, ax, ay
 
 
-_locate_polynomial, _ = event_search(_taylor_ev, compile=jit)
+@jit
+def _taylor_fill(ctx, fn, sign, grid, n, pars, d, row, drow, hv, hd):
+    """``event_search``'s ``fill`` on the step's polynomial: the event function and its
+    rate on ``grid[:n + 1]`` by the same operations as the search's pointwise
+    ``event_values`` (the same numbers), in one call: the polynomial's Horner chains
+    (``_taylor_ev``'s) inline, not one call of the segment per grid point."""
+    order = int(ctx[CTX_ORDER])
+    t0 = ctx[CTX_T0]
+    p = CTX_PARS
+    regime = int(ctx[CTX_REGIME])
+    spin = pars[6] * pars[1]
+    for i in range(n + 1):
+        t = grid[i]
+        if fn == FN_STICK:
+            _taylor_ev(t, False, ctx, row, drow)
+            hv[i] = stick_margin(t, row[0], row[1], row[2], row[3], pars, sign)
+            _taylor_ev(t + d, False, ctx, row, drow)
+            up = stick_margin(t + d, row[0], row[1], row[2], row[3], pars, sign)
+            _taylor_ev(t - d, False, ctx, row, drow)
+            down = stick_margin(t - d, row[0], row[1], row[2], row[3], pars, sign)
+            hd[i] = (up - down) / (2.0 * d)
+            continue
+        dt = t - t0
+        base = CTX_COEFFICIENTS + 4 * order
+        x, y, vx, vy = ctx[base], ctx[base + 1], ctx[base + 2], ctx[base + 3]
+        for _ in range(order):
+            base -= 4
+            x = x * dt + ctx[base]
+            y = y * dt + ctx[base + 1]
+            vx = vx * dt + ctx[base + 2]
+            vy = vy * dt + ctx[base + 3]
+        if fn == FN_SURFACE:
+            hv[i] = sign * (x**2 + y**2 - 1.0)
+            hd[i] = sign * (2.0 * (x * vx + y * vy))
+        else:  # FN_SLIP (FN_GIVEN is no taylor segment's)
+            _, _, ax, ay = rhs_entries(
+                t, x, y, vx, vy, ctx[p], ctx[p + 1], ctx[p + 2], ctx[p + 3], ctx[p + 4],
+                ctx[p + 5], ctx[p + 6], regime,
+            )  # fmt: skip
+            hv[i] = -sign * slip_velocity_value(x, y, vx, vy, spin)
+            hd[i] = -sign * slip_velocity_rate(x, y, vx, vy, ax, ay)
+
+
+_locate_polynomial, _ = event_search(_taylor_ev, _taylor_fill, compile=jit)
+
+
+@jit
+def locate_in(ctx, pars, regime, grid, n, hv, hd, row, drow, starts, band):
+    """``events.locate`` on the step's polynomial held in ``ctx`` (``fill_context``)."""
+    return _locate_polynomial(ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow)
 
 
 @jit
 def locate(t0, C, order, pars, regime, grid, n, hv, hd, row, drow, starts, band):
     """``events.locate`` on one step's polynomial (scan grid ``grid[:n + 1]``): (tau,
     kind) of the earliest event, or (NaN, NO_EVENT)."""
-    ctx = (t0, C, order, pars, regime)
-    return _locate_polynomial(ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow)
+    ctx = np.empty(CTX_SIZE)
+    fill_context(ctx, t0, C, order, pars, regime)
+    return locate_in(ctx, pars, regime, grid, n, hv, hd, row, drow, starts, band)
 
 
 # ------------------------------------------------------------------------ the step loop
@@ -678,7 +799,8 @@ def advance_taylor(
 
     Like ``dop853_loop.advance_dop853``: each step's coefficients (``taylor_coefficients``)
     and step (``step_size``, cut at t_end); the step goes through the event pre-check
-    (``_may_have_event``; the first step of a segment and stick steps always scan). A
+    (``step_clear``, then ``step_events``; stick steps and steps that start on the slip
+    surface always scan). A
     clear step is committed and fills the samples it covers (projected in stick).
     Otherwise, with ``compiled_events``, ``locate`` finds the earliest event on the
     scan grid, the samples up to it are filled, the event is applied
@@ -697,6 +819,7 @@ def advance_taylor(
     grid = np.empty(MAX_SCAN + 1)
     hv = np.empty(MAX_SCAN + 1)
     hd = np.empty(MAX_SCAN + 1)
+    ctx = np.empty(CTX_SIZE)
     pars_surface = pars.copy()
     pars_surface[5] = 0.0
     n_out = t_eval.shape[0]
@@ -709,7 +832,19 @@ def advance_taylor(
             return tau, tau, k, steps, STOP_END, regime, n_events, at_event
         if steps >= max_steps:
             return tau, tau, k, steps, STOP_LIMIT, regime, n_events, at_event
-        taylor_coefficients(tau, y, pars, regime, order, C, W)
+        # taylor_coefficients, its free and slip series called from here: a function
+        # taking the step's arrays and calling another reference-counts them on every
+        # call (atomic operations: a fifth of a step's time); the series are leaves
+        if regime == STICK_REGIME:
+            taylor_coefficients(tau, y, pars, regime, order, C, W)
+        else:
+            for i in range(4):
+                C[i, 0] = y[i]
+            fr, fi = _forcing(pars[1], pars[3], tau)
+            if regime == FREE_REGIME:
+                _free_coefficients(fr, fi, pars, order, C, W)
+            else:
+                _slip_coefficients(fr, fi, pars, float(regime), order, C, W)
         h, eps = step_size(C, order, rtol, atol)
         t_new = min(tau + h, t_end)
         h = t_new - tau
@@ -724,7 +859,9 @@ def advance_taylor(
             return tau, t_new, k, steps, STOP_PYTHON, regime, n_events, at_event
         kind = -1
         t_stop = t_new
-        scan = step_events(C, order, h, regime, pars, W, eps, starts, band)
+        scan = SCAN_NONE
+        if not step_clear(C, order, h, regime, pars, W, starts):
+            scan = step_events(C, order, h, regime, pars, W, eps, starts, band)
         if scan != SCAN_NONE:
             n = scan_points(h, regime, pars, y)
             info[0] = n
@@ -734,9 +871,8 @@ def advance_taylor(
             # no slip reversal possible: locate reads mu only to decide whether to scan
             # the slip, so it is handed the parameters with mu = 0
             scan_pars = pars if scan == SCAN_ALL else pars_surface
-            t_ev, kind = locate(
-                tau, C, order, scan_pars, regime, grid, n, hv, hd, row, drow, starts, band
-            )
+            fill_context(ctx, tau, C, order, scan_pars, regime)
+            t_ev, kind = locate_in(ctx, scan_pars, regime, grid, n, hv, hd, row, drow, starts, band)
             if kind >= 0:
                 t_stop = t_ev
         while k < n_out and t_eval[k] <= t_stop:
