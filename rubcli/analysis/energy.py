@@ -362,20 +362,10 @@ def energy_balance(solution: Solution) -> EnergyBalance:
         tau[offset + 1 : offset + n - 1] = t[lo:hi]
         tau[offset + n - 1] = bounds.end_tau[p]
         offset += n
-    return EnergyBalance(
-        tau=tau,
-        kinetic=energies[:, 0],
-        rotor_spring=energies[:, 1],
-        stator=energies[:, 2],
-        work_unbalance=cum[:, _IN],
-        damping=cum[:, _DAMP],
-        friction=-cum[:, _FRIC],
-        contact_dissipation=cum[:, _SLIP],
-        spin_drive=cum[:, _SPIN],
-        throughput=throughput,
-        quadrature_error=quad_sum / throughput if throughput > 0.0 else 0.0,
-        n_pieces=bounds.size,
-    )
+    return _balance(
+        tau, energies[:, 0], energies[:, 1], energies[:, 2], cum, throughput, quad_sum,
+        bounds.size,
+    )  # fmt: skip
 
 
 def energy_balance_numpy(solution: Solution) -> EnergyBalance:
@@ -409,6 +399,12 @@ def energy_balance_numpy(solution: Solution) -> EnergyBalance:
     throughput = float(
         running[_ABS_IN] + running[_DAMP] + running[_ABS_FRIC] + np.max(np.abs(energy))
     )
+    return _balance(tau, kinetic, spring, stator, cum, throughput, quad_error, len(pieces))
+
+
+def _balance(tau, kinetic, spring, stator, cum, throughput, quad_sum, n_pieces) -> EnergyBalance:
+    """The balance from the mechanical energies at the nodes and the cumulative integrals
+    of the power columns (``cum``, columns ``_IN`` ... ``_ABS_FRIC``): both paths'."""
     return EnergyBalance(
         tau=tau,
         kinetic=kinetic,
@@ -420,8 +416,8 @@ def energy_balance_numpy(solution: Solution) -> EnergyBalance:
         contact_dissipation=cum[:, _SLIP],
         spin_drive=cum[:, _SPIN],
         throughput=throughput,
-        quadrature_error=quad_error / throughput if throughput > 0.0 else 0.0,
-        n_pieces=len(pieces),
+        quadrature_error=quad_sum / throughput if throughput > 0.0 else 0.0,
+        n_pieces=n_pieces,
     )
 
 
