@@ -111,15 +111,21 @@ def test_envelope_keeps_every_extreme_and_bounds_the_points():
 
 
 def test_envelope_band_covers_the_envelope_of_every_group():
-    """The time figure's band: per group, the min and the max of ``envelope`` (the same
-    extremes), as steps spanning the whole record; None for a short series."""
+    """The time figure's band: per group of samples its min and max (checked against a
+    direct numpy reduction of each group, and against ``envelope``'s extremes), as steps
+    spanning the whole record; None for a short series."""
     t = np.linspace(0.0, 1000.0, 1_000_001)
     values = np.sin(t) * (1.0 + 0.001 * t)
     values[123_457] = 50.0
     values[5] = np.nan  # dropped, as by envelope
     steps, lo, hi = display.envelope_band(t, values, bins=500)
-    te, ve = display.envelope(t, values, bins=500)
     assert steps.size == lo.size == hi.size == 501
+    kept_t, kept = t[np.isfinite(values)], values[np.isfinite(values)]
+    starts = np.linspace(0, kept.size, 501).astype(int)[:-1]
+    np.testing.assert_array_equal(lo[:-1], np.minimum.reduceat(kept, starts))
+    np.testing.assert_array_equal(hi[:-1], np.maximum.reduceat(kept, starts))
+    np.testing.assert_array_equal(steps[:-1], kept_t[starts])
+    te, ve = display.envelope(t, values, bins=500)
     np.testing.assert_array_equal(lo[:-1], np.minimum(ve[0::2], ve[1::2]))
     np.testing.assert_array_equal(hi[:-1], np.maximum(ve[0::2], ve[1::2]))
     assert steps[0] == t[0] and steps[-1] == t[-1] and np.all(np.diff(steps) > 0.0)
