@@ -5,13 +5,14 @@ Gay's correctly rounded dtoa, shortest mode) costs about 0.4-1.3 us per value: 5
 a 10,000-period run, more than its solve. This module writes the same text from compiled
 code:
 
-- **Digits**: Grisu3 (F. Loitsch, "Printing floating-point numbers quickly and accurately
-  with integers", PLDI 2010; the algorithm of Google's double-conversion ``FastDtoa``,
-  shortest mode). With 64-bit integer arithmetic and a table of cached powers of ten it
-  finds the shortest digit string that reads back as the same double and, among those,
-  the one closest to it; for about 0.5% of doubles it cannot prove that its answer is
-  both, and says so. Those values (and NaN, infinities) are formatted by Python's own
-  ``repr`` instead. So every field is exactly ``repr(value)``: same digits, same text.
+- **Digits**: Schubfach (R. Giulietti, "The Schubfach way to render doubles", 2020; the
+  algorithm of Java's ``Double.toString`` since JDK 19, here after A. Bolz's C++
+  transcription in Drachennest). Three 64 x 128-bit products with a table of 617
+  powers of ten (computed below in exact integer arithmetic) give the decimal in the
+  double's rounding interval with the fewest digits and, among those, the one closest to
+  it (ties to an even digit): the digits of ``repr`` (Gay's shortest mode), for every
+  finite double, with no fallback. NaN and infinities are formatted by Python's own
+  ``repr``. So every field is exactly ``repr(value)``: same digits, same text.
 - **Layout**: the rules of CPython's ``float_repr`` (``PyOS_double_to_string`` with
   ``'r'`` and ``Py_DTSF_ADD_DOT_0``): positional for decimal-point positions
   ``-4 < decpt <= 16`` (``0.001``, ``12.5``, ``1000000.0``), else ``d.ddde+XX``
@@ -25,178 +26,197 @@ arrays, and tests/test_io.py checks it field by field against ``repr`` and ``str
 from __future__ import annotations
 
 import math
-from fractions import Fraction
 
 import numba
 import numpy as np
+from llvmlite import ir
+from numba.core import types
+from numba.cpython.unsafe.numbers import leading_zeros
+from numba.extending import intrinsic
 
 jit = numba.njit(cache=True, nogil=True)  # formats beside the figures (io.Background)
 
 FLOAT_WIDTH = 24  # longest repr of a double: '-2.2250738585072014e-308'
 INT_WIDTH = 20  # longest int64: '-9223372036854775808'
 _U64 = np.uint64
-_MASK32 = np.uint64(0xFFFFFFFF)
-_HIDDEN = np.uint64(1 << 52)
-_SIGNIFICAND_MASK = np.uint64((1 << 52) - 1)
-_MIN_TARGET_EXPONENT = -60
-_MAX_TARGET_EXPONENT = -32
-_FIRST_CACHED_EXPONENT = -348
-_CACHED_STEP = 8
+_U32 = np.uint32
+_K_MIN, _K_MAX = -292, 324
 
 
-def _cached_powers() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """10^k for k = -348, -340, ..., 340 as 64-bit significands f (2^63 <= f < 2^64,
-    rounded to nearest) and binary exponents e: 10^k ~ f 2^e (exact rational arithmetic;
-    the table of double-conversion's cached-powers.cc)."""
-    fs, es, ks = [], [], []
-    for k in range(_FIRST_CACHED_EXPONENT, 341, _CACHED_STEP):
-        value = Fraction(10) ** k
-        e = math.floor(math.log2(value.numerator) - math.log2(value.denominator)) - 63
-        while value / Fraction(2) ** e >= 2**64:
-            e += 1
-        while value / Fraction(2) ** e < 2**63:
-            e -= 1
-        f = math.floor(value / Fraction(2) ** e + Fraction(1, 2))
-        if f == 2**64:
-            f, e = f // 2, e + 1
-        fs.append(f)
-        es.append(e)
-        ks.append(k)
-    return np.array(fs, dtype=np.uint64), np.array(es, dtype=np.int64), np.array(ks, np.int64)
+def _pow10_table():
+    """g(k) = ceil(10^k 2^(127 - floor(log2 10^k))) for k in [-292, 324]: 2^127 <= g < 2^128
+    (the table of the Schubfach paper, exact integer arithmetic), as (hi, lo) words."""
+    hi, lo = [], []
+    for k in range(_K_MIN, _K_MAX + 1):
+        if k >= 0:
+            num, den = 10**k, 1
+        else:
+            num, den = 1, 10**-k
+        e2 = num.bit_length() - den.bit_length()  # floor(log2 num/den) is e2 or e2 - 1
+        if (num << max(0, -e2)) < (den << max(0, e2)):
+            e2 -= 1
+        shift = 127 - e2
+        if shift >= 0:
+            num <<= shift
+        else:
+            den <<= -shift
+        g = -(-num // den)
+        assert 2**127 <= g < 2**128, k
+        hi.append(g >> 64)
+        lo.append(g & (2**64 - 1))
+    return np.array(hi, dtype=np.uint64), np.array(lo, dtype=np.uint64)
 
 
-CACHED_F, CACHED_E, CACHED_K = _cached_powers()
+G_HI, G_LO = _pow10_table()
+DIGIT_PAIRS = np.frombuffer("".join(f"{i:02d}" for i in range(100)).encode(), dtype=np.uint8).copy()
 
 
-@jit
-def _multiply(a, b):
-    """High 64 bits of the 128-bit product a b, rounded (DiyFp::Multiply)."""
-    a_hi = a >> _U64(32)
-    a_lo = a & _MASK32
-    b_hi = b >> _U64(32)
-    b_lo = b & _MASK32
-    ac = a_hi * b_hi
-    bc = a_lo * b_hi
-    ad = a_hi * b_lo
-    bd = a_lo * b_lo
-    tmp = (bd >> _U64(32)) + (ad & _MASK32) + (bc & _MASK32) + _U64(1 << 31)
-    return ac + (ad >> _U64(32)) + (bc >> _U64(32)) + (tmp >> _U64(32))
+@intrinsic
+def _umul128(typingctx, a, b):
+    """The 128-bit product of two uint64 as (high, low) words."""
+    sig = types.UniTuple(types.uint64, 2)(types.uint64, types.uint64)
 
+    def codegen(context, builder, signature, args):
+        wide = ir.IntType(128)
+        product = builder.mul(builder.zext(args[0], wide), builder.zext(args[1], wide))
+        low = builder.trunc(product, ir.IntType(64))
+        high = builder.trunc(builder.lshr(product, ir.Constant(wide, 64)), ir.IntType(64))
+        return context.make_tuple(builder, signature.return_type, [high, low])
 
-@jit
-def _normalize(f, e):
-    while (f & _U64(0xFFC0000000000000)) == _U64(0):
-        f = f << _U64(10)
-        e -= 10
-    while (f & _U64(0x8000000000000000)) == _U64(0):
-        f = f << _U64(1)
-        e -= 1
-    return f, e
+    return sig, codegen
 
 
 @jit
-def _round_weed(digits, length, distance_too_high_w, unsafe_interval, rest, ten_kappa, unit):
-    small_distance = distance_too_high_w - unit
-    big_distance = distance_too_high_w + unit
-    while (
-        rest < small_distance
-        and unsafe_interval - rest >= ten_kappa
-        and (
-            rest + ten_kappa < small_distance
-            or small_distance - rest >= rest + ten_kappa - small_distance
-        )
-    ):
-        digits[length - 1] -= 1
-        rest += ten_kappa
-    if (
-        rest < big_distance
-        and unsafe_interval - rest >= ten_kappa
-        and (
-            rest + ten_kappa < big_distance or big_distance - rest > rest + ten_kappa - big_distance
-        )
-    ):
-        return False
-    return _U64(2) * unit <= rest and rest <= unsafe_interval - _U64(4) * unit
+def _round_to_odd(g_hi, g_lo, cp):
+    x_hi, _ = _umul128(g_lo, cp)
+    y_hi, y_lo = _umul128(g_hi, cp)
+    y_lo2 = y_lo + x_hi
+    if y_lo2 < x_hi:
+        y_hi += _U64(1)
+    return ((y_hi << _U64(1)) | (y_lo2 >> _U64(63))) | _U64(y_lo2 != _U64(0))
 
 
 @jit
-def grisu3(bits, digits):
-    """Shortest digits of a finite double > 0, given by its IEEE bits (uint64), into
-    ``digits`` (uint8 array, ASCII).
-
-    Returns ``(length, decimal_exponent)`` with value ~ digits x 10^decimal_exponent, or
-    ``(0, 0)`` when Grisu3 cannot guarantee the shortest, closest answer (then use repr).
-    """
-    biased = np.int64((bits >> _U64(52)) & _U64(0x7FF))
-    significand = bits & _SIGNIFICAND_MASK
-    if biased == 0:
-        f = significand
-        e = np.int64(-1074)
+def to_decimal(bits):
+    """(D, k) with the finite double > 0 of IEEE bits ``bits`` ~ D 10^k, D the shortest
+    correctly rounded decimal significand (trailing zeros removed)."""
+    mantissa = bits & _U64((1 << 52) - 1)
+    biased = np.int64(bits >> _U64(52))
+    if biased != 0:
+        c = mantissa | _U64(1 << 52)
+        q = biased - 1075
+        if 0 <= -q < 53:
+            f = c >> _U64(-q)
+            if (f << _U64(-q)) == c:
+                k = 0
+                while f % _U64(10) == _U64(0):
+                    f //= _U64(10)
+                    k += 1
+                return f, k
     else:
-        f = significand + _HIDDEN
-        e = biased - 1075
-    # boundaries m- and m+ (Double::NormalizedBoundaries)
-    plus_f, plus_e = _normalize((f << _U64(1)) + _U64(1), e - 1)
-    if significand == _U64(0) and biased > 1:
-        minus_f, minus_e = (f << _U64(2)) - _U64(1), e - 2
-    else:
-        minus_f, minus_e = (f << _U64(1)) - _U64(1), e - 1
-    minus_f = minus_f << _U64(minus_e - plus_e)
-    w_f, w_e = _normalize(f, e)
-    # the cached power 10^mk that brings w's exponent into [-60, -32]
-    min_exponent = _MIN_TARGET_EXPONENT - (w_e + 64)
-    k = np.int64(math.ceil((min_exponent + 63) * 0.30102999566398114))
-    index = (-_FIRST_CACHED_EXPONENT + k - 1) // _CACHED_STEP + 1
-    c_f, c_e, mk = CACHED_F[index], CACHED_E[index], CACHED_K[index]
-    w_f = _multiply(w_f, c_f)
-    low_f = _multiply(minus_f, c_f)
-    high_f = _multiply(plus_f, c_f)
-    one_e = w_e + c_e + 64  # the common exponent of the scaled w, low, high
-    # DigitGen
-    unit = _U64(1)
-    too_low = low_f - unit
-    too_high = high_f + unit
-    unsafe_interval = too_high - too_low
-    shift = _U64(-one_e)
-    one_f = _U64(1) << shift
-    integrals = too_high >> shift
-    fractionals = too_high & (one_f - _U64(1))
-    divisor = _U64(1)
-    kappa = 1
-    while divisor * _U64(10) <= integrals:
-        divisor *= _U64(10)
-        kappa += 1
-    length = 0
-    while kappa > 0:
-        digits[length] = np.uint8(integrals // divisor + _U64(48))
-        length += 1
-        integrals = integrals % divisor
-        kappa -= 1
-        rest = (integrals << shift) + fractionals
-        if rest < unsafe_interval:
-            ok = _round_weed(digits, length, too_high - w_f, unsafe_interval, rest,
-                             divisor << shift, unit)  # fmt: skip
-            return (length, kappa - mk) if ok else (0, 0)
-        divisor = divisor // _U64(10)
-    while True:
-        fractionals *= _U64(10)
-        unit *= _U64(10)
-        unsafe_interval *= _U64(10)
-        digits[length] = np.uint8((fractionals >> shift) + _U64(48))
-        length += 1
-        fractionals &= one_f - _U64(1)
-        kappa -= 1
-        if fractionals < unsafe_interval:
-            ok = _round_weed(digits, length, (too_high - w_f) * unit, unsafe_interval,
-                             fractionals, one_f, unit)  # fmt: skip
-            return (length, kappa - mk) if ok else (0, 0)
+        c = mantissa
+        q = np.int64(-1074)
+    even = (c & _U64(1)) == _U64(0)
+    closer = mantissa == _U64(0) and biased > 1
+    cbl = _U64(4) * c - _U64(2) + _U64(closer)
+    cb = _U64(4) * c
+    cbr = _U64(4) * c + _U64(2)
+    k = (q * 1262611 - (524031 if closer else 0)) >> 22
+    h = q + ((-k * 1741647) >> 19)
+    index = -k - _K_MIN
+    g_hi, g_lo = G_HI[index], G_LO[index]
+    vbl = _round_to_odd(g_hi, g_lo, cbl << _U64(h))
+    vb = _round_to_odd(g_hi, g_lo, cb << _U64(h))
+    vbr = _round_to_odd(g_hi, g_lo, cbr << _U64(h))
+    lower = vbl if even else vbl + _U64(1)
+    upper = vbr if even else vbr - _U64(1)
+    s = vb // _U64(4)
+    result = _U64(0)
+    found = False
+    if s >= _U64(10):
+        sp = s // _U64(10)
+        up_inside = lower <= _U64(40) * sp
+        wp_inside = _U64(40) * sp + _U64(40) <= upper
+        if up_inside != wp_inside:
+            result = sp + _U64(wp_inside)
+            k += 1
+            found = True
+    if not found:
+        u_inside = lower <= _U64(4) * s
+        w_inside = _U64(4) * s + _U64(4) <= upper
+        if u_inside != w_inside:
+            result = s + _U64(w_inside)
+        else:
+            mid = _U64(4) * s + _U64(2)
+            up = vb > mid or (vb == mid and (s & _U64(1)) != _U64(0))
+            result = s + _U64(up)
+    while result % _U64(10) == _U64(0):
+        result //= _U64(10)
+        k += 1
+    return result, k
+
+
+POW10 = np.array([10**k for k in range(20)], dtype=np.uint64)
+_U32 = np.uint32
 
 
 @jit
-def format_float(value, bits, out, pos, digits):
+def _pair(out, i, r):
+    """The two digits of r < 100 into out[i:i + 2]."""
+    out[i] = DIGIT_PAIRS[2 * r]
+    out[i + 1] = DIGIT_PAIRS[2 * r + 1]
+
+
+@jit
+def _eight(out, i, v):
+    """The 8 digits of v < 10^8 (uint32) into out[i:i + 8]."""
+    a = v // _U32(10000)
+    b = v % _U32(10000)
+    _pair(out, i, a // _U32(100))
+    _pair(out, i + 2, a % _U32(100))
+    _pair(out, i + 4, b // _U32(100))
+    _pair(out, i + 6, b % _U32(100))
+
+
+@jit
+def decimal_length(d):
+    """The number of decimal digits of 0 < d < 10^19: floor(log10 d) + 1, from the bit
+    length (1233 / 4096 ~ log10 2), corrected once."""
+    bit_length = 64 - np.int64(leading_zeros(d))
+    length = (bit_length * 1233) >> 12
+    if d >= POW10[length]:
+        length += 1
+    return length
+
+
+@jit
+def write_digits(out, start, d, length):
+    """The ``length`` decimal digits of d (< 10^17) as ASCII into ``out[start:]``, right to
+    left, two at a time (8 at a time in 32-bit arithmetic while d >= 10^8)."""
+    end = start + length
+    if d >= _U64(100000000):
+        _eight(out, end - 8, _U32(d % _U64(100000000)))
+        d //= _U64(100000000)
+        end -= 8
+    v = _U32(d)
+    while v >= _U32(100):
+        end -= 2
+        _pair(out, end, v % _U32(100))
+        v //= _U32(100)
+    if v >= _U32(10):
+        _pair(out, start, v)
+    else:
+        out[start] = np.uint8(48 + v)
+
+
+@jit
+def format_float(value, bits, out, pos):
     """``repr(value)`` as ASCII into ``out[pos:]`` (``bits``: its IEEE bits as uint64);
-    returns the new position, or -1 if the value needs Python's repr (non-finite, or
-    Grisu3 gave up)."""
+    returns the new position, or -1 for NaN and infinities (Python's repr writes those).
+
+    The layout of CPython's ``float_repr``: the digits are written where they end up and
+    only the ones before the decimal point (positional) or the first one (exponential)
+    are moved one place to make room for the point."""
     if not math.isfinite(value):
         return -1
     if value == 0.0:
@@ -207,23 +227,20 @@ def format_float(value, bits, out, pos, digits):
         out[pos + 1] = 46
         out[pos + 2] = 48
         return pos + 3
-    negative = value < 0.0
-    length, exponent = grisu3(bits & _U64(0x7FFFFFFFFFFFFFFF), digits)
-    if length == 0:
-        return -1
-    if negative:
+    if value < 0.0:
         out[pos] = 45
         pos += 1
+    d, exponent = to_decimal(bits & _U64(0x7FFFFFFFFFFFFFFF))
+    length = decimal_length(d)
     decpt = length + exponent  # value = 0.d1 d2 ... x 10^decpt
-    if decpt <= -4 or decpt > 16:
-        out[pos] = digits[0]
-        pos += 1
+    if decpt <= -4 or decpt > 16:  # d.ddde+XX
+        write_digits(out, pos + 1, d, length)
+        out[pos] = out[pos + 1]
         if length > 1:
-            out[pos] = 46  # '.'
+            out[pos + 1] = 46  # '.'
+            pos += length + 1
+        else:
             pos += 1
-            for i in range(1, length):
-                out[pos] = digits[i]
-                pos += 1
         out[pos] = 101  # 'e'
         exp10 = decpt - 1
         out[pos + 1] = 45 if exp10 < 0 else 43
@@ -235,36 +252,29 @@ def format_float(value, bits, out, pos, digits):
         out[pos] = 48 + (exp10 // 10) % 10
         out[pos + 1] = 48 + exp10 % 10
         return pos + 2
-    if decpt <= 0:
+    if decpt <= 0:  # 0.000ddd
         out[pos] = 48
         out[pos + 1] = 46
         pos += 2
         for _ in range(-decpt):
             out[pos] = 48
             pos += 1
-        for i in range(length):
-            out[pos] = digits[i]
-            pos += 1
-        return pos
-    if decpt >= length:
-        for i in range(length):
-            out[pos] = digits[i]
-            pos += 1
+        write_digits(out, pos, d, length)
+        return pos + length
+    if decpt >= length:  # ddd000.0
+        write_digits(out, pos, d, length)
+        pos += length
         for _ in range(decpt - length):
             out[pos] = 48
             pos += 1
         out[pos] = 46
         out[pos + 1] = 48
         return pos + 2
+    write_digits(out, pos + 1, d, length)  # dd.ddd
     for i in range(decpt):
-        out[pos] = digits[i]
-        pos += 1
-    out[pos] = 46
-    pos += 1
-    for i in range(decpt, length):
-        out[pos] = digits[i]
-        pos += 1
-    return pos
+        out[pos + i] = out[pos + 1 + i]
+    out[pos + decpt] = 46
+    return pos + length + 1
 
 
 @jit
@@ -298,7 +308,6 @@ def _format_rows(floats, float_bits, ints, texts, kinds, index, table, table_len
     written and the number of fallbacks."""
     n_rows = floats.shape[1] if floats.shape[0] else (ints.shape[1] if ints.shape[0]
                                                         else texts.shape[1])  # fmt: skip
-    digits = np.empty(32, dtype=np.uint8)
     pos = 0
     n_fallback = 0
     n_cols = kinds.size
@@ -309,8 +318,7 @@ def _format_rows(floats, float_bits, ints, texts, kinds, index, table, table_len
                 pos += 1
             kind = kinds[c]
             if kind == 0:
-                end = format_float(floats[index[c], r], float_bits[index[c], r], out, pos,
-                                   digits)  # fmt: skip
+                end = format_float(floats[index[c], r], float_bits[index[c], r], out, pos)
                 if end < 0:
                     fallback[n_fallback, 0] = c
                     fallback[n_fallback, 1] = r
@@ -349,8 +357,9 @@ def column_kind(column: object) -> int | None:
     return None
 
 
-def format_block(columns, text_field, nonfinite: str | None = None) -> bytes | None:
-    """The CSV rows of a block of columns (numpy arrays of equal length) as UTF-8 bytes,
+def format_block(columns, text_field, nonfinite: str | None = None) -> bytes | memoryview | None:
+    """The CSV rows of a block of columns (numpy arrays of equal length) as UTF-8 bytes
+    (a bytes-like object: ``bytes`` or a ``memoryview`` of the formatted buffer),
     each float field exactly ``repr(value)`` (``nonfinite`` for NaN/inf if given), each
     integer ``str(value)``, each text ``text_field(value)`` (the caller's quoting rule).
     None when a column is of another kind (the caller formats the block itself)."""
@@ -403,8 +412,8 @@ def format_block(columns, text_field, nonfinite: str | None = None) -> bytes | N
         floats, bits, ints, texts, codes, index, table, table_len, fallback, out
     )
     if n_fallback == 0:
-        return out[:size].tobytes()
-    # The few fields Grisu3 left (and NaN/inf): Python's repr, spliced in at their places.
+        return memoryview(out)[:size]  # written as it is: no copy of the text
+    # NaN and infinities: Python's repr (or ``nonfinite``), spliced in at their places.
     view = memoryview(out)
     filled = []
     start = 0

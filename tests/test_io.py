@@ -83,8 +83,10 @@ def test_staged_names_are_plain_file_names(tmp_path):
 
 def _awkward_floats(n: int, seed: int = 3) -> np.ndarray:
     """Doubles of every kind: random bit patterns (subnormals included), values spread over
-    the exponents, powers of two, short decimals, integers, and the edge cases of repr's
-    layout (1e16, 1e-05, 0.0001, -0.0, the largest and smallest doubles)."""
+    the exponents, powers of two and their neighbours (where the rounding interval is
+    lopsided), every power of ten, the smallest subnormals, short decimals, integers, and
+    the edge cases of repr's layout (1e16, 1e-05, 0.0001, -0.0, the largest and smallest
+    doubles)."""
     rng = np.random.default_rng(seed)
     bits = rng.integers(0, 2**64, n, dtype=np.uint64).view(np.float64)
     spread = rng.standard_normal(n) * 10.0 ** rng.integers(-30, 30, n)
@@ -96,12 +98,22 @@ def _awkward_floats(n: int, seed: int = 3) -> np.ndarray:
                       5e-324, -5e-324, 2.2250738585072014e-308, 2.225073858507201e-308,
                       1.7976931348623157e308, 2.0**-1022, 2.0**63, 1e22, 1e23, 12.5,
                       1000000.0, np.nan, np.inf, -np.inf])  # fmt: skip
-    return np.concatenate([edges, bits, spread, powers, decimals, integers])
+    two = np.ldexp(1.0, np.arange(-1074, 1024))
+    boundaries = np.concatenate(
+        [
+            two,
+            np.nextafter(two, np.inf),
+            np.nextafter(two, 0.0),
+            [float(f"1e{k}") for k in range(-323, 309)],
+            np.arange(1, 2000, dtype=np.uint64).view(np.float64),
+        ]
+    )
+    return np.concatenate([edges, bits, spread, powers, decimals, integers, boundaries])
 
 
 def test_compiled_csv_fields_are_exactly_pythons_repr():
-    """Every float field of the compiled formatter (Grisu3 + repr's layout, repr where
-    Grisu3 gives up) is ``repr(value)``; integers are ``str``; texts the caller's."""
+    """Every float field of the compiled formatter (Schubfach digits in repr's layout) is
+    ``repr(value)``; integers are ``str``; texts the caller's."""
     from rubcli import csvtext
 
     values = _awkward_floats(40_000)
@@ -110,7 +122,7 @@ def test_compiled_csv_fields_are_exactly_pythons_repr():
     ints[:3] = [0, -(2**63), 2**63 - 1]
     names = np.array(["free", 'say "x", y', "slip+"] * (n // 3) + ["stick"] * (n % 3),
                      dtype=object)  # fmt: skip
-    data = csvtext.format_block([values, ints, names, -values], io.csv_field)
+    data = bytes(csvtext.format_block([values, ints, names, -values], io.csv_field))
     rows = data.decode("utf-8").split("\n")
     assert rows[-1] == "" and len(rows) == n + 1
     expected = [
@@ -123,7 +135,7 @@ def test_compiled_csv_fields_are_exactly_pythons_repr():
     np.testing.assert_array_equal(read_back, values)  # round trip, bit for bit
     # non-finite values take the caller's replacement
     data = csvtext.format_block([np.array([np.nan, 1.5, -np.inf])], io.csv_field, "")
-    assert data == b"\n1.5\n\n"
+    assert bytes(data) == b"\n1.5\n\n"
 
 
 def test_compiled_and_python_csv_writers_give_the_same_bytes(tmp_path, monkeypatch):
