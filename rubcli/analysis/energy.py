@@ -33,9 +33,11 @@ switch never fall inside a quadrature interval. On each interval between two nod
 (samples, or event states) the state is the cubic Hermite interpolant of the positions
 (from positions and velocities) and of the velocities (from velocities and
 accelerations, the accelerations from the equation of motion in the piece's regime);
-the powers are integrated on it with 3-point Gauss-Legendre. The rule is of order 4 in
-the node spacing ``h`` and needs no minimum number of nodes, so a contact shorter than
-the output spacing (two event states, no sample) still gets its friction work.
+each power is integrated as its own cubic Hermite interpolant, from its values and its
+rates at the nodes (the corrected trapezoid rule ``h/2 (P_k + P_k+1) + h^2/12 (P'_k -
+P'_k+1)``; the rates are central differences along the motion). The rule is of order 4
+in the node spacing ``h`` and needs no minimum number of nodes, so a contact shorter
+than the output spacing (two event states, no sample) still gets its friction work.
 
 **Residual.** ``energy_residual = |Delta E_mech - (W_in - D_damp - D_fric)| / throughput``
 with ``throughput = int |P_in| + D_damp + int |T r theta'| + max E_mech``, the energy that
@@ -44,12 +46,13 @@ no input still has a scale). An exact solution has a residual at quadrature leve
 (``O((omega h)^4)`` with ``omega`` the fastest frequency of the motion); a numerical
 solution adds its own violation of the balance, which grows with its error.
 ``quadrature_error`` estimates the quadrature's own share (same normalisation): the
-difference between the rule on every node and on every other node of each piece,
-divided by 15 (Richardson, order 4); for a piece with no interior sample, the difference
-from the trapezoid rule. **A residual is informative only when it is well above the
-quadrature error**: when the output samples do not resolve the motion (a stiff stator's
-contact oscillates with frequency ``~ sqrt(K)``; raise ``samples_per_period``), both are
-large and the residual says nothing about the solver.
+difference between the rule on every node and on every other node of each piece (with
+the same nodal powers and rates), divided by 15 (Richardson, order 4); for a piece with
+no interior sample, the difference from the trapezoid rule. **A residual is informative
+only when it is well above the quadrature error**: when the output samples do not
+resolve the motion (a stiff stator's contact oscillates with frequency ``~ sqrt(K)``;
+raise ``samples_per_period``), both are large and the residual says nothing about the
+solver.
 
 **Cost.** ``energy_balance`` and ``energy_totals`` run in one compiled pass over the
 nodes (``analysis.energy_kernel``), with the arithmetic of the whole-array numpy path
@@ -207,15 +210,11 @@ def powers(tau, states, params: model.ModelParams, regime: int) -> np.ndarray:
 # ---------------------------------------------------------------------------- quadrature
 
 
-def _interval_integrals(tau: np.ndarray, states: np.ndarray, params, regime: int) -> np.ndarray:
-    """Integrals of ``powers`` over each interval [tau_k, tau_k+1]: shape (n - 1, 7).
-
-    Corrected trapezoid rule (the integral of the cubic Hermite interpolant of each power):
-    ``h/2 (P_k + P_k+1) + h^2/12 (P'_k - P'_k+1)``. The rates ``P'`` are central
+def _node_powers_and_rates(tau: np.ndarray, states: np.ndarray, params, regime: int):
+    """The powers ``P`` at the nodes and their rates ``P'`` (both shape (n, 7)): central
     differences of the powers along the motion, ``s +- delta (v, a)``, with the
     accelerations of the piece's regime; ``delta`` is 1e-5 of the local node spacing.
-    The absolute-value columns (scales only) get the plain trapezoid rule.
-    """
+    The absolute-value columns (scales only) get no rate."""
     h = np.diff(tau)
     P = powers(tau, states, params, regime)
     rate = np.column_stack((states[:, 2:], accelerations(tau, states, params, regime)))
@@ -225,20 +224,28 @@ def _interval_integrals(tau: np.ndarray, states: np.ndarray, params, regime: int
     backward = powers(tau - delta[:, 0], states - delta * rate, params, regime)
     dP = (forward - backward) / (2.0 * delta)
     dP[:, [_ABS_IN, _ABS_FRIC]] = 0.0
+    return P, dP
+
+
+def _corrected_trapezoid(tau: np.ndarray, P: np.ndarray, dP: np.ndarray) -> np.ndarray:
+    """Integrals over each interval [tau_k, tau_k+1] (shape (n - 1, 7)) of the cubic
+    Hermite interpolant of each power: ``h/2 (P_k + P_k+1) + h^2/12 (P'_k - P'_k+1)``
+    (for the absolute-value columns, whose rates are zero, the plain trapezoid rule)."""
+    h = np.diff(tau)
     return 0.5 * h[:, None] * (P[:-1] + P[1:]) + (h * h / 12.0)[:, None] * (dP[:-1] - dP[1:])
 
 
-def _coarse_estimate(piece: Piece, fine: np.ndarray, params) -> np.ndarray:
-    """Estimated quadrature error of a piece's integrals (7 columns), see module docstring."""
+def _coarse_estimate(piece: Piece, fine: np.ndarray, P: np.ndarray, dP: np.ndarray) -> np.ndarray:
+    """Estimated quadrature error of a piece's integrals (7 columns), see module docstring:
+    the rule on every other node (and the last), with the same nodal powers and rates."""
     n = piece.tau.size
     if n >= 3:
         keep = np.arange(0, n, 2)
         if keep[-1] != n - 1:
             keep = np.append(keep, n - 1)
-        coarse = _interval_integrals(piece.tau[keep], piece.states[keep], params, piece.regime)
+        coarse = _corrected_trapezoid(piece.tau[keep], P[keep], dP[keep])
         return np.abs(fine.sum(axis=0) - coarse.sum(axis=0)) / RICHARDSON_FACTOR
-    values = powers(piece.tau, piece.states, params, piece.regime)
-    trapezoid = 0.5 * (values[0] + values[1]) * (piece.tau[1] - piece.tau[0])
+    trapezoid = 0.5 * (P[0] + P[1]) * (piece.tau[1] - piece.tau[0])
     return np.abs(fine.sum(axis=0) - trapezoid)
 
 
@@ -378,8 +385,9 @@ def energy_balance_numpy(solution: Solution) -> EnergyBalance:
     running = np.zeros(7)
     quad_error = 0.0
     for piece in pieces:
-        fine = _interval_integrals(piece.tau, piece.states, params, piece.regime)
-        quad_error += abs(float(_balance_combination(_coarse_estimate(piece, fine, params))))
+        P, dP = _node_powers_and_rates(piece.tau, piece.states, params, piece.regime)
+        fine = _corrected_trapezoid(piece.tau, P, dP)
+        quad_error += abs(float(_balance_combination(_coarse_estimate(piece, fine, P, dP))))
         sums = running + np.vstack((np.zeros(7), np.cumsum(fine, axis=0)))
         taus.append(piece.tau)
         states.append(piece.states)

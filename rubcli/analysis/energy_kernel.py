@@ -49,10 +49,10 @@ def _node(k, n, p, t, states, start_tau, start_state, end_tau, end_state, lo, ou
 
 
 @jit
-def _powers(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu, Rp, regime, out):
-    """``energy.powers`` of one state into out[0:7]."""
-    phase = eta * tau + phi0
-    p_in = E * (np.cos(phase) * vx + np.sin(phase) * vy)
+def _powers_at(c, s, tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu, Rp, regime, out):
+    """``energy.powers`` of one state into out[0:7], given c, s = cos, sin(eta tau + phi0)
+    and z = hypot(x, y) (used in contact only)."""
+    p_in = E * (c * vx + s * vy)
     out[_IN] = p_in
     out[_DAMP] = 2.0 * nu * (vx * vx + vy * vy)
     out[_ABS_IN] = abs(p_in)
@@ -62,7 +62,6 @@ def _powers(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu, Rp, regime, out):
         out[_SPIN] = 0.0
         out[_ABS_FRIC] = 0.0
         return
-    z = np.hypot(x, y)
     if regime == STICK:
         T = _stick_friction(tau, x, y, vx, vy, nu, eta, E, phi0)
     else:
@@ -76,20 +75,27 @@ def _powers(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu, Rp, regime, out):
 
 
 @jit
-def _accelerations(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu, regime):
-    """``energy.accelerations`` of one state: (ax, ay)."""
+def _powers(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu, Rp, regime, out):
+    """``energy.powers`` of one state into out[0:7]."""
     phase = eta * tau + phi0
-    ax = E * np.cos(phase) - 2.0 * nu * vx - x
-    ay = E * np.sin(phase) - 2.0 * nu * vy - y
+    z = np.hypot(x, y) if regime != FREE else 0.0
+    _powers_at(np.cos(phase), np.sin(phase), tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu,
+               Rp, regime, out)  # fmt: skip
+
+
+@jit
+def _accelerations(c, s, tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu, regime):
+    """``energy.accelerations`` of one state: (ax, ay), given c, s = cos, sin(eta tau +
+    phi0) and z = hypot(x, y)."""
+    ax = E * c - 2.0 * nu * vx - x
+    ay = E * s - 2.0 * nu * vy - y
     if regime == STICK:
-        z = np.hypot(x, y)
         normal = K * (z - 1.0) if z > 1.0 else 0.0
         tangential = _stick_friction(tau, x, y, vx, vy, nu, eta, E, phi0)
         ax = ax - (normal * x - tangential * y) / z
         ay = ay - (normal * y + tangential * x) / z
     elif regime != FREE:
         mu_c = mu * _friction_sign(regime)
-        z = np.hypot(x, y)
         factor = 1.0 - 1.0 / z if z > 1.0 else 0.0
         ax = ax + -K * factor * (x - mu_c * y)
         ay = ay + -K * factor * (y + mu_c * x)
@@ -98,11 +104,17 @@ def _accelerations(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu, regime):
 
 @jit
 def _power_and_rate(node, spacing, pv, regime, P, dP, shifted):
-    """Powers P at a node and their rates dP (central differences along the motion)."""
+    """Powers P at a node and their rates dP (central differences along the motion);
+    returns z = hypot(x, y) at the node. The phase's cos and sin and z are computed once
+    for the powers and the accelerations (the same values the two would compute)."""
     nu, eta, E, phi0, K, mu, Rp = pv[0], pv[1], pv[2], pv[3], pv[4], pv[5], pv[6]
     tau, x, y, vx, vy = node[0], node[1], node[2], node[3], node[4]
-    _powers(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu, Rp, regime, P)
-    ax, ay = _accelerations(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu, regime)
+    phase = eta * tau + phi0
+    c = np.cos(phase)
+    s = np.sin(phase)
+    z = np.hypot(x, y)
+    _powers_at(c, s, tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu, Rp, regime, P)
+    ax, ay = _accelerations(c, s, tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu, regime)
     delta = 1e-5 * spacing
     _powers(tau + delta, x + delta * vx, y + delta * vy, vx + delta * ax, vy + delta * ay,
             nu, eta, E, phi0, K, mu, Rp, regime, shifted)  # fmt: skip
@@ -114,68 +126,84 @@ def _power_and_rate(node, spacing, pv, regime, P, dP, shifted):
         dP[i] = (dP[i] - shifted[i]) / (2.0 * delta)
     dP[_ABS_IN] = 0.0
     dP[_ABS_FRIC] = 0.0
+    return z
 
 
 @jit
-def _piece_integrals(p, n, stride, t, states, bounds, pv, regime, totals, cum_out, offset):
-    """Integrals over piece p on every ``stride``-th node (and the last): their sum into
-    ``totals``; with ``cum_out`` (stride 1 only) the cumulative sums at each node, from
-    ``cum_out[offset]`` on, relative to the piece's start."""
+def _piece_pass(p, n, t, states, bounds, pv, regime, fine, coarse, cum_out, energy_out, offset,
+                running):  # fmt: skip
+    """Piece p (of n >= 2 nodes) in one walk over its nodes: the corrected-trapezoid
+    integrals on every node (``fine``) and on every other node and the last (``coarse``,
+    with the same nodal powers and rates), and the mechanical energy at each node. With
+    ``cum_out`` and ``energy_out`` of nonzero length the cumulative integrals (plus
+    ``running``, the sums of the pieces before) and the energies are stored from row
+    ``offset`` on. Returns the energy at the first and last node and its largest
+    magnitude."""
     start_tau, start_state, end_tau, end_state, lo = bounds
+    K = pv[4]
     prev = np.empty(5)
     cur = np.empty(5)
     nxt = np.empty(5)
     P_prev, dP_prev = np.empty(N_TERMS), np.empty(N_TERMS)
+    P_kept, dP_kept = np.empty(N_TERMS), np.empty(N_TERMS)
     P, dP, shifted = np.empty(N_TERMS), np.empty(N_TERMS), np.empty(N_TERMS)
-    local = np.zeros(N_TERMS)
+    for i in range(N_TERMS):
+        fine[i] = 0.0
+        coarse[i] = 0.0
     store = cum_out.shape[0] > 0
-    # the nodes k = 0, stride, 2 stride, ... and the last, n - 1 (no index array)
-    m = (n - 1) // stride + (1 if (n - 1) % stride == 0 else 2)
+    tau_kept = 0.0
+    energy_first = 0.0
+    energy_last = 0.0
+    energy_max = 0.0
     _node(0, n, p, t, states, start_tau, start_state, end_tau, end_state, lo, cur)
-    _node(min(stride, n - 1), n, p, t, states, start_tau, start_state, end_tau, end_state, lo,
-          nxt)  # fmt: skip
-    if store:
-        for i in range(N_TERMS):
-            cum_out[offset, i] = 0.0
-    for q in range(m):
-        h_prev = cur[0] - prev[0] if q > 0 else np.inf
-        h_next = nxt[0] - cur[0] if q < m - 1 else np.inf
-        _power_and_rate(cur, min(h_next, h_prev), pv, regime, P, dP, shifted)
-        if q > 0:
+    _node(1, n, p, t, states, start_tau, start_state, end_tau, end_state, lo, nxt)
+    for k in range(n):
+        h_prev = cur[0] - prev[0] if k > 0 else np.inf
+        h_next = nxt[0] - cur[0] if k < n - 1 else np.inf
+        z = _power_and_rate(cur, min(h_next, h_prev), pv, regime, P, dP, shifted)
+        if k > 0:
             h = h_prev
             for i in range(N_TERMS):
-                value = 0.5 * h * (P_prev[i] + P[i]) + (h * h / 12.0) * (dP_prev[i] - dP[i])
-                local[i] += value
-                if store:
-                    cum_out[offset + q, i] = local[i]
+                fine[i] += 0.5 * h * (P_prev[i] + P[i]) + (h * h / 12.0) * (dP_prev[i] - dP[i])
+        if k % 2 == 0 or k == n - 1:  # a node of the coarse rule
+            if k > 0:
+                h = cur[0] - tau_kept
+                for i in range(N_TERMS):
+                    coarse[i] += 0.5 * h * (P_kept[i] + P[i]) + (h * h / 12.0) * (
+                        dP_kept[i] - dP[i]
+                    )
+            tau_kept = cur[0]
+            for i in range(N_TERMS):
+                P_kept[i] = P[i]
+                dP_kept[i] = dP[i]
+        if n == 2 and k == 1:  # no interior node: the coarse rule is the plain trapezoid
+            span = end_tau[p] - start_tau[p]
+            for i in range(N_TERMS):
+                coarse[i] = 0.5 * (P_prev[i] + P[i]) * span
+        vx, vy = cur[3], cur[4]
+        kinetic = 0.5 * (vx * vx + vy * vy)
+        spring = 0.5 * z * z
+        stator = 0.5 * K * (z - 1.0) ** 2 if regime != FREE else 0.0
+        energy = kinetic + spring + stator
+        if k == 0:
+            energy_first = energy
+        energy_last = energy
+        energy_max = max(energy_max, abs(energy))
+        if store:
+            energy_out[offset + k, 0] = kinetic
+            energy_out[offset + k, 1] = spring
+            energy_out[offset + k, 2] = stator
+            for i in range(N_TERMS):
+                cum_out[offset + k, i] = fine[i] + running[i]
         for i in range(N_TERMS):
             P_prev[i] = P[i]
             dP_prev[i] = dP[i]
         for i in range(5):
             prev[i] = cur[i]
             cur[i] = nxt[i]
-        if q + 2 < m:
-            k = min((q + 2) * stride, n - 1)
-            _node(k, n, p, t, states, start_tau, start_state, end_tau, end_state, lo, nxt)
-    for i in range(N_TERMS):
-        totals[i] = local[i]
-
-
-@jit
-def _two_node_trapezoid(p, t, states, bounds, pv, regime, out):
-    """Plain trapezoid of the powers over a piece of two nodes (no interior sample)."""
-    start_tau, start_state, end_tau, end_state, lo = bounds
-    nu, eta, E, phi0, K, mu, Rp = pv[0], pv[1], pv[2], pv[3], pv[4], pv[5], pv[6]
-    a = np.empty(N_TERMS)
-    b = np.empty(N_TERMS)
-    node = np.empty(5)
-    _node(0, 2, p, t, states, start_tau, start_state, end_tau, end_state, lo, node)
-    _powers(node[0], node[1], node[2], node[3], node[4], nu, eta, E, phi0, K, mu, Rp, regime, a)
-    _node(1, 2, p, t, states, start_tau, start_state, end_tau, end_state, lo, node)
-    _powers(node[0], node[1], node[2], node[3], node[4], nu, eta, E, phi0, K, mu, Rp, regime, b)
-    span = end_tau[p] - start_tau[p]
-    for i in range(N_TERMS):
-        out[i] = 0.5 * (a[i] + b[i]) * span
+        if k + 2 < n:
+            _node(k + 2, n, p, t, states, start_tau, start_state, end_tau, end_state, lo, nxt)
+    return energy_first, energy_last, energy_max
 
 
 @jit
@@ -190,7 +218,6 @@ def balance_pass(t, states, regimes, start_tau, start_state, end_tau, end_state,
     ``energy_out`` of shape (nodes, 3) (else shape (0, ...)) the cumulative integrals and
     the kinetic, rotor-spring and stator energies at every node are written too.
     """
-    K = pv[4]
     bounds = (start_tau, start_state, end_tau, end_state, lo)
     running = np.zeros(N_TERMS)
     fine = np.zeros(N_TERMS)
@@ -199,41 +226,19 @@ def balance_pass(t, states, regimes, start_tau, start_state, end_tau, end_state,
     energy_first = 0.0
     energy_last = 0.0
     energy_max = 0.0
-    node = np.empty(5)
-    store = cum_out.shape[0] > 0
     offset = 0
     for p in range(regimes.size):
-        regime = regimes[p]
         n = hi[p] - lo[p] + 2
-        _piece_integrals(p, n, 1, t, states, bounds, pv, regime, fine, cum_out, offset)
-        if n >= 3:
-            _piece_integrals(p, n, 2, t, states, bounds, pv, regime, coarse, cum_out[:0],
-                             0)  # fmt: skip
-            for i in range(N_TERMS):
-                coarse[i] = abs(fine[i] - coarse[i]) / 15.0
-        else:
-            _two_node_trapezoid(p, t, states, bounds, pv, regime, coarse)
-            for i in range(N_TERMS):
-                coarse[i] = abs(fine[i] - coarse[i])
+        first, last, largest = _piece_pass(p, n, t, states, bounds, pv, regimes[p], fine, coarse,
+                                           cum_out, energy_out, offset, running)  # fmt: skip
+        divisor = 15.0 if n >= 3 else 1.0  # Richardson (order 4), or against the trapezoid
+        for i in range(N_TERMS):
+            coarse[i] = abs(fine[i] - coarse[i]) / divisor
         quad_sum += abs(coarse[_IN] - coarse[_DAMP] + coarse[_FRIC])
-        for k in range(n):
-            _node(k, n, p, t, states, start_tau, start_state, end_tau, end_state, lo, node)
-            x, y, vx, vy = node[1], node[2], node[3], node[4]
-            z = np.hypot(x, y)
-            kinetic = 0.5 * (vx * vx + vy * vy)
-            spring = 0.5 * z * z
-            stator = 0.5 * K * (z - 1.0) ** 2 if regime != FREE else 0.0
-            energy = kinetic + spring + stator
-            if p == 0 and k == 0:
-                energy_first = energy
-            energy_last = energy
-            energy_max = max(energy_max, abs(energy))
-            if store:
-                energy_out[offset + k, 0] = kinetic
-                energy_out[offset + k, 1] = spring
-                energy_out[offset + k, 2] = stator
-                for i in range(N_TERMS):
-                    cum_out[offset + k, i] += running[i]
+        if p == 0:
+            energy_first = first
+        energy_last = last
+        energy_max = max(energy_max, largest)
         for i in range(N_TERMS):
             running[i] += fine[i]
         offset += n
