@@ -410,7 +410,7 @@ def test_a_run_of_a_compiled_method_loads_no_scipy_integrator(tmp_path):
 
 def test_no_output_work_runs_beside_a_timed_solve(tmp_path, monkeypatch):
     """`rubcli run` solves every method alone (a method's reported time is its own) and
-    only then hands the CSVs to its background writer."""
+    only then hands its background thread the plotting import and the CSVs."""
     from rubcli import io
 
     log = []
@@ -431,5 +431,6 @@ def test_no_output_work_runs_beside_a_timed_solve(tmp_path, monkeypatch):
     assert result.exit_code == 0, result.output
     timed = [i for i, (kind, _) in enumerate(log) if kind == "solve"][-2:]  # (after start-up)
     background = [i for i, (kind, _) in enumerate(log) if kind == "background"]
-    assert len(background) == 2 and min(background) > max(timed)
+    assert min(background) > max(timed)
+    assert [log[i][1] for i in background] == ["import_module"] + ["write_solution_csv"] * 2
     assert (out / "dop853.csv").is_file() and (out / "rk45.csv").is_file()
