@@ -65,10 +65,13 @@ def penetration_bound(problem: Problem) -> float | None:
     return BOUND_FACTOR * max(initial, rolling, forced, 1.0 / (1.0 + p.K))
 
 
-def plausibility_warnings(solution: Solution, energy: dict[str, Any] | None) -> list[str]:
+def plausibility_warnings(
+    solution: Solution, energy: dict[str, Any] | None, penetration: float | None = None
+) -> list[str]:
     """Why a run that reports success should not be trusted (empty if nothing is wrong).
 
-    ``energy`` is ``EnergyBalance.summary()`` (None if it could not be computed).
+    ``energy`` is ``EnergyBalance.summary()`` (None if it could not be computed);
+    ``penetration`` the solution's ``max_penetration()`` if already computed.
     """
     if solution.status != SUCCESS:
         return []
@@ -89,7 +92,8 @@ def plausibility_warnings(solution: Solution, energy: dict[str, Any] | None) -> 
                 f"{ENERGY_RESIDUAL_LIMIT:g}, quadrature floor {floor:.2g})"
             )
     bound = penetration_bound(solution.problem)
-    penetration = solution.max_penetration()
+    if penetration is None:
+        penetration = solution.max_penetration()
     if bound is not None and not penetration <= bound:
         reasons.append(
             f"max penetration {penetration:.3g} clearances beyond the static bound {bound:.3g}"
@@ -119,7 +123,7 @@ def method_summary(solution: Solution, balance: Any = None) -> dict[str, Any]:
         else:
             energy = energy_totals(solution).summary()
         penetration = solution.max_penetration()
-    warnings = plausibility_warnings(solution, energy)
+    warnings = plausibility_warnings(solution, energy, penetration)
     return {
         "status": WARNING if warnings else solution.status,
         "solver_status": solution.status,
