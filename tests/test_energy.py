@@ -260,3 +260,26 @@ def test_energy_totals_need_no_memory_that_grows_with_the_samples():
         assert totals.relative_residual < 1e-9  # an exact free flight balances
     assert peaks[200_000] < 1.3 * peaks[20_000] + 100_000, peaks
     assert peaks[200_000] < 8 * 200_000  # less than one float per sample
+
+
+def test_work_of_the_unbalance_late_in_a_long_run_uses_exact_power_rates():
+    """W_in over 300 forcing periods of the Figure 3 machine with friction (rubbing,
+    tau up to ~2400) against the same corrected trapezoid with the power's rate written
+    out (dP_in/dtau = E (eta (-sin vx + cos vy) + cos ax + sin ay)): an independent rate.
+    The central differences must not lose the phase shift eta delta to the rounding of
+    eta (tau +- delta) late in the run (which cost 1.8e-9 relative here, 1e-10 now)."""
+    p = ModelParams(**FIG3, K=17.6, mu=0.02)
+    prob = Problem.from_periods(p, (0.88544, -0.8039, 0.0, 0.0), 300, 100)
+    sol = solve(prob, "dop853-jit", rtol=1e-8, atol=1e-10)
+    assert sol.status == SUCCESS and len(sol.events) > 10
+    expected = 0.0
+    for piece in solution_pieces(sol):
+        tau, S = piece.tau, piece.states
+        a = accelerations(tau, S, p, piece.regime)
+        c, s = np.cos(p.eta * tau + p.phi0), np.sin(p.eta * tau + p.phi0)
+        P = p.E * (c * S[:, 2] + s * S[:, 3])
+        dP = p.E * (p.eta * (-s * S[:, 2] + c * S[:, 3]) + c * a[:, 0] + s * a[:, 1])
+        h = np.diff(tau)
+        expected += np.sum(0.5 * h * (P[:-1] + P[1:]) + h * h / 12.0 * (dP[:-1] - dP[1:]))
+    assert energy_totals(sol).work_unbalance == pytest.approx(expected, rel=3e-10)
+    assert energy_balance_numpy(sol).work_unbalance[-1] == pytest.approx(expected, rel=3e-10)

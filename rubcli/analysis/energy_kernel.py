@@ -18,8 +18,12 @@ import numba
 import numpy as np
 
 from rubcli import model
+from rubcli.analysis.energy import DERIVATIVE_STEP, SMALL_SHIFT
 
 jit = numba.njit(cache=True, nogil=True)  # runs beside the CSV thread (io.Background)
+# The per-node helpers are inlined in numba's IR: called, each would count references to
+# every array it is handed (atomic increments and decrements, most of a node's cost).
+jit_inline = numba.njit(cache=True, nogil=True, inline="always")
 
 _stick_friction = jit(model.stick_friction_value)
 _friction_sign = jit(model.friction_sign)
@@ -30,7 +34,7 @@ _IN, _DAMP, _FRIC, _SLIP, _SPIN, _ABS_IN, _ABS_FRIC = range(7)
 N_TERMS = 7
 
 
-@jit
+@jit_inline
 def _node(k, n, p, t, states, start_tau, start_state, end_tau, end_state, lo, out):
     """Node k of piece p (of n nodes) into out[0:5] = tau, x, y, vx, vy."""
     if k == 0:
@@ -48,7 +52,7 @@ def _node(k, n, p, t, states, start_tau, start_state, end_tau, end_state, lo, ou
             out[1 + i] = states[j, i]
 
 
-@jit
+@jit_inline
 def _powers_at(c, s, tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu, Rp, regime, out):
     """``energy.powers`` of one state into out[0:7], given c, s = cos, sin(eta tau + phi0)
     and z = hypot(x, y) (used in contact only)."""
@@ -74,16 +78,16 @@ def _powers_at(c, s, tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu, Rp, regime, 
     out[_ABS_FRIC] = abs(T * whirl)
 
 
-@jit
-def _powers(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu, Rp, regime, out):
-    """``energy.powers`` of one state into out[0:7]."""
-    phase = eta * tau + phi0
+@jit_inline
+def _shifted_powers(c, s, tau, x, y, vx, vy, pv, regime, out):
+    """``energy.powers`` of one state (a node's shifted along the motion) into out[0:7],
+    given the cos and sin of its phase."""
+    nu, eta, E, phi0, K, mu, Rp = pv[0], pv[1], pv[2], pv[3], pv[4], pv[5], pv[6]
     z = np.hypot(x, y) if regime != FREE else 0.0
-    _powers_at(np.cos(phase), np.sin(phase), tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu,
-               Rp, regime, out)  # fmt: skip
+    _powers_at(c, s, tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu, Rp, regime, out)
 
 
-@jit
+@jit_inline
 def _accelerations(c, s, tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu, regime):
     """``energy.accelerations`` of one state: (ax, ay), given c, s = cos, sin(eta tau +
     phi0) and z = hypot(x, y)."""
@@ -102,7 +106,7 @@ def _accelerations(c, s, tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu, regime):
     return ax, ay
 
 
-@jit
+@jit_inline
 def _power_and_rate(node, spacing, pv, regime, P, dP, shifted):
     """Powers P at a node and their rates dP (central differences along the motion);
     returns z = hypot(x, y) at the node. The phase's cos and sin and z are computed once
@@ -115,13 +119,22 @@ def _power_and_rate(node, spacing, pv, regime, P, dP, shifted):
     z = np.hypot(x, y)
     _powers_at(c, s, tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu, Rp, regime, P)
     ax, ay = _accelerations(c, s, tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu, regime)
-    delta = 1e-5 * spacing
-    _powers(tau + delta, x + delta * vx, y + delta * vy, vx + delta * ax, vy + delta * ay,
-            nu, eta, E, phi0, K, mu, Rp, regime, shifted)  # fmt: skip
+    delta = DERIVATIVE_STEP * spacing
+    a = eta * delta  # the phase at tau +- delta: the node's rotated by +-a (energy.shift_rotation)
+    if abs(a) < SMALL_SHIFT:
+        ca = 1.0 - 0.5 * a * a
+        sa = a * (1.0 - a * a / 6.0)
+    else:
+        ca = np.cos(a)
+        sa = np.sin(a)
+    _shifted_powers(c * ca - s * sa, s * ca + c * sa, tau + delta, x + delta * vx,
+                    y + delta * vy, vx + delta * ax, vy + delta * ay, pv, regime,
+                    shifted)  # fmt: skip
     for i in range(N_TERMS):
         dP[i] = shifted[i]
-    _powers(tau - delta, x - delta * vx, y - delta * vy, vx - delta * ax, vy - delta * ay,
-            nu, eta, E, phi0, K, mu, Rp, regime, shifted)  # fmt: skip
+    _shifted_powers(c * ca + s * sa, s * ca - c * sa, tau - delta, x - delta * vx,
+                    y - delta * vy, vx - delta * ax, vy - delta * ay, pv, regime,
+                    shifted)  # fmt: skip
     for i in range(N_TERMS):
         dP[i] = (dP[i] - shifted[i]) / (2.0 * delta)
     dP[_ABS_IN] = 0.0
