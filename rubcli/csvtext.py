@@ -343,7 +343,10 @@ FLOAT, INT, TEXT = 0, 1, 2
 
 def column_kind(column: object) -> int | None:
     """How ``format_block`` formats a column (FLOAT, INT, TEXT), or None if it cannot.
-    An object column is TEXT only if its values are all ``str`` (``format_block`` checks)."""
+    An object column is TEXT only if its values are all ``str`` (``format_block`` checks);
+    so is a coded one (``io.Labels``: integer ``codes`` and the text ``names[code]``)."""
+    if hasattr(column, "codes") and hasattr(column, "names"):
+        return TEXT
     if not isinstance(column, np.ndarray) or column.ndim != 1:
         return None
     if column.dtype.kind == "f":
@@ -355,6 +358,18 @@ def column_kind(column: object) -> int | None:
     if column.dtype.kind in "OU":
         return TEXT
     return None
+
+
+def _coded_rows(codes: np.ndarray, names, encoded: dict[object, int]) -> np.ndarray:
+    """The table row of each code's text (``names[code]``), adding the texts to
+    ``encoded``; ValueError for a code without a name."""
+    keys = np.array(sorted(names), dtype=np.int64)
+    codes = np.asarray(codes, dtype=np.int64)
+    position = np.clip(np.searchsorted(keys, codes), 0, max(0, keys.size - 1))
+    if codes.size and (keys.size == 0 or not np.array_equal(keys[position], codes)):
+        raise ValueError("a coded text column has a code without a name")
+    rows = np.array([encoded.setdefault(names[k], len(encoded)) for k in keys.tolist()])
+    return rows[position] if codes.size else np.zeros(0, dtype=np.int64)
 
 
 def format_block(columns, text_field, nonfinite: str | None = None) -> bytes | memoryview | None:
@@ -379,6 +394,9 @@ def format_block(columns, text_field, nonfinite: str | None = None) -> bytes | m
     texts = np.empty((len(text_cols), n), dtype=np.int64)
     encoded: dict[object, int] = {}
     for i, c in enumerate(text_cols):
+        if hasattr(c, "names"):  # coded: no Python string per row
+            texts[i] = _coded_rows(c.codes, c.names, encoded)
+            continue
         values = c.tolist()
         try:
             distinct = set(values)

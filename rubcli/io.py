@@ -39,7 +39,7 @@ import signal
 import sys
 import tempfile
 import threading
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures import wait as wait_for
 from dataclasses import dataclass, field
@@ -128,8 +128,9 @@ def write_text(path: str | Path, text: str) -> Path:
 
 def solution_columns(
     solution: Solution, scale: units.PhysicalScale | None = None
-) -> dict[str, np.ndarray]:
-    """The CSV columns of a solution, in order (``CSV_COLUMNS`` + physical ones if scaled)."""
+) -> dict[str, np.ndarray | Labels]:
+    """The CSV columns of a solution, in order (``CSV_COLUMNS`` + physical ones if scaled);
+    ``regime_name`` as ``Labels`` (the regime codes and their names)."""
     columns: dict[str, np.ndarray] = {
         "tau": solution.t,
         "x": solution.x,
@@ -159,12 +160,23 @@ def solution_columns(
     return columns
 
 
-def _regime_names(regimes: np.ndarray) -> np.ndarray:
-    codes = np.asarray(regimes, dtype=int)
-    names = np.empty(codes.shape, dtype=object)
-    for code, name in REGIME_NAMES.items():
-        names[codes == code] = name
-    return names
+@dataclass(frozen=True)
+class Labels:
+    """A text column given as integer codes and the text of each code (a solution CSV's
+    regime names): the compiled formatter writes it with no Python string per row."""
+
+    codes: np.ndarray
+    names: Mapping[int, str]
+
+    def __len__(self) -> int:
+        return len(self.codes)
+
+    def tolist(self) -> list[str]:
+        return [self.names[code] for code in np.asarray(self.codes).tolist()]
+
+
+def _regime_names(regimes: np.ndarray) -> Labels:
+    return Labels(np.asarray(regimes, dtype=np.int64), REGIME_NAMES)
 
 
 def solution_blocks(
@@ -198,13 +210,22 @@ def write_solution_csv(
     scale: units.PhysicalScale | None = None,
     *,
     on_rows: Callable[[int], None] | None = None,
+    blocks: SharedBlocks | None = None,
 ) -> Path:
     """One row per output sample, streamed in blocks; floats in shortest round-trip form
     (``repr``: exact), non-finite values as ``nan``/``inf``. ``on_rows(done)`` reports
-    progress after each block."""
-    return write_csv(
-        path, solution_header(scale), solution_blocks(solution, scale), on_rows=on_rows
-    )
+    progress after each block. ``blocks``: the solution's blocks as ``shared_solution_blocks``
+    made them, for other threads to help format."""
+    if blocks is None:
+        blocks = solution_blocks(solution, scale)
+    return write_csv(path, solution_header(scale), blocks, on_rows=on_rows)
+
+
+def shared_solution_blocks(
+    solution: Solution, scale: units.PhysicalScale | None = None
+) -> SharedBlocks:
+    """A solution's CSV blocks, to be formatted by any thread (``SharedBlocks``)."""
+    return SharedBlocks(solution_blocks(solution, scale), len(solution_header(scale)))
 
 
 # ------------------------------------------------------------------------------ CSV
@@ -232,6 +253,8 @@ def csv_field(value: object, nonfinite: str | None = None) -> str:
 
 def _column_texts(column: Sequence[object] | np.ndarray, nonfinite: str | None) -> list[str]:
     """The fields of one column (fast paths for float and integer arrays)."""
+    if isinstance(column, Labels):
+        column = np.array(column.tolist(), dtype=object)
     if isinstance(column, np.ndarray) and column.dtype.kind == "f":
         texts = [repr(v) for v in column.astype(float, copy=False).tolist()]
         if nonfinite is not None:
@@ -262,7 +285,7 @@ def rows_to_block(rows: Iterable[Sequence[object]], width: int) -> list[list[obj
 def write_csv(
     path: str | Path,
     header: Sequence[str],
-    blocks: Iterable[Sequence[Sequence[object] | np.ndarray]],
+    blocks: Iterable[Sequence[Sequence[object] | np.ndarray]] | SharedBlocks,
     *,
     nonfinite: str | None = None,
     on_rows: Callable[[int], None] | None = None,
@@ -272,26 +295,134 @@ def write_csv(
     The one CSV writer of rubcli. ``blocks`` yields lists of columns (numpy arrays or
     lists, one per header name, of equal length); they are formatted and written one block
     at a time, so the text of a large table is never held whole. ``nonfinite`` replaces
-    NaN/inf (default: written as ``nan``/``inf``); None is an empty field.
+    NaN/inf (default: written as ``nan``/``inf``); None is an empty field. ``blocks`` may
+    be a ``SharedBlocks`` (its own ``nonfinite`` then applies): other threads may format
+    its blocks ahead while this one writes them, in order.
     """
     width = len(header)
     done = 0
+    if isinstance(blocks, SharedBlocks):
+        if blocks.width != width:
+            raise ValueError(f"the shared blocks have {blocks.width} columns, the header {width}")
+        formatted: Iterable[tuple[int, Any]] = blocks.in_order()
+    else:
+        formatted = (_formatted_block(block, width, nonfinite) for block in blocks)
     with atomic_path(path) as tmp, open(tmp, "wb") as handle:
         handle.write((",".join(csv_field(h) for h in header) + "\n").encode("utf-8"))
-        for block in blocks:
-            if len(block) != width:
-                raise ValueError(f"a CSV block has {len(block)} columns, the header {width}")
-            lengths = {len(column) for column in block}
-            if len(lengths) > 1:
-                raise ValueError(f"CSV columns of unequal length {sorted(lengths)}")
-            rows = lengths.pop() if lengths else 0
+        for rows, data in formatted:
             if rows == 0:
                 continue
-            handle.write(_block_bytes(block, rows, nonfinite))
+            handle.write(data)
             done += rows
             if on_rows is not None:
                 on_rows(done)
     return Path(path)
+
+
+def _formatted_block(block: Sequence[Sequence[object] | np.ndarray], width: int,
+                     nonfinite: str | None) -> tuple[int, bytes | memoryview | None]:  # fmt: skip
+    """``(rows, text)`` of one block of columns, checked against the header's width."""
+    if len(block) != width:
+        raise ValueError(f"a CSV block has {len(block)} columns, the header {width}")
+    lengths = {len(column) for column in block}
+    if len(lengths) > 1:
+        raise ValueError(f"CSV columns of unequal length {sorted(lengths)}")
+    rows = lengths.pop() if lengths else 0
+    return rows, (_block_bytes(block, rows, nonfinite) if rows else None)
+
+
+class SharedBlocks:
+    """The blocks of one CSV, formatted by whichever thread has nothing else to do and
+    written in order by ``write_csv``.
+
+    ``rubcli run``'s background thread writes a solution's CSV while the main thread draws
+    the figures; when the main thread is done it calls ``work`` (through
+    ``Background.wait``) and formats blocks ahead of the writer instead of waiting (the
+    formatter releases the GIL, so the two run on two cores). At most ``AHEAD`` formatted
+    blocks wait to be written (about 10 MB each). A block that fails to format fails the
+    writer with the same exception; a thread stopped by a signal while formatting makes
+    the writer stop too (``Cancelled``), so nothing waits for a block that never comes.
+    """
+
+    AHEAD = 2
+
+    def __init__(self, blocks: Iterable[Sequence[Sequence[object] | np.ndarray]], width: int,
+                 nonfinite: str | None = None) -> None:  # fmt: skip
+        self.width = width
+        self.nonfinite = nonfinite
+        self._blocks = iter(blocks)
+        self._ready: dict[int, tuple[int, Any]] = {}
+        self._claimed = 0  # blocks taken from the iterator so far
+        self._exhausted = False
+        self._error: BaseException | None = None
+        self._changed = threading.Condition()
+
+    def _claim(self) -> tuple[int, Any] | None:
+        """The next block to format, with its index (None if there is none to take now)."""
+        with self._changed:
+            if self._exhausted or self._error is not None or len(self._ready) >= self.AHEAD:
+                return None
+            try:
+                block = next(self._blocks)
+            except StopIteration:
+                self._exhausted = True
+                self._changed.notify_all()
+                return None
+            except BaseException as exc:
+                self._fail(exc)
+                raise
+            index = self._claimed
+            self._claimed += 1
+            return index, block
+
+    def _fail(self, exc: BaseException) -> None:
+        with self._changed:
+            if self._error is None:
+                self._error = exc if isinstance(exc, Exception) else Cancelled()
+            self._changed.notify_all()
+
+    def work(self) -> bool:
+        """Format one block not yet taken; False if there was none to take (all taken, too
+        many waiting, or a failure). An exception is kept for the writer, not raised,
+        unless it is a signal's (then the writer is told to stop and it propagates)."""
+        claim = self._claim()
+        if claim is None:
+            return False
+        index, block = claim
+        try:
+            result = _formatted_block(block, self.width, self.nonfinite)
+        except Exception as exc:  # noqa: BLE001 - the writer raises it
+            self._fail(exc)
+            return False
+        except BaseException as exc:
+            self._fail(exc)
+            raise
+        with self._changed:
+            self._ready[index] = result
+            self._changed.notify_all()
+        return True
+
+    def in_order(self) -> Iterator[tuple[int, Any]]:
+        """``(rows, text)`` of every block in order (the writer): it formats blocks itself
+        and waits only for a block another thread is formatting."""
+        index = 0
+        while True:
+            with self._changed:
+                if self._error is not None:
+                    raise self._error
+                result = self._ready.pop(index, None)
+                if result is None and self._exhausted and index >= self._claimed:
+                    return
+                if result is not None:
+                    self._changed.notify_all()  # room ahead again
+            if result is not None:
+                yield result
+                index += 1
+            elif not self.work():
+                with self._changed:
+                    elsewhere = not (self._exhausted and index >= self._claimed)
+                    if index not in self._ready and self._error is None and elsewhere:
+                        self._changed.wait()  # block ``index`` is being formatted elsewhere
 
 
 def _block_bytes(block: Sequence[Sequence[object] | np.ndarray], rows: int,
@@ -300,7 +431,7 @@ def _block_bytes(block: Sequence[Sequence[object] | np.ndarray], rows: int,
     ``CSV_COMPILED_MIN_ROWS`` rows or more whose columns are numpy arrays are formatted by
     compiled code (``rubcli.csvtext``: the same text, about 10x faster); the others
     here."""
-    if rows >= CSV_COMPILED_MIN_ROWS and all(isinstance(c, np.ndarray) for c in block):
+    if rows >= CSV_COMPILED_MIN_ROWS and all(isinstance(c, np.ndarray | Labels) for c in block):
         from rubcli import csvtext
 
         data = csvtext.format_block(list(block), csv_field, nonfinite)
@@ -609,10 +740,13 @@ class Background:
         self._jobs: list[tuple[Future, str | None, float, list[float]]] = []
 
     def submit(self, fn: Callable[..., Any], *args: Any, progress: tuple[str, float] | None
-               = None, **kwargs: Any) -> Future:  # fmt: skip
+               = None, helper: Callable[[], bool] | None = None,
+               **kwargs: Any) -> Future:  # fmt: skip
         """Run ``fn(*args, **kwargs)`` in the worker. With ``progress = (label, total)``,
         ``fn`` also gets ``on_rows=`` (``write_csv``'s callback), which records the work
-        done for ``wait``'s progress bar and stops the job when the command is leaving."""
+        done for ``wait``'s progress bar and stops the job when the command is leaving.
+        ``helper``: a piece of the job the waiting thread may do itself (it returns False
+        when there is none left to take: ``SharedBlocks.work``)."""
         done = [0.0]
         if progress is not None:
 
@@ -624,20 +758,29 @@ class Background:
             kwargs["on_rows"] = on_rows
         future = self._pool.submit(fn, *args, **kwargs)
         label, total = progress if progress is not None else (None, 0.0)
-        self._jobs.append((future, label, total, done))
+        self._jobs.append((future, label, total, done, helper))
         return future
 
     def wait(self, bar: Callable[[str, float], Any] | None = None) -> None:
-        """Wait for every job, in order; a job still running shows ``bar(label, total)``
-        (a context manager yielding ``update(done)``, as ``console.progress_bar``).
-        Re-raises the first failed job's exception."""
-        for future, label, total, done in self._jobs:
+        """Wait for every job, in order, doing the pieces of it the job offers (``helper``)
+        meanwhile; a job still running shows ``bar(label, total)`` (a context manager
+        yielding ``update(done)``, as ``console.progress_bar``). Re-raises the first
+        failed job's exception."""
+        for future, label, total, done, helper in self._jobs:
             if not future.done() and bar is not None and label is not None:
                 with bar(label, total) as update:
-                    while not wait_for([future], timeout=self.POLL_S).done:
-                        update(done[0])
+                    self._help_until_done(future, helper, lambda u=update, d=done: u(d[0]))
                     update(total)
+            elif not future.done():
+                self._help_until_done(future, helper, lambda: None)
             future.result()
+
+    def _help_until_done(self, future: Future, helper: Callable[[], bool] | None,
+                         report: Callable[[], Any]) -> None:  # fmt: skip
+        while not future.done():
+            if helper is None or not helper():
+                wait_for([future], timeout=self.POLL_S)
+            report()
 
     def __enter__(self) -> Background:
         return self

@@ -229,3 +229,105 @@ def test_background_wait_shows_the_progress_of_a_running_job():
         background.submit(job, progress=("a.csv", 20.0))
         background.wait(bar)
     assert seen[0] == ("a.csv", 20.0) and seen[-1] == 20.0
+
+
+def _labelled_blocks(n_blocks: int, rows: int, seed: int = 11):
+    """Blocks of a float, an integer and a coded text column (``io.Labels``)."""
+    rng = np.random.default_rng(seed)
+    names = {-1: "slip-", 0: "free", 1: "slip+", 2: 'say "x", y'}
+    return [[rng.standard_normal(rows), np.arange(rows) + b * rows,
+             io.Labels(rng.integers(-1, 3, rows), names)] for b in range(n_blocks)]  # fmt: skip
+
+
+def test_coded_text_columns_give_the_texts_of_their_codes(tmp_path, monkeypatch):
+    """A ``Labels`` column (the regime names of a solution CSV) is written as the text of
+    each code, quoted as any text, the same by the compiled and the Python formatter; a
+    code without a name is refused."""
+    from rubcli import csvtext
+
+    blocks = _labelled_blocks(2, 1500)
+    io.write_csv(tmp_path / "compiled.csv", ["v", "i", "name"], blocks)
+    monkeypatch.setattr(io, "CSV_COMPILED_MIN_ROWS", 10**9)
+    io.write_csv(tmp_path / "python.csv", ["v", "i", "name"], blocks)
+    compiled = (tmp_path / "compiled.csv").read_bytes()
+    assert compiled == (tmp_path / "python.csv").read_bytes()
+    lines = compiled.decode().splitlines()[1:]
+    expected = [io.csv_field(blocks[b][2].names[int(c)]) for b in range(2)
+                for c in blocks[b][2].codes]  # fmt: skip
+    assert [line.split(",", 2)[2] for line in lines] == expected
+    with pytest.raises(ValueError, match="without a name"):
+        csvtext.format_block([io.Labels(np.array([0, 5] * 600), {0: "a"})], io.csv_field)
+
+
+def test_shared_blocks_formatted_by_two_threads_are_written_in_order(tmp_path):
+    """``SharedBlocks``: a helper thread formats blocks ahead while ``write_csv`` writes
+    them; the file is the one a single thread writes, whoever formatted which block."""
+    import threading
+
+    blocks = _labelled_blocks(24, 2000, seed=3)
+    header = ["v", "i", "name"]
+    io.write_csv(tmp_path / "alone.csv", header, blocks)
+    shared = io.SharedBlocks(blocks, width=3)
+    helped = []
+    start = threading.Event()
+
+    def helper():
+        start.wait(5.0)
+        while shared.work():
+            helped.append(1)
+
+    thread = threading.Thread(target=helper)
+    thread.start()
+    start.set()
+    io.write_csv(tmp_path / "shared.csv", header, shared)
+    thread.join(5.0)
+    assert (tmp_path / "shared.csv").read_bytes() == (tmp_path / "alone.csv").read_bytes()
+    # the helper may lose every race on a busy machine; formatting ahead first it cannot
+    ahead = io.SharedBlocks(blocks, width=3)
+    assert all(ahead.work() for _ in range(ahead.AHEAD)) and not ahead.work()  # AHEAD wait
+    io.write_csv(tmp_path / "ahead.csv", header, ahead)
+    assert (tmp_path / "ahead.csv").read_bytes() == (tmp_path / "alone.csv").read_bytes()
+
+
+def test_shared_blocks_a_failed_block_fails_the_writer(tmp_path):
+    """A block that fails to format in the helper fails ``write_csv`` with its error (no
+    writer waits for it forever), and the staged file is not left behind."""
+    blocks = _labelled_blocks(3, 1200)
+    blocks[1] = blocks[1][:2]  # a block with a column missing
+    shared = io.SharedBlocks(blocks, width=3)
+    assert shared.work()  # block 0
+    assert not shared.work()  # block 1 fails: kept for the writer
+    assert not shared.work()  # and nothing more is taken
+    with pytest.raises(ValueError, match="2 columns"):
+        io.write_csv(tmp_path / "t.csv", ["v", "i", "name"], shared)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_background_wait_helps_a_job_that_offers_work(tmp_path):
+    """``Background.wait`` does the pieces a job offers (``helper``) instead of idling:
+    the CSV's blocks are formatted by the waiting thread too, and the file is complete."""
+    import threading
+
+    blocks = _labelled_blocks(12, 2000, seed=5)
+    header = ["v", "i", "name"]
+    io.write_csv(tmp_path / "alone.csv", header, blocks)
+    shared = io.SharedBlocks(blocks, width=3)
+    waiting = threading.get_ident()
+    helpers = []
+
+    def work():
+        helpers.append(threading.get_ident())
+        return shared.work()
+
+    gate = threading.Event()
+
+    def write(path, on_rows):
+        gate.wait(5.0)  # the waiting thread starts first: it must get blocks to format
+        return io.write_csv(path, header, shared, on_rows=on_rows)
+
+    with io.Background() as background:
+        background.submit(write, tmp_path / "shared.csv", progress=("x", 24000.0), helper=work)
+        threading.Timer(0.3, gate.set).start()
+        background.wait()
+    assert waiting in helpers
+    assert (tmp_path / "shared.csv").read_bytes() == (tmp_path / "alone.csv").read_bytes()

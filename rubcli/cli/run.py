@@ -189,8 +189,10 @@ def write_csvs_in_background(
         return
     for solution in solutions:
         name = f"{solution.method}.csv"
+        blocks = io.shared_solution_blocks(solution, case.scale)  # the main thread helps
         background.submit(io.write_solution_csv, staged.path(name), solution, case.scale,
-                          progress=(f"{name:<12}", float(solution.t.size)))  # fmt: skip
+                          blocks=blocks, progress=(f"{name:<12}", float(solution.t.size)),
+                          helper=blocks.work)  # fmt: skip
 
 
 def write_outputs(
