@@ -432,5 +432,5 @@ def test_no_output_work_runs_beside_a_timed_solve(tmp_path, monkeypatch):
     timed = [i for i, (kind, _) in enumerate(log) if kind == "solve"][-2:]  # (after start-up)
     background = [i for i, (kind, _) in enumerate(log) if kind == "background"]
     assert min(background) > max(timed)
-    assert [log[i][1] for i in background] == ["import_module"] + ["write_solution_csv"] * 2
+    assert [log[i][1] for i in background] == ["_import_plotting"] + ["write_solution_csv"] * 2
     assert (out / "dop853.csv").is_file() and (out / "rk45.csv").is_file()

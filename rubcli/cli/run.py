@@ -32,6 +32,7 @@ and moved into place at the end.
 from __future__ import annotations
 
 import contextlib
+import gc
 import importlib
 import math
 import time
@@ -174,7 +175,12 @@ def import_plotting_in_background(case: Case, background: io.Background) -> None
     computes the report entries, whose compiled energy balance releases the GIL; when it
     reaches the figures the import is done (or it waits for it at the import lock)."""
     if case.settings.output.plots:
-        background.submit(importlib.import_module, "rubcli.plotting.run")
+        background.submit(_import_plotting)
+
+
+def _import_plotting() -> None:
+    importlib.import_module("rubcli.plotting.run")
+    gc.freeze()  # matplotlib's modules, as the other imports (``_run``)
 
 
 def write_csvs_in_background(
@@ -406,6 +412,9 @@ def _run(
     # Solved first, every method alone (its timing is its own); then the plotting modules
     # are imported and the CSVs written in the background while the report entries are
     # computed and the figures drawn.
+    # What the imports made lives as long as the process: out of the cyclic collector's
+    # full passes (they would walk numba's and the modules' objects again and again).
+    gc.freeze()
     with io.staged_output_dir(case.output_dir, plan) as staged, io.Background() as background:
         startup = start_up(case)
         if startup > 0.05:
