@@ -368,9 +368,6 @@ class SharedBlocks:
                 self._exhausted = True
                 self._changed.notify_all()
                 return None
-            except BaseException as exc:
-                self._fail(exc)
-                raise
             index = self._claimed
             self._claimed += 1
             return index, block
@@ -385,11 +382,11 @@ class SharedBlocks:
         """Format one block not yet taken; False if there was none to take (all taken, too
         many waiting, or a failure). An exception is kept for the writer, not raised,
         unless it is a signal's (then the writer is told to stop and it propagates)."""
-        claim = self._claim()
-        if claim is None:
-            return False
-        index, block = claim
-        try:
+        try:  # from the claim on: a block taken is either stored or its failure is
+            claim = self._claim()
+            if claim is None:
+                return False
+            index, block = claim
             result = _formatted_block(block, self.width, self.nonfinite)
         except Exception as exc:  # noqa: BLE001 - the writer raises it
             self._fail(exc)
@@ -737,7 +734,9 @@ class Background:
     def __init__(self) -> None:
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="rubcli-output")
         self._cancel = threading.Event()
-        self._jobs: list[tuple[Future, str | None, float, list[float]]] = []
+        self._jobs: list[
+            tuple[Future, str | None, float, list[float], Callable[[], bool] | None]
+        ] = []
 
     def submit(self, fn: Callable[..., Any], *args: Any, progress: tuple[str, float] | None
                = None, helper: Callable[[], bool] | None = None,

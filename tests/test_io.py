@@ -302,6 +302,16 @@ def test_shared_blocks_a_failed_block_fails_the_writer(tmp_path):
         io.write_csv(tmp_path / "t.csv", ["v", "i", "name"], shared)
     assert list(tmp_path.iterdir()) == []
 
+    def failing():  # the blocks' source itself fails (e.g. a column cannot be computed)
+        yield _labelled_blocks(1, 1200)[0]
+        raise RuntimeError("no second block")
+
+    shared = io.SharedBlocks(failing(), width=3)
+    assert shared.work() and not shared.work()
+    with pytest.raises(RuntimeError, match="no second block"):
+        io.write_csv(tmp_path / "t.csv", ["v", "i", "name"], shared)
+    assert list(tmp_path.iterdir()) == []
+
 
 def test_background_wait_helps_a_job_that_offers_work(tmp_path):
     """``Background.wait`` does the pieces a job offers (``helper``) instead of idling:
