@@ -21,6 +21,7 @@ from rubcli.plotting.run import _message_box, _new_figure
 from rubcli.solution import Solution
 
 RESIDUAL_BOTTOM = 1e-18  # the residual axis never reaches below this (relative)
+SPIN_HEADROOM = 1.8  # the spin-drive axis spans this many times its curve's range
 
 
 def residual_limits(relative: np.ndarray, quadrature_error: float) -> tuple[float, float]:
@@ -87,8 +88,13 @@ def energy_figure(
             # the work of the spin on the contact is not in the balance and can be 10-100x
             # its terms: on its own axis, so that it does not flatten them
             spin = terms.twinx()
-            spin.plot(*display.envelope(tau, k * balance.spin_drive), color="tab:red", lw=0.8,
+            spin.plot(*display.envelope(tau, k * balance.spin_drive), color="tab:red", lw=1.2,
                       ls=":", label="spin drive T Rp eta (right axis)")  # fmt: skip
+            # Both axes autoscale and the spin drive grows like W_in: its own range would lay
+            # it on W_in's curve. Its axis reaches to SPIN_HEADROOM times its extent, so it
+            # runs through the middle of the panel instead.
+            low, high = spin.get_ylim()
+            spin.set_ylim(low, low + SPIN_HEADROOM * (high - low))
             spin.set_ylabel(f"spin drive ({unit_name})", color="tab:red", fontsize="small")
             spin.tick_params(axis="y", colors="tab:red", labelsize="small")
             handles, labels = terms.get_legend_handles_labels()
