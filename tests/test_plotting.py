@@ -351,3 +351,27 @@ def test_spectrum_of_a_short_record_beside_a_large_static_offset():
     spectrum = steady_spectrum(sol)
     assert spectrum is not None and spectrum.direction == FORWARD
     assert abs(spectrum.dominant_order - 1.2) <= spectrum.resolution / FIG3A.eta
+
+
+def test_energy_figure_keeps_the_spin_drive_off_the_work_of_the_unbalance():
+    """With friction the spin drive (its own right-hand axis) rises about like W_in; on an
+    axis of its own range the two curves coincided. Its axis spans 1.8 times its range:
+    its curve ends near the middle of the panel while W_in's reaches the top."""
+    from rubcli.analysis.energy import energy_balance
+    from rubcli.plotting.energy import energy_figure
+    from rubcli.solvers import solve
+
+    params = model.ModelParams(nu=0.009478, eta=0.7818, e=7.52, K=17.6, mu=0.05, Rp=46.16)
+    problem = Problem.from_periods(params, (0.88544, -0.8039, 0.0, 0.0), 30, 50)
+    sol = solve(problem, "dop853-jit", rtol=1e-9, atol=1e-11)
+    fig = energy_figure([sol], [energy_balance(sol)], "t")
+    terms = fig.axes[0]
+    (spin,) = [ax for ax in fig.axes if ax.get_ylabel().startswith("spin drive")]
+
+    def top(ax, label):  # the curve's largest value as a fraction of its axis
+        (line,) = [ln for ln in ax.get_lines() if ln.get_label().startswith(label)]
+        low, high = ax.get_ylim()
+        return (np.nanmax(line.get_ydata()) - low) / (high - low)
+
+    assert top(terms, "W_in") > 0.85
+    assert top(spin, "spin drive") < 0.7
