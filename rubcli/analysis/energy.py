@@ -279,7 +279,7 @@ def _kernel_inputs(solution: Solution):
     b = piece_bounds(solution)
     t = np.ascontiguousarray(solution.t, dtype=float)
     states = np.ascontiguousarray(solution.states, dtype=float)
-    pv = np.array(model.params_vector(solution.problem.params), dtype=float)
+    pv = np.array([*model.params_vector(solution.problem.params), DERIVATIVE_STEP, SMALL_SHIFT])
     return b, (t, states, b.regime, b.start_tau, b.start_state, b.end_tau, b.end_state,
                b.lo, b.hi, pv)  # fmt: skip
 

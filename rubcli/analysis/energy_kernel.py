@@ -18,7 +18,6 @@ import numba
 import numpy as np
 
 from rubcli import model
-from rubcli.analysis.energy import DERIVATIVE_STEP, SMALL_SHIFT
 
 jit = numba.njit(cache=True, nogil=True)  # runs beside the CSV thread (io.Background)
 # The per-node helpers are inlined in numba's IR: called, each would count references to
@@ -32,6 +31,8 @@ FREE, STICK = model.FREE, model.STICK
 # Columns, as energy._IN ... energy._ABS_FRIC
 _IN, _DAMP, _FRIC, _SLIP, _SPIN, _ABS_IN, _ABS_FRIC = range(7)
 N_TERMS = 7
+# After the model's 7 parameters, ``pv`` carries energy.DERIVATIVE_STEP and SMALL_SHIFT
+_DERIVATIVE_STEP, _SMALL_SHIFT = 7, 8
 
 
 @jit_inline
@@ -119,9 +120,9 @@ def _power_and_rate(node, spacing, pv, regime, P, dP, shifted):
     z = np.hypot(x, y)
     _powers_at(c, s, tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu, Rp, regime, P)
     ax, ay = _accelerations(c, s, tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu, regime)
-    delta = DERIVATIVE_STEP * spacing
+    delta = pv[_DERIVATIVE_STEP] * spacing
     a = eta * delta  # the phase at tau +- delta: the node's rotated by +-a (energy.shift_rotation)
-    if abs(a) < SMALL_SHIFT:
+    if abs(a) < pv[_SMALL_SHIFT]:
         ca = 1.0 - 0.5 * a * a
         sa = a * (1.0 - a * a / 6.0)
     else:
@@ -222,7 +223,9 @@ def _piece_pass(p, n, t, states, bounds, pv, regime, fine, coarse, cum_out, ener
 @jit
 def balance_pass(t, states, regimes, start_tau, start_state, end_tau, end_state, lo, hi, pv,
                  cum_out, energy_out):  # fmt: skip
-    """The energy balance over every piece in one pass.
+    """The energy balance over every piece in one pass. ``pv``: the model's parameter
+    vector (``model.params_vector``) followed by the derivative step and the small-shift
+    limit of the power rates (``energy.DERIVATIVE_STEP``, ``energy.SMALL_SHIFT``).
 
     Returns ``(running, quad_sum, energy_first, energy_last, energy_max_abs)``: the
     integrals of the 7 power columns over the whole span, the summed |W - D + F| of the
