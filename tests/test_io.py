@@ -147,7 +147,7 @@ def test_compiled_and_python_csv_writers_give_the_same_bytes(tmp_path, monkeypat
              values[::-1].copy()]  # fmt: skip
     header = ["a", "i", "name", "c"]
     io.write_csv(tmp_path / "compiled.csv", header, [block, block], nonfinite="")
-    monkeypatch.setattr(io, "CSV_COMPILED_MIN_ROWS", 10**9)
+    monkeypatch.setattr(io.tables, "CSV_COMPILED_MIN_ROWS", 10**9)
     io.write_csv(tmp_path / "python.csv", header, [block, block], nonfinite="")
     compiled = (tmp_path / "compiled.csv").read_bytes()
     assert compiled == (tmp_path / "python.csv").read_bytes()
@@ -247,7 +247,7 @@ def test_coded_text_columns_give_the_texts_of_their_codes(tmp_path, monkeypatch)
 
     blocks = _labelled_blocks(2, 1500)
     io.write_csv(tmp_path / "compiled.csv", ["v", "i", "name"], blocks)
-    monkeypatch.setattr(io, "CSV_COMPILED_MIN_ROWS", 10**9)
+    monkeypatch.setattr(io.tables, "CSV_COMPILED_MIN_ROWS", 10**9)
     io.write_csv(tmp_path / "python.csv", ["v", "i", "name"], blocks)
     compiled = (tmp_path / "compiled.csv").read_bytes()
     assert compiled == (tmp_path / "python.csv").read_bytes()

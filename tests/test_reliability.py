@@ -131,7 +131,7 @@ def test_staging_survives_a_cross_device_target(tmp_path, monkeypatch):
             raise OSError(errno.EXDEV, "Invalid cross-device link")
         return real_replace(src, dst)
 
-    monkeypatch.setattr(io.os, "replace", cross_device)
+    monkeypatch.setattr(os, "replace", cross_device)
     target = tmp_path / "out"
     with io.staged_output_dir(target) as staged:
         io.write_text(staged.path("a.csv"), "1\n")
@@ -165,7 +165,7 @@ def test_a_failed_commit_leaks_no_staging(tmp_path, monkeypatch):
     def broken(src, dst):
         raise OSError(errno.EIO, "I/O error")
 
-    monkeypatch.setattr(io.os, "replace", broken)
+    monkeypatch.setattr(os, "replace", broken)
     with pytest.raises(OSError), io.staged_output_dir(tmp_path / "out") as staged:
         (staged.path("a.csv")).write_text("1")
     assert not [p for p in tmp_path.rglob("*") if "staging" in p.name]
@@ -536,7 +536,7 @@ def _long_solution(n: int) -> Solution:
 
 
 def test_solution_csv_is_streamed_in_blocks_and_exact(tmp_path, monkeypatch):
-    monkeypatch.setattr(io, "CSV_BLOCK_ROWS", 1000)
+    monkeypatch.setattr(io.tables, "CSV_BLOCK_ROWS", 1000)
     peaks = {}
     for n in (20_000, 60_000):
         sol = _long_solution(n)
