@@ -145,6 +145,26 @@ def test_changed_core_source_recompiles_every_kernel(monkeypatch, tmp_path):
     assert FakeDispatcher.recompiled == len(fakes)  # same sources: nothing flushed
 
 
+def test_fingerprint_covers_every_file_compiled_into_the_kernels():
+    """numba sees a change only in a kernel's own file: the fingerprint must cover the
+    registered cores' files and every module of the compiled sub-package (a kernel calls
+    into roots.py, precheck.py, ...), so that a change to any of them recompiles."""
+    from pathlib import Path
+
+    from rubcli import model
+    from rubcli.solvers import control, events
+    from rubcli.solvers.compiled import jit
+
+    package = Path(cache.__file__).parent
+    modules = {p.name for p in package.glob("*.py")}
+    assert {"roots.py", "precheck.py", "taylor.py", "jit.py", "dop853_loop.py"} <= modules
+    covered = {Path(p).resolve() for p in cache.CORE_FILES}
+    assert {p.resolve() for p in package.glob("*.py")} <= covered
+    for core in jit.COMPILABLE_CORES:  # every registered core's own file
+        assert Path(core.__code__.co_filename).resolve() in covered, core.__name__
+    assert {Path(m.__file__).resolve() for m in (model, events, control)} <= covered
+
+
 # ------------------------------------------------------------------ eigen-decomposition
 
 

@@ -3,7 +3,8 @@
 Every kernel is compiled with ``cache=True``; the first call on a machine compiles
 (seconds), later processes load the machine code from ``__pycache__``. numba does not
 notice that a *called* function in another file changed (model.py's, events.py's and
-control.py's cores, among them the whole event search), so ``ensure_fresh`` (run once
+control.py's cores, among them the whole event search, or a neighbour module of this
+sub-package), so ``ensure_fresh`` (run once
 per process before the first kernel call) compares a fingerprint of those files with the
 one the cache was built from, and evaluates the registered cores through a cached probe;
 if either disagrees, every kernel is recompiled.
@@ -36,13 +37,16 @@ from rubcli.solvers import control, events
 from rubcli.solvers.compiled.jit import jit
 from rubcli.solvers.events import start_flags, switch_regime
 
-# The files whose functions the kernels compile in (``jit.COMPILABLE_CORES``), and where
-# the fingerprint of the sources the cache was built from is kept.
+# The files whose functions the kernels compile in: the cores of ``jit.COMPILABLE_CORES``
+# and every module of this sub-package (a kernel calls into its neighbours: roots.py,
+# precheck.py, ...; and jit.py holds the decorators' flags, which numba's cache key
+# omits). A change to any of them recompiles every kernel once. The fingerprint of the
+# sources the cache was built from is kept in FINGERPRINT.
 CORE_FILES = (
     Path(model.__file__),
     Path(events.__file__),
     Path(control.__file__),
-    Path(__file__).parent / "jit.py",  # the decorators' flags (numba's cache key omits them)
+    *sorted(Path(__file__).parent.glob("*.py")),
 )
 FINGERPRINT = Path(__file__).parent / "__pycache__" / "cores.fingerprint"
 

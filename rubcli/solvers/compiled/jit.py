@@ -71,7 +71,7 @@ STOP_REASONS = {
 EPS = np.finfo(float).eps
 # nogil: a kernel releases the GIL while it runs, so that threads can solve side by side
 # (a library user's thread pool; `rubcli run` itself never runs anything beside a timed
-# solve, see rubcli/io.py ``Background``).
+# solve, see rubcli/io/background.py ``Background``).
 jit = numba.njit(cache=True, nogil=True)
 jit_inline = numba.njit(cache=True, nogil=True, inline="always")  # inlined in numba IR
 # Reassociation allowed: for sums that are latency-bound chains otherwise (3-4x slower),
