@@ -88,6 +88,8 @@ def _umul128(typingctx, a, b):
 
 @jit
 def _round_to_odd(g_hi, g_lo, cp):
+    """Bits 63..126 of the 192-bit product (g_hi 2^64 + g_lo) cp, with the bits below made
+    sticky in the last place (Schubfach's round-to-odd product)."""
     x_hi, _ = _umul128(g_lo, cp)
     y_hi, y_lo = _umul128(g_hi, cp)
     y_lo2 = y_lo + x_hi
@@ -99,7 +101,9 @@ def _round_to_odd(g_hi, g_lo, cp):
 @jit
 def to_decimal(bits):
     """(D, k) with the finite double > 0 of IEEE bits ``bits`` ~ D 10^k, D the shortest
-    correctly rounded decimal significand (trailing zeros removed)."""
+    correctly rounded decimal significand (trailing zeros removed): Schubfach (Giulietti,
+    figures 4 and 6 of the paper; the variables are the paper's). Integers below 2^53
+    are exact: their own digits."""
     mantissa = bits & _U64((1 << 52) - 1)
     biased = np.int64(bits >> _U64(52))
     if biased != 0:
@@ -157,7 +161,6 @@ def to_decimal(bits):
 
 
 POW10 = np.array([10**k for k in range(20)], dtype=np.uint64)
-_U32 = np.uint32
 
 
 @jit
