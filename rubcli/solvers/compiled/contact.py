@@ -30,6 +30,7 @@ from rubcli.solvers.compiled.jit import (
 )
 from rubcli.solvers.compiled.precheck import (
     _step_may_have_event,
+    polar_step_clear,
 )
 from rubcli.solvers.compiled.propagators import (
     _evaluate,
@@ -63,6 +64,24 @@ def _scan_points(tau, tb, omega_max, scan_fraction):
     return max(1, math.ceil((tb - tau) / spacing))
 
 
+@jit
+def _clear_by_bound(polar, tau, tb, pars, ws, cond, event_args, end, dout):
+    """True if the prepared step [tau, tb] surely holds no event by the polar step's mode
+    bounds (``precheck.polar_step_clear``; the polar linearisation only, and not from an
+    event surface), with its finite end state in ``end``: the step needs no scan grid.
+    False leaves the step to the grid (``end`` is then overwritten there)."""
+    sign, check_slip, spin, starts = event_args
+    if not polar or starts[0] or starts[1]:
+        return False
+    if not polar_step_clear(ws, tb - tau, cond, sign, check_slip, spin):
+        return False
+    _evaluate(polar, tau, tb, pars, ws, end, dout)
+    finite = True
+    for j in range(4):
+        finite = finite and math.isfinite(end[j])
+    return finite
+
+
 @jit_inline
 def _check_step(polar, tau, tb, n, ws, cond, pars, event_args, scan, end, work):
     """The event pre-check of one prepared contact step [tau, tb] (propagator in ``ws``).
@@ -74,11 +93,14 @@ def _check_step(polar, tau, tb, n, ws, cond, pars, event_args, scan, end, work):
     starts); ``scan`` = (grid, S, dS, hv, hd) of at least n + 1 points
     (``_scan_buffers``); ``end`` receives the state at tb (the grid's last point);
     ``work`` = (out, dout). Returns ``STEP_CLEAR`` if no event can occur, ``STOP_EVENT``
-    if one might, ``STOP_PYTHON`` if a state is not finite (Python fails the run).
+    if one might, ``STOP_PYTHON`` if a state is not finite (Python fails the run). A
+    polar step cleared by its mode bounds (``_clear_by_bound``) skips the grid.
     """
     sign, check_slip, spin, starts = event_args
     grid, S, dS, hv, hd = scan
     out, dout = work
+    if _clear_by_bound(polar, tau, tb, pars, ws, cond, event_args, end, dout):
+        return STEP_CLEAR
     linspace_into(grid, tau, tb, n)
     finite = True
     for i in range(n + 1):
@@ -156,6 +178,7 @@ def advance_contact(
     ws = _workspace()
     out = np.empty(4)
     dout = np.empty(4)
+    end = np.empty(4)
     size = 2
     grid, S, dS, hv, hd = _scan_buffers(size)
     steps = 0
@@ -175,34 +198,40 @@ def advance_contact(
         if (tb - tau) / spacing > MAX_SCAN_POINTS:
             return tau, s, k, steps, STOP_PYTHON  # Python fails the run cleanly
         n = max(1, math.ceil((tb - tau) / spacing))
-        if size < n + 1:
-            size = n + 1
-            grid = np.empty(size)
-            S = np.empty((size, 4))
-            dS = np.empty((size, 4))
-            hv = np.empty(size)
-            hd = np.empty(size)
-        linspace_into(grid, tau, tb, n)
-        finite = True
-        for i in range(n + 1):
-            _evaluate(polar, tau, grid[i], pars, ws, out, dout)
-            for j in range(4):
-                S[i, j] = out[j]
-                dS[i, j] = dout[j]
-                finite = finite and math.isfinite(out[j]) and math.isfinite(dout[j])
-        if not finite:
-            return tau, s, k, steps, STOP_PYTHON
         if steps > 0:
             starts = (False, False, False)
-        if _step_may_have_event(grid, S, dS, n, sign, check_slip, spin, cond, hv, hd, starts):
-            return tau, s, k, steps, STOP_EVENT
+        # the end state (into end): from the mode bounds alone, or the grid's last point
+        if not _clear_by_bound(
+            polar, tau, tb, pars, ws, cond, (sign, check_slip, spin, starts), end, dout
+        ):
+            if size < n + 1:
+                size = n + 1
+                grid = np.empty(size)
+                S = np.empty((size, 4))
+                dS = np.empty((size, 4))
+                hv = np.empty(size)
+                hd = np.empty(size)
+            linspace_into(grid, tau, tb, n)
+            finite = True
+            for i in range(n + 1):
+                _evaluate(polar, tau, grid[i], pars, ws, out, dout)
+                for j in range(4):
+                    S[i, j] = out[j]
+                    dS[i, j] = dout[j]
+                    finite = finite and math.isfinite(out[j]) and math.isfinite(dout[j])
+            if not finite:
+                return tau, s, k, steps, STOP_PYTHON
+            if _step_may_have_event(grid, S, dS, n, sign, check_slip, spin, cond, hv, hd, starts):
+                return tau, s, k, steps, STOP_EVENT
+            for j in range(4):
+                end[j] = S[n, j]
         while k < n_out and t_eval[k] <= tb:
             _evaluate(polar, tau, t_eval[k], pars, ws, out, dout)
             for j in range(4):
                 out_states[k, j] = out[j]
             k += 1
         for j in range(4):
-            s[j] = S[n, j]
+            s[j] = end[j]
         tau = tb
         steps += 1
 

@@ -38,7 +38,7 @@ from rubcli.model import (
     rolling_velocity,
     stick_friction_value,
 )
-from rubcli.solvers.compiled.contact import _scan_buffers, _scan_points
+from rubcli.solvers.compiled.contact import _clear_by_bound, _scan_buffers, _scan_points
 
 # the ev functions are passed as piecewise.<name>: a dispatcher bound to a global name of
 # this module and passed as an argument makes numba refuse to cache the loop
@@ -117,6 +117,7 @@ def advance_piecewise(
     meta = np.empty(2)
     row = np.empty(4)
     drow = np.empty(4)
+    end = np.empty(4)
     size = 2
     grid, S, dS, hv, hd = _scan_buffers(size)
     work = 0
@@ -228,30 +229,37 @@ def advance_piecewise(
             n = _scan_points(tau, tb, omega, contact_frac)
             if n < 0:
                 return tau, regime, last_kind, k, n_events, free_active, STOP_PYTHON
-            if size < n + 1:
-                size = n + 1
-                grid, S, dS, hv, hd = _scan_buffers(size)
-            linspace_into(grid, tau, tb, n)
-            finite = True
-            for i in range(n + 1):
-                _evaluate(polar, tau, grid[i], pars, ws, row, drow)
+            sign = float(regime)
+            event_args = (sign, check_slip, spin, starts)
+            # the end state (into end): from the mode bounds alone, or the grid's last point
+            if not _clear_by_bound(polar, tau, tb, pars, ws, cond, event_args, end, drow):
+                if size < n + 1:
+                    size = n + 1
+                    grid, S, dS, hv, hd = _scan_buffers(size)
+                linspace_into(grid, tau, tb, n)
+                finite = True
+                for i in range(n + 1):
+                    _evaluate(polar, tau, grid[i], pars, ws, row, drow)
+                    for j in range(4):
+                        S[i, j] = row[j]
+                        dS[i, j] = drow[j]
+                        finite = finite and math.isfinite(row[j]) and math.isfinite(drow[j])
+                if not finite:
+                    return tau, regime, last_kind, k, n_events, free_active, STOP_PYTHON
+                if _step_may_have_event(
+                    grid, S, dS, n, sign, check_slip, spin, cond, hv, hd, starts
+                ):
+                    ctx = (polar, tau, pars, ws)
+                    t_ev, kind = _locate_contact(
+                        ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow
+                    )
                 for j in range(4):
-                    S[i, j] = row[j]
-                    dS[i, j] = drow[j]
-                    finite = finite and math.isfinite(row[j]) and math.isfinite(drow[j])
-            if not finite:
-                return tau, regime, last_kind, k, n_events, free_active, STOP_PYTHON
+                    end[j] = S[n, j]
             warm = True
             counts[C_STEPS] += 1
             counts[C_CONTACT] += 1
             counts[C_COMPILED] += 1
             work += 1
-            sign = float(regime)
-            if _step_may_have_event(grid, S, dS, n, sign, check_slip, spin, cond, hv, hd, starts):
-                ctx = (polar, tau, pars, ws)
-                t_ev, kind = _locate_contact(
-                    ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow
-                )
             last_kind = NO_EVENT
             t_stop = t_ev if kind != NO_EVENT else tb
             while k < n_out and t_eval[k] <= t_stop:
@@ -262,7 +270,7 @@ def advance_piecewise(
                 k += 1
             if kind == NO_EVENT:
                 for j in range(4):
-                    state[j] = S[n, j]
+                    state[j] = end[j]
                 tau = tb
                 continue
             _evaluate(polar, tau, t_ev, pars, ws, row, drow)
