@@ -12,13 +12,17 @@ from rubcli.problem import Problem
 SUCCESS = "success"
 FAILED = "failed"
 
+# The names of the event kinds, by code (the codes rubcli.solvers.events and the compiled
+# loops pass around: ENTRY, EXIT, REVERSAL, STICK_ENTRY, STICK_EXIT = 0..4).
+KIND_NAMES = ("contact_entry", "contact_exit", "slip_reversal", "stick_entry", "stick_exit")
+
 
 @dataclass(frozen=True)
 class SwitchEvent:
     """A located change of regime: contact entry/exit or a slip reversal."""
 
     tau: float
-    kind: str  # "contact_entry", "contact_exit", "slip_reversal"
+    kind: str  # one of KIND_NAMES
     state: tuple[float, float, float, float]
     regime_before: int
     regime_after: int
