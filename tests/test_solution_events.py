@@ -1,7 +1,8 @@
 """A solution's events as columns (rubcli.solution.Events).
 
 ``Events`` must behave as the list of ``SwitchEvent`` it replaces (indexing, slicing,
-iteration, equality with a list).
+iteration, equality with a list); the driver's batch record (``record_kernel_events``)
+must give exactly the records a per-event loop gives, with the same storm guard.
 """
 
 import dataclasses
@@ -13,6 +14,8 @@ import pytest
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solution import KIND_NAMES, Events, Solution, SwitchEvent
+from rubcli.solvers import driver
+from rubcli.solvers.events import StormGuard
 
 FIG3 = {"nu": 0.009478, "eta": 0.7818, "e": 7.52, "K": 17.6, "Rp": 46.16}
 START = (0.88544, -0.8039, 0.0, 0.0)
@@ -35,6 +38,24 @@ def random_records(n: int, seed: int = 1) -> list[SwitchEvent]:
         )
         for i in range(n)
     ]
+
+
+def reference_records(n, taus, kinds, states, regimes) -> list[SwitchEvent]:
+    """The records the per-event path built from a compiled loop's buffers."""
+    return [
+        SwitchEvent(
+            float(taus[i]),
+            KIND_NAMES[int(kinds[i])],
+            tuple(map(float, states[i])),
+            int(regimes[i, 0]),
+            int(regimes[i, 1]),
+        )
+        for i in range(n)
+    ]
+
+
+def new_run(periods: float = 10, samples: int = 50) -> driver.Run:
+    return driver.Run(fig3_problem(periods, samples), "taylor", max_steps=10, max_wall_time_s=10.0)
 
 
 def test_events_behave_as_the_list_of_records():
@@ -91,3 +112,61 @@ def test_a_solution_takes_a_list_of_records():
     assert isinstance(sol.events, Events) and sol.events == records
     assert isinstance(dataclasses.replace(sol, events=[]).events, Events)
     assert Solution(prob, "x", prob.t_eval, states, regimes).events == []
+
+
+def test_batch_record_gives_the_per_event_records():
+    """Batches of a compiled loop's buffers (one empty, one of a single event, one with
+    two events at one instant, enough to make the columns grow several times), with a
+    Python stepper's event recorded between them, give exactly the records built event
+    by event from the same buffers, in the run and in its Solution."""
+    rng = np.random.default_rng(7)
+    n = 700
+    taus = np.sort(rng.uniform(0.0, 60.0, n))
+    taus[401] = taus[400]  # two events at one instant: that batch goes one by one
+    kinds = rng.integers(0, 5, n)
+    states = rng.normal(size=(n, 4))
+    regimes = rng.integers(-1, 3, (n, 2))
+    run = new_run()
+    expected: list[SwitchEvent] = []
+    for a, b in ((0, 0), (0, 1), (1, 300), (300, 650), (650, 700)):
+        buffers = (taus[a:], kinds[a:], states[a:], regimes[a:])
+        assert driver.record_kernel_events(run, b - a, *buffers)
+        expected += reference_records(b - a, *buffers)
+        if b > a:
+            assert run.last_kind == kinds[b - 1]
+        if b == 300:  # an event of a Python stepper between two batches
+            python_event = SwitchEvent(float(taus[300] - 1e-3), "slip_reversal", (1.0,) * 4, 1, -1)
+            assert run.record(python_event)
+            expected.append(python_event)
+    assert run.events == expected and len(run.events) == n + 1
+    assert run.status == "success"
+    sol = run.solution({})
+    assert sol.events == expected and sol.events == run.events
+
+
+def test_a_storm_in_a_batch_fails_the_run_and_drops_the_later_samples():
+    """21 events at one instant fail the run at the 21st with the guard's message; the
+    events up to it are recorded and the samples past it dropped, also when the instant
+    began in the previous batch (the guard and the instant check carry over: split at
+    30, the second batch holds only the 21st event at that instant)."""
+    n = 40
+    taus = np.linspace(1.0, 60.0, n)
+    taus[10:31] = taus[10]  # 21 events at one instant: the 21st (index 30) is a storm
+    kinds = np.arange(n) % 5
+    states = np.arange(4.0 * n).reshape(n, 4)
+    regimes = np.tile([1, 0], (n, 1))
+    for split in (0, 15, 30):
+        run = new_run(10, 20)
+        run.k = 150  # the kernel filled samples past the storm
+        assert driver.record_kernel_events(run, split, taus, kinds, states, regimes)
+        ok = driver.record_kernel_events(
+            run, n - split, taus[split:], kinds[split:], states[split:], regimes[split:]
+        )
+        assert not ok and run.failed
+        assert run.message == f"switch storm at tau = {taus[10]:.6g}: 21 events at one instant"
+        assert run.events == reference_records(31, taus, kinds, states, regimes)
+        assert run.last_kind == kinds[30]
+        assert run.k == np.searchsorted(run.t_eval, taus[10], side="right") < 150
+        sol = run.solution({})
+        assert sol.status == "failed" and sol.t.size == run.k and len(sol.events) == 31
+    assert StormGuard.LIMIT == 20  # (what 21 events at one instant assume)
