@@ -250,25 +250,26 @@ class Solution:
 
     @property
     def n_contact_switches(self) -> int:
-        return sum(1 for ev in self.events if ev.kind in ("contact_entry", "contact_exit"))
+        return int(np.count_nonzero(self.events.is_kind("contact_entry", "contact_exit")))
 
     def contact_fraction(self) -> float:
-        """Fraction of the simulated time spent in contact, from the located events."""
+        """Fraction of the simulated time spent in contact, from the located events.
+
+        The phases run from event to event (events after the last sample ignored); their
+        durations in contact are summed in time order (a cumulative sum: the same
+        rounding as adding them one by one)."""
         t0, t1 = self.problem.t_span
         end = float(self.t[-1]) if self.t.size else t0
         if end <= t0:
             return 0.0
-        total, in_contact = end - t0, 0.0
-        regime, last = model.regime_of_state(self.problem.initial, self.problem.params), t0
-        for ev in self.events:
-            if ev.tau > end:
-                break
-            if regime != model.FREE:
-                in_contact += ev.tau - last
-            regime, last = ev.regime_after, ev.tau
-        if regime != model.FREE:
-            in_contact += end - last
-        return in_contact / total
+        events = self.events.until(end)
+        first = model.regime_of_state(self.problem.initial, self.problem.params)
+        starts = np.concatenate(([t0], events.tau))
+        ends = np.concatenate((events.tau, [end]))
+        regimes = np.concatenate(([first], events.regime_after))
+        durations = (ends - starts)[regimes != model.FREE]
+        in_contact = float(np.cumsum(durations)[-1]) if durations.size else 0.0
+        return in_contact / (end - t0)
 
     def max_penetration(self) -> float:
         """Largest z - 1 over the samples (0 if never in contact)."""

@@ -1,8 +1,11 @@
-"""A solution's events as columns (rubcli.solution.Events).
+"""A solution's events as columns (rubcli.solution.Events) and what reads them.
 
 ``Events`` must behave as the list of ``SwitchEvent`` it replaces (indexing, slicing,
 iteration, equality with a list); the driver's batch record (``record_kernel_events``)
-must give exactly the records a per-event loop gives, with the same storm guard.
+must give exactly the records a per-event loop gives, with the same storm guard; and the
+analyses that now read the columns vectorised (``Solution.n_contact_switches``,
+``Solution.contact_fraction``, ``analysis.regimes.piece_bounds``) must give exactly what
+their per-event loops gave, written out here as the reference.
 """
 
 import dataclasses
@@ -11,10 +14,12 @@ import pickle
 import numpy as np
 import pytest
 
+from rubcli import model
+from rubcli.analysis.regimes import piece_bounds
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solution import KIND_NAMES, Events, Solution, SwitchEvent
-from rubcli.solvers import driver
+from rubcli.solvers import driver, solve
 from rubcli.solvers.events import StormGuard
 
 FIG3 = {"nu": 0.009478, "eta": 0.7818, "e": 7.52, "K": 17.6, "Rp": 46.16}
@@ -170,3 +175,144 @@ def test_a_storm_in_a_batch_fails_the_run_and_drops_the_later_samples():
         sol = run.solution({})
         assert sol.status == "failed" and sol.t.size == run.k and len(sol.events) == 31
     assert StormGuard.LIMIT == 20  # (what 21 events at one instant assume)
+
+
+# The per-event loops the vectorised analyses replace: the reference.
+
+
+def n_contact_switches_loop(sol) -> int:
+    return sum(1 for ev in sol.events if ev.kind in ("contact_entry", "contact_exit"))
+
+
+def contact_fraction_loop(sol) -> float:
+    t0, t1 = sol.problem.t_span
+    end = float(sol.t[-1]) if sol.t.size else t0
+    if end <= t0:
+        return 0.0
+    total, in_contact = end - t0, 0.0
+    regime, last = model.regime_of_state(sol.problem.initial, sol.problem.params), t0
+    for ev in sol.events:
+        if ev.tau > end:
+            break
+        if regime != model.FREE:
+            in_contact += ev.tau - last
+        regime, last = ev.regime_after, ev.tau
+    if regime != model.FREE:
+        in_contact += end - last
+    return in_contact / total
+
+
+def piece_bounds_loop(solution) -> dict[str, np.ndarray]:
+    t = np.asarray(solution.t, dtype=float)
+    states = np.asarray(solution.states, dtype=float)
+    regime, start_tau, start_state, end_tau, end_state, lo, hi = [], [], [], [], [], [], []
+    if t.size:
+        t_end = float(t[-1])
+        bounds = [(float(t[0]), states[0], int(solution.regimes[0]))]
+        for event in solution.events:
+            if event.tau > t_end:
+                break
+            bounds.append(
+                (float(event.tau), np.asarray(event.state, dtype=float), event.regime_after)
+            )
+        for i, (start, state, code) in enumerate(bounds):
+            if i + 1 < len(bounds):
+                end, final = bounds[i + 1][0], bounds[i + 1][1]
+            else:
+                end, final = t_end, states[-1]
+            if not end > start:
+                continue
+            regime.append(code)
+            start_tau.append(start)
+            start_state.append(state)
+            end_tau.append(end)
+            end_state.append(final)
+            lo.append(int(np.searchsorted(t, start, side="right")))
+            hi.append(int(np.searchsorted(t, end, side="left")))
+    return {
+        "regime": np.asarray(regime, dtype=np.int64),
+        "start_tau": np.asarray(start_tau, dtype=float),
+        "start_state": np.asarray(start_state, dtype=float).reshape(-1, 4),
+        "end_tau": np.asarray(end_tau, dtype=float),
+        "end_state": np.asarray(end_state, dtype=float).reshape(-1, 4),
+        "lo": np.asarray(lo, dtype=np.int64),
+        "hi": np.asarray(hi, dtype=np.int64),
+    }
+
+
+def assert_analyses_equal_the_loops(sol) -> None:
+    assert sol.n_contact_switches == n_contact_switches_loop(sol)
+    assert sol.contact_fraction() == contact_fraction_loop(sol)  # bit for bit
+    got, want = piece_bounds(sol), piece_bounds_loop(sol)
+    for name, value in want.items():
+        column = getattr(got, name)
+        assert column.dtype == value.dtype and column.shape == value.shape, name
+        assert np.array_equal(column, value), name
+
+
+@pytest.mark.parametrize("method", ["taylor", "dop853-jit"])
+def test_analyses_of_a_run_with_many_events_equal_their_loops(method):
+    """The paper's case with friction over 100 periods (941 events): the counts, the
+    contact fraction and the piece bounds, exactly as the per-event loops give them (the
+    contact fraction bit for bit: the durations summed in time order, which a pairwise
+    sum is not here); and the same once the run is cut short (events past the last
+    sample)."""
+    sol = solve(fig3_problem(100, 20), method, rtol=1e-9, atol=1e-11)
+    assert sol.success and len(sol.events) > 500
+    assert sol.n_contact_switches > 0
+    assert_analyses_equal_the_loops(sol)
+    k = sol.t.size // 2
+    cut = dataclasses.replace(sol, t=sol.t[:k], states=sol.states[:k], regimes=sol.regimes[:k])
+    assert cut.events.tau[-1] > cut.t[-1]
+    assert_analyses_equal_the_loops(cut)
+
+
+def _hand_solution(taus, afters, n_samples=11, periods=1.0) -> Solution:
+    """A solution on a hand-made grid with events at ``taus`` (regime after: ``afters``,
+    which gives the kind: free, a contact exit; 1, an entry; -1, a slip reversal)."""
+    prob = fig3_problem(periods, n_samples - 1)
+    n = prob.t_eval.size
+    states = np.arange(4.0 * n).reshape(n, 4)
+    regimes = np.array([1] + [0] * (n - 1))
+    names = {model.FREE: "contact_exit", 1: "contact_entry", -1: "slip_reversal"}
+    kinds = [names[a] for a in afters]
+    records = [
+        SwitchEvent(float(t), kind, (float(t), 1.0, 2.0, 3.0), 0, int(a))
+        for t, kind, a in zip(taus, kinds, afters, strict=True)
+    ]
+    return Solution(prob, "hand", prob.t_eval.copy(), states, regimes, events=records)
+
+
+def _edge_cases():
+    period = fig3_problem(1).t_eval[-1]
+    t = np.linspace(0.0, period, 11)
+    return {
+        "no events": _hand_solution([], []),
+        "events after the last sample": _hand_solution(
+            [t[2] + 0.01, t[-1], period + 1.0, period + 2.0], [0, 1, 0, 1]
+        ),
+        "two events at one instant": _hand_solution([t[3], t[3], t[6]], [0, 1, 0]),
+        "an event at the first sample": _hand_solution([0.0, t[4] + 0.1], [0, 1]),
+        "events on samples and between": _hand_solution(
+            [t[1], t[1] + 0.05, t[5] + 0.2, t[9]], [0, 1, -1, 0]
+        ),
+        "one sample": dataclasses.replace(
+            _hand_solution([0.0, 1.0], [0, 1]),
+            t=t[:1],
+            states=np.zeros((1, 4)),
+            regimes=np.zeros(1, dtype=int),
+        ),  # fmt: skip
+        "no samples": dataclasses.replace(
+            _hand_solution([1.0], [0]),
+            t=t[:0],
+            states=np.zeros((0, 4)),
+            regimes=np.zeros(0, dtype=int),
+        ),  # fmt: skip
+    }
+
+
+@pytest.mark.parametrize("case", list(_edge_cases()))
+def test_analyses_of_edge_cases_equal_their_loops(case):
+    """No events, events after the last sample (one exactly at it), two events at one
+    instant (a zero-duration piece), an event at the first sample, no or one sample."""
+    assert_analyses_equal_the_loops(_edge_cases()[case])
