@@ -151,6 +151,13 @@ class Events(Sequence[SwitchEvent]):
         return self[: late[0]] if late.size else self
 
 
+def ordered_sum(values: np.ndarray) -> float:
+    """The sum of ``values`` in their order (0.0 if none), rounded as a loop adding them
+    one by one rounds: a cumulative sum, not numpy's pairwise ``sum``, so the vectorised
+    analyses give the same bits as the per-event loops they replace."""
+    return float(np.cumsum(values)[-1]) if values.size else 0.0
+
+
 def _read_only(values, dtype) -> np.ndarray:
     """A read-only view of ``values`` as an array of ``dtype`` (a copy only to convert)."""
     array = np.asarray(values, dtype=dtype).view()
@@ -256,8 +263,7 @@ class Solution:
         """Fraction of the simulated time spent in contact, from the located events.
 
         The phases run from event to event (events after the last sample ignored); their
-        durations in contact are summed in time order (a cumulative sum: the same
-        rounding as adding them one by one)."""
+        durations in contact are summed in time order (``ordered_sum``)."""
         t0, t1 = self.problem.t_span
         end = float(self.t[-1]) if self.t.size else t0
         if end <= t0:
@@ -267,9 +273,7 @@ class Solution:
         starts = np.concatenate(([t0], events.tau))
         ends = np.concatenate((events.tau, [end]))
         regimes = np.concatenate(([first], events.regime_after))
-        durations = (ends - starts)[regimes != model.FREE]
-        in_contact = float(np.cumsum(durations)[-1]) if durations.size else 0.0
-        return in_contact / (end - t0)
+        return ordered_sum((ends - starts)[regimes != model.FREE]) / (end - t0)
 
     def max_penetration(self) -> float:
         """Largest z - 1 over the samples (0 if never in contact)."""

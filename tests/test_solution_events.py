@@ -4,8 +4,9 @@
 iteration, equality with a list); the driver's batch record (``record_kernel_events``)
 must give exactly the records a per-event loop gives, with the same storm guard; and the
 analyses that now read the columns vectorised (``Solution.n_contact_switches``,
-``Solution.contact_fraction``, ``analysis.regimes.piece_bounds``) must give exactly what
-their per-event loops gave, written out here as the reference.
+``Solution.contact_fraction``, ``analysis.regimes.piece_bounds`` and
+``time_in_regimes``) must give exactly what their per-event loops gave, written out here
+as the reference.
 """
 
 import dataclasses
@@ -15,7 +16,7 @@ import numpy as np
 import pytest
 
 from rubcli import model
-from rubcli.analysis.regimes import piece_bounds
+from rubcli.analysis.regimes import piece_bounds, time_in_regimes
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solution import KIND_NAMES, Events, Solution, SwitchEvent
@@ -240,6 +241,14 @@ def piece_bounds_loop(solution) -> dict[str, np.ndarray]:
     }
 
 
+def time_in_regimes_loop(sol) -> dict[str, float]:
+    out = {name: 0.0 for name in model.REGIME_NAMES.values()}
+    b = piece_bounds_loop(sol)
+    for regime, start, end in zip(b["regime"].tolist(), b["start_tau"], b["end_tau"], strict=True):
+        out[model.REGIME_NAMES[regime]] += float(end - start)
+    return out
+
+
 def assert_analyses_equal_the_loops(sol) -> None:
     assert sol.n_contact_switches == n_contact_switches_loop(sol)
     assert sol.contact_fraction() == contact_fraction_loop(sol)  # bit for bit
@@ -248,15 +257,16 @@ def assert_analyses_equal_the_loops(sol) -> None:
         column = getattr(got, name)
         assert column.dtype == value.dtype and column.shape == value.shape, name
         assert np.array_equal(column, value), name
+    assert time_in_regimes(sol) == time_in_regimes_loop(sol)  # bit for bit
 
 
 @pytest.mark.parametrize("method", ["taylor", "dop853-jit"])
 def test_analyses_of_a_run_with_many_events_equal_their_loops(method):
     """The paper's case with friction over 100 periods (941 events): the counts, the
-    contact fraction and the piece bounds, exactly as the per-event loops give them (the
-    contact fraction bit for bit: the durations summed in time order, which a pairwise
-    sum is not here); and the same once the run is cut short (events past the last
-    sample)."""
+    contact fraction, the piece bounds and the time in each regime, exactly as the
+    per-event loops give them (the sums bit for bit: the durations added in time order,
+    which a pairwise sum is not here); and the same once the run is cut short (events
+    past the last sample)."""
     sol = solve(fig3_problem(100, 20), method, rtol=1e-9, atol=1e-11)
     assert sol.success and len(sol.events) > 500
     assert sol.n_contact_switches > 0

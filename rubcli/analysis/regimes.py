@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rubcli import model
-from rubcli.solution import Solution
+from rubcli.solution import Solution, ordered_sum
 
 
 @dataclass(frozen=True)
@@ -118,8 +118,8 @@ def time_in_regimes(solution: Solution) -> dict[str, float]:
     Every regime name is present (0.0 when never entered); the values add up to the
     simulated span ``t[-1] - t[0]``.
     """
-    out = {name: 0.0 for name in model.REGIME_NAMES.values()}
     b = piece_bounds(solution)
-    for regime, start, end in zip(b.regime.tolist(), b.start_tau, b.end_tau, strict=True):
-        out[model.REGIME_NAMES[regime]] += float(end - start)
-    return out
+    durations = b.end_tau - b.start_tau
+    return {
+        name: ordered_sum(durations[b.regime == code]) for code, name in model.REGIME_NAMES.items()
+    }
