@@ -35,7 +35,7 @@ class Events(Sequence[SwitchEvent]):
     """A run's located events, kept as columns: a read-only sequence of ``SwitchEvent``.
 
     A run may locate 100k events; one Python object each costs ~0.5 us to build and
-    ~500 bytes to keep (and the garbage collector walks them all). Columns cost 43 bytes
+    ~440 bytes to keep (and the garbage collector walks them all). Columns cost 43 bytes
     an event, are copied in by the driver with numpy, and let analyses work vectorised;
     an indexed or iterated event is built as a ``SwitchEvent`` on access. Columns:
     ``tau`` (n,) float64, ``kind_code`` (n,) int8 (``KIND_NAMES[code]`` is the kind),
@@ -44,7 +44,7 @@ class Events(Sequence[SwitchEvent]):
     over).
     """
 
-    CODE_DTYPE = np.int8  # kind codes and regime codes (-1..4)
+    CODE_DTYPE = np.int8  # kind codes (0..4) and regime codes (-1..2)
 
     __slots__ = ("tau", "kind_code", "state", "regime_before", "regime_after")
 
@@ -65,6 +65,7 @@ class Events(Sequence[SwitchEvent]):
 
     @classmethod
     def empty(cls) -> Events:
+        """No events (a Solution's default)."""
         return cls(np.empty(0), np.empty(0), np.empty((0, 4)), np.empty(0), np.empty(0))
 
     @classmethod
