@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import operator
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
+from typing import overload
 
 import numpy as np
 
@@ -12,16 +15,155 @@ from rubcli.problem import Problem
 SUCCESS = "success"
 FAILED = "failed"
 
+# The names of the event kinds, by code (the codes rubcli.solvers.events and the compiled
+# loops pass around: ENTRY, EXIT, REVERSAL, STICK_ENTRY, STICK_EXIT = 0..4).
+KIND_NAMES = ("contact_entry", "contact_exit", "slip_reversal", "stick_entry", "stick_exit")
+
 
 @dataclass(frozen=True)
 class SwitchEvent:
     """A located change of regime: contact entry/exit or a slip reversal."""
 
     tau: float
-    kind: str  # "contact_entry", "contact_exit", "slip_reversal"
+    kind: str  # one of KIND_NAMES
     state: tuple[float, float, float, float]
     regime_before: int
     regime_after: int
+
+
+class Events(Sequence[SwitchEvent]):
+    """A run's located events, kept as columns: a read-only sequence of ``SwitchEvent``.
+
+    A run may locate 100k events; one Python object each costs ~0.5 us to build and
+    ~440 bytes to keep (and the garbage collector walks them all). Columns cost 43 bytes
+    an event, are copied in by the driver with numpy, and let analyses work vectorised;
+    an indexed or iterated event is built as a ``SwitchEvent`` on access. Columns:
+    ``tau`` (n,) float64, ``kind_code`` (n,) int8 (``KIND_NAMES[code]`` is the kind),
+    ``state`` (n, 4) float64, ``regime_before`` and ``regime_after`` (n,) int8.
+    The arrays are read-only views of the ones given (not copied: the caller hands them
+    over).
+    """
+
+    CODE_DTYPE = np.int8  # kind codes (0..4) and regime codes (-1..2)
+
+    __slots__ = ("tau", "kind_code", "state", "regime_before", "regime_after")
+
+    def __init__(self, tau, kind_code, state, regime_before, regime_after) -> None:
+        columns = (
+            _read_only(tau, np.float64),
+            _read_only(kind_code, self.CODE_DTYPE),
+            _read_only(state, np.float64),
+            _read_only(regime_before, self.CODE_DTYPE),
+            _read_only(regime_after, self.CODE_DTYPE),
+        )
+        n = columns[0].shape[0] if columns[0].ndim == 1 else -1
+        shapes = [c.shape for c in columns]
+        if n < 0 or shapes != [(n,), (n,), (n, 4), (n,), (n,)]:
+            raise ValueError(f"event columns of shapes {shapes}, expected (n,) and (n, 4)")
+        for name, column in zip(self.__slots__, columns, strict=True):
+            object.__setattr__(self, name, column)
+
+    @classmethod
+    def empty(cls) -> Events:
+        """No events (a Solution's default)."""
+        return cls(np.empty(0), np.empty(0), np.empty((0, 4)), np.empty(0), np.empty(0))
+
+    @classmethod
+    def from_records(cls, records: Iterable[SwitchEvent]) -> Events:
+        """The columns of ``records`` (``Events`` themselves are returned as they are)."""
+        if isinstance(records, Events):
+            return records
+        records = list(records)
+        if not records:
+            return cls.empty()
+        return cls(
+            [ev.tau for ev in records],
+            [KIND_NAMES.index(ev.kind) for ev in records],
+            [ev.state for ev in records],
+            [ev.regime_before for ev in records],
+            [ev.regime_after for ev in records],
+        )
+
+    def __setattr__(self, name: str, value) -> None:
+        raise AttributeError(f"Events are immutable (cannot set {name!r})")
+
+    def __len__(self) -> int:
+        return self.tau.shape[0]
+
+    @overload
+    def __getitem__(self, index: int) -> SwitchEvent: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> Events: ...
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            return Events(*(getattr(self, name)[index] for name in self.__slots__))
+        i = operator.index(index)
+        if not -len(self) <= i < len(self):
+            raise IndexError(f"event index {index} out of range for {len(self)} events")
+        return SwitchEvent(
+            float(self.tau[i]),
+            KIND_NAMES[self.kind_code[i]],
+            tuple(self.state[i].tolist()),
+            int(self.regime_before[i]),
+            int(self.regime_after[i]),
+        )
+
+    def __iter__(self) -> Iterator[SwitchEvent]:
+        columns = (self.tau, self.kind_code, self.state, self.regime_before, self.regime_after)
+        for tau, code, state, before, after in zip(*(c.tolist() for c in columns), strict=True):
+            yield SwitchEvent(tau, KIND_NAMES[code], tuple(state), before, after)
+
+    def __eq__(self, other: object) -> bool:
+        """Equal to another ``Events`` or any sequence of ``SwitchEvent`` (``== []``),
+        event by event as ``SwitchEvent`` compares (columns compared vectorised)."""
+        if isinstance(other, Events):
+            return len(self) == len(other) and all(
+                np.array_equal(getattr(self, name), getattr(other, name)) for name in self.__slots__
+            )
+        if isinstance(other, Sequence) and not isinstance(other, str):
+            return len(self) == len(other) and all(map(operator.eq, self, other))
+        return NotImplemented
+
+    __hash__ = None  # type: ignore[assignment]  # equal to lists, which are unhashable
+
+    def __repr__(self) -> str:
+        if not len(self):
+            return "Events([])"
+        return f"Events({len(self)} events, tau {self.tau[0]:.6g} .. {self.tau[-1]:.6g})"
+
+    def __reduce__(self):
+        return Events, tuple(getattr(self, name) for name in self.__slots__)
+
+    @property
+    def kinds(self) -> np.ndarray:
+        """The kind names, one an event (an array of str)."""
+        return np.asarray(KIND_NAMES)[self.kind_code]
+
+    def is_kind(self, *names: str) -> np.ndarray:
+        """Boolean mask of the events of any of the kinds ``names`` (from ``KIND_NAMES``)."""
+        return np.isin(self.kind_code, [KIND_NAMES.index(name) for name in names])
+
+    def until(self, tau: float) -> Events:
+        """The events before the first one later than ``tau``: those a run whose last
+        sample is at ``tau`` passed (a failed run may locate one past it before it stops)."""
+        late = np.flatnonzero(self.tau > tau)
+        return self[: late[0]] if late.size else self
+
+
+def ordered_sum(values: np.ndarray) -> float:
+    """The sum of ``values`` in their order (0.0 if none), rounded as a loop adding them
+    one by one rounds: a cumulative sum, not numpy's pairwise ``sum``, so the vectorised
+    analyses give the same bits as the per-event loops they replace."""
+    return float(np.cumsum(values)[-1]) if values.size else 0.0
+
+
+def _read_only(values, dtype) -> np.ndarray:
+    """A read-only view of ``values`` as an array of ``dtype`` (a copy only to convert)."""
+    array = np.asarray(values, dtype=dtype).view()
+    array.flags.writeable = False
+    return array
 
 
 @dataclass
@@ -37,12 +179,15 @@ class Solution:
     t: np.ndarray
     states: np.ndarray  # shape (n, 4): x, y, vx, vy
     regimes: np.ndarray  # shape (n,), regime code per sample (model.FREE, ...)
-    events: list[SwitchEvent] = field(default_factory=list)
+    events: Events = field(default_factory=Events.empty)  # a list of SwitchEvent is converted
     stats: dict[str, int] = field(default_factory=dict)
     settings: dict[str, object] = field(default_factory=dict)
     status: str = SUCCESS
     message: str = ""
     wall_time_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        self.events = Events.from_records(self.events)
 
     @classmethod
     def from_samples(
@@ -113,25 +258,23 @@ class Solution:
 
     @property
     def n_contact_switches(self) -> int:
-        return sum(1 for ev in self.events if ev.kind in ("contact_entry", "contact_exit"))
+        return int(np.count_nonzero(self.events.is_kind("contact_entry", "contact_exit")))
 
     def contact_fraction(self) -> float:
-        """Fraction of the simulated time spent in contact, from the located events."""
+        """Fraction of the simulated time spent in contact, from the located events.
+
+        The phases run from event to event (events after the last sample ignored); their
+        durations in contact are summed in time order (``ordered_sum``)."""
         t0, t1 = self.problem.t_span
         end = float(self.t[-1]) if self.t.size else t0
         if end <= t0:
             return 0.0
-        total, in_contact = end - t0, 0.0
-        regime, last = model.regime_of_state(self.problem.initial, self.problem.params), t0
-        for ev in self.events:
-            if ev.tau > end:
-                break
-            if regime != model.FREE:
-                in_contact += ev.tau - last
-            regime, last = ev.regime_after, ev.tau
-        if regime != model.FREE:
-            in_contact += end - last
-        return in_contact / total
+        events = self.events.until(end)
+        first = model.regime_of_state(self.problem.initial, self.problem.params)
+        starts = np.concatenate(([t0], events.tau))
+        ends = np.concatenate((events.tau, [end]))
+        regimes = np.concatenate(([first], events.regime_after))
+        return ordered_sum((ends - starts)[regimes != model.FREE]) / (end - t0)
 
     def max_penetration(self) -> float:
         """Largest z - 1 over the samples (0 if never in contact)."""

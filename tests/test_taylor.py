@@ -273,7 +273,7 @@ def test_precheck_flags_a_shallow_crossing_and_clears_a_clear_step():
 
 @pytest.mark.parametrize("storm", [False, True])
 def test_batch_event_record_equals_the_event_by_event_record(storm):
-    """driver.record_kernel_events (one batch, SwitchEvents built field by field) against
+    """driver.record_kernel_events (one batch copied into the columns at once) against
     the event-by-event record through the storm guard (driver._record_one_by_one): the same
     SwitchEvents, last kind, status and message; with 21 events at one instant (a switch
     storm) both fail at the same event."""

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rubcli import model
-from rubcli.solution import Solution
+from rubcli.solution import Solution, ordered_sum
 
 
 @dataclass(frozen=True)
@@ -73,40 +73,27 @@ def piece_bounds(solution: Solution) -> PieceBounds:
     """
     t = np.asarray(solution.t, dtype=float)
     states = np.asarray(solution.states, dtype=float)
-    regime, start_tau, start_state, end_tau, end_state, lo, hi = [], [], [], [], [], [], []
     if t.size:
-        t_end = float(t[-1])
-        bounds: list[tuple[float, np.ndarray, int]] = [
-            (float(t[0]), states[0], int(solution.regimes[0]))
-        ]
-        for event in solution.events:
-            if event.tau > t_end:
-                break
-            bounds.append(
-                (float(event.tau), np.asarray(event.state, dtype=float), event.regime_after)
-            )
-        for i, (start, state, code) in enumerate(bounds):
-            if i + 1 < len(bounds):
-                end, final = bounds[i + 1][0], bounds[i + 1][1]
-            else:
-                end, final = t_end, states[-1]
-            if not end > start:
-                continue
-            regime.append(code)
-            start_tau.append(start)
-            start_state.append(state)
-            end_tau.append(end)
-            end_state.append(final)
-            lo.append(int(np.searchsorted(t, start, side="right")))
-            hi.append(int(np.searchsorted(t, end, side="left")))
+        events = solution.events.until(float(t[-1]))
+        start_tau = np.concatenate((t[:1], events.tau))
+        start_state = np.concatenate((states[:1], events.state))
+        regime = np.concatenate((np.asarray(solution.regimes[:1]), events.regime_after))
+        end_tau = np.concatenate((events.tau, t[-1:]))
+        end_state = np.concatenate((events.state, states[-1:]))
+    else:
+        start_tau = end_tau = t
+        start_state = end_state = np.empty((0, 4))
+        regime = np.empty(0, dtype=np.int64)
+    keep = end_tau > start_tau  # not the pieces of zero duration
+    start_tau, end_tau = start_tau[keep], end_tau[keep]
     return PieceBounds(
-        regime=np.asarray(regime, dtype=np.int64),
-        start_tau=np.asarray(start_tau, dtype=float),
-        start_state=np.asarray(start_state, dtype=float).reshape(-1, 4),
-        end_tau=np.asarray(end_tau, dtype=float),
-        end_state=np.asarray(end_state, dtype=float).reshape(-1, 4),
-        lo=np.asarray(lo, dtype=np.int64),
-        hi=np.asarray(hi, dtype=np.int64),
+        regime=regime[keep].astype(np.int64),
+        start_tau=start_tau,
+        start_state=start_state[keep],
+        end_tau=end_tau,
+        end_state=end_state[keep],
+        lo=np.searchsorted(t, start_tau, side="right").astype(np.int64),
+        hi=np.searchsorted(t, end_tau, side="left").astype(np.int64),
     )
 
 
@@ -131,8 +118,8 @@ def time_in_regimes(solution: Solution) -> dict[str, float]:
     Every regime name is present (0.0 when never entered); the values add up to the
     simulated span ``t[-1] - t[0]``.
     """
-    out = {name: 0.0 for name in model.REGIME_NAMES.values()}
     b = piece_bounds(solution)
-    for regime, start, end in zip(b.regime.tolist(), b.start_tau, b.end_tau, strict=True):
-        out[model.REGIME_NAMES[regime]] += float(end - start)
-    return out
+    durations = b.end_tau - b.start_tau
+    return {
+        name: ordered_sum(durations[b.regime == code]) for code, name in model.REGIME_NAMES.items()
+    }

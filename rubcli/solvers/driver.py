@@ -35,8 +35,8 @@ import numpy as np
 
 from rubcli import model
 from rubcli.problem import Problem
-from rubcli.solution import FAILED, SUCCESS, Solution, SwitchEvent
-from rubcli.solvers.events import KIND_NAMES, StormGuard, apply_event, initial_kind
+from rubcli.solution import FAILED, KIND_NAMES, SUCCESS, Events, Solution, SwitchEvent
+from rubcli.solvers.events import StormGuard, apply_event, initial_kind
 
 PROGRESS_FRACTION = 0.01  # report progress about every 1 % of the span
 
@@ -47,6 +47,67 @@ class Stepper(Protocol):
     settings: dict
 
     def advance(self, run: Run) -> None: ...
+
+
+class EventRecorder:
+    """A run's events as growing columns (``Events``' layout): no Python object per
+    event. The buffers are allocated at the first event and at least double when full
+    (amortised copies; 43 bytes an event)."""
+
+    MIN_CAPACITY = 64
+
+    def __init__(self, capacity: int = 0) -> None:
+        self.n = 0
+        self.tau = np.empty(capacity)
+        self.kind_code = np.empty(capacity, dtype=Events.CODE_DTYPE)
+        self.state = np.empty((capacity, 4))
+        self.regimes = np.empty((capacity, 2), dtype=Events.CODE_DTYPE)  # before, after
+
+    @property
+    def last_tau(self) -> float:
+        """The time of the last event recorded (-inf if none)."""
+        return float(self.tau[self.n - 1]) if self.n else -math.inf
+
+    def append(self, event: SwitchEvent) -> None:
+        self._reserve(1)
+        i = self.n
+        self.tau[i] = event.tau
+        self.kind_code[i] = KIND_NAMES.index(event.kind)
+        self.state[i] = event.state
+        self.regimes[i] = event.regime_before, event.regime_after
+        self.n = i + 1
+
+    def extend(self, n: int, taus, kinds, states, regimes) -> None:
+        """Append the first ``n`` events of a compiled loop's buffers (``regimes``: (n, 2),
+        before and after)."""
+        self._reserve(n)
+        a, b = self.n, self.n + n
+        self.tau[a:b] = taus[:n]
+        self.kind_code[a:b] = kinds[:n]
+        self.state[a:b] = states[:n]
+        self.regimes[a:b] = regimes[:n]
+        self.n = b
+
+    def events(self, copy: bool = False) -> Events:
+        """The events recorded so far: views (later records do not change them), or with
+        ``copy`` arrays of their own (the spare capacity is not kept alive with them)."""
+        n = self.n
+        columns = (self.tau[:n], self.kind_code[:n], self.state[:n])
+        columns += (self.regimes[:n, 0], self.regimes[:n, 1])
+        if copy:
+            columns = tuple(np.array(c) for c in columns)
+        return Events(*columns)
+
+    def _reserve(self, n: int) -> None:
+        capacity = self.tau.shape[0]
+        if self.n + n <= capacity:
+            return
+        capacity = max(2 * capacity, self.n + n, self.MIN_CAPACITY)
+        for name in ("tau", "kind_code", "state", "regimes"):
+            old = getattr(self, name)
+            new = np.empty((capacity, *old.shape[1:]), dtype=old.dtype)
+            new[: self.n] = old[: self.n]
+            setattr(self, name, new)
 
 
 class Run:
@@ -72,7 +133,7 @@ class Run:
         self.states[0], self.regimes[0] = self.state, self.regime
         self.k = 1  # the next sample to fill
         self.last_kind = initial_kind(self.state, self.regime, self.params)
-        self.events: list[SwitchEvent] = []
+        self.recorder = EventRecorder()
         self.stats: dict[str, int] = {"nsteps": 0}
         self.status, self.message = SUCCESS, "reached the end of the time span"
         self.max_steps, self.max_wall_time_s = max_steps, max_wall_time_s
@@ -96,10 +157,20 @@ class Run:
         """End the run as failed with ``message`` (the partial result is kept)."""
         self.status, self.message = FAILED, message
 
+    @property
+    def events(self) -> Events:
+        """The events recorded so far."""
+        return self.recorder.events()
+
     def record(self, event: SwitchEvent) -> bool:
         """Record an applied event; False (and the run failed) if it makes a storm."""
-        self.events.append(event)
-        if self._storms.storm(event.tau):
+        self.recorder.append(event)
+        return self.guard(event.tau)
+
+    def guard(self, tau: float) -> bool:
+        """Pass the event just recorded at ``tau`` through the storm guard; False (and the
+        run failed) if it makes a storm."""
+        if self._storms.storm(tau):
             self.fail(self._storms.message())
             return False
         return True
@@ -148,7 +219,7 @@ class Run:
             self.k,
             self.states,
             self.regimes,
-            events=self.events,
+            events=self.recorder.events(copy=True),
             stats=self.stats,
             settings=settings,
             status=self.status,
@@ -183,62 +254,33 @@ def integrate(run: Run, stepper: Stepper) -> Solution:
 
 def record_kernel_events(run: Run, n: int, taus, kinds, states, regimes) -> bool:
     """Record the ``n`` events a compiled loop located and applied itself (its event
-    buffers) as ``SwitchEvent`` records; False on a switch storm, with the samples past
-    the storm dropped. The storm guard counts events at one instant, so a batch in
+    buffers, copied into the run's columns); False on a switch storm, with the samples
+    past the storm dropped. The storm guard counts events at one instant, so a batch in
     which no event lies within an instant of the one before it (nor the first of the
     last event recorded) cannot make a storm: each event resets the count. Such a batch
-    is appended at once; any other goes through the guard event by event
-    (about 2 us an event in Python that way, 0.5 us in a batch)."""
+    is copied in at once, only its last event through the guard (which it resets: the
+    guard then holds the instant of the last event); any other goes through the guard
+    event by event."""
     if n == 0:
         return True
     t = taus[:n]
     prev = np.empty(n)
     prev[1:] = t[:-1]
-    prev[0] = run.events[-1].tau if run.events else -np.inf
-    if np.any(np.abs(t - prev) <= StormGuard.INSTANT * np.maximum(1.0, np.abs(t))):
-        return _record_one_by_one(run, n, taus, kinds, states, regimes)
-    # flat lists: no list per event for the garbage collector to count and traverse
-    tl, kl = t.tolist(), kinds[:n].tolist()
-    sl, rl = states[:n].ravel().tolist(), regimes[:n].ravel().tolist()
-    names, make = KIND_NAMES, _switch_event
-    events = [
-        make(tl[i], names[kl[i]], tuple(sl[4 * i : 4 * i + 4]), rl[2 * i], rl[2 * i + 1])
-        for i in range(n)
-    ]
-    run.last_kind = kl[-1]
-    # the last through the guard (which it resets): it holds the instant of the last event
-    run.events.extend(events[:-1])
-    return run.record(events[-1])
+    prev[0] = run.recorder.last_tau
+    instant = np.any(np.abs(t - prev) <= StormGuard.INSTANT * np.maximum(1.0, np.abs(t)))
+    return _record_one_by_one(run, n, taus, kinds, states, regimes, 0 if instant else n - 1)
 
 
-def _switch_event_fields(tau, kind, state, before, after) -> SwitchEvent:
-    """A ``SwitchEvent`` with its fields set directly: the frozen dataclass's own
-    ``__init__`` sets each field through ``object.__setattr__`` (0.7-1 us an event, most
-    of the Python cost of a run with many events; this takes 0.35 us). Equal to
-    ``SwitchEvent(...)`` in every field (``tests/test_taylor.py`` checks)."""
-    event = _new(SwitchEvent)
-    event.__dict__.update(tau=tau, kind=kind, state=state, regime_before=before, regime_after=after)
-    return event
-
-
-_new = object.__new__
-# the direct construction only while SwitchEvent is a plain frozen dataclass (instance
-# __dict__, no __post_init__): otherwise its own constructor
-_switch_event = (
-    _switch_event_fields
-    if not hasattr(SwitchEvent, "__slots__") and not hasattr(SwitchEvent, "__post_init__")
-    else SwitchEvent
-)
-
-
-def _record_one_by_one(run: Run, n: int, taus, kinds, states, regimes) -> bool:
-    """``record_kernel_events`` event by event through the storm guard."""
-    for i in range(n):
-        run.last_kind = int(kinds[i])
-        before, after = int(regimes[i, 0]), int(regimes[i, 1])
-        state = tuple(map(float, states[i]))
-        t_ev = float(taus[i])
-        if not run.record(SwitchEvent(t_ev, KIND_NAMES[run.last_kind], state, before, after)):
+def _record_one_by_one(run: Run, n: int, taus, kinds, states, regimes, first: int = 0) -> bool:
+    """``record_kernel_events`` with the events from ``first`` on through the storm guard
+    one by one (by default all): on a storm, the events up to the one that made it are
+    recorded and the samples past it dropped."""
+    for i, t_ev in enumerate(taus[first:n].tolist(), first):
+        if not run.guard(t_ev):
+            run.recorder.extend(i + 1, taus, kinds, states, regimes)
+            run.last_kind = int(kinds[i])
             run.k = int(np.searchsorted(run.t_eval, t_ev, side="right"))
             return False
+    run.recorder.extend(n, taus, kinds, states, regimes)
+    run.last_kind = int(kinds[n - 1])
     return True

@@ -20,6 +20,7 @@ from collections.abc import Callable
 import numpy as np
 
 from rubcli import model
+from rubcli.solution import KIND_NAMES, SwitchEvent
 
 # A free orbit whose largest penetration stays below this many clearances is taken as
 # a grazing touch that does not enter contact (the force there is below K * 1e-12).
@@ -115,10 +116,10 @@ class StormGuard:
 
 
 # Event kinds: one code each (what compiled code passes around), and the name a
-# SwitchEvent carries (``KIND_NAMES[code]``). NO_EVENT: a segment not begun by an event.
+# SwitchEvent carries (``KIND_NAMES[code]``, defined with the records in rubcli.solution).
+# NO_EVENT: a segment not begun by an event.
 ENTRY, EXIT, REVERSAL, STICK_ENTRY, STICK_EXIT = 0, 1, 2, 3, 4
 NO_EVENT = -1
-KIND_NAMES = ("contact_entry", "contact_exit", "slip_reversal", "stick_entry", "stick_exit")
 
 
 def start_flags(last_kind: int) -> tuple[bool, bool, bool]:
@@ -582,8 +583,6 @@ def apply_event(tau: float, kind: int, state, regime: int, params):
     Returns ``(state, new_regime, recorded kind, SwitchEvent)``; the state is projected
     onto the rolling constraint when stick begins or ends in contact.
     """
-    from rubcli.solution import SwitchEvent
-
     state = np.asarray(state, dtype=float)
     new_regime, recorded, project = switch_regime(
         kind, tau, state[0], state[1], state[2], state[3], regime, *model.params_vector(params)
