@@ -21,6 +21,7 @@ from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solution import FAILED, SUCCESS
 from rubcli.solvers import METHODS, options_for, solve
+from rubcli.solvers import taylor as taylor_solver
 from rubcli.solvers.compiled import taylor as tk
 from rubcli.solvers.events import ENTRY
 
@@ -215,7 +216,7 @@ def test_stiff_persistent_contact_agrees_with_dop853_jit():
     assert np.max(np.abs(sol.w - ref.w)) < 1e-8
 
 
-def test_budgets_progress_and_registration():
+def test_budgets_progress_and_registration(monkeypatch):
     assert "taylor" in METHODS
     assert options_for("taylor", {"rtol": 1e-6, "atol": 1e-8, "steps_per_period": 9}) == {
         "rtol": 1e-6,
@@ -225,7 +226,8 @@ def test_budgets_progress_and_registration():
     short = solve(prob, "taylor", rtol=1e-8, atol=1e-10, max_steps=50)
     assert short.status == FAILED and "step" in short.message
     assert 1 < short.t.size < prob.t_eval.size
-    seen = []  # progress: between kernel chunks (2000 steps) and at the end
+    seen = []  # progress: between kernel chunks (here 2000 steps) and at the end
+    monkeypatch.setattr(taylor_solver, "CHUNK_STEPS", 2000)
     long = fig3_problem(0.03, 100)
     sol = solve(long, "taylor", rtol=1e-8, atol=1e-10, progress=seen.append)
     assert sol.success and seen[-1] == long.t_eval[-1] and len(seen) >= 2

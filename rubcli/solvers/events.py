@@ -192,7 +192,7 @@ def stick_margin(t, x, y, vx, vy, pars, sign):
     return sign * T - limit * (1.0 + model.STICK_EXIT_MARGIN)
 
 
-def event_search(ev, fill=None, compile=None):
+def event_search(ev, fill=None, compile=None, compile_inline=None):
     """The event search over one kind of segment: ``(locate, crossing)``.
 
     ``ev(t, deriv, ctx, row, drow)`` evaluates the segment: it writes the state at t into
@@ -206,6 +206,12 @@ def event_search(ev, fill=None, compile=None):
     (``compile=None``); a compiled loop builds its own search with ``compile=jit``, and
     numba compiles the same functions with ``ev`` fixed (a closure constant, so no
     function object is passed at run time and the kernels stay cachable).
+    ``compile_inline`` (default ``compile``) compiles the one function each pointwise
+    evaluation goes through (``event_value``: Brent's iterations, the bracket ends, the
+    look-ahead), so that it can be inlined into its callers in numba IR: a call passes
+    every array argument exploded and reference-counted, which costs more than
+    evaluating a Taylor polynomial (``taylor`` inlines it and its ``ev``: 9 % of the
+    event-dense mu = 0.03 run; for the other loops it saves nothing measurable).
 
     The search itself does not check for non-finite values (a NaN compares false and
     ends no scan): the Python segments raise ValueError when asked for a non-finite
@@ -214,17 +220,22 @@ def event_search(ev, fill=None, compile=None):
     check of the next state.
     """
 
+    def stick_value(ctx, t, sign, deriv, pars, d, row, drow):
+        """The stick margin of side ``sign`` at t, or (``deriv``) its rate by central
+        differences of half-width d."""
+        if not deriv:
+            ev(t, False, ctx, row, drow)
+            return stick_margin(t, row[0], row[1], row[2], row[3], pars, sign)
+        ev(t + d, False, ctx, row, drow)
+        up = stick_margin(t + d, row[0], row[1], row[2], row[3], pars, sign)
+        ev(t - d, False, ctx, row, drow)
+        down = stick_margin(t - d, row[0], row[1], row[2], row[3], pars, sign)
+        return (up - down) / (2.0 * d)
+
     def event_value(ctx, t, fn, sign, deriv, pars, d, row, drow):
         """The event function ``fn`` (or its rate, ``deriv``) of the segment at t."""
         if fn == FN_STICK:
-            if not deriv:
-                ev(t, False, ctx, row, drow)
-                return stick_margin(t, row[0], row[1], row[2], row[3], pars, sign)
-            ev(t + d, False, ctx, row, drow)
-            up = stick_margin(t + d, row[0], row[1], row[2], row[3], pars, sign)
-            ev(t - d, False, ctx, row, drow)
-            down = stick_margin(t - d, row[0], row[1], row[2], row[3], pars, sign)
-            return (up - down) / (2.0 * d)
+            return stick_value(ctx, t, sign, deriv, pars, d, row, drow)
         ev(t, deriv and fn != FN_SURFACE, ctx, row, drow)
         if fn == FN_GIVEN:
             return drow[0] if deriv else row[0]
@@ -241,9 +252,8 @@ def event_search(ev, fill=None, compile=None):
         """``event_value`` and its rate at t from one evaluation of the segment (three
         for the stick margin's central differences): the same numbers."""
         if fn == FN_STICK:
-            ev(t, False, ctx, row, drow)
-            value = stick_margin(t, row[0], row[1], row[2], row[3], pars, sign)
-            return value, event_value(ctx, t, fn, sign, True, pars, d, row, drow)
+            value = stick_value(ctx, t, sign, False, pars, d, row, drow)
+            return value, stick_value(ctx, t, sign, True, pars, d, row, drow)
         ev(t, fn != FN_SURFACE, ctx, row, drow)
         if fn == FN_GIVEN:
             return row[0], drow[0]
@@ -470,7 +480,8 @@ def event_search(ev, fill=None, compile=None):
         return best, kind
 
     if compile is not None:
-        event_value = compile(event_value)
+        stick_value = compile(stick_value)
+        event_value = (compile_inline or compile)(event_value)
         event_values = compile(event_values)
         fill_values = compile(fill_values)
         brentq = compile(brentq)
