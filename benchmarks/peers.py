@@ -10,6 +10,9 @@ Each peer is driven as its own users would drive it:
 
 - rubcli ``taylor`` and ``dop853-jit``: ``rubcli.solvers.solve`` with ``rtol`` and
   ``atol = rtol * 1e-2`` (every event located, the stick law, one sample per period);
+  ``analytic-polar`` (the paper's scheme, linearised in polar coordinates, where the
+  stator stiffness is exact) on a ladder of fixed steps per period instead of a
+  tolerance (its ``tol`` column holds the steps per period);
 - heyoka (Taylor method compiled by LLVM): a ``taylor_adaptive`` integrator with
   terminal events (``t_event``: the contact surface z^2 = 1 and, with friction, the slip
   reversal v_r = 0) switching the contact force on or off and the friction sign (runtime
@@ -58,7 +61,8 @@ from rubcli.solvers import solve
 
 HERE = Path(__file__).resolve().parent
 TARGETS = (1e-6, 1e-10)
-RUBCLI = ("taylor", "dop853-jit")
+RUBCLI = ("taylor", "analytic-polar", "dop853-jit")
+FIXED_STEP = {"analytic-polar"}  # ladders of steps per period, not of tolerances
 PEERS = ("heyoka", "cyrk")
 ATOL_FACTOR = 1e-2
 REFERENCE_RTOL, REFERENCE_ATOL = 1e-13, 1e-15
@@ -266,6 +270,13 @@ def timed(fn, repeats: int, budget: float):
     return out, (times, cpu)
 
 
+def steps_ladder(quick: bool) -> list[float]:
+    """Steps per forcing period for the fixed-step methods."""
+    if quick:
+        return [10.0, 100.0, 1000.0]
+    return [5.0, 10.0, 25.0, 50.0, 100.0, 200.0, 400.0, 800.0, 1600.0, 3200.0, 6400.0]
+
+
 def final_error(state, ref_state) -> float:
     return float(abs(complex(state[0], state[1]) - complex(ref_state[0], ref_state[1])))
 
@@ -295,18 +306,24 @@ def measure_case(case: Case, quick: bool, repeats: int, budget: float, log) -> d
             len(times), err, status, steps, events, note, times,
         )  # fmt: skip
         rows.append(row)
+        setting = f"spp {tol:7.0f}" if method in FIXED_STEP else f"tol {tol:8.1e}"
         log(
-            f"  {method:10s} tol {tol:8.1e}  {row.time_min_s * 1e3:9.3f} ms "
+            f"  {method:14s} {setting}  {row.time_min_s * 1e3:9.3f} ms "
             f"(median {row.time_median_s * 1e3:9.3f}, cpu {row.cpu_min_s * 1e3:9.3f})  "
             f"error {err:8.1e}  steps {steps}  events {events}  {status} {note}"
         )
 
     for method in RUBCLI:
+        fixed = method in FIXED_STEP
         t0 = time.perf_counter()
-        solve(problem, method, rtol=1e-3, atol=1e-5)  # warm-up: numba cache load
+        warm = {"steps_per_period": 10} if fixed else {"rtol": 1e-3, "atol": 1e-5}
+        solve(problem, method, **warm)  # warm-up: numba cache load
         setup[method] = time.perf_counter() - t0
-        for tol in tols:
-            opts = {"rtol": tol, "atol": tol * ATOL_FACTOR, "max_wall_time_s": budget}
+        for tol in steps_ladder(quick) if fixed else tols:
+            if fixed:
+                opts = {"steps_per_period": int(tol), "max_wall_time_s": budget}
+            else:
+                opts = {"rtol": tol, "atol": tol * ATOL_FACTOR, "max_wall_time_s": budget}
 
             def run(opts=opts, method=method):
                 s = solve(problem, method, **opts)
@@ -319,6 +336,8 @@ def measure_case(case: Case, quick: bool, repeats: int, budget: float, log) -> d
                 method, tol, sol, times, sol.stats.get("nsteps"), len(sol.events),
                 "success" if sol.success else "stalled", note, state,
             )  # fmt: skip
+            if fixed and (min(times[0]) > budget / 4 or rows[-1].error < min(TARGETS) / 10):
+                break  # finer steps only cost more (or the targets are reached already)
 
     t0 = time.perf_counter()
     rhs = cyrk_rhs()
@@ -366,8 +385,10 @@ def summary(result: dict) -> list[str]:
         + ", ".join(f"{m} {s:.2f} s" for m, s in result["setup"].items())
         + ".",
         "",
-        "| target error | " + " | ".join(RUBCLI + PEERS) + " | heyoka / taylor | cyrk / taylor |",
-        "|---|" + "---|" * (len(RUBCLI) + len(PEERS) + 2),
+        "| target error | "
+        + " | ".join(RUBCLI + PEERS)
+        + " | fastest rubcli | heyoka / fastest | cyrk / fastest |",
+        "|---|" + "---|" * (len(RUBCLI) + len(PEERS) + 3),
         "",
     ]
     table = lines[-3:-1]
@@ -382,15 +403,22 @@ def summary(result: dict) -> list[str]:
                 if row is None:
                     cells.append("not reached")
                 else:
-                    cells.append(
-                        f"{_time(row, clock) * 1e3:.2f} ms (tol {row.tol:.0e}, err {row.error:.0e})"
+                    setting = (
+                        f"{row.tol:.0f} steps/period"
+                        if method in FIXED_STEP
+                        else f"tol {row.tol:.0e}"
                     )
-            ratios = []
+                    cells.append(
+                        f"{_time(row, clock) * 1e3:.2f} ms ({setting}, err {row.error:.0e})"
+                    )
+            ours = [best[m] for m in RUBCLI if best[m] is not None]
+            fastest = min(ours, key=lambda r: _time(r, clock)) if ours else None
+            ratios = [fastest.method if fastest else "none"]
             for peer in PEERS:
-                if best["taylor"] is None or best[peer] is None:
+                if fastest is None or best[peer] is None:
                     ratios.append("-")
                 else:
-                    ratio = _time(best[peer], clock) / _time(best["taylor"], clock)
+                    ratio = _time(best[peer], clock) / _time(fastest, clock)
                     ratios.append(f"{ratio:.1f}x")
             if target < 10 * spread:
                 cells[0] += " (below 10x the reference uncertainty)"
