@@ -26,20 +26,13 @@ from rubcli.solvers import solve  # noqa: E402
 
 PINNED = json.loads((GOLDEN / "solvers.json").read_text())
 TOLERANCE = 1e-12
-# taylor's series are compiled with reassociation (compiled/jit.py ``jit_fast``): LLVM
-# sums them in an order that depends on the host's vector width, so their round-off is
-# the machine's: an AMD EPYC host with AVX-512 differs from the pins (made on another
-# host) by 2e-12 on stiff-K1.76e4-mu0.03, where 46 impacts amplify round-off (a start
-# moved by one ulp moves taylor's samples by 4e-12). Its events and counts stay pinned
-# exactly; its numbers to this tolerance.
-REASSOCIATED_TOLERANCE = 1e-9
 RUNS = list(runs())
 
 
-def _close(a, b, tolerance=TOLERANCE) -> bool:
+def _close(a, b) -> bool:
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     return a.shape == b.shape and bool(
-        np.all(np.abs(a - b) <= tolerance * np.maximum(1.0, np.abs(b)))
+        np.all(np.abs(a - b) <= TOLERANCE * np.maximum(1.0, np.abs(b)))
     )
 
 
@@ -51,12 +44,11 @@ def _close(a, b, tolerance=TOLERANCE) -> bool:
 def test_outputs_are_pinned(scenario, label, problem, method, options):
     expected = PINNED[scenario][label]
     got = record(solve(problem, method, **options))
-    tol = REASSOCIATED_TOLERANCE if method == "taylor" else TOLERANCE
     assert got["status"] == expected["status"], got["message"]
     assert [e[1:] for e in got["events"]] == [e[1:] for e in expected["events"]]
-    assert _close([e[0] for e in got["events"]], [e[0] for e in expected["events"]], tol)
+    assert _close([e[0] for e in got["events"]], [e[0] for e in expected["events"]])
     assert got["regimes"] == expected["regimes"]
-    assert _close(got["states"], expected["states"], tol)
+    assert _close(got["states"], expected["states"])
     assert math.isclose(got["t_end"], expected["t_end"], rel_tol=TOLERANCE)
     assert got["stats"] == expected["stats"]
 

@@ -73,11 +73,11 @@ EPS = np.finfo(float).eps
 # (a library user's thread pool; `rubcli run` itself never runs anything beside a timed
 # solve, see rubcli/io/background.py ``Background``).
 jit = numba.njit(cache=True, nogil=True)
-jit_inline = numba.njit(cache=True, nogil=True, inline="always")  # inlined in numba IR
-# Reassociation allowed: for sums that are latency-bound chains otherwise (3-4x slower),
-# in code whose results no Python path recomputes (the taylor series, compiled/taylor.py)
-FASTMATH = {"reassoc", "contract", "nsz", "arcp"}
-jit_fast = numba.njit(cache=True, nogil=True, fastmath=FASTMATH)
-# jit_fast inlined in numba IR into its caller (and compiled with the caller's flags):
-# no call, so the arrays it takes are not reference-counted again (taylor's pre-checks)
-jit_fast_inline = numba.njit(cache=True, nogil=True, fastmath=FASTMATH, inline="always")
+# inlined in numba IR into its caller (and compiled with the caller's flags): no call, so
+# the arrays it takes are not passed and reference-counted again (taylor's pre-checks and
+# the event search's pointwise evaluation)
+jit_inline = numba.njit(cache=True, nogil=True, inline="always")
+# No fastmath anywhere: every kernel rounds as IEEE arithmetic in source order, the same
+# on every machine. (taylor's series once allowed reassociation, which vectorised their
+# short sums: on an AMD EPYC (Zen 4) host that was 7-16 % slower per run, and its rounding
+# followed the host's vector width.)

@@ -94,8 +94,6 @@ from rubcli.solvers.compiled.jit import (
     STOP_PYTHON,
     STOP_SMALL_STEP,
     jit,
-    jit_fast,
-    jit_fast_inline,
     jit_inline,
 )
 from rubcli.solvers.compiled.roots import FREE_REGIME, STICK_REGIME, apply_and_record
@@ -108,13 +106,6 @@ from rubcli.solvers.events import (
     start_flags,
     stick_margin,
 )
-
-# ``jit_fast`` (compiled/jit.py) for the series and the pre-check bound only: they are
-# computed here only, never again in Python, so the compiled and the Python event paths
-# still see the same coefficients; the dense output and the event functions, which both
-# paths evaluate, use plain ``jit``.
-fast = jit_fast
-fast_inline = jit_fast_inline  # the per-step pre-checks, inlined into their callers
 
 MAX_ORDER = 30
 MIN_ORDER = 4
@@ -141,7 +132,7 @@ def taylor_order(rtol: float) -> int:
     return int(min(MAX_ORDER, max(MIN_ORDER, order)))
 
 
-@fast
+@jit
 def _cauchy(a, b, k):
     """(a b)_k = sum_{j=0}^{k} a_j b_{k-j}."""
     acc = 0.0
@@ -150,7 +141,7 @@ def _cauchy(a, b, k):
     return acc
 
 
-@fast
+@jit
 def _inverse_radius_terms(x, y, q, u, k):
     """Order k of q = x^2 + y^2 and u = q^(-1/2) = 1 / z (orders below k filled).
 
@@ -174,14 +165,14 @@ def _inverse_radius_terms(x, y, q, u, k):
     u[k] = acc / (k * q[0])
 
 
-@fast
+@jit
 def _forcing(eta, phi0, t0):
     """exp(i (eta t0 + phi0)): (cos, sin) of the forcing phase at the step's start."""
     phase = eta * t0 + phi0
     return math.cos(phase), math.sin(phase)
 
 
-@fast
+@jit
 def taylor_coefficients(t0, s, pars, regime, order, C, W):
     """The Taylor coefficients C[:, 0..order] (rows x, y, vx, vy; columns the orders)
     of the regime-locked solution through ``s`` at ``t0``; ``W`` (WORK_ROWS,
@@ -203,11 +194,11 @@ def taylor_coefficients(t0, s, pars, regime, order, C, W):
 
 
 # Reversed copies (xr[M - j] = x_j) turn every Cauchy sum into a forward dot product,
-# sum_j a_j b_{k-j} = sum_j a_j br[M - k + j], which vectorises; the sums of one order
+# sum_j a_j b_{k-j} = sum_j a_j br[M - k + j], contiguous in j; the sums of one order
 # (q, u and the contact force) share one pass over j.
 
 
-@fast
+@jit
 def _free_coefficients(fr, fi, pars, order, C, W):
     """``taylor_coefficients`` in free flight, with the series of q = x^2 + y^2 (W[0],
     for the pre-check)."""
@@ -237,7 +228,7 @@ def _free_coefficients(fr, fi, pars, order, C, W):
         W[0, m] = sq + 2.0 * (x0 * xm + y0 * ym)
 
 
-@fast
+@jit
 def _slip_coefficients(fr, fi, pars, sign, order, C, W):
     """``taylor_coefficients`` in slip (``sign`` the regime, +1 or -1), with the series
     of q = x^2 + y^2 (W[0]), z = sqrt(q) (W[3]) and P = w / z (W[4], W[5]).
@@ -305,7 +296,7 @@ def _slip_coefficients(fr, fi, pars, sign, order, C, W):
         gy = ym - pym
 
 
-@fast
+@jit
 def _stick_coefficients(fr, fi, pars, order, C, W):
     """``taylor_coefficients`` in stick: the rolling law of ``model.rhs_entries`` (the
     velocity projected onto r theta' = -Rp eta, the needed friction T on it, the normal
@@ -393,7 +384,7 @@ def dense(t, t0, C, order):
     return out
 
 
-@fast
+@jit
 def _series_bound(H, order, h):
     """sum_{k>=1} |H_k| h^k, a bound of |H(s) - H_0| on [0, h]."""
     acc = 0.0
@@ -404,7 +395,7 @@ def _series_bound(H, order, h):
     return acc
 
 
-@fast
+@jit
 def _poly_at(H, order, s):
     """sum_k H_k s^k (Horner)."""
     v = H[order]
@@ -413,7 +404,7 @@ def _poly_at(H, order, s):
     return v
 
 
-@fast
+@jit
 def _stays_below(H, order, h, margin):
     """True if the polynomial H (its series) stays below -margin on [0, h]: first by
     |H(s) - H_0| <= sum_{k>=1} |H_k| h^k; failing that, on 4 and then PRECHECK_GRID
@@ -453,7 +444,7 @@ def _stays_below(H, order, h, margin):
     return True
 
 
-@fast
+@jit
 def _product_tail_bound(C, order, h, W):
     """Bound on [0, h] of the terms of degree above N of x(s)^2 + y(s)^2, x and y the
     polynomials of degree N (C[0], C[1]): for each, sum_{i+j>N} A_i A_j = sum_{i=1}^{N}
@@ -476,7 +467,7 @@ def _product_tail_bound(C, order, h, W):
     return acc
 
 
-@fast
+@jit
 def _surface_may_cross(C, order, h, regime, W):
     """False if the surface's series stays below zero by a margin on [0, h]."""
     # The surface's series q - 1 (W[0]), against x(s)^2 + y(s)^2 - 1 of the state
@@ -494,7 +485,7 @@ def _surface_may_cross(C, order, h, regime, W):
     return not _stays_below(H, order, h, margin)
 
 
-@fast_inline
+@jit_inline
 def _surface_clear_quick(C, order, h, regime, W):
     """``_surface_may_cross``'s tests in two passes: H_0 + sum_k |H_k| h^k plus the
     margin below zero, or else the chord bound on 4 intervals (``_stays_below``), with
@@ -546,7 +537,7 @@ def _surface_clear_quick(C, order, h, regime, W):
     return max(h0, top) + rise + margin < 0.0
 
 
-@fast
+@jit
 def _may_have_event(C, order, h, regime, pars, W, eps):
     """False if no event function of the regime can reach zero in [t0, t0 + h]: the
     surface's series (and the slip's) stays below zero by a margin (``_stays_below``)."""
@@ -570,7 +561,7 @@ def _may_have_event(C, order, h, regime, pars, W, eps):
     return not _stays_below(H, order, h, margin)
 
 
-@fast
+@jit
 def _surface_start_may_cross(C, order, h, regime, W, level):
     """The surface pre-check of a step that starts on the surface (the contact entry
     or exit that began the segment), where H = direction (q - 1) is zero to round-off:
@@ -596,7 +587,7 @@ def _surface_start_may_cross(C, order, h, regime, W, level):
     return not _stays_below(G, order - 1, h, margin)
 
 
-@fast_inline
+@jit_inline
 def _slip_clear(C, order, h, regime, pars):
     """True if the slip velocity of the state polynomials (what ``locate`` evaluates:
     v_r = Rp eta + (x vy - y vx) / hypot(x, y)) surely keeps its sign on [0, h]: with
@@ -635,9 +626,7 @@ def step_clear(C, order, h, regime, pars, W, starts):
     surface by ``_surface_clear_quick``): most steps; False leaves the step to
     ``step_events``. Inlined, with both tests, into the step loop (numba IR): a call
     taking the step's arrays reference-counts each of them (atomic operations) on every
-    step. Inlined there the tests run with the loop's plain IEEE arithmetic rather than
-    ``fast``'s reassociation: the bounds differ by round-off, and each is a bound with a
-    margin, so either clears only steps that hold no event."""
+    step."""
     clear = not (regime == STICK_REGIME or starts[0] or starts[1])
     if clear and regime != FREE_REGIME and pars[5] > 0.0:
         clear = _slip_clear(C, order, h, regime, pars)
@@ -646,7 +635,7 @@ def step_clear(C, order, h, regime, pars, W, starts):
     return clear
 
 
-@fast
+@jit
 def step_events(C, order, h, regime, pars, W, eps, starts, band):
     """Which event functions ``locate`` must scan on a step: SCAN_NONE (none can reach
     its level: the step is clear), SCAN_SURFACE (the slip reversal surely cannot occur)
