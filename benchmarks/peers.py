@@ -25,7 +25,9 @@ Every run's error is the final-state position error |w - w_ref| against a refere
 rubcli's ``dop853-jit`` at rtol 1e-13 (atol 1e-15); ``taylor`` at rtol 1e-14 gives the
 reference's own uncertainty (both printed). For each target error (1e-6, 1e-10) each
 method's cheapest setting that reaches it is taken, and the ratios are times measured in
-this one run (minimum over the repeats; medians are printed too). The integrators'
+this one run (minimum over the repeats; medians are printed too). The repeats are taken
+round-robin over every method and setting of a case (one run of each per round), so a
+slower or faster spell of the shared machine falls on all of them alike. The integrators'
 one-off costs (numba and LLVM compilation, building heyoka's integrators) are measured
 apart and are in no row. A method that stalls (chatter at a stick) is stopped by its
 budget (``--budget`` seconds per run, or CyRK's step limit) and reported as such.
@@ -257,17 +259,11 @@ def ladder(quick: bool, stiff: bool) -> list[float]:
     return [10.0 ** (-k / 2) for k in range(8, 2 * lo + 1)]
 
 
-def timed(fn, repeats: int, budget: float):
-    """(last result, wall times, CPU times) of up to ``repeats`` runs."""
-    times, cpu, out = [], [], None
-    for _ in range(repeats):
-        t0, c0 = time.perf_counter(), time.process_time()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-        cpu.append(time.process_time() - c0)
-        if times[-1] > budget / 4 or (isinstance(out, tuple) and out[-2] != "success"):
-            break  # a slow or stalled run is not repeated
-    return out, (times, cpu)
+def timed_once(fn):
+    """(result, wall time, CPU time) of one run."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    out = fn()
+    return out, time.perf_counter() - t0, time.process_time() - c0
 
 
 def steps_ladder(quick: bool) -> list[float]:
@@ -281,7 +277,25 @@ def final_error(state, ref_state) -> float:
     return float(abs(complex(state[0], state[1]) - complex(ref_state[0], ref_state[1])))
 
 
+@dataclass
+class Setting:
+    """One method at one setting: ``run()`` -> (final state or None, steps, events,
+    status, note), and its times over the repeats."""
+
+    method: str
+    tol: float
+    run: object
+    result: tuple | None = None
+    times: list[float] = field(default_factory=list)
+    cpu: list[float] = field(default_factory=list)
+
+
 def measure_case(case: Case, quick: bool, repeats: int, budget: float, log) -> dict:
+    """Every method's ladder on one case. A first pass runs each setting once (its error,
+    steps, events, status; a fixed-step ladder stops where finer steps only cost more);
+    then the settings that finished in under a quarter of the budget are timed again
+    round-robin, one run of each per round, so that a slower or faster spell of the
+    shared machine falls on every method alike (the ratios are what the targets ask)."""
     problem = case.problem()
     params, t_end = problem.params, float(problem.t_eval[-1])
     ref = solve(problem, "dop853-jit", rtol=REFERENCE_RTOL, atol=REFERENCE_ATOL)
@@ -293,26 +307,25 @@ def measure_case(case: Case, quick: bool, repeats: int, budget: float, log) -> d
         f"({ref.wall_time_s:.2f} s, {len(ref.events)} events); taylor rtol 1e-14 differs "
         f"by {spread:.1e}"
     )
-    rows: list[Row] = []
     setup: dict[str, float] = {}
-    stiff = case.K > 1e3
-    tols = ladder(quick, stiff)
+    tols = ladder(quick, case.K > 1e3)
 
-    def record(method, tol, out, times, steps, events, status, note, state):
-        err = final_error(state, ref_state) if state is not None else math.nan
-        times, cpu = times
-        row = Row(
-            case.label, method, tol, min(times), statistics.median(times), min(cpu),
-            len(times), err, status, steps, events, note, times,
-        )  # fmt: skip
-        rows.append(row)
-        setting = f"spp {tol:7.0f}" if method in FIXED_STEP else f"tol {tol:8.1e}"
-        log(
-            f"  {method:14s} {setting}  {row.time_min_s * 1e3:9.3f} ms "
-            f"(median {row.time_median_s * 1e3:9.3f}, cpu {row.cpu_min_s * 1e3:9.3f})  "
-            f"error {err:8.1e}  steps {steps}  events {events}  {status} {note}"
-        )
+    def rubcli_run(method, opts):
+        def run():
+            sol = solve(problem, method, **opts)
+            state = sol.states[-1] if sol.success else None
+            status = "success" if sol.success else "stalled"
+            note = "" if sol.success else sol.message
+            return state, sol.stats.get("nsteps"), len(sol.events), status, note
 
+        return run
+
+    def first_pass(setting: Setting) -> None:
+        setting.result, wall, cpu = timed_once(setting.run)
+        setting.times.append(wall)
+        setting.cpu.append(cpu)
+
+    settings: list[Setting] = []
     for method in RUBCLI:
         fixed = method in FIXED_STEP
         t0 = time.perf_counter()
@@ -324,19 +337,12 @@ def measure_case(case: Case, quick: bool, repeats: int, budget: float, log) -> d
                 opts = {"steps_per_period": int(tol), "max_wall_time_s": budget}
             else:
                 opts = {"rtol": tol, "atol": tol * ATOL_FACTOR, "max_wall_time_s": budget}
-
-            def run(opts=opts, method=method):
-                s = solve(problem, method, **opts)
-                return s, s.status, None
-
-            (sol, status, _), times = timed(run, repeats, budget)
-            note = "" if sol.success else sol.message
-            state = sol.states[-1] if sol.success else None
-            record(
-                method, tol, sol, times, sol.stats.get("nsteps"), len(sol.events),
-                "success" if sol.success else "stalled", note, state,
-            )  # fmt: skip
-            if fixed and (min(times[0]) > budget / 4 or rows[-1].error < min(TARGETS) / 10):
+            setting = Setting(method, tol, rubcli_run(method, opts))
+            first_pass(setting)
+            settings.append(setting)
+            state = setting.result[0]
+            err = final_error(state, ref_state) if state is not None else math.inf
+            if fixed and (setting.times[0] > budget / 4 or err < min(TARGETS) / 10):
                 break  # finer steps only cost more (or the targets are reached already)
 
     t0 = time.perf_counter()
@@ -345,11 +351,13 @@ def measure_case(case: Case, quick: bool, repeats: int, budget: float, log) -> d
     setup["cyrk"] = time.perf_counter() - t0
     for tol in tols:
 
-        def run(tol=tol):
-            return run_cyrk(rhs, params, problem.initial, t_end, tol)
+        def cyrk_run(tol=tol):
+            state, steps, status, note = run_cyrk(rhs, params, problem.initial, t_end, tol)
+            return state, steps, None, status, note
 
-        (state, steps, status, note), times = timed(run, repeats, budget)
-        record("cyrk", tol, None, times, steps, None, status, note, state)
+        setting = Setting("cyrk", tol, cyrk_run)
+        first_pass(setting)
+        settings.append(setting)
 
     build = 0.0
     for tol in tols:
@@ -357,12 +365,37 @@ def measure_case(case: Case, quick: bool, repeats: int, budget: float, log) -> d
         hy = Heyoka(params, tol)
         build += time.perf_counter() - t0
 
-        def run(hy=hy):
-            return hy.run(problem.initial, t_end, budget)
+        def heyoka_run(hy=hy):
+            state, events, steps, status, note = hy.run(problem.initial, t_end, budget)
+            return state, steps, events, status, note
 
-        (state, events, steps, status, note), times = timed(run, repeats, budget)
-        record("heyoka", tol, None, times, steps, events, status, note, state)
+        setting = Setting("heyoka", tol, heyoka_run)
+        first_pass(setting)
+        settings.append(setting)
     setup["heyoka"] = build
+
+    timed_again = [s for s in settings if s.result[3] == "success" and s.times[0] <= budget / 4]
+    for _ in range(repeats - 1):
+        for setting in timed_again:
+            _, wall, cpu = timed_once(setting.run)
+            setting.times.append(wall)
+            setting.cpu.append(cpu)
+
+    rows: list[Row] = []
+    for st in settings:
+        state, steps, events, status, note = st.result
+        err = final_error(state, ref_state) if state is not None else math.nan
+        row = Row(
+            case.label, st.method, st.tol, min(st.times), statistics.median(st.times),
+            min(st.cpu), len(st.times), err, status, steps, events, note, st.times,
+        )  # fmt: skip
+        rows.append(row)
+        setting = f"spp {st.tol:7.0f}" if st.method in FIXED_STEP else f"tol {st.tol:8.1e}"
+        log(
+            f"  {st.method:14s} {setting}  {row.time_min_s * 1e3:9.3f} ms "
+            f"(median {row.time_median_s * 1e3:9.3f}, cpu {row.cpu_min_s * 1e3:9.3f})  "
+            f"error {err:8.1e}  steps {steps}  events {events}  {status} {note}"
+        )
     return {"case": case, "rows": rows, "setup": setup, "spread": spread, "ref": ref}
 
 
