@@ -98,9 +98,8 @@ def _slip_may_cross(grid, S, dS, n, sign, spin, cond, hv, hd, starts):
     return _may_cross(grid, hv, hd, n, margin_v, rel * (1.0 + rate_scale), starts[1], starts[2])
 
 
-# |lam| h above which a mode's constant and linear parts are taken exactly by
-# ``_component_range`` (the step holds more than half a period of the mode)
-FAST_MODE = 4.0
+# relative rounding allowed for in the oscillation form's cancelling terms (~45 ulp)
+ROUNDING = 1e-14
 
 
 @jit
@@ -110,28 +109,35 @@ def _component_range(i, lam, V, coef, h):
     (``propagators._evaluate_polar``: P(s) = p0 + Re(V w(s)), c0 = ``coef[0]``, c1 =
     ``coef[1]``).
 
-    A fast mode (|lam| h >= FAST_MODE) is written w = e^{lam s} d - d - s c1 / lam with
-    d = c0 / lam + c1 / lam^2: its constant and linear parts are taken exactly, its
-    oscillation bounded by |V_ij d| max(1, e^{Re lam h}), so a ringing contact mode
-    counts with its amplitude, not with its rate times the step. A slow mode is bounded
-    by the integrals |s phi1(lam s)| <= h g and |s^2 phi2(lam s)| <= h^2 g / 2, g =
-    max(1, e^{Re lam h}). Non-finite data give an infinite or NaN range (no clearance).
+    Each mode's term lies in two intervals, and in their intersection: by the integrals
+    |s phi1(lam s)| <= h g and |s^2 phi2(lam s)| <= h^2 g / 2 (g = max(1, e^{Re lam h})),
+    and, written w = e^{lam s} d - d - s c1 / lam with d = c0 / lam + c1 / lam^2, by its
+    constant and linear parts exactly and its oscillation by |V_ij d| g. The second is
+    the tight one for a mode faster than the step (a ringing contact mode counts with its
+    amplitude, not with its rate times the step), the first for a slow one, where the
+    second's terms cancel and its rounding (widened by ROUNDING) makes it the wider one.
+    Non-finite data give an infinite or NaN range (no clearance).
     """
-    const = 0.0
-    slope = 0.0
-    spread = 0.0
+    lo = 0.0
+    hi = 0.0
     for j in range(lam.shape[0]):
         lj = lam[j]
         g = max(1.0, math.exp(lj.real * h))
         v = V[i, j]
-        if abs(lj) * h >= FAST_MODE:
+        spread = abs(v) * (abs(coef[0, j]) * h + 0.5 * abs(coef[1, j]) * h * h) * g
+        lo_j, hi_j = -spread, spread
+        if lj != 0.0:
             d = coef[0, j] / lj + coef[1, j] / (lj * lj)
-            const -= (v * d).real
-            slope -= (v * coef[1, j] / lj).real
-            spread += abs(v * d) * g
-        else:
-            spread += abs(v) * (abs(coef[0, j]) * h + 0.5 * abs(coef[1, j]) * h * h) * g
-    return const + min(0.0, slope * h) - spread, const + max(0.0, slope * h) + spread
+            const = -(v * d).real
+            drift = -(v * coef[1, j] / lj).real * h
+            # the rounding of const +- amplitude, which cancel for a slow mode (|d| huge)
+            slack = ROUNDING * (abs(v * d) + abs(drift))
+            amplitude = abs(v * d) * g + slack
+            lo_j = max(lo_j, const + min(0.0, drift) - amplitude)
+            hi_j = min(hi_j, const + max(0.0, drift) + amplitude)
+        lo += lo_j
+        hi += hi_j
+    return lo, hi
 
 
 @jit
