@@ -83,6 +83,21 @@ def _clear_by_bound(polar, tau, tb, pars, ws, cond, event_args, end, dout):
 
 
 @jit_inline
+def _fill_grid(polar, tau, tb, n, pars, ws, grid, S, dS, out, dout):
+    """The step's closed form at n + 1 points from tau to tb: the points into grid, the
+    states into S and their rates into dS. False if any value is not finite."""
+    linspace_into(grid, tau, tb, n)
+    finite = True
+    for i in range(n + 1):
+        _evaluate(polar, tau, grid[i], pars, ws, out, dout)
+        for j in range(4):
+            S[i, j] = out[j]
+            dS[i, j] = dout[j]
+            finite = finite and math.isfinite(out[j]) and math.isfinite(dout[j])
+    return finite
+
+
+@jit_inline
 def _check_step(polar, tau, tb, n, ws, cond, pars, event_args, scan, end, work):
     """The event pre-check of one prepared contact step [tau, tb] (propagator in ``ws``).
 
@@ -101,15 +116,7 @@ def _check_step(polar, tau, tb, n, ws, cond, pars, event_args, scan, end, work):
     out, dout = work
     if _clear_by_bound(polar, tau, tb, pars, ws, cond, event_args, end, dout):
         return STEP_CLEAR
-    linspace_into(grid, tau, tb, n)
-    finite = True
-    for i in range(n + 1):
-        _evaluate(polar, tau, grid[i], pars, ws, out, dout)
-        for j in range(4):
-            S[i, j] = out[j]
-            dS[i, j] = dout[j]
-            finite = finite and math.isfinite(out[j]) and math.isfinite(dout[j])
-    if not finite:
+    if not _fill_grid(polar, tau, tb, n, pars, ws, grid, S, dS, out, dout):
         return STOP_PYTHON
     for j in range(4):
         end[j] = S[n, j]
@@ -206,20 +213,8 @@ def advance_contact(
         ):
             if size < n + 1:
                 size = n + 1
-                grid = np.empty(size)
-                S = np.empty((size, 4))
-                dS = np.empty((size, 4))
-                hv = np.empty(size)
-                hd = np.empty(size)
-            linspace_into(grid, tau, tb, n)
-            finite = True
-            for i in range(n + 1):
-                _evaluate(polar, tau, grid[i], pars, ws, out, dout)
-                for j in range(4):
-                    S[i, j] = out[j]
-                    dS[i, j] = dout[j]
-                    finite = finite and math.isfinite(out[j]) and math.isfinite(dout[j])
-            if not finite:
+                grid, S, dS, hv, hd = _scan_buffers(size)
+            if not _fill_grid(polar, tau, tb, n, pars, ws, grid, S, dS, out, dout):
                 return tau, s, k, steps, STOP_PYTHON
             if _step_may_have_event(grid, S, dS, n, sign, check_slip, spin, cond, hv, hd, starts):
                 return tau, s, k, steps, STOP_EVENT

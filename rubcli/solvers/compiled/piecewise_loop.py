@@ -38,7 +38,12 @@ from rubcli.model import (
     rolling_velocity,
     stick_friction_value,
 )
-from rubcli.solvers.compiled.contact import _clear_by_bound, _scan_buffers, _scan_points
+from rubcli.solvers.compiled.contact import (
+    _clear_by_bound,
+    _fill_grid,
+    _scan_buffers,
+    _scan_points,
+)
 
 # the ev functions are passed as piecewise.<name>: a dispatcher bound to a global name of
 # this module and passed as an argument makes numba refuse to cache the loop
@@ -236,15 +241,7 @@ def advance_piecewise(
                 if size < n + 1:
                     size = n + 1
                     grid, S, dS, hv, hd = _scan_buffers(size)
-                linspace_into(grid, tau, tb, n)
-                finite = True
-                for i in range(n + 1):
-                    _evaluate(polar, tau, grid[i], pars, ws, row, drow)
-                    for j in range(4):
-                        S[i, j] = row[j]
-                        dS[i, j] = drow[j]
-                        finite = finite and math.isfinite(row[j]) and math.isfinite(drow[j])
-                if not finite:
+                if not _fill_grid(polar, tau, tb, n, pars, ws, grid, S, dS, row, drow):
                     return tau, regime, last_kind, k, n_events, free_active, STOP_PYTHON
                 if _step_may_have_event(
                     grid, S, dS, n, sign, check_slip, spin, cond, hv, hd, starts
