@@ -434,3 +434,57 @@ def test_no_output_work_runs_beside_a_timed_solve(tmp_path, monkeypatch):
     assert min(background) > max(timed)
     assert [log[i][1] for i in background] == ["_import_plotting"] + ["write_solution_csv"] * 2
     assert (out / "dop853.csv").is_file() and (out / "rk45.csv").is_file()
+
+
+def test_notice_if_slow_prints_only_for_a_long_wait(monkeypatch):
+    """The notice comes from a timer thread once the block has run ``after_s`` seconds,
+    and never once the block has ended."""
+    import threading
+
+    from rubcli.cli import console
+
+    printed = threading.Event()
+    messages = []
+
+    def info(message):
+        messages.append(message)
+        printed.set()
+
+    monkeypatch.setattr(console, "info", info)
+    with console.notice_if_slow("still busy", after_s=0.01):
+        assert printed.wait(timeout=30.0)  # the block outlasts after_s: the notice comes
+    assert messages == ["still busy"]
+    printed.clear()
+    with console.notice_if_slow("not shown", after_s=0.5):
+        pass
+    assert not printed.wait(timeout=1.0)  # the block ended first: the timer is cancelled
+    assert messages == ["still busy"]
+
+
+def test_run_says_the_kernels_compile_when_start_up_is_slow(tmp_path, monkeypatch):
+    """A start-up that takes long (numba compiling on a first run: 10 s to 1.5 min) is
+    announced while it runs, instead of a silent wait that looks like a hang."""
+    import threading
+
+    from rubcli.cli import console, run
+
+    original = run.start_up
+    announced = threading.Event()
+    original_info = console.info
+
+    def info(message):
+        if message == run.COMPILING_NOTICE:
+            announced.set()
+        original_info(message)
+
+    def slow_start_up(case):
+        assert announced.wait(timeout=30.0)  # announced while the start-up still runs
+        return original(case)
+
+    monkeypatch.setattr(console, "info", info)
+    monkeypatch.setattr(run, "start_up", slow_start_up)
+    monkeypatch.setattr(run, "START_UP_NOTICE_S", 0.01)
+    out = tmp_path / "out"
+    result = invoke("run", write_case(tmp_path, CASE), "-m", "dop853-jit", "--out", out)
+    assert result.exit_code == 0, result.output
+    assert "compiling the numba kernels" in result.output

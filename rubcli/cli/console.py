@@ -14,6 +14,7 @@ are shown as one formatted ``warning:`` line (``show_python_warning``), never ra
 from __future__ import annotations
 
 import sys
+import threading
 import time
 import warnings
 from collections.abc import Callable, Iterator, Sequence
@@ -97,6 +98,21 @@ def raw(text: str) -> None:
 def info(message: str) -> None:
     if not _machine[0]:
         _stdout().print(message, markup=False, soft_wrap=True)
+
+
+@contextmanager
+def notice_if_slow(message: str, after_s: float = 3.0) -> Iterator[None]:
+    """Print ``message`` (as ``info``) if the block is still running ``after_s`` seconds
+    in: for a wait that is usually short and only sometimes long (numba compiling the
+    kernels on a first run, which would otherwise look like a hang). Printed from a timer
+    thread; nothing if the block ends sooner."""
+    timer = threading.Timer(after_s, info, args=(message,))
+    timer.daemon = True
+    timer.start()
+    try:
+        yield
+    finally:
+        timer.cancel()
 
 
 def success(message: str) -> None:

@@ -90,6 +90,14 @@ def _apply_overrides(
         raise typer.Exit(EXIT_INVALID) from None
 
 
+# A start-up longer than this is numba compiling (a warm cache loads in 0.2-0.5 s): say so.
+START_UP_NOTICE_S = 2.0
+COMPILING_NOTICE = (
+    "compiling the numba kernels (the first run on a machine, or after an update: up to "
+    "1.5 min with the analytic methods); later runs load them in under a second"
+)
+
+
 def start_up(case: Case) -> float:
     """Run every method over the first 1/20 forcing period, untimed by the report.
 
@@ -419,7 +427,8 @@ def _run(
     # the few garbage cycles made before the run.
     gc.freeze()
     with io.staged_output_dir(case.output_dir, plan) as staged, io.Background() as background:
-        startup = start_up(case)
+        with console.notice_if_slow(COMPILING_NOTICE, START_UP_NOTICE_S):
+            startup = start_up(case)
         if startup > 0.05:
             console.info(f"start-up (compiled kernels loaded or compiled): {startup:.2f} s")
         for name in case.methods:
