@@ -7,6 +7,8 @@ and libm versus CPython's hypot; tolerances below allow ~1e3 ulp of accumulation
 The kernels compile once per machine (cache=True); later test runs load them.
 """
 
+import math
+
 import numpy as np
 import pytest
 
@@ -508,3 +510,59 @@ def test_scipy_compiled_rhs_gives_the_same_solution(method, fig3_params):
     assert compiled.settings["compiled"] and not python.settings["compiled"]
     # the rhs agree to round-off; the step controllers may still diverge at that level
     assert_same_solution(compiled, python, state_tol=1e-8, time_tol=1e-8)
+
+
+def _closure_dispatchers(fn, seen=None):
+    """The numba dispatchers a compiled event-search function reaches through its
+    closure (the search's functions are closures of ``events.event_search``)."""
+    from numba.core.dispatcher import Dispatcher
+
+    seen = {} if seen is None else seen
+    for cell in fn.py_func.__closure__ or ():
+        value = cell.cell_contents
+        if isinstance(value, Dispatcher) and value.py_func.__qualname__ not in seen:
+            seen[value.py_func.__qualname__] = value
+            _closure_dispatchers(value, seen)
+    return seen
+
+
+def test_event_search_compiles_each_function_once(fig3_params):
+    """numba compiles a callee once for every distinct constant argument it is handed:
+    the event search passes its kinds and flags as run-time values (``events.run_time``),
+    so that one locate over every regime (free, slip with friction, stick) compiles each
+    of its functions once, with no constant-typed argument (before: three to six times
+    each, half of a first run's 87 s compile). Compiled here without a cache, so that
+    every signature is made in this test."""
+    import numba
+
+    from rubcli.solvers import events
+
+    @numba.njit
+    def ev(t, deriv, ctx, row, drow):
+        r = 1.0 - 0.5 * math.cos(t)
+        c, s = math.cos(t), math.sin(t)
+        row[0], row[1] = r * c, r * s
+        row[2] = 0.5 * math.sin(t) * c - r * s
+        row[3] = 0.5 * math.sin(t) * s + r * c
+        if deriv:
+            drow[0], drow[1] = row[2], row[3]
+            drow[2], drow[3] = -row[0], -row[1]
+
+    locate, _ = events.event_search(ev, compile=numba.njit)
+    pars = np.array(model.params_vector(fig3_params(0.03)))
+    n = 64
+    grid = np.linspace(0.0, 6.0, n + 1)
+    hv, hd, row, drow = np.empty(n + 1), np.empty(n + 1), np.empty(4), np.empty(4)
+    starts = events.start_flags(events.NO_EVENT)
+    kinds = []
+    for regime in (model.FREE, model.SLIP_POSITIVE, model.STICK):
+        kinds.append(locate(0.0, regime, pars, grid, n, starts, 1e-12, hv, hd, row, drow)[1])
+    assert kinds[0] == events.ENTRY  # the orbit reaches the surface from inside
+    searched = _closure_dispatchers(locate)
+    assert {"event_search.<locals>.crossing", "event_search.<locals>._crossing_scan"} <= set(
+        searched
+    )
+    for name, dispatcher in searched.items():
+        signatures = [str(s) for s in dispatcher.signatures]
+        assert len(signatures) <= 1, (name, signatures)
+        assert not any("Literal" in s for s in signatures), (name, signatures)

@@ -94,7 +94,7 @@ def _apply_overrides(
 START_UP_NOTICE_S = 2.0
 COMPILING_NOTICE = (
     "compiling the numba kernels (the first run on a machine, or after an update: up to "
-    "1.5 min with the analytic methods); later runs load them in under a second"
+    "a minute); later runs load them in under a second"
 )
 
 

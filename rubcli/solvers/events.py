@@ -192,6 +192,30 @@ def stick_margin(t, x, y, vx, vy, pars, sign):
     return sign * T - limit * (1.0 + model.STICK_EXIT_MARGIN)
 
 
+def run_time(value):
+    """``value`` itself. Compiled code passes a constant (an event-function kind, a flag,
+    a grid size) through it to another compiled function: numba compiles a callee once
+    for every distinct constant argument it is handed (and once more for each constant
+    a variable holds before type inference settles on its type), and this hands it a
+    run-time value instead (``jit.COMPILABLE_CORES`` registers it: compiled, it returns
+    a plain int or bool). A first solve with numba's cache empty took 87 -> 44 s with
+    the analytic methods' loop, 22 -> 15 s with ``dop853-jit`` and 41 -> 35 s with
+    ``taylor`` (whose kinds stay constants: ``compile_time``), with the same numbers
+    and, within 1-2 %, the same run times: a branch on a run-time flag costs nothing
+    next to the segment it selects."""
+    return value
+
+
+def compile_time(value):
+    """``value`` itself, compiled as a plain jitted function: a constant stays a constant
+    (numba compiles the callee for it, and folds the branches on it). ``event_search``
+    passes the event-function kinds through it instead of ``run_time`` for ``taylor``,
+    whose search inlines the pointwise evaluation: there the folded branches are 5 % of
+    an event-dense run (the paper's case with mu = 0.03), worth the 13 s of a first
+    compile that the three specialisations of the crossing search cost."""
+    return value
+
+
 def event_search(ev, fill=None, compile=None, compile_inline=None):
     """The event search over one kind of segment: ``(locate, crossing)``.
 
@@ -211,7 +235,10 @@ def event_search(ev, fill=None, compile=None, compile_inline=None):
     look-ahead), so that it can be inlined into its callers in numba IR: a call passes
     every array argument exploded and reference-counted, which costs more than
     evaluating a Taylor polynomial (``taylor`` inlines it and its ``ev``: 9 % of the
-    event-dense mu = 0.03 run; for the other loops it saves nothing measurable).
+    event-dense mu = 0.03 run; for the other loops it saves nothing measurable). With
+    ``compile_inline`` the event-function kinds are compile-time constants as well
+    (``compile_time``); otherwise they, and the search's flags, are run-time values
+    (``run_time``), so that each function is compiled once.
 
     The search itself does not check for non-finite values (a NaN compares false and
     ends no scan): the Python segments raise ValueError when asked for a non-finite
@@ -224,11 +251,11 @@ def event_search(ev, fill=None, compile=None, compile_inline=None):
         """The stick margin of side ``sign`` at t, or (``deriv``) its rate by central
         differences of half-width d."""
         if not deriv:
-            ev(t, False, ctx, row, drow)
+            ev(t, run_time(False), ctx, row, drow)
             return stick_margin(t, row[0], row[1], row[2], row[3], pars, sign)
-        ev(t + d, False, ctx, row, drow)
+        ev(t + d, run_time(False), ctx, row, drow)
         up = stick_margin(t + d, row[0], row[1], row[2], row[3], pars, sign)
-        ev(t - d, False, ctx, row, drow)
+        ev(t - d, run_time(False), ctx, row, drow)
         down = stick_margin(t - d, row[0], row[1], row[2], row[3], pars, sign)
         return (up - down) / (2.0 * d)
 
@@ -252,8 +279,8 @@ def event_search(ev, fill=None, compile=None, compile_inline=None):
         """``event_value`` and its rate at t from one evaluation of the segment (three
         for the stick margin's central differences): the same numbers."""
         if fn == FN_STICK:
-            value = stick_value(ctx, t, sign, False, pars, d, row, drow)
-            return value, stick_value(ctx, t, sign, True, pars, d, row, drow)
+            value = stick_value(ctx, t, sign, run_time(False), pars, d, row, drow)
+            return value, stick_value(ctx, t, sign, run_time(True), pars, d, row, drow)
         ev(t, fn != FN_SURFACE, ctx, row, drow)
         if fn == FN_GIVEN:
             return row[0], drow[0]
@@ -316,23 +343,25 @@ def event_search(ev, fill=None, compile=None, compile_inline=None):
         """Root of h in [a, b] where h(b) >= 0; ``a`` itself if h(a) is not below zero there
         (the grid values that chose [a, b] and the pointwise h can differ by round-off at a
         restart point; then the crossing is at ``a``)."""
-        fa = event_value(ctx, a, fn, sign, False, pars, d, row, drow)
+        no = run_time(False)
+        fa = event_value(ctx, a, fn, sign, no, pars, d, row, drow)
         if fa >= 0.0:
             return a
-        fb = event_value(ctx, b, fn, sign, False, pars, d, row, drow)
+        fb = event_value(ctx, b, fn, sign, no, pars, d, row, drow)
         if fb < 0.0:
             return b
-        return brentq(ctx, a, b, fa, fb, fn, sign, False, pars, d, row, drow)
+        return brentq(ctx, a, b, fa, fb, fn, sign, no, pars, d, row, drow)
 
     def _extremum(ctx, a, b, fn, sign, pars, d, row, drow):
         """Root of dh in [a, b] if dh brackets one there (a noisy rate may not), else NaN."""
-        da = event_value(ctx, a, fn, sign, True, pars, d, row, drow)
-        db = event_value(ctx, b, fn, sign, True, pars, d, row, drow)
+        yes = run_time(True)
+        da = event_value(ctx, a, fn, sign, yes, pars, d, row, drow)
+        db = event_value(ctx, b, fn, sign, yes, pars, d, row, drow)
         if da == 0.0:
             return a
         if da * db > 0.0:
             return math.nan
-        return brentq(ctx, a, b, da, db, fn, sign, True, pars, d, row, drow)
+        return brentq(ctx, a, b, da, db, fn, sign, yes, pars, d, row, drow)
 
     def crossing(
         ctx, fn, sign, grid, hv, hd, n, on_surface, tolerance, level, immediate, pars, d,
@@ -369,19 +398,19 @@ def event_search(ev, fill=None, compile=None, compile_inline=None):
         band at the first grid point and still falling there (it turned twice within that
         interval), on a finer grid of ``REFINE_POINTS`` sub-intervals.
         """
+        yes, no = run_time(True), run_time(False)
         t, a, b = _crossing_scan(
-            ctx, fn, sign, grid, hv, hd, n, on_surface, tolerance, level, immediate, True,
+            ctx, fn, sign, grid, hv, hd, n, on_surface, tolerance, level, immediate, yes,
             pars, d, row, drow,
         )  # fmt: skip
         if math.isnan(a):
             return t
-        m = REFINE_POINTS
+        m = run_time(REFINE_POINTS)
         sub, sv, sd = np.empty(m + 1), np.empty(m + 1), np.empty(m + 1)
         linspace_into(sub, a, b, m)
         fill_values(ctx, fn, sign, sub, m, pars, d, row, drow, sv, sd)
         t, a, b = _crossing_scan(
-            ctx, fn, sign, sub, sv, sd, m, True, tolerance, level, False, False, pars, d,
-            row, drow,
+            ctx, fn, sign, sub, sv, sd, m, yes, tolerance, level, no, no, pars, d, row, drow,
         )  # fmt: skip
         return t
 
@@ -394,7 +423,7 @@ def event_search(ev, fill=None, compile=None, compile_inline=None):
         if on_surface:
             if immediate and hd[0] >= 0.0:
                 ahead = grid[0] + LOOK_AHEAD * (grid[1] - grid[0])
-                if event_value(ctx, ahead, fn, sign, True, pars, d, row, drow) >= 0.0:
+                if event_value(ctx, ahead, fn, sign, run_time(True), pars, d, row, drow) >= 0.0:
                     return grid[0], math.nan, math.nan
             hv[0] = -max(abs(hv[0]), TINY)  # strictly below: -0.0 >= 0.0
         below = 0  # the last grid point where h was truly below zero (not in the band)
@@ -422,7 +451,7 @@ def event_search(ev, fill=None, compile=None, compile_inline=None):
                 tm = _extremum(ctx, a, b, fn, sign, pars, d, row, drow)
                 if math.isnan(tm):
                     continue
-                if event_value(ctx, tm, fn, sign, False, pars, d, row, drow) > max(
+                if event_value(ctx, tm, fn, sign, run_time(False), pars, d, row, drow) > max(
                     tolerance, level
                 ):
                     return _root(ctx, a, tm, fn, sign, pars, d, row, drow), math.nan, math.nan
@@ -443,17 +472,19 @@ def event_search(ev, fill=None, compile=None, compile_inline=None):
         so such a touch is not a contact.
         """
         d = 1e-6 * max(1.0, grid[n] - grid[0])
+        surface, slip, stick = fn_value(FN_SURFACE), fn_value(FN_SLIP), fn_value(FN_STICK)
+        yes, no = run_time(True), run_time(False)
         if regime == model.FREE:
-            fill(ctx, FN_SURFACE, 1.0, grid, n, pars, d, row, drow, hv, hd)
+            fill(ctx, surface, 1.0, grid, n, pars, d, row, drow, hv, hd)
             t = crossing(
-                ctx, FN_SURFACE, 1.0, grid, hv, hd, n, starts[0], GRAZING_TOLERANCE,
-                SURFACE_BAND * band, True, pars, d, row, drow,
+                ctx, surface, 1.0, grid, hv, hd, n, starts[0], GRAZING_TOLERANCE,
+                SURFACE_BAND * band, yes, pars, d, row, drow,
             )  # fmt: skip
             return (t, ENTRY) if not math.isnan(t) else (t, NO_EVENT)
         best, kind = math.nan, NO_EVENT
-        fill(ctx, FN_SURFACE, -1.0, grid, n, pars, d, row, drow, hv, hd)
+        fill(ctx, surface, -1.0, grid, n, pars, d, row, drow, hv, hd)
         t = crossing(
-            ctx, FN_SURFACE, -1.0, grid, hv, hd, n, starts[0], 0.0, SURFACE_BAND * band, True,
+            ctx, surface, -1.0, grid, hv, hd, n, starts[0], 0.0, SURFACE_BAND * band, yes,
             pars, d, row, drow,
         )  # fmt: skip
         if not math.isnan(t):
@@ -461,25 +492,28 @@ def event_search(ev, fill=None, compile=None, compile_inline=None):
         if pars[5] > 0.0 and regime != model.STICK:
             sign = float(regime)
             level = band * (1.0 + abs(pars[6] * pars[1]))
-            fill(ctx, FN_SLIP, sign, grid, n, pars, d, row, drow, hv, hd)
+            fill(ctx, slip, sign, grid, n, pars, d, row, drow, hv, hd)
             t = crossing(
-                ctx, FN_SLIP, sign, grid, hv, hd, n, starts[1], 0.0, level, starts[2], pars,
+                ctx, slip, sign, grid, hv, hd, n, starts[1], 0.0, level, starts[2], pars,
                 d, row, drow,
             )  # fmt: skip
             if not math.isnan(t) and (math.isnan(best) or t < best):
                 best, kind = t, REVERSAL
         if regime == model.STICK:
             for sign in (1.0, -1.0):
-                fill(ctx, FN_STICK, sign, grid, n, pars, d, row, drow, hv, hd)
+                fill(ctx, stick, sign, grid, n, pars, d, row, drow, hv, hd)
                 t = crossing(
-                    ctx, FN_STICK, sign, grid, hv, hd, n, False, 0.0, STICK_EXIT_LEVEL, True,
+                    ctx, stick, sign, grid, hv, hd, n, no, 0.0, STICK_EXIT_LEVEL, yes,
                     pars, d, row, drow,
                 )  # fmt: skip
                 if not math.isnan(t) and (math.isnan(best) or t < best):
                     best, kind = t, STICK_EXIT
         return best, kind
 
+    fn_value = run_time  # the event-function kinds as run-time values (see compile_time)
     if compile is not None:
+        if compile_inline is not None:
+            fn_value = compile(compile_time)
         stick_value = compile(stick_value)
         event_value = (compile_inline or compile)(event_value)
         event_values = compile(event_values)

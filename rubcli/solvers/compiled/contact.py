@@ -38,7 +38,7 @@ from rubcli.solvers.compiled.propagators import (
     _workspace,
 )
 from rubcli.solvers.control import doubling_error, next_step
-from rubcli.solvers.events import MAX_SCAN_POINTS, linspace_into
+from rubcli.solvers.events import MAX_SCAN_POINTS, linspace_into, run_time
 
 STEP_CLEAR = -1  # _check_step: no event can occur in the step, the kernel may take it
 
@@ -187,7 +187,7 @@ def advance_contact(
     dout = np.empty(4)
     end = np.empty(4)
     size = 2
-    grid, S, dS, hv, hd = _scan_buffers(size)
+    grid, S, dS, hv, hd = _scan_buffers(run_time(size))
     steps = 0
     while True:
         if tau >= t_end:
@@ -213,7 +213,7 @@ def advance_contact(
         ):
             if size < n + 1:
                 size = n + 1
-                grid, S, dS, hv, hd = _scan_buffers(size)
+                grid, S, dS, hv, hd = _scan_buffers(run_time(size))
             if not _fill_grid(polar, tau, tb, n, pars, ws, grid, S, dS, out, dout):
                 return tau, s, k, steps, STOP_PYTHON
             if _step_may_have_event(grid, S, dS, n, sign, check_slip, spin, cond, hv, hd, starts):
@@ -285,7 +285,7 @@ def advance_contact_adaptive(
     end = np.empty(4)
     dout = np.empty(4)
     work = (np.empty(4), dout)
-    grid, S, dS, hv, hd = _scan_buffers(2)
+    grid, S, dS, hv, hd = _scan_buffers(run_time(2))
     steps = 0
     rejected = 0
     while True:
@@ -309,7 +309,7 @@ def advance_contact_adaptive(
             _evaluate(polar, tau, t_mid, pars, ws1, mid, dout)
             for i in range(4):
                 ws2[0][i] = ws1[0][i]
-            cond2, omega2 = _prepare(polar, t_mid, mid, pars, mu_c, ws2, True)
+            cond2, omega2 = _prepare(polar, t_mid, mid, pars, mu_c, ws2, run_time(True))
             if not 8.0 * cond2 <= cond_limit:
                 return tau, s, k, steps, rejected, h, STOP_PYTHON
             _evaluate(polar, t_mid, t_next, pars, ws2, end, dout)

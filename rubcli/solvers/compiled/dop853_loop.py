@@ -41,9 +41,7 @@ from rubcli.solvers.compiled.roots import (
     _dop853_may_have_event,
     apply_and_record,
 )
-from rubcli.solvers.events import (
-    start_flags,
-)
+from rubcli.solvers.events import run_time, start_flags
 
 
 @jit
@@ -167,7 +165,7 @@ def advance_dop853(
         _dop853_dense_at(t_stop, tau, h, y, F, row)
         new_regime, kind = apply_and_record(
             kind, t_stop, row, regime, pars, events_tau, events_kind, events_state,
-            events_regimes, n_events, y,
+            events_regimes, run_time(n_events), y,
         )  # fmt: skip
         n_events += 1
         tau, regime = t_stop, new_regime

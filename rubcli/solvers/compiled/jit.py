@@ -42,6 +42,7 @@ COMPILABLE_CORES = (
     control.next_step,
     events.stick_margin,
     events.linspace_into,
+    events.run_time,
 )
 
 

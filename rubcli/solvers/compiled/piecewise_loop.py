@@ -67,7 +67,7 @@ from rubcli.solvers.compiled.precheck import (
 )
 from rubcli.solvers.compiled.propagators import _evaluate, _prepare, _workspace
 from rubcli.solvers.compiled.roots import apply_and_record
-from rubcli.solvers.events import NO_EVENT, event_search, linspace_into, start_flags
+from rubcli.solvers.events import NO_EVENT, event_search, linspace_into, run_time, start_flags
 
 # The one event search (events.event_search), compiled over each kind of segment
 _locate_free, _ = event_search(free_ev, compile=jit)
@@ -124,7 +124,7 @@ def advance_piecewise(
     drow = np.empty(4)
     end = np.empty(4)
     size = 2
-    grid, S, dS, hv, hd = _scan_buffers(size)
+    grid, S, dS, hv, hd = _scan_buffers(run_time(size))
     work = 0
     n_events = 0
     warm = False  # the eigensolver may start from the last slip step's eigenvalues
@@ -154,7 +154,7 @@ def advance_piecewise(
                 n = max(1, math.ceil((tb - ta) / spacing))
                 if size < n + 1:
                     size = n + 1
-                    grid, S, dS, hv, hd = _scan_buffers(size)
+                    grid, S, dS, hv, hd = _scan_buffers(run_time(size))
                 linspace_into(grid, ta, tb, n)
                 t_ev, kind = _locate_free(
                     ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow
@@ -188,7 +188,7 @@ def advance_piecewise(
                 return tau, regime, last_kind, k, n_events, free_active, STOP_PYTHON
             if size < n + 1:
                 size = n + 1
-                grid, S, dS, hv, hd = _scan_buffers(size)
+                grid, S, dS, hv, hd = _scan_buffers(run_time(size))
             linspace_into(grid, tau, tb, n)
             finite = True
             for i in range(n + 1):
@@ -226,7 +226,7 @@ def advance_piecewise(
         else:  # slip: one linearised contact step
             tb = min(t_end, tau + h)
             mu_c = pars[5] * friction_sign(regime)
-            cond, omega = _prepare(polar, tau, state, pars, mu_c, ws, warm)
+            cond, omega = _prepare(polar, tau, state, pars, mu_c, ws, run_time(warm))
             # Python uses the eigenbasis while cond2(V) <= cond_limit, and cond2 <= 4
             # cond1: proceed only where Python surely uses it too (advance_contact)
             if not 8.0 * cond <= cond_limit:
@@ -240,7 +240,7 @@ def advance_piecewise(
             if not _clear_by_bound(polar, tau, tb, pars, ws, cond, event_args, end, drow):
                 if size < n + 1:
                     size = n + 1
-                    grid, S, dS, hv, hd = _scan_buffers(size)
+                    grid, S, dS, hv, hd = _scan_buffers(run_time(size))
                 if not _fill_grid(polar, tau, tb, n, pars, ws, grid, S, dS, row, drow):
                     return tau, regime, last_kind, k, n_events, free_active, STOP_PYTHON
                 if _step_may_have_event(
@@ -273,8 +273,9 @@ def advance_piecewise(
             _evaluate(polar, tau, t_ev, pars, ws, row, drow)
         # the event located at t_ev, the state there in row: apply and record it
         regime_before = regime
+        recorded = run_time(n_events)
         regime, last_kind = apply_and_record(
-            kind, t_ev, row, regime, pars, ev_tau, ev_kind, ev_state, ev_regimes, n_events, state
+            kind, t_ev, row, regime, pars, ev_tau, ev_kind, ev_state, ev_regimes, recorded, state
         )
         n_events += 1
         tau = t_ev
@@ -321,6 +322,8 @@ def _stick_may_have_event(grid, n, st, meta, pars, S, W, hv, hd, row, on_surface
             value_scale = max(value_scale, abs(hv[i]))
             rate_scale = max(rate_scale, abs(hd[i]))
         margin_v = EVENT_MARGIN * (1.0 + value_scale)
-        if _may_cross(grid, hv, hd, n, margin_v, EVENT_MARGIN * (1.0 + rate_scale), False, True):
+        margin_d = EVENT_MARGIN * (1.0 + rate_scale)
+        from_surface, immediate = run_time(False), run_time(True)
+        if _may_cross(grid, hv, hd, n, margin_v, margin_d, from_surface, immediate):
             return True
     return False

@@ -24,6 +24,7 @@ from rubcli.solvers.compiled.jit import (
     EPS,
     jit,
 )
+from rubcli.solvers.events import run_time
 
 EVENT_MARGIN = 1e-9  # relative margin of the event pre-check (plus eps * cond(V) terms)
 
@@ -81,7 +82,8 @@ def _surface_may_cross(grid, S, n, direction, cond, hv, hd, on_surface):
         hv[i] = direction * (x * x + y * y - 1.0)
         hd[i] = direction * 2.0 * (x * vx + y * vy)
         rate_scale = max(rate_scale, abs(hd[i]))
-    return _may_cross(grid, hv, hd, n, 2.0 * rel, rel * (1.0 + rate_scale), on_surface, True)
+    immediate = run_time(True)
+    return _may_cross(grid, hv, hd, n, 2.0 * rel, rel * (1.0 + rate_scale), on_surface, immediate)
 
 
 @jit
@@ -155,12 +157,12 @@ def polar_step_clear(ws, h, cond, sign, check_slip, spin):
     lam, V, coef, real = ws[0], ws[1], ws[3], ws[5]
     rel = EVENT_MARGIN + 64.0 * EPS * cond
     r0, w0 = real[0], real[3]
-    lo_r, hi_r = _component_range(0, lam, V, coef, h)
+    lo_r, hi_r = _component_range(run_time(0), lam, V, coef, h)
     if not r0 + lo_r - 1.0 > 2.0 * rel * r0:
         return False
     if not check_slip:
         return True
-    lo_w, hi_w = _component_range(3, lam, V, coef, h)
+    lo_w, hi_w = _component_range(run_time(3), lam, V, coef, h)
     a, b = r0 + lo_r, r0 + hi_r
     c, d = w0 + lo_w, w0 + hi_w
     low = spin + min(min(a * c, a * d), min(b * c, b * d))

@@ -19,7 +19,7 @@ from rubcli.solvers.compiled.precheck import (
     _surface_may_cross,
 )
 from rubcli.solvers.compiled.rhs import _rhs_into
-from rubcli.solvers.events import event_search, stick_margin, switch_regime
+from rubcli.solvers.events import event_search, run_time, stick_margin, switch_regime
 
 FREE_REGIME, STICK_REGIME = model.FREE, model.STICK
 
@@ -77,7 +77,9 @@ def _stick_may_exit(grid, S, n, t_old, h, y_old, F, pars, hv, hd, row):
             value_scale = max(value_scale, abs(hv[i]))
             rate_scale = max(rate_scale, abs(hd[i]))
         margin_v = EVENT_MARGIN * (1.0 + value_scale)
-        if _may_cross(grid, hv, hd, n, margin_v, EVENT_MARGIN * (1.0 + rate_scale), False, True):
+        margin_d = EVENT_MARGIN * (1.0 + rate_scale)
+        from_surface, immediate = run_time(False), run_time(True)
+        if _may_cross(grid, hv, hd, n, margin_v, margin_d, from_surface, immediate):
             return True
     return False
 

@@ -103,6 +103,7 @@ from rubcli.solvers.events import (
     SURFACE_BAND,
     event_search,
     linspace_into,
+    run_time,
     start_flags,
     stick_margin,
 )
@@ -889,7 +890,7 @@ def advance_taylor(
         dense_at(t_stop, tau, C, order, row)
         new_regime, kind = apply_and_record(
             kind, t_stop, row, regime, pars, events_tau, events_kind, events_state,
-            events_regimes, n_events, y,
+            events_regimes, run_time(n_events), y,
         )  # fmt: skip
         n_events += 1
         tau, regime = t_stop, new_regime
