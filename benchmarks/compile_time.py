@@ -23,22 +23,13 @@ import tempfile
 import time
 from pathlib import Path
 
+from end_to_end import LAUNCH  # the CLI imported from a given source tree
 from machine import describe
 
 ROOT = Path(__file__).resolve().parents[1]
 HERE = Path(__file__).resolve().parent
 CASE = "cases/paper/fig3a.toml"
 METHODS = ("analytic", "analytic-polar", "taylor", "dop853-jit", "rk45")
-LAUNCH = """
-import sys
-root = sys.argv.pop(1)
-sys.path.insert(0, root)
-import rubcli
-assert rubcli.__file__.startswith(root), rubcli.__file__
-from rubcli.cli.app import main
-sys.argv[0] = "rubcli"
-main()
-"""
 
 
 def run_once(source: Path, method: str, cache: Path, out: Path) -> dict:
