@@ -52,66 +52,41 @@ from rubcli.solvers.compiled import taylor as tk
 
 HERE = Path(__file__).resolve().parent
 TARGETS = (1e-6, 1e-10)
-RECIPROCALS = tk.RECIPROCALS
 M = tk.MAX_ORDER
 
 
-@numba.njit(cache=True)
-def _rotating_series(fr, fi, pars, order, C, W):
-    """``_slip_coefficients`` (mu = 0) for u(s) = w(t0 + s) e^{-i eta s}: u'' = E F0 - (2
-    nu + 2 i eta) u' - (1 - eta^2 + 2 i nu eta) u - K (u - u / |u|), F0 the forcing at
-    the step's start; |u| = |w|, so q, z and P = u / z follow the same recurrences."""
-    nu2, eta, E, K = 2.0 * pars[0], pars[1], pars[2], pars[4]
-    c1, c2, e2 = 1.0 - eta * eta, nu2 * eta, 2.0 * eta
-    x0, y0 = C[0, 0], C[1, 0]
-    W[23, M], W[24, M] = x0, y0
-    z0 = math.sqrt(x0 * x0 + y0 * y0)
-    W[3, 0] = z0
-    W[25, M] = z0
-    inv_z0 = 1.0 / z0
-    p0x, p0y = x0 * inv_z0, y0 * inv_z0
-    W[26, M], W[22, M] = p0x, p0y
-    gx, gy = x0 - p0x, y0 - p0y
-    fx, fy = E * fr, E * fi
-    for k in range(order):
-        xk, yk, vxk, vyk = C[0, k], C[1, k], C[2, k], C[3, k]
-        ax = fx - nu2 * vxk + e2 * vyk - c1 * xk + c2 * yk - K * gx
-        ay = fy - nu2 * vyk - e2 * vxk - c1 * yk - c2 * xk - K * gy
-        fx = fy = 0.0
-        inv = RECIPROCALS[k + 1]
-        xm, ym = vxk * inv, vyk * inv
-        C[0, k + 1], C[1, k + 1] = xm, ym
-        C[2, k + 1], C[3, k + 1] = ax * inv, ay * inv
-        m = k + 1
-        off = M - m
-        W[23, off], W[24, off] = xm, ym
-        sq = 0.0
-        sz = 0.0
-        for j in range(1, (m + 1) // 2):
-            sq += C[0, j] * W[23, off + j] + C[1, j] * W[24, off + j]
-            sz += W[3, j] * W[25, off + j]
-        sq *= 2.0
-        sz *= 2.0
-        if m % 2 == 0:
-            c = m // 2
-            sq += C[0, c] * C[0, c] + C[1, c] * C[1, c]
-            sz += W[3, c] * W[3, c]
-        qm = sq + 2.0 * (x0 * xm + y0 * ym)
-        zm = (qm - sz) * (0.5 * inv_z0)
-        W[3, m] = zm
-        W[25, off] = zm
-        sx = 0.0
-        sy = 0.0
-        for j in range(1, m):
-            sx += W[3, j] * W[26, off + j]
-            sy += W[3, j] * W[22, off + j]
-        pxm = (xm - sx - zm * p0x) * inv_z0
-        pym = (ym - sy - zm * p0y) * inv_z0
-        W[26, off], W[22, off] = pxm, pym
-        gx, gy = xm - pxm, ym - pym
+def slip_series_variant(replacements=(), **jit_options):
+    """The shipped slip series (``taylor._slip_coefficients``) compiled again from its
+    own source with the textual ``replacements`` (old, new) applied: a variant of the
+    same recurrences rather than a copy of them. Fails if a replacement no longer
+    matches the source."""
+    source = inspect.getsource(tk._slip_coefficients.py_func).replace("@jit\n", "")
+    for old, new in replacements:
+        if old not in source:
+            raise RuntimeError(f"not in the shipped slip series any more: {old.strip()!r}")
+        source = source.replace(old, new)
+    namespace = dict(tk.__dict__)
+    exec(source, namespace)
+    return numba.njit(**jit_options)(namespace["_slip_coefficients"])
 
 
-@numba.njit(cache=True)
+# The series of u(s) = w(t0 + s) e^{-i eta s}: u'' = E F0 - (2 nu + 2 i eta) u' - (1 -
+# eta^2 + 2 i nu eta) u - K (u - u / |u|) (1 + i mu_c), F0 the forcing at the step's
+# start (constant in this frame); |u| = |w|, so q, z and P = u / z keep their recurrences.
+_rotating_series = slip_series_variant(
+    (
+        ("    mu_c = pars[5] * sign\n",
+         "    mu_c = pars[5] * sign\n    c1, c2, e2 = 1.0 - eta * eta, nu2 * eta, 2.0 * eta\n"),
+        ("ax = E * fr - nu2 * C[2, k] - C[0, k] - K",
+         "ax = E * fr - nu2 * C[2, k] + e2 * C[3, k] - c1 * C[0, k] + c2 * C[1, k] - K"),
+        ("ay = E * fi - nu2 * C[3, k] - C[1, k] - K",
+         "ay = E * fi - nu2 * C[3, k] - e2 * C[2, k] - c1 * C[1, k] - c2 * C[0, k] - K"),
+        ("        fr, fi = -fi * rotate, fr * rotate\n", "        fr, fi = 0.0, 0.0\n"),
+    )
+)  # fmt: skip
+
+
+@numba.njit
 def _scaled_step(C, y, order, rtol, atol, wv):
     """``step_size`` with the velocity rows (coefficients and state) weighted by wv."""
     scale = max(max(abs(y[0]), abs(y[1])), wv * max(abs(y[2]), abs(y[3])))
@@ -124,7 +99,7 @@ def _scaled_step(C, y, order, rtol, atol, wv):
     return math.exp(exponent - tk.STEP_SAFETY_EXPONENT / (order - 1))
 
 
-@numba.njit(cache=True)
+@numba.njit
 def slip_stretch(t, y, t_end, pars, order, rtol, atol, variant):
     """Taylor steps in slip (mu = 0) from (t, y) to t_end; variant 0 the kernel's, 1
     rotating, 2 scaled norm. Returns the steps; y holds the final state."""
@@ -139,7 +114,7 @@ def slip_stretch(t, y, t_end, pars, order, rtol, atol, variant):
         C[0, 0], C[1, 0] = y[0], y[1]
         if variant == 1:
             C[2, 0], C[3, 0] = y[2] + eta * y[1], y[3] - eta * y[0]
-            _rotating_series(fr, fi, pars, order, C, W)
+            _rotating_series(fr, fi, pars, 1.0, order, C, W)
             h, _ = tk.step_size(C, order, rtol, atol)
         else:
             C[2, 0], C[3, 0] = y[2], y[3]
@@ -292,17 +267,10 @@ def _repeat_loop(series, with_order: bool):
 
 def series_table(repeats: int) -> list[str]:
     pars = np.array([0.009478, 0.7818, 7.52 * 0.7818**2, 0.0, 17.6, 0.0, 46.16])
-    namespace = dict(tk.__dict__)
-    exec(inspect.getsource(tk._slip_coefficients.py_func).replace("@jit\n", ""), namespace)
-    contract = numba.njit(fastmath={"contract"})(namespace["_slip_coefficients"])
-    source = inspect.getsource(tk._slip_coefficients.py_func).replace("@jit\n", "")
-    frictionless_source = source.replace("K * (gx - mu_c * gy)", "K * gx").replace(
-        "K * (gy + mu_c * gx)", "K * gy"
+    contract = slip_series_variant(fastmath={"contract"})
+    frictionless = slip_series_variant(
+        (("K * (gx - mu_c * gy)", "K * gx"), ("K * (gy + mu_c * gx)", "K * gy"))
     )
-    if frictionless_source.count("K * g") != 2:
-        raise RuntimeError("the slip series' contact force terms were not found")
-    exec(frictionless_source, namespace)
-    frictionless = numba.njit(namespace["_slip_coefficients"])
     lines = [
         "Slip series alone (mu = 0), ns a series, minimum of the repeats of 100,000 calls.",
         "",
