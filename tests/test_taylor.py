@@ -106,6 +106,46 @@ def test_series_local_error_has_order_n_plus_1(case, order):
     assert np.all(np.abs(observed - (order + 1)) < 0.6), (errors, observed)
 
 
+@pytest.mark.parametrize("order", [5, 6, 13, 18])
+def test_dense_output_is_the_polynomial_and_the_same_in_python(order):
+    """dense_at (Estrin's scheme) agrees with Horner's rule to round-off, and the Python
+    path's TaylorDense repeats its operations bit for bit, at one time and at many, for
+    odd and even orders."""
+    rng = np.random.default_rng(order)
+    C = np.zeros((4, tk.MAX_ORDER + 1))
+    C[:, : order + 1] = rng.normal(size=(4, order + 1)) / np.arange(1, order + 2) ** 2
+    t0 = 0.3
+    t = t0 + np.linspace(-0.2, 0.9, 12)
+    compiled = tk.dense(t, t0, C, order)
+    horner = np.zeros((4, t.size))
+    for k in range(order, -1, -1):
+        horner = horner * (t - t0) + C[:, k : k + 1]
+    assert np.max(np.abs(compiled - horner)) < 1e-14
+    python = taylor_solver.TaylorDense(t0, C, order)
+    assert np.array_equal(python(t), compiled)
+    assert all(np.array_equal(python(tj), compiled[:, j]) for j, tj in enumerate(t))
+
+
+def test_frictionless_slip_series_leaves_out_only_the_unused_top_order():
+    """Without friction the slip series stops before z_N and P_N (no acceleration needs
+    them): the state's coefficients and the surface's series q are those of the full
+    series (here with a friction coefficient too small to change any rounding), and so
+    are P's up to order N - 1."""
+    order = 13
+    s0 = np.array([1.08, -0.35, 0.9, -1.3])
+    rows = {}
+    for mu in (0.0, 1e-300):
+        pars = np.array(model.params_vector(ModelParams(**FIG3, mu=mu)))
+        C = np.zeros((4, tk.MAX_ORDER + 1))
+        W = np.full((tk.WORK_ROWS, tk.WORK_COLS), np.nan)
+        tk.taylor_coefficients(0.37, s0, pars, model.SLIP_POSITIVE, order, C, W)
+        rows[mu] = C[:, : order + 1], W[0, : order + 1], W[4:6, : order + 1]
+    (c0, q0, p0), (c1, q1, p1) = rows[0.0], rows[1e-300]
+    assert np.array_equal(c0, c1) and np.array_equal(q0, q1)
+    assert np.array_equal(p0[:, :order], p1[:, :order])
+    assert np.all(np.isnan(p0[:, order])) and np.all(np.isfinite(p1[:, order]))
+
+
 @pytest.mark.parametrize("rtol", [1e-7, 1e-11])
 def test_free_flight_matches_closed_form(rtol):
     p = ModelParams(nu=0.05, eta=0.7, e=0.05, K=17.6, mu=0.03, Rp=1.0, phi0=0.3)

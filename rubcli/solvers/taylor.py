@@ -49,7 +49,8 @@ EVENT_BUFFER = 4096
 
 
 class TaylorDense:
-    """A step's Taylor polynomial: the state at a scalar time (4,) or at times (4, n)."""
+    """A step's Taylor polynomial: the state at a scalar time (4,) or at times (4, n), by
+    the operations of the kernel's ``dense_at`` (Estrin's scheme): the same numbers."""
 
     def __init__(self, t0: float, C: np.ndarray, order: int):
         self.t0, self.C, self.order = t0, C[:, : order + 1].copy(), order
@@ -57,18 +58,18 @@ class TaylorDense:
     def __call__(self, t):
         dt = np.asarray(t, dtype=float) - self.t0
         if dt.ndim == 0:
-            dt = float(dt)
-            v = self.C[:, self.order].copy()
-            for k in range(self.order - 1, -1, -1):
-                v = v * dt + self.C[:, k]
-            return v
-        out = np.empty((4, dt.size))
-        for i in range(4):
-            v = np.full(dt.shape, self.C[i, self.order])
-            for k in range(self.order - 1, -1, -1):
-                v = v * dt + self.C[i, k]
-            out[i] = v
-        return out
+            dt, C = float(dt), self.C
+        else:
+            dt, C = dt.ravel(), self.C[:, :, None]  # rows (4, order + 1, 1): out (4, n)
+        order, d2 = self.order, dt * dt
+        if order % 2 == 1:
+            v, k = C[:, order - 1] + C[:, order] * dt, order - 2
+        else:
+            v, k = C[:, order], order - 1
+        while k >= 1:
+            v = v * d2 + (C[:, k - 1] + C[:, k] * dt)
+            k -= 2
+        return v
 
 
 class TaylorStepper:

@@ -178,9 +178,9 @@ def taylor_coefficients(t0, s, pars, regime, order, C, W):
     """The Taylor coefficients C[:, 0..order] (rows x, y, vx, vy; columns the orders)
     of the regime-locked solution through ``s`` at ``t0``; ``W`` (WORK_ROWS,
     WORK_COLS) is work space, left holding the series of q = z^2 (row 0) up to
-    ``order`` in every regime, of P = w / z (rows 4, 5) in slip and of u = 1 / z (row 2)
-    in stick. (The step loop, ``advance_taylor``, calls the free and slip series
-    itself: see there.)"""
+    ``order`` in every regime, of P = w / z (rows 4, 5) in slip (to ``order`` with
+    friction, ``order - 1`` without) and of u = 1 / z (row 2) in stick. (The step
+    loop, ``advance_taylor``, calls the free and slip series itself: see there.)"""
     for i in range(4):
         C[i, 0] = s[i]
     fr, fi = _forcing(pars[1], pars[3], t0)
@@ -237,7 +237,10 @@ def _slip_coefficients(fr, fi, pars, sign, order, C, W):
     The contact force is K (w - P) (1 + i mu_c). Per order m: q_m and z_m by their
     symmetric sums (z^2 = q: 2 z_0 z_m = q_m - sum_{j=1}^{m-1} z_j z_{m-j}), then P_m by
     the division rule (z P = w: z_0 P_m = w_m - sum_{j=1}^{m} z_j P_{m-j}); 3.5 m
-    multiply-adds an order, against 6 m for q, u = q^(-1/2) and u w."""
+    multiply-adds an order, against 6 m for q, u = q^(-1/2) and u w. The accelerations
+    need P up to order N - 1; z_N and P_N are for the slip pre-check alone, so without
+    friction they are left out (the top order is the costliest: 6-7 % of the series at
+    N = 13 and 18, benchmarks/taylor_variants.py)."""
     nu2, eta, E, K = 2.0 * pars[0], pars[1], pars[2], pars[4]
     mu_c = pars[5] * sign
     M = MAX_ORDER
@@ -268,9 +271,10 @@ def _slip_coefficients(fr, fi, pars, sign, order, C, W):
         m = k + 1
         off = M - m
         W[23, off], W[24, off] = xm, ym
+        # the loops add their newest terms (those of order m - 1, computed last) last
         sq = 0.0
         sz = 0.0
-        for j in range(1, (m + 1) // 2):
+        for j in range((m + 1) // 2 - 1, 0, -1):
             sq += C[0, j] * W[23, off + j] + C[1, j] * W[24, off + j]
             sz += W[3, j] * W[25, off + j]
         sq *= 2.0
@@ -281,14 +285,22 @@ def _slip_coefficients(fr, fi, pars, sign, order, C, W):
             sz += W[3, c] * W[3, c]
         qm = sq + 2.0 * (x0 * xm + y0 * ym)
         W[0, m] = qm
+        if m == order and mu_c == 0.0:
+            break  # z_N and P_N: only the slip pre-check reads them (_may_have_event)
         zm = (qm - sz) * (0.5 * inv_z0)
         W[3, m] = zm
         W[25, off] = zm
         sx = 0.0
         sy = 0.0
-        for j in range(1, m):
+        for j in range(2, m - 1):
             sx += W[3, j] * W[26, off + j]
             sy += W[3, j] * W[22, off + j]
+        if m >= 3:  # z_{m-1} P_1
+            sx += W[3, m - 1] * W[26, off + m - 1]
+            sy += W[3, m - 1] * W[22, off + m - 1]
+        if m >= 2:  # z_1 P_{m-1}
+            sx += W[3, 1] * W[26, off + 1]
+            sy += W[3, 1] * W[22, off + 1]
         pxm = (xm - sx - zm * p0x) * inv_z0
         pym = (ym - sy - zm * p0y) * inv_z0
         W[4, m], W[5, m] = pxm, pym
@@ -342,34 +354,50 @@ def _stick_coefficients(fr, fi, pars, order, C, W):
 def step_size(C, order, rtol, atol):
     """Jorba & Zou's step (heyoka's safety factor): the last two terms below the state
     tolerance max(atol, rtol |s_0|_inf)."""
-    scale = 0.0
-    for i in range(4):
-        scale = max(scale, abs(C[i, 0]))
+    scale = max(max(abs(C[0, 0]), abs(C[1, 0])), max(abs(C[2, 0]), abs(C[3, 0])))
     eps = max(atol, rtol * scale)
-    # h = min_k (eps / |a_k|)^(1/k) exp(-0.7 / (N - 1)), as one exponential
+    # h = min_k (eps / |a_k|)^(1/k) exp(-0.7 / (N - 1)), as one exponential; the parts
+    # that do not wait for the last coefficients first, 1 / k from the table: the step
+    # size is on the chain from one step to the next
     log_eps = math.log(eps)
+    r1, r2 = RECIPROCALS[order - 1], RECIPROCALS[order]
+    safety = STEP_SAFETY_EXPONENT * r1
+    base1, base2 = log_eps * r1 - safety, log_eps * r2 - safety
     exponent = math.inf
-    for k in (order - 1, order):
-        norm = 0.0
-        for i in range(4):
-            norm = max(norm, abs(C[i, k]))
-        if norm > 0.0:
-            exponent = min(exponent, (log_eps - math.log(norm)) / k)
-    return math.exp(exponent - STEP_SAFETY_EXPONENT / (order - 1)), eps
+    k = order - 1
+    norm = max(max(abs(C[0, k]), abs(C[1, k])), max(abs(C[2, k]), abs(C[3, k])))
+    if norm > 0.0:
+        exponent = base1 - math.log(norm) * r1
+    norm = max(max(abs(C[0, order]), abs(C[1, order])), max(abs(C[2, order]), abs(C[3, order])))
+    if norm > 0.0:
+        exponent = min(exponent, base2 - math.log(norm) * r2)
+    return math.exp(exponent), eps
 
 
 @jit
 def dense_at(t, t0, C, order, out):
-    """The step's Taylor polynomial at t (Horner), into out (4,)."""
+    """The step's Taylor polynomial at t, into out (4,): by Estrin's scheme (pairs
+    a_{k-1} + a_k dt, then Horner in dt^2), half the dependent operations of Horner's,
+    since the step's end state is on the chain from one step to the next; the four rows'
+    chains side by side. (``TaylorDense`` repeats these operations; the event search's
+    evaluations, ``_taylor_ev`` and ``_taylor_fill``, are Horner's: they differ by
+    round-off.)"""
     dt = t - t0
-    # the four rows' Horner chains side by side (each the same operations as alone):
-    # four independent chains in flight instead of one latency-bound chain at a time
-    v0, v1, v2, v3 = C[0, order], C[1, order], C[2, order], C[3, order]
-    for k in range(order - 1, -1, -1):
-        v0 = v0 * dt + C[0, k]
-        v1 = v1 * dt + C[1, k]
-        v2 = v2 * dt + C[2, k]
-        v3 = v3 * dt + C[3, k]
+    d2 = dt * dt
+    if order % 2 == 1:
+        k = order - 1
+        v0, v1 = C[0, k] + C[0, order] * dt, C[1, k] + C[1, order] * dt
+        v2, v3 = C[2, k] + C[2, order] * dt, C[3, k] + C[3, order] * dt
+        k -= 1
+    else:
+        v0, v1, v2, v3 = C[0, order], C[1, order], C[2, order], C[3, order]
+        k = order - 1
+    while k >= 1:
+        v0 = v0 * d2 + (C[0, k - 1] + C[0, k] * dt)
+        v1 = v1 * d2 + (C[1, k - 1] + C[1, k] * dt)
+        v2 = v2 * d2 + (C[2, k - 1] + C[2, k] * dt)
+        v3 = v3 * d2 + (C[3, k - 1] + C[3, k] * dt)
+        k -= 2
     out[0], out[1], out[2], out[3] = v0, v1, v2, v3
 
 
@@ -698,8 +726,8 @@ def fill_context(ctx, t0, C, order, pars, regime):
 @jit_inline
 def _taylor_ev(t, deriv, ctx, row, drow):
     """The step's polynomial (``fill_context``) as a segment of ``events.locate``: the
-    state at t (``dense_at``'s Horner chains) and, with ``deriv``, the regime's
-    right-hand side there (as the Python path's)."""
+    state at t (Horner chains; ``dense_at``'s Estrin scheme differs by round-off) and,
+    with ``deriv``, the regime's right-hand side there (as the Python path's)."""
     order = int(ctx[CTX_ORDER])
     dt = t - ctx[CTX_T0]
     base = CTX_COEFFICIENTS + 4 * order
