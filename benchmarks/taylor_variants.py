@@ -25,9 +25,10 @@ table, each variant's cheapest setting that reaches 1e-6 and 1e-10.
 
 Table 2 times the slip series alone (order 13 and 18): the loop as shipped, the same
 recurrences as generated straight-line code (every loop unrolled, every coefficient a
-local variable), and the loop compiled with FMA contraction (numba ``fastmath =
-{"contract"}``), and the loop with the friction terms of the contact force removed (mu =
-0 only).
+local variable), the loop compiled without FMA contraction (plain IEEE arithmetic: the
+shipped series are compiled with numba ``fastmath = {"contract"}``, ``jit_fused``), and
+the loop with the friction terms of the contact force removed (mu = 0 only). Every
+variant is compiled with the shipped series' flags unless it says otherwise.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from __future__ import annotations
 import argparse
 import inspect
 import math
+import re
 import sys
 import time
 from pathlib import Path
@@ -52,15 +54,18 @@ from rubcli.solvers.compiled import taylor as tk
 
 HERE = Path(__file__).resolve().parent
 TARGETS = (1e-6, 1e-10)
+SHIPPED_FLAGS = {"fastmath": {"contract"}}  # the series' flags (compiled/jit.py jit_fused)
 M = tk.MAX_ORDER
 
 
 def slip_series_variant(replacements=(), **jit_options):
     """The shipped slip series (``taylor._slip_coefficients``) compiled again from its
-    own source with the textual ``replacements`` (old, new) applied: a variant of the
-    same recurrences rather than a copy of them. Fails if a replacement no longer
-    matches the source."""
-    source = inspect.getsource(tk._slip_coefficients.py_func).replace("@jit\n", "")
+    own source with the textual ``replacements`` (old, new) applied, with the shipped
+    flags unless ``jit_options`` says otherwise: a variant of the same recurrences rather
+    than a copy of them. Fails if a replacement no longer matches the source."""
+    source = inspect.getsource(tk._slip_coefficients.py_func)
+    source = re.sub(r"^@\w+\n", "", source)  # the decorator
+    jit_options = {**SHIPPED_FLAGS, **jit_options}
     for old, new in replacements:
         if old not in source:
             raise RuntimeError(f"not in the shipped slip series any more: {old.strip()!r}")
@@ -214,18 +219,23 @@ def _unrolled_source(order: int) -> str:
             f"    x{m} = vx{k} * {inv}; y{m} = vy{k} * {inv}",
             f"    vx{m} = ax * {inv}; vy{m} = ay * {inv}",
         ]
-        pairs = [f"x{j} * x{m - j} + y{j} * y{m - j}" for j in range(1, (m + 1) // 2)]
-        sq = f"2.0 * ({' + '.join(pairs)})" if pairs else "0.0"
-        zz = [f"z{j} * z{m - j}" for j in range(1, (m + 1) // 2)]
-        sz = f"2.0 * ({' + '.join(zz)})" if zz else "0.0"
+        # the shipped sums' order: newest terms (order m - 1) last
+        half = range((m + 1) // 2 - 1, 0, -1)
+        pairs = [f"(x{j} * x{m - j} + y{j} * y{m - j})" for j in half]
+        sq = f"2.0 * (0.0 + {' + '.join(pairs)})" if pairs else "0.0"
+        zz = [f"z{j} * z{m - j}" for j in half]
+        sz = f"2.0 * (0.0 + {' + '.join(zz)})" if zz else "0.0"
         if m % 2 == 0:
             c = m // 2
-            sq += f" + x{c} * x{c} + y{c} * y{c}"
+            sq += f" + (x{c} * x{c} + y{c} * y{c})"
             sz += f" + z{c} * z{c}"
-        sx = " + ".join(f"z{j} * px{m - j}" for j in range(1, m)) or "0.0"
-        sy = " + ".join(f"z{j} * py{m - j}" for j in range(1, m)) or "0.0"
+        js = [*range(2, m - 1), *([m - 1] if m >= 3 else []), *([1] if m >= 2 else [])]
+        sx = " + ".join(["0.0", *(f"z{j} * px{m - j}" for j in js)])
+        sy = " + ".join(["0.0", *(f"z{j} * py{m - j}" for j in js)])
+        src.append(f"    q{m} = {sq} + 2.0 * (x0 * x{m} + y0 * y{m})")
+        if m == order:  # without friction the shipped series stops here (no z_N, P_N)
+            continue
         src += [
-            f"    q{m} = {sq} + 2.0 * (x0 * x{m} + y0 * y{m})",
             f"    z{m} = (q{m} - ({sz})) * hz",
             f"    px{m} = (x{m} - ({sx}) - z{m} * px0) * iz",
             f"    py{m} = (y{m} - ({sy}) - z{m} * py0) * iz",
@@ -233,7 +243,9 @@ def _unrolled_source(order: int) -> str:
         ]
     for m in range(1, order + 1):
         src.append(f"    C[0, {m}] = x{m}; C[1, {m}] = y{m}; C[2, {m}] = vx{m}; C[3, {m}] = vy{m}")
-        src.append(f"    W[0, {m}] = q{m}; W[3, {m}] = z{m}; W[4, {m}] = px{m}; W[5, {m}] = py{m}")
+        src.append(f"    W[0, {m}] = q{m}")
+        if m < order:
+            src.append(f"    W[3, {m}] = z{m}; W[4, {m}] = px{m}; W[5, {m}] = py{m}")
     return "\n".join(src)
 
 
@@ -267,14 +279,14 @@ def _repeat_loop(series, with_order: bool):
 
 def series_table(repeats: int) -> list[str]:
     pars = np.array([0.009478, 0.7818, 7.52 * 0.7818**2, 0.0, 17.6, 0.0, 46.16])
-    contract = slip_series_variant(fastmath={"contract"})
+    plain = slip_series_variant(fastmath=False)
     frictionless = slip_series_variant(
         (("K * (gx - mu_c * gy)", "K * gx"), ("K * (gy + mu_c * gx)", "K * gy"))
     )
     lines = [
         "Slip series alone (mu = 0), ns a series, minimum of the repeats of 100,000 calls.",
         "",
-        "| order | loop (shipped) | unrolled | loop with FMA contraction | loop without the "
+        "| order | loop (shipped) | unrolled | loop without FMA contraction | loop without the "
         "friction terms |",
         "|---|---|---|---|---|",
     ]
@@ -282,11 +294,11 @@ def series_table(repeats: int) -> list[str]:
     for order in (13, 18):
         generated: dict = {"math": math}
         exec(_unrolled_source(order), generated)
-        unrolled = numba.njit(generated["unrolled"])
+        unrolled = numba.njit(**SHIPPED_FLAGS)(generated["unrolled"])
         loops = (
             _repeat_loop(tk._slip_coefficients, True),
             _repeat_loop(unrolled, False),
-            _repeat_loop(contract, True),
+            _repeat_loop(plain, True),
             _repeat_loop(frictionless, True),
         )
         cells = []

@@ -78,7 +78,13 @@ jit = numba.njit(cache=True, nogil=True)
 # the arrays it takes are not passed and reference-counted again (taylor's pre-checks and
 # the event search's pointwise evaluation)
 jit_inline = numba.njit(cache=True, nogil=True, inline="always")
-# No fastmath anywhere: every kernel rounds as IEEE arithmetic in source order, the same
-# on every machine. (taylor's series once allowed reassociation, which vectorised their
-# short sums: on an AMD EPYC (Zen 4) host that was 7-16 % slower per run, and its rounding
-# followed the host's vector width.)
+# No fastmath but one flag in one place: every kernel rounds as IEEE arithmetic in source
+# order, the same on every machine, except taylor's free-flight and slip series
+# (``jit_fused``), whose products and sums may fuse into FMA instructions where the host
+# has them (every x86-64 since 2013, every ARM64): each fused a * b + c is rounded once
+# instead of twice, so those series round a little differently on a host without FMA.
+# The series' chain of multiply-adds is most of a frictionless taylor run: 3-6 % of it
+# (benchmarks/RESULTS.md 8.6). (taylor's series once allowed reassociation, which
+# vectorised their short sums: on an AMD EPYC (Zen 4) host that was 7-16 % slower per
+# run, and its rounding followed the host's vector width.)
+jit_fused = numba.njit(cache=True, nogil=True, fastmath={"contract"})
