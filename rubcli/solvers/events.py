@@ -198,11 +198,11 @@ def run_time(value):
     for every distinct constant argument it is handed (and once more for each constant
     a variable holds before type inference settles on its type), and this hands it a
     run-time value instead (``jit.COMPILABLE_CORES`` registers it: compiled, it returns
-    a plain int or bool). A first solve with numba's cache empty took 87 -> 44 s with
-    the analytic methods' loop, 22 -> 15 s with ``dop853-jit`` and 41 -> 35 s with
-    ``taylor`` (whose kinds stay constants: ``compile_time``), with the same numbers
-    and, within 1-2 %, the same run times: a branch on a run-time flag costs nothing
-    next to the segment it selects."""
+    a plain int or bool). The start-up of ``rubcli run`` with numba's cache empty went
+    from 93 to 40 s with ``analytic``, 24 to 14 s with ``dop853-jit`` and 55 to 43 s
+    with ``taylor`` (whose kinds stay constants: ``compile_time``;
+    benchmarks/compile_time.md), with the same numbers and, within 1-2 %, the same run
+    times: a branch on a run-time flag costs nothing next to the segment it selects."""
     return value
 
 
