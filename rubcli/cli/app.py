@@ -14,6 +14,30 @@ import typer
 from rubcli import __version__, io
 from rubcli.cli import compare, forces_map, init, orbits, run, stress, sweep, validate
 
+
+def _flags_show_no_type() -> None:
+    """Boolean flags (``--quick``, ``--json``, ``--help``) listed in ``--help`` without a
+    type: they take no value. Some typer releases print every option's type in the rich
+    help panel, a flag as ``--quick <bool>``, which reads as if it wanted a value; typer's
+    plain help already leaves it out. A no-op where typer has no such hook."""
+    from typer import core
+
+    option = getattr(core, "TyperOption", None)
+    shown = getattr(option, "display_type_rich", None)
+    if shown is None or getattr(shown, "_rubcli_flags", False):
+        return
+
+    def display_type_rich(self, ctx):
+        if getattr(self, "is_flag", False) and not getattr(self, "count", False):
+            return None
+        return shown(self, ctx)
+
+    display_type_rich._rubcli_flags = True
+    option.display_type_rich = display_type_rich
+
+
+_flags_show_no_type()
+
 app = typer.Typer(
     name="rubcli",
     help="Jeffcott rotor rubbing on a circular stator: the paper's analytic solution "

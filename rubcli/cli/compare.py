@@ -68,6 +68,13 @@ EXIT_FAILED = 1
 QUICK_HORIZON_PERIODS = 5.0
 QUICK_LYAPUNOV_PERIODS = panel_study.QUICK_LYAPUNOV_PERIODS
 QUICK_ORBIT_PERIODS = 150.0
+# what --quick does, in its help and in report.md, from the numbers it uses
+QUICK_TEXT = (
+    f"short ladders run once, work-precision over at most {QUICK_HORIZON_PERIODS:g} forcing "
+    f"periods, each orbit over at most {QUICK_ORBIT_PERIODS:g} and its Lyapunov run over at "
+    f"most {QUICK_LYAPUNOV_PERIODS:g}"
+)
+QUICK_HELP = f"For CI: {QUICK_TEXT}."
 CSV_COLUMNS = (
     "method", "setting", "wall_time_s", "error_max", "error_final", "setting_name",
     "wall_time_min_s", "repeats", "nsteps", "nfev", "njev", "n_events", "status",
@@ -233,7 +240,7 @@ def report_markdown(case: Case, wp: wpm.WorkPrecision | None, panels: list[Orbit
     out.append(
         f"Parameters: nu = {p.nu:g}, eta = {p.eta:g}, e = {p.e:g}, K = {p.K:g}, mu = {p.mu:g}, "
         f"Rp = {p.Rp:g}, phi0 = {p.phi0:g}; initial state {case.problem.initial}."
-        + (" Quick mode (short ladders, one run per setting)." if quick else "")
+        + (f" Quick mode: {QUICK_TEXT}." if quick else "")
     )
     out.append("")
     if wp is not None:
@@ -289,7 +296,7 @@ def report_markdown(case: Case, wp: wpm.WorkPrecision | None, panels: list[Orbit
     if panels:
         out += ["## Orbits" + (" per mu" if len(panels) > 1 else ""), ""]
         out.append(
-            f"Each method at the case's [solver] settings over {case.settings.time.periods:g} "
+            f"Each method at the case's [solver] settings over {_orbit_periods(panels)} "
             "forcing periods; errors against the reference of that mu within its trusted span."
         )
         out += ["", "| mu | method | status | error max | response | period | Lyapunov | "
@@ -335,6 +342,12 @@ def report_markdown(case: Case, wp: wpm.WorkPrecision | None, panels: list[Orbit
     return "\n".join(out)
 
 
+def _orbit_periods(panels: list[OrbitPanel]) -> str:
+    """The span the orbit runs covered, as solved (``--quick`` caps the case's)."""
+    spans = sorted({f"{p.problem.periods:g}" for p in panels}, key=float)
+    return " to ".join(spans) if len(spans) <= 2 else ", ".join(spans)
+
+
 # ------------------------------------------------------------------------ command
 
 
@@ -346,9 +359,7 @@ def command(
             "--out", "-o", metavar="DIR", help="Output dir (default: <case output dir>/compare)."
         ),
     ] = None,  # fmt: skip
-    quick: Annotated[
-        bool, typer.Option("--quick", help="Short ladders, one run each, 5-period horizon (CI).")
-    ] = False,
+    quick: Annotated[bool, typer.Option("--quick", help=QUICK_HELP)] = False,
     force: ForceOption = False,
     json: JsonOption = False,
 ) -> None:

@@ -208,8 +208,10 @@ def _title(case: Case, branch: cn.Branch) -> str:
 
 
 def summary_lines(branch: cn.Branch) -> list[list[str]]:
+    """The console's table of bifurcations, in increasing order of the parameter (the
+    branch lists them in the order continuation met them: one direction, then the other)."""
     rows = []
-    for b in branch.bifurcations:
+    for b in sorted(branch.bifurcations, key=lambda b: b.parameter):
         mods = ", ".join(f"{abs(m):.6f}" for m in b.point.multipliers)
         rows.append([b.kind, f"{b.parameter:.10g}", "yes" if b.located else "no",
                      f"{b.point.max_z:.6g}", mods, b.note])  # fmt: skip

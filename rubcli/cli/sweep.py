@@ -184,8 +184,8 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
         f"{plan.n_points} points on {where} in {wall:.1f} s "
         f"({stats.computed} computed, {stats.resumed} resumed, {n_failed} failed)"
     )
-    for counts in _class_counts(ds).items():
-        console.info(f"  {counts[0]}: {counts[1]}")
+    for name, count in _class_lines(ds):
+        console.info(f"  {name}: {count}")
     console.info(f"wrote {len(files)} files to {target}: {', '.join(files)}")
 
 
@@ -235,3 +235,30 @@ def _class_counts(ds) -> dict[str, int]:
     counts = {name: int((codes == i).sum()) for i, name in enumerate(RESPONSE_CLASSES)}
     counts["failed"] = int((~ok).sum())
     return {k: v for k, v in counts.items() if v}
+
+
+UNCONFIRMED = "chaotic, unconfirmed (Birkhoff test only: no Lyapunov exponent computed)"
+
+
+def _class_lines(ds) -> list[tuple[str, int]]:
+    """The class counts as the console prints them: a "chaotic" point without a Lyapunov
+    exponent is counted apart as unconfirmed, as its row of sweep.csv says."""
+    import numpy as np
+
+    from rubcli.analysis.sweep.point import RESPONSE_CLASSES
+
+    counts = _class_counts(ds)
+    chaotic = RESPONSE_CLASSES.index("chaotic")
+    ok = ds["status"].values == 0
+    unconfirmed = int(
+        (ok & (ds["response_class"].values == chaotic) & ~np.isfinite(ds["lyapunov"].values)).sum()
+    )
+    lines = []
+    for name, count in counts.items():
+        if name == "chaotic" and unconfirmed:
+            if count > unconfirmed:
+                lines.append(("chaotic (positive Lyapunov exponent)", count - unconfirmed))
+            lines.append((UNCONFIRMED, unconfirmed))
+        else:
+            lines.append((name, count))
+    return lines
