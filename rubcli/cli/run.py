@@ -245,7 +245,8 @@ def write_outputs(
                 failures=failures,
             )  # fmt: skip
         else:
-            figure = plots.time_figure(solutions, title, scale=case.scale, failures=failures)
+            figure = plots.time_figure(solutions, title, scale=case.scale, failures=failures,
+                                       transient_periods=transient)  # fmt: skip
         io.save_figure(figure, staged.path(f"{plot}.png"))
         files.append(f"{plot}.png")
     response = None

@@ -18,7 +18,11 @@ here reduce what is drawn, each in a way that keeps what the eye reads:
 - ``steady_start`` and ``keyphasor``: the steady span (after the transient) and the
   once-per-revolution points (one per forcing period: the stroboscopic section);
 - ``orbit_radius``: the axis limits of an orbit plot from the successful methods and the
-  clearance only, so a failed or diverged trace never sets them.
+  clearance only, so a failed or diverged trace never sets them;
+- ``settled``: whether the last periods of an orbit retrace one closed curve (a periodic
+  orbit, drawn bold) or fill a band (a torus, chaos, a slow transient: drawn faint under
+  its keyphasor points, which then carry the structure);
+- ``difference``: ``|w_b - w_a|`` of two methods against time, for a difference panel.
 
 Pure numpy on ``Solution`` arrays; no matplotlib here.
 """
@@ -40,6 +44,8 @@ FADED_POINTS_PER_PERIOD = 200  # ... refined up to this many per period while th
 FINE_POINTS_PER_PERIOD = 720  # the bold steady orbit: points per forcing period
 FINE_POINTS = 20_000  # ... and at most this many in all
 BOLD_PERIODS = 10.0  # the bold steady orbit: the last this many forcing periods
+SETTLED_TOLERANCE = 0.03  # ``settled``: loops within this fraction of the orbit's size
+SETTLED_PERIODS = 4  # ``settled``: ... of the curve of the last this many periods
 MARGIN = 1.08  # orbit axes: this much beyond the largest radius drawn
 ENVELOPE_CHUNK = 65_536  # samples reduced at a time by ``envelope``
 # The clearance (z = 1) drawn in the orbit, time and comparison figures
@@ -303,3 +309,63 @@ def distance(a: Solution, b: Solution, t_from: float | None = None) -> float | N
     if not np.allclose(a.t[keep], b.t[keep], rtol=1e-12, atol=0.0):
         return None  # not sampled at the same times
     return float(np.max(np.hypot(a.x[keep] - b.x[keep], a.y[keep] - b.y[keep])))
+
+
+def settled(
+    solution: Solution,
+    t_from: float,
+    tolerance: float = SETTLED_TOLERANCE,
+    periods: int = SETTLED_PERIODS,
+) -> bool:
+    """Whether the orbit from ``t_from`` to its end retraces one closed curve.
+
+    True when every point of the span lies within ``tolerance`` times the span's radius
+    of the curve drawn by its last ``periods`` forcing periods (or the whole span when
+    shorter): a periodic orbit of period up to ``periods``, or one still drifting along
+    its own loop. False when the loops fill a band (a torus, chaos, a transient that
+    still changes shape): drawn bold, such loops are an unreadable tangle.
+    """
+    n = finite_length(solution)
+    if n < 2:
+        return True
+    period = solution.problem.params.period
+    t_end = float(solution.t[n - 1])
+    t_from = max(float(t_from), float(solution.t[0]))
+    per_period = 120  # chords of 3 degrees on a circular whirl: 0.07 % of its radius
+    m = max(2, int(math.ceil((t_end - t_from) / period * per_period)))
+    tq = np.linspace(t_from, t_end, m + 1)
+    pts = hermite(solution.t[:n], solution.states[:n], tq)
+    size = float(np.max(np.hypot(pts[:, 0] - pts[:, 0].mean(), pts[:, 1] - pts[:, 1].mean())))
+    if not math.isfinite(size) or size == 0.0:
+        return True
+    last = pts[tq >= t_end - periods * period]
+    if last.shape[0] == pts.shape[0]:
+        return True
+    w_all = pts[:, 0] + 1j * pts[:, 1]
+    w_last = last[:, 0] + 1j * last[:, 1]
+    worst = 0.0
+    for chunk in np.array_split(w_all, max(1, w_all.size // 2000)):
+        worst = max(worst, float(np.max(np.min(np.abs(chunk[:, None] - w_last), axis=1))))
+    return worst <= tolerance * size
+
+
+def difference(a: Solution, b: Solution) -> tuple[np.ndarray, np.ndarray]:
+    """``(t, |w_b - w_a|)`` at the samples of ``a`` within the finite span of both.
+
+    Where ``b`` was sampled at other times it is interpolated there (``hermite``), so two
+    methods with different outputs still compare. Empty arrays when they do not overlap.
+    """
+    na, nb = finite_length(a), finite_length(b)
+    if na < 1 or nb < 2:
+        return np.empty(0), np.empty(0)
+    ta, tb = a.t[:na], b.t[:nb]
+    keep = (ta >= tb[0]) & (ta <= tb[-1])
+    t = ta[keep]
+    if t.size == 0:
+        return t, np.empty(0)
+    if tb.size == ta.size and np.allclose(ta, tb, rtol=1e-12, atol=0.0):
+        wb = b.states[:nb, :2][keep]
+    else:
+        wb = hermite(tb, b.states[:nb], t)
+    wa = a.states[:na, :2][keep]
+    return t, np.hypot(wb[:, 0] - wa[:, 0], wb[:, 1] - wa[:, 1])

@@ -1,39 +1,56 @@
-"""Orbits as an engineer reads them: the steady state bold, the transient faded.
+"""Orbits as an engineer reads them: the steady state visible, the transient faint.
 
 ``draw_orbits`` draws the orbits (y against x) of several solutions of one problem into
 one matplotlib axes, used by ``rubcli run`` (orbit.png) and by the Figure 3 composite of
 ``rubcli compare`` (orbits.png):
 
 - the transient (from the start to the last ``BOLD_PERIODS`` forcing periods) of the
-  first successful method thin and faded, the start marked with a star; a long
+  first successful method thin and faint, the start marked with a star; a long
   transient is drawn as whole periods (``display.period_subset``), so a long run never
   draws a million points;
-- the last ``BOLD_PERIODS`` periods bold, interpolated at 720 points per period from the
-  samples and their velocities (``display.hermite``), so that a whirl looks round;
+- the last ``BOLD_PERIODS`` periods, interpolated at 720 points per period from the
+  samples and their velocities (``display.hermite``), so that a whirl looks round. When
+  they retrace one closed curve (``display.settled``: a periodic orbit) they are bold;
+  when they fill a band (a torus, chaos, a transient still changing shape) only the last
+  ``UNSETTLED_PERIODS`` are drawn, thin and half transparent, and the keyphasor points
+  carry the structure;
 - keyphasor dots: one per forcing period over the steady span (after the transient,
   ``display.steady_start``), the stroboscopic section: one dot for a period-one orbit, a
-  closed curve for a quasi-periodic one;
-- overlaid methods: the first successful method thick, each other one a thin dashed line
-  of a contrasting colour (its bold span only) with thin cross keyphasor markers, so
-  both stay visible when they agree; their largest distance from the first method is
-  returned (and stated by the callers);
+  closed curve for a quasi-periodic one. Older dots are lighter, so the dots a slow
+  transient leaves behind do not blur the last ones;
+- overlaid methods: the first successful method a thick line with large dots; each
+  other one a thin solid line of a contrasting colour drawn on top, with small dots:
+  where they agree, the thin line runs inside the thick one and each small dot sits in
+  a large one, so both stay visible. Their largest distance from the first method is
+  returned (and stated by the callers; ``display.difference`` gives it against time);
 - failed methods: a dotted line up to where they failed, labelled with the tau of the
   failure and marked with a cross; they never set the axes (``display.orbit_radius``), so
   a diverged trace is clipped at the axes.
+
+``legend_handles`` gives legend entries in the colours and markers actually drawn.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from matplotlib.colors import to_rgba
 
 from rubcli.plotting import display
 from rubcli.solution import Solution
 
 COLORS = ("C0", "C3", "C2", "C1", "C4", "C5", "C6", "C8")
-CROSSES = ("x", "+", "1", "2", "3", "4")  # thin markers: the dot under them stays visible
+FIRST_LINE = 2.6  # the first method's bold orbit (points)
+OTHER_LINE = 1.0  # every other method, drawn on top of it
+FAINT_LINE = 0.9  # an orbit that does not settle: thin ...
+FAINT_ALPHA = 0.6  # ... and half transparent ...
+UNSETTLED_PERIODS = 3.0  # ... over its last this many forcing periods only
+TRANSIENT_LINE, TRANSIENT_ALPHA = 0.4, 0.25
+FIRST_DOT, OTHER_DOT = 6.5, 3.2  # keyphasor marker sizes (points)
+OLDEST_DOT_ALPHA = 0.25  # the first keyphasor dot of the steady span; the last is opaque
 
 
 @dataclass
@@ -49,6 +66,9 @@ class OrbitDrawing:
     first: str | None = None  # the method others are measured against
     failed: dict[str, float | None] = field(default_factory=dict)  # tau of the last sample
     points: int = 0  # points drawn in all (bounded for long runs)
+    colors: dict[str, str] = field(default_factory=dict)  # each method's colour
+    settled: dict[str, bool] = field(default_factory=dict)  # bold (True) or faint last periods
+    artists: dict[str, dict[str, object]] = field(default_factory=dict)  # per method, by role
 
 
 def draw_orbits(
@@ -59,23 +79,28 @@ def draw_orbits(
     transient_periods: float | None = None,
     bold_periods: float = display.BOLD_PERIODS,
     label_methods: bool = True,
+    radius: float | None = None,
 ) -> OrbitDrawing:
     """Draw the orbits of ``solutions`` (one problem) into ``ax``; see the module doc.
 
     ``unit`` scales clearances to the axes' unit (metres for a physical case).
     ``transient_periods`` fixes the start of the steady span (default: half the record).
+    ``radius`` sets the half-width of the axes (in the axes' unit), e.g. one shared by
+    several panels; default ``display.orbit_radius``.
     """
     circle = np.linspace(0.0, 2.0 * np.pi, 721)
     ax.plot(
         unit * np.cos(circle), unit * np.sin(circle), label="clearance", **display.CLEARANCE_STYLE
     )
-    radius = unit * display.orbit_radius(solutions)
+    if radius is None:
+        radius = unit * display.orbit_radius(solutions)
     drawing = OrbitDrawing(radius=radius)
     good = [s for s in solutions if s.success and display.finite_length(s) >= 2]
     first = good[0] if good else None
     drawing.first = None if first is None else first.method
     for index, sol in enumerate(solutions):
         color = COLORS[index % len(COLORS)]
+        drawing.colors[sol.method] = color
         n = display.finite_length(sol)
         label = sol.method if label_methods else None
         if n == 0:
@@ -90,35 +115,42 @@ def draw_orbits(
             ax.plot(unit * sol.x[n - 1], unit * sol.y[n - 1], "X", color=color, ms=8, mec="k")
             continue
         main = sol is first
+        artists = drawing.artists.setdefault(sol.method, {})
         period = sol.problem.params.period
         t_end = float(sol.t[n - 1])
         steady = display.steady_start(sol, transient_periods)
         bold = max(float(sol.t[0]), t_end - bold_periods * period)
         drawing.steady_from[sol.method] = steady
         drawing.bold_from[sol.method] = bold
+        calm = display.settled(sol, bold)
+        if not calm:  # fewer loops: a band of ten is a tangle even when faint
+            bold = max(float(sol.t[0]), t_end - min(bold_periods, UNSETTLED_PERIODS) * period)
+        drawing.settled[sol.method] = calm
+        drawing.bold_from[sol.method] = bold
         faded = display.period_subset(sol, bold) if main else np.empty((0, 2))
         fine = display.fine_orbit(sol, bold)
         drawing.points += faded.shape[0] + fine.shape[0]
         if main:  # the others' transients would only blur it; their distance is stated
-            ax.plot(unit * faded[:, 0], unit * faded[:, 1], color=color, lw=0.5, alpha=0.3)
-            ax.plot(unit * fine[:, 0], unit * fine[:, 1], color=color, lw=2.2, zorder=3,
-                    label=label)  # fmt: skip
-        else:  # thin and dashed: the bold line shows between the dashes
-            ax.plot(unit * fine[:, 0], unit * fine[:, 1], color=color, lw=1.0, zorder=4,
-                    ls=(0, (4, 2)), label=label)  # fmt: skip
+            (artists["transient"],) = ax.plot(
+                unit * faded[:, 0], unit * faded[:, 1], color=color, lw=TRANSIENT_LINE,
+                alpha=transient_alpha((bold - float(sol.t[0])) / period), zorder=2,
+            )  # fmt: skip
+        if calm:
+            width, alpha = (FIRST_LINE, 1.0) if main else (OTHER_LINE, 1.0)
+        else:
+            width, alpha = FAINT_LINE, FAINT_ALPHA
+        (artists["orbit"],) = ax.plot(
+            unit * fine[:, 0], unit * fine[:, 1], color=color, lw=width, alpha=alpha,
+            zorder=3 if main else 4, label=label,
+        )  # fmt: skip
         if main:  # every method starts from the same state
             ax.plot(unit * sol.x[0], unit * sol.y[0], "*", color=color, ms=11, mec="k", mew=0.6,
                     zorder=6)  # fmt: skip
         dots = display.keyphasor(sol, transient_periods)
         drawing.keyphasor[sol.method] = int(dots.shape[0])
         drawing.points += dots.shape[0]
-        if main:
-            ax.plot(unit * dots[:, 0], unit * dots[:, 1], "o", color="k", ms=5, mfc=color,
-                    mew=0.8, zorder=7)  # fmt: skip
-        else:
-            marker = CROSSES[index % len(CROSSES)]
-            ax.plot(unit * dots[:, 0], unit * dots[:, 1], marker, color=color, ms=7, mew=1.2,
-                    zorder=8)  # fmt: skip
+        artists["keyphasor"] = _keyphasor(ax, unit * dots, color, main)
+        if not main:
             near = display.distance(first, sol, steady)
             drawing.distance_steady[sol.method] = _scaled(near, unit)
             drawing.distance_all[sol.method] = _scaled(display.distance(first, sol), unit)
@@ -129,27 +161,81 @@ def draw_orbits(
     return drawing
 
 
+def transient_alpha(periods: float) -> float:
+    """Opacity of a faint transient of ``periods`` forcing periods: ``TRANSIENT_ALPHA`` up
+    to 20 periods, less for longer ones (as 1/sqrt), so that hundreds of faint loops do
+    not add up to a solid disc under the steady orbit."""
+    return TRANSIENT_ALPHA * min(1.0, math.sqrt(20.0 / max(periods, 1e-9)))
+
+
+def _keyphasor(ax, dots: np.ndarray, color: str, main: bool):
+    """Keyphasor dots in the method's colour, the oldest lightest (``OLDEST_DOT_ALPHA``)."""
+    n = dots.shape[0]
+    alpha = np.linspace(OLDEST_DOT_ALPHA, 1.0, n) if n > 1 else np.ones(n)
+    face = np.array([to_rgba(color, a) for a in alpha]).reshape(n, 4)
+    if main:  # large, with a dark edge
+        edge = np.array([to_rgba("k", a) for a in alpha]).reshape(n, 4)
+        return ax.scatter(dots[:, 0], dots[:, 1], s=FIRST_DOT**2, c=face, edgecolors=edge,
+                          linewidths=0.7, zorder=7)  # fmt: skip
+    # small, with a white rim: visible inside a large dot of the first method
+    return ax.scatter(dots[:, 0], dots[:, 1], s=OTHER_DOT**2, c=face, edgecolors="white",
+                      linewidths=0.5, zorder=8)  # fmt: skip
+
+
 def _scaled(value: float | None, unit: float) -> float | None:
     return None if value is None else unit * value
 
 
-def legend_handles(drawing: OrbitDrawing, periods: float, unit_name: str) -> tuple[list, str]:
-    """Proxy legend entries for the styles (faded, start, keyphasor) and a caption text.
+def legend_handles(
+    drawing: OrbitDrawing | Sequence[OrbitDrawing], periods: float, unit_name: str
+) -> tuple[list, str]:
+    """Legend entries for the styles drawn (transient, last periods, start, keyphasor dots
+    of each method, in its colour and marker) and a caption text.
 
-    The caption states the distance between the methods, in ``unit_name``.
+    ``drawing`` may be the drawings of several panels (one legend for all). The caption
+    states the distance between the methods, in ``unit_name`` (of a single drawing).
     """
     from matplotlib.lines import Line2D
 
+    drawings = [drawing] if isinstance(drawing, OrbitDrawing) else list(drawing)
+    text = distance_text(drawings[0], unit_name) if len(drawings) == 1 else ""
+    drawn = [d for d in drawings if d.first is not None]
+    if not drawn:  # nothing succeeded: no bold span, start or dots were drawn
+        return [], text
+    first = drawn[0].first
+    color = drawn[0].colors[first]
+    states = [calm for d in drawn for calm in d.settled.values()]
+    calm, faint = all(states), not any(states)
+    thin = min(periods, UNSETTLED_PERIODS)
+    if calm:
+        last = f"last {periods:g} forcing periods (bold)"
+    elif faint:
+        last = f"last {thin:g} forcing periods (thin: the loops do not retrace one curve)"
+    else:
+        last = (f"last {periods:g} forcing periods bold (the last {thin:g}, thin, where the "
+                "loops do not retrace one curve)")  # fmt: skip
     handles = [
-        Line2D([], [], color="0.5", lw=0.5, alpha=0.5, label="transient (faded)"),
-        Line2D([], [], color="0.3", lw=2.0, label=f"last {periods:g} forcing periods (bold)"),
-        Line2D([], [], ls="", marker="*", color="0.6", mec="k", ms=11, label="start"),
-        Line2D([], [], ls="", marker="o", color="k", mfc="0.6", ms=5,
-               label="keyphasor: 1 dot per forcing period (steady span)"),
+        Line2D([], [], color=color, lw=TRANSIENT_LINE + 0.4, alpha=TRANSIENT_ALPHA + 0.2,
+               label=f"transient of {first} (faint)"),
+        Line2D([], [], color=color, lw=FIRST_LINE if calm else FAINT_LINE,
+               alpha=1.0 if calm else FAINT_ALPHA, label=last),
+        Line2D([], [], ls="", marker="*", color=color, mec="k", ms=11, label="start"),
     ]  # fmt: skip
-    if drawing.first is None:  # nothing succeeded: no bold span, start or dots were drawn
-        handles = []
-    return handles, distance_text(drawing, unit_name)
+    counts: dict[str, list[int]] = {}
+    colors: dict[str, str] = {}
+    for d in drawn:
+        for name, n in d.keyphasor.items():
+            counts.setdefault(name, []).append(n)
+            colors.setdefault(name, d.colors[name])
+    for name, ns in counts.items():
+        main = name == first
+        many = f"{ns[0]}; " if len(drawings) == 1 else ""
+        handles.append(
+            Line2D([], [], ls="", marker="o", color=colors[name], mec="k" if main else "white",
+                   ms=FIRST_DOT if main else OTHER_DOT + 1,
+                   label=f"{name}: keyphasor, 1 dot per forcing period ({many}older lighter)")
+        )  # fmt: skip
+    return handles, text
 
 
 def distance_text(drawing: OrbitDrawing, unit_name: str) -> str:
