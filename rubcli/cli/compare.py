@@ -193,12 +193,12 @@ def steady_transient(analysis: AnalysisSection | None, periods: float) -> float 
 
 
 def _spectrum_panels(panels: list[OrbitPanel]) -> list[tuple]:
-    """spectrum.png: per mu, the full spectrum of the first method that has one."""
+    """spectrum.png: per mu, the full spectrum of every method that has one, overlaid."""
     out = []
     for p in panels:
         found = [(run.method, run.spectrum) for run in p.runs if run.spectrum is not None]
         if found:
-            out.append((f"mu = {p.mu:g}, {found[0][0]}", found[0][1], ""))
+            out.append((f"mu = {p.mu:g}", found, ""))
         else:
             out.append((f"mu = {p.mu:g}", None, "no method succeeded over two periods"))
     return out

@@ -11,6 +11,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.patches import Rectangle
 
 from rubcli.analysis.response import PoincareSection, Response
 from rubcli.analysis.work_precision import Row, WorkPrecision
@@ -86,27 +87,54 @@ def error_growth_figure(wp: WorkPrecision, title: str) -> Figure:
     return fig
 
 
+SCALE_RATIO = 2.5  # orbits.png: panels within this ratio of sizes share one scale
+
+
+def shared_radii(radii: Sequence[float], ratio: float = SCALE_RATIO) -> list[float]:
+    """The half-width of each panel's axes, shared: one scale for all the panels whose
+    orbits are within ``ratio`` of the smallest one, and one (the largest) for the others.
+
+    A single scale for orbits of 1.2 and 9 clearances (a rub and a dry whip) would shrink
+    the rubs to a few pixels; one per panel makes sizes incomparable. Two scales, each
+    shared, keep both readable and every size comparable within its group.
+    """
+    if not radii:
+        return []
+    small = min(radii)
+    near = [r for r in radii if r <= ratio * small]
+    far = [r for r in radii if r > ratio * small]
+    r_near, r_far = max(near), max(far, default=0.0)
+    return [r_near if r <= ratio * small else r_far for r in radii]
+
+
 def orbits_figure(panels: Sequence[dict], title: str) -> Figure:
     """Orbits of several methods overlaid, one panel per case (a 2x3 grid for Figure 3).
 
     Each panel is ``{"title": str, "solutions": [Solution, ...], "note": str}`` and may
     give ``"transient_periods"`` (the start of the steady span of its keyphasor dots).
-    Drawn as ``plotting.orbit.draw_orbits``: the transient faded, the last periods bold,
-    keyphasor dots; the distance between the methods is stated in each panel's title.
+    Drawn as ``plotting.orbit.draw_orbits``: the transient faint, the last periods bold
+    (thin where they do not retrace one curve), keyphasor dots; the distance between the
+    methods is stated in each panel's title. The panels share their axes
+    (``shared_radii``): a panel drawn at the larger of two scales says so in its title and
+    shows the frame of the others as a dotted square.
     """
     from rubcli.plotting.orbit import distance_text, draw_orbits, legend_handles
 
     n = len(panels)
     cols = 3 if n > 4 else max(1, n) if n <= 2 else 2
     rows = math.ceil(n / cols)
-    fig = _new_figure(max(6.4, 4.4 * cols), 4.6 * rows + 1.6)
+    fig = _new_figure(max(6.4, 4.4 * cols), 4.7 * rows + 1.8)
     method_handles: dict[str, object] = {}
-    drawing = None
+    drawings = []
     bold = display.BOLD_PERIODS
+    radii = shared_radii([display.orbit_radius(p["solutions"]) for p in panels])
+    small = min(radii, default=1.0)
     for k, panel in enumerate(panels):
         ax = fig.add_subplot(rows, cols, k + 1)
         solutions = panel["solutions"]
-        drawing = draw_orbits(ax, solutions, transient_periods=panel.get("transient_periods"))
+        drawing = draw_orbits(ax, solutions, transient_periods=panel.get("transient_periods"),
+                              radius=radii[k])  # fmt: skip
+        drawings.append(drawing)
         spans = [display.recorded_periods(s) for s in solutions if s.success]
         bold = min([bold, *spans])
         for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
@@ -119,14 +147,17 @@ def orbits_figure(panels: Sequence[dict], title: str) -> Figure:
         distance = distance_text(drawing, "clearances").replace(" (clearances)", "")
         if distance:
             lines.append(distance.replace("max |Δw| ", "max|Δw| "))
-        message = failure_message(solutions)
-        if message:
+        if radii[k] > small:
+            ax.add_patch(Rectangle((-small, -small), 2 * small, 2 * small, fill=False,
+                                   ls=":", lw=1.0, ec="0.4", zorder=1))  # fmt: skip
+            lines.append(f"axes {radii[k] / small:.1f}x wider; dotted: the other panels' frame")
+        if failure_message(solutions):
             lines.append("every method failed")
         ax.set_title(f"({chr(ord('a') + k)}) " + "\n".join(lines), fontsize="small")
-    if drawing is not None:
-        styles, _ = legend_handles(drawing, bold, "clearances")
+    if drawings:
+        styles, _ = legend_handles(drawings, bold, "clearances")
         fig.legend(handles=list(method_handles.values()) + styles, loc="outside lower center",
-                   ncols=4, fontsize="small")  # fmt: skip
+                   ncols=3, fontsize="small")  # fmt: skip
     fig.suptitle(title, fontsize="medium")
     return fig
 
