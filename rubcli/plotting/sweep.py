@@ -12,6 +12,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
 from rubcli.analysis.sweep.point import RESPONSE_CLASSES
+from rubcli.plotting.cascade import DYNAMIC_RANGE_DB
 
 DIRECTION_COLOURS = {"up": "tab:blue", "down": "tab:orange", "independent": "tab:blue"}
 CLASS_COLOURS = ("tab:green", "tab:blue", "tab:red", "black", "0.75")  # RESPONSE_CLASSES order
@@ -53,44 +54,111 @@ def _label(dim: str) -> str:
     return AXIS_LABELS.get(dim, dim)
 
 
-def _marker_size(n_points: int) -> float:
-    return float(np.clip(3000.0 / max(n_points, 1), 0.3, 6.0))
+DIRECTION_MARKERS = {"up": "^", "down": "v", "independent": "o"}
+OTHER_DIRECTION = "0.78"  # the other direction, drawn behind for comparison
 
 
 def bifurcation_figure(ds, title: str) -> Figure:
-    """Stroboscopic z and x against the swept parameter; up and down in two colours."""
+    """Stroboscopic z and x against the swept parameter, one column per direction.
+
+    Each column draws its direction in colour over the other direction in light grey, so
+    neither hides the other where they coincide and the hysteresis (a jump up on one
+    side, down on the other) reads in either column. When the z values fall into two
+    groups with an empty gap between them (a dry whip beside a partial rub), the z axis
+    is broken into two linear parts (``axes.split_ranges``). Markers are sized to the
+    density of points and at least two pixels wide, so a dense section renders as a
+    density instead of moire stripes.
+    """
+    from rubcli.plotting import axes as ax_tools
+
     (dim,) = _axes_dims(ds)
     p = ds[dim].values
-    fig = _new_figure(9.0, 7.0)
-    axes = fig.subplots(2, 1, sharex=True)
-    n_dirs = ds.sizes["direction"]
-    size = _marker_size(ds.sizes["section"] * p.size * n_dirs / 20.0)
-    for ax, var, ylabel in (
-        (axes[0], "section_z", "stroboscopic z = |x + i y| (clearances)"),
-        (axes[1], "section_x", "stroboscopic x (clearances)"),
-    ):
-        for k, direction in enumerate(ds["direction"].values):
-            sub = ds[var].sel(direction=direction).values  # (n, section)
-            # a small offset keeps the two directions side by side where they coincide
-            shift = 0.0 if n_dirs == 1 else (k - 0.5) * 0.15 * np.min(np.diff(p), initial=0.0)
-            xs = np.repeat(p + shift, sub.shape[1])
-            ax.scatter(
-                xs, sub.ravel(), s=size, color=DIRECTION_COLOURS.get(str(direction), "k"),
-                alpha=0.8, linewidths=0, label=f"sweep {direction}",
-            )  # fmt: skip
-        failed = (ds["status"].values != 0).any(axis=0)
-        if failed.any():
-            lo = np.nanmin(ds[var].values) if np.isfinite(ds[var].values).any() else 0.0
-            ax.scatter(p[failed], np.full(failed.sum(), lo), marker="x", color="red", s=30,
-                       label="failed point")  # fmt: skip
-        if var == "section_z":
-            ax.axhline(1.0, color="0.3", linestyle="--", linewidth=0.8, label="clearance z = 1")
-        ax.set_ylabel(ylabel)
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), markerscale=3, fontsize=8)
-    axes[1].set_xlabel(_label(dim))
+    dirs = [str(d) for d in ds["direction"].values]
+    fig = _new_figure(6.5 * len(dirs) + 2.4, 8.0)
+    outer = fig.add_gridspec(2, len(dirs), height_ratios=(1.0, 1.0))
+    z_all = np.append(ds["section_z"].values.ravel(), 1.0)  # (the clearance line is drawn)
+    ranges = ax_tools.split_ranges(z_all)
+    x_range = ax_tools.split_ranges(ds["section_x"].values.ravel(), gap_fraction=2.0)
+    panel_px = (6.5 * 0.8 * ax_tools.DPI) * (8.0 * 0.4 * ax_tools.DPI)
+    n_points = max(1, int(np.isfinite(ds["section_z"].values[0]).sum()))
+    size = ax_tools.point_size(n_points, panel_px)
+    columns = []
+    share_z = share_x = sharex = None
+    for col, direction in enumerate(dirs):
+        z_axes = ax_tools.broken_axes(fig, outer[0, col], ranges, sharex=sharex, sharey=share_z)
+        sharex = z_axes[0]
+        x_axes = ax_tools.broken_axes(fig, outer[1, col], x_range, sharex=sharex,
+                                      sharey=share_x)  # fmt: skip
+        share_z, share_x = share_z or z_axes, share_x or x_axes
+        columns.append((z_axes, x_axes))
+        for axes, var in ((z_axes, "section_z"), (x_axes, "section_x")):
+            for ax in axes:
+                _direction_points(ax, ds, var, direction, dirs, p, size)
+                if var == "section_z":
+                    ax.axhline(1.0, color="0.3", linestyle="--", linewidth=0.8, zorder=4)
+                ax.grid(True, alpha=0.3)
+                if col > 0:
+                    ax.tick_params(labelleft=False)
+        z_axes[0].set_title(_direction_title(direction, len(dirs)), fontsize=10)
+        x_axes[-1].set_xlabel(_label(dim))
+        for ax in z_axes[:-1] + x_axes[:-1]:
+            ax.tick_params(labelbottom=False)
+        z_axes[-1].tick_params(labelbottom=False)
+    z_axes, x_axes = columns[0]
+    _value_label(fig, z_axes, "stroboscopic z = |x + i y| (clearances)", broken=len(ranges) > 1)
+    _value_label(fig, x_axes, "stroboscopic x (clearances)", broken=False)
+    fig.legend(handles=_direction_handles(ds, dirs), loc="outside right upper", fontsize=8)
     fig.suptitle(title, fontsize=10)
     return fig
+
+
+def _direction_title(direction: str, n_dirs: int) -> str:
+    if n_dirs == 1:
+        return f"sweep {direction}"
+    return f"sweep {direction} (the other direction in grey, behind)"
+
+
+def _direction_points(ax, ds, var, direction, dirs, p, size) -> None:
+    """The stroboscopic samples of ``direction`` in colour over the others in grey, and a
+    red cross at the failed points of this direction."""
+    for other in dirs:
+        sub = ds[var].sel(direction=other).values  # (n, section)
+        xs = np.repeat(p, sub.shape[1])
+        mine = other == direction
+        ax.scatter(
+            xs, sub.ravel(), s=size if mine else size * 0.8,
+            color=DIRECTION_COLOURS.get(other, "k") if mine else OTHER_DIRECTION,
+            marker=DIRECTION_MARKERS.get(other, "o") if size > 4 else "o",
+            alpha=0.45 if mine else 0.4, linewidths=0, zorder=3 if mine else 2, rasterized=True,
+        )  # fmt: skip
+    failed = ds["status"].sel(direction=direction).values != 0
+    if failed.any():
+        lo = ax.get_ylim()[0]
+        ax.scatter(p[failed], np.full(failed.sum(), lo), marker="x", color="red", s=30,
+                   zorder=5, clip_on=False)  # fmt: skip
+
+
+def _value_label(fig, axes, text: str, broken: bool) -> None:
+    """One y label for a stack of axes (a broken axis is one axis), on the taller part."""
+    tallest = max(axes, key=lambda a: a.get_subplotspec().get_position(fig).height)
+    tallest.set_ylabel(text + ("\n(axis broken: two linear parts)" if broken else ""))
+
+
+def _direction_handles(ds, dirs) -> list:
+    from matplotlib.lines import Line2D
+
+    handles = [
+        Line2D([], [], ls="", marker=DIRECTION_MARKERS.get(d, "o"), ms=6,
+               color=DIRECTION_COLOURS.get(d, "k"), label=f"sweep {d}")
+        for d in dirs
+    ]  # fmt: skip
+    if len(dirs) > 1:
+        handles.append(Line2D([], [], ls="", marker="o", ms=5, color=OTHER_DIRECTION,
+                              label="the other direction (behind)"))  # fmt: skip
+    handles.append(Line2D([], [], color="0.3", ls="--", lw=0.8, label="clearance z = 1"))
+    if (ds["status"].values != 0).any():
+        handles.append(Line2D([], [], ls="", marker="x", color="red", label="failed point"))
+    return handles
 
 
 def summary_figure(ds, title: str) -> Figure:
@@ -142,27 +210,34 @@ def summary_figure(ds, title: str) -> Figure:
     return fig
 
 
-def cascade_figure(ds, title: str, floor_db: float = -80.0) -> Figure:
-    """Full-spectrum cascade: amplitude (dB of the largest line) by order and parameter."""
+def cascade_figure(ds, title: str, dynamic_range_db: float = DYNAMIC_RANGE_DB) -> Figure:
+    """Full-spectrum cascade per direction: the lines of x + i y by order and parameter,
+    in dB of the largest line of the figure, down to ``dynamic_range_db`` below it
+    (``plotting.cascade``: each line a marker, so none drops out of the image)."""
+    from rubcli.plotting.cascade import draw_cascade
+
     (dim,) = _axes_dims(ds)
     p = ds[dim].values
     dirs = list(ds["direction"].values)
-    fig = _new_figure(5.0 * len(dirs) + 1.5, 6.0)
+    fig = _new_figure(5.0 * len(dirs) + 1.8, 6.4)
     axes = np.atleast_1d(fig.subplots(1, len(dirs), sharey=True))
     orders = ds["order"].values
     spec = ds["spectrum"].values
-    peak = np.nanmax(spec) if np.isfinite(spec).any() else 1.0
-    image = None
+    reference = float(np.nanmax(spec)) if np.isfinite(spec).any() else 0.0
+    artist = None
     for ax, direction in zip(axes, dirs, strict=True):
         amp = ds["spectrum"].sel(direction=direction).values
-        db = 20.0 * np.log10(np.maximum(amp / peak, 10 ** (floor_db / 20.0)))
-        image = ax.pcolormesh(orders, p, db, shading="nearest", cmap="viridis",
-                              vmin=floor_db, vmax=0.0)  # fmt: skip
-        ax.set_title(f"sweep {direction}: backward (< 0) | forward (> 0)", fontsize=9)
+        drawn = draw_cascade(ax, orders, p, amp, reference=reference,
+                             dynamic_range_db=dynamic_range_db)  # fmt: skip
+        artist = artist or drawn
+        ax.set_title(f"sweep {direction}: backward (< 0, shaded) | forward (> 0)", fontsize=9)
         ax.set_xlabel("whirl frequency (orders of the running speed, 1X = eta)")
+        ax.grid(True, alpha=0.25)
     axes[0].set_ylabel(_label(dim))
-    if image is not None:
-        fig.colorbar(image, ax=list(axes), label="amplitude of x + i y (dB of the largest line)")
+    if artist is not None:
+        fig.colorbar(artist, ax=list(axes), label=f"level of each line of x + i y, dB of the "
+                     f"largest ({reference:.3g} clearances)\nlines below -{dynamic_range_db:g} "
+                     "dB are not drawn")  # fmt: skip
     fig.suptitle(title, fontsize=10)
     return fig
 
