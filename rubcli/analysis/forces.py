@@ -465,3 +465,16 @@ def friction_flutter_radius(mu: float) -> float:
         return math.inf
     c = (math.sqrt(1.0 + mu * mu) - mu) ** 2
     return 1.0 / (1.0 - c)
+
+
+def friction_flutter_threshold(z0):
+    """The friction coefficient at which the contact modes merge at radius ``z0`` (> 1):
+    the inverse of ``friction_flutter_radius``, ``mu = (1 - c) / (2 sqrt(c))`` with
+    ``c = 1 - 1/z0`` (from ``sqrt(c) = sqrt(1 + mu^2) - mu``). Independent of K and of the
+    angle; damping moves the onset of growth to a slightly larger mu. NaN where ``z0 <= 1``
+    (no contact)."""
+    z0 = np.asarray(z0, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c = 1.0 - 1.0 / z0
+        mu = (1.0 - c) / (2.0 * np.sqrt(c))
+    return np.where(z0 > 1.0, mu, np.nan)

@@ -14,11 +14,11 @@ import math
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.colors import TwoSlopeNorm
+from matplotlib.colors import LogNorm, TwoSlopeNorm
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
-from rubcli.analysis.forces import EigenMap, ForceMap, TaylorError
+from rubcli.analysis.forces import EigenMap, ForceMap, TaylorError, friction_flutter_threshold
 
 SIGN_CONVENTION = (
     "F = force of the stator on the rotor = -K f (z > 1), 0 inside the clearance; "
@@ -165,8 +165,62 @@ def taylor_error_figure(te: TaylorError, title: str) -> Figure:
     return fig
 
 
+def _growth_panel(fig, ax, em: EigenMap, extent, X, Y) -> None:
+    """The left panel: the largest real part of the eigenvalues where it varies over the
+    map (diverging colours centred on 0, Re > 0 hatched). Where it does not (every mode
+    decays at exactly -nu, as it does at every point short of the radius where friction
+    merges the two contact modes), a map of one colour would say nothing: the panel then
+    states that value and colours each point by the friction coefficient at which its
+    modes would merge (``analysis.forces.friction_flutter_threshold``, log scale), with
+    the case's own mu_c marked where the map reaches it: the margin to instability."""
+    finite = em.max_real[np.isfinite(em.max_real)]
+    spread = float(np.ptp(finite)) if finite.size else 0.0
+    if finite.size and spread > 1e-9 * max(abs(em.nu), 1e-12):
+        low = min(float(finite.min()), -em.nu, -1e-12)
+        high = max(float(finite.max()), max(em.nu, 1e-12))
+        norm = TwoSlopeNorm(vmin=1.05 * low, vcenter=0.0, vmax=1.05 * high)
+        image = ax.imshow(em.max_real, origin="lower", extent=extent, cmap="RdBu_r", norm=norm)
+        bar = fig.colorbar(image, ax=ax, shrink=0.85)
+        bar.set_label("max Re(lambda) (units of omega); diverging colours centred on 0")
+        if finite.max() > 0.0:
+            positive = np.where(np.isfinite(em.max_real), em.max_real, -np.inf) > 0.0
+            ax.contourf(X, Y, positive.astype(float), levels=[0.5, 1.5], colors="none",
+                        hatches=["//"])  # fmt: skip
+            ax.contour(X, Y, positive.astype(float), levels=[0.5], colors="k", linewidths=1.0)
+            note = f"hatched: Re > 0 on {100 * em.positive_fraction:.1f}% of contact points"
+        else:
+            note = f"no growing mode: max Re = {em.max_real_overall:.6g}"
+        ax.set_title("largest real part of the eigenvalues\n" + note, fontsize=10)
+        return
+    threshold = np.where(np.isfinite(em.max_real), friction_flutter_threshold(np.hypot(X, Y)),
+                         np.nan)  # fmt: skip
+    shown = threshold[np.isfinite(threshold)]
+    if not shown.size:
+        ax.set_title("largest real part of the eigenvalues\nno contact point on the map",
+                     fontsize=10)  # fmt: skip
+        return
+    norm = LogNorm(vmin=float(shown.min()), vmax=float(shown.max()))
+    image = ax.imshow(threshold, origin="lower", extent=extent, cmap="viridis", norm=norm)
+    bar = fig.colorbar(image, ax=ax, shrink=0.85)
+    bar.set_label("mu at which the two contact modes merge (log scale)")
+    mu = abs(em.mu_c)
+    if shown.min() <= mu <= shown.max():
+        ax.contour(X, Y, threshold, levels=[mu], colors="m", linewidths=1.2)
+        where = f"magenta: mu_c = {mu:g}"
+    else:
+        where = f"mu_c = {mu:g} below all"
+    value = f"{finite[0]:.4g}" if finite.size else "-"
+    ax.set_title(
+        f"all modes decay at Re(lambda) = -nu = {value}\ncolour: mu where modes merge; {where}",
+        fontsize=9,
+    )
+
+
 def eigen_map_figure(em: EigenMap, title: str, flutter_radius: float | None = None) -> Figure:
     """Largest real part (positive region hatched) and the two frequencies, on the grid.
+
+    Where the largest real part is the same at every point the left panel shows the margin
+    to mode merging instead (``_growth_panel``).
 
     ``flutter_radius``: the radius beyond which friction merges the two contact modes
     (undamped), drawn as a dotted circle when it lies within the map.
@@ -176,22 +230,7 @@ def eigen_map_figure(em: EigenMap, title: str, flutter_radius: float | None = No
     extent = _extent(em.x, em.y)
     X, Y = np.meshgrid(em.x, em.y)
 
-    ax = axes[0]
-    finite = em.max_real[np.isfinite(em.max_real)]
-    low = min(float(finite.min()) if finite.size else 0.0, -em.nu, -1e-12)
-    high = max(float(finite.max()) if finite.size else 0.0, max(em.nu, 1e-12))
-    norm = TwoSlopeNorm(vmin=1.05 * low, vcenter=0.0, vmax=1.05 * high)
-    image = ax.imshow(em.max_real, origin="lower", extent=extent, cmap="RdBu_r", norm=norm)
-    bar = fig.colorbar(image, ax=ax, shrink=0.85)
-    bar.set_label("max Re(lambda) (units of omega)")
-    if finite.size and finite.max() > 0.0:
-        positive = np.where(np.isfinite(em.max_real), em.max_real, -np.inf) > 0.0
-        ax.contourf(X, Y, positive.astype(float), levels=[0.5, 1.5], colors="none", hatches=["//"])
-        ax.contour(X, Y, positive.astype(float), levels=[0.5], colors="k", linewidths=1.0)
-        note = f"hatched: Re > 0 on {100 * em.positive_fraction:.1f}% of contact points"
-    else:
-        note = f"no growing mode: max Re = {em.max_real_overall:.6g}" if finite.size else ""
-    ax.set_title("largest real part of the eigenvalues\n" + note, fontsize=10)
+    _growth_panel(fig, axes[0], em, extent, X, Y)
     for ax, field, name in (
         (axes[1], em.freq_1, "freq_1"),
         (axes[2], em.freq_2, "freq_2"),
