@@ -12,7 +12,7 @@ one matplotlib axes, used by ``rubcli run`` (orbit.png) and by the Figure 3 comp
   samples and their velocities (``display.hermite``), so that a whirl looks round. When
   they retrace one closed curve (``display.settled``: a periodic orbit) they are bold;
   when they fill a band (a torus, chaos, a transient still changing shape) only the last
-  ``UNSETTLED_PERIODS`` are drawn, thin and half transparent, and the keyphasor points
+  ``UNSETTLED_PERIODS`` are drawn, translucent, and the keyphasor points
   carry the structure;
 - keyphasor dots: one per forcing period over the steady span (after the transient,
   ``display.steady_start``), the stroboscopic section: one dot for a period-one orbit, a
@@ -45,8 +45,10 @@ from rubcli.solution import Solution
 COLORS = ("C0", "C3", "C2", "C1", "C4", "C5", "C6", "C8")
 FIRST_LINE = 2.6  # the first method's bold orbit (points)
 OTHER_LINE = 1.0  # every other method, drawn on top of it
-FAINT_LINE = 0.9  # an orbit that does not settle: thin ...
-FAINT_ALPHA = 0.6  # ... and half transparent ...
+# an orbit that does not settle: translucent, the first method wide and light, the
+# others thin on top (as for a settled orbit) ...
+FAINT_FIRST_LINE, FAINT_FIRST_ALPHA = 2.2, 0.35
+FAINT_LINE, FAINT_ALPHA = 0.9, 0.8
 UNSETTLED_PERIODS = 3.0  # ... over its last this many forcing periods only
 TRANSIENT_LINE, TRANSIENT_ALPHA = 0.4, 0.25
 FIRST_DOT, OTHER_DOT = 6.5, 3.2  # keyphasor marker sizes (points)
@@ -138,7 +140,9 @@ def draw_orbits(
         if calm:
             width, alpha = (FIRST_LINE, 1.0) if main else (OTHER_LINE, 1.0)
         else:
-            width, alpha = FAINT_LINE, FAINT_ALPHA
+            width, alpha = (
+                (FAINT_FIRST_LINE, FAINT_FIRST_ALPHA) if main else (FAINT_LINE, FAINT_ALPHA)
+            )
         (artists["orbit"],) = ax.plot(
             unit * fine[:, 0], unit * fine[:, 1], color=color, lw=width, alpha=alpha,
             zorder=3 if main else 4, label=label,
@@ -210,15 +214,15 @@ def legend_handles(
     if calm:
         last = f"last {periods:g} forcing periods (bold)"
     elif faint:
-        last = f"last {thin:g} forcing periods (thin: the loops do not retrace one curve)"
+        last = f"last {thin:g} forcing periods (light: the loops do not retrace one curve)"
     else:
-        last = (f"last {periods:g} forcing periods bold (the last {thin:g}, thin, where the "
+        last = (f"last {periods:g} forcing periods bold (the last {thin:g}, light, where the "
                 "loops do not retrace one curve)")  # fmt: skip
     handles = [
         Line2D([], [], color=color, lw=TRANSIENT_LINE + 0.4, alpha=TRANSIENT_ALPHA + 0.2,
                label=f"transient of {first} (faint)"),
-        Line2D([], [], color=color, lw=FIRST_LINE if calm else FAINT_LINE,
-               alpha=1.0 if calm else FAINT_ALPHA, label=last),
+        Line2D([], [], color=color, lw=FIRST_LINE if calm else FAINT_FIRST_LINE,
+               alpha=1.0 if calm else FAINT_FIRST_ALPHA, label=last),
         Line2D([], [], ls="", marker="*", color=color, mec="k", ms=11, label="start"),
     ]  # fmt: skip
     counts: dict[str, list[int]] = {}

@@ -48,13 +48,15 @@ def draw_spectrum(
     limits: tuple[float, float] | None = None,
     overlay: int = 0,
     label: str = "|W(omega)| (Hann window)",
+    alone: bool = True,
 ) -> dict:
     """Draw one full spectrum into ``ax``; returns what was drawn (range, dominant).
 
     ``half`` (orders) and ``limits`` (amplitudes) set the axes, e.g. ones shared by several
     panels; default from this spectrum. ``overlay``: 0 for the first spectrum of the axes
     (a thick light line, with the frame), 1, 2, ... for each one drawn over it (a thin
-    line on top: where two methods agree both stay visible).
+    line on top: where two methods agree both stay visible). ``alone``: the only spectrum
+    of its axes, drawn as a plain line.
     """
     unit = 1.0 if scale is None else scale.clearance
     half = order_range(spectrum) if half is None else half
@@ -65,7 +67,8 @@ def draw_spectrum(
     oe, ae = display.envelope(order[inside], np.maximum(amp[inside], floor))
     if overlay == 0:
         ax.axvspan(-half, 0.0, color="0.92", zorder=0)
-        line = {"lw": 2.0, "alpha": 0.55, "zorder": 2}
+        line = {"lw": 1.0, "alpha": 1.0} if alone else {"lw": 2.0, "alpha": 0.55}
+        line["zorder"] = 2
     else:
         line = {"lw": 0.9, "alpha": 1.0, "zorder": 3}
     ax.semilogy(oe, ae, color=color, label=label, **line)
@@ -159,15 +162,18 @@ def spectrum_figure(
                 methods.append(name)
             color = COLORS[methods.index(name) % len(COLORS)] if name else COLORS[k % len(COLORS)]
             info = draw_spectrum(ax, spectrum, scale=scale, color=color, half=half,
-                                 limits=limits, overlay=i, label=name or None)  # fmt: skip
+                                 limits=limits, overlay=i, label=name or None,
+                                 alone=len(spectra) == 1)  # fmt: skip
             texts.append(f"{name}: {info['text']}" if name else info["text"])
         head = f"{label}: " + ("\n".join(texts) if len(texts) > 1 else texts[0])
         ax.set_title(head + (f"\n{note}" if note else ""), fontsize="small")
     if methods:
         from matplotlib.lines import Line2D
 
-        handles = [Line2D([], [], color=COLORS[i % len(COLORS)], lw=2.0 if i == 0 else 0.9,
-                          alpha=0.55 if i == 0 else 1.0, label=name)
+        overlaid = any(len(_spectra(entry)) > 1 for _, entry, _ in panels)
+        handles = [Line2D([], [], color=COLORS[i % len(COLORS)],
+                          lw=2.0 if i == 0 and overlaid else 0.9,
+                          alpha=0.55 if i == 0 and overlaid else 1.0, label=name)
                    for i, name in enumerate(methods)]  # fmt: skip
         handles.append(Line2D([], [], ls="", marker="v", color="0.5", mec="k",
                               label="dominant line of each method"))  # fmt: skip

@@ -67,7 +67,8 @@ def bifurcation_figure(ds, title: str) -> Figure:
     groups with an empty gap between them (a dry whip beside a partial rub), the z axis
     is broken into two linear parts (``axes.split_ranges``). Markers are sized to the
     density of points and at least two pixels wide, so a dense section renders as a
-    density instead of moire stripes.
+    density instead of moire stripes; where they are large enough to tell apart, up and
+    down are triangles pointing up and down.
     """
     from rubcli.plotting import axes as ax_tools
 
@@ -128,7 +129,7 @@ def _direction_points(ax, ds, var, direction, dirs, p, size) -> None:
         ax.scatter(
             xs, sub.ravel(), s=size if mine else size * 0.8,
             color=DIRECTION_COLOURS.get(other, "k") if mine else OTHER_DIRECTION,
-            marker=DIRECTION_MARKERS.get(other, "o") if size > 4 else "o",
+            marker=DIRECTION_MARKERS.get(other, "o") if size > 10 else "o",
             alpha=0.45 if mine else 0.4, linewidths=0, zorder=3 if mine else 2, rasterized=True,
         )  # fmt: skip
     failed = ds["status"].sel(direction=direction).values != 0
@@ -162,32 +163,39 @@ def _direction_handles(ds, dirs) -> list:
 
 
 def summary_figure(ds, title: str) -> Figure:
-    """Contact/stick fraction, z range, whirl order with direction, class, Lyapunov."""
+    """Contact/stick fraction, z range, whirl order with direction, class, Lyapunov; the
+    first direction wide and light, the second thin on top, so neither hides the other."""
     (dim,) = _axes_dims(ds)
     p = ds[dim].values
     lyap = np.isfinite(ds["lyapunov"].values).any()
     rows = 5 if lyap else 4
     fig = _new_figure(9.0, 2.2 * rows + 0.8)
     axes = fig.subplots(rows, 1, sharex=True)
-    for direction in ds["direction"].values:
+    for k, direction in enumerate(ds["direction"].values):
         d = ds.sel(direction=direction)
         colour = DIRECTION_COLOURS.get(str(direction), "k")
-        axes[0].plot(p, d["contact_fraction"], "-", color=colour, label=f"contact, {direction}")
-        axes[0].plot(p, d["stick_fraction"], ":", color=colour, label=f"stick, {direction}")
-        axes[1].plot(p, d["z_max"], "-", color=colour, label=f"max z, {direction}")
-        axes[1].plot(p, d["z_min"], "--", color=colour, label=f"min z, {direction}")
+        # the first direction wide and light, the second thin on top: where they coincide
+        # both show (as overlaid methods in orbit.png)
+        lw, alpha, size = (2.6, 0.5, 40) if k == 0 else (1.0, 1.0, 10)
+        line = {"color": colour, "lw": lw, "alpha": alpha}
+        axes[0].plot(p, d["contact_fraction"], "-", label=f"contact, {direction}", **line)
+        axes[0].plot(p, d["stick_fraction"], ":", label=f"stick, {direction}", **line)
+        axes[1].plot(p, d["z_max"], "-", label=f"max z, {direction}", **line)
+        axes[1].plot(p, d["z_min"], "--", label=f"min z, {direction}", **line)
         order = d["whirl_order"].values
         whirl = d["whirl_direction"].values
         axes[2].plot(p, order, "-", color=colour, linewidth=0.6, alpha=0.6)
         for code, marker in ((1, "^"), (-1, "v"), (0, "o")):
             sel = whirl == code
             if sel.any():
-                axes[2].scatter(p[sel], order[sel], marker=marker, s=14, color=colour,
+                axes[2].scatter(p[sel], order[sel], marker=marker, s=size, color=colour,
+                                alpha=alpha, linewidths=0, zorder=2 + k,
                                 label=f"{WHIRL_NAMES[code]}, {direction}")  # fmt: skip
-        axes[3].scatter(p, d["response_class"], s=14, color=colour, label=str(direction))
+        axes[3].scatter(p, d["response_class"], s=size, color=colour, alpha=alpha,
+                        linewidths=0, zorder=2 + k, label=str(direction))  # fmt: skip
         if lyap:
-            axes[4].errorbar(p, d["lyapunov"], yerr=d["lyapunov_stderr"], fmt=".", color=colour,
-                             label=str(direction))  # fmt: skip
+            axes[4].errorbar(p, d["lyapunov"], yerr=d["lyapunov_stderr"], fmt="o", ms=size**0.5,
+                             color=colour, alpha=alpha, label=str(direction))  # fmt: skip
     axes[0].set_ylabel("time fraction (-)")
     axes[0].set_ylim(-0.05, 1.05)
     axes[1].axhline(1.0, color="0.3", linestyle="--", linewidth=0.8, label="clearance")
