@@ -17,10 +17,11 @@ from matplotlib.text import Text
 
 from rubcli import model
 from rubcli.analysis.forces import eigen_map, friction_flutter_radius, friction_flutter_threshold
+from rubcli.analysis.response import PoincareSection, Response
 from rubcli.analysis.spectrum import steady_spectrum
 from rubcli.plotting import axes as ax_tools
 from rubcli.plotting import display
-from rubcli.plotting.compare import orbits_figure, shared_radii
+from rubcli.plotting.compare import orbits_figure, poincare_figure, shared_radii
 from rubcli.plotting.forces import eigen_map_figure
 from rubcli.plotting.orbit import COLORS, draw_orbits
 from rubcli.plotting.orbits import branch_figure, multipliers_figure
@@ -152,6 +153,23 @@ def test_compare_orbit_panels_share_their_axes():
     assert a.get_xlim()[1] == pytest.approx(display.MARGIN * 1.6)
     assert c.get_xlim()[1] == pytest.approx(display.MARGIN * 9.0)
     assert "the other panels' frame" in c.get_title()
+
+
+def test_poincare_panels_share_their_axes_and_keep_data_clear():
+    def section(radius: float, n: int = 50) -> PoincareSection:
+        angle = np.linspace(0.0, 2.0 * np.pi, n)
+        pts = radius * np.column_stack((np.cos(angle), np.sin(angle), 0 * angle, 0 * angle))
+        return PoincareSection(np.arange(n, dtype=float), pts, 1.0, 0.0)
+
+    response = Response("quasi-periodic", None, None, 50, 1.0, 1e-6)
+    fig = poincare_figure([("a", section(1.2), response), ("b", section(1.7), response),
+                           ("c", section(8.9), response)], "title")  # fmt: skip
+    a, b, c = fig.axes[:3]
+    assert a.get_xlim() == pytest.approx(b.get_xlim())
+    assert b.get_xlim() == pytest.approx((-1.7 * display.MARGIN, 1.7 * display.MARGIN))
+    assert c.get_xlim()[1] == pytest.approx(8.9 * display.MARGIN)
+    assert all(ax.get_legend() is None for ax in fig.axes)  # no legend over the points
+    assert "50 section points" in a.get_title()
 
 
 def test_spectrum_panels_share_the_frequency_axis_and_show_every_method():

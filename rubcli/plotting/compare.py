@@ -165,30 +165,45 @@ def orbits_figure(panels: Sequence[dict], title: str) -> Figure:
 def poincare_figure(
     sections: Sequence[tuple[str, PoincareSection, Response]], title: str
 ) -> Figure:
-    """Stroboscopic sections (x, y) of each method, titled with its response class."""
+    """Stroboscopic sections (x, y) of each method, titled with its response class and
+    the number of points; the panels share their axes as in ``orbits_figure``
+    (``shared_radii``), and nothing but the data is drawn inside them."""
     n = max(1, len(sections))
     cols = min(3, n)
     rows = math.ceil(n / cols)
     fig = _new_figure(max(6.4, 4.2 * cols), 4.2 * rows + 0.9)
+    sizes = []
+    for _, section, _ in sections:
+        pts = section.points
+        r = float(np.max(np.hypot(pts[:, 0], pts[:, 1]))) if pts.shape[0] else 0.0
+        sizes.append(display.MARGIN * max(1.0, r if math.isfinite(r) else 1.0))
+    radii = shared_radii(sizes)
+    small = min(radii, default=1.0)
     for k, (label, section, response) in enumerate(sections):
         ax = fig.add_subplot(rows, cols, k + 1)
         _clearance(ax)
         pts = section.points
         if pts.shape[0]:
-            ax.plot(pts[:, 0], pts[:, 1], ".", ms=3, label=f"{pts.shape[0]} section points")
-        ax.set_aspect("equal", adjustable="datalim")
+            ax.plot(pts[:, 0], pts[:, 1], ".", ms=3)
+        ax.set_xlim(-radii[k], radii[k])
+        ax.set_ylim(-radii[k], radii[k])
+        ax.set_aspect("equal", adjustable="box")
         ax.set_xlabel("x / clearance")
         ax.set_ylabel("y / clearance")
         ax.grid(True, alpha=0.3)
-        ax.legend(loc="upper right", fontsize="x-small")
         kind = response.kind
         if response.period:
             kind += f", period {response.period}"
         if response.lyapunov is not None:
             kind += f", lambda = {response.lyapunov.exponent:.3g}"
-        ax.set_title(f"{label}: {kind}", fontsize="small")
-    fig.suptitle(f"{title}\nstroboscopic Poincare section (one point per forcing period)",
-                 fontsize="medium")  # fmt: skip
+        head = f"{label}: {kind}\n{pts.shape[0]} section points"
+        if radii[k] > small:
+            ax.add_patch(Rectangle((-small, -small), 2 * small, 2 * small, fill=False,
+                                   ls=":", lw=1.0, ec="0.4", zorder=1))  # fmt: skip
+            head += f"; axes {radii[k] / small:.1f}x wider (dotted: the others' frame)"
+        ax.set_title(head, fontsize="small")
+    fig.suptitle(f"{title}\nstroboscopic Poincare section (one point per forcing period); "
+                 "dashed: the clearance", fontsize="medium")  # fmt: skip
     return fig
 
 
