@@ -93,8 +93,9 @@ def _apply_overrides(
 # A start-up longer than this is numba compiling (a warm cache loads in 0.2-0.5 s): say so.
 START_UP_NOTICE_S = 2.0
 COMPILING_NOTICE = (
-    "compiling the numba kernels (the first run on a machine, or after an update: up to "
-    "a minute); later runs load them in under a second"
+    "compiling the numba kernels (the first run on a machine, or after an update: about a "
+    "minute on an idle 2-core machine, longer on a busy one); later runs load them in about "
+    "a second"
 )
 
 
