@@ -51,6 +51,9 @@ FAINT_FIRST_LINE, FAINT_FIRST_ALPHA = 2.2, 0.35
 FAINT_LINE, FAINT_ALPHA = 0.9, 0.8
 UNSETTLED_PERIODS = 3.0  # ... over its last this many forcing periods only
 TRANSIENT_LINE, TRANSIENT_ALPHA = 0.4, 0.25
+# the second method solid, a third and later ones dashed or dotted: drawn on top of each
+# other where they agree, each still shows through the gaps of the next
+OVERLAY_DASHES = ("-", "-", (0, (5, 3)), (0, (1.5, 2)), (0, (6, 2, 1.5, 2)))
 FIRST_DOT, OTHER_DOT = 6.5, 3.2  # keyphasor marker sizes (points)
 OLDEST_DOT_ALPHA = 0.25  # the first keyphasor dot of the steady span; the last is opaque
 
@@ -145,7 +148,8 @@ def draw_orbits(
             )
         (artists["orbit"],) = ax.plot(
             unit * fine[:, 0], unit * fine[:, 1], color=color, lw=width, alpha=alpha,
-            zorder=3 if main else 4, label=label,
+            zorder=3 if main else 3 + index, ls=OVERLAY_DASHES[index % len(OVERLAY_DASHES)]
+            if not main else "-", label=label,
         )  # fmt: skip
         if main:  # every method starts from the same state
             ax.plot(unit * sol.x[0], unit * sol.y[0], "*", color=color, ms=11, mec="k", mew=0.6,

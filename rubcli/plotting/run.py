@@ -37,11 +37,15 @@ BAND_ALPHA = 0.25  # the fill of a time trace's min/max band (``time_figure``)
 
 
 def _line_style(index: int) -> dict:
-    """Overlaid methods that agree stay visible: the first is a thick light line, each
-    other one a thin solid line drawn on top of it (inside it where they agree)."""
+    """Overlaid methods that agree stay visible: the first is a thick light line, the
+    second a thin solid line drawn on top of it (inside it where they agree), a third and
+    later ones thin dashed or dotted lines on top of those (``orbit.OVERLAY_DASHES``)."""
+    from rubcli.plotting.orbit import OVERLAY_DASHES
+
     if index == 0:
         return {"linestyle": "-", "linewidth": 2.4, "alpha": 0.55, "zorder": 2}
-    return {"linestyle": "-", "linewidth": 0.9, "alpha": 1.0, "zorder": 3}
+    dashes = OVERLAY_DASHES[index % len(OVERLAY_DASHES)]
+    return {"linestyle": dashes, "linewidth": 1.1 if index == 1 else 0.9, "zorder": 2 + index}
 
 
 def parameters_title(name: str, params: ModelParams, vary_mu: bool = False) -> str:
