@@ -44,14 +44,19 @@ def test_json_writer_handles_numpy_and_non_finite(tmp_path):
     assert json.loads(path.read_text()) == {"a": 1.5, "b": [0, 1, 2], "c": None, "d": [1, None]}
 
 
+def visible(directory):
+    return sorted(p.name for p in directory.iterdir() if not p.name.startswith("."))
+
+
 def test_staged_output_dir_commits_on_success(tmp_path):
     target = tmp_path / "out"
     with io.staged_output_dir(target) as staged:
         io.write_text(staged.path("a.csv"), "1")
         io.write_text(staged.path("report.json"), "{}")
-        assert not target.exists()
+        assert visible(target) == []  # staged out of sight, inside the target (locked)
     assert sorted(p.name for p in target.iterdir()) == ["a.csv", "report.json"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+    assert io.read_manifest(target) == ["a.csv", "report.json"]
 
 
 def test_staged_output_dir_writes_nothing_on_failure(tmp_path):
@@ -63,11 +68,15 @@ def test_staged_output_dir_writes_nothing_on_failure(tmp_path):
 
 
 def test_staged_output_keeps_other_files_in_the_target(tmp_path):
+    """Files rubcli did not write: refused without force; with it, the one named like an
+    output is replaced and the other kept."""
     target = tmp_path / "out"
     target.mkdir()
     (target / "notes.txt").write_text("mine")
     (target / "a.csv").write_text("old")
-    with io.staged_output_dir(target) as staged:
+    with pytest.raises(io.OutputError, match="not written by rubcli"):
+        io.staged_output_dir(target).__enter__()
+    with io.staged_output_dir(target, force=True) as staged:
         io.write_text(staged.path("a.csv"), "new")
     assert (target / "a.csv").read_text() == "new"
     assert (target / "notes.txt").read_text() == "mine"

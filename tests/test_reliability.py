@@ -166,7 +166,7 @@ def test_a_failed_commit_leaks_no_staging(tmp_path, monkeypatch):
         raise OSError(errno.EIO, "I/O error")
 
     monkeypatch.setattr(os, "replace", broken)
-    with pytest.raises(OSError), io.staged_output_dir(tmp_path / "out") as staged:
+    with pytest.raises(io.OutputWriteError), io.staged_output_dir(tmp_path / "out") as staged:
         (staged.path("a.csv")).write_text("1")
     assert not [p for p in tmp_path.rglob("*") if "staging" in p.name]
 
@@ -175,15 +175,15 @@ def test_a_failed_commit_leaks_no_staging(tmp_path, monkeypatch):
 
 SLOW_WRITE = """
 import sys, time
-from rubcli import io
-real = io.write_json
+from rubcli.io import outputs
+real = outputs.StagedOutput.write_report
 
 def slow(*args, **kwargs):  # the report is written last, into the staging dir
     print("WRITING", flush=True)
     time.sleep(60)
     return real(*args, **kwargs)
 
-io.write_json = slow
+outputs.StagedOutput.write_report = slow
 sys.argv = ["rubcli", *sys.argv[1:]]
 from rubcli.cli.app import main
 main()
@@ -210,7 +210,7 @@ def test_signal_during_writing_removes_staging_and_keeps_earlier_outputs(tmp_pat
             if not line and proc.poll() is not None:
                 break
         assert "WRITING" in line, proc.stderr.read()
-        assert [p for p in tmp_path.iterdir() if "staging" in p.name]  # mid-write
+        assert [p for p in out.iterdir() if "staging" in p.name]  # mid-write
         proc.send_signal(signum)
         _, err = proc.communicate(timeout=60)
     finally:
@@ -218,6 +218,7 @@ def test_signal_during_writing_removes_staging_and_keeps_earlier_outputs(tmp_pat
             proc.kill()
     assert proc.returncode == 128 + signum, err
     assert "Traceback" not in err
+    assert "no outputs of this run were written" in err
     assert names(tmp_path) == {"case.toml", "out", "slow.py"}  # no staging left
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 

@@ -55,6 +55,8 @@ from rubcli.cli import console
 from rubcli.cli.common import (
     ForceOption,
     JsonOption,
+    WaitOption,
+    command_dir,
     emit,
     machine_readable,
     prepare_output,
@@ -338,6 +340,16 @@ def report_markdown(case: Case, wp: wpm.WorkPrecision | None, panels: list[Orbit
 # ------------------------------------------------------------------------ command
 
 
+def expected_files(case: Case, cfg: CompareSection) -> tuple[str, ...]:
+    """The files ``rubcli compare`` writes for ``case`` (``poincare.png`` with responses)."""
+    names = ["work_precision.csv", "work_precision.png", "error_growth.png"]
+    names = names if cfg.work_precision else []
+    names += ["orbits.png", "spectrum.png"] + (["sweep.csv"] if cfg.mu is not None else [])
+    if response_settings(case.settings.analysis) is not None:
+        names.append("poincare.png")
+    return (*names, "report.md", io.REPORT_NAME)
+
+
 def command(
     case_file: Annotated[Path, typer.Argument(metavar="CASE", help="The case file (TOML).")],
     out: Annotated[
@@ -350,6 +362,7 @@ def command(
         bool, typer.Option("--quick", help="Short ladders, one run each, 5-period horizon (CI).")
     ] = False,
     force: ForceOption = False,
+    wait: WaitOption = False,
     json: JsonOption = False,
 ) -> None:
     """Reference solution, error against run time per method, orbits and response classes."""
@@ -362,8 +375,8 @@ def command(
     if unavailable:
         console.error(f"{case_file}: methods not available: {', '.join(unavailable)}")
         raise typer.Exit(EXIT_INVALID)
-    target = out if out is not None else case.output_dir / "compare"
-    plan = prepare_output(target, force)
+    target = command_dir(case, "compare", out)
+    plan = prepare_output(target, force, wait, expected_files(case, cfg))
     command_line = {"case_file": str(case_file), "out": str(out) if out else None,
                     "quick": quick}  # fmt: skip
     with machine_readable(json):
@@ -463,7 +476,7 @@ def _compare(
             "wall_time_s": time.perf_counter() - started,
             "files": files,
         }
-        io.write_json(staged.path(io.REPORT_NAME), report)
+        staged.write_report(report)
     report_stale(plan)
 
     if wp is not None:

@@ -50,6 +50,7 @@ from rubcli.cli import console
 from rubcli.cli.common import (
     ForceOption,
     JsonOption,
+    WaitOption,
     emit,
     machine_readable,
     prepare_output,
@@ -114,6 +115,7 @@ def start_up(case: Case) -> float:
     for name in case.methods:
         with contextlib.suppress(Exception):  # the timed run reports any failure
             solvers.solve(short, name, **case.options_for(name))
+        io.checkpoint()  # a termination signal is never taken for a solver's failure
     return time.perf_counter() - start
 
 
@@ -134,6 +136,7 @@ def solve_method(case: Case, name: str) -> tuple[Solution | None, dict[str, Any]
                 progress=lambda tau: update(tau - t0),
             )
         except Exception as exc:  # noqa: BLE001 - reported with its traceback, run exits 1
+            io.checkpoint()  # a termination signal is never taken for a solver's failure
             console.exception(exc)
             entry = {
                 "status": ERROR,
@@ -266,7 +269,7 @@ def write_outputs(
         "response": response,
         "files": files,
     }
-    io.write_json(staged.path(io.REPORT_NAME), report)
+    staged.write_report(report)
     return report
 
 
@@ -365,6 +368,7 @@ def command(
         ),
     ] = None,
     force: ForceOption = False,
+    wait: WaitOption = False,
     json: JsonOption = False,
 ) -> None:
     """Solve a case with each of its methods and write CSVs, plots and report.json."""
@@ -378,7 +382,7 @@ def command(
     if unavailable:
         console.error(f"{case_file}: solver.methods: not available: {', '.join(unavailable)}")
         raise typer.Exit(EXIT_INVALID)
-    plan = prepare_output(target, force)
+    plan = prepare_output(target, force, wait, expected_files(case))
 
     with machine_readable(json):
         report = _run(case, case_file, method, out, periods, plan)
@@ -394,6 +398,16 @@ def command(
         raise typer.Exit(EXIT_FAILED)
     if warned:
         raise typer.Exit(EXIT_WARNING)
+
+
+def expected_files(case: Case) -> tuple[str, ...]:
+    """The files a run of ``case`` writes (``write_outputs``)."""
+    output = case.settings.output
+    names = [f"{m}.csv" for m in case.methods] if output.csv else []
+    names += [f"{plot}.png" for plot in output.plots]
+    if response_settings(case) is not None:
+        names.append("poincare.png")
+    return (*names, io.REPORT_NAME)
 
 
 def _run(

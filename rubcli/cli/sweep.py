@@ -26,7 +26,16 @@ import typer
 
 from rubcli import io
 from rubcli.cli import console
-from rubcli.cli.common import ForceOption, JsonOption, emit, prepare_output, report_stale
+from rubcli.cli.common import (
+    EXIT_WRITE,
+    ForceOption,
+    JsonOption,
+    WaitOption,
+    command_dir,
+    emit,
+    prepare_output,
+    report_stale,
+)
 from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 
 LOCAL_SCHEDULER = "local"
@@ -64,6 +73,7 @@ def command(
     ] = False,
     json: JsonOption = False,
     force: ForceOption = False,
+    wait: WaitOption = False,
 ) -> None:
     """Sweep parameters: bifurcation diagrams, run-up/run-down, 2-D maps, basins."""
     case = load_or_exit(case_file)
@@ -74,9 +84,9 @@ def command(
     from rubcli import sweeps
     from rubcli.analysis import sweep as engine
 
-    target = out if out is not None else case.output_dir / "sweep"
-    output = prepare_output(target, force)  # before any work: exit 2 if unusable
+    target = command_dir(case, "sweep", out)
     plan = sweeps.plan_from_case(case, quick)
+    output = prepare_output(target, force, wait, expected_files(plan))  # before any work
     address = scheduler if scheduler is not None else cfg.scheduler
     client = cluster = None
     if address is not None:
@@ -100,7 +110,7 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
     """The sweep itself, once its inputs, output dir and executor are checked."""
     from rubcli import sweeps
     from rubcli.analysis import sweep as engine
-    from rubcli.analysis.sweep.dataset import build_dataset, csv_text, write_netcdf
+    from rubcli.analysis.sweep.dataset import build_dataset
 
     store_dir = store_dir_for(target, plan.digest())
     console.info(
@@ -134,25 +144,41 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
     wall = time.perf_counter() - started
     ds = build_dataset(plan, results, sweeps.case_attrs(case))
 
-    from rubcli.plotting import sweep as plots
-
     title = _title(case, plan)
     files: list[str] = []
+    try:
+        report = _write(case_file, case, plan, ds, results, stats, where, wall, target,
+                        output, files, title, workers, scheduler, out, quick)  # fmt: skip
+    except io.OutputWriteError as exc:
+        kept = len(list(store_dir.glob("*.point"))) if store_dir.is_dir() else 0
+        console.error(f"{exc}; the {kept} computed points are kept in {store_dir}: make room "
+                      "and run the same command again to write them")  # fmt: skip
+        raise typer.Exit(EXIT_WRITE) from None
+    engine.PointStore(store_dir, plan.digest()).remove()
+    report_stale(output)
+    emit(report, json)
+    n_failed = report["points_failed"]
+    console.info(
+        f"{plan.n_points} points on {where} in {wall:.1f} s "
+        f"({stats.computed} computed, {stats.resumed} resumed, {n_failed} failed)"
+    )
+    for counts in _class_counts(ds).items():
+        console.info(f"  {counts[0]}: {counts[1]}")
+    console.info(f"wrote {len(files)} files to {target}: {', '.join(files)}")
+
+
+def _write(case_file, case, plan, ds, results, stats, where, wall, target, output, files,
+           title, workers, scheduler, out, quick) -> dict:  # fmt: skip
+    """Write the sweep's files into its output dir (staged, committed as a whole)."""
+    from rubcli.analysis.sweep.dataset import csv_text, write_netcdf
+    from rubcli.plotting import sweep as plots
+
     with io.staged_output_dir(target, output) as staged:
         write_netcdf(ds, staged.path("sweep.nc"))
         io.write_text(staged.path("sweep.csv"), csv_text(ds, plan))
         files += ["sweep.nc", "sweep.csv"]
-        figures = []
-        if plan.is_basin:
-            figures.append(("basins.png", plots.basins_figure))
-        elif len(plan.axes) == 1:
-            figures += [("bifurcation.png", plots.bifurcation_figure),
-                        ("summary.png", plots.summary_figure)]  # fmt: skip
-            if plan.spectrum:
-                figures.append(("cascade.png", plots.cascade_figure))
-        else:
-            figures.append(("map.png", plots.map_figure))
-        for name, make in figures:
+        for name in _figures(plan):
+            make = getattr(plots, f"{name.removesuffix('.png')}_figure")
             io.save_figure(make(ds, title), staged.path(name))
             files.append(name)
         files.append("report.json")
@@ -176,17 +202,22 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
             "wall_time_s": wall,
             "files": files,
         }
-        io.write_json(staged.path("report.json"), report)
-    engine.PointStore(store_dir, plan.digest()).remove()
-    report_stale(output)
-    emit(report, json)
-    console.info(
-        f"{plan.n_points} points on {where} in {wall:.1f} s "
-        f"({stats.computed} computed, {stats.resumed} resumed, {n_failed} failed)"
-    )
-    for counts in _class_counts(ds).items():
-        console.info(f"  {counts[0]}: {counts[1]}")
-    console.info(f"wrote {len(files)} files to {target}: {', '.join(files)}")
+        staged.write_report(report)
+    return report
+
+
+def expected_files(plan) -> tuple[str, ...]:
+    """The files ``rubcli sweep`` writes for ``plan``."""
+    return ("sweep.nc", "sweep.csv", *_figures(plan), "report.json")
+
+
+def _figures(plan) -> list[str]:
+    """The figures of a sweep, by file name (``rubcli.plotting.sweep.<stem>_figure``)."""
+    if plan.is_basin:
+        return ["basins.png"]
+    if len(plan.axes) == 1:
+        return ["bifurcation.png", "summary.png"] + (["cascade.png"] if plan.spectrum else [])
+    return ["map.png"]
 
 
 def _local_cluster(workers: int | None):
