@@ -15,7 +15,7 @@ core (``rubcli.model``) does not load the solvers.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+TYPE_CHECKING = False  # (typing itself is not imported: ``import rubcli`` stays light)
 
 __version__ = "0.1.0"
 
@@ -45,6 +45,8 @@ _LAZY = {
 }
 
 if TYPE_CHECKING:
+    from typing import Any
+
     from rubcli.case import Case, CaseError, load_case
     from rubcli.model import ModelParams
     from rubcli.problem import Problem

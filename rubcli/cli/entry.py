@@ -13,16 +13,28 @@ import sys
 
 def main() -> None:
     """Run the ``rubcli`` command line (``rubcli.cli.app``)."""
+    import signal
+
+    early: list[int] = []  # a signal before the real handler is in place: kept for it
+    names = ("SIGTERM", "SIGINT", "SIGHUP")
+    for sig in (getattr(signal, n) for n in names if hasattr(signal, n)):
+        signal.signal(sig, lambda signum, frame: early.append(signum))
+
     from rubcli.io import signals
 
-    signals.install()
     try:
+        signals.install(early[0] if early else None)
         from rubcli.cli.app import app
 
         app()
     except SystemExit:
+        late = signals.finish()
+        if late is not None:  # a signal as the command ended, never raised: say so
+            sys.stderr.write(f"error: {signals.stop_message(late)}\n")
+            sys.exit(128 + late)
         raise
     except BaseException as exc:
+        signals.finish()
         signum = exc.signum if isinstance(exc, signals.Terminated) else signals.pending()
         if signum is None:
             raise

@@ -129,26 +129,24 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
                 progress=lambda done, total: bar(done),
             )
     except (KeyboardInterrupt, io.Terminated) as exc:
-        kept = len(list(store_dir.glob("*.point"))) if store_dir.is_dir() else 0
-        console.error(
-            f"interrupted: {kept} of {plan.n_points} points are kept in {store_dir}; "
-            "run the same command again to compute only the others"
-        )
-        code = exc.exit_code if isinstance(exc, io.Terminated) else EXIT_INTERRUPTED
-        raise typer.Exit(code) from None
+        _interrupted(exc, store_dir, plan)
     finally:
         if client is not None:
             client.close()
         if cluster is not None:
             cluster.close()
     wall = time.perf_counter() - started
-    ds = build_dataset(plan, results, sweeps.case_attrs(case))
-
-    title = _title(case, plan)
     files: list[str] = []
     try:
+        ds = build_dataset(plan, results, sweeps.case_attrs(case))
         report = _write(case_file, case, plan, ds, results, stats, where, wall, target,
-                        output, files, title, workers, scheduler, out, quick)  # fmt: skip
+                        output, files, _title(case, plan), workers, scheduler, out,
+                        quick)  # fmt: skip
+    except (KeyboardInterrupt, io.Terminated) as exc:
+        if target not in io.outputs.COMMITTED:
+            _interrupted(exc, store_dir, plan)
+        engine.PointStore(store_dir, plan.digest()).remove()  # the outputs are in place
+        raise
     except io.OutputWriteError as exc:
         kept = len(list(store_dir.glob("*.point"))) if store_dir.is_dir() else 0
         console.error(f"{exc}; the {kept} computed points are kept in {store_dir}: make room "
@@ -165,6 +163,17 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
     for counts in _class_counts(ds).items():
         console.info(f"  {counts[0]}: {counts[1]}")
     console.info(f"wrote {len(files)} files to {target}: {', '.join(files)}")
+
+
+def _interrupted(exc: BaseException, store_dir: Path, plan) -> None:
+    """Stopped before the outputs were written: say where the finished points are kept."""
+    kept = len(list(store_dir.glob("*.point"))) if store_dir.is_dir() else 0
+    console.error(
+        f"interrupted: {kept} of {plan.n_points} points are kept in {store_dir}; "
+        "run the same command again to compute only the others (or remove it)"
+    )
+    code = exc.exit_code if isinstance(exc, io.Terminated) else EXIT_INTERRUPTED
+    raise typer.Exit(code) from None
 
 
 def _write(case_file, case, plan, ds, results, stats, where, wall, target, output, files,

@@ -11,8 +11,10 @@ The handler records the signal and raises ``Terminated`` in the main thread, exc
 - while the interrupted Python frame is numba's or llvmlite's own code, called from
   compiled code (numba's dispatcher unpickling or boxing a result): an exception raised
   there is lost by the dispatcher (``SystemError: CPUDispatcher(...) returned a result with
-  an exception set``). The signal is then delivered again 10 ms later, until it lands
-  in a frame where raising is safe.
+  an exception set``); or the import system's, which holds the global import lock in
+  places where an exception would never release it (a later import in another thread
+  then waits for ever). A timer (``SIGALRM``, every 10 ms) then tries again, until the
+  main thread is in a frame where raising is safe.
 
 ``Terminated`` is raised once per process; ``checkpoint()`` (called where a long loop
 reports progress) raises it again if something swallowed it, and ``pending()`` lets a
@@ -35,6 +37,7 @@ __all__ = [
     "Terminated",
     "checkpoint",
     "deferred",
+    "finish",
     "install",
     "pending",
     "stop_message",
@@ -59,9 +62,11 @@ TERMINATION_SIGNALS = tuple(
     getattr(signal, name) for name in ("SIGTERM", "SIGINT", "SIGHUP") if hasattr(signal, name)
 )
 
-# Frames of these packages may run inside compiled code's C calls: never raise there.
-_UNSAFE_PARTS = tuple(f"{os.sep}{name}{os.sep}" for name in ("numba", "llvmlite"))
-REDELIVER_S = 0.01
+# Frames where raising is unsafe: numba's and llvmlite's (run inside compiled code's C
+# calls) and the import system's (the import lock).
+_UNSAFE_PARTS = (*(f"{os.sep}{name}{os.sep}" for name in ("numba", "llvmlite", "importlib")),
+                 "<frozen importlib")  # fmt: skip
+RETRY_S = 0.01
 
 
 class _State:
@@ -72,68 +77,79 @@ class _State:
         self.pending: int | None = None  # the first termination signal received
         self.raised = False  # Terminated was raised for it
         self.deferred = 0  # depth of deferred() blocks in the main thread
-        self.redelivering = False
 
 
 _state = _State()
+_RETRY_SIGNAL = (signal.SIGALRM,) if hasattr(signal, "setitimer") else ()
 _installed: dict[int, object] = {}  # signal -> the handler it replaced
 
 
 def _safe(frame) -> bool:
-    """Whether raising in ``frame`` reaches the caller: not in numba's or llvmlite's code."""
+    """Whether raising in ``frame`` is safe (see the module docstring)."""
     name = frame.f_code.co_filename if frame is not None else ""
     return not any(part in name for part in _UNSAFE_PARTS)
 
 
-def _redeliver(signum: int) -> None:
-    """Deliver the signal to the main thread again soon (once at a time)."""
-    if _state.redelivering:
-        return
-    _state.redelivering = True
-
-    def again() -> None:
-        _state.redelivering = False
-        if not _state.raised and _installed:
-            import _thread
-
-            _thread.interrupt_main(signum)
-
-    timer = threading.Timer(REDELIVER_S, again)
-    timer.daemon = True
-    timer.start()
+def _retry_soon() -> None:
+    """Try raising again in RETRY_S (a SIGALRM: no thread, no lock in a handler)."""
+    if hasattr(signal, "setitimer") and signal.SIGALRM in _installed:
+        signal.setitimer(signal.ITIMER_REAL, RETRY_S)
 
 
-def _handler(signum: int, frame) -> None:
-    if _state.pending is None:
-        _state.pending = signum
-    if _state.raised:
-        return  # already leaving: let the clean-up run to its end
-    if _state.deferred:
-        return  # deferred() raises when its block ends
-    if not _safe(frame):
-        _redeliver(signum)
-        return
+def _raise() -> None:
+    """Raise ``Terminated`` for the pending signal (no retry left armed: at the
+    interpreter's exit a SIGALRM would kill the process)."""
+    if _RETRY_SIGNAL:
+        signal.setitimer(signal.ITIMER_REAL, 0)
     _state.raised = True
     raise Terminated(_state.pending)
 
 
-def install() -> bool:
+def _handler(signum: int, frame) -> None:
+    if signum != getattr(signal, "SIGALRM", None) and _state.pending is None:
+        _state.pending = signum
+    if _state.pending is None or _state.raised or _state.deferred:
+        return  # nothing to raise; already leaving; or deferred() raises when it ends
+    if not _safe(frame):
+        _retry_soon()
+        return
+    _raise()
+
+
+def install(received: int | None = None) -> bool:
     """Handle the termination signals as described above (main thread only; a no-op
-    elsewhere or when already installed). Returns whether this call installed them."""
+    elsewhere or when already installed). Returns whether this call installed them.
+
+    ``received``: a signal that arrived before (the entry point records one while this
+    module loads); ``Terminated`` is then raised at once."""
     if _installed or threading.current_thread() is not threading.main_thread():
         return False
     _state.reset()
-    for sig in TERMINATION_SIGNALS:
+    for sig in (*TERMINATION_SIGNALS, *_RETRY_SIGNAL):
         _installed[sig] = signal.signal(sig, _handler)
+    if received is not None:
+        _state.pending = received
+        _state.raised = True
+        raise Terminated(received)
     return True
 
 
 def uninstall() -> None:
     """Restore the handlers that ``install`` replaced, and forget any pending signal."""
+    if _RETRY_SIGNAL:
+        signal.setitimer(signal.ITIMER_REAL, 0)
     for sig, old in _installed.items():
         signal.signal(sig, old)
     _installed.clear()
     _state.reset()
+
+
+def finish() -> int | None:
+    """At the end of the process: stop any retry, and return a signal received that was
+    never raised (it came as the command ended), so that the exit code can say so."""
+    if _RETRY_SIGNAL and _installed:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+    return _state.pending if not _state.raised else None
 
 
 def pending() -> int | None:
@@ -145,8 +161,7 @@ def checkpoint() -> None:
     """Raise ``Terminated`` if a termination signal was received (main thread only): for
     the places where long work reports progress, and after code that catches broadly."""
     if _state.pending is not None and threading.current_thread() is threading.main_thread():
-        _state.raised = True
-        raise Terminated(_state.pending)
+        _raise()
 
 
 @contextlib.contextmanager
@@ -162,8 +177,7 @@ def deferred() -> Iterator[None]:
         if main:
             _state.deferred -= 1
     if main and not _state.deferred and _state.pending is not None and not _state.raised:
-        _state.raised = True
-        raise Terminated(_state.pending)
+        _raise()
 
 
 @contextlib.contextmanager
