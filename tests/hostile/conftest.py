@@ -13,6 +13,10 @@ only one of the directory; keep it general):
   ``launcher.py``: a signal, SIGKILL or a pause at a chosen import, call or commit move;
   see its docstring) and ``background=True`` (returns the ``Popen``; the test waits).
 - ``out_dir``: a fresh, not yet existing output dir in the test's temporary dir.
+- ``previous(target, *methods)``: fills ``target`` with the outputs of a finished
+  ``rubcli run`` of ``SMALL_CASE`` with these methods (default rk45): a rubcli dir with
+  its signed manifest, made once per session and copied (the previous good outputs that
+  a failed or stopped run must leave as they are).
 - ``case_file(text=SMALL_CASE, name="case.toml")``: writes a case file (the texts below:
   ``SMALL_CASE`` 2 periods of rk45, ``LONG_CASE`` 300 periods of dop853-jit).
 - ``fsize_limit(n_bytes)``: a ``preexec`` that caps the size of any file the child
@@ -161,6 +165,37 @@ def wait_for(path: Path, proc: subprocess.Popen | None = None, timeout: float = 
             raise AssertionError(f"ended before {path.name}: {proc.communicate()}")
         assert time.monotonic() < deadline, f"no {path.name} after {timeout} s"
         time.sleep(0.005)
+
+
+@pytest.fixture(scope="session")
+def _templates(tmp_path_factory, state_dir):
+    made: dict[tuple[str, ...], Path] = {}
+    base = tmp_path_factory.mktemp("previous-runs")
+
+    def get(methods: tuple[str, ...]) -> Path:
+        if methods not in made:
+            case = base / "case.toml"
+            case.write_text(SMALL_CASE, encoding="utf-8")
+            target = base / "-".join(methods)
+            args = [sys.executable, "-m", "rubcli", "run", str(case), "--out", str(target)]
+            for method in methods:
+                args += ["-m", method]
+            env = {**os.environ, "RUBCLI_STATE_DIR": str(state_dir)}
+            done = subprocess.run(args, env=env, capture_output=True, text=True, timeout=TIMEOUT_S)
+            assert done.returncode == 0, done.stderr
+            made[methods] = target
+        return made[methods]
+
+    return get
+
+
+@pytest.fixture
+def previous(_templates):
+    def fill(target: Path, *methods: str) -> dict[str, bytes]:
+        shutil.copytree(_templates(tuple(methods) or ("rk45",)), target)
+        return snapshot(target)
+
+    return fill
 
 
 @pytest.fixture
