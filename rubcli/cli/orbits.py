@@ -205,9 +205,7 @@ def io_json(value: Any) -> str:
 
 
 def write_branch_nc(path: Path, branch: cn.Branch, attrs: dict[str, Any]) -> None:
-    ds = branch_dataset(branch, attrs)
-    with io.atomic_path(path) as tmp:
-        ds.to_netcdf(tmp, engine="h5netcdf")
+    io.write_netcdf(branch_dataset(branch, attrs), path)
 
 
 def _title(case: Case, branch: cn.Branch) -> str:

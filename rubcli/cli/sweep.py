@@ -179,11 +179,11 @@ def _interrupted(exc: BaseException, store_dir: Path, plan) -> None:
 def _write(case_file, case, plan, ds, results, stats, where, wall, target, output, files,
            title, workers, scheduler, out, quick) -> dict:  # fmt: skip
     """Write the sweep's files into its output dir (staged, committed as a whole)."""
-    from rubcli.analysis.sweep.dataset import csv_text, write_netcdf
+    from rubcli.analysis.sweep.dataset import csv_text
     from rubcli.plotting import sweep as plots
 
     with io.staged_output_dir(target, output) as staged:
-        write_netcdf(ds, staged.path("sweep.nc"))
+        io.write_netcdf(ds, staged.path("sweep.nc"))
         io.write_text(staged.path("sweep.csv"), csv_text(ds, plan))
         files += ["sweep.nc", "sweep.csv"]
         for name in _figures(plan):

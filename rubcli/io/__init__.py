@@ -27,7 +27,7 @@ _MODULES = {
     "signals": ("TERMINATION_SIGNALS", "Terminated", "checkpoint", "deferred",
                 "termination_as_exception"),
     "files": ("atomic_path", "environment_info", "json_text", "report_envelope", "save_figure",
-              "to_jsonable", "write_json", "write_text"),
+              "to_jsonable", "write_json", "write_netcdf", "write_text"),
     "outputs": ("REPORT_NAME", "STAGING_PREFIX", "OutputBusy", "OutputError", "OutputPlan",
                 "OutputWriteError", "StagedOutput", "check_output_dir", "is_write_failure",
                 "open_output_dir", "read_manifest", "staged_output_dir"),
@@ -78,6 +78,7 @@ __all__ = [
     "to_jsonable",
     "write_csv",
     "write_json",
+    "write_netcdf",
     "write_rows_csv",
     "write_solution_csv",
     "write_text",
@@ -93,6 +94,7 @@ if TYPE_CHECKING:
         save_figure,
         to_jsonable,
         write_json,
+        write_netcdf,
         write_text,
     )
     from rubcli.io.outputs import (

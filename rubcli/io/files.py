@@ -26,7 +26,8 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; on success move it over ``path``.
 
     The temporary file keeps the target's suffix (so that e.g. matplotlib picks the
-    format from it). On an exception it is removed and ``path`` is untouched.
+    format from it). On an exception it is removed and ``path`` is untouched (an OSError
+    that names no file is given ``path``'s name: a full disk says which file).
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -37,8 +38,10 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         yield tmp
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual mode
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         tmp.unlink(missing_ok=True)
+        if isinstance(exc, OSError) and exc.filename is None:
+            exc.filename = str(path)  # a failed write() names no file: name the target
         raise
 
 
@@ -122,6 +125,20 @@ def environment_info() -> dict[str, str]:
         "scipy": scipy.__version__,
         "platform": platform.platform(terse=True),
     }
+
+
+def write_netcdf(dataset, path: str | Path) -> Path:
+    """Write an xarray Dataset as NetCDF4 (h5netcdf), atomically.
+
+    The file is made in memory and written as bytes: HDF5 writing to a full disk itself
+    fails part way with pages of "Exception ignored" tracebacks, or crashes the process
+    (a segmentation fault inside h5py, seen with a file size limit); writing the bytes
+    fails with one OSError, which the caller reports (``staged_output_dir``).
+    """
+    data = dataset.to_netcdf(engine="h5netcdf")
+    with atomic_path(path) as tmp, open(tmp, "wb") as handle:
+        handle.write(data)
+    return Path(path)
 
 
 def save_figure(fig, path: str | Path, *, dpi: int = 120, close: bool = True) -> Path:

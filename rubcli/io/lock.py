@@ -33,9 +33,9 @@ class Busy(Exception):  # noqa: N818 - a state, reported to the user
 
 
 def _describe_me() -> str:
-    args = [Path(sys.argv[0]).name, *sys.argv[1:3]] if sys.argv else ["rubcli"]
+    command = " ".join(["rubcli", *sys.argv[1:2]])  # e.g. "rubcli run"
     started = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
-    return f"{' '.join(args)} (pid {os.getpid()}, since {started})"
+    return f"{command} (pid {os.getpid()}, since {started})"
 
 
 def _holder(fd: int) -> str:

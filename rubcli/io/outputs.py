@@ -208,7 +208,15 @@ def _check_names(target: Path) -> None:
 
 
 def _reason(exc: OSError) -> str:
-    return exc.strerror or str(exc)
+    """The cause of an OSError in a few words (h5py's carry the errno inside a page of
+    text: "... errno = 28, error message = ...")."""
+    if exc.strerror:
+        return exc.strerror
+    found = re.search(r"errno = (\d+)", str(exc))
+    if found:
+        return os.strerror(int(found.group(1)))
+    first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    return first if len(first) <= 120 else first[:100] + "..."
 
 
 def _make_dirs(target: Path, created: list[Path]) -> None:
@@ -465,6 +473,24 @@ class StagedOutput:
         shutil.rmtree(self.staging, ignore_errors=True)
 
 
+def _release_quietly(exc: BaseException) -> None:
+    """Free what a failed write left referenced by the exception's frames (an h5py file
+    whose deallocation fails again on the full disk and prints "Exception ignored"
+    tracebacks), with those messages silenced: the failure is reported once, as ours."""
+    import gc
+    import sys
+    import traceback
+
+    hook = sys.unraisablehook
+    sys.unraisablehook = lambda unraisable: None
+    try:
+        traceback.clear_frames(exc.__traceback__)
+        exc.__traceback__ = None
+        gc.collect()
+    finally:
+        sys.unraisablehook = hook
+
+
 def _roll_back(target: Path, staging: Path, done_out: list[str], done_in: list[str]) -> bool:
     """Undo a commit's moves; True if the dir is as before."""
     try:
@@ -603,9 +629,12 @@ def staged_output_dir(
         try:
             yield staged
         except BaseException as exc:
-            staged.discard()
             if is_write_failure(exc):
-                raise _write_error(Path(target), exc) from exc
+                error = _write_error(Path(target), exc)
+                _release_quietly(exc)
+                staged.discard()
+                raise error from None
+            staged.discard()
             raise
         staged.commit()
     finally:

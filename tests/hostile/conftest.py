@@ -18,7 +18,8 @@ only one of the directory; keep it general):
   its signed manifest, made once per session and copied (the previous good outputs that
   a failed or stopped run must leave as they are).
 - ``case_file(text=SMALL_CASE, name="case.toml")``: writes a case file (the texts below:
-  ``SMALL_CASE`` 2 periods of rk45, ``LONG_CASE`` 300 periods of dop853-jit).
+  ``SMALL_CASE`` 2 periods of rk45, ``LONG_CASE`` 300 periods of dop853-jit,
+  ``SWEEP_CASE`` a 5-point sweep, ``ORBITS_CASE`` an orbits table that fails at once).
 - ``fsize_limit(n_bytes)``: a ``preexec`` that caps the size of any file the child
   writes (``RLIMIT_FSIZE``, SIGXFSZ ignored: a write beyond fails with EFBIG), the way a
   full disk fails a write.
@@ -89,6 +90,45 @@ LONG_CASE = (
     .replace("samples_per_period = 20", "samples_per_period = 100")
     .replace('methods = ["rk45"]', 'methods = ["dop853-jit"]')
     .replace("plots = []", 'plots = ["orbit"]')
+)
+
+
+# A sweep of a free rotor (never touching): 5 points, about a second each.
+SWEEP_CASE = """\
+[case]
+name = "free"
+[model]
+nu = 0.1
+eta = 1.0
+e = 0.05
+K = 10.0
+mu = 0.1
+Rp = 2.0
+[initial]
+x = 0.0
+y = 0.0
+[time]
+periods = 10
+samples_per_period = 32
+[sweep]
+parameter = "eta"
+values = [0.5, 0.8, 1.0, 1.3, 2.0]
+transient_periods = 20
+record_periods = 8
+"""
+
+# An [orbits] table whose first shooting fails at once (one Newton step): orbits exits 1
+# with report.json only, in a second.
+ORBITS_CASE = (
+    SMALL_CASE
+    + """
+[orbits]
+parameter = "eta"
+min = 0.7
+max = 0.8
+step = 0.005
+max_newton = 1
+"""
 )
 
 

@@ -22,7 +22,7 @@ import pytest
 from rubcli import io
 from rubcli.io import outputs, signals
 
-from .conftest import SMALL_CASE, snapshot, visible, wait_for
+from .conftest import ORBITS_CASE, SMALL_CASE, SWEEP_CASE, snapshot, visible, wait_for
 
 GOOD = SMALL_CASE
 
@@ -244,8 +244,6 @@ echo "code=$?"
 def test_a_stopped_sweep_does_not_make_its_case_dir_foreign(run_cli, case_file, tmp_path):
     """Ctrl-C on a default `rubcli sweep CASE` leaves its resume store in out/NAME; then
     `rubcli run CASE` into out/NAME must accept it (the store is rubcli's own)."""
-    from .test_signals import SWEEP_CASE
-
     case = case_file(SWEEP_CASE + '\n[solver]\nmethods = ["rk45"]\n[output]\nplots = []\n')
     marker = tmp_path / "second-point"
     fault = {"at": "call:rubcli.analysis.sweep.store:PointStore.save", "nth": 2, "do": "hold",
@@ -272,8 +270,6 @@ def test_every_command_takes_out_and_follows_the_dir_rule(run_cli, case_file, tm
     for command in ("run", "compare", "forces-map", "stress", "sweep", "orbits"):
         text = CliRunner().invoke(app, [command, "--help"], env={"COLUMNS": "200"}).output
         assert "-o" in text and "--out" in text and "--wait" in text, command
-    from .test_signals import ORBITS_CASE
-
     case = case_file(ORBITS_CASE)
     run = run_cli("orbits", case)  # no starting orbit (max_newton = 1): report.json only
     assert run.code == 1, run.stderr

@@ -16,7 +16,16 @@ import time
 
 import pytest
 
-from .conftest import LONG_CASE, SMALL_CASE, finish, snapshot, visible, wait_for
+from .conftest import (
+    LONG_CASE,
+    ORBITS_CASE,
+    SMALL_CASE,
+    SWEEP_CASE,
+    finish,
+    snapshot,
+    visible,
+    wait_for,
+)
 
 TERM, INT, HUP = signal.SIGTERM, signal.SIGINT, signal.SIGHUP
 
@@ -139,39 +148,6 @@ MAP_CASE = (
 products = ["eigen"]
 resolution = 5
 extent = 2.0
-"""
-)
-SWEEP_CASE = """\
-[case]
-name = "free"
-[model]
-nu = 0.1
-eta = 1.0
-e = 0.05
-K = 10.0
-mu = 0.1
-Rp = 2.0
-[initial]
-x = 0.0
-y = 0.0
-[time]
-periods = 10
-samples_per_period = 32
-[sweep]
-parameter = "eta"
-values = [0.5, 0.8, 1.0, 1.3, 2.0]
-transient_periods = 20
-record_periods = 8
-"""
-ORBITS_CASE = (
-    SMALL_CASE
-    + """
-[orbits]
-parameter = "eta"
-min = 0.7
-max = 0.8
-step = 0.005
-max_newton = 1
 """
 )
 
