@@ -122,17 +122,21 @@ def test_output_dir_that_is_a_file_is_refused_by_every_command(tmp_path):
 
 
 def test_staging_survives_a_cross_device_target(tmp_path, monkeypatch):
-    """A rename between directories fails as between filesystems: the commit still
-    completes (a copy beside the target, then a rename there) and leaks no staging."""
-    real_replace = os.replace
-
-    def cross_device(src, dst):
-        if Path(src).parent != Path(dst).parent:
-            raise OSError(errno.EXDEV, "Invalid cross-device link")
-        return real_replace(src, dst)
-
-    monkeypatch.setattr(os, "replace", cross_device)
+    """A rename out of the target's own tree fails as between filesystems (a bind mount):
+    the commit never needs one (it stages inside the target) and leaks no staging."""
+    real_replace, real_rename = os.replace, os.rename
     target = tmp_path / "out"
+
+    def cross_device(real):
+        def move(src, dst):
+            if target not in Path(src).parents or target not in Path(dst).parents:
+                raise OSError(errno.EXDEV, "Invalid cross-device link")
+            return real(src, dst)
+
+        return move
+
+    monkeypatch.setattr(os, "replace", cross_device(real_replace))
+    monkeypatch.setattr(os, "rename", cross_device(real_rename))
     with io.staged_output_dir(target) as staged:
         io.write_text(staged.path("a.csv"), "1\n")
         io.write_text(staged.path("report.json"), "{}\n")

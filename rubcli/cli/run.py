@@ -16,17 +16,19 @@ only the products the case asks for are written into the output dir:
   over the steady span (``spectrum``: order, direction). Its ``files`` list is the run's
   manifest.
 
-The output dir is checked before anything is solved (``rubcli.io.check_output_dir``):
-writable, and either new, empty or written by rubcli (else ``--force``); the files of a
-previous run that this run does not write are removed, and named.
+The output dir is locked and checked before anything is solved
+(``rubcli.io.open_output_dir``): writable, and either new, empty or written by rubcli
+(else ``--force``); a file of the user's named like one of this run's outputs is refused;
+the files of a previous run that this run does not write are removed, and named. All
+files are staged and committed as a whole at the end (docs/cases.md, "Output dirs").
 
 Exit codes: 0 success; 2 invalid input or unusable output dir (nothing is solved or
 written); 1 if any method failed (its failure is in report.json; the outputs of the run
 are still written); 3 if every method finished but one or more failed a plausibility
 check (``status: warning`` in report.json: e.g. a tolerance so loose that the orbit ends
-deep inside the stator): the files are written, but the result must not be trusted.
-128 + N when stopped by signal N (nothing of this run is written). All files are staged
-and moved into place at the end.
+deep inside the stator): the files are written, but the result must not be trusted;
+74 the outputs could not be written (nothing of this run is); 75 the output dir is in use
+(``--wait`` waits); 128 + N when stopped by signal N.
 """
 
 from __future__ import annotations

@@ -12,8 +12,11 @@ Finished points are kept in a hidden store beside the output dir
 interruption computes only the missing points. The outputs appear together, when every
 point is done; the store is then removed.
 
+Output dir: ``--out DIR``, else ``sweep/`` inside the case's output dir.
+
 Exit codes: 0 done (failed points are results); 2 invalid input or unreachable scheduler;
-130 interrupted (Ctrl-C; the finished points are kept).
+74 the outputs could not be written (the finished points are kept); 75 the output dir is
+in use; 128 + N stopped by signal N (130 Ctrl-C; the finished points are kept).
 """
 
 from __future__ import annotations

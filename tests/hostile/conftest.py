@@ -31,6 +31,10 @@ only one of the directory; keep it general):
 
 Each subprocess gets its own ``RUBCLI_STATE_DIR`` (the manifest key) inside the session's
 temporary dir, so that the suite never touches the user's home.
+
+``RUBCLI_UNDER_TEST=/path/to/a/checkout`` runs the command line of that checkout in the
+subprocesses (its dir is put first on their ``PYTHONPATH``): how a test is checked to
+fail on an older rubcli.
 """
 
 from __future__ import annotations
@@ -139,6 +143,16 @@ class Run:
     stderr: str
 
 
+def _child_environment() -> dict[str, str]:
+    environment = dict(os.environ)
+    under_test = os.environ.get("RUBCLI_UNDER_TEST")
+    if under_test:
+        environment["PYTHONPATH"] = os.pathsep.join(
+            [under_test, *filter(None, [os.environ.get("PYTHONPATH")])]
+        )
+    return environment
+
+
 def has_traceback(text: str) -> bool:
     return bool(TRACEBACK.search(text))
 
@@ -152,7 +166,8 @@ def state_dir(tmp_path_factory) -> Path:
 def run_cli(state_dir, tmp_path):
     def run(*args, cwd=None, env=None, stdout=None, preexec=None, fault=None,
             background=False, timeout=TIMEOUT_S, traceback_ok=False):  # fmt: skip
-        environment = {**os.environ, "RUBCLI_STATE_DIR": str(state_dir), "COLUMNS": "100"}
+        environment = {**_child_environment(), "RUBCLI_STATE_DIR": str(state_dir),
+                       "COLUMNS": "100"}  # fmt: skip
         environment.update(env or {})
         if fault is not None:
             environment["RUBCLI_HOSTILE_FAULT"] = json.dumps(fault)
@@ -220,7 +235,7 @@ def _templates(tmp_path_factory, state_dir):
             args = [sys.executable, "-m", "rubcli", "run", str(case), "--out", str(target)]
             for method in methods:
                 args += ["-m", method]
-            env = {**os.environ, "RUBCLI_STATE_DIR": str(state_dir)}
+            env = {**_child_environment(), "RUBCLI_STATE_DIR": str(state_dir)}
             done = subprocess.run(args, env=env, capture_output=True, text=True, timeout=TIMEOUT_S)
             assert done.returncode == 0, done.stderr
             made[methods] = target
@@ -284,7 +299,7 @@ def in_namespace(namespaces, state_dir, tmp_path):
         pytest.skip("mount namespaces (unshare -rm) are not permitted here")
 
     def run(script: str, timeout: float = TIMEOUT_S) -> Run:
-        env = {**os.environ, "RUBCLI_STATE_DIR": str(state_dir),
+        env = {**_child_environment(), "RUBCLI_STATE_DIR": str(state_dir),
                "RUBCLI": f"{sys.executable} -m rubcli"}  # fmt: skip
         proc = subprocess.run(["unshare", "-rm", "sh", "-c", script], cwd=tmp_path, env=env,
                               capture_output=True, text=True, timeout=timeout)  # fmt: skip
