@@ -350,3 +350,23 @@ def test_background_wait_helps_a_job_that_offers_work(tmp_path):
         background.wait()
     assert waiting in helpers
     assert (tmp_path / "shared.csv").read_bytes() == (tmp_path / "alone.csv").read_bytes()
+
+
+def test_a_csv_writer_records_the_digest_of_what_it_wrote(tmp_path):
+    """The manifest takes a CSV's SHA-256 from its writer (no second read): it must be the
+    file's, and be forgotten once the file changes."""
+    import hashlib
+    import time
+
+    from rubcli.io import files, manifest
+
+    path = tmp_path / "t.csv"
+    io.write_csv(path, ["a", "b"], [[np.arange(1000.0), np.arange(1000.0) / 3]])
+    data = path.read_bytes()
+    assert files.known_digest(path) == (len(data), hashlib.sha256(data).hexdigest())
+    assert manifest.file_digest(path) == manifest.file_digest(path, fresh=True)
+    time.sleep(0.01)
+    with open(path, "ab") as handle:
+        handle.write(b"1,2\n")
+    assert files.known_digest(path) is None
+    assert manifest.file_digest(path)[0] == len(data) + 4

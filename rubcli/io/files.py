@@ -45,6 +45,34 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         raise
 
 
+# SHA-256 of files as they were written, by (device, inode, size, mtime): the output
+# dir's manifest takes a file's digest from here instead of reading it again.
+_DIGESTS: dict[tuple[int, int, int, int], str] = {}
+
+
+def _identity(path: str | Path) -> tuple[int, int, int, int] | None:
+    try:
+        st = os.lstat(path)
+    except OSError:
+        return None
+    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
+
+
+def remember_digest(path: str | Path, sha256: str) -> None:
+    """Record the SHA-256 of the file just written at ``path`` (by its writer, which saw
+    every byte); a later change of the file changes its identity and voids this."""
+    identity = _identity(path)
+    if identity is not None:
+        _DIGESTS[identity] = sha256
+
+
+def known_digest(path: str | Path) -> tuple[int, str] | None:
+    """(size, SHA-256) recorded by ``remember_digest`` for the file as it is now."""
+    identity = _identity(path)
+    sha = _DIGESTS.get(identity) if identity is not None else None
+    return None if sha is None else (identity[2], sha)
+
+
 def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
