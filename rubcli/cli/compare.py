@@ -31,7 +31,7 @@ caps the work-precision horizon at 5 periods, the orbit runs at 150 periods (a t
 longer than the run is cut to 2/3 of it) and the Lyapunov run at 30 periods.
 
 Exit codes: 0 done (failed settings are results, listed in the report); 2 invalid input or
-unusable output dir (checked before anything is computed, ``rubcli.io.check_output_dir``);
+unusable output dir (checked before anything is computed, ``rubcli.io.open_output_dir``);
 1 if no reference could be built; 128 + N when stopped by signal N.
 """
 

@@ -291,14 +291,6 @@ def open_output_dir(
     return plan
 
 
-def check_output_dir(target: str | Path, *, force: bool = False) -> OutputPlan:
-    """``open_output_dir`` and close it again: what a command would find (for tests and
-    scripts; a command keeps its plan open)."""
-    plan = open_output_dir(target, force=force)
-    plan.close()
-    return plan
-
-
 def _inspect(plan: OutputPlan) -> None:
     target = plan.target
     try:

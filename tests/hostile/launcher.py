@@ -9,6 +9,9 @@ Used by the hostile tests (``conftest.run_cli(..., fault=...)``); run as
                                            #  "module:Class.method" for a method)
            | "move:2",                     # at the 2nd rename of an output dir's commit
      "nth": 1,                             # which call (default the first)
+     "within": "module:attr",              # count only calls made inside this call
+     "frame": "callee",                    # the fault runs as if in the callee's own
+                                           # source file (numba's, say)
      "do": "signal" | "kill" | "hold" | "exdev",
      "signal": 15, "delay": 0.0,           # "signal": this signal, after delay seconds
      "hold": 1.0,                          # "hold": sleep this long (signal from outside)
@@ -76,21 +79,46 @@ def _on_import(name: str) -> None:
     sys.addaudithook(hook)
 
 
-def _on_call(where: str) -> None:
+def _resolve(where: str):
     module_name, path = where.rsplit(":", 1)
     owner = importlib.import_module(module_name)
     *parents, attr = path.split(".")  # "Class.method" patches the class's method
     for name in parents:
         owner = getattr(owner, name)
+    return owner, attr
+
+
+WRAPPER = """
+def wrapped(*args, **kwargs):
+    if inside[0] and due():
+        reached()
+    return real(*args, **kwargs)
+"""
+
+
+def _on_call(where: str) -> None:
+    owner, attr = _resolve(where)
     real = getattr(owner, attr)
-    due = _counter()
+    inside = [True]
+    if FAULT.get("within"):
+        inside[0] = False
+        outer_owner, outer_attr = _resolve(FAULT["within"])
+        outer = getattr(outer_owner, outer_attr)
 
-    def wrapped(*args, **kwargs):
-        if due():
-            _reached()
-        return real(*args, **kwargs)
+        def tracked(*args, **kwargs):
+            inside[0] = True
+            try:
+                return outer(*args, **kwargs)
+            finally:
+                inside[0] = False
 
-    setattr(owner, attr, wrapped)
+        setattr(outer_owner, outer_attr, tracked)
+    # "frame": "callee": the wrapper's code carries the callee's file name, so that a
+    # signal handler running in it sees the frame the real callee would give it.
+    filename = real.__code__.co_filename if FAULT.get("frame") == "callee" else __file__
+    scope = {"inside": inside, "due": _counter(), "reached": _reached, "real": real}
+    exec(compile(WRAPPER, filename, "exec"), scope)
+    setattr(owner, attr, scope["wrapped"])
 
 
 class _OsWithFaultyMoves:
