@@ -25,7 +25,8 @@ data, a report.json typed by hand) is refused unless ``force``. A file rubcli di
 write, or changed since, is never replaced or removed without ``force`` (the message
 names it); with ``force`` the files named like this run's outputs are replaced and the
 others kept. Entries that are rubcli's own never count: its lock, staging dirs, a sweep's
-resume store (``.NAME.sweep-DIGEST``) and sub-dirs that are rubcli output dirs.
+resume store (hidden names starting with ``.rubcli``, and older stores named
+``.NAME.sweep-DIGEST``) and sub-dirs that are rubcli output dirs.
 
 **Staging and commit.** Files are written into ``DIR/.rubcli-staging-PID-XXXX`` (inside
 the target: one file system and one mount, so every move is a rename, also when the dir
@@ -55,14 +56,15 @@ from pathlib import Path
 
 from rubcli.io import manifest, signals
 from rubcli.io.files import atomic_path, json_text
-from rubcli.io.lock import LOCK_NAME, Busy, DirLock
+from rubcli.io.lock import Busy, DirLock
 
 REPORT_NAME = "report.json"
 STAGING_PREFIX = ".rubcli-staging-"
-PROBE_PREFIX = ".rubcli-probe-"
 JOURNAL_NAME = ".rubcli-journal.json"
 REPLACED_NAME = ".rubcli-replaced"  # in a staging dir: the files a commit moved out
-# A sweep's resume store of finished points, beside its output dir (cli/sweep.py).
+OWN_PREFIX = ".rubcli"  # every hidden entry rubcli makes starts so (lock, staging, stores)
+# A sweep's resume store of finished points beside its output dir, as older rubcli named
+# it (.<dir name>.sweep-<digest>); newer stores start with OWN_PREFIX.
 SWEEP_STORE = re.compile(r"^\..+\.sweep-[0-9a-f]{8,64}$")
 # The errors of writing that are the machine's, not rubcli's: reported, exit 74.
 WRITE_ERRNOS = frozenset(
@@ -132,13 +134,13 @@ class OutputPlan:
 
 
 def is_own_entry(path: Path) -> bool:
-    """rubcli's lock, staging, probe or a sweep's resume store: never an obstacle."""
+    """rubcli's lock, staging, probe or a sweep's resume store (any hidden name that
+    starts with ``.rubcli``, or an older store's): never an obstacle, never removed here
+    (but for stale staging dirs of dead commands, under the lock)."""
     name = path.name
-    if name == LOCK_NAME or name.startswith(PROBE_PREFIX):
-        return True
-    if name.startswith(STAGING_PREFIX) or SWEEP_STORE.match(name):
-        return path.is_dir() and not path.is_symlink()
-    return False
+    return name.startswith(OWN_PREFIX) or (
+        bool(SWEEP_STORE.match(name)) and path.is_dir() and not path.is_symlink()
+    )
 
 
 def _is_output_subdir(path: Path) -> bool:
@@ -559,9 +561,6 @@ def _recover(plan: OutputPlan) -> None:
             else:
                 plan.recovered.append(f"removed {path.name}, left by an interrupted command")
             shutil.rmtree(path, ignore_errors=True)
-    for path in target.glob(f"{PROBE_PREFIX}*"):
-        with contextlib.suppress(OSError):
-            path.rmdir()
 
 
 def _read_journal(path: Path) -> dict | None:
