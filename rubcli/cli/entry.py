@@ -8,6 +8,7 @@ never a traceback. Only the standard library is imported before that.
 
 from __future__ import annotations
 
+import contextlib
 import sys
 
 
@@ -23,21 +24,35 @@ def main() -> None:
     from rubcli.io import signals
 
     try:
-        signals.install(early[0] if early else None)
+        code = _run(signals, early[0] if early else None)
+    except signals.Terminated as exc:  # raised in the moments after the command's end
+        code = _stopped(signals, exc.signum)
+    sys.exit(code)
+
+
+def _run(signals, early: int | None) -> int | str | None:
+    """The command line's exit code (a signal's 128 + N with its message)."""
+    try:
+        signals.install(early)
         from rubcli.cli.app import app
 
-        app()
-    except SystemExit:
+        app()  # ends with SystemExit
+    except SystemExit as exc:
         late = signals.finish()
-        if late is not None:  # a signal as the command ended, never raised: say so
-            sys.stderr.write(f"error: {signals.stop_message(late)}\n")
-            sys.exit(128 + late)
-        raise
+        # a signal as the command ended, never raised: say so in the exit code
+        return _stopped(signals, late) if late is not None else exc.code
     except BaseException as exc:
-        signals.finish()
         signum = exc.signum if isinstance(exc, signals.Terminated) else signals.pending()
+        signals.finish()
         if signum is None:
             raise
-        # A signal during the imports, or an error it caused (an import cut short)
+        # a signal during the imports, or an error it caused (an import cut short)
+        return _stopped(signals, signum)
+    return 0
+
+
+def _stopped(signals, signum: int) -> int:
+    signals.finish()
+    with contextlib.suppress(OSError):
         sys.stderr.write(f"error: {signals.stop_message(signum)}\n")
-        sys.exit(128 + signum)
+    return 128 + signum

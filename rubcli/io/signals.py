@@ -145,10 +145,16 @@ def uninstall() -> None:
 
 
 def finish() -> int | None:
-    """At the end of the process: stop any retry, and return a signal received that was
-    never raised (it came as the command ended), so that the exit code can say so."""
-    if _RETRY_SIGNAL and _installed:
-        signal.setitimer(signal.ITIMER_REAL, 0)
+    """At the end of the process: stop any retry, ignore the termination signals from
+    now on (the interpreter's exit would put back their default action, and a signal in
+    its last milliseconds would kill a command that is done), and return a signal
+    received that was never raised (it came as the command ended), so that the exit code
+    can say so."""
+    if _installed:
+        if _RETRY_SIGNAL:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+        for sig in TERMINATION_SIGNALS:
+            signal.signal(sig, signal.SIG_IGN)
     return _state.pending if not _state.raised else None
 
 
