@@ -29,8 +29,8 @@ only one of the directory; keep it general):
 - ``visible(directory)``: the names in a directory that do not start with a dot;
   ``snapshot(directory)``: name -> bytes of its visible files.
 
-Each subprocess gets its own ``RUBCLI_STATE_DIR`` (the manifest key) inside the session's
-temporary dir, so that the suite never touches the user's home.
+Subprocesses get the session's ``RUBCLI_STATE_DIR`` (the manifest key, in a temporary
+dir: tests/conftest.py), so that the suite never touches the user's home.
 
 ``RUBCLI_UNDER_TEST=/path/to/a/checkout`` runs the command line of that checkout in the
 subprocesses (its dir is put first on their ``PYTHONPATH``): how a test is checked to
@@ -158,8 +158,9 @@ def has_traceback(text: str) -> bool:
 
 
 @pytest.fixture(scope="session")
-def state_dir(tmp_path_factory) -> Path:
-    return tmp_path_factory.mktemp("rubcli-state")
+def state_dir(private_state_dir) -> Path:
+    """The manifest key's dir of the session (tests/conftest.py)."""
+    return Path(private_state_dir)
 
 
 @pytest.fixture
