@@ -8,17 +8,14 @@ for all of them, and case files that drive the ``rubcli`` command line::
     case = load_case("cases/paper/fig3a.toml")
     solution = solve(case.problem, "analytic", steps_per_period=400)
 
-``solve``, ``METHODS`` and the case loader are imported on first use, so that importing
-the numerical core (``rubcli.model``) stays light.
+Every name is imported on first use, so that ``import rubcli`` itself is light (the
+``rubcli`` command handles signals before numpy is imported) and importing the numerical
+core (``rubcli.model``) does not load the solvers.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
-
-from rubcli.model import ModelParams
-from rubcli.problem import Problem
-from rubcli.solution import Solution
+TYPE_CHECKING = False  # (typing itself is not imported: ``import rubcli`` stays light)
 
 __version__ = "0.1.0"
 
@@ -36,6 +33,9 @@ __all__ = [
 ]
 
 _LAZY = {
+    "ModelParams": "rubcli.model",
+    "Problem": "rubcli.problem",
+    "Solution": "rubcli.solution",
     "solve": "rubcli.solvers",
     "METHODS": "rubcli.solvers",
     "load_case": "rubcli.case",
@@ -45,7 +45,12 @@ _LAZY = {
 }
 
 if TYPE_CHECKING:
+    from typing import Any
+
     from rubcli.case import Case, CaseError, load_case
+    from rubcli.model import ModelParams
+    from rubcli.problem import Problem
+    from rubcli.solution import Solution
     from rubcli.solvers import METHODS, solve
     from rubcli.sweeps import sweep
 

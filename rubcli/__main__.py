@@ -1,5 +1,5 @@
 """``python -m rubcli``: the same as the ``rubcli`` command."""
 
-from rubcli.cli.app import main
+from rubcli.cli.entry import main
 
 main()

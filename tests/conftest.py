@@ -17,6 +17,21 @@ def fig3_params():
 
 
 @pytest.fixture(scope="session", autouse=True)
+def private_state_dir(tmp_path_factory):
+    """The key that signs output-dir manifests (rubcli.io.manifest) is kept in a
+    session's temporary dir, for the commands run in this process and in subprocesses,
+    so that the tests never write into the user's home."""
+    import os
+
+    from rubcli.io import manifest
+
+    if not os.environ.get(manifest.STATE_ENV):
+        os.environ[manifest.STATE_ENV] = str(tmp_path_factory.mktemp("rubcli-state"))
+        manifest._key.cache_clear()
+    return os.environ[manifest.STATE_ENV]
+
+
+@pytest.fixture(scope="session", autouse=True)
 def compiled_kernels():
     """Compile (or load) every numba kernel once, before any test runs.
 

@@ -44,14 +44,19 @@ def test_json_writer_handles_numpy_and_non_finite(tmp_path):
     assert json.loads(path.read_text()) == {"a": 1.5, "b": [0, 1, 2], "c": None, "d": [1, None]}
 
 
+def visible(directory):
+    return sorted(p.name for p in directory.iterdir() if not p.name.startswith("."))
+
+
 def test_staged_output_dir_commits_on_success(tmp_path):
     target = tmp_path / "out"
     with io.staged_output_dir(target) as staged:
         io.write_text(staged.path("a.csv"), "1")
         io.write_text(staged.path("report.json"), "{}")
-        assert not target.exists()
+        assert visible(target) == []  # staged out of sight, inside the target (locked)
     assert sorted(p.name for p in target.iterdir()) == ["a.csv", "report.json"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+    assert io.read_manifest(target) == ["a.csv", "report.json"]
 
 
 def test_staged_output_dir_writes_nothing_on_failure(tmp_path):
@@ -63,11 +68,15 @@ def test_staged_output_dir_writes_nothing_on_failure(tmp_path):
 
 
 def test_staged_output_keeps_other_files_in_the_target(tmp_path):
+    """Files rubcli did not write: refused without force; with it, the one named like an
+    output is replaced and the other kept."""
     target = tmp_path / "out"
     target.mkdir()
     (target / "notes.txt").write_text("mine")
     (target / "a.csv").write_text("old")
-    with io.staged_output_dir(target) as staged:
+    with pytest.raises(io.OutputError, match="not written by rubcli"):
+        io.staged_output_dir(target).__enter__()
+    with io.staged_output_dir(target, force=True) as staged:
         io.write_text(staged.path("a.csv"), "new")
     assert (target / "a.csv").read_text() == "new"
     assert (target / "notes.txt").read_text() == "mine"
@@ -341,3 +350,23 @@ def test_background_wait_helps_a_job_that_offers_work(tmp_path):
         background.wait()
     assert waiting in helpers
     assert (tmp_path / "shared.csv").read_bytes() == (tmp_path / "alone.csv").read_bytes()
+
+
+def test_a_csv_writer_records_the_digest_of_what_it_wrote(tmp_path):
+    """The manifest takes a CSV's SHA-256 from its writer (no second read): it must be the
+    file's, and be forgotten once the file changes."""
+    import hashlib
+    import time
+
+    from rubcli.io import files, manifest
+
+    path = tmp_path / "t.csv"
+    io.write_csv(path, ["a", "b"], [[np.arange(1000.0), np.arange(1000.0) / 3]])
+    data = path.read_bytes()
+    assert files.known_digest(path) == (len(data), hashlib.sha256(data).hexdigest())
+    assert manifest.file_digest(path) == manifest.file_digest(path, fresh=True)
+    time.sleep(0.01)
+    with open(path, "ab") as handle:
+        handle.write(b"1,2\n")
+    assert files.known_digest(path) is None
+    assert manifest.file_digest(path)[0] == len(data) + 4

@@ -122,17 +122,21 @@ def test_output_dir_that_is_a_file_is_refused_by_every_command(tmp_path):
 
 
 def test_staging_survives_a_cross_device_target(tmp_path, monkeypatch):
-    """A rename between directories fails as between filesystems: the commit still
-    completes (a copy beside the target, then a rename there) and leaks no staging."""
-    real_replace = os.replace
-
-    def cross_device(src, dst):
-        if Path(src).parent != Path(dst).parent:
-            raise OSError(errno.EXDEV, "Invalid cross-device link")
-        return real_replace(src, dst)
-
-    monkeypatch.setattr(os, "replace", cross_device)
+    """A rename out of the target's own tree fails as between filesystems (a bind mount):
+    the commit never needs one (it stages inside the target) and leaks no staging."""
+    real_replace, real_rename = os.replace, os.rename
     target = tmp_path / "out"
+
+    def cross_device(real):
+        def move(src, dst):
+            if target not in Path(src).parents or target not in Path(dst).parents:
+                raise OSError(errno.EXDEV, "Invalid cross-device link")
+            return real(src, dst)
+
+        return move
+
+    monkeypatch.setattr(os, "replace", cross_device(real_replace))
+    monkeypatch.setattr(os, "rename", cross_device(real_rename))
     with io.staged_output_dir(target) as staged:
         io.write_text(staged.path("a.csv"), "1\n")
         io.write_text(staged.path("report.json"), "{}\n")
@@ -166,7 +170,7 @@ def test_a_failed_commit_leaks_no_staging(tmp_path, monkeypatch):
         raise OSError(errno.EIO, "I/O error")
 
     monkeypatch.setattr(os, "replace", broken)
-    with pytest.raises(OSError), io.staged_output_dir(tmp_path / "out") as staged:
+    with pytest.raises(io.OutputWriteError), io.staged_output_dir(tmp_path / "out") as staged:
         (staged.path("a.csv")).write_text("1")
     assert not [p for p in tmp_path.rglob("*") if "staging" in p.name]
 
@@ -175,15 +179,15 @@ def test_a_failed_commit_leaks_no_staging(tmp_path, monkeypatch):
 
 SLOW_WRITE = """
 import sys, time
-from rubcli import io
-real = io.write_json
+from rubcli.io import outputs
+real = outputs.StagedOutput.write_report
 
 def slow(*args, **kwargs):  # the report is written last, into the staging dir
     print("WRITING", flush=True)
     time.sleep(60)
     return real(*args, **kwargs)
 
-io.write_json = slow
+outputs.StagedOutput.write_report = slow
 sys.argv = ["rubcli", *sys.argv[1:]]
 from rubcli.cli.app import main
 main()
@@ -210,7 +214,7 @@ def test_signal_during_writing_removes_staging_and_keeps_earlier_outputs(tmp_pat
             if not line and proc.poll() is not None:
                 break
         assert "WRITING" in line, proc.stderr.read()
-        assert [p for p in tmp_path.iterdir() if "staging" in p.name]  # mid-write
+        assert [p for p in out.iterdir() if "staging" in p.name]  # mid-write
         proc.send_signal(signum)
         _, err = proc.communicate(timeout=60)
     finally:
@@ -218,6 +222,7 @@ def test_signal_during_writing_removes_staging_and_keeps_earlier_outputs(tmp_pat
             proc.kill()
     assert proc.returncode == 128 + signum, err
     assert "Traceback" not in err
+    assert "no outputs of this run were written" in err
     assert names(tmp_path) == {"case.toml", "out", "slow.py"}  # no staging left
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 

@@ -1,4 +1,5 @@
-"""The ``rubcli`` typer app. It only registers commands: one module per command.
+"""The ``rubcli`` typer app. It registers commands (one module per command) and turns what
+ends a command early into a message and its documented exit code (``RubcliGroup``).
 
 To add a command, write ``rubcli/cli/<name>.py`` with a ``command`` function and add one
 line below, e.g. ``app.command("forces-map")(forces_map.command)``.
@@ -6,13 +7,74 @@ line below, e.g. ``app.command("forces-map")(forces_map.command)``.
 
 from __future__ import annotations
 
+import errno
+import os
 import sys
 from typing import Annotated
 
 import typer
+from typer.core import TyperGroup
 
 from rubcli import __version__, io
-from rubcli.cli import compare, forces_map, init, orbits, run, stress, sweep, validate
+from rubcli.cli import compare, console, forces_map, init, orbits, run, stress, sweep, validate
+from rubcli.cli.common import EXIT_BUSY, EXIT_INVALID, EXIT_WRITE, close_outputs
+from rubcli.cli.entry import main
+from rubcli.io import signals
+
+__all__ = ["app", "main"]
+
+
+class RubcliGroup(TyperGroup):
+    """Runs a command; a signal, an unusable or busy output dir, a full disk or a stdout
+    that cannot be written end it with a message on stderr and its exit code, never a
+    traceback (README, "Exit codes")."""
+
+    def invoke(self, ctx: typer.Context):
+        io.outputs.COMMITTED.clear()
+        try:
+            result = super().invoke(ctx)
+            console.flush_stdout()  # a full stdout fails here, not at the interpreter's exit
+            return result
+        except (typer.Exit, typer.Abort, typer.TyperException):
+            raise
+        except signals.Terminated as exc:
+            _leave(signals.stop_message(exc.signum), exc.exit_code)
+        except io.OutputBusy as exc:
+            _leave(str(exc), EXIT_BUSY)
+        except io.OutputWriteError as exc:
+            _leave(str(exc), EXIT_WRITE)
+        except io.OutputError as exc:
+            _leave(str(exc), EXIT_INVALID)
+        except console.StdoutError as exc:
+            _silence_stdout()
+            if exc.errno == errno.EPIPE:  # a reader that stopped reading (| head): no message
+                raise typer.Exit(128 + 13) from None
+            _leave(f"cannot write to standard output: {exc}", EXIT_WRITE)
+        except Exception as exc:
+            if signals.pending() is not None:  # what a signal left behind
+                _leave(signals.stop_message(signals.pending()), 128 + signals.pending())
+            if io.is_write_failure(exc):
+                where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+                _leave(f"could not write: {where}{exc.strerror or exc}", EXIT_WRITE)
+            raise
+        finally:
+            close_outputs()  # the output dirs' locks, on every way out
+
+
+def _leave(message: str, code: int):
+    console.error(message)
+    raise typer.Exit(code) from None
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null, so that the interpreter's last flush cannot fail again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError, AttributeError):
+        pass
+
 
 
 def _flags_show_no_type() -> None:
@@ -40,6 +102,7 @@ _flags_show_no_type()
 
 app = typer.Typer(
     name="rubcli",
+    cls=RubcliGroup,
     help="Jeffcott rotor rubbing on a circular stator: the paper's analytic solution "
     "beside scipy's integrators, driven by TOML case files.",
     no_args_is_help=True,
@@ -59,8 +122,6 @@ app.command("orbits")(orbits.command)
 
 def _version(value: bool) -> None:
     if value:
-        from rubcli.cli import console
-
         console.info(f"rubcli {__version__}")
         raise typer.Exit()
 
@@ -74,24 +135,7 @@ def _root(
     ] = False,
 ) -> None:
     """Jeffcott rotor rubbing on a circular stator (rubcli)."""
-    from rubcli.cli import console
-
     # For the whole command: Python warnings as formatted lines, and SIGTERM/SIGINT/SIGHUP
-    # as io.Terminated, so that staged outputs are removed on the way out.
+    # as io.Terminated (installed by the entry point already; here for in-process runs).
     ctx.with_resource(console.formatted_python_warnings())
-    ctx.with_resource(io.termination_as_exception())
-
-
-def main() -> None:
-    """Entry point of the ``rubcli`` script and ``python -m rubcli``.
-
-    A termination signal ends the command with exit code 128 + the signal number (130 for
-    Ctrl-C, 143 for SIGTERM), after its staged outputs were removed; earlier outputs stay.
-    """
-    try:
-        app()
-    except io.Terminated as exc:
-        from rubcli.cli import console
-
-        console.error(f"{exc}: stopped, no outputs of this run were written")
-        sys.exit(exc.exit_code)
+    ctx.with_resource(signals.termination_as_exception())

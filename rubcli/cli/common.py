@@ -1,9 +1,11 @@
-"""What every command shares: the ``--json``, ``--force`` and ``--out`` options, the output
-dir check (once, before anything is computed), and how a result reaches the user.
+"""What every command shares: the ``--json``, ``--force``, ``--wait`` and ``--out`` options,
+the output dir rule, the output dir check (once, before anything is computed: the dir is
+then locked until the command ends), and how a result reaches the user.
 
 A command that writes files::
 
-    plan = prepare_output(target, force)          # exit 2 with the reason if unusable
+    target = command_dir(case, "compare", out)    # --out, else <case output dir>/compare
+    plan = prepare_output(target, force, wait)    # exit 2 (75 if busy) with the reason
     with machine_readable(json):                  # --json: stdout is only the result
         ...compute...
         with io.staged_output_dir(target, plan) as staged:
@@ -11,11 +13,14 @@ A command that writes files::
         report_stale(plan)                        # name the stale files removed
         emit(report, json)                        # the JSON result with --json
 
-New commands (sweep, orbits) use the same three options and the same helpers.
+Exit codes of every command (README, "Exit codes"): 2 invalid input or an unusable output
+dir, 74 the outputs could not be written (disk full; nothing of the run is written), 75
+the output dir is in use by another rubcli command, 128 + N stopped by signal N.
 """
 
 from __future__ import annotations
 
+import atexit
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -26,9 +31,14 @@ from rubcli.cli import console
 from rubcli.cli.console import machine_readable
 
 __all__ = [
+    "EXIT_BUSY",
     "EXIT_INVALID",
+    "EXIT_WRITE",
     "ForceOption",
     "JsonOption",
+    "WaitOption",
+    "close_outputs",
+    "command_dir",
     "emit",
     "machine_readable",
     "prepare_output",
@@ -36,6 +46,8 @@ __all__ = [
 ]
 
 EXIT_INVALID = 2
+EXIT_WRITE = 74  # sysexits' EX_IOERR: the outputs could not be written
+EXIT_BUSY = 75  # sysexits' EX_TEMPFAIL: the output dir is in use; try again (or --wait)
 
 JsonOption = Annotated[
     bool,
@@ -48,19 +60,51 @@ ForceOption = Annotated[
     bool,
     typer.Option(
         "--force",
-        help="Write into a non-empty output dir that rubcli did not write (its other "
-        "files are left alone).",
+        help="Write into an output dir that holds files rubcli did not write (or that were "
+        "changed since): files named like this command's outputs are replaced, the others "
+        "are kept.",
+    ),
+]
+WaitOption = Annotated[
+    bool,
+    typer.Option(
+        "--wait",
+        help="If another rubcli command is writing to the output dir, wait for it to finish "
+        "(without: stop at once, exit 75).",
     ),
 ]
 
 
-def prepare_output(target: Path, force: bool = False) -> io.OutputPlan:
-    """Check the output dir before solving (``io.check_output_dir``); exit 2 if unusable."""
+def command_dir(case, command: str, out: Path | None) -> Path:
+    """The output dir rule: ``--out`` if given, else ``<case output dir>/<command>``
+    (``run`` alone writes the case's output dir itself)."""
+    return Path(out) if out is not None else case.output_dir / command
+
+
+def prepare_output(
+    target: Path, force: bool = False, wait: bool = False, expected: tuple[str, ...] = ()
+) -> io.OutputPlan:
+    """Lock and check the output dir before anything is computed (``io.open_output_dir``);
+    exit 2 if unusable, 75 if another command holds it (unless ``wait``). The lock is
+    released when the command ends (``close_outputs``). ``expected``: names the command
+    will write."""
+
+    def waiting(holder: str) -> None:
+        console.warning(f"{target}: in use by {holder}; waiting for it (--wait)")
+
     try:
-        plan = io.check_output_dir(target, force=force)
+        plan = io.open_output_dir(
+            target, force=force, wait=wait, expected=expected, on_wait=waiting
+        )
+    except io.OutputBusy as exc:
+        console.error(str(exc))
+        raise typer.Exit(EXIT_BUSY) from None
     except io.OutputError as exc:
         console.error(str(exc))
         raise typer.Exit(EXIT_INVALID) from None
+    _open_plans.append(plan)
+    for line in plan.recovered:
+        console.warning(f"{target}: {line}")
     if plan.foreign and force and not plan.previous:
         console.warning(
             f"{target}: --force: writing beside {len(plan.foreign)} files rubcli did not write"
@@ -68,12 +112,28 @@ def prepare_output(target: Path, force: bool = False) -> io.OutputPlan:
     return plan
 
 
+_open_plans: list[io.OutputPlan] = []  # output dirs locked by this command
+
+
+@atexit.register
+def close_outputs() -> None:
+    """Release the output dirs ``prepare_output`` locked (when the command ends)."""
+    while _open_plans:
+        _open_plans.pop().close()
+
+
 def report_stale(plan: io.OutputPlan) -> None:
-    """Warn about the files of the previous run that were removed as stale."""
+    """Warn about the files of the previous run that were removed as stale, and those kept
+    because they changed since rubcli wrote them."""
     if plan.removed:
         console.warning(
             f"{plan.target}: removed {len(plan.removed)} files of the previous run that this "
             f"run did not produce: {', '.join(plan.removed)}"
+        )
+    if plan.kept:
+        console.warning(
+            f"{plan.target}: kept {', '.join(plan.kept)}: written by an earlier run but "
+            "changed since, so not rubcli's to remove"
         )
 
 

@@ -31,7 +31,7 @@ caps the work-precision horizon at 5 periods, the orbit runs at 150 periods (a t
 longer than the run is cut to 2/3 of it) and the Lyapunov run at 30 periods.
 
 Exit codes: 0 done (failed settings are results, listed in the report); 2 invalid input or
-unusable output dir (checked before anything is computed, ``rubcli.io.check_output_dir``);
+unusable output dir (checked before anything is computed, ``rubcli.io.open_output_dir``);
 1 if no reference could be built; 128 + N when stopped by signal N.
 """
 
@@ -55,6 +55,8 @@ from rubcli.cli import console
 from rubcli.cli.common import (
     ForceOption,
     JsonOption,
+    WaitOption,
+    command_dir,
     emit,
     machine_readable,
     prepare_output,
@@ -351,6 +353,16 @@ def _orbit_periods(panels: list[OrbitPanel]) -> str:
 # ------------------------------------------------------------------------ command
 
 
+def expected_files(case: Case, cfg: CompareSection) -> tuple[str, ...]:
+    """The files ``rubcli compare`` writes for ``case`` (``poincare.png`` with responses)."""
+    names = ["work_precision.csv", "work_precision.png", "error_growth.png"]
+    names = names if cfg.work_precision else []
+    names += ["orbits.png", "spectrum.png"] + (["sweep.csv"] if cfg.mu is not None else [])
+    if response_settings(case.settings.analysis) is not None:
+        names.append("poincare.png")
+    return (*names, "report.md", io.REPORT_NAME)
+
+
 def command(
     case_file: Annotated[Path, typer.Argument(metavar="CASE", help="The case file (TOML).")],
     out: Annotated[
@@ -361,6 +373,7 @@ def command(
     ] = None,  # fmt: skip
     quick: Annotated[bool, typer.Option("--quick", help=QUICK_HELP)] = False,
     force: ForceOption = False,
+    wait: WaitOption = False,
     json: JsonOption = False,
 ) -> None:
     """Reference solution, error against run time per method, orbits and response classes."""
@@ -373,8 +386,8 @@ def command(
     if unavailable:
         console.error(f"{case_file}: methods not available: {', '.join(unavailable)}")
         raise typer.Exit(EXIT_INVALID)
-    target = out if out is not None else case.output_dir / "compare"
-    plan = prepare_output(target, force)
+    target = command_dir(case, "compare", out)
+    plan = prepare_output(target, force, wait, expected_files(case, cfg))
     command_line = {"case_file": str(case_file), "out": str(out) if out else None,
                     "quick": quick}  # fmt: skip
     with machine_readable(json):
@@ -474,7 +487,7 @@ def _compare(
             "wall_time_s": time.perf_counter() - started,
             "files": files,
         }
-        io.write_json(staged.path(io.REPORT_NAME), report)
+        staged.write_report(report)
     report_stale(plan)
 
     if wp is not None:

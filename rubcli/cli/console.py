@@ -9,6 +9,9 @@ Machine-readable mode (``--json``, ``machine_readable()``): stdout carries only 
 result (``json_result``); text, tables and progress bars are not shown; warnings and
 errors still go to stderr. Python warnings (e.g. numpy's "invalid value encountered")
 are shown as one formatted ``warning:`` line (``show_python_warning``), never raw.
+
+A failure to write stdout (``> /dev/full``, a closed pipe) raises ``StdoutError``, which
+the command line turns into a message on stderr and exit code 74 (141 for a closed pipe).
 """
 
 from __future__ import annotations
@@ -35,6 +38,29 @@ from rich.progress import (
 )
 from rich.table import Table
 
+
+class StdoutError(Exception):
+    """Standard output could not be written (a full disk, a closed pipe)."""
+
+    def __init__(self, exc: OSError):
+        self.errno = exc.errno
+        super().__init__(exc.strerror or str(exc))
+
+
+@contextmanager
+def _writing_stdout() -> Iterator[None]:
+    try:
+        yield
+    except OSError as exc:
+        raise StdoutError(exc) from None
+
+
+def flush_stdout() -> None:
+    """Flush stdout now (a write error then surfaces as ``StdoutError``, not at exit)."""
+    with _writing_stdout():
+        sys.stdout.flush()
+
+
 _machine = [False]  # --json: stdout carries only the JSON result
 MAX_VALUE_CHARS = 200  # longer user values are shortened in messages (shorten())
 
@@ -60,8 +86,9 @@ def is_machine_readable() -> bool:
 
 def json_result(text: str) -> None:
     """The JSON result of a command (``--json``): on stdout, exactly as given."""
-    sys.stdout.write(text)
-    sys.stdout.flush()
+    with _writing_stdout():
+        sys.stdout.write(text)
+        sys.stdout.flush()
 
 
 def shorten(text: str, limit: int = MAX_VALUE_CHARS) -> str:
@@ -92,13 +119,15 @@ def _stderr() -> Console:
 
 def raw(text: str) -> None:
     """Print text exactly as it is (no markup, no wrapping), e.g. a sample case file."""
-    sys.stdout.write(text)
-    sys.stdout.flush()
+    with _writing_stdout():
+        sys.stdout.write(text)
+        sys.stdout.flush()
 
 
 def info(message: str) -> None:
     if not _machine[0]:
-        _stdout().print(message, markup=False, soft_wrap=True)
+        with _writing_stdout():
+            _stdout().print(message, markup=False, soft_wrap=True)
 
 
 @contextmanager
@@ -118,7 +147,8 @@ def notice_if_slow(message: str, after_s: float = 3.0) -> Iterator[None]:
 
 def success(message: str) -> None:
     if not _machine[0]:
-        _stdout().print(message, style="green", markup=False, soft_wrap=True)
+        with _writing_stdout():
+            _stdout().print(message, style="green", markup=False, soft_wrap=True)
 
 
 def warning(message: str) -> None:
@@ -174,7 +204,8 @@ def table(
     for row in rows:
         out.add_row(*row)
     width = max(output_width(), fixed)
-    Console(file=sys.stdout, highlight=False, width=width).print(out)
+    with _writing_stdout():
+        Console(file=sys.stdout, highlight=False, width=width).print(out)
 
 
 DEFAULT_WIDTH = 100  # text width when stdout is not a terminal and COLUMNS is not set

@@ -33,7 +33,7 @@ from rubcli import io
 from rubcli.analysis import forces
 from rubcli.case import Case, ForcesMapSection
 from rubcli.cli import console
-from rubcli.cli.common import ForceOption, prepare_output, report_stale
+from rubcli.cli.common import ForceOption, WaitOption, command_dir, prepare_output, report_stale
 from rubcli.cli.validate import load_or_exit
 
 FORCES_COLUMNS = ("x", "y", "Fx_exact", "Fy_exact", "Fx_taylor", "Fy_taylor", "Fx_diff", "Fy_diff")
@@ -44,7 +44,7 @@ OUTPUT_SUBDIR = "forces-map"
 
 def output_dir(case: Case, out: Path | None) -> Path:
     """``--out`` if given, else ``<case output dir>/forces-map``."""
-    return out if out is not None else case.output_dir / OUTPUT_SUBDIR
+    return command_dir(case, OUTPUT_SUBDIR, out)
 
 
 def _grid_table(x: np.ndarray, y: np.ndarray, fields: list[np.ndarray]) -> np.ndarray:
@@ -151,6 +151,13 @@ def _eigen_product(case: Case, settings: ForcesMapSection, title: str, staged) -
 
 
 PRODUCTS = {"forces": _forces_product, "taylor_error": _taylor_product, "eigen": _eigen_product}
+PRODUCT_FILES = {"forces": "forces_map", "taylor_error": "taylor_error", "eigen": "eigen_map"}
+
+
+def expected_files(settings: ForcesMapSection) -> tuple[str, ...]:
+    """The files ``rubcli forces-map`` writes for these settings."""
+    stems = [PRODUCT_FILES[product] for product in settings.products]
+    return (*(f"{stem}{ext}" for stem in stems for ext in (".csv", ".png")), "report.json")
 
 
 def make_outputs(
@@ -183,7 +190,7 @@ def make_outputs(
             "products": results,
             "files": files,
         }
-        io.write_json(staged.path("report.json"), report)
+        staged.write_report(report)
     return report
 
 
@@ -239,12 +246,13 @@ def command(
         ),
     ] = None,
     force: ForceOption = False,
+    wait: WaitOption = False,
 ) -> None:
     """Contact force maps (paper Figure 2), Taylor error vs distance, contact eigenvalues."""
     case = load_or_exit(case_file)
     target = output_dir(case, out)
-    plan = prepare_output(target, force)
     settings = case.settings.forces_map or ForcesMapSection()
+    plan = prepare_output(target, force, wait, expected_files(settings))
     source = (
         "[forces_map]" if case.settings.forces_map is not None else "defaults (no [forces_map])"
     )

@@ -1,5 +1,7 @@
 """``rubcli orbits CASE [--out DIR] [--overlay sweep.nc] [--quick]``: continue a periodic orbit.
 
+Output dir: ``--out DIR``, else ``orbits/`` inside the case's output dir.
+
 Reads the case's ``[orbits]`` table (docs/orbits.md), finds the starting periodic orbit by
 shooting (from ``[initial]``, from the end of a transient, or from the exact synchronous
 rub), continues it in one parameter by pseudo-arclength in both directions, detects and
@@ -32,10 +34,19 @@ from rubcli.analysis import continuation as cn
 from rubcli.analysis import orbits as ob
 from rubcli.case import Case, OrbitsSection
 from rubcli.cli import console
-from rubcli.cli.common import ForceOption, JsonOption, emit, prepare_output, report_stale
+from rubcli.cli.common import (
+    ForceOption,
+    JsonOption,
+    WaitOption,
+    command_dir,
+    emit,
+    prepare_output,
+    report_stale,
+)
 from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 
 EXIT_FAILED = 1
+EXPECTED_FILES = ("branch.csv", "branch.nc", "branch.png", "multipliers.png", "report.json")
 QUICK_MAX_POINTS = 12
 QUICK_TOL = 1e-10
 OVERLAY_CANDIDATES = ("strobe_z", "section_z", "z_section", "stroboscopic_z", "poincare_z", "z")
@@ -194,9 +205,7 @@ def io_json(value: Any) -> str:
 
 
 def write_branch_nc(path: Path, branch: cn.Branch, attrs: dict[str, Any]) -> None:
-    ds = branch_dataset(branch, attrs)
-    with io.atomic_path(path) as tmp:
-        ds.to_netcdf(tmp, engine="h5netcdf")
+    io.write_netcdf(branch_dataset(branch, attrs), path)
 
 
 def _title(case: Case, branch: cn.Branch) -> str:
@@ -225,7 +234,9 @@ def command(
     case_file: Annotated[Path, typer.Argument(metavar="CASE", help="The case file (TOML).")],
     out: Annotated[
         Path | None,
-        typer.Option("--out", help="Output directory (default: the case's output dir)."),
+        typer.Option(
+            "--out", "-o", metavar="DIR", help="Output dir (default: <case output dir>/orbits)."
+        ),
     ] = None,
     overlay: Annotated[
         Path | None,
@@ -240,6 +251,7 @@ def command(
     ] = False,
     json: JsonOption = False,
     force: ForceOption = False,
+    wait: WaitOption = False,
 ) -> None:
     """Periodic orbits, Floquet multipliers and continuation in one parameter (orbits table)."""
     case = load_or_exit(case_file)
@@ -256,8 +268,8 @@ def command(
         raise typer.Exit(EXIT_INVALID)
     o: OrbitsSection = case.settings.orbits
     settings = settings_from_case(case, quick)
-    target = Path(out) if out is not None else case.output_dir
-    plan = prepare_output(target, force)  # before any work: exit 2 if unusable
+    target = command_dir(case, "orbits", out)
+    plan = prepare_output(target, force, wait, EXPECTED_FILES)  # before any work
     with console.machine_readable(json):
         _orbits(case_file, case, o, settings, target, plan, overlay, overlay_data, quick, json)
 
@@ -296,7 +308,7 @@ def _orbits(case_file, case, o, settings, target, plan, overlay, overlay_data, q
             io.save_figure(branch_figure(branch, title, overlay_data), staged.path("branch.png"))
             io.save_figure(multipliers_figure(branch, title), staged.path("multipliers.png"))
         report["files"] = sorted(p.name for p in staged.staging.iterdir()) + ["report.json"]
-        io.write_json(staged.path("report.json"), report)
+        staged.write_report(report)
     report_stale(plan)
     emit(report, json)
     if branch.status != "ok":

@@ -16,17 +16,19 @@ only the products the case asks for are written into the output dir:
   over the steady span (``spectrum``: order, direction). Its ``files`` list is the run's
   manifest.
 
-The output dir is checked before anything is solved (``rubcli.io.check_output_dir``):
-writable, and either new, empty or written by rubcli (else ``--force``); the files of a
-previous run that this run does not write are removed, and named.
+The output dir is locked and checked before anything is solved
+(``rubcli.io.open_output_dir``): writable, and either new, empty or written by rubcli
+(else ``--force``); a file of the user's named like one of this run's outputs is refused;
+the files of a previous run that this run does not write are removed, and named. All
+files are staged and committed as a whole at the end (docs/cases.md, "Output dirs").
 
 Exit codes: 0 success; 2 invalid input or unusable output dir (nothing is solved or
 written); 1 if any method failed (its failure is in report.json; the outputs of the run
 are still written); 3 if every method finished but one or more failed a plausibility
 check (``status: warning`` in report.json: e.g. a tolerance so loose that the orbit ends
-deep inside the stator): the files are written, but the result must not be trusted.
-128 + N when stopped by signal N (nothing of this run is written). All files are staged
-and moved into place at the end.
+deep inside the stator): the files are written, but the result must not be trusted;
+74 the outputs could not be written (nothing of this run is); 75 the output dir is in use
+(``--wait`` waits); 128 + N when stopped by signal N.
 """
 
 from __future__ import annotations
@@ -50,6 +52,7 @@ from rubcli.cli import console
 from rubcli.cli.common import (
     ForceOption,
     JsonOption,
+    WaitOption,
     emit,
     machine_readable,
     prepare_output,
@@ -115,6 +118,7 @@ def start_up(case: Case) -> float:
     for name in case.methods:
         with contextlib.suppress(Exception):  # the timed run reports any failure
             solvers.solve(short, name, **case.options_for(name))
+        io.checkpoint()  # a termination signal is never taken for a solver's failure
     return time.perf_counter() - start
 
 
@@ -135,6 +139,7 @@ def solve_method(case: Case, name: str) -> tuple[Solution | None, dict[str, Any]
                 progress=lambda tau: update(tau - t0),
             )
         except Exception as exc:  # noqa: BLE001 - reported with its traceback, run exits 1
+            io.checkpoint()  # a termination signal is never taken for a solver's failure
             console.exception(exc)
             entry = {
                 "status": ERROR,
@@ -268,7 +273,7 @@ def write_outputs(
         "response": response,
         "files": files,
     }
-    io.write_json(staged.path(io.REPORT_NAME), report)
+    staged.write_report(report)
     return report
 
 
@@ -367,6 +372,7 @@ def command(
         ),
     ] = None,
     force: ForceOption = False,
+    wait: WaitOption = False,
     json: JsonOption = False,
 ) -> None:
     """Solve a case with each of its methods and write CSVs, plots and report.json."""
@@ -380,7 +386,7 @@ def command(
     if unavailable:
         console.error(f"{case_file}: solver.methods: not available: {', '.join(unavailable)}")
         raise typer.Exit(EXIT_INVALID)
-    plan = prepare_output(target, force)
+    plan = prepare_output(target, force, wait, expected_files(case))
 
     with machine_readable(json):
         report = _run(case, case_file, method, out, periods, plan)
@@ -396,6 +402,16 @@ def command(
         raise typer.Exit(EXIT_FAILED)
     if warned:
         raise typer.Exit(EXIT_WARNING)
+
+
+def expected_files(case: Case) -> tuple[str, ...]:
+    """The files a run of ``case`` writes (``write_outputs``)."""
+    output = case.settings.output
+    names = [f"{m}.csv" for m in case.methods] if output.csv else []
+    names += [f"{plot}.png" for plot in output.plots]
+    if response_settings(case) is not None:
+        names.append("poincare.png")
+    return (*names, io.REPORT_NAME)
 
 
 def _run(

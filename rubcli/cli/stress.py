@@ -36,6 +36,7 @@ from rubcli.cli import console
 from rubcli.cli.common import (
     ForceOption,
     JsonOption,
+    WaitOption,
     emit,
     machine_readable,
     prepare_output,
@@ -125,6 +126,7 @@ def command(
         typer.Option("--method", "-m", metavar="NAME", help="Run only this method (repeatable)."),
     ] = None,
     force: ForceOption = False,
+    wait: WaitOption = False,
     json: JsonOption = False,
 ) -> None:
     """Run the built-in suite of extreme cases with every method; write stress.csv and .md."""
@@ -148,7 +150,7 @@ def command(
             raise typer.Exit(EXIT_INVALID)
         methods = list(dict.fromkeys(method))
     target = out if out is not None else Path("out/stress-quick" if quick else "out/stress")
-    plan = prepare_output(target, force)
+    plan = prepare_output(target, force, wait, ("stress.csv", "stress.md", io.REPORT_NAME))
     with machine_readable(json):
         runs, report = _stress(cases, methods, quick, target, plan, case, method)
     emit(report, json)
@@ -200,7 +202,7 @@ def _stress(
     with io.staged_output_dir(target, plan) as staged:
         write_csv(staged.path("stress.csv"), runs)
         io.write_text(staged.path("stress.md"), markdown_text(runs, cases, quick, " ".join(parts)))
-        io.write_json(staged.path(io.REPORT_NAME), report)
+        staged.write_report(report)
     report_stale(plan)
 
     rows = [

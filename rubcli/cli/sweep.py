@@ -12,8 +12,11 @@ Finished points are kept in a hidden store beside the output dir
 interruption computes only the missing points. The outputs appear together, when every
 point is done; the store is then removed.
 
+Output dir: ``--out DIR``, else ``sweep/`` inside the case's output dir.
+
 Exit codes: 0 done (failed points are results); 2 invalid input or unreachable scheduler;
-130 interrupted (Ctrl-C; the finished points are kept).
+74 the outputs could not be written (the finished points are kept); 75 the output dir is
+in use; 128 + N stopped by signal N (130 Ctrl-C; the finished points are kept).
 """
 
 from __future__ import annotations
@@ -26,7 +29,16 @@ import typer
 
 from rubcli import io
 from rubcli.cli import console
-from rubcli.cli.common import ForceOption, JsonOption, emit, prepare_output, report_stale
+from rubcli.cli.common import (
+    EXIT_WRITE,
+    ForceOption,
+    JsonOption,
+    WaitOption,
+    command_dir,
+    emit,
+    prepare_output,
+    report_stale,
+)
 from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 
 LOCAL_SCHEDULER = "local"
@@ -64,6 +76,7 @@ def command(
     ] = False,
     json: JsonOption = False,
     force: ForceOption = False,
+    wait: WaitOption = False,
 ) -> None:
     """Sweep parameters: bifurcation diagrams, run-up/run-down, 2-D maps, basins."""
     case = load_or_exit(case_file)
@@ -74,9 +87,9 @@ def command(
     from rubcli import sweeps
     from rubcli.analysis import sweep as engine
 
-    target = out if out is not None else case.output_dir / "sweep"
-    output = prepare_output(target, force)  # before any work: exit 2 if unusable
+    target = command_dir(case, "sweep", out)
     plan = sweeps.plan_from_case(case, quick)
+    output = prepare_output(target, force, wait, expected_files(plan))  # before any work
     address = scheduler if scheduler is not None else cfg.scheduler
     client = cluster = None
     if address is not None:
@@ -100,7 +113,7 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
     """The sweep itself, once its inputs, output dir and executor are checked."""
     from rubcli import sweeps
     from rubcli.analysis import sweep as engine
-    from rubcli.analysis.sweep.dataset import build_dataset, csv_text, write_netcdf
+    from rubcli.analysis.sweep.dataset import build_dataset
 
     store_dir = store_dir_for(target, plan.digest())
     console.info(
@@ -119,40 +132,65 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
                 progress=lambda done, total: bar(done),
             )
     except (KeyboardInterrupt, io.Terminated) as exc:
-        kept = len(list(store_dir.glob("*.point"))) if store_dir.is_dir() else 0
-        console.error(
-            f"interrupted: {kept} of {plan.n_points} points are kept in {store_dir}; "
-            "run the same command again to compute only the others"
-        )
-        code = exc.exit_code if isinstance(exc, io.Terminated) else EXIT_INTERRUPTED
-        raise typer.Exit(code) from None
+        _interrupted(exc, store_dir, plan)
     finally:
         if client is not None:
             client.close()
         if cluster is not None:
             cluster.close()
     wall = time.perf_counter() - started
-    ds = build_dataset(plan, results, sweeps.case_attrs(case))
+    files: list[str] = []
+    try:
+        ds = build_dataset(plan, results, sweeps.case_attrs(case))
+        report = _write(case_file, case, plan, ds, results, stats, where, wall, target,
+                        output, files, _title(case, plan), workers, scheduler, out,
+                        quick)  # fmt: skip
+    except (KeyboardInterrupt, io.Terminated) as exc:
+        if target not in io.outputs.COMMITTED:
+            _interrupted(exc, store_dir, plan)
+        engine.PointStore(store_dir, plan.digest()).remove()  # the outputs are in place
+        raise
+    except io.OutputWriteError as exc:
+        kept = len(list(store_dir.glob("*.point"))) if store_dir.is_dir() else 0
+        console.error(f"{exc}; the {kept} computed points are kept in {store_dir}: make room "
+                      "and run the same command again to write them")  # fmt: skip
+        raise typer.Exit(EXIT_WRITE) from None
+    engine.PointStore(store_dir, plan.digest()).remove()
+    report_stale(output)
+    emit(report, json)
+    n_failed = report["points_failed"]
+    console.info(
+        f"{plan.n_points} points on {where} in {wall:.1f} s "
+        f"({stats.computed} computed, {stats.resumed} resumed, {n_failed} failed)"
+    )
+    for name, count in _class_lines(ds):
+        console.info(f"  {name}: {count}")
+    console.info(f"wrote {len(files)} files to {target}: {', '.join(files)}")
 
+
+def _interrupted(exc: BaseException, store_dir: Path, plan) -> None:
+    """Stopped before the outputs were written: say where the finished points are kept."""
+    kept = len(list(store_dir.glob("*.point"))) if store_dir.is_dir() else 0
+    console.error(
+        f"interrupted: {kept} of {plan.n_points} points are kept in {store_dir}; "
+        "run the same command again to compute only the others (or remove it)"
+    )
+    code = exc.exit_code if isinstance(exc, io.Terminated) else EXIT_INTERRUPTED
+    raise typer.Exit(code) from None
+
+
+def _write(case_file, case, plan, ds, results, stats, where, wall, target, output, files,
+           title, workers, scheduler, out, quick) -> dict:  # fmt: skip
+    """Write the sweep's files into its output dir (staged, committed as a whole)."""
+    from rubcli.analysis.sweep.dataset import csv_text
     from rubcli.plotting import sweep as plots
 
-    title = _title(case, plan)
-    files: list[str] = []
     with io.staged_output_dir(target, output) as staged:
-        write_netcdf(ds, staged.path("sweep.nc"))
+        io.write_netcdf(ds, staged.path("sweep.nc"))
         io.write_text(staged.path("sweep.csv"), csv_text(ds, plan))
         files += ["sweep.nc", "sweep.csv"]
-        figures = []
-        if plan.is_basin:
-            figures.append(("basins.png", plots.basins_figure))
-        elif len(plan.axes) == 1:
-            figures += [("bifurcation.png", plots.bifurcation_figure),
-                        ("summary.png", plots.summary_figure)]  # fmt: skip
-            if plan.spectrum:
-                figures.append(("cascade.png", plots.cascade_figure))
-        else:
-            figures.append(("map.png", plots.map_figure))
-        for name, make in figures:
+        for name in _figures(plan):
+            make = getattr(plots, f"{name.removesuffix('.png')}_figure")
             io.save_figure(make(ds, title), staged.path(name))
             files.append(name)
         files.append("report.json")
@@ -176,17 +214,22 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
             "wall_time_s": wall,
             "files": files,
         }
-        io.write_json(staged.path("report.json"), report)
-    engine.PointStore(store_dir, plan.digest()).remove()
-    report_stale(output)
-    emit(report, json)
-    console.info(
-        f"{plan.n_points} points on {where} in {wall:.1f} s "
-        f"({stats.computed} computed, {stats.resumed} resumed, {n_failed} failed)"
-    )
-    for name, count in _class_lines(ds):
-        console.info(f"  {name}: {count}")
-    console.info(f"wrote {len(files)} files to {target}: {', '.join(files)}")
+        staged.write_report(report)
+    return report
+
+
+def expected_files(plan) -> tuple[str, ...]:
+    """The files ``rubcli sweep`` writes for ``plan``."""
+    return ("sweep.nc", "sweep.csv", *_figures(plan), "report.json")
+
+
+def _figures(plan) -> list[str]:
+    """The figures of a sweep, by file name (``rubcli.plotting.sweep.<stem>_figure``)."""
+    if plan.is_basin:
+        return ["basins.png"]
+    if len(plan.axes) == 1:
+        return ["bifurcation.png", "summary.png"] + (["cascade.png"] if plan.spectrum else [])
+    return ["map.png"]
 
 
 def _local_cluster(workers: int | None):

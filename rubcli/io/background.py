@@ -1,15 +1,15 @@
-"""A command's work beside its main thread (``Background``), and the termination signals
-as an exception (``Terminated``) so that staged outputs are removed on the way out."""
+"""A command's work beside its main thread (``Background``). The termination signals are
+in ``signals``: leaving the block on their ``Terminated`` stops the job."""
 
 from __future__ import annotations
 
-import contextlib
-import signal
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures import wait as wait_for
 from typing import Any
+
+from rubcli.io.signals import checkpoint
 
 
 class Cancelled(Exception):  # noqa: N818 - not an error: the job was told to stop
@@ -79,6 +79,7 @@ class Background:
     def _help_until_done(self, future: Future, helper: Callable[[], bool] | None,
                          report: Callable[[], Any]) -> None:  # fmt: skip
         while not future.done():
+            checkpoint()  # a termination signal that something swallowed
             if helper is None or not helper():
                 wait_for([future], timeout=self.POLL_S)
             report()
@@ -96,42 +97,3 @@ class Background:
         finally:
             self._cancel.set()
             self._pool.shutdown(wait=True, cancel_futures=True)
-
-
-class Terminated(BaseException):  # noqa: N818 - like KeyboardInterrupt, not an error
-    """Raised in the main thread when the process receives SIGTERM, SIGINT or SIGHUP, so
-    that staged outputs are removed on the way out; exit with ``exit_code``."""
-
-    def __init__(self, signum: int):
-        self.signum = signum
-        super().__init__(f"terminated by {signal.Signals(signum).name}")
-
-    @property
-    def exit_code(self) -> int:
-        return 128 + self.signum
-
-
-TERMINATION_SIGNALS = tuple(
-    getattr(signal, name) for name in ("SIGTERM", "SIGINT", "SIGHUP") if hasattr(signal, name)
-)
-
-
-@contextlib.contextmanager
-def termination_as_exception() -> Iterator[None]:
-    """Turn the termination signals into ``Terminated`` while the block runs (main thread
-    only; elsewhere a no-op). A compiled solver loop sees it at its next progress report."""
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def handler(signum: int, frame: object) -> None:
-        raise Terminated(signum)
-
-    previous = {sig: signal.signal(sig, handler) for sig in TERMINATION_SIGNALS}
-    try:
-        yield
-    finally:
-        for sig, old in previous.items():
-            signal.signal(sig, old)

@@ -26,7 +26,8 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; on success move it over ``path``.
 
     The temporary file keeps the target's suffix (so that e.g. matplotlib picks the
-    format from it). On an exception it is removed and ``path`` is untouched.
+    format from it). On an exception it is removed and ``path`` is untouched (an OSError
+    that names no file is given ``path``'s name: a full disk says which file).
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -37,9 +38,39 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         yield tmp
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual mode
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         tmp.unlink(missing_ok=True)
+        if isinstance(exc, OSError) and exc.filename is None:
+            exc.filename = str(path)  # a failed write() names no file: name the target
         raise
+
+
+# SHA-256 of files as they were written, by (device, inode, size, mtime): the output
+# dir's manifest takes a file's digest from here instead of reading it again.
+_DIGESTS: dict[tuple[int, int, int, int], str] = {}
+
+
+def _identity(path: str | Path) -> tuple[int, int, int, int] | None:
+    try:
+        st = os.lstat(path)
+    except OSError:
+        return None
+    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
+
+
+def remember_digest(path: str | Path, sha256: str) -> None:
+    """Record the SHA-256 of the file just written at ``path`` (by its writer, which saw
+    every byte); a later change of the file changes its identity and voids this."""
+    identity = _identity(path)
+    if identity is not None:
+        _DIGESTS[identity] = sha256
+
+
+def known_digest(path: str | Path) -> tuple[int, str] | None:
+    """(size, SHA-256) recorded by ``remember_digest`` for the file as it is now."""
+    identity = _identity(path)
+    sha = _DIGESTS.get(identity) if identity is not None else None
+    return None if sha is None else (identity[2], sha)
 
 
 def _umask() -> int:
@@ -122,6 +153,20 @@ def environment_info() -> dict[str, str]:
         "scipy": scipy.__version__,
         "platform": platform.platform(terse=True),
     }
+
+
+def write_netcdf(dataset, path: str | Path) -> Path:
+    """Write an xarray Dataset as NetCDF4 (h5netcdf), atomically.
+
+    The file is made in memory and written as bytes: HDF5 writing to a full disk itself
+    fails part way with pages of "Exception ignored" tracebacks, or crashes the process
+    (a segmentation fault inside h5py, seen with a file size limit); writing the bytes
+    fails with one OSError, which the caller reports (``staged_output_dir``).
+    """
+    data = dataset.to_netcdf(engine="h5netcdf")
+    with atomic_path(path) as tmp, open(tmp, "wb") as handle:
+        handle.write(data)
+    return Path(path)
 
 
 def save_figure(fig, path: str | Path, *, dpi: int = 120, close: bool = True) -> Path:

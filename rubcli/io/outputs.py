@@ -1,22 +1,43 @@
-"""Output dirs: checked before anything is computed, written staged, committed at the end.
+"""Output dirs: locked, checked before anything is computed, written staged, committed whole.
 
-``staged_output_dir`` writes every file of a run into a hidden staging directory and
-moves them in only when the run got that far, so a run that fails part way (an
-exception, Ctrl-C, SIGTERM) leaves no outputs.
+This is rubcli's one writer of output dirs. A command (or a library ``write(directory)``)::
 
-The rules of an output dir (``check_output_dir``, called by every command before it
-computes anything):
+    plan = open_output_dir("out/fig3a", force=False, wait=False)   # lock, recover, check
+    try:
+        ...compute...
+        with staged_output_dir("out/fig3a", plan) as staged:        # stage, then commit
+            write_json(staged.path("report.json"), report)
+    finally:
+        plan.close()                                                # unlock
 
-- it must be a directory or not exist yet, and be creatable and writable (tried, not
-  guessed: a probe directory is made and removed);
-- a dir that holds files is used only if rubcli wrote it: its ``report.json`` is a rubcli
-  report whose ``files`` list is the *manifest* of the run that wrote it. Files of that
-  manifest which the new run does not write are removed after the new run committed
-  (they would be stale results beside a new report) and named in a warning;
-- a non-empty dir without a manifest (``--out .``, a home dir, someone's data) is refused
-  unless ``force``; with ``force`` rubcli writes its files and leaves the others alone.
-  Sub-directories that hold a rubcli manifest (the ``compare/`` and ``forces-map/`` dirs
-  inside a case's output dir) do not count.
+``staged_output_dir(target)`` without a plan opens and closes one itself.
+
+**Lock.** One command per output dir at a time (``lock.DirLock``, an OS lock on
+``DIR/.rubcli.lock``, held from the check to the end of the command); another is refused
+(``OutputBusy``) or waits (``wait=True``).
+
+**Check** (``open_output_dir``, before anything is computed): the dir must be a directory
+or creatable, and writable (tried: the dir and its lock file are made); every name in
+the path must fit the file system. The files in it are sorted into rubcli's own (listed,
+byte for byte, by the signed manifest of its report.json: ``manifest``) and the others.
+A dir that holds other files and no valid manifest (``--out .``, a home dir, someone's
+data, a report.json typed by hand) is refused unless ``force``. A file rubcli did not
+write, or changed since, is never replaced or removed without ``force`` (the message
+names it); with ``force`` the files named like this run's outputs are replaced and the
+others kept. Entries that are rubcli's own never count: its lock, staging dirs, a sweep's
+resume store (hidden names starting with ``.rubcli``, and older stores named
+``.NAME.sweep-DIGEST``) and sub-dirs that are rubcli output dirs.
+
+**Staging and commit.** Files are written into ``DIR/.rubcli-staging-PID-XXXX`` (inside
+the target: one file system and one mount, so every move is a rename, also when the dir
+is a mount point or a bind mount). ``commit`` adds the signed manifest to report.json and
+writes a journal, then moves the replaced and stale files of the previous run into the
+staging dir and the new files in (report.json out first and in last: a dir whose
+report.json is present is complete), with termination signals held (``signals.deferred``).
+A move that fails (EXDEV, EIO, ...) rolls the moves back: nothing of the run is written,
+the previous outputs are unchanged. A process killed during the commit (SIGKILL, power)
+leaves the journal: the next command on the dir completes the commit before anything
+else; a staging dir without a journal (killed before its commit) is removed.
 """
 
 from __future__ import annotations
@@ -25,207 +46,588 @@ import contextlib
 import errno
 import json
 import os
+import re
 import shutil
+import stat
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from rubcli.io.files import atomic_path
+from rubcli.io import manifest, signals
+from rubcli.io.files import atomic_path, json_text
+from rubcli.io.lock import Busy, DirLock
 
 REPORT_NAME = "report.json"
-
-
 STAGING_PREFIX = ".rubcli-staging-"
+JOURNAL_NAME = ".rubcli-journal.json"
+REPLACED_NAME = ".rubcli-replaced"  # in a staging dir: the files a commit moved out
+OWN_PREFIX = ".rubcli"  # every hidden entry rubcli makes starts so (lock, staging, stores)
+# A sweep's resume store of finished points beside its output dir, as older rubcli named
+# it (.<dir name>.sweep-<digest>); newer stores start with OWN_PREFIX.
+SWEEP_STORE = re.compile(r"^\..+\.sweep-[0-9a-f]{8,64}$")
+# The errors of writing that are the machine's, not rubcli's: reported, exit 74.
+WRITE_ERRNOS = frozenset(
+    getattr(errno, name)
+    for name in ("ENOSPC", "EDQUOT", "EFBIG", "EIO", "EROFS")
+    if hasattr(errno, name)
+)
+
+COMMITTED: list[Path] = []  # output dirs committed by this process (for a signal's message)
 
 
 class OutputError(Exception):
-    """An output location that cannot be used; the message says which and why."""
+    """An output location that cannot be used; the message says which and why (exit 2)."""
+
+
+class OutputBusy(OutputError):  # noqa: N818 - a state, like TimeoutError
+    """The output dir is in use by another rubcli command (exit 75)."""
+
+
+class OutputWriteError(OutputError):
+    """The outputs could not be written (disk full, I/O error; exit 74). Nothing of the run
+    was written; the previous outputs are unchanged."""
 
 
 @dataclass
 class OutputPlan:
-    """What ``check_output_dir`` found: where to write and what a previous run left."""
+    """An output dir opened by ``open_output_dir``: locked, checked; what it holds."""
 
     target: Path
-    previous: list[str] = field(default_factory=list)  # files of the previous manifest
-    foreign: list[str] = field(default_factory=list)  # files no rubcli manifest lists
+    force: bool = False
+    previous: list[str] = field(default_factory=list)  # rubcli's own files (manifest-verified)
+    foreign: list[str] = field(default_factory=list)  # entries rubcli did not write
+    changed: list[str] = field(default_factory=list)  # listed by the manifest, changed since
     removed: list[str] = field(default_factory=list)  # stale files removed at commit
+    kept: list[str] = field(default_factory=list)  # stale, kept: changed since rubcli wrote them
+    recovered: list[str] = field(default_factory=list)  # what was found of interrupted runs
+    written: list[str] = field(default_factory=list)  # the names committed
+    manifest_reason: str = ""  # why the dir's report.json is not rubcli's (if not)
+    _lock: DirLock | None = field(default=None, repr=False)
+    _created: list[Path] = field(default_factory=list, repr=False)
+    _signature: dict[str, tuple] = field(default_factory=dict, repr=False)
+
+    def close(self) -> None:
+        """Release the lock and remove the dirs made for a target that got no outputs."""
+        if self._lock is not None:
+            self._lock.release()
+            self._lock = None
+        for directory in reversed(self._created):
+            with contextlib.suppress(OSError):
+                directory.rmdir()  # only if empty
+        self._created.clear()
+
+    def __enter__(self) -> OutputPlan:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def ours(self, name: str) -> bool:
+        """Whether ``name`` is rubcli's and unchanged since the check."""
+        if name not in self.previous:
+            return False
+        return _signature(self.target / name) == self._signature.get(name)
 
 
-def read_manifest(directory: Path) -> list[str] | None:
-    """The ``files`` of a rubcli report.json in ``directory``, or None if it has none."""
+# ------------------------------------------------------------------- recognition
+
+
+def is_own_entry(path: Path) -> bool:
+    """rubcli's lock, staging, probe or a sweep's resume store (any hidden name that
+    starts with ``.rubcli``, or an older store's): never an obstacle, never removed here
+    (but for stale staging dirs of dead commands, under the lock)."""
+    name = path.name
+    return name.startswith(OWN_PREFIX) or (
+        bool(SWEEP_STORE.match(name)) and path.is_dir() and not path.is_symlink()
+    )
+
+
+def _is_output_subdir(path: Path) -> bool:
+    """A sub-dir that is itself a rubcli output dir (``compare/`` inside a case's dir):
+    a manifest, an older rubcli report, or only rubcli's own entries (a command running)."""
+    if path.is_symlink() or not path.is_dir():
+        return False
+    if manifest.read(path).valid or _legacy_report(path):
+        return True
+    try:
+        entries = list(path.iterdir())
+    except OSError:
+        return False
+    return bool(entries) and all(is_own_entry(p) for p in entries)
+
+
+def _legacy_report(directory: Path) -> bool:
+    """A report.json of a rubcli without manifests (only to accept a sub-dir as rubcli's;
+    never a licence to replace or remove anything)."""
     try:
         report = json.loads((directory / REPORT_NAME).read_text(encoding="utf-8"))
     except (OSError, ValueError):
+        return False
+    return isinstance(report, dict) and "rubcli_version" in report and "files" in report
+
+
+def read_manifest(directory: Path) -> list[str] | None:
+    """The files that ``directory``'s verified manifest lists (None without one)."""
+    found = manifest.read(Path(directory))
+    return sorted([*found.files, REPORT_NAME]) if found.valid else None
+
+
+# --------------------------------------------------------------------- the check
+
+
+def _signature(path: Path) -> tuple | None:
+    try:
+        st = os.lstat(path)
+    except OSError:
         return None
-    if not isinstance(report, dict) or "rubcli_version" not in report:
-        return None
-    files = report.get("files")
-    if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
-        return None
-    return [f for f in files if Path(f).name == f and f not in ("", ".", "..")]
+    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
 
 
-def _nearest_existing(path: Path) -> Path:
-    for candidate in (path, *path.parents):
-        if os.path.lexists(candidate):
-            return candidate
-    return Path(".")
+def _shorten(text: str, limit: int = 60) -> str:
+    return text if len(text) <= limit else f"{text[: limit - 20]}...({len(text)} characters)"
 
 
-def check_output_dir(target: str | Path, *, force: bool = False) -> OutputPlan:
-    """Check an output dir before anything is computed; raise OutputError saying why not.
+def _check_names(target: Path) -> None:
+    """Every component of the path must fit the file system (else a clear message)."""
+    absolute = Path(os.path.abspath(target))
+    base = absolute
+    while not os.path.lexists(base) and base != base.parent:
+        base = base.parent
+    try:
+        name_max = os.pathconf(base if base.is_dir() else base.parent, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    for part in absolute.parts[1:]:
+        size = len(os.fsencode(part))
+        if size > name_max:
+            raise OutputError(
+                f"{_shorten(str(target), 120)}: the name {_shorten(part)!r} is {size} bytes "
+                f"long; this file system allows at most {name_max}"
+            )
+    if len(os.fsencode(str(absolute))) > 4000:
+        raise OutputError(f"{_shorten(str(target), 120)}: the path is too long")
 
-    See the module docstring for the rules. Nothing is created or changed here (the probe
-    directory is removed again).
-    """
-    target = Path(target)
-    if target.exists() and not target.is_dir():
-        raise OutputError(f"{target}: output dir exists and is not a directory")
+
+def _reason(exc: OSError) -> str:
+    """The cause of an OSError in a few words (h5py's carry the errno inside a page of
+    text: "... errno = 28, error message = ...")."""
+    if exc.strerror:
+        return exc.strerror
+    found = re.search(r"errno = (\d+)", str(exc))
+    if found:
+        return os.strerror(int(found.group(1)))
+    first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    return first if len(first) <= 120 else first[:100] + "..."
+
+
+def _make_dirs(target: Path, created: list[Path]) -> None:
+    """Create ``target`` and its missing parents, recording the ones made."""
     if os.path.lexists(target) and not target.exists():
         raise OutputError(f"{target}: output dir is a broken symbolic link")
-    base = _nearest_existing(target.absolute())
-    if not base.is_dir():
-        raise OutputError(f"{target}: cannot create the output dir: {base} is not a directory")
+    if target.exists() and not target.is_dir():
+        raise OutputError(f"{target}: output dir exists and is not a directory")
+    missing = []
+    for directory in (target, *target.parents):
+        if os.path.lexists(directory):
+            if not directory.is_dir():
+                raise OutputError(f"{target}: cannot create the output dir: {directory} is "
+                                  "not a directory")  # fmt: skip
+            break
+        missing.append(directory)
+    for directory in reversed(missing):
+        try:
+            directory.mkdir()
+        except FileExistsError:
+            continue
+        except OSError as exc:
+            raise OutputError(f"{target}: output dir is not writable ({directory}: "
+                              f"{_reason(exc)})") from None  # fmt: skip
+        created.append(directory)
+
+
+def open_output_dir(
+    target: str | Path,
+    *,
+    force: bool = False,
+    wait: bool = False,
+    expected: Iterable[str] = (),
+    on_wait: Callable[[str], None] | None = None,
+) -> OutputPlan:
+    """Lock, recover and check an output dir before anything is computed (see the module
+    docstring); raise ``OutputError`` (``OutputBusy`` when locked) saying why not.
+
+    ``expected``: names the command will write, so that a file of the user's with one of
+    these names is refused now rather than at the commit. The caller must ``close()`` the
+    plan (a ``with`` block does).
+    """
+    target = Path(target)
+    _check_names(target)
+    plan = OutputPlan(target=target, force=force)
     try:
-        probe = tempfile.mkdtemp(dir=base, prefix=".rubcli-probe-")
-        os.rmdir(probe)
-    except OSError as exc:
-        reason = exc.strerror or str(exc)
-        raise OutputError(f"{target}: output dir is not writable ({base}: {reason})") from None
-    plan = OutputPlan(target=target)
-    if not target.is_dir():
-        return plan
-    entries = sorted(
-        p.name
-        for p in target.iterdir()
-        if not p.name.startswith(STAGING_PREFIX)
-        # a sub-dir written by rubcli (`compare/`, `forces-map/` of a case) is no obstacle
-        and not (p.is_dir() and read_manifest(p) is not None)
-    )
-    if not entries:
-        return plan
-    manifest = read_manifest(target)
-    if manifest is None:
-        if not force:
-            shown = ", ".join(entries[:5]) + (f" and {len(entries) - 5} more" if len(entries) > 5
-                                              else "")  # fmt: skip
-            raise OutputError(
-                f"{target}: output dir is not empty and was not written by rubcli (no rubcli "
-                f"report.json; it holds {shown}); choose a new or empty dir, or pass --force "
-                "to write beside these files"
-            )
-        plan.foreign = entries
-        return plan
-    plan.previous = manifest
-    plan.foreign = [e for e in entries if e not in manifest and e != REPORT_NAME]
+        for attempt in range(100):
+            _make_dirs(target, plan._created)
+            lock = DirLock(target)
+            try:
+                lock.acquire(wait=wait, on_wait=on_wait)
+            except FileNotFoundError:
+                if attempt == 99:
+                    raise OutputError(f"{target}: output dir keeps vanishing") from None
+                continue  # the dir was removed meanwhile (by a holder that made it)
+            except Busy as exc:
+                raise OutputBusy(
+                    f"{target}: output dir is in use by {exc.holder}; wait for it to finish, "
+                    "or pass --wait to wait for it"
+                ) from None
+            except OSError as exc:
+                raise OutputError(f"{target}: output dir is not writable ({_reason(exc)})"
+                                  ) from None  # fmt: skip
+            plan._lock = lock
+            break
+        _recover(plan)
+        _inspect(plan)
+        _refuse(plan, list(expected))
+    except BaseException:
+        plan.close()
+        raise
     return plan
 
 
-def _move(source: Path, destination: Path) -> None:
-    """Move a staged file over ``destination`` atomically, also across filesystems (a
-    copy to a temporary file beside the destination, then a rename there)."""
+def _inspect(plan: OutputPlan) -> None:
+    target = plan.target
     try:
-        os.replace(source, destination)
+        entries = sorted(target.iterdir(), key=lambda p: p.name)
     except OSError as exc:
-        if exc.errno != errno.EXDEV:
-            raise
-        with atomic_path(destination) as tmp:
-            shutil.copyfile(source, tmp)
-        source.unlink(missing_ok=True)
+        raise OutputError(f"{target}: output dir is not readable ({_reason(exc)})") from None
+    found = manifest.read(target)
+    plan.manifest_reason = found.reason
+    listed = set(found.files) | {REPORT_NAME} if found.valid else set()
+    for path in entries:
+        name = path.name
+        if is_own_entry(path) or (name not in listed and _is_output_subdir(path)):
+            continue
+        if name in listed and found.owns(target, name):
+            plan.previous.append(name)
+            plan._signature[name] = _signature(path)
+        else:
+            plan.foreign.append(name)
+            if name in listed:
+                plan.changed.append(name)
 
 
-def _same_device(a: Path, b: Path) -> bool:
-    try:
-        return os.stat(a).st_dev == os.stat(b).st_dev
-    except OSError:
-        return True
+def _listing(names: list[str], limit: int = 6) -> str:
+    shown = ", ".join(names[:limit])
+    return shown + (f" and {len(names) - limit} more" if len(names) > limit else "")
+
+
+def _refuse(plan: OutputPlan, expected: list[str]) -> None:
+    if plan.force:
+        return
+    if plan.foreign and not plan.previous:
+        why = plan.manifest_reason or "no report.json"
+        raise OutputError(
+            f"{plan.target}: output dir is not empty and was not written by rubcli ({why}; "
+            f"it holds {_listing(plan.foreign)}); rubcli never replaces or removes files it "
+            "did not write: choose a new or empty dir, or pass --force to write beside them "
+            "(files named like this command's outputs are then replaced)"
+        )
+    collide = [n for n in expected if n in plan.foreign]
+    if collide:
+        raise OutputError(_collision_message(plan, collide))
+
+
+def _collision_message(plan: OutputPlan, names: list[str]) -> str:
+    changed = [n for n in names if n in plan.changed]
+    one = len(names) == 1
+    if len(changed) == len(names):
+        what = f"{'was' if one else 'were'} changed since rubcli wrote {'it' if one else 'them'}"
+    else:
+        what = f"{'was' if one else 'were'} not written by rubcli" + (
+            " (or changed since)" if changed else ""
+        )
+    it = "it" if one else "them"
+    return (
+        f"{plan.target}: {_listing(names)} {what}, and this command would replace {it}: "
+        f"move {it} away, or pass --force to replace {it}"
+    )
+
+
+# ------------------------------------------------------------------ staging, commit
 
 
 class StagedOutput:
-    """A staging directory whose files are moved into ``target`` by ``commit()``.
+    """A staging dir inside the target whose files ``commit()`` moves in, all together."""
 
-    The staging directory is made in the target's real parent (symbolic links resolved),
-    or inside the target itself when the target is a mount point, so that the final moves
-    are renames on one filesystem; a move that still crosses filesystems is copied.
-    """
-
-    def __init__(self, target: str | Path, plan: OutputPlan | None = None):
+    def __init__(self, target: str | Path, plan: OutputPlan):
         self.target = Path(target)
         self.plan = plan
-        self.created: list[Path] = []  # directories made for the target (removed on failure)
-        real = self.target.resolve()
-        parent = real.parent
-        for directory in reversed((real, *real.parents)):
-            if directory != real and not directory.exists():
-                directory.mkdir()
-                self.created.append(directory)
-        if real.is_dir() and not _same_device(real, parent):
-            parent = real
-        self.staging = Path(tempfile.mkdtemp(dir=parent, prefix=f"{STAGING_PREFIX}{real.name}-"))
+        prefix = f"{STAGING_PREFIX}{os.getpid()}-"
+        try:
+            self.staging = Path(tempfile.mkdtemp(dir=self.target, prefix=prefix))
+        except OSError as exc:
+            raise _write_error(self.target, exc) from None
         self.committed: list[Path] = []
+        self._report: dict | None = None
+
+    def write_report(self, report: dict) -> Path:
+        """Stage ``report`` as report.json; the commit adds its manifest to this dict too
+        (so that a command printing the report prints what the file holds)."""
+        self._report = report
+        return _write_json(self.path(REPORT_NAME), report)
 
     def path(self, name: str) -> Path:
         """Where to write the output ``name`` (a plain file name) while staging."""
-        if Path(name).name != name or name in ("", ".", ".."):
+        if Path(name).name != name or name in ("", ".", "..") or name.startswith(".rubcli"):
             raise ValueError(f"output names are plain file names, not {name!r}")
         return self.staging / name
 
     def commit(self, last: tuple[str, ...] = (REPORT_NAME,)) -> list[Path]:
-        """Move every staged file into the target; the names in ``last`` go last.
-
-        Each move is atomic per file. A report written last marks that the files before it
-        are complete. Then the files of the previous run's manifest that this run did not
-        write are removed (``plan.removed`` names them).
-        """
-        try:
-            self.target.mkdir(parents=True, exist_ok=True)
-            staged = sorted(p for p in self.staging.iterdir() if p.is_file())
-            staged.sort(key=lambda p: p.name in last)
-            for item in staged:
-                destination = self.target / item.name
-                _move(item, destination)
-                self.committed.append(destination)
-            self.created.clear()
-            written = {p.name for p in self.committed}
-            if self.plan is not None:
-                for name in self.plan.previous:
-                    stale = self.target / name
-                    if name not in written and stale.is_file():
-                        stale.unlink()
-                        self.plan.removed.append(name)
-        finally:
-            self.discard()
+        """Move every staged file into the target, as a whole (see the module docstring);
+        the names in ``last`` go in last. Then the stale files of the previous run are
+        gone (``plan.removed``), except those changed since rubcli wrote them (``kept``)."""
+        with signals.deferred():
+            try:
+                self._commit(last)
+            except BaseException:
+                self.discard()
+                raise
         return self.committed
 
-    def discard(self) -> None:
-        """Remove the staging directory and whatever is still in it, and the directories
-        made for a target that was never committed."""
+    def _commit(self, last: tuple[str, ...]) -> None:
+        plan, target = self.plan, self.target
+        try:
+            staged = sorted(p.name for p in self.staging.iterdir()
+                            if p.is_file() and not p.name.startswith("."))  # fmt: skip
+            if REPORT_NAME not in staged:
+                from rubcli.io.files import report_envelope
+
+                files = [*staged, REPORT_NAME]
+                _write_json(self.staging / REPORT_NAME,
+                            {**report_envelope("write", {}), "files": files})  # fmt: skip
+                staged.append(REPORT_NAME)
+            digests = {n: manifest.file_digest(self.staging / n)
+                       for n in staged if n != REPORT_NAME}  # fmt: skip
+            added = manifest.add_to_report(self.staging / REPORT_NAME, digests)
+        except OSError as exc:
+            raise _write_error(target, exc) from None
+        # Who may be replaced: rubcli's own unchanged files, anything with force.
+        collide = [n for n in staged if os.path.lexists(target / n) and not plan.ours(n)]
+        folders = [n for n in collide if (target / n).is_dir() and not (target / n).is_symlink()]
+        if folders:
+            raise OutputError(f"{target}: {_listing(folders)} would be replaced by this "
+                              "command's files but is a directory; rubcli never replaces "
+                              "directories: move it away")  # fmt: skip
+        if collide and not plan.force:
+            raise OutputError(_collision_message(plan, collide))
+        stale = [n for n in plan.previous if n not in staged and plan.ours(n)]
+        plan.kept = [n for n in plan.previous + plan.changed
+                     if n not in staged and n not in stale
+                     and os.path.lexists(target / n)]  # fmt: skip
+        staged.sort(key=lambda n: (n in last, last.index(n) if n in last else 0, n))
+        out = [n for n in (*reversed(last), *staged, *stale)
+               if os.path.lexists(target / n) and (n in staged or n in stale)]  # fmt: skip
+        out = list(dict.fromkeys(out))
+        journal = {"pid": os.getpid(), "out": out, "in": staged}
+        try:
+            _write_json(self.staging / JOURNAL_NAME, journal, sync=True)
+            (self.staging / REPLACED_NAME).mkdir()
+        except OSError as exc:
+            raise _write_error(target, exc) from None
+        done_out: list[str] = []
+        done_in: list[str] = []
+        try:
+            for name in out:
+                os.rename(target / name, self.staging / REPLACED_NAME / name)
+                done_out.append(name)
+            for name in staged:
+                os.rename(self.staging / name, target / name)
+                done_in.append(name)
+        except OSError as exc:
+            if not _roll_back(target, self.staging, done_out, done_in):
+                raise OutputWriteError(
+                    f"{target}: the commit failed ({_reason(exc)}) and could not be undone; "
+                    f"the next rubcli command on this dir completes it from {self.staging.name}"
+                ) from None
+            raise _write_error(target, exc, moving=True) from None
+        (self.staging / JOURNAL_NAME).unlink()
+        _sync_dir(target)
+        if self._report is not None:
+            self._report[manifest.KEY] = added
+        self.committed = [target / n for n in staged]
+        plan.written = staged
+        plan.removed = stale
+        COMMITTED.append(target)
         shutil.rmtree(self.staging, ignore_errors=True)
-        for directory in reversed(self.created):
-            with contextlib.suppress(OSError):
-                directory.rmdir()
-        self.created.clear()
+
+    def discard(self) -> None:
+        """Remove the staging dir and what is in it (never a journal's files: a commit
+        that could not be undone is left for the next command to complete)."""
+        if (self.staging / JOURNAL_NAME).exists():
+            return
+        shutil.rmtree(self.staging, ignore_errors=True)
+
+
+def _release_quietly(exc: BaseException) -> None:
+    """Free what a failed write left referenced by the exception's frames (an h5py file
+    whose deallocation fails again on the full disk and prints "Exception ignored"
+    tracebacks), with those messages silenced: the failure is reported once, as ours."""
+    import gc
+    import sys
+    import traceback
+
+    hook = sys.unraisablehook
+    sys.unraisablehook = lambda unraisable: None
+    try:
+        traceback.clear_frames(exc.__traceback__)
+        exc.__traceback__ = None
+        gc.collect()
+    finally:
+        sys.unraisablehook = hook
+
+
+def _roll_back(target: Path, staging: Path, done_out: list[str], done_in: list[str]) -> bool:
+    """Undo a commit's moves; True if the dir is as before."""
+    try:
+        for name in reversed(done_in):
+            os.rename(target / name, staging / name)
+        for name in reversed(done_out):
+            os.rename(staging / REPLACED_NAME / name, target / name)
+    except OSError:
+        return False
+    (staging / JOURNAL_NAME).unlink(missing_ok=True)
+    return True
+
+
+def _write_json(path: Path, data, sync: bool = False) -> Path:
+    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as handle:
+        handle.write(json_text(data))
+        if sync:
+            handle.flush()
+            os.fsync(handle.fileno())
+    return path
+
+
+def _sync_dir(directory: Path) -> None:
+    with contextlib.suppress(OSError):
+        fd = os.open(directory, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
+def _write_error(target: Path, exc: OSError, moving: bool = False) -> OutputWriteError:
+    where = f" ({Path(exc.filename).name})" if getattr(exc, "filename", None) else ""
+    step = "move the outputs into place" if moving else "write the outputs"
+    return OutputWriteError(
+        f"{target}: could not {step}: {_reason(exc)}{where}; nothing of this run was "
+        "written, the previous outputs are unchanged"
+    )
+
+
+def is_write_failure(exc: BaseException) -> bool:
+    """An OSError of writing that is the machine's (disk full, quota, file size limit,
+    I/O error, read-only, permissions), also as h5py reports it (errno in the text)."""
+    if not isinstance(exc, OSError):
+        return False
+    if exc.errno in WRITE_ERRNOS:
+        return True
+    text = str(exc)
+    return any(f"errno = {n}," in text or f"errno = {n} " in text or os.strerror(n) in text
+               for n in (errno.ENOSPC, errno.EFBIG, errno.EDQUOT, errno.EIO))  # fmt: skip
+
+
+# ------------------------------------------------------------------- recovery
+
+
+def _recover(plan: OutputPlan) -> None:
+    """Under the lock: complete the commits of killed commands, remove their staging."""
+    target = plan.target
+    for path in sorted(target.glob(f"{STAGING_PREFIX}*")):
+        try:
+            st = os.lstat(path)
+        except OSError:
+            continue
+        uid = os.geteuid() if hasattr(os, "geteuid") else st.st_uid
+        if not stat.S_ISDIR(st.st_mode) or st.st_uid != uid:
+            continue  # not ours to touch (it counts as foreign)
+        with signals.deferred():
+            journal = _read_journal(path / JOURNAL_NAME)
+            if journal is not None and _roll_forward(target, path, journal):
+                plan.recovered.append(
+                    f"completed the interrupted commit of an earlier command (pid "
+                    f"{journal.get('pid')}): {', '.join(journal['in'])}"
+                )
+            else:
+                plan.recovered.append(f"removed {path.name}, left by an interrupted command")
+            shutil.rmtree(path, ignore_errors=True)
+
+
+def _read_journal(path: Path) -> dict | None:
+    try:
+        journal = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    ok = (isinstance(journal, dict) and all(isinstance(journal.get(k), list) for k in ("in", "out"))
+          and all(isinstance(n, str) and Path(n).name == n and n not in ("", ".", "..")
+                  for n in journal["in"] + journal["out"]))  # fmt: skip
+    return journal if ok else None
+
+
+def _roll_forward(target: Path, staging: Path, journal: dict) -> bool:
+    replaced = staging / REPLACED_NAME
+    try:
+        replaced.mkdir(exist_ok=True)
+        for name in journal["out"]:
+            # still the old file if its new one was not moved in yet (or it has none)
+            pending_new = (staging / name).exists() or name not in journal["in"]
+            if os.path.lexists(target / name) and not os.path.lexists(replaced / name) \
+                    and pending_new:  # fmt: skip
+                os.rename(target / name, replaced / name)
+        for name in journal["in"]:
+            if os.path.lexists(staging / name):
+                os.rename(staging / name, target / name)
+    except OSError:
+        return False
+    _sync_dir(target)
+    return True
+
+
+# ------------------------------------------------------------------ the block
 
 
 @contextlib.contextmanager
-def staged_output_dir(target: str | Path, plan: OutputPlan | None = None) -> Iterator[StagedOutput]:
-    """Stage a run's outputs; move them into ``target`` only if the block completes.
+def staged_output_dir(
+    target: str | Path, plan: OutputPlan | None = None, *, force: bool = False
+) -> Iterator[StagedOutput]:
+    """Stage outputs; commit them into ``target`` as a whole only if the block completes.
 
     ::
 
-        with staged_output_dir("out/fig3a") as out:
+        with staged_output_dir("out/fig3a", plan) as out:
             write_json(out.path("report.json"), report)
         # now out/fig3a/report.json exists; after an exception nothing would.
 
-    ``plan`` (from ``check_output_dir``) lets the commit remove the stale files of the
-    previous run.
+    ``plan``: from ``open_output_dir`` (kept open by the caller); without one the dir is
+    opened (locked, checked with ``force``) here and closed after the commit. A failure to
+    write (disk full, ...) raises ``OutputWriteError``.
     """
-    staged = StagedOutput(target, plan)
+    own = plan is None
+    if plan is None:
+        plan = open_output_dir(target, force=force)
     try:
-        yield staged
-    except BaseException:
-        staged.discard()
-        raise
-    staged.commit()
+        staged = StagedOutput(target, plan)
+        try:
+            yield staged
+        except BaseException as exc:
+            if is_write_failure(exc):
+                error = _write_error(Path(target), exc)
+                _release_quietly(exc)
+                staged.discard()
+                raise error from None
+            staged.discard()
+            raise
+        staged.commit()
+    finally:
+        if own:
+            plan.close()

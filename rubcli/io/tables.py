@@ -8,6 +8,7 @@ bytes). ``SharedBlocks`` lets another thread format a CSV's blocks ahead of its 
 
 from __future__ import annotations
 
+import hashlib
 import math
 import threading
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
@@ -20,7 +21,7 @@ import numpy as np
 
 from rubcli import units
 from rubcli.io.background import Cancelled
-from rubcli.io.files import atomic_path
+from rubcli.io.files import atomic_path, remember_digest
 from rubcli.model import REGIME_NAMES
 from rubcli.solution import Solution
 
@@ -241,15 +242,20 @@ def write_csv(
         formatted: Iterable[tuple[int, Any]] = blocks.in_order()
     else:
         formatted = (_formatted_block(block, width, nonfinite) for block in blocks)
+    digest = hashlib.sha256()  # for the output dir's manifest: no second read to hash it
     with atomic_path(path) as tmp, open(tmp, "wb") as handle:
-        handle.write((",".join(csv_field(h) for h in header) + "\n").encode("utf-8"))
+        head = (",".join(csv_field(h) for h in header) + "\n").encode("utf-8")
+        handle.write(head)
+        digest.update(head)
         for rows, data in formatted:
             if rows == 0:
                 continue
             handle.write(data)
+            digest.update(data)
             done += rows
             if on_rows is not None:
                 on_rows(done)
+    remember_digest(path, digest.hexdigest())
     return Path(path)
 
 

@@ -1,0 +1,95 @@
+"""Full disks, file size limits, names too long and a stdout that cannot be written.
+
+A write that fails for want of space (ENOSPC, EFBIG, EDQUOT) ends the command with exit
+74 and a message naming the dir and the reason; nothing of the run is written, the
+previous outputs are kept, no staging is left (README, "Exit codes"). The full disk is
+made with ``RLIMIT_FSIZE`` (every file past the limit fails with EFBIG) and, where mount
+namespaces are permitted, with a small tmpfs (ENOSPC).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+from .conftest import LONG_CASE, SMALL_CASE, SWEEP_CASE, fsize_limit, snapshot
+
+
+def _hidden(directory) -> list[str]:
+    return sorted(p.name for p in directory.iterdir() if p.name.startswith("."))
+
+
+def test_a_csv_past_the_file_size_limit(run_cli, case_file, out_dir, previous):
+    before = previous(out_dir)
+    run = run_cli("run", case_file(LONG_CASE), "--out", out_dir,
+                  preexec=fsize_limit(1 << 20))  # fmt: skip
+    assert run.code == 74, run.stderr
+    assert f"{out_dir}: could not write the outputs: File too large" in run.stderr
+    assert "nothing of this run was written, the previous outputs are unchanged" in run.stderr
+    assert snapshot(out_dir) == before and _hidden(out_dir) == []
+
+
+def test_a_report_past_the_file_size_limit(run_cli, case_file, out_dir, previous):
+    """The report alone (no CSV, no figure) does not fit: the same."""
+    before = previous(out_dir)
+    case = case_file(SMALL_CASE + "csv = false\n")
+    run = run_cli("run", case, "--out", out_dir, preexec=fsize_limit(2000))
+    assert run.code == 74, run.stderr
+    assert "File too large (report.json)" in run.stderr
+    assert snapshot(out_dir) == before and _hidden(out_dir) == []
+
+
+def test_a_sweep_whose_netcdf_does_not_fit_keeps_its_points(run_cli, case_file, out_dir):
+    """sweep.nc past the limit: exit 74, the computed points kept in the store (named in
+    the message), nothing half-written; run again with room: the points are resumed."""
+    case = case_file(SWEEP_CASE)
+    run = run_cli("sweep", case, "--out", out_dir, "--workers", "1",
+                  preexec=fsize_limit(16000))  # fmt: skip
+    assert run.code == 74, run.stderr
+    assert "could not write the outputs" in run.stderr
+    assert "the 5 computed points are kept in" in run.stderr and "run the same command" in (
+        run.stderr
+    )
+    assert not out_dir.exists()  # made for the sweep, removed again: nothing half-written
+    run = run_cli("sweep", case, "--out", out_dir, "--workers", "1")
+    assert run.code == 0, run.stderr
+    assert json.loads((out_dir / "report.json").read_text())["points_resumed"] == 5
+
+
+def test_a_full_tmpfs(in_namespace, case_file):
+    """A real full file system (a 400 kB tmpfs): the first run fits, the second does not
+    (ENOSPC): exit 74, the first run's files as they were."""
+    small, long_case = case_file(), case_file(LONG_CASE, "long.toml")
+    script = f"""
+mkdir -p disk && mount -t tmpfs -o size=400k tmpfs disk || exit 99
+$RUBCLI run {small} --out disk/out || exit 98
+{sys.executable} -c "import hashlib, os; print(sorted((n, hashlib.sha256(open('disk/out/' + n, 'rb').read()).hexdigest()) for n in os.listdir('disk/out')))" > before.txt
+$RUBCLI run {long_case} --out disk/out
+echo "code=$?"
+{sys.executable} -c "import hashlib, os; print(sorted((n, hashlib.sha256(open('disk/out/' + n, 'rb').read()).hexdigest()) for n in os.listdir('disk/out')))" > after.txt
+ls -A disk > listing.txt
+"""  # noqa: E501
+    run = in_namespace(script)
+    assert "code=74" in run.stdout, (run.stdout, run.stderr)
+    assert "No space left on device" in run.stderr and "Traceback" not in run.stderr
+    here = small.parent
+    assert (here / "before.txt").read_text() == (here / "after.txt").read_text()
+    assert (here / "listing.txt").read_text().split() == ["out"]
+
+
+def test_an_output_name_longer_than_the_file_system_allows(run_cli, case_file, tmp_path):
+    name = "x" * 300
+    run = run_cli("run", case_file(), "--out", tmp_path / name / "out")
+    assert run.code == 2
+    assert "is 300 bytes long; this file system allows at most 255" in run.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["case.toml"]
+
+
+def test_a_full_stdout(run_cli, case_file, tmp_path):
+    """`init > /dev/full`, `--json > /dev/full`: a message on stderr, exit 74."""
+    case = case_file()
+    for args in (["init"], ["validate", case, "--json"], ["run", case, "--json", "--out",
+                                                          tmp_path / "out"]):  # fmt: skip
+        run = run_cli(*args, stdout="/dev/full")
+        assert run.code == 74, (args, run.stderr)
+        assert "cannot write to standard output: No space left on device" in run.stderr

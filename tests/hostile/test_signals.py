@@ -1,0 +1,210 @@
+"""Termination signals at every phase of a command: a clean exit, nothing half-written.
+
+SIGTERM, SIGINT and SIGHUP end a command with exit code 128 + N and one line on stderr
+that says whether the run's outputs were written (README, "Exit codes"); never a
+traceback (``KeyboardInterrupt`` from an import, ``SystemError`` from a compiled call), and
+the output dir is as before, or wholly the new run's when the signal came during the
+commit (the commit is finished first).
+"""
+
+from __future__ import annotations
+
+import json
+import random
+import signal
+import time
+
+import pytest
+
+from .conftest import (
+    LONG_CASE,
+    ORBITS_CASE,
+    SMALL_CASE,
+    SWEEP_CASE,
+    finish,
+    snapshot,
+    visible,
+    wait_for,
+)
+
+TERM, INT, HUP = signal.SIGTERM, signal.SIGINT, signal.SIGHUP
+
+
+def _stopped(run, signum, written=False) -> None:
+    assert run.code == 128 + signum, (run.code, run.stderr)
+    assert f"terminated by {signal.Signals(signum).name}" in run.stderr
+    if written:
+        assert "stopped after the outputs of this run were written" in run.stderr
+    else:
+        assert "no outputs of this run were written" in run.stderr
+
+
+def _consistent(directory) -> dict:
+    """The dir holds exactly the files its report.json lists (no mix of two runs)."""
+    report = json.loads((directory / "report.json").read_text())
+    assert sorted(report["files"]) == visible(directory)
+    assert not [p.name for p in directory.iterdir() if p.name.startswith(".")]
+    return report
+
+
+@pytest.mark.parametrize(
+    ("module", "signum"),
+    [("numpy", INT), ("numba", TERM), ("typer", HUP), ("matplotlib", TERM)],
+)  # fmt: skip
+def test_a_signal_during_the_start_up_imports_exits_cleanly(
+    run_cli, case_file, out_dir, module, signum
+):
+    """The entry point handles signals before numpy is imported: a Ctrl-C in the first
+    tenth of a second is no ``KeyboardInterrupt`` traceback from inside numpy's import."""
+    case = case_file(SMALL_CASE.replace("plots = []", 'plots = ["orbit"]'))
+    fault = {"at": f"import:{module}", "do": "signal", "signal": signum}
+    run = run_cli("run", case, "--out", out_dir, fault=fault)
+    _stopped(run, signum)
+    assert visible(out_dir) == [] and not out_dir.exists()
+
+
+PHASES = {
+    # the timed solve (the first call is the start-up's warm-up)
+    "solve": {"at": "call:rubcli.solvers:solve", "nth": 2, "delay": 0.05},
+    # inside the compiled energy balance (it runs 10 ms)
+    "energy balance": {"at": "call:rubcli.analysis.energy_kernel:balance_pass", "delay": 0.003},
+    # the audit's case, made certain: the signal is handled while the compiled energy
+    # balance has called back into numba's Python code (it unpickles a constant); a
+    # handler raising there was lost by numba's dispatcher ("SystemError:
+    # CPUDispatcher(balance_pass) returned a result with an exception set")
+    "energy balance, in numba's code": {
+        "at": "call:numba.core.serialize:_numba_unpickle",
+        "frame": "callee",
+        "within": "rubcli.analysis.energy_kernel:balance_pass",
+    },
+    "csv": {"at": "call:rubcli.io:write_solution_csv", "delay": 0.02},
+    "figure": {"at": "call:rubcli.io:save_figure", "delay": 0.01},
+}
+
+
+@pytest.mark.parametrize(
+    ("phase", "signum"),
+    [("solve", INT), ("energy balance", TERM), ("energy balance, in numba's code", TERM),
+     ("energy balance, in numba's code", INT), ("csv", HUP), ("figure", TERM)],
+)  # fmt: skip
+def test_a_signal_at_each_phase_of_a_run_keeps_the_previous_outputs(
+    run_cli, case_file, out_dir, previous, phase, signum
+):
+    before = previous(out_dir)
+    fault = {**PHASES[phase], "do": "signal", "signal": signum}
+    run = run_cli("run", case_file(LONG_CASE, "long.toml"), "--out", out_dir, fault=fault)
+    _stopped(run, signum)
+    assert snapshot(out_dir) == before
+    assert [p.name for p in out_dir.iterdir() if p.name.startswith(".")] == []  # no staging
+
+
+def test_a_signal_during_the_commit_is_held_until_the_commit_is_whole(run_cli, case_file, out_dir):
+    """SIGTERM between two moves of the commit: the commit completes, then the command
+    stops and says that the outputs were written."""
+    case = case_file()
+    assert run_cli("run", case, "--out", out_dir, "-m", "rk45").code == 0
+    fault = {"at": "move:2", "do": "signal", "signal": TERM}
+    run = run_cli("run", case, "--out", out_dir, "-m", "dop853", "-m", "bdf", fault=fault)
+    _stopped(run, TERM, written=True)
+    report = _consistent(out_dir)
+    assert visible(out_dir) == ["bdf.csv", "dop853.csv", "report.json"]
+    assert list(report["methods"]) == ["dop853", "bdf"]
+
+
+def test_signals_from_outside_at_random_moments(run_cli, case_file, out_dir, previous):
+    """Real signals sent from outside while a long run is anywhere between its start and
+    its end: every time a clean exit, and a dir that is the previous run's or the new."""
+    before = previous(out_dir)
+    long_case = case_file(LONG_CASE, "long.toml")
+    started = time.monotonic()
+    assert run_cli("run", long_case, "--out", out_dir).code == 0
+    span = time.monotonic() - started
+    after = snapshot(out_dir)
+    chooser = random.Random(20)
+    for trial in range(4):
+        signum = (TERM, INT, HUP)[trial % 3]
+        # from 0.3 s on: the interpreter's own start (before rubcli's first line, tens of
+        # milliseconds, longer on a loaded machine) is Python's
+        delay = chooser.uniform(0.3, span)
+        proc = run_cli("run", long_case, "--out", out_dir, background=True)
+        time.sleep(delay)
+        proc.send_signal(signum)
+        run = finish(proc)
+        assert run.code in (0, 128 + signum), (delay, run.code, run.stderr)  # never -signum
+        now = snapshot(out_dir)
+        if run.code == 0 or "stopped after the outputs of this run were written" in run.stderr:
+            _consistent(out_dir)
+            assert now.keys() == after.keys()
+        else:
+            assert now == before or now.keys() == after.keys(), delay
+        assert not [p.name for p in out_dir.iterdir() if p.name.startswith(".")], delay
+        before = now
+
+
+FREE_COMPARE = (
+    SMALL_CASE.replace("periods = 2\n", "periods = 1\n")
+    + """
+[compare]
+work_precision = false
+"""
+)
+MAP_CASE = (
+    SMALL_CASE
+    + """
+[forces_map]
+products = ["eigen"]
+resolution = 5
+extent = 2.0
+"""
+)
+
+COMMANDS = {
+    "compare": (FREE_COMPARE, ["compare", "{case}", "--quick"], "call:rubcli.io:save_figure"),
+    "forces-map": (MAP_CASE, ["forces-map", "{case}"], "call:rubcli.io:save_figure"),
+    "stress": (None, ["stress", "--quick", "--case", "grazing-touch", "--method", "rk45"],
+               "call:rubcli.io:write_rows_csv"),
+    "orbits": (ORBITS_CASE, ["orbits", "{case}"],
+               "call:rubcli.analysis.continuation:continue_branch"),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("command", list(COMMANDS))
+def test_every_command_stops_cleanly_on_a_signal(run_cli, case_file, out_dir, command):
+    text, args, where = COMMANDS[command]
+    case = case_file(text) if text else None
+    args = [str(case) if a == "{case}" else a for a in args]
+    run = run_cli(*args, "--out", out_dir, fault={"at": where, "do": "signal", "signal": TERM})
+    _stopped(run, TERM)
+    assert not out_dir.exists()
+
+
+def test_a_sweep_stops_cleanly_on_a_signal_and_keeps_its_points(run_cli, case_file, out_dir):
+    """Ctrl-C while the sweep computes (held at its second stored point): exit 130, the
+    finished point kept in the store for the next run, nothing in the output dir."""
+    marker = out_dir.parent / "second-point"
+    fault = {"at": "call:rubcli.analysis.sweep.store:PointStore.save", "nth": 2, "do": "hold",
+             "hold": 60, "marker": str(marker)}  # fmt: skip
+    args = ("sweep", case_file(SWEEP_CASE), "--out", out_dir, "--workers", "1")
+    proc = run_cli(*args, fault=fault, background=True)
+    wait_for(marker, proc)
+    proc.send_signal(INT)
+    run = finish(proc)
+    assert run.code == 130, run.stderr
+    assert "1 of 5 points are kept in" in run.stderr
+    assert visible(out_dir) == []
+    (store,) = out_dir.parent.glob(f".{out_dir.name}.sweep-*")
+    assert len(list(store.glob("*.point"))) == 1
+
+
+def test_start_up_loop_of_real_sigint(run_cli, case_file, out_dir):
+    """Ctrl-C sent from outside during the start-up's imports (after the interpreter's
+    own first tens of milliseconds, which are Python's): a clean 130."""
+    case = case_file()
+    for delay in (0.2, 0.4):
+        proc = run_cli("run", case, "--out", out_dir, background=True)
+        time.sleep(delay)
+        proc.send_signal(INT)
+        run = finish(proc)
+        assert run.code in (0, 130), (delay, run.stderr)
+        if run.code == 130:
+            assert "terminated by SIGINT" in run.stderr
