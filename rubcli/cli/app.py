@@ -76,7 +76,6 @@ def _silence_stdout() -> None:
         pass
 
 
-
 def _flags_show_no_type() -> None:
     """Boolean flags (``--quick``, ``--json``, ``--help``) listed in ``--help`` without a
     type: they take no value. Some typer releases print every option's type in the rich
