@@ -61,26 +61,21 @@ def test_exponent_on_the_stable_synchronous_rub_is_minus_nu():
     assert est.n_intervals == 200 and est.running.size == 200
 
 
-def test_classifier_reads_a_negative_exponent_as_an_orbit_still_approached():
+def test_classifier_reads_a_section_still_contracting_as_converging():
     """Started 0.01 off the rub, the section has not settled within 1e-4 after 40 periods
-    (the offset decays like exp(-nu tau): ~5e-4 left), so the classifier computes the
-    exponent: negative, equal to -nu, hence a periodic orbit still being approached."""
+    (the offset decays like exp(-nu tau): ~5e-4 left). The section map is linear there
+    and contracts by exp(-nu T) a period (every rotating-frame eigenvalue has real part
+    -nu at mu = 0): "converging to period 1" with that rate, and no exponent needed."""
     p = fig3(0.0)
     start = model.synchronous_rub(np.array([0.0]), p)[:, 0] + np.array([0.01, 0.0, 0.0, 0.0])
     sol = solve(Problem.from_periods(p, tuple(start), 40, 50), "dop853-jit", rtol=1e-10)
     assert sol.success, sol.message
-    response = rsp.classify_solution(
-        sol,
-        transient_periods=20,
-        lyapunov_periods=200,
-        lyapunov_method="dop853-jit",
-        lyapunov_options={"rtol": 1e-12, "atol": 1e-14},
-    )
-    assert response.kind == rsp.PERIODIC and response.period == 1
-    lyap = response.lyapunov
-    assert lyap is not None, response.message
-    assert abs(lyap.exponent + NU) < 3.0 * lyap.stderr < 0.3 * NU
-    assert "still being approached" in response.message
+    response = rsp.classify_solution(sol, transient_periods=20, lyapunov_method="dop853-jit")
+    assert (response.kind, response.period) == (rsp.CONVERGING, 1), response.message
+    assert response.lyapunov is None
+    rate = response.contraction.rate
+    assert rate == pytest.approx(math.exp(-NU * p.period), abs=3 * response.contraction.rate_stderr)
+    assert response.contraction.rate_stderr < 1e-3
 
 
 def test_exponent_on_a_quasi_periodic_torus_is_zero():
@@ -96,7 +91,7 @@ def test_exponent_on_a_quasi_periodic_torus_is_zero():
     )
     lyap = response.lyapunov
     assert response.kind == rsp.QUASI_PERIODIC, response.message
-    assert lyap is not None and "a torus" in response.message
+    assert lyap is not None and "zero within its error" in response.message
     # zero within its error, and an error small enough to tell zero from -nu
     assert abs(lyap.exponent) <= max(rsp.LYAPUNOV_FLOOR, rsp.LYAPUNOV_SIGMAS * lyap.stderr)
     assert rsp.LYAPUNOV_SIGMAS * lyap.stderr < 0.5 * NU

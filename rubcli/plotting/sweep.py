@@ -14,7 +14,8 @@ from matplotlib.patches import Patch
 from rubcli.analysis.sweep.point import RESPONSE_CLASSES
 
 DIRECTION_COLOURS = {"up": "tab:blue", "down": "tab:orange", "independent": "tab:blue"}
-CLASS_COLOURS = ("tab:green", "tab:blue", "tab:red", "black", "0.75")  # RESPONSE_CLASSES order
+# RESPONSE_CLASSES order: periodic ... undecided, converging
+CLASS_COLOURS = ("tab:green", "tab:blue", "tab:red", "black", "0.75", "tab:cyan")
 WHIRL_COLOURS = {-1: "tab:purple", 0: "0.8", 1: "tab:olive"}
 WHIRL_NAMES = {-1: "backward", 0: "no whirl", 1: "forward"}
 AXIS_LABELS = {
