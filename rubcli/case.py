@@ -461,11 +461,13 @@ class SweepSection(_Section):
 OrbitParameter = Literal["eta", "mu", "K", "e", "nu", "Rp"]
 OrbitStart = Literal["initial", "transient", "synchronous_rub"]
 OrbitDirections = Literal["both", "up", "down"]
+OrbitKind = Literal["periodic", "whirl"]
 
 
 class OrbitsSection(_Section):
     """[orbits]: the branch to continue (nondimensional, also for [physical] cases)."""
 
+    kind: OrbitKind = "periodic"  # periodic orbits of the map, or whirls of unknown rate (e = 0)
     parameter: OrbitParameter
     min: float  # parameter window; the case's value must lie in it
     max: float
