@@ -12,7 +12,17 @@ from typing import Annotated
 import typer
 
 from rubcli import __version__, io
-from rubcli.cli import compare, forces_map, init, orbits, run, stress, sweep, validate
+from rubcli.cli import (
+    compare,
+    ensemble,
+    forces_map,
+    init,
+    orbits,
+    run,
+    stress,
+    sweep,
+    validate,
+)
 
 app = typer.Typer(
     name="rubcli",
@@ -31,6 +41,7 @@ app.command("compare")(compare.command)
 app.command("stress")(stress.command)
 app.command("sweep")(sweep.command)
 app.command("orbits")(orbits.command)
+app.command("ensemble")(ensemble.command)
 
 
 def _version(value: bool) -> None:
