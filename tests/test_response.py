@@ -74,6 +74,13 @@ def test_two_frequency_signal_is_quasi_periodic():
     assert evidence["contraction_rate"] == pytest.approx(1.0, abs=1e-9)
     assert evidence["rotation_number"] == pytest.approx(math.sqrt(2.0) - 1.0, abs=1e-9)
     assert result.to_dict()["label"] == "quasi-periodic (torus)"
+    # an exponent below zero cannot make a neutral section contract (it has not converged:
+    # the dry whip's case); a positive one contradicts the torus
+    points = rsp.stroboscopic_section(TIME, _states([(1.2, 1.0), (0.3, math.sqrt(2.0))]),
+                                      PERIOD, transient_periods=20).points  # fmt: skip
+    for exponent, kind in ((-0.0075, rsp.QUASI_PERIODIC), (0.0075, rsp.UNDECIDED)):
+        lyap = rsp.LyapunovEstimate(exponent, 1e-3, PERIOD, 100, 1e-7, np.zeros(1))
+        assert rsp.classify_section(points, lyapunov=lyap).kind == kind
 
 
 def test_diverging_signal_is_unbounded():

@@ -22,7 +22,11 @@ tests run in this order:
    rotation and the periods it needs to settle; above 1, **undecided** (the motion is
    leaving an unstable period-p orbit: the record ends before it reaches an attractor);
    1 within its error, a closed curve turned by the map: **quasi-periodic** (a small
-   torus), with its rotation number, unless an exponent says otherwise.
+   torus), with its rotation number, unless a positive exponent contradicts it (then
+   undecided). A negative exponent does not: an attracting orbit would contract the
+   section, which the fit measures directly; such an estimate has not yet turned to the
+   torus's neutral direction (slow when the next exponent is close to zero, as on the dry
+   whip, where it is -nu).
 4. otherwise the **largest Lyapunov exponent** (when computed) and the **refined
    frequencies** of the section (``analysis.section_map.section_frequencies``: NAFF,
    Laskar 1993, on each half of the record) decide:
@@ -567,6 +571,16 @@ def classify_section(
         if verdict in (None, "zero"):
             return response(QUASI_PERIODIC, None, text, lyap=lyap,
                             contraction=marginal, frequencies=freq)  # fmt: skip
+        if lyap.exponent < 0.0:
+            # An attracting orbit would contract the section, which the fit measures
+            # directly and finds neutral: the exponent has not yet turned to the neutral
+            # direction along the torus (slow where the next exponent is close to 0).
+            return response(
+                QUASI_PERIODIC, None,
+                f"{text}: below zero, but the section does not contract, so the estimate "
+                "has not converged to the torus's zero exponent",
+                lyap=lyap, contraction=marginal, frequencies=freq,
+            )  # fmt: skip
         return response(UNDECIDED, None, f"{text}: conflicting evidence", lyap=lyap,
                         contraction=marginal, frequencies=freq,
                         reason="conflicting evidence")  # fmt: skip
