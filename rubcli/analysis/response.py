@@ -566,7 +566,7 @@ def classify_section(
             f"the section map is close to a rotation of a closed curve (linear fit residual "
             f"{marginal.residual:.1g}): modulus "
             f"{marginal.rate:.6g} +- {marginal.rate_stderr:.1g} per period (1 within error), "
-            f"rotation number {marginal.rotation:.6f}; {lyap_text}"
+            f"rotation number {_rotation_number(marginal, freq):.6f}; {lyap_text}"
         )
         if verdict in (None, "zero"):
             return response(QUASI_PERIODIC, None, text, lyap=lyap,
