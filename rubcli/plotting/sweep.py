@@ -40,10 +40,10 @@ def _new_figure(width: float, height: float) -> Figure:
 
 
 def _class_note(ds) -> str:
-    """How the classes were decided: with Lyapunov exponents or the Birkhoff test alone."""
+    """How the classes were decided: with Lyapunov exponents or the section alone."""
     if np.isfinite(ds["lyapunov"].values).any():
         return ""
-    return "\n(no Lyapunov: 'chaotic' = Birkhoff test only, unconfirmed)"
+    return "\n(no Lyapunov exponents: chaos never claimed; tori from the section's frequencies)"
 
 
 def _axes_dims(ds) -> list[str]:
