@@ -109,8 +109,10 @@ def test_ensemble_command_writes_fractions_and_lifetimes(tmp_path):
     case.write_text(CASE.format(ensemble="[ensemble]\nruns = 2\nrecord_periods = 50\n"
                                          "rtols = [1e-6, 1e-8]\nlyapunov = false"))  # fmt: skip
     out = tmp_path / "out"
-    result = CliRunner().invoke(app, ["ensemble", str(case), "--out", str(out), "-w", "1"])
+    result = CliRunner().invoke(app, ["ensemble", str(case), "--out", str(out), "-w", "1",
+                                      "--json"])  # fmt: skip
     assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["outcomes"]  # --json: stdout is the report alone
     assert {p.name for p in out.iterdir()} == {"ensemble.csv", "ensemble.png", "report.json"}
     rows = list(csv.DictReader((out / "ensemble.csv").open()))
     assert len(rows) == 4 and {r["rtol"] for r in rows} == {"1e-06", "1e-08"}

@@ -151,8 +151,9 @@ def test_orbits_command_writes_the_whirl_branch(tmp_path):
     from pathlib import Path
 
     text = (Path(__file__).resolve().parents[1] / REPO_CASE).read_text()
-    result, out = _run(tmp_path, text)
+    result, out = _run(tmp_path, text, "case.toml", "--json")
     assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["kind"] == "whirl"  # --json: stdout is the report alone
     assert {p.name for p in out.iterdir()} == {"branch.csv", "branch.png", "report.json"}
     rows = list(csv.DictReader((out / "branch.csv").open()))
     usual = {"parameter", "value", "x", "y", "vx", "vy", "max_z", "stable", "label",

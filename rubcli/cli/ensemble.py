@@ -119,14 +119,15 @@ def command(
             io.write_json(staged.path("report.json"), report)
         report_stale(plan)
         emit(report, json)
-    if not result.good:
-        console.error(f"{case_file}: every run failed; see {target}/report.json")
-        raise typer.Exit(1)
-    rows = [[name, str(o["runs"]), f"{o['fraction']:.2f} [{o['lower']:.2f}, {o['upper']:.2f}]"]
-            for name, o in result.outcomes().items()]  # fmt: skip
-    console.table("where the runs end", ["attractor", "runs", "fraction [95 %]"], rows)
-    life = result.lifetimes()["mean_lifetime"]
-    if life["mean"]:
-        console.info(f"mean lifetime of the transient: {life['mean']:.0f} forcing periods "
-                     f"[{life['lower']:.0f}, {life['upper']:.0f}] (95 %)")  # fmt: skip
-    console.success(f"wrote {', '.join(report['files'])} to {target}")
+        if not result.good:
+            console.error(f"{case_file}: every run failed; see {target}/report.json")
+            raise typer.Exit(1)
+        rows = [[name, str(o["runs"]),
+                 f"{o['fraction']:.2f} [{o['lower']:.2f}, {o['upper']:.2f}]"]
+                for name, o in result.outcomes().items()]  # fmt: skip
+        console.table("where the runs end", ["attractor", "runs", "fraction [95 %]"], rows)
+        life = result.lifetimes()["mean_lifetime"]
+        if life["mean"]:
+            console.info(f"mean lifetime of the transient: {life['mean']:.0f} forcing periods "
+                         f"[{life['lower']:.0f}, {life['upper']:.0f}] (95 %)")  # fmt: skip
+        console.success(f"wrote {', '.join(report['files'])} to {target}")
