@@ -108,3 +108,19 @@ def test_lightly_damped_free_whirl_is_converging_not_period_4_or_5(eta):
     beta = math.sqrt(1.0 - RUN_UP["nu"] ** 2)  # damped natural frequency
     turn = (beta * params.period / (2 * math.pi)) % 1.0
     assert abs(result.contraction.rotation) == pytest.approx(min(turn, 1 - turn), abs=1e-7)
+
+
+def test_every_claim_the_docs_name_is_in_the_claims_script():
+    """docs/claims.py regenerates the numbers that docs/ quotes next to its name."""
+    import importlib.util
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location("claims", root / "docs" / "claims.py")
+    claims = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(claims)
+    named = set()
+    for path in [root / "README.md", *(root / "docs").glob("*.md")]:
+        named |= set(re.findall(r"python docs/claims\.py ([a-z-]+)", path.read_text()))
+    assert named and named <= set(claims.CLAIMS), named - set(claims.CLAIMS)
