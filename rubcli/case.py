@@ -461,11 +461,13 @@ class SweepSection(_Section):
 OrbitParameter = Literal["eta", "mu", "K", "e", "nu", "Rp"]
 OrbitStart = Literal["initial", "transient", "synchronous_rub"]
 OrbitDirections = Literal["both", "up", "down"]
+OrbitKind = Literal["periodic", "whirl"]
 
 
 class OrbitsSection(_Section):
     """[orbits]: the branch to continue (nondimensional, also for [physical] cases)."""
 
+    kind: OrbitKind = "periodic"  # periodic orbits of the map, or whirls of unknown rate (e = 0)
     parameter: OrbitParameter
     min: float  # parameter window; the case's value must lie in it
     max: float
@@ -522,6 +524,34 @@ class OrbitsSection(_Section):
         return self.max_step if self.max_step is not None else 5.0 * self.step
 
 
+# ======================================================================== [ensemble]
+# Owned by `rubcli ensemble` (docs/reproduction.md): a cloud of starts x a tolerance ladder.
+
+
+class EnsembleSection(_Section):
+    """[ensemble]: the runs of `rubcli ensemble` and how each run's end is analysed."""
+
+    runs: int = Field(default=20, ge=1, le=100_000)  # starts: the case's own and runs - 1 more
+    spread: float = Field(default=1e-6, ge=0)  # distance of the other starts, clearances
+    seed: int = Field(default=0, ge=0)  # of the random directions
+    periods: int | None = Field(default=None, gt=0, le=10_000_000)  # default [time] periods
+    record_periods: int = Field(default=200, ge=16)  # the end analysed (section, exponent)
+    methods: list[MethodName] | None = Field(default=None, min_length=1)  # default [solver]'s first
+    rtols: list[float] | None = Field(default=None, min_length=1)  # default [solver] rtol
+    lyapunov: bool = True  # compute the exponent where the section map does not decide
+    lyapunov_periods: int = Field(default=300, gt=0)
+    settle_tolerance: float = Field(default=0.05, gt=0, lt=1)  # reached: closer than this
+
+    _methods_unique = field_validator("methods")(_unique)
+
+    @field_validator("rtols")
+    @classmethod
+    def _rtols(cls, value: list[float] | None) -> list[float] | None:
+        if value is not None and not all(0.0 < v < 1e-2 for v in value):
+            raise PydanticCustomError("rtols", "each rtol must lie in (0, 1e-2)")
+        return value
+
+
 # ======================================================================= whole file
 
 
@@ -540,6 +570,7 @@ class CaseFile(_Section):
     analysis: AnalysisSection | None = None
     sweep: SweepSection | None = None
     orbits: OrbitsSection | None = None
+    ensemble: EnsembleSection | None = None
 
     @model_validator(mode="after")
     def _run_fits_in_memory(self) -> CaseFile:

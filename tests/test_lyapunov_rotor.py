@@ -6,9 +6,8 @@ Lyapunov branch of ``classify_solution``) against independent expectations.
   like exp(-nu tau) times a bounded rotation, so the largest exponent is exactly -nu.
 - On a quasi-periodic torus (Figure 3 at mu = 0.02, docs/reproduction.md) the largest
   exponent is zero: a shift along the torus neither grows nor decays.
-- At mu = 0.04 the response is chaotic (docs/reproduction.md, "Settings behind 'chaotic
-  at mu = 0.04'"): a positive exponent beyond its error bar, consistent with the full
-  run's 0.057 +- 0.018 per tau.
+- At mu = 0.04 the motion from the caption's start is a chaotic transient
+  (docs/reproduction.md): a positive exponent beyond its error bar.
 
 The propagator is dop853-jit (the DOP853 steps of scipy's dop853, compiled) so that each
 test takes well under a few seconds; the budgets are in periods, not in wall time.
@@ -28,7 +27,6 @@ from rubcli.solvers import solve
 
 NU, ETA, E, K, RP = 0.009478, 0.7818, 7.52, 17.6, 46.16  # Figure 3 caption
 FIG3_START = (0.88544, -0.8039, 0.0, 0.0)
-FULL_RUN_EXPONENT, FULL_RUN_STDERR = 0.057, 0.018  # docs/reproduction.md, analytic at mu=0.04
 
 
 def fig3(mu: float) -> ModelParams:
@@ -61,26 +59,21 @@ def test_exponent_on_the_stable_synchronous_rub_is_minus_nu():
     assert est.n_intervals == 200 and est.running.size == 200
 
 
-def test_classifier_reads_a_negative_exponent_as_an_orbit_still_approached():
+def test_classifier_reads_a_section_still_contracting_as_converging():
     """Started 0.01 off the rub, the section has not settled within 1e-4 after 40 periods
-    (the offset decays like exp(-nu tau): ~5e-4 left), so the classifier computes the
-    exponent: negative, equal to -nu, hence a periodic orbit still being approached."""
+    (the offset decays like exp(-nu tau): ~5e-4 left). The section map is linear there
+    and contracts by exp(-nu T) a period (every rotating-frame eigenvalue has real part
+    -nu at mu = 0): "converging to period 1" with that rate, and no exponent needed."""
     p = fig3(0.0)
     start = model.synchronous_rub(np.array([0.0]), p)[:, 0] + np.array([0.01, 0.0, 0.0, 0.0])
     sol = solve(Problem.from_periods(p, tuple(start), 40, 50), "dop853-jit", rtol=1e-10)
     assert sol.success, sol.message
-    response = rsp.classify_solution(
-        sol,
-        transient_periods=20,
-        lyapunov_periods=200,
-        lyapunov_method="dop853-jit",
-        lyapunov_options={"rtol": 1e-12, "atol": 1e-14},
-    )
-    assert response.kind == rsp.PERIODIC and response.period == 1
-    lyap = response.lyapunov
-    assert lyap is not None, response.message
-    assert abs(lyap.exponent + NU) < 3.0 * lyap.stderr < 0.3 * NU
-    assert "still being approached" in response.message
+    response = rsp.classify_solution(sol, transient_periods=20, lyapunov_method="dop853-jit")
+    assert (response.kind, response.period) == (rsp.CONVERGING, 1), response.message
+    assert response.lyapunov is None
+    rate = response.contraction.rate
+    assert rate == pytest.approx(math.exp(-NU * p.period), abs=3 * response.contraction.rate_stderr)
+    assert response.contraction.rate_stderr < 1e-3
 
 
 def test_exponent_on_a_quasi_periodic_torus_is_zero():
@@ -96,18 +89,20 @@ def test_exponent_on_a_quasi_periodic_torus_is_zero():
     )
     lyap = response.lyapunov
     assert response.kind == rsp.QUASI_PERIODIC, response.message
-    assert lyap is not None and "a torus" in response.message
+    assert lyap is not None and "zero within its error" in response.message
     # zero within its error, and an error small enough to tell zero from -nu
     assert abs(lyap.exponent) <= max(rsp.LYAPUNOV_FLOOR, rsp.LYAPUNOV_SIGMAS * lyap.stderr)
     assert rsp.LYAPUNOV_SIGMAS * lyap.stderr < 0.5 * NU
 
 
-def test_shortened_chaotic_run_at_mu_004():
-    """The settings of docs/reproduction.md's "chaotic at mu = 0.04" (the analytic method
-    at 400 steps per period from the caption's start, a DOP853 Lyapunov run from the end
-    of it, renormalised once per period, d0 = 1e-7) shortened from 300 + 100 periods to
-    60 + 50: the exponent is positive beyond three standard errors, and consistent with
-    the full run's value."""
+def test_chaotic_transient_at_mu_004():
+    """The paper's method from the caption's start at mu = 0.04 (400 steps per period),
+    over 60 periods: the run is in its chaotic transient (docs/reproduction.md: it later
+    falls into dry whip or onto a partial-rub torus, a matter of chance that
+    `rubcli ensemble cases/paper/fig3-ensemble.toml` counts). A DOP853 Lyapunov run from
+    its end, renormalised once per period, d0 = 1e-7: positive beyond three standard
+    errors. How long a full-length run stays chaotic, and so the exponent of its last
+    100 periods, is what round-off decides."""
     p = fig3(0.04)
     sol = solve(Problem.from_periods(p, FIG3_START, 60, 50), "analytic", steps_per_period=400)
     assert sol.success, sol.message
@@ -117,9 +112,7 @@ def test_shortened_chaotic_run_at_mu_004():
     lyap = response.lyapunov
     assert response.kind == rsp.CHAOTIC, response.message
     assert lyap.exponent > rsp.LYAPUNOV_SIGMAS * lyap.stderr
-    assert lyap.stderr < 0.05
-    combined = math.hypot(lyap.stderr, FULL_RUN_STDERR)
-    assert abs(lyap.exponent - FULL_RUN_EXPONENT) < 3.0 * combined
+    assert 0.02 < lyap.exponent < 0.2 and lyap.stderr < 0.05
 
 
 def test_rotor_propagator_reports_a_failed_solve():

@@ -64,11 +64,23 @@ def test_period_tolerance_is_relative_to_orbit_size():
 
 
 def test_two_frequency_signal_is_quasi_periodic():
-    # Incommensurate frequencies 1 and sqrt(2): the section fills a circle.
+    # Incommensurate frequencies 1 and sqrt(2): the section is a circle turned by
+    # sqrt(2) - 1 of a turn each period, exactly; the section map is a rotation, which the
+    # linear fit finds with modulus 1 and that rotation number.
     result = _classify(_states([(1.2, 1.0), (0.3, math.sqrt(2.0))]))
     assert result.kind == rsp.QUASI_PERIODIC
     assert result.period is None
-    assert result.birkhoff_digits > rsp.REGULAR_DIGITS
+    evidence = result.evidence()
+    assert evidence["contraction_rate"] == pytest.approx(1.0, abs=1e-9)
+    assert evidence["rotation_number"] == pytest.approx(math.sqrt(2.0) - 1.0, abs=1e-9)
+    assert result.to_dict()["label"] == "quasi-periodic (torus)"
+    # an exponent below zero cannot make a neutral section contract (it has not converged:
+    # the dry whip's case); a positive one contradicts the torus
+    points = rsp.stroboscopic_section(TIME, _states([(1.2, 1.0), (0.3, math.sqrt(2.0))]),
+                                      PERIOD, transient_periods=20).points  # fmt: skip
+    for exponent, kind in ((-0.0075, rsp.QUASI_PERIODIC), (0.0075, rsp.UNDECIDED)):
+        lyap = rsp.LyapunovEstimate(exponent, 1e-3, PERIOD, 100, 1e-7, np.zeros(1))
+        assert rsp.classify_section(points, lyapunov=lyap).kind == kind
 
 
 def test_diverging_signal_is_unbounded():
@@ -87,8 +99,9 @@ def test_non_finite_section_is_unbounded():
     assert rsp.classify_section(points).kind == rsp.UNBOUNDED
 
 
-def test_too_short_a_section_is_undetermined():
-    assert rsp.classify_section(np.ones((3, 4))).kind == rsp.UNDETERMINED
+def test_too_short_a_section_is_undecided():
+    result = rsp.classify_section(np.ones((3, 4)))
+    assert result.kind == rsp.UNDECIDED and result.label == "undecided: record too short"
 
 
 def lorenz(t, s, sigma=10.0, rho=28.0, beta=8.0 / 3.0):
@@ -124,7 +137,7 @@ def test_lyapunov_of_a_linear_flow_is_its_largest_eigenvalue():
     assert est.exponent == pytest.approx(0.3, abs=1e-6)  # floor: cancellation in s2 - s1
 
 
-def test_lorenz_is_chaotic_with_and_without_an_exponent():
+def test_lorenz_is_chaotic_with_an_exponent_and_undecided_without():
     from scipy.integrate import solve_ivp
 
     sol = solve_ivp(
@@ -137,20 +150,142 @@ def test_lorenz_is_chaotic_with_and_without_an_exponent():
         dense_output=True,
     )
     points = sol.sol(np.arange(20.0, 320.0, 1.0)).T
-    assert rsp.classify_section(points).kind == rsp.CHAOTIC  # Birkhoff test alone
+    # chaos is never claimed without a positive exponent: the irregular section alone is
+    # "undecided"
+    alone = rsp.classify_section(points)
+    assert alone.kind == rsp.UNDECIDED and "chaos needs a positive exponent" in alone.message
     est = rsp.LyapunovEstimate(0.9, 0.01, 1.0, 300, 1e-7, np.full(300, 0.9))
     result = rsp.classify_section(points, lyapunov=est)
     assert result.kind == rsp.CHAOTIC
     assert result.to_dict()["lyapunov"] == 0.9
+    assert result.to_dict()["evidence"]["lyapunov_significance"] == pytest.approx(90.0)
 
 
-def test_lyapunov_sign_decides_between_torus_and_attracting_orbit():
-    points = _states([(1.2, 1.0), (0.3, math.sqrt(2.0))])[::50][20:]
-    zero = rsp.LyapunovEstimate(1e-4, 1e-4, 1.0, 100, 1e-7, np.zeros(100))
+GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
+
+
+def _torus_section(n=200, rho=GOLDEN):
+    """A nonlinear invariant circle turned by rho each period: z_k = f(2 pi rho k) with
+    three harmonics, and velocities from a second smooth function of the same angle."""
+    theta = 2.0 * math.pi * rho * np.arange(n)
+    z = 1.5 * np.exp(1j * theta) + 0.4 * np.exp(2j * theta) + 0.25 * np.exp(-3j * theta)
+    v = 0.7 * np.exp(1j * (theta + 0.3)) - 0.2 * np.exp(-2j * theta)
+    return np.column_stack([z.real, z.imag, v.real, v.imag]), rho
+
+
+def test_nonlinear_torus_is_quasi_periodic_with_its_rotation_number():
+    points, rho = _torus_section()
+    result = rsp.classify_section(points)
+    assert result.kind == rsp.QUASI_PERIODIC, result.message
+    # NAFF's dominant line is the rotation itself (the largest harmonic), located to far
+    # below the Fourier resolution 1/100, and the same in both halves of the record
+    assert result.frequencies.rotation_number == pytest.approx(rho - 1.0, abs=1e-7)
+    assert result.frequencies.diffusion < 1e-6
+    zero = rsp.LyapunovEstimate(1e-4, 1e-3, 1.0, 300, 1e-7, np.zeros(1))
     assert rsp.classify_section(points, lyapunov=zero).kind == rsp.QUASI_PERIODIC
+
+
+def test_weakly_positive_exponent_is_undecided_not_a_torus():
+    """0.009 +- 0.004 per unit time is 2.25 standard errors: neither zero nor positive."""
+    points, _ = _torus_section()
+    weak = rsp.LyapunovEstimate(0.009, 0.004, 1.0, 100, 1e-7, np.zeros(1))
+    result = rsp.classify_section(points, lyapunov=weak)
+    assert result.kind == rsp.UNDECIDED, result.message
+    assert result.label == "undecided: record too short"
+    assert "neither zero nor positive" in result.message
+    # the same exponent with a quarter of the error is positive (9 standard errors)
+    sharp = rsp.LyapunovEstimate(0.009, 0.001, 1.0, 1600, 1e-7, np.zeros(1))
+    assert rsp.classify_section(points, lyapunov=sharp).kind == rsp.CHAOTIC
+    # and zero within 2 errors that exclude 10 % growth a period: a torus
+    small = rsp.LyapunovEstimate(0.001, 0.002, 1.0, 1600, 1e-7, np.zeros(1))
+    assert rsp.classify_section(points, lyapunov=small).kind == rsp.QUASI_PERIODIC
+
+
+def test_negative_exponent_on_a_nonlinear_section_is_converging_of_unknown_period():
+    points, _ = _torus_section()
     negative = rsp.LyapunovEstimate(-0.05, 1e-3, 1.0, 100, 1e-7, np.zeros(100))
     result = rsp.classify_section(points, lyapunov=negative)
-    assert result.kind == rsp.PERIODIC and "still being approached" in result.message
+    assert result.kind == rsp.CONVERGING and result.period is None
+    assert result.label == "converging" and "still being approached" in result.message
+
+
+def _spiral(n, modulus, turn, centre=(1.0, -0.5, 0.2, 0.3), period=1, seed=1):
+    """Section points of a linear map in 4-D: one complex pair (modulus, turn in cycles
+    per period) and a faster one, about a fixed point (or a p-cycle of centres)."""
+    rng = np.random.default_rng(seed)
+    q, _ = np.linalg.qr(rng.normal(size=(4, 4)))  # a generic basis: the modes mix
+    lam1 = modulus * np.exp(2j * math.pi * turn)
+    lam2 = 0.5 * np.exp(2j * math.pi * 0.31)
+    k = np.arange(n)
+    u = np.column_stack([(0.3 * lam1**k).real, (0.3 * lam1**k).imag,
+                         (0.2 * lam2**k).real, (0.2 * lam2**k).imag])  # fmt: skip
+    centres = np.array(centre, dtype=float) + np.array([[0.8 * (j % period), 0, 0, 0]
+                                                          for j in range(n)])  # fmt: skip
+    return centres + u @ q.T
+
+
+def test_slow_spiral_turning_by_a_seventh_is_converging_to_period_1():
+    """The failure near the Neimark-Sacker point of the paper's machine, built exactly:
+    a spiral that turns 51.75 degrees a period (about 360/7) and contracts by 0.998 a
+    period returns close to itself after 7 periods, never after 1. With a negative
+    exponent the old rules called it "period 7"; it converges to a fixed point."""
+    points = _spiral(100, 0.998, 51.75 / 360.0)
+    distances = rsp.return_distances(points, 1.0)
+    assert min(distances, key=distances.get) == 7  # the trap
+    negative = rsp.LyapunovEstimate(-0.002, 1e-4, 1.0, 100, 1e-7, np.zeros(1))
+    result = rsp.classify_section(points, scale=1.0, lyapunov=negative)
+    assert (result.kind, result.period) == (rsp.CONVERGING, 1), result.message
+    assert result.label == "converging to period 1"
+    assert result.contraction.rate == pytest.approx(0.998, abs=1e-9)
+    assert abs(result.contraction.rotation) * 360.0 == pytest.approx(51.75, abs=1e-7)
+    assert result.lyapunov is None  # the section map decided: no exponent was needed
+    # the same spiral growing by 1.002 a period: leaving an unstable orbit
+    growing = rsp.classify_section(_spiral(100, 1.002, 51.75 / 360.0), scale=1.0)
+    assert growing.kind == rsp.UNDECIDED and "leaving a period-1 orbit" in growing.message
+    assert growing.evidence()["contraction_rate"] == pytest.approx(1.002, abs=1e-9)
+
+
+def test_spiral_onto_a_two_cycle_is_converging_to_period_2():
+    points = _spiral(120, 0.95, 0.1, period=2)
+    result = rsp.classify_section(points, scale=1.0)
+    assert (result.kind, result.period) == (rsp.CONVERGING, 2), result.message
+    assert result.contraction.rate == pytest.approx(0.95, abs=1e-9)  # per forcing period
+
+
+def test_exact_period_one_orbit_has_no_contraction_to_report():
+    points = np.tile([1.0, -0.5, 0.2, 0.3], (50, 1))
+    result = rsp.classify_section(points, scale=1.2)
+    assert (result.kind, result.period, result.contraction) == (rsp.PERIODIC, 1, None)
+
+
+def henon_propagator(a=1.4, b=0.3):
+    """The Henon map as a propagator: dt (an integer) iterations per call."""
+
+    def propagate(t, s, dt):
+        x, y = s
+        for _ in range(int(round(dt))):
+            x, y = 1.0 - a * x * x + y, b * x
+        return np.array([x, y])
+
+    return propagate
+
+
+def test_henon_map_is_chaotic_with_its_published_exponent():
+    # J. C. Sprott, Chaos and Time-Series Analysis (Oxford, 2003), Table A.1 (Henon map,
+    # a = 1.4, b = 0.3): lambda_1 = 0.41922 per iteration.
+    propagate = henon_propagator()
+    state = np.array([0.1, 0.1])
+    for _ in range(100):
+        state = propagate(0, state, 1)
+    points = [state]
+    for _ in range(199):
+        points.append(propagate(0, points[-1], 1))
+    est = rsp.largest_lyapunov(propagate, 0.0, points[-1], interval=1.0, n_intervals=2000,
+                               d0=1e-9, transient_intervals=20)  # fmt: skip
+    assert est.exponent == pytest.approx(0.41922, abs=0.02)
+    result = rsp.classify_section(np.array(points), lyapunov=est)
+    assert result.kind == rsp.CHAOTIC, result.message
+    assert rsp.classify_section(np.array(points)).kind == rsp.UNDECIDED
 
 
 def test_lyapunov_is_not_computed_for_a_periodic_section():
@@ -161,11 +296,16 @@ def test_lyapunov_is_not_computed_for_a_periodic_section():
     assert result.kind == rsp.PERIODIC and result.lyapunov is None
 
 
-def test_birkhoff_digits_separate_regular_from_chaotic_series():
-    n = np.arange(400)
-    rotation = np.cos(2 * math.pi * (math.sqrt(5.0) - 1.0) / 2.0 * n)
-    assert rsp.weighted_birkhoff_digits(rotation) > 8
-    x = [0.3]
-    for _ in range(399):
-        x.append(4.0 * x[-1] * (1.0 - x[-1]))  # logistic map at r = 4: chaotic
-    assert rsp.weighted_birkhoff_digits(np.array(x)) < 3
+def test_refined_frequencies_locate_lines_far_below_the_fourier_resolution():
+    """NAFF (Laskar 1993) on 64 samples of three lines: each within 1e-5 of the truth,
+    where the FFT's bins are 1/64 apart (the error left is the lines' leakage into one
+    another through the window)."""
+    from rubcli.analysis.section_map import refined_frequencies
+
+    k = np.arange(64)
+    truth = [(0.1234567, 1.0), (-0.3141593, 0.5), (0.4142136, 0.25)]
+    z = sum(a * np.exp(2j * math.pi * f * k) for f, a in truth)
+    found = refined_frequencies(z, lines=3)
+    for (f, a), (g, b) in zip(truth, found, strict=True):
+        assert g == pytest.approx(f, abs=1e-5)
+        assert b == pytest.approx(a, rel=1e-3)

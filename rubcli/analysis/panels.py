@@ -119,8 +119,9 @@ def response_summary(responses: Sequence[MethodResponse]) -> dict[str, Any] | No
         return None
     by_method = {r.method: r.to_dict() for r in responses}
     first = by_method[responses[0].method]
-    return {"method": responses[0].method, "kind": first["kind"], "period": first["period"],
-            "lyapunov": first["lyapunov"], "by_method": by_method}  # fmt: skip
+    return {"method": responses[0].method, "kind": first["kind"], "label": first["label"],
+            "period": first["period"], "lyapunov": first["lyapunov"],
+            "evidence": first["evidence"], "by_method": by_method}  # fmt: skip
 
 
 # --------------------------------------------------------------------------- panels

@@ -1,26 +1,47 @@
-"""Classification of the steady response: Poincare section, period, Lyapunov exponent.
+"""Classification of the steady response from the stroboscopic section, with its evidence.
 
 The rotor is forced with period ``T = 2 pi / eta``. Its steady response is read from
 the *stroboscopic Poincare section*: one state per forcing period, after a transient.
+Each class comes with the numbers that decided it (``Response.evidence``), and the
+tests run in this order:
 
-- **periodic** with period ``p`` (in forcing periods): the section repeats itself every
-  ``p`` points, ``|P[k+p] - P[k]| <= rel_tol * scale`` over the second half of the
-  section, where ``scale`` is the size of the orbit (not of the section, which is a
-  single point for a period-1 orbit). The smallest such ``p`` is reported.
-- **quasi-periodic**: not periodic, and either the largest Lyapunov exponent is zero
-  within its uncertainty (a torus attractor), or, when no exponent is available, the
-  section passes the weighted Birkhoff average test (Das, Saiki, Sander and Yorke,
-  "Quantitative quasiperiodicity", Nonlinearity 30 (2017) 4111): time averages along a
-  quasi-periodic orbit converge faster than any power of N with the smooth weight
-  ``exp(-1/(t (1 - t)))``, on a chaotic one only like ``N^(-1/2)``.
-- **chaotic**: the largest Lyapunov exponent is positive beyond its uncertainty (or,
-  without an exponent, the Birkhoff test fails; the result then says it is unconfirmed).
-- **unbounded**: non-finite states, states beyond ``bound``, or a section that keeps
-  growing (its size in the last quarter exceeds ``growth_factor`` times the first).
-
-A negative exponent on a section that has not settled within tolerance means an
-attracting periodic orbit that is still being approached: reported as periodic, with a
-message saying so.
+1. **unbounded**: non-finite states, states beyond ``bound``, or a section that keeps
+   growing (its size in the last quarter exceeds ``growth_factor`` times the first).
+2. **periodic, period p**: the section repeats itself every ``p`` points,
+   ``|P[k+p] - P[k]| <= rel_tol * scale`` over the second half of the section, where
+   ``scale`` is the size of the orbit (not of the section, which is a single point for a
+   period-1 orbit); for p > 1 the return distance must also be below ``rel_tol`` of the
+   distance between the cycle's own points, so that a small section turning by about
+   360/p degrees a period is not taken for a p-cycle. The smallest such p is reported,
+   with the contraction still measured on it, if any.
+3. **the section map's linear regime** (``analysis.section_map.linear_fit``): for
+   p = 1 ... ``max_period`` the steps of the section are fitted by ``d_{k+p} = A d_k``;
+   where the fit is linear (relative residual <= ``LINEAR_TOL``) and its leading
+   multiplier has the same modulus in both halves of the record, the modulus decides:
+   below 1, **converging to period p**, with its contraction rate per forcing period,
+   rotation and the periods it needs to settle; above 1, **undecided** (the motion is
+   leaving an unstable period-p orbit: the record ends before it reaches an attractor);
+   1 within its error, a closed curve turned by the map: **quasi-periodic** (a small
+   torus), with its rotation number, unless a positive exponent contradicts it (then
+   undecided). A negative exponent does not: an attracting orbit would contract the
+   section, which the fit measures directly; such an estimate has not yet turned to the
+   torus's neutral direction (slow when the next exponent is close to zero, as on the dry
+   whip, where it is -nu).
+4. otherwise the **largest Lyapunov exponent** (when computed) and the **refined
+   frequencies** of the section (``analysis.section_map.section_frequencies``: NAFF,
+   Laskar 1993, on each half of the record) decide:
+   - **chaotic**: the exponent is positive beyond ``LYAPUNOV_SIGMAS`` standard errors
+     and beyond ``LYAPUNOV_FLOOR``;
+   - **converging** (period not identified): negative beyond the same margin;
+   - **quasi-periodic**: the dominant frequency of the two halves agrees to
+     ``FREQUENCY_TOL`` of the Fourier resolution, and the exponent (if computed) is zero:
+     within ``LYAPUNOV_ZERO_SIGMAS`` standard errors (or ``LYAPUNOV_FLOOR``), with an
+     error small enough to exclude growth of ``LYAPUNOV_RESOLUTION`` per forcing period
+     at ``LYAPUNOV_SIGMAS`` standard errors;
+   - **undecided: record too short** otherwise: an exponent between zero and positive
+     (0.009 +- 0.004 per tau is neither), an error too large to tell, frequencies that
+     drift, or, without an exponent, an irregular section (chaos is never claimed
+     without a positive exponent).
 
 The largest Lyapunov exponent is estimated with two nearby trajectories and periodic
 renormalisation (G. Benettin, L. Galgani, J.-M. Strelcyn, Phys. Rev. A 14 (1976) 2338;
@@ -43,21 +64,35 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from rubcli.analysis.section_map import (
+    LINEAR_TOL,
+    MARGINAL_RATE,
+    Frequencies,
+    LinearFit,
+    linear_fit,
+    section_frequencies,
+)
+
 PERIODIC = "periodic"
 QUASI_PERIODIC = "quasi-periodic"
 CHAOTIC = "chaotic"
 UNBOUNDED = "unbounded"
-UNDETERMINED = "undetermined"
-KINDS = (PERIODIC, QUASI_PERIODIC, CHAOTIC, UNBOUNDED, UNDETERMINED)
+UNDECIDED = "undecided"
+CONVERGING = "converging"
+KINDS = (PERIODIC, QUASI_PERIODIC, CHAOTIC, UNBOUNDED, UNDECIDED, CONVERGING)  # code = index
+RECORD_TOO_SHORT = "record too short"
 
 # Defaults of the classifier, named so that reports can quote them.
 REL_TOL = 1e-4  # periodicity: return distance relative to the orbit size
 MAX_PERIOD = 16  # longest period (in forcing periods) that is looked for
 BOUND = 1e6  # a state beyond this norm is taken as diverged
 GROWTH_FACTOR = 100.0  # section size growth (last quarter / first quarter) = unbounded
-REGULAR_DIGITS = 5.0  # Birkhoff test: digits of agreement that count as regular
-LYAPUNOV_FLOOR = 1e-3  # |lambda| below this (per unit time) counts as zero
-LYAPUNOV_SIGMAS = 3.0  # ... and below this many standard errors
+LYAPUNOV_FLOOR = 1e-3  # |lambda| (per unit time) below this is never called non-zero
+LYAPUNOV_SIGMAS = 3.0  # positive or negative: beyond this many standard errors
+LYAPUNOV_ZERO_SIGMAS = 2.0  # zero: within this many standard errors (or the floor) ...
+LYAPUNOV_RESOLUTION = 0.1  # ... and LYAPUNOV_SIGMAS errors below this per interval
+FREQUENCY_TOL = 0.2  # quasi-periodic: the halves' frequencies agree to this / resolution
+NOISE_FLOOR = 1e-7  # a settled section smaller than this x scale has no contraction to fit
 MIN_SECTION_POINTS = 8
 
 
@@ -139,7 +174,7 @@ def section_from_solution(solution, transient_periods: float = 0.0) -> PoincareS
     )
 
 
-# --------------------------------------------------------------------------- tests
+# --------------------------------------------------------------------------- returns
 
 
 def return_distances(points: np.ndarray, scale: float, max_period: int = MAX_PERIOD) -> dict:
@@ -154,39 +189,6 @@ def return_distances(points: np.ndarray, scale: float, max_period: int = MAX_PER
         diff = points[first + p :] - points[first : n - p]
         out[p] = float(np.max(np.linalg.norm(diff, axis=1)) / scale)
     return out
-
-
-def _birkhoff_weights(n: int) -> np.ndarray:
-    s = (np.arange(n) + 0.5) / n
-    w = np.exp(-1.0 / (s * (1.0 - s)))
-    return w / w.sum()
-
-
-def weighted_birkhoff_digits(values: np.ndarray) -> float:
-    """Digits of agreement between weighted Birkhoff averages of two halves of a series.
-
-    ``-log10 |WB(first half) - WB(second half)| / spread``: large (>= 5 or so) for a
-    periodic or quasi-periodic orbit, small (~1-3) for a chaotic one (Das et al. 2017).
-    ``values`` may be (n,) or (n, d); the smallest over the columns is returned.
-    """
-    values = np.asarray(values, dtype=float)
-    if values.ndim == 1:
-        values = values[:, None]
-    half = values.shape[0] // 2
-    if half < 4:
-        return float("nan")
-    w = _birkhoff_weights(half)
-    digits = []
-    for column in values.T:
-        spread = float(np.ptp(column))
-        if spread == 0.0:
-            digits.append(16.0)
-            continue
-        a = float(w @ column[:half])
-        b = float(w @ column[half : 2 * half])
-        diff = abs(a - b) / spread
-        digits.append(16.0 if diff == 0.0 else min(16.0, -math.log10(diff)))
-    return float(min(digits))
 
 
 # --------------------------------------------------------------------------- Lyapunov
@@ -326,43 +328,124 @@ def rotor_propagator(params, method: str = "dop853", **options) -> Propagator:
 
 @dataclass(frozen=True)
 class Response:
-    """The class of a steady response and the evidence for it."""
+    """The class of a steady response, the evidence that decided it, and its label."""
 
     kind: str  # one of KINDS
-    period: int | None  # in forcing periods, for a periodic response
+    period: int | None  # forcing periods: of a periodic response, or of the orbit approached
     lyapunov: LyapunovEstimate | None
     n_points: int  # section points used
     scale: float  # orbit size the tolerance is relative to
     rel_tol: float
     return_distances: dict = field(default_factory=dict)
-    birkhoff_digits: float | None = None
     message: str = ""
+    contraction: LinearFit | None = None  # the section map's linear fit, when it decided
+    frequencies: Frequencies | None = None  # refined frequencies of the section
+    reason: str = ""  # why an undecided response is undecided
+
+    @property
+    def label(self) -> str:
+        """The class in words: "converging to period 1", "undecided: record too short"."""
+        if self.kind == PERIODIC:
+            return f"periodic, period {self.period}"
+        if self.kind == CONVERGING:
+            return "converging" + (f" to period {self.period}" if self.period else "")
+        if self.kind == QUASI_PERIODIC:
+            return "quasi-periodic (torus)"
+        if self.kind == UNDECIDED and self.reason:
+            return f"undecided: {self.reason}"
+        return self.kind
+
+    def evidence(self) -> dict[str, float]:
+        """The numbers behind the label, NaN where not measured (sweep columns)."""
+        fit, freq, lyap = self.contraction, self.frequencies, self.lyapunov
+        return {
+            "contraction_rate": math.nan if fit is None else fit.rate,
+            "contraction_rate_stderr": math.nan if fit is None else fit.rate_stderr,
+            "rotation_number": _rotation_number(fit, freq),
+            "frequency_diffusion": math.nan if freq is None else freq.diffusion,
+            "lyapunov": math.nan if lyap is None else lyap.exponent,
+            "lyapunov_stderr": math.nan if lyap is None else lyap.stderr,
+            "lyapunov_time": math.nan if lyap is None else lyap.interval * lyap.n_intervals,
+        }
 
     def to_dict(self) -> dict:
         lyap = self.lyapunov
+        evidence = {k: (None if isinstance(v, float) and math.isnan(v) else v)
+                    for k, v in self.evidence().items()}  # fmt: skip
+        if lyap is not None:
+            evidence["lyapunov_significance"] = (
+                lyap.exponent / lyap.stderr if lyap.stderr > 0 else None
+            )
         return {
             "kind": self.kind,
+            "label": self.label,
             "period": self.period,
+            "reason": self.reason or None,
+            "evidence": evidence,
             "lyapunov": None if lyap is None else lyap.exponent,
             "lyapunov_stderr": None if lyap is None else lyap.stderr,
             "lyapunov_details": None if lyap is None else lyap.to_dict(),
+            "contraction": None if self.contraction is None else self.contraction.to_dict(),
+            "frequencies": None if self.frequencies is None else self.frequencies.to_dict(),
             "n_section_points": self.n_points,
             "scale": self.scale,
             "rel_tol": self.rel_tol,
             "return_distances": {str(k): v for k, v in self.return_distances.items()},
-            "birkhoff_digits": self.birkhoff_digits,
             "message": self.message,
         }
 
 
-def _lyapunov_sign(lyap: LyapunovEstimate, floor: float, sigmas: float) -> int:
-    """+1 positive, -1 negative, 0 zero within max(floor, sigmas * stderr)."""
-    margin = max(floor, sigmas * lyap.stderr)
-    if lyap.exponent > margin:
-        return 1
-    if lyap.exponent < -margin:
-        return -1
-    return 0
+def _rotation_number(fit: LinearFit | None, freq: Frequencies | None) -> float:
+    """Rotation per forcing period: the period-1 linear fit's where it decided, else the
+    dominant NAFF line (a p-th iterate's rotation is known only modulo 1/p)."""
+    if fit is not None and (fit.period == 1 or freq is None):
+        return fit.rotation
+    return math.nan if freq is None else freq.rotation_number
+
+
+def lyapunov_verdict(
+    lyap: LyapunovEstimate,
+    floor: float = LYAPUNOV_FLOOR,
+    sigmas: float = LYAPUNOV_SIGMAS,
+    zero_sigmas: float = LYAPUNOV_ZERO_SIGMAS,
+    resolution: float = LYAPUNOV_RESOLUTION,
+) -> str:
+    """ "positive", "negative", "zero" or "unresolved" (module docstring gives the rules)."""
+    x, err = lyap.exponent, lyap.stderr
+    if x > floor and x > sigmas * err:
+        return "positive"
+    if x < -floor and x < -sigmas * err:
+        return "negative"
+    if not sigmas * err * lyap.interval <= resolution:
+        return "unresolved"
+    if abs(x) <= max(floor, zero_sigmas * err):
+        return "zero"
+    return "unresolved"
+
+
+def _lyapunov_text(lyap: LyapunovEstimate) -> str:
+    t = lyap.exponent / lyap.stderr if lyap.stderr > 0 else math.inf
+    return (
+        f"largest Lyapunov exponent {lyap.exponent:.3g} +- {lyap.stderr:.2g} per unit time "
+        f"({t:+.1f} standard errors, over {lyap.n_intervals} intervals)"
+    )
+
+
+def _settled_period(points, distances: dict, rel_tol: float, scale: float) -> int | None:
+    """The smallest p whose return distance is below ``rel_tol`` of the orbit size and,
+    for p > 1, of the distance between the cycle's own points (a slowly turning section
+    that nearly closes after p periods is not a p-cycle)."""
+    for p, d in distances.items():
+        if d > rel_tol:
+            continue
+        if p == 1:
+            return 1
+        last = points[-p:]
+        gaps = np.linalg.norm(last[:, None, :] - last[None, :, :], axis=2)
+        separation = float(np.min(gaps[np.triu_indices(p, 1)])) / scale
+        if d <= rel_tol * separation:
+            return p
+    return None
 
 
 def classify_section(
@@ -371,10 +454,9 @@ def classify_section(
     scale: float | None = None,
     rel_tol: float = REL_TOL,
     max_period: int = MAX_PERIOD,
-    lyapunov: LyapunovEstimate | Callable[[], LyapunovEstimate] | None = None,
+    lyapunov: LyapunovEstimate | Callable[[], LyapunovEstimate | None] | None = None,
     bound: float = BOUND,
     growth_factor: float = GROWTH_FACTOR,
-    regular_digits: float = REGULAR_DIGITS,
     lyapunov_floor: float = LYAPUNOV_FLOOR,
     lyapunov_sigmas: float = LYAPUNOV_SIGMAS,
 ) -> Response:
@@ -383,133 +465,164 @@ def classify_section(
     ``scale`` is the orbit size (default: the largest of the section's extent and the
     norm of its mean; pass the extent of the whole trajectory when it is known, since a
     period-1 section is a single point). ``lyapunov`` is an estimate, or a callable
-    that computes one: it is called only when the section is not periodic.
+    that computes one: it is called only when the section map is not in a linear regime
+    that decides by itself.
     """
     points = np.asarray(points, dtype=float)
     if points.ndim == 1:
         points = points[:, None]
     n = points.shape[0]
+
+    def response(kind, period=None, message="", **evidence):
+        return Response(kind, period, evidence.pop("lyap", None), n, scale_, rel_tol,
+                        distances, message, **evidence)  # fmt: skip
+
+    scale_, distances = math.nan, {}
     if not np.all(np.isfinite(points)):
-        return Response(UNBOUNDED, None, None, n, math.nan, rel_tol, message="non-finite states")
+        return response(UNBOUNDED, message="non-finite states")
     norms = np.linalg.norm(points, axis=1) if n else np.zeros(0)
     if n and norms.max() > bound:
-        return Response(
-            UNBOUNDED,
-            None,
-            None,
-            n,
-            math.nan,
-            rel_tol,
-            message=f"state norm {norms.max():.3g} exceeds the bound {bound:g}",
+        return response(
+            UNBOUNDED, message=f"state norm {norms.max():.3g} exceeds the bound {bound:g}"
         )
     if n < MIN_SECTION_POINTS:
-        return Response(
-            UNDETERMINED,
-            None,
-            None,
-            n,
-            math.nan,
-            rel_tol,
+        return response(
+            UNDECIDED,
             message=f"only {n} section points (need {MIN_SECTION_POINTS}): run longer",
+            reason=RECORD_TOO_SHORT,
         )
     if scale is None:
         extent = float(np.max(np.ptp(points, axis=0)))
         scale = max(extent, float(np.linalg.norm(points.mean(axis=0))))
-    scale = max(float(scale), np.finfo(float).tiny)
+    scale_ = max(float(scale), np.finfo(float).tiny)
     quarter = max(1, n // 4)
     spread_first = float(np.max(np.ptp(points[:quarter], axis=0))) + float(np.max(norms[:quarter]))
     spread_last = float(np.max(np.ptp(points[-quarter:], axis=0))) + float(np.max(norms[-quarter:]))
     if spread_last > growth_factor * spread_first:
-        return Response(
+        return response(
             UNBOUNDED,
-            None,
-            None,
-            n,
-            scale,
-            rel_tol,
             message=f"the section grows by {spread_last / spread_first:.3g}x over the run",
         )
-    distances = return_distances(points, scale, max_period)
-    for p, d in distances.items():
-        if d <= rel_tol:
-            return Response(
-                PERIODIC,
-                p,
-                None,
-                n,
-                scale,
-                rel_tol,
-                distances,
-                message=f"section repeats every {p} forcing period(s) within {d:.2g} x scale",
-            )
-    digits = weighted_birkhoff_digits(points / scale)
+    distances = return_distances(points, scale_, max_period)
+    spread = np.ptp(points, axis=0)
+    scaled = points / np.where(spread > 1e-12 * scale_, spread, scale_)
+    settled = _settled_period(points, distances, rel_tol, scale_)
+    if settled is not None:
+        text = f"section repeats every {settled} forcing period(s) within " \
+               f"{distances[settled]:.2g} x scale"  # fmt: skip
+        fit = None
+        if float(np.max(spread)) > NOISE_FLOOR * scale_:
+            fit = linear_fit(scaled, settled)
+            if fit is None or not (fit.residual <= LINEAR_TOL and fit.significant
+                                   and fit.constant):  # fmt: skip
+                fit = None
+        if fit is not None and fit.log_rate > 0.0:
+            return response(
+                UNDECIDED, settled,
+                f"{text}, but leaving that orbit: the section map is linear (residual "
+                f"{fit.residual:.1g}) with a growing mode, {fit.rate:.6g} +- "
+                f"{fit.rate_stderr:.1g} per forcing period; the record ends before the "
+                "motion reaches its attractor",
+                contraction=fit, reason=RECORD_TOO_SHORT,
+            )  # fmt: skip
+        if fit is not None:
+            text += f"; still contracting by {fit.rate:.6g} per period"
+        return response(PERIODIC, settled, text, contraction=fit)
+
+    freq = section_frequencies(points)
+    marginal = None
+    for p in range(1, max_period + 1):
+        fit = linear_fit(scaled, p)
+        if fit is None or fit.residual > LINEAR_TOL:
+            continue
+        rate = f"{fit.rate:.6g} +- {fit.rate_stderr:.1g} per forcing period"
+        turn = f"turning {abs(fit.rotation) * 360.0:.2f} deg per period"
+        if fit.significant and fit.constant and fit.log_rate < 0.0:
+            q = fit.resolved_period()
+            return response(CONVERGING, q, _converging_text(fit, q, rate, turn, rel_tol, scale_),
+                            contraction=fit, frequencies=freq)  # fmt: skip
+        if fit.significant and fit.constant and fit.log_rate > 0.0:
+            return response(
+                UNDECIDED, p,
+                f"leaving a period-{p} orbit: the section map is linear (residual "
+                f"{fit.residual:.1g}) with a growing mode, {rate}, {turn}; the record ends "
+                "before the motion reaches its attractor",
+                contraction=fit, frequencies=freq, reason=RECORD_TOO_SHORT,
+            )  # fmt: skip
+        if not fit.significant and fit.log_rate_spread <= 10.0 * MARGINAL_RATE:
+            marginal = fit
+            break
+
     lyap = lyapunov() if callable(lyapunov) else lyapunov
-    if lyap is not None:
-        sign = _lyapunov_sign(lyap, lyapunov_floor, lyapunov_sigmas)
-        text = f"largest Lyapunov exponent {lyap.exponent:.4g} +- {lyap.stderr:.2g}"
-        if sign > 0:
-            return Response(
-                CHAOTIC,
-                None,
-                lyap,
-                n,
-                scale,
-                rel_tol,
-                distances,
-                digits,
-                message=f"{text}: positive",
-            )
-        if sign < 0:
-            best = min(distances, key=distances.get) if distances else None
-            return Response(
-                PERIODIC,
-                best,
-                lyap,
-                n,
-                scale,
-                rel_tol,
-                distances,
-                digits,
-                message=f"{text}: negative, an attracting periodic orbit still being "
-                f"approached (section not settled within {rel_tol:g}; "
-                f"closest return every {best} period(s)); run longer to confirm",
-            )
-        return Response(
-            QUASI_PERIODIC,
-            None,
-            lyap,
-            n,
-            scale,
-            rel_tol,
-            distances,
-            digits,
-            message=f"{text}: zero within its uncertainty (a torus)",
+    verdict = None if lyap is None else lyapunov_verdict(lyap, lyapunov_floor, lyapunov_sigmas)
+    lyap_text = "no Lyapunov exponent computed" if lyap is None else _lyapunov_text(lyap)
+    regular = freq is not None and freq.diffusion <= FREQUENCY_TOL * freq.resolution
+    freq_text = "" if freq is None else (
+        f"section frequency {freq.rotation_number:.6f} cycles per period, drifting "
+        f"{freq.diffusion:.1g} between the halves (resolution {freq.resolution:.2g})"
+    )  # fmt: skip
+    if marginal is not None:
+        text = (
+            f"the section map is close to a rotation of a closed curve (linear fit residual "
+            f"{marginal.residual:.1g}): modulus "
+            f"{marginal.rate:.6g} +- {marginal.rate_stderr:.1g} per period (1 within error), "
+            f"rotation number {_rotation_number(marginal, freq):.6f}; {lyap_text}"
         )
-    if digits >= regular_digits:
-        return Response(
-            QUASI_PERIODIC,
-            None,
-            None,
-            n,
-            scale,
-            rel_tol,
-            distances,
-            digits,
-            message=f"not periodic up to {max_period}; weighted Birkhoff averages agree to "
-            f"{digits:.1f} digits (regular); no Lyapunov exponent computed",
-        )
-    return Response(
-        CHAOTIC,
-        None,
-        None,
-        n,
-        scale,
-        rel_tol,
-        distances,
-        digits,
-        message=f"not periodic up to {max_period}; weighted Birkhoff averages agree to only "
-        f"{digits:.1f} digits (irregular); unconfirmed: no Lyapunov exponent computed",
+        if verdict in (None, "zero"):
+            return response(QUASI_PERIODIC, None, text, lyap=lyap,
+                            contraction=marginal, frequencies=freq)  # fmt: skip
+        if lyap.exponent < 0.0:
+            # An attracting orbit would contract the section, which the fit measures
+            # directly and finds neutral: the exponent has not yet turned to the neutral
+            # direction along the torus (slow where the next exponent is close to 0).
+            return response(
+                QUASI_PERIODIC, None,
+                f"{text}: below zero, but the section does not contract, so the estimate "
+                "has not converged to the torus's zero exponent",
+                lyap=lyap, contraction=marginal, frequencies=freq,
+            )  # fmt: skip
+        return response(UNDECIDED, None, f"{text}: conflicting evidence", lyap=lyap,
+                        contraction=marginal, frequencies=freq,
+                        reason="conflicting evidence")  # fmt: skip
+    nonlinear = f"no linear regime of the section map up to period {max_period}"
+    if verdict == "positive":
+        return response(CHAOTIC, None, f"{lyap_text}: positive; {freq_text}", lyap=lyap,
+                        frequencies=freq)  # fmt: skip
+    if verdict == "negative":
+        return response(
+            CONVERGING, None,
+            f"{lyap_text}: negative, an attracting orbit still being approached; {nonlinear}, "
+            "so its period is not identified yet",
+            lyap=lyap, frequencies=freq,
+        )  # fmt: skip
+    if regular and verdict in (None, "zero"):
+        tail = "zero within its error" if verdict else "quasi-periodicity rests on the frequencies"
+        return response(QUASI_PERIODIC, None, f"{freq_text}; {lyap_text}: {tail}", lyap=lyap,
+                        frequencies=freq)  # fmt: skip
+    if verdict == "unresolved":
+        why = (f"{lyap_text}: neither zero nor positive at this record length; "
+               "a longer Lyapunov record decides")  # fmt: skip
+    elif verdict == "zero":
+        why = f"{lyap_text}: zero within its error, but the {freq_text}"
+    else:
+        why = f"irregular section ({freq_text}); chaos needs a positive exponent: {lyap_text}"
+    return response(UNDECIDED, None, why, lyap=lyap, frequencies=freq, reason=RECORD_TOO_SHORT)
+
+
+def _converging_text(
+    fit: LinearFit, period: int, rate: str, turn: str, rel_tol: float, scale: float
+) -> str:
+    text = (
+        f"converging to a period-{period} orbit: the section map is linear (residual "
+        f"{fit.residual:.1g}) and contracts by {rate}, {turn}"
     )
+    if period != fit.period:
+        text += f" (fitted as its {fit.period // period}-th iterate, whose limits coincide)"
+    remaining = fit.remaining / scale
+    if math.isfinite(remaining) and remaining > rel_tol:
+        settle = math.log(rel_tol / remaining) / fit.log_rate
+        text += f"; {remaining:.2g} x scale from it, within {rel_tol:g} in ~{settle:.0f} periods"
+    return text
 
 
 def classify_solution(
@@ -525,36 +638,27 @@ def classify_solution(
     """Classify the steady response of a rotor ``Solution``.
 
     The section starts after ``transient_periods``; the tolerance is relative to the
-    extent of the trajectory after the transient. If the section is not periodic and
-    ``lyapunov`` is true, the largest exponent is estimated from the end of the run over
-    ``lyapunov_periods`` forcing periods (renormalising once per period) with
-    ``rotor_propagator(lyapunov_method, **lyapunov_options)``.
+    extent of the trajectory after the transient. If the section map does not decide in
+    its linear regime and ``lyapunov`` is true, the largest exponent is estimated from
+    the end of the run over ``lyapunov_periods`` forcing periods (renormalising once per
+    period) with ``rotor_propagator(lyapunov_method, **lyapunov_options)``.
     """
     problem = solution.problem
     period = problem.params.period
     states = np.asarray(solution.states, dtype=float)
     if states.size and not np.all(np.isfinite(states)):
         return Response(
-            UNBOUNDED,
-            None,
-            None,
-            0,
-            math.nan,
-            REL_TOL,
+            UNBOUNDED, None, None, 0, math.nan, REL_TOL,
             message=f"non-finite states ({solution.message})",
-        )
+        )  # fmt: skip
     if not solution.success:
         if "non-finite" in solution.message:
             return Response(UNBOUNDED, None, None, 0, math.nan, REL_TOL, message=solution.message)
         return Response(
-            UNDETERMINED,
-            None,
-            None,
-            0,
-            math.nan,
-            REL_TOL,
+            UNDECIDED, None, None, 0, math.nan, REL_TOL,
             message=f"{solution.method} did not finish: {solution.message}",
-        )
+            reason="the solver did not finish",
+        )  # fmt: skip
     section = section_from_solution(solution, transient_periods)
     after = solution.t >= float(problem.t_eval[0]) + transient_periods * period
     tail = states[after] if np.any(after) else states

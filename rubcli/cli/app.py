@@ -16,7 +16,18 @@ import typer
 from typer.core import TyperGroup
 
 from rubcli import __version__, io
-from rubcli.cli import compare, console, forces_map, init, orbits, run, stress, sweep, validate
+from rubcli.cli import (
+    compare,
+    console,
+    ensemble,
+    forces_map,
+    init,
+    orbits,
+    run,
+    stress,
+    sweep,
+    validate,
+)
 from rubcli.cli.common import EXIT_BUSY, EXIT_INVALID, EXIT_WRITE, close_outputs
 from rubcli.cli.entry import main
 from rubcli.io import signals
@@ -117,6 +128,7 @@ app.command("compare")(compare.command)
 app.command("stress")(stress.command)
 app.command("sweep")(sweep.command)
 app.command("orbits")(orbits.command)
+app.command("ensemble")(ensemble.command)
 
 
 def _version(value: bool) -> None:

@@ -35,6 +35,7 @@ _OPTIONAL_TABLES = """
 # products = ["forces", "taylor_error", "eigen"]
 
 # [orbits]                      # `rubcli orbits`: periodic orbits and continuation
+# kind = "periodic"             # or "whirl": whirls of unknown rate (needs e = 0)
 # parameter = "mu"              # continued in: eta, mu, K, e, nu or Rp (docs/orbits.md)
 # min = 0.0                     # the window; the case's value must lie in it
 # max = 0.06
@@ -49,6 +50,12 @@ _OPTIONAL_TABLES = """
 # direction = "both"            # up, down, both (run-up and run-down) or independent
 # transient_periods = 200       # discarded at every point
 # record_periods = 100          # recorded at every point
+
+# [ensemble]                    # `rubcli ensemble`: a cloud of starts, a tolerance ladder
+# runs = 20                     # starts: [initial] and 19 within `spread` of it
+# spread = 1e-6                 # clearances
+# periods = 2000                # per run
+# rtols = [1e-8, 1e-10]         # every start at every tolerance
 """
 
 SAMPLE_CASE = f"""\

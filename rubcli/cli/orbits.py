@@ -255,6 +255,16 @@ def command(
 ) -> None:
     """Periodic orbits, Floquet multipliers and continuation in one parameter (orbits table)."""
     case = load_or_exit(case_file)
+    if case.settings.orbits is not None and case.settings.orbits.kind == "whirl":
+        from rubcli.cli import whirls
+
+        if overlay is not None:
+            console.error(
+                f'{case_file}: --overlay: draws periodic-orbit branches, not kind = "whirl"'
+            )
+            raise typer.Exit(EXIT_INVALID)
+        target = Path(out) if out is not None else case.output_dir
+        return whirls.run(case_file, case, target, force, quick, json)
     problems = check_case(case)
     overlay_data = None
     if not problems and overlay is not None:

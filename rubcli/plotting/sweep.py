@@ -15,7 +15,8 @@ from rubcli.analysis.sweep.point import RESPONSE_CLASSES
 from rubcli.plotting.cascade import DYNAMIC_RANGE_DB
 
 DIRECTION_COLOURS = {"up": "tab:blue", "down": "tab:orange", "independent": "tab:blue"}
-CLASS_COLOURS = ("tab:green", "tab:blue", "tab:red", "black", "0.75")  # RESPONSE_CLASSES order
+# RESPONSE_CLASSES order: periodic ... undecided, converging
+CLASS_COLOURS = ("tab:green", "tab:blue", "tab:red", "black", "0.75", "tab:cyan")
 WHIRL_COLOURS = {-1: "tab:purple", 0: "0.8", 1: "tab:olive"}
 WHIRL_NAMES = {-1: "backward", 0: "no whirl", 1: "forward"}
 AXIS_LABELS = {
@@ -40,10 +41,10 @@ def _new_figure(width: float, height: float) -> Figure:
 
 
 def _class_note(ds) -> str:
-    """How the classes were decided: with Lyapunov exponents or the Birkhoff test alone."""
+    """How the classes were decided: with Lyapunov exponents or the section alone."""
     if np.isfinite(ds["lyapunov"].values).any():
         return ""
-    return "\n(no Lyapunov: 'chaotic' = Birkhoff test only, unconfirmed)"
+    return "\n(no Lyapunov exponents: chaos never claimed; tori from the section's frequencies)"
 
 
 def _axes_dims(ds) -> list[str]:

@@ -42,13 +42,30 @@ SCALARS = {
     "whirl_amplitude": "whirl radius of the dominant line (clearances)",
     "whirl_direction": "+1 forward, -1 backward, 0 no whirl (static)",
     "static_offset": "amplitude of the 0X line (static offset of the orbit)",
-    "response_class": "0 periodic, 1 quasi-periodic, 2 chaotic, 3 unbounded, 4 undetermined",
-    "response_period": "period of a periodic response, in forcing periods",
-    "lyapunov": "largest Lyapunov exponent, per unit tau (when asked)",
+    "response_class": "0 periodic, 1 quasi-periodic, 2 chaotic, 3 unbounded, 4 undecided, "
+    "5 converging",
+    "response_period": "period of a periodic response, or of the orbit a converging one "
+    "approaches, in forcing periods",
+    "contraction_rate": "factor by which the section map contracts a period where it decided "
+    "in its linear regime (< 1 converging, > 1 leaving, 1 a small torus)",
+    "contraction_rate_stderr": "uncertainty of the contraction rate",
+    "rotation_number": "rotation of the section per forcing period, in turns (linear fit or "
+    "the dominant refined frequency)",
+    "frequency_diffusion": "drift of the section's dominant frequency between the halves of "
+    "the record, turns per period (small on a torus)",
+    "lyapunov": "largest Lyapunov exponent, per unit tau (when asked and needed)",
     "lyapunov_stderr": "standard error of the Lyapunov exponent",
     "energy_residual": "relative energy-balance residual of the recorded window",
     "nsteps": "solver steps (transient + record)",
 }
+EVIDENCE = (
+    "contraction_rate",
+    "contraction_rate_stderr",
+    "rotation_number",
+    "frequency_diffusion",
+    "lyapunov",
+    "lyapunov_stderr",
+)  # from Response.evidence
 WHOLE = ("n_contact_switches", "whirl_direction", "response_class", "response_period", "nsteps")
 RESPONSE_CLASSES = rsp.KINDS  # index = response_class code
 DIRECTION_CODES = {FORWARD: 1, BACKWARD: -1}
@@ -162,7 +179,7 @@ def _compute(task: PointTask) -> PointResult:
         lyapunov_periods=task.lyapunov_periods,
         lyapunov_method=LYAPUNOV_METHOD,
     )
-    lyap = response.lyapunov
+    evidence = response.evidence()
     scalars = {
         "z_min": float(np.min(z)),
         "z_max": float(np.max(z)),
@@ -176,8 +193,7 @@ def _compute(task: PointTask) -> PointResult:
         "static_offset": spec.static_offset,
         "response_class": float(RESPONSE_CLASSES.index(response.kind)),
         "response_period": math.nan if response.period is None else float(response.period),
-        "lyapunov": math.nan if lyap is None else float(lyap.exponent),
-        "lyapunov_stderr": math.nan if lyap is None else float(lyap.stderr),
+        **{name: float(evidence[name]) for name in EVIDENCE},
         "energy_residual": math.nan,
         "nsteps": float(nsteps),
     }
