@@ -20,7 +20,9 @@ reference is ``docs/cases.md``. The method names come from the registry's data
 from __future__ import annotations
 
 import math
+import os
 import re
+import stat
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,9 +39,9 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
-from rubcli import units
+from rubcli import model, units
 from rubcli.model import ModelParams
-from rubcli.problem import Problem
+from rubcli.problem import Problem, resolution_problem
 from rubcli.solvers import registry
 
 MethodName = Literal[registry.NAMES]  # every method of the registry
@@ -66,6 +68,10 @@ MAX_OUTPUT_SAMPLES = 10_000_000
 MAX_CASE_MEMORY_BYTES = 8 * 1024**3
 RUN_BYTES_PER_SAMPLE = 600
 FORCES_MAP_ARRAYS = 24
+
+# A case file is a few kB of TOML (a sweep's value list some 100 kB): a larger file is
+# refused before it is read.
+MAX_CASE_FILE_BYTES = 8 * 1024**2
 
 CASE_NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._-]*$"
 
@@ -135,6 +141,16 @@ class ModelSection(_Section):
     mu: float = Field(default=0.0, ge=0)  # Coulomb friction coefficient
     Rp: float = Field(default=0.0, ge=0)  # rotor radius / clearance
     phi0: float = 0.0  # unbalance phase, rad
+
+    @field_validator("nu", "eta", "e", "K", "mu", "Rp", "phi0")
+    @classmethod
+    def _in_the_models_domain(cls, value: float, info) -> float:
+        """The model's domain (``model.parameter_problem``), the rule a [physical] table's
+        converted values are checked against too."""
+        problem = model.parameter_problem(info.field_name, value)
+        if problem:
+            raise PydanticCustomError("model_domain", problem)
+        return value
 
     def params(self) -> ModelParams:
         return ModelParams(**self.model_dump())
@@ -647,17 +663,50 @@ class Case:
 
 
 def read_case_file(path: str | Path) -> dict[str, Any]:
-    """Step 1: read and parse the TOML file. Raises CaseError naming the file."""
+    """Step 1: read and parse the TOML file. Raises CaseError naming the file.
+
+    Only a regular file of at most ``MAX_CASE_FILE_BYTES`` is read: a directory, a FIFO
+    (which would wait for a writer), a device (``/dev/zero`` never ends) or a larger file
+    is refused before its content is read.
+    """
     path = Path(path)
     try:
-        data = path.read_bytes()
+        # O_NONBLOCK: opening a FIFO does not wait for a writer; it is refused just below
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
     except FileNotFoundError:
         raise CaseError([f"{path}: file not found"]) from None
     except IsADirectoryError:
         raise CaseError([f"{path}: is a directory, not a case file"]) from None
     except OSError as exc:
         raise CaseError([f"{path}: cannot read: {exc.strerror or exc}"]) from None
+    info = os.fstat(fd)
+    if not stat.S_ISREG(info.st_mode):
+        os.close(fd)
+        if stat.S_ISDIR(info.st_mode):
+            raise CaseError([f"{path}: is a directory, not a case file"])
+        raise CaseError(
+            [f"{path}: is not a regular file ({_file_kind(info.st_mode)}), not a case file"]
+        )
+    with os.fdopen(fd, "rb") as handle:
+        too_big = (
+            f"{path}: is larger than {MAX_CASE_FILE_BYTES // 1024**2} MiB, the most a case "
+            "file may hold (a case is a few kB of TOML)"
+        )
+        if info.st_size > MAX_CASE_FILE_BYTES:
+            raise CaseError([too_big])
+        try:
+            data = handle.read(MAX_CASE_FILE_BYTES + 1)  # a file that grows while read
+        except OSError as exc:
+            raise CaseError([f"{path}: cannot read: {exc.strerror or exc}"]) from None
+    if len(data) > MAX_CASE_FILE_BYTES:
+        raise CaseError([too_big])
     return parse_case_text(data, str(path))
+
+
+def _file_kind(mode: int) -> str:
+    kinds = {stat.S_ISFIFO: "a FIFO", stat.S_ISCHR: "a character device",
+             stat.S_ISBLK: "a block device", stat.S_ISSOCK: "a socket"}  # fmt: skip
+    return next((name for test, name in kinds.items() if test(mode)), "a special file")
 
 
 def parse_case_text(data: str | bytes, source: str = "<case>") -> dict[str, Any]:
@@ -677,6 +726,10 @@ def parse_case_text(data: str | bytes, source: str = "<case>") -> dict[str, Any]
             where = f"line {found.group(1)}, column {found.group(2)}"
             raise CaseError([f"{source}: {where}: not valid TOML: {reason}"]) from None
         raise CaseError([f"{source}: not valid TOML: {message}"]) from None
+    except RecursionError:
+        raise CaseError(
+            [f"{source}: not a case file: arrays or tables nested too deeply"]
+        ) from None
 
 
 def validate_case(raw: dict[str, Any], source: str = "<case>") -> CaseFile:
@@ -711,42 +764,49 @@ def assemble_case(
         source = str(path) if path is not None else "<case>"
     init = settings.initial
     scale = None
+    problems = []
     if settings.physical is not None:
         try:
-            params, scale = units.nondimensional_params(**settings.physical.model_dump())
+            values, scale = units.nondimensional_values(**settings.physical.model_dump())
             initial = units.nondimensional_state(init.x, init.y, init.vx, init.vy, scale)
-        except (ArithmeticError, ValueError) as exc:  # values beyond floating-point range
+        except ArithmeticError as exc:  # values beyond floating-point range
             raise CaseError([f"{source}: physical: cannot be converted ({exc})"]) from None
-        table = "physical"
+        # SI values can be valid one by one and still convert to nonsense (an overflow,
+        # an underflow to 0): the converted values must lie in [model]'s domain.
+        for name, value in values.items():
+            why = model.parameter_problem(name, value)
+            if why:
+                problems.append(f"{source}: physical: converts to {name} = {value!r}: {why}")
     else:
         assert settings.model is not None
-        params = settings.model.params()
+        values = settings.model.model_dump()
         initial = (init.x, init.y, init.vx, init.vy)
-        table = "model"
-    problems = []
-    if scale is not None:
-        # SI values can be valid one by one and still convert to nonsense (an overflow,
-        # an underflow to 0): the converted parameters must satisfy [model]'s rules.
-        try:
-            ModelSection.model_validate(params.as_dict())
-        except ValidationError as exc:
-            for error in exc.errors():
-                name = ".".join(str(part) for part in error["loc"])
-                problems.append(
-                    f"{source}: {table}: converts to {name} = {error['input']!r}: {error['msg']}"
-                )
-    if not all(math.isfinite(v) for v in initial):
-        problems.append(f"{source}: initial: converts to a state that is not finite {initial}")
-    t_end = settings.time.periods * 2.0 * math.pi / params.eta if params.eta > 0 else math.inf
-    if not problems and not math.isfinite(t_end):
-        problems.append(f"{source}: time: cannot build the time grid: tau_end = {t_end}")
+    for name, value in zip(("x", "y", "vx", "vy"), initial, strict=True):
+        why = _state_problem(value)
+        if why:
+            converts = f"converts to {value!r}: " if scale is not None else ""
+            problems.append(f"{source}: initial.{name}: {converts}{why}")
     if problems:
         raise CaseError(problems)
+    params = ModelParams(**values)
+    periods = settings.time.periods
+    t_end = periods * params.period
+    if not t_end <= model.MAX_MAGNITUDE:
+        raise CaseError(
+            [
+                f"{source}: time.periods: {periods!r} periods end at tau = {t_end:.3g}, beyond "
+                f"{model.MAX_MAGNITUDE:g} (the model's domain, docs/cases.md)"
+            ]
+        )
+    why = resolution_problem(params, (0.0, t_end))
+    if why:
+        where = "model.K" if scale is None else f"physical: converts to K = {params.K!r}"
+        raise CaseError([f"{source}: {where}: {why}"])
     try:
         problem = Problem.from_periods(
             params,
             initial,
-            periods=settings.time.periods,
+            periods=periods,
             samples_per_period=settings.time.samples_per_period,
             name=settings.case.name,
         )
@@ -755,8 +815,22 @@ def assemble_case(
     return Case(settings=settings, problem=problem, scale=scale, path=path)
 
 
+def _state_problem(value: float) -> str | None:
+    """Why a start-state value lies outside the model's domain, or None."""
+    if not math.isfinite(value):
+        return "must be finite"
+    if abs(value) > model.MAX_MAGNITUDE:
+        return (
+            f"must be at most {model.MAX_MAGNITUDE:g} in size (the model's domain, docs/cases.md)"
+        )
+    return None
+
+
 def load_case(path: str | Path) -> Case:
-    """Read, validate and assemble a case file. Raises CaseError."""
+    """Read, validate and assemble a case file. Raises CaseError (TypeError if ``path``
+    is not a path)."""
+    if not isinstance(path, str | os.PathLike):
+        raise TypeError(f"load_case(): path must be a str or a path, got {type(path).__name__}")
     raw = read_case_file(path)
     return assemble_case(validate_case(raw, str(path)), path)
 

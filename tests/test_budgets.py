@@ -12,6 +12,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -172,19 +173,35 @@ def test_energy_plot_when_asked(tmp_path):
 
 
 ABSURD = {
-    "K = 1e200": {"K": 1e200},
-    "K = 1e308, e = 1e300": {"K": 1e308, "e": 1e300},
+    "K = 1e200": ({"K": 1e200}, "K must be at most 1e+100"),
+    "K = 1e308, e = 1e300": ({"K": 1e308, "e": 1e300}, "e must be at most 1e+100"),
+    "eta = 1e-300": ({"K": 17.6, "eta": 1e-300}, "eta must be at least 1e-100"),
+}
+# The edge of the model's domain (docs/cases.md): K where contact is only just resolvable
+# in doubles over 50 periods, and the largest forcing.
+EDGE = {
+    "K = 1e19": {"K": 1e19},
+    "e = 1e100": {"K": 17.6, "e": 1e100},
+    "K = 1e19, e = 1e100": {"K": 1e19, "e": 1e100},
 }
 
 
-@pytest.mark.parametrize("method", sorted(ALL_METHODS))
 @pytest.mark.parametrize("label", list(ABSURD))
-def test_absurd_magnitudes_fail_cleanly_within_the_budget(method, label):
-    """Issue 12, defects 4 and 5: parameters beyond floating-point sense end as a failed
-    method with its reason, within the step budget: no hang (the analytic methods once
-    looped for ever balancing a matrix whose norm overflowed), no exception (dop853-jit
-    once raised ZeroDivisionError)."""
-    params = ModelParams(**{"nu": 0.009478, "eta": 0.7818, "e": 7.52, "Rp": 46.16, **ABSURD[label]})
+def test_absurd_magnitudes_are_refused_at_the_boundary(label):
+    """Parameters beyond floating-point sense are refused by ModelParams, naming the
+    parameter (they once ran a method's whole budget, or overflowed in ``period``)."""
+    values, words = ABSURD[label]
+    with pytest.raises(ValueError, match=re.escape(f"ModelParams: {words}")):
+        ModelParams(**{"nu": 0.009478, "eta": 0.7818, "e": 7.52, "Rp": 46.16, **values})
+
+
+@pytest.mark.parametrize("method", sorted(ALL_METHODS))
+@pytest.mark.parametrize("label", list(EDGE))
+def test_magnitudes_at_the_edge_of_the_domain_fail_cleanly_within_the_budget(method, label):
+    """At the edge of the domain every method ends as a failed method with its reason,
+    within the step budget: no hang (the analytic methods once looped for ever balancing a
+    matrix whose norm overflowed), no exception (dop853-jit once raised ZeroDivisionError)."""
+    params = ModelParams(**{"nu": 0.009478, "eta": 0.7818, "e": 7.52, "Rp": 46.16, **EDGE[label]})
     problem = Problem.from_periods(params, (0.88544, -0.8039, 0.0, 0.0), 50, 100)
     sol = solve(problem, method, max_steps=1000, max_wall_time_s=1e9)
     assert sol.status == FAILED

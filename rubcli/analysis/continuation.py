@@ -262,18 +262,25 @@ class _Problem:
         return fl, fl.state - X[:4], dPdq
 
     def derivative(self, X: np.ndarray) -> np.ndarray:
-        """dP/dq at X by central differences of the map."""
+        """dP/dq at X by central differences of the map; one-sided where one side lies
+        outside the model's domain (at mu = 0, the bound of a window starting there)."""
         q = X[4]
         h = 1e-6 * max(1.0, abs(q))
-        plus = ob.stroboscopic_map(
-            self.params_at(q + h), X[:4], self.s.k, variational=False,
-            rtol=self.s.rtol, atol=self.s.atol, locked=self.locked,
-        ).state  # fmt: skip
-        minus = ob.stroboscopic_map(
-            self.params_at(q - h), X[:4], self.s.k, variational=False,
-            rtol=self.s.rtol, atol=self.s.atol, locked=self.locked,
-        ).state  # fmt: skip
-        return (plus - minus) / (2.0 * h)
+        sides = []
+        for step in (h, -h):
+            try:
+                sides.append((q + step, self.params_at(q + step)))
+            except ob.OrbitError:
+                sides.append((q, self.params_at(q)))
+        (q_plus, p_plus), (q_minus, p_minus) = sides
+        plus, minus = (
+            ob.stroboscopic_map(
+                p, X[:4], self.s.k, variational=False, rtol=self.s.rtol, atol=self.s.atol,
+                locked=self.locked,
+            ).state
+            for p in (p_plus, p_minus)
+        )  # fmt: skip
+        return (plus - minus) / (q_plus - q_minus)
 
     def point(self, X: np.ndarray, fl: ob.FlowResult, iterations: int) -> BranchPoint:
         return BranchPoint(

@@ -78,10 +78,14 @@ class FlowResult:
 
 
 def with_parameter(params: ModelParams, name: str, value: float) -> ModelParams:
-    """``params`` with one of PARAMETERS set to ``value``."""
+    """``params`` with one of PARAMETERS set to ``value``; OrbitError if ``value`` lies
+    outside the model's domain (a continuation step past ``eta = 0`` or ``mu = 0``)."""
     if name not in PARAMETERS:
         raise ValueError(f"unknown continuation parameter {name!r}; one of {PARAMETERS}")
-    return dataclasses.replace(params, **{name: float(value)})
+    try:
+        return dataclasses.replace(params, **{name: float(value)})
+    except ValueError as exc:
+        raise OrbitError(f"{name} = {value:.6g} leaves the model's domain ({exc})") from None
 
 
 # ----------------------------------------------------------------- switching surfaces
@@ -231,6 +235,8 @@ def flow(
     a free or a slipping flow across the surfaces), used to locate grazing from the side
     where the branch is smooth.
     """
+    if not tau1 > tau0:
+        raise OrbitError(f"empty time span tau = {tau0:.9g} .. {tau1:.9g}")
     s = np.asarray(s0, dtype=float).copy()
     regime = _start_regime(tau0, s, params) if locked is None else int(locked)
     if regime == model.STICK:
