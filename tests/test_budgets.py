@@ -207,3 +207,30 @@ def test_magnitudes_at_the_edge_of_the_domain_fail_cleanly_within_the_budget(met
     assert sol.status == FAILED
     assert sol.message and "Traceback" not in sol.message
     assert sol.t.size >= 1 and sol.stats["nsteps"] <= 1000
+
+
+def test_start_up_warm_up_has_budgets_of_its_own(tmp_path, monkeypatch):
+    """The warm-up before the timed runs (``rubcli run``'s start-up, compare's warm-up
+    solve) is bounded by its own small budgets, never the run's: ``K = 1e300 -m lsoda``
+    once spent its 5e6-step budget there before the timed run spent it again."""
+    from rubcli import solvers
+    from rubcli.analysis import work_precision
+    from rubcli.cli import run
+
+    path = tmp_path / "case.toml"
+    path.write_text(CASE.replace('methods = ["dop853"]', 'methods = ["lsoda", "analytic"]'))
+    case = load_case(path)
+    assert case.options_for("lsoda")["max_steps"] == 5_000_000
+    seen = []
+    real_solve = solvers.solve
+
+    def spy(problem, method, **options):
+        seen.append((method, options["max_steps"], options["max_wall_time_s"]))
+        return real_solve(problem, method, **options)
+
+    monkeypatch.setattr(solvers, "solve", spy)
+    run.start_up(case)
+    work_precision.warm_up(case.problem, "lsoda", case.options_for("lsoda"))
+    assert [m for m, _, _ in seen] == ["lsoda", "analytic", "lsoda"]
+    for _, steps, wall in seen:
+        assert steps <= solvers.WARM_UP_MAX_STEPS and wall <= solvers.WARM_UP_WALL_TIME_S
