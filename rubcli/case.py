@@ -475,6 +475,10 @@ class SweepSection(_Section):
 # pseudo-arclength continuation in one nondimensional parameter.
 
 OrbitParameter = Literal["eta", "mu", "K", "e", "nu", "Rp"]
+# The smallest continuation step, as a fraction of the window: a step of 1e-300 once left
+# the parameter where it was and ran for ever. 1e-12 of the window still spans thousands
+# of doubles and allows 1e12 steps across it.
+MIN_ORBIT_STEP_FRACTION = 1e-12
 OrbitStart = Literal["initial", "transient", "synchronous_rub"]
 OrbitDirections = Literal["both", "up", "down"]
 
@@ -498,6 +502,7 @@ class OrbitsSection(_Section):
     rtol: float = Field(default=1e-12, ge=1e-14, lt=1e-3)  # integration of the map
     atol: float = Field(default=1e-12, gt=0, lt=1e-3)
     locate: bool = True  # locate each detected bifurcation on its test function
+    max_wall_time_s: float = Field(default=3600.0, gt=0)  # the run's budget, seconds
 
     @model_validator(mode="after")
     def _window(self) -> OrbitsSection:
@@ -524,6 +529,12 @@ class OrbitsSection(_Section):
                 {"step": self.step, "w": width},
             )  # fmt: skip
         lo, hi = self.resolved_min_step(), self.resolved_max_step()
+        if lo < MIN_ORBIT_STEP_FRACTION * width:
+            raise PydanticCustomError(
+                "orbits_step", f"min_step {lo:g} is below {MIN_ORBIT_STEP_FRACTION:g} of the "
+                f"window max - min = {width:g}: so small a step does not move the parameter "
+                "by a resolvable amount",
+            )  # fmt: skip
         if not lo <= self.step <= hi:
             raise PydanticCustomError(
                 "orbits_step", "need min_step <= step <= max_step (got {lo}, {s}, {hi})",

@@ -1,0 +1,1 @@
+"""The hostile suite: rubcli end to end under faults (see conftest.py)."""
