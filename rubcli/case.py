@@ -64,10 +64,26 @@ MAX_OUTPUT_SAMPLES = 10_000_000
 # - a run holds, per method and output sample, t, the state, the regime and the arrays of
 #   its report (energy balance, regimes): about RUN_BYTES_PER_SAMPLE bytes (measured: 580
 #   bytes per sample for the paper's case over 1,000,001 samples, benchmarks/RESULTS.md);
-# - `forces-map` holds about FORCES_MAP_ARRAYS float arrays of resolution^2 points.
+# - `forces-map` holds at its peak FORCES_MAP_BYTES_PER_POINT bytes per grid point beside
+#   the process's own FORCES_MAP_BASE_BYTES (measured for each product and for all three:
+#   at most 172 bytes per point and 380 MiB, benchmarks/forces_map_memory.md), kept with
+#   a 25 % margin. At run time it must also fit in the memory the process may take.
 MAX_CASE_MEMORY_BYTES = 8 * 1024**3
 RUN_BYTES_PER_SAMPLE = 600
-FORCES_MAP_ARRAYS = 24
+FORCES_MAP_BYTES_PER_POINT = 215
+FORCES_MAP_BASE_BYTES = 512 * 1024**2
+
+
+def forces_map_memory_bytes(resolution: int) -> int:
+    """The peak memory of ``rubcli forces-map`` on a ``resolution`` x ``resolution`` grid."""
+    return FORCES_MAP_BASE_BYTES + FORCES_MAP_BYTES_PER_POINT * resolution * resolution
+
+
+def largest_forces_map_resolution(memory_bytes: float) -> int:
+    """The largest grid side whose ``forces_map_memory_bytes`` fits in ``memory_bytes``."""
+    points = (memory_bytes - FORCES_MAP_BASE_BYTES) / FORCES_MAP_BYTES_PER_POINT
+    return math.isqrt(int(max(points, 0)))
+
 
 # A case file is a few kB of TOML (a sweep's value list some 100 kB): a larger file is
 # refused before it is read.
@@ -260,9 +276,9 @@ class ForcesMapSection(_Section):
     @field_validator("resolution")
     @classmethod
     def _resolution_fits_in_memory(cls, value: int) -> int:
-        need = FORCES_MAP_ARRAYS * 8 * value * value
+        need = forces_map_memory_bytes(value)
         if need > MAX_CASE_MEMORY_BYTES:
-            largest = math.isqrt(MAX_CASE_MEMORY_BYTES // (FORCES_MAP_ARRAYS * 8))
+            largest = largest_forces_map_resolution(MAX_CASE_MEMORY_BYTES)
             raise PydanticCustomError(
                 "too_much_memory",
                 f"a {value} x {value} grid needs about {_gib(need)} of memory, more than the "

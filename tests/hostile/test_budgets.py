@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import resource
 import subprocess
 import sys
 import time
@@ -178,3 +179,40 @@ def test_run_at_the_edge_of_the_domain_fails_within_its_budget(tmp_path):
     for name, entry in methods.items():
         assert entry["status"] == "failed", name
         assert entry["stats"]["nsteps"] <= 20000
+
+
+FORCES_CASE = RUN_CASE + '\n[forces_map]\nresolution = {resolution}\nproducts = ["eigen"]\n'
+
+
+def test_forces_map_refuses_a_grid_that_will_not_fit_in_memory(tmp_path):
+    """A 3000^2 grid needs about 2.3 GiB (measured per point, benchmarks/
+    forces_map_memory.md); with 2 GiB of address space it is refused at once, exit 2,
+    naming the field and the largest grid that fits (it once ran into a MemoryError)."""
+    path = tmp_path / "case.toml"
+    path.write_text(FORCES_CASE.format(resolution=3000))
+
+    def cap() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (2 * 1024**3, 2 * 1024**3))
+
+    env = {**os.environ, "RUBCLI_STATE_DIR": str(tmp_path / ".state")}
+    done = subprocess.run(
+        [sys.executable, "-m", "rubcli", "forces-map", str(path), "--out", "out"],
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=TIMEOUT_S,
+        check=False, preexec_fn=cap,
+    )  # fmt: skip
+    assert not TRACEBACK.search(done.stderr), done.stderr
+    assert done.returncode == 2, done.stderr
+    assert "forces_map.resolution: a 3000 x 3000 grid needs about 2.3 GiB" in done.stderr
+    assert re.search(r"at most \d+ fits", done.stderr)
+    assert not (tmp_path / "out").exists()
+
+
+def test_forces_map_case_limit_follows_the_measured_cost(tmp_path):
+    """The largest grid a case may ask for (8 GiB) follows the measured cost per point:
+    6688, which the old estimate of 192 bytes per point accepted, needs about 9.5 GiB."""
+    path = tmp_path / "case.toml"
+    path.write_text(FORCES_CASE.format(resolution=6688))
+    done = rubcli(tmp_path, "validate", path)
+    assert done.returncode == 2, done.stderr
+    assert "forces_map.resolution: a 6688 x 6688 grid needs about 9.46 GiB" in done.stderr
+    assert "at most 6120" in done.stderr
