@@ -452,14 +452,15 @@ class SweepSection(_Section):
             )
         for axis in axes:
             values = axis.resolved_values()
-            if axis.parameter in ("eta", "K") and min(values) <= 0:
-                raise PydanticCustomError(
-                    "sweep_values", "{name} must be > 0 at every point", {"name": axis.parameter}
-                )
-            if axis.parameter in ("nu", "e", "mu", "Rp") and min(values) < 0:
-                raise PydanticCustomError(
-                    "sweep_values", "{name} must be >= 0 at every point", {"name": axis.parameter}
-                )
+            for value in (min(values), max(values)):  # (each domain is an interval)
+                if axis.parameter in SWEEP_MODEL_PARAMETERS:
+                    why = model.parameter_problem(axis.parameter, value)
+                else:
+                    why = _state_problem(value)
+                if why:
+                    raise PydanticCustomError(
+                        "sweep_values", f"every value of {axis.parameter} {why} (got {value!r})"
+                    )
         n = self.n_points()
         if n > self.max_points:
             raise PydanticCustomError(
@@ -538,6 +539,12 @@ class OrbitsSection(_Section):
                 "orbits_window", "{name} cannot be negative: min must be >= 0 (got {lo})",
                 {"name": self.parameter, "lo": self.min},
             )  # fmt: skip
+        for bound in (self.min, self.max):
+            why = model.parameter_problem(self.parameter, bound)
+            if why:
+                raise PydanticCustomError(
+                    "orbits_window", f"{self.parameter} {why} (got {bound!r} as a bound)"
+                )
         width = self.max - self.min
         if self.step > width:
             raise PydanticCustomError(
@@ -829,6 +836,10 @@ def assemble_case(
     if why:
         where = "model.K" if scale is None else f"physical: converts to K = {params.K!r}"
         raise CaseError([f"{source}: {where}: {why}"])
+    if settings.sweep is not None:
+        why = _sweep_resolution_problem(settings.sweep, params)
+        if why:
+            raise CaseError([f"{source}: sweep: {why}"])
     try:
         problem = Problem.from_periods(
             params,
@@ -840,6 +851,24 @@ def assemble_case(
     except ValueError as exc:  # e.g. a time span that overflows
         raise CaseError([f"{source}: time: cannot build the time grid: {exc}"]) from None
     return Case(settings=settings, problem=problem, scale=scale, path=path)
+
+
+def _sweep_resolution_problem(cfg: SweepSection, params: ModelParams) -> str | None:
+    """Why the stiffest, slowest point of a sweep (largest K, smallest eta over its axes)
+    cannot be resolved over its longest run, or None (``problem.resolution_problem``)."""
+    K, eta = params.K, params.eta
+    for axis in cfg.resolved_axes():
+        if axis.parameter == "K":
+            K = max(axis.resolved_values())
+        elif axis.parameter == "eta":
+            eta = min(axis.resolved_values())
+    worst = ModelParams(**{**params.as_dict(), "K": K, "eta": eta})
+    periods = max(cfg.transient_periods, cfg.record_periods, cfg.lyapunov_periods, 1)
+    t_end = periods * worst.period
+    if not t_end <= model.MAX_MAGNITUDE:
+        return f"at eta = {eta:g}, {periods} periods end beyond tau = {model.MAX_MAGNITUDE:g}"
+    why = resolution_problem(worst, (0.0, t_end))
+    return None if why is None else f"at K = {K:g}, eta = {eta:g}: {why}"
 
 
 def _state_problem(value: float) -> str | None:

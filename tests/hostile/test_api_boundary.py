@@ -323,3 +323,26 @@ def test_validate_refuses_deep_nesting_and_huge_files(tmp_path):
         done = rubcli(tmp_path, "validate", path, limit_memory=True)
         assert done.returncode == 2, done.stderr
         assert words in done.stderr
+
+
+@pytest.mark.parametrize(
+    ("table", "words"),
+    [
+        ('[sweep]\nparameter = "eta"\nvalues = [0.5, 1e-200]\n',
+         "sweep: every value of eta must be at least 1e-100"),  # a traceback per point
+        ('[sweep]\nparameter = "K"\nvalues = [10.0, 1e60]\n',
+         "sweep: at K = 1e+60, eta = 0.7818: a contact oscillation"),
+        ('[sweep]\nparameter = "x"\nvalues = [0.0, 1e200]\n',
+         "sweep: every value of x must be at most 1e+100"),
+        ('[orbits]\nparameter = "mu"\nmin = 0.0\nmax = 1e200\nstep = 1e198\n',
+         "orbits: mu must be at most 1e+100"),
+    ],
+)  # fmt: skip
+def test_sweep_and_orbit_values_are_checked_against_the_domain(tmp_path, table, words):
+    """Every point a sweep or a continuation window can reach lies in the model's domain
+    (a sweep over eta down to 1e-200 once failed point by point with a traceback)."""
+    path = tmp_path / "case.toml"
+    path.write_text(CASE + "\n" + table)
+    done = rubcli(tmp_path, "validate", path)
+    assert done.returncode == 2, done.stderr
+    assert f"case.toml: {words}" in done.stderr
