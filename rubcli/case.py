@@ -20,7 +20,9 @@ reference is ``docs/cases.md``. The method names come from the registry's data
 from __future__ import annotations
 
 import math
+import os
 import re
+import stat
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,9 +39,9 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
-from rubcli import units
+from rubcli import model, units
 from rubcli.model import ModelParams
-from rubcli.problem import Problem
+from rubcli.problem import Problem, resolution_problem
 from rubcli.solvers import registry
 
 MethodName = Literal[registry.NAMES]  # every method of the registry
@@ -62,10 +64,30 @@ MAX_OUTPUT_SAMPLES = 10_000_000
 # - a run holds, per method and output sample, t, the state, the regime and the arrays of
 #   its report (energy balance, regimes): about RUN_BYTES_PER_SAMPLE bytes (measured: 580
 #   bytes per sample for the paper's case over 1,000,001 samples, benchmarks/RESULTS.md);
-# - `forces-map` holds about FORCES_MAP_ARRAYS float arrays of resolution^2 points.
+# - `forces-map` holds at its peak FORCES_MAP_BYTES_PER_POINT bytes per grid point beside
+#   the process's own FORCES_MAP_BASE_BYTES (measured for each product and for all three:
+#   at most 172 bytes per point and 380 MiB, benchmarks/forces_map_memory.md), kept with
+#   a 25 % margin. At run time it must also fit in the memory the process may take.
 MAX_CASE_MEMORY_BYTES = 8 * 1024**3
 RUN_BYTES_PER_SAMPLE = 600
-FORCES_MAP_ARRAYS = 24
+FORCES_MAP_BYTES_PER_POINT = 215
+FORCES_MAP_BASE_BYTES = 512 * 1024**2
+
+
+def forces_map_memory_bytes(resolution: int) -> int:
+    """The peak memory of ``rubcli forces-map`` on a ``resolution`` x ``resolution`` grid."""
+    return FORCES_MAP_BASE_BYTES + FORCES_MAP_BYTES_PER_POINT * resolution * resolution
+
+
+def largest_forces_map_resolution(memory_bytes: float) -> int:
+    """The largest grid side whose ``forces_map_memory_bytes`` fits in ``memory_bytes``."""
+    points = (memory_bytes - FORCES_MAP_BASE_BYTES) / FORCES_MAP_BYTES_PER_POINT
+    return math.isqrt(int(max(points, 0)))
+
+
+# A case file is a few kB of TOML (a sweep's value list some 100 kB): a larger file is
+# refused before it is read.
+MAX_CASE_FILE_BYTES = 8 * 1024**2
 
 CASE_NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._-]*$"
 
@@ -135,6 +157,16 @@ class ModelSection(_Section):
     mu: float = Field(default=0.0, ge=0)  # Coulomb friction coefficient
     Rp: float = Field(default=0.0, ge=0)  # rotor radius / clearance
     phi0: float = 0.0  # unbalance phase, rad
+
+    @field_validator("nu", "eta", "e", "K", "mu", "Rp", "phi0")
+    @classmethod
+    def _in_the_models_domain(cls, value: float, info) -> float:
+        """The model's domain (``model.parameter_problem``), the rule a [physical] table's
+        converted values are checked against too."""
+        problem = model.parameter_problem(info.field_name, value)
+        if problem:
+            raise PydanticCustomError("model_domain", problem)
+        return value
 
     def params(self) -> ModelParams:
         return ModelParams(**self.model_dump())
@@ -244,9 +276,9 @@ class ForcesMapSection(_Section):
     @field_validator("resolution")
     @classmethod
     def _resolution_fits_in_memory(cls, value: int) -> int:
-        need = FORCES_MAP_ARRAYS * 8 * value * value
+        need = forces_map_memory_bytes(value)
         if need > MAX_CASE_MEMORY_BYTES:
-            largest = math.isqrt(MAX_CASE_MEMORY_BYTES // (FORCES_MAP_ARRAYS * 8))
+            largest = largest_forces_map_resolution(MAX_CASE_MEMORY_BYTES)
             raise PydanticCustomError(
                 "too_much_memory",
                 f"a {value} x {value} grid needs about {_gib(need)} of memory, more than the "
@@ -420,14 +452,15 @@ class SweepSection(_Section):
             )
         for axis in axes:
             values = axis.resolved_values()
-            if axis.parameter in ("eta", "K") and min(values) <= 0:
-                raise PydanticCustomError(
-                    "sweep_values", "{name} must be > 0 at every point", {"name": axis.parameter}
-                )
-            if axis.parameter in ("nu", "e", "mu", "Rp") and min(values) < 0:
-                raise PydanticCustomError(
-                    "sweep_values", "{name} must be >= 0 at every point", {"name": axis.parameter}
-                )
+            for value in (min(values), max(values)):  # (each domain is an interval)
+                if axis.parameter in SWEEP_MODEL_PARAMETERS:
+                    why = model.parameter_problem(axis.parameter, value)
+                else:
+                    why = _state_problem(value)
+                if why:
+                    raise PydanticCustomError(
+                        "sweep_values", f"every value of {axis.parameter} {why} (got {value!r})"
+                    )
         n = self.n_points()
         if n > self.max_points:
             raise PydanticCustomError(
@@ -459,6 +492,10 @@ class SweepSection(_Section):
 # pseudo-arclength continuation in one nondimensional parameter.
 
 OrbitParameter = Literal["eta", "mu", "K", "e", "nu", "Rp"]
+# The smallest continuation step, as a fraction of the window: a step of 1e-300 once left
+# the parameter where it was and ran for ever. 1e-12 of the window still spans thousands
+# of doubles and allows 1e12 steps across it.
+MIN_ORBIT_STEP_FRACTION = 1e-12
 OrbitStart = Literal["initial", "transient", "synchronous_rub"]
 OrbitDirections = Literal["both", "up", "down"]
 OrbitKind = Literal["periodic", "whirl"]
@@ -484,6 +521,7 @@ class OrbitsSection(_Section):
     rtol: float = Field(default=1e-12, ge=1e-14, lt=1e-3)  # integration of the map
     atol: float = Field(default=1e-12, gt=0, lt=1e-3)
     locate: bool = True  # locate each detected bifurcation on its test function
+    max_wall_time_s: float = Field(default=3600.0, gt=0)  # the run's budget, seconds
 
     @model_validator(mode="after")
     def _window(self) -> OrbitsSection:
@@ -503,6 +541,12 @@ class OrbitsSection(_Section):
                 "orbits_window", "{name} cannot be negative: min must be >= 0 (got {lo})",
                 {"name": self.parameter, "lo": self.min},
             )  # fmt: skip
+        for bound in (self.min, self.max):
+            why = model.parameter_problem(self.parameter, bound)
+            if why:
+                raise PydanticCustomError(
+                    "orbits_window", f"{self.parameter} {why} (got {bound!r} as a bound)"
+                )
         width = self.max - self.min
         if self.step > width:
             raise PydanticCustomError(
@@ -510,6 +554,12 @@ class OrbitsSection(_Section):
                 {"step": self.step, "w": width},
             )  # fmt: skip
         lo, hi = self.resolved_min_step(), self.resolved_max_step()
+        if lo < MIN_ORBIT_STEP_FRACTION * width:
+            raise PydanticCustomError(
+                "orbits_step", f"min_step {lo:g} is below {MIN_ORBIT_STEP_FRACTION:g} of the "
+                f"window max - min = {width:g}: so small a step does not move the parameter "
+                "by a resolvable amount",
+            )  # fmt: skip
         if not lo <= self.step <= hi:
             raise PydanticCustomError(
                 "orbits_step", "need min_step <= step <= max_step (got {lo}, {s}, {hi})",
@@ -678,17 +728,50 @@ class Case:
 
 
 def read_case_file(path: str | Path) -> dict[str, Any]:
-    """Step 1: read and parse the TOML file. Raises CaseError naming the file."""
+    """Step 1: read and parse the TOML file. Raises CaseError naming the file.
+
+    Only a regular file of at most ``MAX_CASE_FILE_BYTES`` is read: a directory, a FIFO
+    (which would wait for a writer), a device (``/dev/zero`` never ends) or a larger file
+    is refused before its content is read.
+    """
     path = Path(path)
     try:
-        data = path.read_bytes()
+        # O_NONBLOCK: opening a FIFO does not wait for a writer; it is refused just below
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
     except FileNotFoundError:
         raise CaseError([f"{path}: file not found"]) from None
     except IsADirectoryError:
         raise CaseError([f"{path}: is a directory, not a case file"]) from None
     except OSError as exc:
         raise CaseError([f"{path}: cannot read: {exc.strerror or exc}"]) from None
+    info = os.fstat(fd)
+    if not stat.S_ISREG(info.st_mode):
+        os.close(fd)
+        if stat.S_ISDIR(info.st_mode):
+            raise CaseError([f"{path}: is a directory, not a case file"])
+        raise CaseError(
+            [f"{path}: is not a regular file ({_file_kind(info.st_mode)}), not a case file"]
+        )
+    with os.fdopen(fd, "rb") as handle:
+        too_big = (
+            f"{path}: is larger than {MAX_CASE_FILE_BYTES // 1024**2} MiB, the most a case "
+            "file may hold (a case is a few kB of TOML)"
+        )
+        if info.st_size > MAX_CASE_FILE_BYTES:
+            raise CaseError([too_big])
+        try:
+            data = handle.read(MAX_CASE_FILE_BYTES + 1)  # a file that grows while read
+        except OSError as exc:
+            raise CaseError([f"{path}: cannot read: {exc.strerror or exc}"]) from None
+    if len(data) > MAX_CASE_FILE_BYTES:
+        raise CaseError([too_big])
     return parse_case_text(data, str(path))
+
+
+def _file_kind(mode: int) -> str:
+    kinds = {stat.S_ISFIFO: "a FIFO", stat.S_ISCHR: "a character device",
+             stat.S_ISBLK: "a block device", stat.S_ISSOCK: "a socket"}  # fmt: skip
+    return next((name for test, name in kinds.items() if test(mode)), "a special file")
 
 
 def parse_case_text(data: str | bytes, source: str = "<case>") -> dict[str, Any]:
@@ -708,6 +791,10 @@ def parse_case_text(data: str | bytes, source: str = "<case>") -> dict[str, Any]
             where = f"line {found.group(1)}, column {found.group(2)}"
             raise CaseError([f"{source}: {where}: not valid TOML: {reason}"]) from None
         raise CaseError([f"{source}: not valid TOML: {message}"]) from None
+    except RecursionError:
+        raise CaseError(
+            [f"{source}: not a case file: arrays or tables nested too deeply"]
+        ) from None
 
 
 def validate_case(raw: dict[str, Any], source: str = "<case>") -> CaseFile:
@@ -742,42 +829,53 @@ def assemble_case(
         source = str(path) if path is not None else "<case>"
     init = settings.initial
     scale = None
+    problems = []
     if settings.physical is not None:
         try:
-            params, scale = units.nondimensional_params(**settings.physical.model_dump())
+            values, scale = units.nondimensional_values(**settings.physical.model_dump())
             initial = units.nondimensional_state(init.x, init.y, init.vx, init.vy, scale)
-        except (ArithmeticError, ValueError) as exc:  # values beyond floating-point range
+        except ArithmeticError as exc:  # values beyond floating-point range
             raise CaseError([f"{source}: physical: cannot be converted ({exc})"]) from None
-        table = "physical"
+        # SI values can be valid one by one and still convert to nonsense (an overflow,
+        # an underflow to 0): the converted values must lie in [model]'s domain.
+        for name, value in values.items():
+            why = model.parameter_problem(name, value)
+            if why:
+                problems.append(f"{source}: physical: converts to {name} = {value!r}: {why}")
     else:
         assert settings.model is not None
-        params = settings.model.params()
+        values = settings.model.model_dump()
         initial = (init.x, init.y, init.vx, init.vy)
-        table = "model"
-    problems = []
-    if scale is not None:
-        # SI values can be valid one by one and still convert to nonsense (an overflow,
-        # an underflow to 0): the converted parameters must satisfy [model]'s rules.
-        try:
-            ModelSection.model_validate(params.as_dict())
-        except ValidationError as exc:
-            for error in exc.errors():
-                name = ".".join(str(part) for part in error["loc"])
-                problems.append(
-                    f"{source}: {table}: converts to {name} = {error['input']!r}: {error['msg']}"
-                )
-    if not all(math.isfinite(v) for v in initial):
-        problems.append(f"{source}: initial: converts to a state that is not finite {initial}")
-    t_end = settings.time.periods * 2.0 * math.pi / params.eta if params.eta > 0 else math.inf
-    if not problems and not math.isfinite(t_end):
-        problems.append(f"{source}: time: cannot build the time grid: tau_end = {t_end}")
+    for name, value in zip(("x", "y", "vx", "vy"), initial, strict=True):
+        why = _state_problem(value)
+        if why:
+            converts = f"converts to {value!r}: " if scale is not None else ""
+            problems.append(f"{source}: initial.{name}: {converts}{why}")
     if problems:
         raise CaseError(problems)
+    params = ModelParams(**values)
+    periods = settings.time.periods
+    t_end = periods * params.period
+    if not t_end <= model.MAX_MAGNITUDE:
+        raise CaseError(
+            [
+                f"{source}: time.periods: {periods!r} periods end at tau = {t_end:.3g}, beyond "
+                f"{model.MAX_MAGNITUDE:g} (the model's domain, docs/cases.md)"
+            ]
+        )
+    why = resolution_problem(params, (0.0, t_end))
+    if why:
+        where = "model.K" if scale is None else f"physical: converts to K = {params.K!r}"
+        raise CaseError([f"{source}: {where}: {why}"])
+    if settings.sweep is not None:
+        why = _sweep_resolution_problem(settings.sweep, params)
+        if why:
+            raise CaseError([f"{source}: sweep: {why}"])
     try:
         problem = Problem.from_periods(
             params,
             initial,
-            periods=settings.time.periods,
+            periods=periods,
             samples_per_period=settings.time.samples_per_period,
             name=settings.case.name,
         )
@@ -786,8 +884,40 @@ def assemble_case(
     return Case(settings=settings, problem=problem, scale=scale, path=path)
 
 
+def _sweep_resolution_problem(cfg: SweepSection, params: ModelParams) -> str | None:
+    """Why the stiffest, slowest point of a sweep (largest K, smallest eta over its axes)
+    cannot be resolved over its longest run, or None (``problem.resolution_problem``)."""
+    K, eta = params.K, params.eta
+    for axis in cfg.resolved_axes():
+        if axis.parameter == "K":
+            K = max(axis.resolved_values())
+        elif axis.parameter == "eta":
+            eta = min(axis.resolved_values())
+    worst = ModelParams(**{**params.as_dict(), "K": K, "eta": eta})
+    periods = max(cfg.transient_periods, cfg.record_periods, cfg.lyapunov_periods, 1)
+    t_end = periods * worst.period
+    if not t_end <= model.MAX_MAGNITUDE:
+        return f"at eta = {eta:g}, {periods} periods end beyond tau = {model.MAX_MAGNITUDE:g}"
+    why = resolution_problem(worst, (0.0, t_end))
+    return None if why is None else f"at K = {K:g}, eta = {eta:g}: {why}"
+
+
+def _state_problem(value: float) -> str | None:
+    """Why a start-state value lies outside the model's domain, or None."""
+    if not math.isfinite(value):
+        return "must be finite"
+    if abs(value) > model.MAX_MAGNITUDE:
+        return (
+            f"must be at most {model.MAX_MAGNITUDE:g} in size (the model's domain, docs/cases.md)"
+        )
+    return None
+
+
 def load_case(path: str | Path) -> Case:
-    """Read, validate and assemble a case file. Raises CaseError."""
+    """Read, validate and assemble a case file. Raises CaseError (TypeError if ``path``
+    is not a path)."""
+    if not isinstance(path, str | os.PathLike):
+        raise TypeError(f"load_case(): path must be a str or a path, got {type(path).__name__}")
     raw = read_case_file(path)
     return assemble_case(validate_case(raw, str(path)), path)
 

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import cmath
 import math
+import numbers
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -41,9 +42,52 @@ STICK_EXIT_MARGIN = 1e-9
 REGIME_NAMES = {FREE: "free", SLIP_POSITIVE: "slip+", SLIP_NEGATIVE: "slip-", STICK: "stick"}
 
 
+# The model's domain (docs/cases.md, "The model's domain"). Every parameter and every
+# state is at most MAX_MAGNITUDE in size, so that any product of three of them (the
+# equations form e eta^2, K (z - 1) x, x vy) stays below the largest double, 1.8e308; a
+# divisor (eta, in the period 2 pi / eta) is at least 1 / MAX_MAGNITUDE.
+MAX_MAGNITUDE = 1e100
+# The sign each parameter must have: "> 0", ">= 0" or None (any).
+PARAMETER_SIGNS: dict[str, str | None] = {
+    "nu": ">= 0", "eta": "> 0", "e": ">= 0", "K": "> 0", "mu": ">= 0", "Rp": ">= 0",
+    "phi0": None,
+}  # fmt: skip
+DIVISORS = ("eta",)  # parameters that divide (the period 2 pi / eta)
+
+
+def parameter_problem(name: str, value: float) -> str | None:
+    """Why ``value`` lies outside the domain of the parameter ``name`` (without the value
+    itself), or None."""
+    if not math.isfinite(value):
+        return "must be finite"
+    sign = PARAMETER_SIGNS[name]
+    if (sign == "> 0" and value <= 0.0) or (sign == ">= 0" and value < 0.0):
+        return f"must be {sign}"
+    if abs(value) > MAX_MAGNITUDE:
+        return (
+            f"must be at most {MAX_MAGNITUDE:g} in size: beyond that the products the "
+            "equations form overflow (the model's domain, docs/cases.md)"
+        )
+    if name in DIVISORS and abs(value) < 1.0 / MAX_MAGNITUDE:
+        return (
+            f"must be at least {1.0 / MAX_MAGNITUDE:g}: it divides, and 1/{name} must stay "
+            f"below {MAX_MAGNITUDE:g} (the model's domain, docs/cases.md)"
+        )
+    return None
+
+
+def real_number(owner: str, name: str, value) -> float:
+    """``value`` as a float; TypeError naming ``owner.name`` if it is not a real number
+    (a bool, a string, None, an array are refused)."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):
+        raise TypeError(f"{owner}: {name} must be a real number, got {type(value).__name__}")
+    return float(value)
+
+
 @dataclass(frozen=True)
 class ModelParams:
-    """Nondimensional parameters (notes section 1)."""
+    """Nondimensional parameters (notes section 1), checked against the model's domain
+    (``parameter_problem``): TypeError or ValueError naming the parameter."""
 
     nu: float  # damping ratio d_r / (2 omega m)
     eta: float  # speed ratio Omega / omega
@@ -52,6 +96,14 @@ class ModelParams:
     mu: float = 0.0  # Coulomb friction coefficient
     Rp: float = 0.0  # rotor radius / clearance
     phi0: float = 0.0  # unbalance phase (rad)
+
+    def __post_init__(self) -> None:
+        for name in PARAMETER_SIGNS:
+            value = real_number("ModelParams", name, getattr(self, name))
+            problem = parameter_problem(name, value)
+            if problem:
+                raise ValueError(f"ModelParams: {name} {problem} (got {value!r})")
+            object.__setattr__(self, name, value)
 
     @property
     def E(self) -> float:

@@ -3,11 +3,18 @@
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from rubcli.model import ModelParams
+from rubcli.model import MAX_MAGNITUDE, ModelParams, real_number
+
+# The shortest time scale of the model, a contact oscillation (period 2 pi / sqrt(1 + K)),
+# must span at least this many doubles of tau anywhere in the span: a step of a twentieth
+# of it then still spans 500 doubles, so that rounding tau costs less than 0.2 % of a
+# step. Beyond, no method can resolve contact (docs/cases.md, "The model's domain").
+RESOLUTION_ULPS = 1e4
 
 
 @dataclass(frozen=True)
@@ -24,13 +31,15 @@ class Problem:
     name: str = "problem"
 
     def __post_init__(self) -> None:
-        t = np.asarray(self.t_eval, dtype=float)
-        if t.ndim != 1 or t.size < 2 or not np.all(np.diff(t) > 0):
-            raise ValueError("t_eval must be a strictly increasing array of at least 2 times")
-        if not all(math.isfinite(v) for v in self.initial):
-            raise ValueError("initial state must be finite")
-        object.__setattr__(self, "t_eval", t)
-        object.__setattr__(self, "initial", tuple(float(v) for v in self.initial))
+        if not isinstance(self.params, ModelParams):
+            raise TypeError(f"Problem: params must be a ModelParams, got {_kind(self.params)}")
+        object.__setattr__(self, "initial", _initial_state(self.initial))
+        object.__setattr__(self, "t_eval", _time_grid(self.t_eval))
+        if not isinstance(self.name, str):
+            raise TypeError(f"Problem: name must be a str, got {_kind(self.name)}")
+        problem = resolution_problem(self.params, self.t_eval)
+        if problem:
+            raise ValueError(f"Problem: params.K = {self.params.K!r}: {problem}")
 
     @classmethod
     def from_periods(
@@ -42,9 +51,33 @@ class Problem:
         name: str = "problem",
     ) -> Problem:
         """Sample ``periods`` forcing periods from tau = 0 at ``samples_per_period``."""
+        if not isinstance(params, ModelParams):
+            raise TypeError(f"Problem: params must be a ModelParams, got {_kind(params)}")
+        periods = real_number("Problem.from_periods", "periods", periods)
+        if not (math.isfinite(periods) and periods > 0.0):
+            raise ValueError(
+                f"Problem.from_periods: periods must be finite and > 0 (got {periods!r})"
+            )
+        if isinstance(samples_per_period, bool) or not isinstance(
+            samples_per_period, numbers.Integral
+        ):
+            raise TypeError(
+                "Problem.from_periods: samples_per_period must be an int, got "
+                f"{_kind(samples_per_period)}"
+            )
+        if samples_per_period <= 0:
+            raise ValueError(
+                f"Problem.from_periods: samples_per_period must be > 0 (got {samples_per_period})"
+            )
+        t_end = periods * params.period
+        if not t_end <= MAX_MAGNITUDE:
+            raise ValueError(
+                f"Problem.from_periods: {periods!r} periods end at tau = {t_end!r}, beyond "
+                f"{MAX_MAGNITUDE:g} (the model's domain, docs/cases.md)"
+            )
         n = max(2, int(round(periods * samples_per_period)) + 1)
-        t_eval = np.linspace(0.0, periods * params.period, n)
-        return cls(params=params, initial=tuple(initial), t_eval=t_eval, name=name)
+        t_eval = np.linspace(0.0, t_end, n)
+        return cls(params=params, initial=initial, t_eval=t_eval, name=name)
 
     @property
     def t_span(self) -> tuple[float, float]:
@@ -53,3 +86,74 @@ class Problem:
     @property
     def periods(self) -> float:
         return (self.t_span[1] - self.t_span[0]) / self.params.period
+
+
+def _kind(value) -> str:
+    return type(value).__name__
+
+
+def _initial_state(initial) -> tuple[float, float, float, float]:
+    """``initial`` checked: 4 finite real numbers of at most MAX_MAGNITUDE in size."""
+    try:
+        if isinstance(initial, str | bytes):
+            raise TypeError
+        values = list(initial)
+    except TypeError:
+        raise TypeError(
+            f"Problem: initial must be a sequence of 4 numbers (x, y, vx, vy), got {_kind(initial)}"
+        ) from None
+    if len(values) != 4:
+        raise ValueError(f"Problem: initial must hold 4 numbers (x, y, vx, vy), got {len(values)}")
+    out = []
+    for name, value in zip(("x", "y", "vx", "vy"), values, strict=True):
+        v = real_number("Problem", f"initial {name}", value)
+        if not math.isfinite(v):
+            raise ValueError(f"Problem: initial {name} must be finite (got {v!r})")
+        if abs(v) > MAX_MAGNITUDE:
+            raise ValueError(
+                f"Problem: initial {name} must be at most {MAX_MAGNITUDE:g} in size (got {v!r}): "
+                "the model's domain (docs/cases.md)"
+            )
+        out.append(v)
+    return tuple(out)
+
+
+def _time_grid(t_eval) -> np.ndarray:
+    """``t_eval`` checked: a 1-D array of at least 2 finite, strictly increasing times."""
+    try:
+        if t_eval is None or isinstance(t_eval, str | bytes):
+            raise TypeError
+        t = np.asarray(t_eval, dtype=float)
+    except (TypeError, ValueError):
+        raise TypeError(f"Problem: t_eval must be an array of times, got {_kind(t_eval)}") from None
+    if t.ndim != 1 or t.size < 2:
+        raise ValueError(
+            f"Problem: t_eval must be a 1-D array of at least 2 times (got shape {t.shape})"
+        )
+    if not np.all(np.isfinite(t)):
+        raise ValueError("Problem: t_eval must be finite (it holds nan or inf)")
+    if not np.all(np.diff(t) > 0):
+        i = int(np.argmin(np.diff(t) > 0))
+        raise ValueError(
+            f"Problem: t_eval must be strictly increasing (t_eval[{i + 1}] = "
+            f"{float(t[i + 1])!r} after t_eval[{i}] = {float(t[i])!r})"
+        )
+    if np.max(np.abs(t[[0, -1]])) > MAX_MAGNITUDE:
+        raise ValueError(f"Problem: t_eval must stay within +-{MAX_MAGNITUDE:g}")
+    return t
+
+
+def resolution_problem(params: ModelParams, t_eval) -> str | None:
+    """Why the span ``t_eval`` cannot resolve the contact oscillation of ``params``
+    (``RESOLUTION_ULPS``), or None."""
+    shortest = 2.0 * math.pi / math.sqrt(1.0 + params.K)
+    far = max(1.0, abs(float(t_eval[0])), abs(float(t_eval[-1])))
+    spacing = math.ulp(far)
+    if shortest >= RESOLUTION_ULPS * spacing:
+        return None
+    return (
+        f"a contact oscillation (period 2 pi / sqrt(1 + K) = {shortest:.3g}) is shorter "
+        f"than {RESOLUTION_ULPS:g} doubles of tau at tau = {far:.6g} (spacing "
+        f"{spacing:.3g}): no method can resolve it over this span (the model's domain, "
+        "docs/cases.md)"
+    )

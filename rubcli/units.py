@@ -47,7 +47,7 @@ def physical_scale(m: float, k_r: float, k_s: float, clearance: float) -> Physic
     return PhysicalScale(omega=math.sqrt(k_r / m), clearance=clearance, k_r=k_r, k_s=k_s)
 
 
-def nondimensional_params(
+def nondimensional_values(
     *,
     m: float,
     k_r: float,
@@ -59,22 +59,31 @@ def nondimensional_params(
     Rp: float = 0.0,
     mu: float = 0.0,
     phi0: float = 0.0,
-) -> tuple[ModelParams, PhysicalScale]:
-    """Nondimensional parameters and the scale from SI values (notes section 1).
+) -> tuple[dict[str, float], PhysicalScale]:
+    """The nondimensional parameters (by name, not yet checked against the model's domain:
+    SI values valid one by one can convert to an overflow or an underflow to 0) and the
+    scale, from SI values (notes section 1).
 
     ``d_r`` in N s/m, ``e`` and ``Rp`` in m, ``Omega`` in rad/s, ``phi0`` in rad.
     """
     scale = physical_scale(m, k_r, k_s, clearance)
-    params = ModelParams(
-        nu=d_r / (2.0 * scale.omega * m),
-        eta=Omega / scale.omega,
-        e=e / clearance,
-        K=k_s / k_r,
-        mu=mu,
-        Rp=Rp / clearance,
-        phi0=phi0,
-    )
-    return params, scale
+    values = {
+        "nu": d_r / (2.0 * scale.omega * m),
+        "eta": Omega / scale.omega,
+        "e": e / clearance,
+        "K": k_s / k_r,
+        "mu": mu,
+        "Rp": Rp / clearance,
+        "phi0": phi0,
+    }
+    return values, scale
+
+
+def nondimensional_params(**si: float) -> tuple[ModelParams, PhysicalScale]:
+    """``nondimensional_values`` as ``ModelParams`` (ValueError naming a parameter that
+    converts outside the model's domain)."""
+    values, scale = nondimensional_values(**si)
+    return ModelParams(**values), scale
 
 
 def nondimensional_state(

@@ -12,6 +12,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -172,21 +173,64 @@ def test_energy_plot_when_asked(tmp_path):
 
 
 ABSURD = {
-    "K = 1e200": {"K": 1e200},
-    "K = 1e308, e = 1e300": {"K": 1e308, "e": 1e300},
+    "K = 1e200": ({"K": 1e200}, "K must be at most 1e+100"),
+    "K = 1e308, e = 1e300": ({"K": 1e308, "e": 1e300}, "e must be at most 1e+100"),
+    "eta = 1e-300": ({"K": 17.6, "eta": 1e-300}, "eta must be at least 1e-100"),
+}
+# The edge of the model's domain (docs/cases.md): K where contact is only just resolvable
+# in doubles over 50 periods, and the largest forcing.
+EDGE = {
+    "K = 1e19": {"K": 1e19},
+    "e = 1e100": {"K": 17.6, "e": 1e100},
+    "K = 1e19, e = 1e100": {"K": 1e19, "e": 1e100},
 }
 
 
-@pytest.mark.parametrize("method", sorted(ALL_METHODS))
 @pytest.mark.parametrize("label", list(ABSURD))
-def test_absurd_magnitudes_fail_cleanly_within_the_budget(method, label):
-    """Issue 12, defects 4 and 5: parameters beyond floating-point sense end as a failed
-    method with its reason, within the step budget: no hang (the analytic methods once
-    looped for ever balancing a matrix whose norm overflowed), no exception (dop853-jit
-    once raised ZeroDivisionError)."""
-    params = ModelParams(**{"nu": 0.009478, "eta": 0.7818, "e": 7.52, "Rp": 46.16, **ABSURD[label]})
+def test_absurd_magnitudes_are_refused_at_the_boundary(label):
+    """Parameters beyond floating-point sense are refused by ModelParams, naming the
+    parameter (they once ran a method's whole budget, or overflowed in ``period``)."""
+    values, words = ABSURD[label]
+    with pytest.raises(ValueError, match=re.escape(f"ModelParams: {words}")):
+        ModelParams(**{"nu": 0.009478, "eta": 0.7818, "e": 7.52, "Rp": 46.16, **values})
+
+
+@pytest.mark.parametrize("method", sorted(ALL_METHODS))
+@pytest.mark.parametrize("label", list(EDGE))
+def test_magnitudes_at_the_edge_of_the_domain_fail_cleanly_within_the_budget(method, label):
+    """At the edge of the domain every method ends as a failed method with its reason,
+    within the step budget: no hang (the analytic methods once looped for ever balancing a
+    matrix whose norm overflowed), no exception (dop853-jit once raised ZeroDivisionError)."""
+    params = ModelParams(**{"nu": 0.009478, "eta": 0.7818, "e": 7.52, "Rp": 46.16, **EDGE[label]})
     problem = Problem.from_periods(params, (0.88544, -0.8039, 0.0, 0.0), 50, 100)
     sol = solve(problem, method, max_steps=1000, max_wall_time_s=1e9)
     assert sol.status == FAILED
     assert sol.message and "Traceback" not in sol.message
     assert sol.t.size >= 1 and sol.stats["nsteps"] <= 1000
+
+
+def test_start_up_warm_up_has_budgets_of_its_own(tmp_path, monkeypatch):
+    """The warm-up before the timed runs (``rubcli run``'s start-up, compare's warm-up
+    solve) is bounded by its own small budgets, never the run's: ``K = 1e300 -m lsoda``
+    once spent its 5e6-step budget there before the timed run spent it again."""
+    from rubcli import solvers
+    from rubcli.analysis import work_precision
+    from rubcli.cli import run
+
+    path = tmp_path / "case.toml"
+    path.write_text(CASE.replace('methods = ["dop853"]', 'methods = ["lsoda", "analytic"]'))
+    case = load_case(path)
+    assert case.options_for("lsoda")["max_steps"] == 5_000_000
+    seen = []
+    real_solve = solvers.solve
+
+    def spy(problem, method, **options):
+        seen.append((method, options["max_steps"], options["max_wall_time_s"]))
+        return real_solve(problem, method, **options)
+
+    monkeypatch.setattr(solvers, "solve", spy)
+    run.start_up(case)
+    work_precision.warm_up(case.problem, "lsoda", case.options_for("lsoda"))
+    assert [m for m, _, _ in seen] == ["lsoda", "analytic", "lsoda"]
+    for _, steps, wall in seen:
+        assert steps <= solvers.WARM_UP_MAX_STEPS and wall <= solvers.WARM_UP_WALL_TIME_S

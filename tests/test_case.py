@@ -400,4 +400,41 @@ def test_physical_values_that_convert_to_nonsense(tmp_path, changes, words):
 
 def test_horizon_beyond_floating_point_range(tmp_path):
     problems = problems_of(tmp_path, replace(MINIMAL, "eta = 0.7818", "eta = 1e-310"))
-    assert any(": time: cannot build the time grid" in line for line in problems), problems
+    assert any(": model.eta: must be at least 1e-100" in line for line in problems), problems
+    problems = problems_of(tmp_path, replace(MINIMAL, "eta = 0.7818", "eta = 1e-100"))
+    assert any(": time.periods: " in line and "beyond 1e+100" in line for line in problems)
+
+
+@pytest.mark.parametrize(
+    ("change", "field", "words"),
+    [
+        ("eta = 1e300", "model.eta", "at most 1e+100 in size"),
+        ("e = 1e308", "model.e", "at most 1e+100 in size"),
+        ("K = 1e300", "model.K", "at most 1e+100 in size"),
+        ("K = 1e60", "model.K", "a contact oscillation"),
+        ("phi0 = -1e200", "model.phi0", "at most 1e+100 in size"),
+    ],
+)
+def test_model_values_beyond_the_domain_are_refused_like_physical_ones(
+    tmp_path, change, field, words
+):
+    """[model] is checked against the model's domain as a [physical] table's converted
+    values are (once [model] eta = 1e300 overflowed in ModelParams.period)."""
+    name = change.split(" = ")[0]
+    text = MINIMAL if name != "phi0" else replace(MINIMAL, "[model]", "[model]\nphi0 = 0.0")
+    lines = [ln for ln in text.splitlines() if not ln.startswith(f"{name} = ")]
+    text = "\n".join(lines).replace("[model]", f"[model]\n{change}") + "\n"
+    problems = problems_of(tmp_path, text)
+    assert any(f": {field}: " in line and words in line for line in problems), problems
+
+
+def test_physical_table_converting_beyond_the_domain_names_the_value(tmp_path):
+    """k_s / k_r = 1e150 is a finite K, valid alone, beyond the domain: named as converted."""
+    text = replace(replace(PHYSICAL, "k_r = 4.0e4", "k_r = 1e-100"), "k_s = 8.0e5", "k_s = 1e50")
+    problems = problems_of(tmp_path, text)
+    assert any(": physical: converts to K = 1e+150: " in line for line in problems), problems
+
+
+def test_start_state_beyond_the_domain_is_refused(tmp_path):
+    problems = problems_of(tmp_path, replace(MINIMAL, "x = 0.88544", "x = 1e150"))
+    assert any(": initial.x: must be at most 1e+100" in line for line in problems), problems

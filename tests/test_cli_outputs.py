@@ -100,20 +100,34 @@ def interrupt(*args, **kwargs):
 # ------------------------------------------------------------------------ compare
 
 
-def test_compare_without_a_reference_exits_1_and_writes_nothing(tmp_path):
-    """A forcing of 1e300: the reference solver fails at tau = 0 (its first step is below
-    the spacing of floats), so there is no reference: exit 1, the reason, no files."""
-    # (from rest: started elsewhere, dop853-jit's compiled initial step divides by zero,
-    # a ZeroDivisionError, where scipy's DOP853 fails cleanly; reported to the lead)
-    huge = FREE_CASE.replace("e = 0.5", "e = 1e300").replace("x = 0.3", "x = 0.0")
-    path = write(tmp_path, huge.replace("vy = 0.1", "vy = 0.0"))
+def test_compare_without_a_reference_exits_1_and_writes_nothing(tmp_path, monkeypatch):
+    """A reference solver that stops before its first sample (here its step budget cut to
+    one step; the start lies in contact, so no closed form serves as the reference): there
+    is no reference, so exit 1 with the reason and no files."""
+    real_solve = solvers.solve
+
+    def starved(problem, method, **options):
+        return real_solve(problem, method, **{**options, "max_steps": 1})
+
+    monkeypatch.setattr(solvers, "solve", starved)
+    path = write(tmp_path, FREE_CASE.replace("x = 0.3", "x = 1.2"))
     out = tmp_path / "out"
     result = invoke("compare", path, "--quick", "--out", out)
     assert result.exit_code == 1, result.output
     assert "no reference solution: reference solver dop853-jit failed at the start" in (
         result.stderr
     )
+    assert "step budget exhausted" in result.stderr
     assert "Traceback" not in result.output
+    assert names(tmp_path) == {"case.toml"}
+
+
+def test_compare_refuses_a_forcing_beyond_the_models_domain(tmp_path):
+    """A forcing of 1e300 (once a reference failing at tau = 0) is refused as input."""
+    path = write(tmp_path, FREE_CASE.replace("e = 0.5", "e = 1e300"))
+    result = invoke("compare", path, "--quick", "--out", tmp_path / "out")
+    assert result.exit_code == 2, result.output
+    assert "model.e: must be at most 1e+100" in result.stderr
     assert names(tmp_path) == {"case.toml"}
 
 

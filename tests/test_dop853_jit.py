@@ -127,16 +127,18 @@ def test_fallback_when_the_kernels_are_unusable(monkeypatch):
     assert 1e-15 < np.max(np.abs(sol.states - exact)) < 1e-8
 
 
-def test_huge_forcing_fails_cleanly_with_the_reason():
-    """A forcing of 1e300 makes the right-hand side ~1e300, so DOP853's initial step
-    (scaled by 1 / |f|) is below the spacing of floats at tau = 0: the run stops there
+def test_step_below_the_spacing_of_floats_fails_cleanly_with_the_reason():
+    """A forcing of 1e100 from rest at tau = 1e10 (where doubles are 1.9e-6 apart): DOP853's
+    initial step (scaled by 1 / |f|) is below the spacing of tau, so the run stops there
     with that reason, exactly as scipy's DOP853 does; one finite sample, no traceback."""
-    p = ModelParams(nu=0.0, eta=1.0, e=1e300, K=17.6, mu=0.0, Rp=0.0)
-    prob = Problem.from_periods(p, (0.0, 0.0, 0.0, 0.0), 2, 10)
+    p = ModelParams(nu=0.0, eta=1.0, e=1e100, K=17.6, mu=0.0, Rp=0.0)
+    t0 = 1e10
+    prob = Problem(p, (0.0, 0.0, 0.0, 0.0), t0 + np.linspace(0.0, 2 * p.period, 21))
     sol = solve(prob, "dop853-jit", rtol=1e-6, atol=1e-8)
     assert sol.status == FAILED
     assert sol.message == (
-        "dop853-jit failed at tau = 0: required step size is less than spacing between numbers"
+        f"dop853-jit failed at tau = {t0:g}: required step size is less than spacing between "
+        "numbers"
     )
     assert sol.t.size == 1 and np.all(np.isfinite(sol.states))
     scipy_run = solve(prob, "dop853", rtol=1e-6, atol=1e-8)

@@ -534,3 +534,19 @@ def test_shipped_forces_map_cases_run_at_a_small_resolution(tmp_path, name):
     if "eigen" in settings.products and name == "examples/eigen-only.toml":
         # the grid reaches beyond the flutter radius: some contact points are unstable
         assert report["products"]["eigen"]["positive_fraction_of_contact_points"] > 0.0
+
+
+def test_grid_csv_is_formatted_in_blocks_row_by_row():
+    """The grid tables are formatted a block of rows at a time (one 8.3 GiB block once
+    failed at resolution 6688): the blocks cover the grid in its order (y outer, x inner)
+    and hold at most ``rows`` rows each."""
+    from rubcli.cli.forces_map import grid_blocks
+
+    x, y = np.linspace(-1.0, 1.0, 5), np.linspace(-2.0, 2.0, 4)
+    field = np.arange(20.0).reshape(4, 5)
+    blocks = list(grid_blocks(x, y, [field, -field], rows=7))
+    assert [b[0].size for b in blocks] == [7, 7, 6]
+    X, Y = np.meshgrid(x, y, indexing="xy")
+    expected = [X.ravel(), Y.ravel(), field.ravel(), -field.ravel()]
+    for got, want in zip(zip(*blocks, strict=True), expected, strict=True):
+        np.testing.assert_array_equal(np.concatenate(got), want)

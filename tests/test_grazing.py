@@ -27,7 +27,7 @@ from rubcli.analysis.stress import steady_unit_whirl, touching_start
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solution import SUCCESS
-from rubcli.solvers import METHODS, solve
+from rubcli.solvers import METHODS, options_for, solve
 from rubcli.solvers.events import GRAZING_TOLERANCE
 
 ALL = list(METHODS)
@@ -79,7 +79,7 @@ BDF_TOUCHES = "bdf records ~10 zero-duration contacts per period on this orbit"
 def test_free_whirl_of_radius_one_is_a_touch(method):
     p, start = steady_unit_whirl(NU, ETA, 17.6, 0.05, RP)
     prob = Problem.from_periods(p, start, 2, 20)
-    sol = solve(prob, method, **OPTIONS)
+    sol = solve(prob, method, **options_for(method, OPTIONS))
     assert sol.status == SUCCESS, sol.message
     assert len(sol.events) <= 4 * prob.periods  # sane: the exact motion has none
     exact = model.free_flight(prob.t_eval, 0.0, start, p).T
@@ -94,7 +94,7 @@ def test_single_tangential_touch(method, K):
     duration where the solver's own error (~rtol) pushes the orbit just outside."""
     p, start, touch = touching(K)
     prob = Problem.from_periods(p, start, 3, 50)
-    sol = solve(prob, method, **OPTIONS)
+    sol = solve(prob, method, **options_for(method, OPTIONS))
     assert sol.status == SUCCESS, sol.message
     assert [ev.kind for ev in sol.events] in ([], ["contact_entry", "contact_exit"])
     for ev in sol.events:
@@ -110,7 +110,7 @@ def test_start_at_the_apex_of_a_touch(method, K):
     p, start, touch = touching(K)
     apex = tuple(model.free_flight(touch, 0.0, start, p))
     prob = Problem.from_periods(p, apex, 2, 50)
-    sol = solve(prob, method, **OPTIONS)
+    sol = solve(prob, method, **options_for(method, OPTIONS))
     assert sol.status == SUCCESS, sol.message
     assert len(sol.events) <= 2 and all(ev.tau < 1e-6 for ev in sol.events)
     exact = model.free_flight(prob.t_eval, 0.0, apex, p).T
@@ -132,7 +132,7 @@ def test_start_just_before_the_apex_of_a_touch(method, K, offset):
     before = tuple(model.free_flight(touch - offset, 0.0, start, p))
     assert -1e-14 < math.hypot(before[0], before[1]) - 1.0 <= 0.0
     prob = Problem.from_periods(p, before, 2, 50)
-    sol = solve(prob, method, **OPTIONS)
+    sol = solve(prob, method, **options_for(method, OPTIONS))
     assert sol.status == SUCCESS, sol.message
     assert [ev.kind for ev in sol.events] in ([], ["contact_entry", "contact_exit"])
     # the exit is at the apex (tau = offset) to the method's tolerance band: within a few
@@ -157,7 +157,7 @@ def test_brief_contact_at_stiff_stator_is_located(method):
     entry = brentq(gap, touch - 0.05, touch, xtol=1e-15)
     reference = solve(prob, "dop853", rtol=1e-13, atol=1e-14)
     exit_ref = reference.events[1].tau
-    sol = solve(prob, method, **OPTIONS)
+    sol = solve(prob, method, **options_for(method, OPTIONS))
     assert sol.status == SUCCESS, sol.message
     assert [ev.kind for ev in sol.events] == ["contact_entry", "contact_exit"]
     assert abs(sol.events[0].tau - entry) < 1e-5
@@ -166,7 +166,7 @@ def test_brief_contact_at_stiff_stator_is_located(method):
     # to their tolerance
     assert abs(sol.events[1].tau - exit_ref) < (1e-3 if method == "analytic" else 1e-5)
     if method == "analytic":
-        adaptive = solve(prob, method, analytic_tol=1e-8, **OPTIONS)
+        adaptive = solve(prob, method, analytic_tol=1e-8, **options_for(method, OPTIONS))
         assert abs(adaptive.events[1].tau - exit_ref) < 1e-6
 
 

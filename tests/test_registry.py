@@ -33,8 +33,19 @@ def test_shared_settings_reach_each_method_as_its_own():
     settings = {"rtol": 1e-3, "atol": 1e-5, "steps_per_period": 7, "max_steps": 99}
     assert registry.options_for("analytic", settings) == {"steps_per_period": 7, "max_steps": 99}
     assert registry.options_for("rk45", settings) == {"rtol": 1e-3, "atol": 1e-5, "max_steps": 99}
-    assert solve(PROBLEM, "analytic", **settings).settings["steps_per_period"] == 7
-    assert solve(PROBLEM, "rk45", **settings).settings["rtol"] == 1e-3
+    analytic = solve(PROBLEM, "analytic", **registry.options_for("analytic", settings))
+    assert analytic.settings["steps_per_period"] == 7
+    assert solve(PROBLEM, "rk45", **registry.options_for("rk45", settings)).settings["rtol"] == 1e-3
+
+
+def test_an_option_of_another_method_is_refused_not_dropped():
+    """``solve(p, "analytic", rtol=1e-12)`` once ran at the default steps without a word."""
+    with pytest.raises(TypeError, match=r"'rtol'.*'analytic' does not take.*options_for"):
+        solve(PROBLEM, "analytic", rtol=1e-12)
+    with pytest.raises(TypeError, match="'steps_per_period'.*'dop853-jit' does not take"):
+        solve(PROBLEM, "dop853-jit", steps_per_period=100)
+    with pytest.raises(TypeError, match="did you mean 'rtol'"):
+        solve(PROBLEM, "rk45", rtoll=1e-6)
 
 
 def test_ladders_follow_each_methods_knob():

@@ -14,7 +14,7 @@ from rubcli import model
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solution import FAILED, SUCCESS
-from rubcli.solvers import METHODS, solve
+from rubcli.solvers import METHODS, options_for, solve
 
 SCIPY = ["rk45", "dop853", "radau", "bdf", "lsoda"]
 ALL = ["analytic", "analytic-polar", *SCIPY, "dop853-jit"]
@@ -34,7 +34,7 @@ def test_free_flight_matches_closed_form(method, nu):
     prob = Problem.from_periods(p, (0.2, -0.1, 0.3, 0.0), periods=5, samples_per_period=20)
     exact = model.free_flight(prob.t_eval, 0.0, prob.initial, p).T
     assert np.max(np.hypot(exact[:, 0], exact[:, 1])) < 1.0  # never touches
-    sol = solve(prob, method, rtol=1e-9, atol=1e-12)
+    sol = solve(prob, method, **options_for(method, {"rtol": 1e-9, "atol": 1e-12}))
     assert sol.status == SUCCESS and not sol.events
     err = np.abs(sol.states - exact)
     if method.startswith("analytic"):
@@ -52,7 +52,7 @@ def test_stays_on_synchronous_full_annular_rub(method, mu, fig3_params):
     assert model.synchronous_rub_is_forward(r, p)
     prob = Problem.from_periods(p, tuple(model.synchronous_rub(0.0, p, r)), 5, 20)
     exact = model.synchronous_rub(prob.t_eval, p, r).T
-    sol = solve(prob, method, **TIGHT)
+    sol = solve(prob, method, **options_for(method, TIGHT))
     assert sol.status == SUCCESS
     assert not sol.events  # never leaves contact, never reverses slip
     assert np.all(sol.regimes == model.SLIP_POSITIVE)
@@ -89,7 +89,7 @@ def test_analytic_order_on_exact_rub(fig3_params):
 def test_switch_times_lie_on_the_surface(method, fig3_params):
     p = fig3_params(0.0)
     prob = Problem.from_periods(p, (0.88544, -0.8039, 0.0, 0.0), 3, 20)
-    sol = solve(prob, method, **TIGHT)
+    sol = solve(prob, method, **options_for(method, TIGHT))
     assert sol.status == SUCCESS
     switches = [ev for ev in sol.events if ev.kind != "slip_reversal"]
     assert len(switches) >= 4
@@ -142,7 +142,7 @@ def test_methods_agree_on_paper_case(fig3_params):
         "dop853-jit": 1e-9,
     }
     for method, bound in expected.items():
-        sol = solve(prob, method, **{**TIGHT, "steps_per_period": 3200})
+        sol = solve(prob, method, **options_for(method, {**TIGHT, "steps_per_period": 3200}))
         assert sol.status == SUCCESS
         assert len(sol.events) == len(ref.events), method
         assert np.max(np.abs(sol.w - ref.w)) < bound, method

@@ -14,7 +14,7 @@ from rubcli import model
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solution import SUCCESS
-from rubcli.solvers import solve
+from rubcli.solvers import options_for, solve
 
 ALL = ["analytic", "analytic-polar", "rk45", "dop853", "radau", "bdf", "lsoda", "dop853-jit"]
 OPTIONS = {"rtol": 1e-10, "atol": 1e-12, "steps_per_period": 800}
@@ -55,7 +55,7 @@ def test_stays_on_exact_rolling_whirl(method):
     p = ModelParams(nu=0.01, eta=1.0, e=0.0, K=100.0, mu=0.3, Rp=2.0)
     r, s0 = rolling_start(p)
     prob = Problem.from_periods(p, s0, 2, 20)
-    sol = solve(prob, method, **OPTIONS)
+    sol = solve(prob, method, **options_for(method, OPTIONS))
     assert sol.status == SUCCESS and not sol.events
     assert np.all(sol.regimes == model.STICK)
     rate = p.Rp * p.eta / r
@@ -70,7 +70,7 @@ def test_stays_on_exact_rolling_whirl(method):
 def test_leaves_stick_when_friction_is_too_weak(method):
     p = ModelParams(nu=0.01, eta=1.0, e=0.0, K=100.0, mu=0.01, Rp=2.0)
     _, s0 = rolling_start(p)  # needs T = 0.04 > mu K (r - 1) = 0.029
-    sol = solve(Problem.from_periods(p, s0, 0.5, 40), method, **OPTIONS)
+    sol = solve(Problem.from_periods(p, s0, 0.5, 40), method, **options_for(method, OPTIONS))
     assert sol.status == SUCCESS
     assert sol.regimes[0] == model.SLIP_POSITIVE and not sol.events
     assert np.all(np.diff(sol.slip_velocity[:5]) > 0)  # slip grows forward
@@ -91,7 +91,7 @@ def test_stick_slip_cycle_agrees_across_methods():
     kinds = [ev.kind for ev in ref.events]
     assert kinds[:4] == ["stick_exit", "stick_entry", "stick_exit", "stick_entry"]
     for method in ALL:
-        sol = solve(prob, method, **{**OPTIONS, "steps_per_period": 1600})
+        sol = solve(prob, method, **options_for(method, {**OPTIONS, "steps_per_period": 1600}))
         assert sol.status == SUCCESS, method
         assert [ev.kind for ev in sol.events] == kinds, method
         times = np.array([ev.tau for ev in sol.events])

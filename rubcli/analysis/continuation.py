@@ -27,6 +27,7 @@ by Brent's method on the continuous test functions, by bisection on the counts.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -73,6 +74,7 @@ class ContinuationSettings:
     atol: float = ob.ATOL
     locate: bool = True
     locate_xtol: float = 1e-12  # Brent tolerance on the segment fraction
+    max_wall_time_s: float | None = None  # the run's wall-time budget (None: unbounded)
 
     @property
     def scale(self) -> float:
@@ -160,6 +162,7 @@ class Branch:
     start_index: int
     status: str = "ok"  # "ok" or "failed" (no starting orbit)
     message: str = ""
+    budget_exhausted: bool = False  # the wall-time budget cut the run short
 
     def rows(self) -> list[BranchPoint]:
         """Branch points with the located bifurcation points inserted in branch order."""
@@ -185,6 +188,7 @@ class Branch:
             "n_points": len(self.points),
             "start_index": self.start_index,
             "stops": self.stops,
+            "wall_time_budget_exhausted": self.budget_exhausted,
             "bifurcations": [b.to_dict() for b in self.bifurcations],
         }
 
@@ -240,11 +244,16 @@ class _Problem:
     """G(X) and its Jacobian for one parameter, in scaled coordinates X = (x0, q)."""
 
     def __init__(
-        self, params: ModelParams, settings: ContinuationSettings, locked: int | None = None
+        self,
+        params: ModelParams,
+        settings: ContinuationSettings,
+        locked: int | None = None,
+        deadline: float | None = None,
     ):
         self.params = params
         self.s = settings
         self.locked = locked  # a regime to integrate in without switches (grazing location)
+        self.deadline = deadline  # time.perf_counter() past which WallTimeBudgetError
         self.evaluations = 0
         self.last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
@@ -255,25 +264,33 @@ class _Problem:
         """(flow result, G, dP/dq or None) at X."""
         p = self.params_at(X[4])
         fl = ob.stroboscopic_map(
-            p, X[:4], self.s.k, rtol=self.s.rtol, atol=self.s.atol, locked=self.locked
-        )
+            p, X[:4], self.s.k, rtol=self.s.rtol, atol=self.s.atol, locked=self.locked,
+            deadline=self.deadline,
+        )  # fmt: skip
         self.evaluations += 1
         dPdq = self.derivative(X) if derivative else None
         return fl, fl.state - X[:4], dPdq
 
     def derivative(self, X: np.ndarray) -> np.ndarray:
-        """dP/dq at X by central differences of the map."""
+        """dP/dq at X by central differences of the map; one-sided where one side lies
+        outside the model's domain (at mu = 0, the bound of a window starting there)."""
         q = X[4]
         h = 1e-6 * max(1.0, abs(q))
-        plus = ob.stroboscopic_map(
-            self.params_at(q + h), X[:4], self.s.k, variational=False,
-            rtol=self.s.rtol, atol=self.s.atol, locked=self.locked,
-        ).state  # fmt: skip
-        minus = ob.stroboscopic_map(
-            self.params_at(q - h), X[:4], self.s.k, variational=False,
-            rtol=self.s.rtol, atol=self.s.atol, locked=self.locked,
-        ).state  # fmt: skip
-        return (plus - minus) / (2.0 * h)
+        sides = []
+        for step in (h, -h):
+            try:
+                sides.append((q + step, self.params_at(q + step)))
+            except ob.OrbitError:
+                sides.append((q, self.params_at(q)))
+        (q_plus, p_plus), (q_minus, p_minus) = sides
+        plus, minus = (
+            ob.stroboscopic_map(
+                p, X[:4], self.s.k, variational=False, rtol=self.s.rtol, atol=self.s.atol,
+                locked=self.locked, deadline=self.deadline,
+            ).state
+            for p in (p_plus, p_minus)
+        )  # fmt: skip
+        return (plus - minus) / (q_plus - q_minus)
 
     def point(self, X: np.ndarray, fl: ob.FlowResult, iterations: int) -> BranchPoint:
         return BranchPoint(
@@ -365,11 +382,20 @@ class _Problem:
 # --------------------------------------------------------------------- continuation
 
 
+def deadline_of(settings: ContinuationSettings, start: float | None = None) -> float | None:
+    """The ``time.perf_counter()`` at which ``settings.max_wall_time_s`` runs out, counted
+    from ``start`` (default: now); None without a budget."""
+    if settings.max_wall_time_s is None:
+        return None
+    return (time.perf_counter() if start is None else start) + settings.max_wall_time_s
+
+
 def continue_branch(
     params: ModelParams,
     start_state,
     settings: ContinuationSettings,
     progress: Callable[[int], None] | None = None,
+    deadline: float | None = None,
 ) -> Branch:
     """Continue the periodic orbit through ``start_state`` in ``settings.parameter``.
 
@@ -377,25 +403,43 @@ def continue_branch(
     A starting orbit that cannot be found gives a Branch with status "failed" and the
     reason; a direction that stops early keeps its points and says why in ``stops``.
     ``progress(n)`` is called with the number of points computed so far.
+
+    The run ends by ``deadline`` (a ``time.perf_counter()`` value; default: now plus
+    ``settings.max_wall_time_s``): what is computed by then is kept, the direction under
+    way stops with the reason, bifurcations not yet located are reported unlocated, and
+    ``budget_exhausted`` is set.
     """
     s = settings
-    prob = _Problem(params, s)
+    if deadline is None:
+        deadline = deadline_of(s)
+    prob = _Problem(params, s, deadline=deadline)
     p0 = float(getattr(params, s.parameter))
+    budget = "wall-time budget exhausted" + (
+        f" (max_wall_time_s = {s.max_wall_time_s:g})" if s.max_wall_time_s is not None else ""
+    )
     try:
         orbit = ob.shoot(
             params, start_state, s.k, tol=s.newton_tol, max_iter=s.max_newton,
-            rtol=s.rtol, atol=s.atol,
+            rtol=s.rtol, atol=s.atol, deadline=deadline,
         )  # fmt: skip
     except ob.NewtonError as exc:
         return Branch(s.parameter, s, [], [], {}, 0, "failed", f"no starting orbit: {exc}")
+    except ob.WallTimeBudgetError:
+        return Branch(s.parameter, s, [], [], {}, 0, "failed", f"no starting orbit: {budget}",
+                      budget_exhausted=True)  # fmt: skip
     X0 = np.concatenate([orbit.state, [p0 / s.scale]])
     first = prob.point(X0, orbit.flow, orbit.newton_iterations)
     done = [1]
     arms: dict[int, list[tuple[np.ndarray, BranchPoint]]] = {}
     stops: dict[str, str] = {}
+    exhausted = False
     for direction in s.directions:
         name = "forward" if direction > 0 else "backward"
-        arm, reason = _one_direction(prob, X0, direction, done, progress)
+        arm: list[tuple[np.ndarray, BranchPoint]] = []
+        try:
+            reason = _one_direction(prob, X0, direction, done, progress, arm)
+        except ob.WallTimeBudgetError:
+            reason, exhausted = budget, True
         arms[direction] = arm
         stops[name] = reason
     backward = arms.get(-1, [])
@@ -403,13 +447,21 @@ def continue_branch(
     ordered = [*reversed(backward), (X0, first), *forward]
     Xs = [X for X, _ in ordered]
     points = [pt for _, pt in ordered]
-    bifurcations = detect(prob, Xs, points, locate=s.locate)
-    return Branch(s.parameter, s, points, bifurcations, stops, len(backward))
+    try:
+        bifurcations = detect(prob, Xs, points, locate=s.locate)
+    except ob.WallTimeBudgetError:
+        exhausted = True
+        bifurcations = detect(prob, Xs, points, locate=False)
+        for bif in bifurcations:
+            bif.note = f"not located: {budget}"
+    return Branch(s.parameter, s, points, bifurcations, stops, len(backward),
+                  budget_exhausted=exhausted)  # fmt: skip
 
 
-def _one_direction(prob: _Problem, X0, direction, done, progress):
+def _one_direction(prob: _Problem, X0, direction, done, progress, out) -> str:
+    """Continue from X0 in ``direction``, appending (X, point) to ``out``; returns why it
+    stopped (WallTimeBudgetError passes through, ``out`` keeping the points so far)."""
     s = prob.s
-    out: list[tuple[np.ndarray, BranchPoint]] = []
     ds = s.step / s.scale
     ds_min, ds_max = s.min_step / s.scale, s.max_step / s.scale
     q_min, q_max = s.p_min / s.scale, s.p_max / s.scale
@@ -417,16 +469,16 @@ def _one_direction(prob: _Problem, X0, direction, done, progress):
     try:
         t = prob.tangent(X, None, direction)
     except ob.OrbitError as exc:
-        return out, f"tangent failed at the start: {exc}"
+        return f"tangent failed at the start: {exc}"
     while True:
         if len(out) >= s.max_points:
-            return out, f"point budget used ({s.max_points} points)"
+            return f"point budget used ({s.max_points} points)"
         X_pred = X + ds * t
         try:
             X_new, pt = prob.correct(X_pred, t)
         except CorrectorError as exc:
             if ds / 2.0 < ds_min:
-                return out, f"corrector failed at the minimum step: {exc}"
+                return f"corrector failed at the minimum step: {exc}"
             ds /= 2.0
             continue
         q = X_new[4]
@@ -439,12 +491,12 @@ def _one_direction(prob: _Problem, X0, direction, done, progress):
                 if progress:
                     progress(done[0])
             which = "upper" if bound == q_max else "lower"
-            return out, f"reached the {which} bound {s.parameter} = {bound * s.scale:.6g}"
+            return f"reached the {which} bound {s.parameter} = {bound * s.scale:.6g}"
         try:
             t_new = prob.tangent(X_new, t, direction)
         except ob.OrbitError as exc:
             out.append((X_new, pt))
-            return out, f"tangent failed: {exc}"
+            return f"tangent failed: {exc}"
         out.append((X_new, pt))
         done[0] += 1
         if progress:
@@ -524,7 +576,7 @@ def _locate_grazing(prob: _Problem, Xs, points, i, locate) -> Bifurcation:
     """
     if not locate:
         return _locate_continuous(prob, Xs, points, i, GRAZING, grazing_test, False)[0]
-    side = _Problem(prob.params, prob.s, locked=model.FREE)
+    side = _Problem(prob.params, prob.s, locked=model.FREE, deadline=prob.deadline)
     cache: dict[float, BranchPoint] = {}
     try:
         for theta in (0.0, 1.0):

@@ -423,21 +423,20 @@ def eigen_map(params: ModelParams, mu_c: float, extent: float, resolution: int) 
     applied to the stiffness block (after checking that the damping block is ``2 nu I``).
     """
     axis, X, Y, in_contact = _contact_points(extent, resolution)
-    iy, ix = np.nonzero(in_contact)
-    stiffness = np.empty((iy.size, 2, 2))
-    for n, (j, i) in enumerate(zip(iy, ix, strict=True)):
-        A, _ = linearised_contact_system((X[j, i], Y[j, i], 0.0, 0.0), params, mu_c)
-        stiffness[n] = -A[2:, :2]
-        if n == 0 and not np.array_equal(A[2:, 2:], -2.0 * params.nu * np.eye(2)):
-            raise ValueError("the damping block of the linearised system is not 2 nu I")
-    max_real_c, f1_c, f2_c = modal_summary(damped_eigenvalues(stiffness, params.nu))
     shape = X.shape
     max_real = np.full(shape, np.nan)
     freq_1 = np.full(shape, np.nan)
     freq_2 = np.full(shape, np.nan)
-    max_real[iy, ix] = max_real_c
-    freq_1[iy, ix] = f1_c
-    freq_2[iy, ix] = f2_c
+    for iy, ix in _contact_blocks(in_contact):
+        stiffness = np.empty((iy.size, 2, 2))
+        for n, (j, i) in enumerate(zip(iy, ix, strict=True)):
+            A, _ = linearised_contact_system((X[j, i], Y[j, i], 0.0, 0.0), params, mu_c)
+            stiffness[n] = -A[2:, :2]
+            if n == 0 and not np.array_equal(A[2:, 2:], -2.0 * params.nu * np.eye(2)):
+                raise ValueError("the damping block of the linearised system is not 2 nu I")
+        summary = modal_summary(damped_eigenvalues(stiffness, params.nu))
+        max_real[iy, ix], freq_1[iy, ix], freq_2[iy, ix] = summary
+    del X, Y, in_contact
     return EigenMap(
         x=axis,
         y=axis.copy(),
@@ -448,6 +447,20 @@ def eigen_map(params: ModelParams, mu_c: float, extent: float, resolution: int) 
         K=float(params.K),
         mu_c=float(mu_c),
     )
+
+
+# Contact points whose eigenvalues are computed at a time (each point's temporaries take
+# some 300 bytes: the grid's memory stays that of its result arrays).
+CONTACT_BLOCK_POINTS = 65_536
+
+
+def _contact_blocks(in_contact: np.ndarray, size: int = CONTACT_BLOCK_POINTS):
+    """``(iy, ix)`` of the contact points, ``size`` at a time, row by row of the grid."""
+    rows_per_block = max(1, size // max(1, in_contact.shape[1]))
+    for row in range(0, in_contact.shape[0], rows_per_block):
+        iy, ix = np.nonzero(in_contact[row : row + rows_per_block])
+        if iy.size:
+            yield iy + row, ix
 
 
 def friction_flutter_radius(mu: float) -> float:

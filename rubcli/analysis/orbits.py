@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -43,10 +44,25 @@ MAX_EVENTS_PER_PERIOD = 400
 # Events closer than this to a segment's start are the restart surface itself, not a crossing.
 RESTART_GAP = 1e-11
 PARAMETERS = ("eta", "mu", "K", "e", "nu", "Rp")
+# A long flow without a map's variational equations (a transient) is integrated in pieces
+# of at most this many forcing periods: the dense output of one piece is kept (for the
+# extremes of z), and 1e5 periods in one piece once held 3 GB.
+TRANSIENT_CHUNK_PERIODS = 16
 
 
 class OrbitError(RuntimeError):
     """The map could not be evaluated (chatter, a failed integration)."""
+
+
+class WallTimeBudgetError(Exception):
+    """The wall-time budget of an orbits run is spent. Not an OrbitError: nothing retries
+    it (a corrector would halve its step and try again); the callers stop with it."""
+
+
+def check_deadline(deadline: float | None) -> None:
+    """WallTimeBudgetError once ``time.perf_counter()`` has passed ``deadline`` (None: never)."""
+    if deadline is not None and time.perf_counter() > deadline:
+        raise WallTimeBudgetError("wall-time budget exhausted")
 
 
 @dataclass
@@ -78,10 +94,14 @@ class FlowResult:
 
 
 def with_parameter(params: ModelParams, name: str, value: float) -> ModelParams:
-    """``params`` with one of PARAMETERS set to ``value``."""
+    """``params`` with one of PARAMETERS set to ``value``; OrbitError if ``value`` lies
+    outside the model's domain (a continuation step past ``eta = 0`` or ``mu = 0``)."""
     if name not in PARAMETERS:
         raise ValueError(f"unknown continuation parameter {name!r}; one of {PARAMETERS}")
-    return dataclasses.replace(params, **{name: float(value)})
+    try:
+        return dataclasses.replace(params, **{name: float(value)})
+    except ValueError as exc:
+        raise OrbitError(f"{name} = {value:.6g} leaves the model's domain ({exc})") from None
 
 
 # ----------------------------------------------------------------- switching surfaces
@@ -220,17 +240,22 @@ def flow(
     atol: float = ATOL,
     max_events: int | None = None,
     locked: int | None = None,
+    deadline: float | None = None,
 ) -> FlowResult:
     """Integrate the nonsmooth flow from (tau0, s0) to tau1, with the monodromy matrix.
 
     Returns the final state, ``Phi = d s(tau1) / d s0`` (if ``variational``), the switch
     events, the largest and smallest z (refined on the dense output), and the time spent
-    in contact and in stick. Raises OrbitError on chatter or a failed integration.
+    in contact and in stick. Raises OrbitError on chatter or a failed integration, and
+    WallTimeBudgetError once ``time.perf_counter()`` passes ``deadline`` (checked at every
+    evaluation of the right-hand side).
 
     ``locked``: integrate in this one regime without any switch (the smooth extension of
     a free or a slipping flow across the surfaces), used to locate grazing from the side
     where the branch is smooth.
     """
+    if not tau1 > tau0:
+        raise OrbitError(f"empty time span tau = {tau0:.9g} .. {tau1:.9g}")
     s = np.asarray(s0, dtype=float).copy()
     regime = _start_regime(tau0, s, params) if locked is None else int(locked)
     if regime == model.STICK:
@@ -250,9 +275,11 @@ def flow(
     while tau < tau1:
         reg = regime
 
+        check_deadline(deadline)
         if variational:
 
             def fun(t, Y, reg=reg):
+                check_deadline(deadline)
                 f = model.rhs_entries(t, Y[0], Y[1], Y[2], Y[3], *args, reg)
                 J = model.rhs_jacobian_array(t, Y[0], Y[1], Y[2], Y[3], *args, reg)
                 out = np.empty(20)
@@ -264,6 +291,7 @@ def flow(
         else:
 
             def fun(t, Y, reg=reg):
+                check_deadline(deadline)
                 return np.array(model.rhs_entries(t, Y[0], Y[1], Y[2], Y[3], *args, reg))
 
             Y0 = s.copy()
@@ -367,10 +395,12 @@ def stroboscopic_map(
     rtol=RTOL,
     atol=ATOL,
     locked: int | None = None,
+    deadline: float | None = None,
 ) -> FlowResult:
     """P^k(s0): the flow over k forcing periods from tau = 0 (with its monodromy matrix)."""
     T = k * params.period
-    return flow(params, s0, 0.0, T, variational=variational, rtol=rtol, atol=atol, locked=locked)
+    return flow(params, s0, 0.0, T, variational=variational, rtol=rtol, atol=atol, locked=locked,
+                deadline=deadline)  # fmt: skip
 
 
 def floquet_multipliers(monodromy: np.ndarray) -> np.ndarray:
@@ -422,17 +452,19 @@ def shoot(
     max_iter: int = 12,
     rtol: float = RTOL,
     atol: float = ATOL,
+    deadline: float | None = None,
 ) -> PeriodicOrbit:
     """Newton on G(x0) = P^k(x0) - x0 with the Jacobian Phi - I.
 
     Converged when ``|G|_inf <= tol * max(1, |x0|_inf)``. Raises NewtonError with the
-    reason (no convergence within ``max_iter``, a singular Jacobian, a failed map).
+    reason (no convergence within ``max_iter``, a singular Jacobian, a failed map), and
+    WallTimeBudgetError past ``deadline``.
     """
     x = np.asarray(guess, dtype=float).copy()
     res = math.inf
     for it in range(max_iter + 1):
         try:
-            fl = stroboscopic_map(params, x, k, rtol=rtol, atol=atol)
+            fl = stroboscopic_map(params, x, k, rtol=rtol, atol=atol, deadline=deadline)
         except OrbitError as exc:
             raise NewtonError(f"map failed at Newton iteration {it}: {exc}", x, res) from None
         G = fl.state - x
@@ -455,12 +487,21 @@ def shoot(
     )
 
 
-def transient_state(params: ModelParams, s0, periods: int) -> np.ndarray:
-    """The state after ``periods`` forcing periods from s0 (a starting guess for shooting)."""
-    if periods <= 0:
-        return np.asarray(s0, dtype=float).copy()
-    fl = flow(params, s0, 0.0, periods * params.period, variational=False, rtol=1e-10, atol=1e-12)
-    return fl.state
+def transient_state(
+    params: ModelParams, s0, periods: int, deadline: float | None = None
+) -> np.ndarray:
+    """The state after ``periods`` forcing periods from s0 (a starting guess for shooting),
+    integrated in pieces of ``TRANSIENT_CHUNK_PERIODS`` (bounded memory); WallTimeBudgetError
+    past ``deadline``."""
+    s = np.asarray(s0, dtype=float).copy()
+    done = 0
+    while done < periods:
+        n = min(TRANSIENT_CHUNK_PERIODS, periods - done)
+        tau0, tau1 = done * params.period, (done + n) * params.period
+        s = flow(params, s, tau0, tau1, variational=False, rtol=1e-10, atol=1e-12,
+                 deadline=deadline).state  # fmt: skip
+        done += n
+    return s
 
 
 def free_multipliers(params: ModelParams, k: int = 1) -> np.ndarray:

@@ -228,13 +228,14 @@ def _error_row(setting: Setting, exc: Exception) -> Row:
 
 
 def warm_up(problem: Problem, method: str, options: dict) -> float:
-    """One solve over the first forcing period; returns its wall time (start-up cost)."""
-    from rubcli.solvers import solve
+    """One solve over the first forcing period, with the warm-up's own budgets
+    (``solvers.warm_up_options``); returns its wall time (start-up cost)."""
+    from rubcli.solvers import solve, warm_up_options
 
     period_end = float(problem.t_eval[0]) + problem.params.period
     short = truncate_problem(problem, period_end)
     try:
-        return solve(short, method, **options).wall_time_s
+        return solve(short, method, **warm_up_options(options)).wall_time_s
     except Exception:  # the ladder's own rows record the failure
         return math.nan
 

@@ -284,3 +284,32 @@ def count_bar(description: str, total: int) -> Iterator[Callable[[int], None]]:
 
     with bar:
         yield update
+
+
+@contextmanager
+def progress_lines(status: Callable[[], str], every_s: float = 10.0) -> Iterator[None]:
+    """Where no progress bar shows (stderr is not a terminal: a log, a pipe, a batch job),
+    print ``progress: <status()>`` on stderr when the block starts and every ``every_s``
+    seconds while it runs, so that a long computation is never silent. Nothing on a
+    terminal (the bars show there)."""
+    if _stderr().is_terminal:
+        yield
+        return
+    done = threading.Event()
+
+    def line() -> None:
+        _stderr().print(f"progress: {status()}", markup=False, soft_wrap=True)
+
+    def beat() -> None:
+        while not done.wait(every_s):
+            line()
+
+    line()
+
+    thread = threading.Thread(target=beat, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        thread.join()

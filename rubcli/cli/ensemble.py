@@ -27,7 +27,15 @@ import typer
 from rubcli import io
 from rubcli.analysis import ensemble as en
 from rubcli.cli import console
-from rubcli.cli.common import ForceOption, JsonOption, emit, prepare_output, report_stale
+from rubcli.cli.common import (
+    ForceOption,
+    JsonOption,
+    WaitOption,
+    command_dir,
+    emit,
+    prepare_output,
+    report_stale,
+)
 from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 
 QUICK = {"runs": 4, "periods": 300, "record_periods": 100, "lyapunov_periods": 50}
@@ -60,6 +68,7 @@ OutOption = Annotated[
 WorkersOption = Annotated[
     int | None, typer.Option("--workers", "-w", min=1, help="Local processes (default: all cores).")
 ]
+EXPECTED_FILES = ("ensemble.csv", "ensemble.png", "report.json")
 QuickOption = Annotated[bool, typer.Option("--quick", help="CI mode: 4 runs of 300 periods.")]
 
 
@@ -70,6 +79,7 @@ def command(
     quick: QuickOption = False,
     json: JsonOption = False,
     force: ForceOption = False,
+    wait: WaitOption = False,
 ) -> None:
     """Attractor fractions and escape times over a cloud of starts ([ensemble] table)."""
     case = load_or_exit(case_file)
@@ -77,8 +87,8 @@ def command(
     if problems:
         console.error_lines(f"cannot run the ensemble of {case_file}", problems)
         raise typer.Exit(EXIT_INVALID)
-    target = Path(out) if out is not None else case.output_dir / "ensemble"
-    plan = prepare_output(target, force)
+    target = command_dir(case, "ensemble", out)
+    plan = prepare_output(target, force, wait, EXPECTED_FILES)
     workers = workers or os.cpu_count() or 1
     with console.machine_readable(json):
         started = time.perf_counter()
@@ -116,7 +126,7 @@ def command(
                          f"{s['spread']:g}")  # fmt: skip
                 io.save_figure(ensemble_figure(result, title), staged.path("ensemble.png"))
             report["files"] = sorted(f.name for f in staged.staging.iterdir()) + ["report.json"]
-            io.write_json(staged.path("report.json"), report)
+            staged.write_report(report)
         report_stale(plan)
         emit(report, json)
         if not result.good:

@@ -23,18 +23,21 @@ invalid input (nothing written). Files are staged and moved in at the end.
 
 from __future__ import annotations
 
+import contextlib
+import resource
 from pathlib import Path
 from typing import Annotated, Any
 
 import numpy as np
 import typer
 
+from rubcli import case as case_module
 from rubcli import io
 from rubcli.analysis import forces
 from rubcli.case import Case, ForcesMapSection
 from rubcli.cli import console
 from rubcli.cli.common import ForceOption, WaitOption, command_dir, prepare_output, report_stale
-from rubcli.cli.validate import load_or_exit
+from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 
 FORCES_COLUMNS = ("x", "y", "Fx_exact", "Fy_exact", "Fx_taylor", "Fy_taylor", "Fx_diff", "Fy_diff")
 TAYLOR_COLUMNS = ("K", "delta", "direction", "max_abs_error")
@@ -47,15 +50,28 @@ def output_dir(case: Case, out: Path | None) -> Path:
     return command_dir(case, OUTPUT_SUBDIR, out)
 
 
-def _grid_table(x: np.ndarray, y: np.ndarray, fields: list[np.ndarray]) -> np.ndarray:
-    """One row per grid point (y outer, x inner): x, y, then each field."""
-    X, Y = np.meshgrid(x, y, indexing="xy")
-    return np.column_stack([X.ravel(), Y.ravel(), *(f.ravel() for f in fields)])
+# Rows of a grid table formatted at a time: the text of one block (about 100 bytes a row)
+# is all the CSV holds in memory, whatever the resolution.
+GRID_BLOCK_ROWS = 65_536
 
 
-def write_table_csv(path: Path, columns: tuple[str, ...], table: np.ndarray) -> Path:
-    """Numeric CSV, shortest round-trip repr of each float; NaN an empty field. Atomic."""
-    return io.write_csv(path, columns, [list(table.T)], nonfinite="")
+def grid_blocks(
+    x: np.ndarray, y: np.ndarray, fields: list[np.ndarray], rows: int = GRID_BLOCK_ROWS
+):
+    """The grid table in blocks of ``rows`` rows, one row per grid point (y outer, x
+    inner): x, y, then each field (indexed ``[iy, ix]``); nothing of the size of the grid
+    is allocated."""
+    n = x.size
+    flat = [f.reshape(-1) for f in fields]
+    for start in range(0, n * y.size, rows):
+        index = np.arange(start, min(start + rows, n * y.size))
+        yield [x[index % n], y[index // n], *(f[start : start + index.size] for f in flat)]
+
+
+def write_grid_csv(path: Path, columns: tuple[str, ...], x, y, fields) -> Path:
+    """Numeric CSV of a grid, shortest round-trip repr of each float, NaN an empty field,
+    formatted and written block by block (``grid_blocks``). Atomic."""
+    return io.write_csv(path, columns, grid_blocks(x, y, fields), nonfinite="")
 
 
 def write_taylor_csv(path: Path, error: forces.TaylorError) -> Path:
@@ -67,12 +83,9 @@ def _forces_product(case: Case, settings: ForcesMapSection, title: str, staged) 
 
     p = case.params
     fm = forces.force_map(p.K, p.mu, settings.extent, settings.resolution)
-    table = _grid_table(
-        fm.x,
-        fm.y,
-        [fm.Fx_exact, fm.Fy_exact, fm.Fx_taylor, fm.Fy_taylor, fm.Fx_diff, fm.Fy_diff],
-    )
-    write_table_csv(staged.path("forces_map.csv"), FORCES_COLUMNS, table)
+    fields = [fm.Fx_exact, fm.Fy_exact, fm.Fx_taylor, fm.Fy_taylor, fm.Fx_diff, fm.Fy_diff]
+    write_grid_csv(staged.path("forces_map.csv"), FORCES_COLUMNS, fm.x, fm.y, fields)
+    del fields  # (the differences, made for the table)
     io.save_figure(plots.forces_map_figure(fm, title), staged.path("forces_map.png"))
     return {
         "K": fm.K,
@@ -126,8 +139,8 @@ def _eigen_product(case: Case, settings: ForcesMapSection, title: str, staged) -
     p = case.params
     em = forces.eigen_map(p, p.mu, settings.extent, settings.resolution)
     flutter = forces.friction_flutter_radius(p.mu)
-    table = _grid_table(em.x, em.y, [em.max_real, em.freq_1, em.freq_2])
-    write_table_csv(staged.path("eigen_map.csv"), EIGEN_COLUMNS, table)
+    fields = [em.max_real, em.freq_1, em.freq_2]
+    write_grid_csv(staged.path("eigen_map.csv"), EIGEN_COLUMNS, em.x, em.y, fields)
     figure = plots.eigen_map_figure(em, title, flutter_radius=flutter)
     io.save_figure(figure, staged.path("eigen_map.png"))
     contact = em.in_contact
@@ -234,6 +247,36 @@ def _print_summary(report: dict[str, Any]) -> None:
         )
 
 
+def available_memory_bytes() -> float | None:
+    """The memory this process may still take: the kernel's MemAvailable, or the address
+    space limit (RLIMIT_AS) if lower; None if neither is known."""
+    limits = []
+    with contextlib.suppress(OSError, ValueError):
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemAvailable:"):
+                limits.append(int(line.split()[1]) * 1024)
+    with contextlib.suppress(ValueError, OSError, AttributeError):
+        soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+        if soft != resource.RLIM_INFINITY:
+            limits.append(soft)
+    return float(min(limits)) if limits else None
+
+
+def _check_memory(case_file: Path, resolution: int) -> None:
+    """Exit 2 if the grid will not fit in the memory this process may take (the case's
+    own check bounds it by 8 GiB on any machine)."""
+    need, have = case_module.forces_map_memory_bytes(resolution), available_memory_bytes()
+    if have is None or need <= have:
+        return
+    largest = case_module.largest_forces_map_resolution(have)
+    console.error(
+        f"{case_file}: forces_map.resolution: a {resolution} x {resolution} grid needs about "
+        f"{need / 1024**3:.3g} GiB of memory, and this process may take "
+        f"{have / 1024**3:.3g} GiB; at most {largest} fits"
+    )
+    raise typer.Exit(EXIT_INVALID)
+
+
 def command(
     case_file: Annotated[Path, typer.Argument(metavar="CASE", help="The case file (TOML).")],
     out: Annotated[
@@ -252,6 +295,7 @@ def command(
     case = load_or_exit(case_file)
     target = output_dir(case, out)
     settings = case.settings.forces_map or ForcesMapSection()
+    _check_memory(case_file, settings.resolution)
     plan = prepare_output(target, force, wait, expected_files(settings))
     source = (
         "[forces_map]" if case.settings.forces_map is not None else "defaults (no [forces_map])"

@@ -16,12 +16,18 @@ locates folds, period doublings, Neimark-Sacker points, grazing and stick onset,
 
 ``--quick`` (for CI) caps each direction at 12 points and loosens the integration to 1e-10.
 
+``[orbits] max_wall_time_s`` (default 3600 s; ``--max-wall-time S``) bounds the whole
+run, the transient included: what is computed by then is written. Where no progress bar
+shows (stderr not a terminal), a ``progress:`` line goes to stderr every 10 s.
+
 Exit codes: 0 done (a direction that stopped early says why in the report); 2 invalid
-input (nothing written); 1 no starting orbit (only report.json, with the reason).
+input (nothing written); 1 no starting orbit (only report.json, with the reason), or the
+wall-time budget ran out (the orbits computed are written, the report says so).
 """
 
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 from typing import Annotated, Any
@@ -59,8 +65,11 @@ CSV_COLUMNS = (
 )  # fmt: skip
 
 
-def settings_from_case(case: Case, quick: bool = False) -> cn.ContinuationSettings:
-    """The continuation settings of a case's [orbits] table."""
+def settings_from_case(
+    case: Case, quick: bool = False, max_wall_time_s: float | None = None
+) -> cn.ContinuationSettings:
+    """The continuation settings of a case's [orbits] table (``max_wall_time_s``: the
+    command line's budget instead of the table's)."""
     o = case.settings.orbits
     assert o is not None
     directions = {"both": (1, -1), "up": (1,), "down": (-1,)}[o.directions]
@@ -79,6 +88,7 @@ def settings_from_case(case: Case, quick: bool = False) -> cn.ContinuationSettin
         rtol=max(o.rtol, QUICK_TOL) if quick else o.rtol,
         atol=max(o.atol, QUICK_TOL) if quick else o.atol,
         locate=o.locate,
+        max_wall_time_s=o.max_wall_time_s if max_wall_time_s is None else max_wall_time_s,
     )
 
 
@@ -249,6 +259,14 @@ def command(
     quick: Annotated[
         bool, typer.Option("--quick", help="CI mode: 12 points per direction, tolerance 1e-10.")
     ] = False,
+    max_wall_time: Annotated[
+        float | None,
+        typer.Option(
+            "--max-wall-time",
+            metavar="S",
+            help="Wall-time budget in seconds instead of [orbits] max_wall_time_s.",
+        ),
+    ] = None,  # fmt: skip
     json: JsonOption = False,
     force: ForceOption = False,
     wait: WaitOption = False,
@@ -263,9 +281,11 @@ def command(
                 f'{case_file}: --overlay: draws periodic-orbit branches, not kind = "whirl"'
             )
             raise typer.Exit(EXIT_INVALID)
-        target = Path(out) if out is not None else case.output_dir
-        return whirls.run(case_file, case, target, force, quick, json)
+        target = command_dir(case, "orbits", out)
+        return whirls.run(case_file, case, target, force, wait, quick, json)
     problems = check_case(case)
+    if max_wall_time is not None and not (math.isfinite(max_wall_time) and max_wall_time > 0):
+        problems.append(f"--max-wall-time: must be a finite number > 0 (got {max_wall_time!r})")
     overlay_data = None
     if not problems and overlay is not None:
         loaded = load_overlay(overlay, case.settings.orbits.parameter, overlay_var)
@@ -277,7 +297,7 @@ def command(
         console.error_lines(f"cannot continue orbits of {case_file}", problems)
         raise typer.Exit(EXIT_INVALID)
     o: OrbitsSection = case.settings.orbits
-    settings = settings_from_case(case, quick)
+    settings = settings_from_case(case, quick, max_wall_time)
     target = command_dir(case, "orbits", out)
     plan = prepare_output(target, force, wait, EXPECTED_FILES)  # before any work
     with console.machine_readable(json):
@@ -288,12 +308,35 @@ def _orbits(case_file, case, o, settings, target, plan, overlay, overlay_data, q
     """The work of the command, once its inputs and output dir are checked."""
     t0 = time.perf_counter()
     params = case.params
-    with console.progress_bar("start orbit", total=1.0) as update:
-        guess = start_guess(case, o)
-        update(1.0)
-    total = float(settings.max_points * len(settings.directions) + 1)
-    with console.progress_bar(f"continuation in {o.parameter}", total=total) as update:
-        branch = cn.continue_branch(params, guess, settings, progress=lambda n: update(n))
+    deadline = cn.deadline_of(settings, t0)
+    done = [0]
+    phase = ["the starting orbit"]
+
+    def status() -> str:
+        return (f"orbits: {phase[0]}, {done[0]} orbits, {time.perf_counter() - t0:.0f} s of "
+                f"the {settings.max_wall_time_s:g} s budget")  # fmt: skip
+
+    def count(n: int) -> None:
+        done[0] = n
+        update(n)
+
+    with console.progress_lines(status):
+        with console.progress_bar("start orbit", total=1.0) as update:
+            try:
+                guess = start_guess(case, o, deadline)
+            except ob.WallTimeBudgetError:
+                guess = None
+            update(1.0)
+        phase[0] = f"continuation in {o.parameter}"
+        total = float(settings.max_points * len(settings.directions) + 1)
+        with console.progress_bar(f"continuation in {o.parameter}", total=total) as update:
+            if guess is None:
+                branch = cn.Branch(o.parameter, settings, [], [], {}, 0, "failed",
+                                   f"no starting orbit: wall-time budget exhausted "
+                                   f"(max_wall_time_s = {settings.max_wall_time_s:g}) in the "
+                                   "transient", budget_exhausted=True)  # fmt: skip
+            else:
+                branch = cn.continue_branch(params, guess, settings, count, deadline)
     wall = time.perf_counter() - t0
     command_line = {"case_file": str(case_file), "out": str(target), "quick": quick,
                     "overlay": str(overlay) if overlay is not None else None}  # fmt: skip
@@ -302,7 +345,7 @@ def _orbits(case_file, case, o, settings, target, plan, overlay, overlay_data, q
         "wall_time_s": wall,
         "quick": quick,
         "continuation": {k: v for k, v in settings.__dict__.items()},
-        "start_guess": [float(v) for v in guess],
+        "start_guess": None if guess is None else [float(v) for v in guess],
         "branch": branch.to_dict(),
         "overlay": str(overlay) if overlay is not None else None,
     }
@@ -328,6 +371,13 @@ def _orbits(case_file, case, o, settings, target, plan, overlay, overlay_data, q
         f"{len(branch.points)} orbits in {wall:.1f} s; "
         + "; ".join(f"{k}: {v}" for k, v in branch.stops.items())
     )
+    if branch.budget_exhausted:
+        console.error(
+            f"{case_file}: stopped by the wall-time budget ({settings.max_wall_time_s:g} s): "
+            f"the {len(branch.points)} orbits computed are written to {target} "
+            "(--max-wall-time or [orbits] max_wall_time_s for more)"
+        )
+        raise typer.Exit(EXIT_FAILED)
     if branch.bifurcations:
         console.table(
             f"bifurcations along {branch.parameter}",
@@ -341,15 +391,16 @@ def _orbits(case_file, case, o, settings, target, plan, overlay, overlay_data, q
     )
 
 
-def start_guess(case: Case, o: OrbitsSection) -> np.ndarray:
-    """The starting guess for shooting: [initial], after a transient, or the exact rub."""
+def start_guess(case: Case, o: OrbitsSection, deadline: float | None = None) -> np.ndarray:
+    """The starting guess for shooting: [initial], after a transient, or the exact rub
+    (WallTimeBudgetError if the transient runs past ``deadline``)."""
     params = case.params
     if o.start == "synchronous_rub":
         return model.synchronous_rub(np.array([0.0]), params)[:, 0]
     initial = np.array(case.problem.initial, dtype=float)
     if o.start == "transient":
         try:
-            return ob.transient_state(params, initial, o.transient_periods * o.period)
+            return ob.transient_state(params, initial, o.transient_periods * o.period, deadline)
         except ob.OrbitError:
             return initial
     return initial

@@ -107,7 +107,10 @@ def start_up(case: Case) -> float:
 
     A process pays numba's compilation (first run on a machine) or cache load (about
     0.3-0.5 s) at its first compiled call; without this, that one-off cost would be
-    charged to whichever method runs first. Returns the seconds it took.
+    charged to whichever method runs first. The warm-up has budgets of its own
+    (``solvers.warm_up_options``: 2000 steps, 2 s past compiling), never the run's: a
+    stiff case once spent a whole 5e6-step budget here before its timed run spent it
+    again. Returns the seconds it took.
     """
     from rubcli import solvers
     from rubcli.analysis.reference import truncate_problem
@@ -117,7 +120,7 @@ def start_up(case: Case) -> float:
     start = time.perf_counter()
     for name in case.methods:
         with contextlib.suppress(Exception):  # the timed run reports any failure
-            solvers.solve(short, name, **case.options_for(name))
+            solvers.solve(short, name, **solvers.warm_up_options(case.options_for(name)))
         io.checkpoint()  # a termination signal is never taken for a solver's failure
     return time.perf_counter() - start
 

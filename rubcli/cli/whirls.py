@@ -34,6 +34,7 @@ from rubcli.cli.common import emit, prepare_output, report_stale
 EXIT_FAILED = 1
 QUICK_MAX_POINTS = 12
 UNUSED = ("period", "start", "transient_periods", "rtol", "atol")  # periodic orbits only
+EXPECTED_FILES = ("branch.csv", "branch.png", "report.json")
 CSV_COLUMNS = (
     "index", "parameter", "value", "k", "x", "y", "vx", "vy", "max_z", "min_z",
     "contact_fraction", "stick_fraction", "contact_phases", "stable", "n_unstable",
@@ -110,7 +111,9 @@ def write_branch_csv(path: Path, result: wh.WhirlContinuation) -> None:
     io.write_text(path, "\n".join(lines) + "\n")
 
 
-def run(case_file: Path, case: Case, target: Path, force: bool, quick: bool, json: bool):
+def run(
+    case_file: Path, case: Case, target: Path, force: bool, wait: bool, quick: bool, json: bool
+):
     """The whole command for a whirl case (inputs checked by the caller's schema)."""
     problems = check_case(case)
     if problems:
@@ -118,7 +121,7 @@ def run(case_file: Path, case: Case, target: Path, force: bool, quick: bool, jso
         raise typer.Exit(2)
     o = case.settings.orbits
     settings = settings_from_case(o, quick)
-    plan = prepare_output(target, force)
+    plan = prepare_output(target, force, wait, EXPECTED_FILES)
     with console.machine_readable(json):
         t0 = time.perf_counter()
         total = float(settings.max_points * len(settings.directions) * 2)
@@ -145,7 +148,7 @@ def run(case_file: Path, case: Case, target: Path, force: bool, quick: bool, jso
                 title = f"{case.name}: whirls continued in {o.parameter}\n{fixed}"
                 io.save_figure(whirl_figure(result, title), staged.path("branch.png"))
             report["files"] = sorted(p.name for p in staged.staging.iterdir()) + ["report.json"]
-            io.write_json(staged.path("report.json"), report)
+            staged.write_report(report)
         report_stale(plan)
         emit(report, json)
         if result.status != "ok":

@@ -55,15 +55,47 @@ def __getattr__(name: str) -> Any:
 def solve(problem: Problem, method: str, **options) -> Solution:
     """Solve ``problem`` with ``method`` (a name of the registry).
 
-    ``options`` may be a settings dict shared by several methods: the method gets the
-    ones it takes (``registry.SPECS[method].takes``); an option that no method takes (a
-    misspelling) raises TypeError naming it. The wall time is measured here.
+    ``options`` are the method's own (``registry.SPECS[method].takes``): an option it does
+    not take (a misspelling, or another method's, e.g. ``rtol`` for ``analytic``) is a
+    TypeError naming it, and a value out of its domain (``rtol = nan``, ``max_steps =
+    2.5``) a TypeError or ValueError naming it, as ``scipy.integrate.solve_ivp`` does. A
+    settings dict shared by several methods goes through ``options_for``:
+    ``solve(problem, m, **options_for(m, settings))``. The wall time is measured here.
     """
+    if not isinstance(problem, Problem):
+        raise TypeError(
+            f"solve(): problem must be a rubcli Problem, got {type(problem).__name__}"
+            " (build one with Problem(params, initial, t_eval) or Problem.from_periods)"
+        )
+    if not isinstance(method, str):
+        raise TypeError(
+            f"solve(): method must be a method name (a str), got {type(method).__name__}; "
+            f"choose from {', '.join(SPECS)}"
+        )
     methods = _methods()
     if method not in methods:
-        raise ValueError(f"unknown method {method!r}; choose from {', '.join(methods)}")
+        raise ValueError(f"solve(): unknown method {method!r}; choose from {', '.join(methods)}")
     check_options(method, options)
     start = time.perf_counter()
-    solution = methods[method](problem, **options_for(method, options))
+    solution = methods[method](problem, **options)
     solution.wall_time_s = time.perf_counter() - start
     return solution
+
+
+# Bounds of a warm-up solve (``warm_up_options``): enough to load or compile every kernel
+# a run reaches, never the run's own budgets (a run of 5e6 steps paid twice).
+WARM_UP_MAX_STEPS = 2000
+WARM_UP_WALL_TIME_S = 2.0
+
+
+def warm_up_options(options: dict) -> dict:
+    """``options`` with the budgets of a warm-up: at most ``WARM_UP_MAX_STEPS`` steps and
+    ``WARM_UP_WALL_TIME_S`` seconds past the kernels' compilation (the budget is checked
+    between the compiled chunks, so a first call that compiles ends at its first check)."""
+    return {
+        **options,
+        "max_steps": min(options.get("max_steps", WARM_UP_MAX_STEPS), WARM_UP_MAX_STEPS),
+        "max_wall_time_s": min(
+            options.get("max_wall_time_s", WARM_UP_WALL_TIME_S), WARM_UP_WALL_TIME_S
+        ),
+    }

@@ -6,8 +6,9 @@ for the fixed-step analytic methods), the options it takes, its order and what i
 Everything that needs to know about methods derives from this table: the case schema's
 list of method names (``rubcli.case``), the work-precision ladders
 (``analysis.work_precision.ladder``), the stress suite's variants, ``solve``'s check of
-its options (an option the method does not take is a ``TypeError`` naming it) and
-``options_for`` (a settings dict cut down to one method's options).
+its options (an option the method does not take is a ``TypeError`` naming it; a value
+out of its domain a ``ValueError``) and ``options_for`` (a settings dict cut down to one
+method's options).
 
 This module is data only: it imports nothing heavy, so that the case schema can use it
 without loading numba or scipy. The solver functions register themselves against these
@@ -20,6 +21,9 @@ plugs in"), and register the solver function under the same name.
 
 from __future__ import annotations
 
+import difflib
+import math
+import numbers
 from dataclasses import dataclass
 
 # Options every method takes (besides ``progress``, a callback of tau).
@@ -170,25 +174,94 @@ def spec(name: str) -> MethodSpec:
 def options_for(method: str, options: dict) -> dict:
     """The entries of ``options`` that ``method`` takes (the others are dropped).
 
-    For settings shared by several methods (a case's [solver] table):
-    ``solve(problem, m, **options_for(m, settings))``.
+    The documented way to drive several methods from one settings dict (a case's [solver]
+    table): ``solve(problem, m, **options_for(m, settings))``. ``solve`` itself refuses an
+    option its method does not take.
     """
     takes = spec(method).takes
     return {k: v for k, v in options.items() if k in takes}
 
 
 def check_options(method: str, options: dict) -> None:
-    """TypeError naming every option that no method takes (a typo is never dropped).
-
-    An option of another method (``rtol`` given to ``analytic``) is allowed, so that one
-    settings dict can drive every method; ``solve`` passes each method only its own.
-    """
-    spec(method)
-    unknown = [k for k in options if k not in ALL_OPTIONS]
-    if unknown:
-        names = ", ".join(repr(k) for k in unknown)
-        raise TypeError(
-            f"solve() got unknown option(s) {names}; {method!r} takes "
-            f"{', '.join(spec(method).takes)}, and the other methods also "
-            f"{', '.join(sorted(set(ALL_OPTIONS) - set(spec(method).takes)))}"
+    """TypeError naming every option ``method`` does not take: a misspelling, or an option
+    of another method (``rtol`` given to ``analytic``), which would otherwise be dropped
+    without a word. Then ``check_option_values``."""
+    takes = spec(method).takes
+    foreign = [k for k in options if k not in takes]
+    if foreign:
+        names = ", ".join(repr(k) for k in foreign)
+        others = sorted(
+            {m for k in foreign for m, s in SPECS.items() if k in s.takes and m != method}
         )
+        hint = (
+            f" ({'it is' if len(foreign) == 1 else 'they are'} an option of "
+            f"{', '.join(others)}: for a settings dict shared by several methods, use "
+            f"solve(problem, method, **options_for(method, settings)))"
+            if others
+            else ""
+        )
+        close = [m for k in foreign for m in difflib.get_close_matches(k, takes, n=1)]
+        if close and not others:
+            hint = f" (did you mean {', '.join(repr(c) for c in close)}?)"
+        raise TypeError(
+            f"solve() got option(s) {names} that {method!r} does not take{hint}; "
+            f"{method!r} takes {', '.join(takes)}"
+        )
+    check_option_values(options)
+
+
+def _is_int(value) -> bool:
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+def _is_real(value) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def _is_bool(value) -> bool:
+    # numpy's bool too (its type is named bool_ before numpy 2, bool since)
+    return isinstance(value, bool) or type(value).__name__ in ("bool", "bool_")
+
+
+def _option_problem(name: str, value) -> tuple[type[Exception], str] | None:
+    """(exception class, why) if ``value`` is not valid for the option ``name``."""
+    if name in ("rtol", "analytic_tol"):
+        if name == "analytic_tol" and value is None:
+            return None
+        if not _is_real(value):
+            return TypeError, f"must be a real number, got {type(value).__name__}"
+        if not (math.isfinite(value) and 0.0 < value < 1.0):
+            return ValueError, f"must satisfy 0 < {name} < 1 (got {value!r})"
+    elif name == "atol":
+        if not _is_real(value):
+            return TypeError, f"must be a real number, got {type(value).__name__}"
+        if not (math.isfinite(value) and value > 0.0):
+            return ValueError, f"must be finite and > 0 (got {value!r})"
+    elif name in ("max_steps", "steps_per_period"):
+        if not _is_int(value):
+            return TypeError, f"must be an int, got {type(value).__name__} {value!r}"
+        if value <= 0:
+            return ValueError, f"must be > 0 (got {value!r})"
+    elif name == "max_wall_time_s":
+        if not _is_real(value):
+            return TypeError, f"must be a real number, got {type(value).__name__}"
+        if not (math.isfinite(value) and value > 0.0):
+            return ValueError, f"must be finite and > 0 seconds (got {value!r})"
+    elif name in ("compiled", "compiled_events"):
+        if not _is_bool(value):
+            return TypeError, f"must be True or False, got {type(value).__name__} {value!r}"
+    elif name == "progress" and value is not None and not callable(value):
+        return TypeError, f"must be a callable of tau (or None), got {type(value).__name__}"
+    return None
+
+
+def check_option_values(options: dict) -> None:
+    """TypeError or ValueError naming the first option whose value is out of its domain
+    (docs/cases.md, [solver]): tolerances finite with 0 < rtol < 1 and atol > 0, counts
+    positive ints, the wall-time budget finite and positive, switches bools, ``progress``
+    a callable."""
+    for name, value in options.items():
+        found = _option_problem(name, value)
+        if found is not None:
+            kind, why = found
+            raise kind(f"solve(): option {name} {why}")

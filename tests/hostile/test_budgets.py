@@ -1,0 +1,218 @@
+"""Budgets end to end: ``rubcli orbits`` bounded in wall time with progress in a log, and
+inputs that once ran for minutes refused or stopped at once (real subprocesses).
+
+Every run here is ``python -m rubcli`` in a subprocess with a timeout, as a user runs it;
+each checks the exit code, the message and that no traceback was printed. Runs are kept
+to seconds with small budgets (``--max-wall-time``, ``--periods``, ``--quick``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+TIMEOUT_S = 120
+TRACEBACK = re.compile(r'Traceback|^\s*File "', re.M)
+
+ORBITS_CASE = """\
+[case]
+name = "orbits"
+
+[model]
+nu = 0.009478
+eta = 0.7818
+e = 7.52
+K = 17.6
+mu = 0.0
+Rp = 46.16
+
+[initial]
+x = 0.88544
+y = -0.8039
+
+[time]
+periods = 1
+samples_per_period = 50
+
+[orbits]
+parameter = "mu"
+min = 0.0
+max = 0.06
+step = 0.002
+max_step = 0.005
+start = "synchronous_rub"
+"""
+
+
+def rubcli(tmp_path: Path, *args, timeout: float = TIMEOUT_S) -> subprocess.CompletedProcess:
+    """``python -m rubcli ARGS`` in ``tmp_path``, its stdout and stderr not terminals;
+    fails the test on a traceback or a timeout."""
+    env = {**os.environ, "RUBCLI_STATE_DIR": str(tmp_path / ".state"), "COLUMNS": "100"}
+    done = subprocess.run(
+        [sys.executable, "-m", "rubcli", *map(str, args)], cwd=tmp_path, env=env,
+        capture_output=True, text=True, timeout=timeout, check=False,
+    )  # fmt: skip
+    assert not TRACEBACK.search(done.stderr), done.stderr
+    return done
+
+
+def case(tmp_path: Path, text: str, **table) -> Path:
+    """A case file: ``text`` with the keys of ``table`` set in [orbits]."""
+    lines = [ln for ln in text.splitlines() if ln.split(" = ")[0] not in table]
+    i = lines.index("[orbits]")
+    lines[i + 1 : i + 1] = [f"{k} = {json.dumps(v)}" for k, v in table.items()]
+    path = tmp_path / "case.toml"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.mark.parametrize(
+    "table",
+    [
+        {"period": 64, "start": "initial"},
+        {"start": "transient", "transient_periods": 100000},
+    ],
+    ids=["period-64", "transient-1e5"],
+)
+def test_orbits_ends_within_its_wall_time_budget_with_a_message(tmp_path, table):
+    """A period-64 search and a 1e5-period transient once ran past 300 s with no word;
+    both now stop at the budget (here 3 s), exit 1, say so, and report it."""
+    path = case(tmp_path, ORBITS_CASE, **table)
+    start = time.perf_counter()
+    done = rubcli(tmp_path, "orbits", path, "--out", "out", "--max-wall-time", 3)
+    elapsed = time.perf_counter() - start
+    assert done.returncode == 1, done.stderr
+    assert "wall-time budget" in done.stderr
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["branch"]["wall_time_budget_exhausted"] is True
+    assert report["continuation"]["max_wall_time_s"] == 3
+    assert elapsed < TIMEOUT_S  # (the subprocess timeout is the real guard)
+
+
+def test_orbits_prints_progress_where_no_bar_shows(tmp_path):
+    """On a non-terminal (a log, CI) orbits once printed nothing until the end."""
+    path = case(tmp_path, ORBITS_CASE, max_points=3)
+    done = rubcli(tmp_path, "orbits", path, "--out", "out", "--quick")
+    assert done.returncode == 0, done.stderr
+    assert "progress: orbits: the starting orbit, 0 orbits, 0 s of the 3600 s budget" in (
+        done.stderr
+    )
+
+
+def test_orbits_budget_is_checked_as_input(tmp_path):
+    path = case(tmp_path, ORBITS_CASE)
+    done = rubcli(tmp_path, "orbits", path, "--out", "out", "--max-wall-time", "nan")
+    assert done.returncode == 2 and "--max-wall-time: must be a finite number > 0" in done.stderr
+    done = rubcli(tmp_path, "orbits", case(tmp_path, ORBITS_CASE, max_wall_time_s=0.0))
+    assert done.returncode == 2 and "orbits.max_wall_time_s" in done.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_orbits_step_that_cannot_move_the_parameter_is_refused(tmp_path):
+    """``step = 1e-300`` left mu where it was, point after point, until killed."""
+    done = rubcli(tmp_path, "orbits", case(tmp_path, ORBITS_CASE, step=1e-300), "--out", "out")
+    assert done.returncode == 2, done.stderr
+    assert "orbits: min_step 1e-303 is below 1e-12 of the window" in done.stderr
+    assert not (tmp_path / "out").exists()
+
+
+RUN_CASE = """\
+[case]
+name = "run"
+
+[model]
+nu = 0.009478
+eta = 0.7818
+e = 7.52
+K = 17.6
+mu = 0.03
+Rp = 46.16
+
+[initial]
+x = 0.88544
+y = -0.8039
+
+[time]
+periods = 50
+samples_per_period = 20
+"""
+
+
+@pytest.mark.parametrize(
+    ("change", "field"),
+    [("K = 1e300", "model.K"), ("e = 1e308", "model.e"), ("eta = 1e-300", "model.eta"),
+     ("K = 1e60", "model.K")],
+)  # fmt: skip
+def test_run_refuses_magnitudes_that_once_ran_for_minutes(tmp_path, change, field):
+    """``K = 1e300``, ``e = 1e308`` (3 minutes with the analytic methods and rk45) and
+    ``eta = 1e-300`` (741 s with rk45) are outside the model's domain: exit 2 at once,
+    naming the field, nothing written."""
+    name = change.split(" = ")[0]
+    text = "\n".join(ln for ln in RUN_CASE.splitlines() if not ln.startswith(f"{name} = "))
+    path = tmp_path / "case.toml"
+    path.write_text(text.replace("[model]", f"[model]\n{change}") + "\n")
+    done = rubcli(tmp_path, "run", path, "--out", "out", "-m", "lsoda", "-m", "analytic")
+    assert done.returncode == 2, done.stderr
+    assert f"case.toml: {field}: " in done.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_run_at_the_edge_of_the_domain_fails_within_its_budget(tmp_path):
+    """K = 1e19 (in the domain, not integrable in a small budget): every method fails with
+    its reason within [solver] max_steps, exit 1, outputs written."""
+    text = RUN_CASE.replace("K = 17.6", "K = 1e19") + "\n[solver]\nmax_steps = 20000\n"
+    path = tmp_path / "case.toml"
+    path.write_text(text)
+    done = rubcli(tmp_path, "run", path, "--out", "out", "--periods", "2", "-m", "lsoda",
+                  "-m", "rk45", "-m", "analytic", "--json")  # fmt: skip
+    assert done.returncode == 1, done.stderr
+    methods = json.loads(done.stdout)["methods"]
+    for name, entry in methods.items():
+        assert entry["status"] == "failed", name
+        assert entry["stats"]["nsteps"] <= 20000
+
+
+FORCES_CASE = RUN_CASE + '\n[forces_map]\nresolution = {resolution}\nproducts = ["eigen"]\n'
+
+
+def test_forces_map_refuses_a_grid_that_will_not_fit_in_memory(tmp_path):
+    """A 3000^2 grid needs about 2.3 GiB (measured per point, benchmarks/
+    forces_map_memory.md); with 2 GiB of address space it is refused at once, exit 2,
+    naming the field and the largest grid that fits (it once ran into a MemoryError)."""
+    path = tmp_path / "case.toml"
+    path.write_text(FORCES_CASE.format(resolution=3000))
+
+    def cap() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (2 * 1024**3, 2 * 1024**3))
+
+    env = {**os.environ, "RUBCLI_STATE_DIR": str(tmp_path / ".state")}
+    done = subprocess.run(
+        [sys.executable, "-m", "rubcli", "forces-map", str(path), "--out", "out"],
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=TIMEOUT_S,
+        check=False, preexec_fn=cap,
+    )  # fmt: skip
+    assert not TRACEBACK.search(done.stderr), done.stderr
+    assert done.returncode == 2, done.stderr
+    assert "forces_map.resolution: a 3000 x 3000 grid needs about 2.3 GiB" in done.stderr
+    assert re.search(r"at most \d+ fits", done.stderr)
+    assert not (tmp_path / "out").exists()
+
+
+def test_forces_map_case_limit_follows_the_measured_cost(tmp_path):
+    """The largest grid a case may ask for (8 GiB) follows the measured cost per point:
+    6688, which the old estimate of 192 bytes per point accepted, needs about 9.5 GiB."""
+    path = tmp_path / "case.toml"
+    path.write_text(FORCES_CASE.format(resolution=6688))
+    done = rubcli(tmp_path, "validate", path)
+    assert done.returncode == 2, done.stderr
+    assert "forces_map.resolution: a 6688 x 6688 grid needs about 9.46 GiB" in done.stderr
+    assert "at most 6120" in done.stderr
