@@ -31,9 +31,14 @@ def _complex_matrix(c: complex) -> np.ndarray:
     return np.array([[c.real, -c.imag], [c.imag, c.real]])
 
 
-def rotating_frame_jacobian(u: complex, params: ModelParams, mu_c: float) -> np.ndarray:
-    """Jacobian of the rotating-frame contact equation at the point u (module docstring)."""
-    eta, nu = params.eta, params.nu
+def rotating_frame_jacobian(
+    u: complex, params: ModelParams, mu_c: float, rate: float | None = None
+) -> np.ndarray:
+    """Jacobian of the contact equation at the point u in the frame rotating at ``rate``
+    (default the running speed ``params.eta``; a whirl of its own rate passes that, of
+    either sign) (module docstring)."""
+    eta = params.eta if rate is None else rate
+    nu = params.nu
     stiffness = _complex_matrix(complex(1.0 - eta**2, 2.0 * nu * eta))
     stiffness = stiffness + params.K * model.force_jacobian(u.real, u.imag, mu_c)
     jac = np.zeros((4, 4))

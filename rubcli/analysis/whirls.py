@@ -210,7 +210,7 @@ def eigenvalues(mode: int, s: float, w: float, p: ModelParams) -> np.ndarray:
         root = np.sqrt(complex(p.nu * p.nu - c))
         eig = np.array([-p.nu + root, -p.nu - root, 0.0, -np.inf], dtype=complex)
     else:
-        jac = rotating_frame_jacobian(complex(r, 0.0), replace(p, eta=w), float(mode) * p.mu)
+        jac = rotating_frame_jacobian(complex(r, 0.0), p, float(mode) * p.mu, rate=w)
         eig = np.linalg.eigvals(jac).astype(complex)
     order = np.argsort(-np.where(np.isfinite(eig.real), eig.real, -np.inf), kind="stable")
     return eig[order]
