@@ -98,12 +98,14 @@ def sweep(
     client=None,
     quick: bool = False,
     store_dir: str | Path | None = None,
+    oversubscribe: bool = False,
 ):
     """Run the ``[sweep]`` of ``case`` (a path or a loaded Case); returns an xarray.Dataset.
 
     ``workers`` local processes (default all cores, 1 = in this process), or a Dask
     ``client`` / ``scheduler`` address (default: ``[sweep] scheduler``). ``store_dir``
     keeps finished points for resumption (none by default: the Python call is one run).
+    More ``workers`` than cores is a ValueError unless ``oversubscribe``.
     """
     from rubcli.analysis.sweep.dataset import build_dataset
 
@@ -118,7 +120,9 @@ def sweep(
     if client is None and scheduler is not None:
         client = own = connect(scheduler, timeout=cfg.scheduler_timeout_s)
     try:
-        results, _stats, _where = execute(plan, workers=workers, client=client, store_dir=store_dir)
+        results, _stats, _where = execute(
+            plan, workers=workers, client=client, store_dir=store_dir, oversubscribe=oversubscribe
+        )
     finally:
         if own is not None:
             own.close()

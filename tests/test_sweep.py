@@ -136,7 +136,7 @@ def test_results_do_not_depend_on_the_executor(fig3_params):
     distributed = pytest.importorskip("distributed")
     plan = _small_plan(fig3_params)
     one, _, where1 = execute(plan, workers=1)
-    two, _, where2 = execute(plan, workers=2)
+    two, _, where2 = execute(plan, workers=2, oversubscribe=True)  # any core count
     assert where1 == "this process (1 worker)" and where2 == "process pool (2 workers)"
     with (
         distributed.LocalCluster(
@@ -408,3 +408,26 @@ def test_shipped_sweep_cases_run_quick(path, tmp_path):
     assert report["points_failed"] == 0
     lines = (out / "sweep.csv").read_text().splitlines()
     assert len(lines) == 1 + plan.n_points
+
+
+def test_workers_beyond_the_cores_are_refused_unless_oversubscribed(tmp_path):
+    # thousands of processes exhaust the machine (each point is CPU-bound anyway)
+    from rubcli.analysis.sweep import check_workers, default_workers
+
+    cores = default_workers()
+    assert check_workers(None) == cores
+    assert check_workers(cores) == cores
+    with pytest.raises(ValueError, match="workers: 100000 processes"):
+        check_workers(100000)
+    assert check_workers(cores + 1, oversubscribe=True) == cores + 1
+    with pytest.raises(ValueError, match="positive integer"):
+        check_workers(0)
+    with pytest.raises(ValueError, match="workers: 100000"):
+        rubcli.sweep(_write(tmp_path, FREE_CASE), workers=100000)
+    run = subprocess.run(
+        [sys.executable, "-m", "rubcli", "sweep", _write(tmp_path, FREE_CASE), "--workers",
+         "100000", "--out", str(tmp_path / "out")],
+        capture_output=True, text=True, timeout=120, check=False,
+    )  # fmt: skip
+    assert run.returncode == 2 and "--workers: 100000 processes" in run.stderr
+    assert "Traceback" not in run.stderr and not (tmp_path / "out").exists()

@@ -74,6 +74,10 @@ def command(
             "--quick", help="At most 5 values per axis, 20+16 periods, Lyapunov over 20 (CI)."
         ),
     ] = False,
+    oversubscribe: Annotated[
+        bool,
+        typer.Option("--oversubscribe", help="Allow more --workers than this machine's cores."),
+    ] = False,
     json: JsonOption = False,
     force: ForceOption = False,
     wait: WaitOption = False,
@@ -87,6 +91,12 @@ def command(
     from rubcli import sweeps
     from rubcli.analysis import sweep as engine
 
+    if scheduler is None and cfg.scheduler is None:
+        try:
+            workers = engine.check_workers(workers, oversubscribe=oversubscribe)
+        except ValueError as exc:
+            console.error(f"--{exc}")
+            raise typer.Exit(EXIT_INVALID) from None
     target = command_dir(case, "sweep", out)
     plan = sweeps.plan_from_case(case, quick)
     output = prepare_output(target, force, wait, expected_files(plan))  # before any work
@@ -129,6 +139,7 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
                 workers=workers,
                 client=client,
                 store_dir=store_dir,
+                oversubscribe=True,  # the command checked --workers against the cores
                 progress=lambda done, total: bar(done),
             )
     except (KeyboardInterrupt, io.Terminated) as exc:

@@ -50,6 +50,26 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+def check_workers(workers: int | None, *, oversubscribe: bool = False) -> int:
+    """The number of local worker processes: ``workers`` (default: all cores).
+
+    More processes than the cores this process may use only slow a sweep down (each point
+    is CPU-bound) and, by the thousand, exhaust the machine's memory and process table:
+    refused unless ``oversubscribe``.
+    """
+    cores = default_workers()
+    if workers is None:
+        return cores
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"workers: must be a positive integer (got {workers!r})")
+    if workers > cores and not oversubscribe:
+        raise ValueError(
+            f"workers: {workers} processes on {cores} core(s): at most {cores} "
+            "(points are CPU-bound; more processes only slow the sweep), or oversubscribe"
+        )
+    return workers
+
+
 def connect(address: str, timeout: float = CONNECT_TIMEOUT_S):
     """A ``distributed.Client`` of the scheduler at ``address``; SchedulerError if not."""
     try:
@@ -96,13 +116,17 @@ def execute(
     client=None,
     store_dir: str | Path | None = None,
     progress: Callable[[int, int], None] | None = None,
+    oversubscribe: bool = False,
 ):
     """Run ``plan``; returns ``(results by point key, RunStats, executor description)``.
 
     ``client`` (a ``distributed.Client``) or ``scheduler`` (its address) runs the points
     on Dask; otherwise ``workers`` local processes (default: all cores; 1 runs here).
     ``store_dir`` keeps finished points so that an interrupted run resumes.
+    ``oversubscribe`` allows more local processes than cores (``check_workers``).
     """
+    if client is None and scheduler is None:
+        n = check_workers(workers, oversubscribe=oversubscribe)
     store = PointStore(store_dir, plan.digest(), plan.to_dict()) if store_dir else None
     warm_up(plan.method, plan.options)
     own_client = None
@@ -118,7 +142,6 @@ def execute(
                     batch=dask_batch(plan.n_points, n),
                 )  # fmt: skip
             return results, stats, f"dask ({n} workers at {client.scheduler.address})"
-        n = workers or default_workers()
         if n == 1:
             results, stats = run_plan(plan, InProcessExecutor(), store=store, progress=progress)
             return results, stats, "this process (1 worker)"
