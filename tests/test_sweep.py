@@ -431,3 +431,82 @@ def test_workers_beyond_the_cores_are_refused_unless_oversubscribed(tmp_path):
     )  # fmt: skip
     assert run.returncode == 2 and "--workers: 100000 processes" in run.stderr
     assert "Traceback" not in run.stderr and not (tmp_path / "out").exists()
+
+
+def _stored_point(store_dir):
+    from rubcli.analysis.sweep.point import PointResult
+    from rubcli.analysis.sweep.store import PointStore
+
+    store = PointStore(store_dir, "d1g35t")
+    result = PointResult(
+        ok=True, message="", scalars={"z_max": 1.25}, section=np.arange(8.0).reshape(2, 4),
+        final_state=(0.5, -0.25, 0.125, 1.0), spectrum=np.array([1.0, 2.0]),
+    )  # fmt: skip
+    store.save("up-0001", result)
+    return store, store_dir / "up-0001.point"
+
+
+def test_the_store_returns_what_it_stored_and_rejects_every_tampering(tmp_path):
+    from rubcli.analysis.sweep.store import PointStore
+
+    store, path = _stored_point(tmp_path / "store")
+    assert (path.parent.stat().st_mode & 0o777) == 0o700  # private to the user
+    loaded = store.load()["up-0001"]
+    assert loaded.final_state == (0.5, -0.25, 0.125, 1.0) and loaded.scalars["z_max"] == 1.25
+    good = path.read_bytes()
+    # the chain's final state (the last-but-two float of the body), a header value, a byte of
+    # section data, the same file under another point's name, another plan's digest
+    end_state = good[: -16 - 8] + np.float64(0.75).tobytes() + good[-16:]
+    tampered = {
+        "state": end_state,
+        "header": good.replace(b'"z_max": 1.25', b'"z_max": 99.0'),
+        "section": good[:200] + bytes([good[200] ^ 1]) + good[201:],
+        "ok": good.replace(b'"ok": true', b'"ok": false'),
+    }
+    for what, data in tampered.items():
+        assert data != good, what
+        path.write_bytes(data)
+        assert store.load() == {} and store.rejected == ["up-0001.point"], what
+    path.write_bytes(good)
+    (path.parent / "up-0002.point").write_bytes(good)  # copied under another name
+    assert set(store.load()) == {"up-0001"} and store.rejected == ["up-0002.point"]
+    assert PointStore(path.parent, "other-plan").load() == {}
+
+
+def test_a_store_not_this_users_own_is_never_adopted_written_or_removed(tmp_path):
+    from rubcli.analysis.sweep.store import PointStore, StoreError
+
+    store, path = _stored_point(tmp_path / "store")
+    path.parent.chmod(0o777)  # planted open to everyone's writes
+    with pytest.raises(StoreError, match="can be written by other users"):
+        store.load()
+    store.remove()
+    assert path.exists()  # not removed either
+    link = tmp_path / "link"
+    link.symlink_to(path.parent)
+    with pytest.raises(StoreError, match="not a directory"):
+        PointStore(link, "d1g35t").load()
+    if os.getuid() == 0:  # root can make a directory another user's
+        foreign = tmp_path / "foreign"
+        foreign.mkdir(mode=0o700)
+        os.chown(foreign, 65534, 65534)
+        with pytest.raises(StoreError, match="belongs to another user"):
+            _stored_point(foreign)
+
+
+def test_a_tampered_chain_point_is_recomputed_not_trusted(fig3_params, tmp_path):
+    plan = _small_plan(fig3_params)
+    reference, _, _ = execute(plan, workers=1)
+    store_dir = tmp_path / "store"
+    execute(plan, workers=1, store_dir=store_dir)
+    files = sorted(store_dir.glob("*.point"))
+    assert len(files) == plan.n_points
+    for path in files[:3]:  # the first points of a chain seed the later ones
+        data = bytearray(path.read_bytes())
+        data[-9] ^= 0x40  # a bit of the last stored float
+        path.write_bytes(bytes(data))
+    results, stats, _ = execute(plan, workers=1, store_dir=store_dir)
+    assert stats.rejected == 3 and stats.computed == 3 and stats.resumed == plan.n_points - 3
+    for key, ref in reference.items():
+        np.testing.assert_array_equal(results[key].section, ref.section)
+        assert results[key].final_state == ref.final_state

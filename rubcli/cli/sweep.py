@@ -142,6 +142,9 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
                 oversubscribe=True,  # the command checked --workers against the cores
                 progress=lambda done, total: bar(done),
             )
+    except engine.StoreError as exc:
+        console.error(str(exc))
+        raise typer.Exit(EXIT_INVALID) from None
     except (KeyboardInterrupt, io.Terminated) as exc:
         _interrupted(exc, store_dir, plan)
     finally:
@@ -174,6 +177,11 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
         f"{plan.n_points} points on {where} in {wall:.1f} s "
         f"({stats.computed} computed, {stats.resumed} resumed, {n_failed} failed)"
     )
+    if stats.rejected:
+        console.warning(
+            f"{stats.rejected} stored point file(s) in {store_dir} failed the store's check "
+            "(edited, corrupted or not written by this user): those points were computed again"
+        )
     for name, count in _class_lines(ds):
         console.info(f"  {name}: {count}")
     console.info(f"wrote {len(files)} files to {target}: {', '.join(files)}")

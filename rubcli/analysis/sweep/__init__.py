@@ -20,11 +20,12 @@ from pathlib import Path
 
 from rubcli.analysis.sweep.engine import InProcessExecutor, RunStats, run_plan, warm_up
 from rubcli.analysis.sweep.plan import Axis, SweepPlan
-from rubcli.analysis.sweep.store import PointStore
+from rubcli.analysis.sweep.store import PointStore, StoreError
 
 __all__ = [
     "Axis",
     "PointStore",
+    "StoreError",
     "RunStats",
     "SchedulerError",
     "SweepPlan",
@@ -128,6 +129,8 @@ def execute(
     if client is None and scheduler is None:
         n = check_workers(workers, oversubscribe=oversubscribe)
     store = PointStore(store_dir, plan.digest(), plan.to_dict()) if store_dir else None
+    if store is not None:
+        store.check()  # StoreError before any work when the store is not this user's
     warm_up(plan.method, plan.options)
     own_client = None
     if client is None and scheduler is not None:

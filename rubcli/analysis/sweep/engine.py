@@ -86,6 +86,7 @@ class _Cursor:
 class RunStats:
     computed: int = 0  # points computed in this run
     resumed: int = 0  # points found in the store
+    rejected: int = 0  # stored point files that failed the store's check (recomputed)
     retried: int = 0  # resubmissions after a lost worker
     pool_restarts: int = 0
 
@@ -108,7 +109,7 @@ def run_plan(
     called after every point.
     """
     results: dict[str, PointResult] = dict(store.load()) if store is not None else {}
-    stats = RunStats(resumed=len(results))
+    stats = RunStats(resumed=len(results), rejected=len(store.rejected) if store else 0)
     total = plan.n_points
     cursors = [_Cursor(chain) for chain in plan.chains()]
     ready = list(reversed(cursors))  # a stack: chains are started in plan order

@@ -9,21 +9,51 @@ JSON header line (scalars, message, array sizes) and the arrays' float64 bytes, 
 resumed chain continues from exactly the state it would have had. (The files are not
 fsync'ed: a crash of the machine itself may lose the last points, never corrupt a
 result: a short file is detected and its point computed again.)
+
+A store is trusted only when it is ours and intact. The directory is created private to
+the user (mode 0700); one that exists already is used only if this user owns it and no
+one else can write to it (else ``StoreError``: it is never adopted, written or removed).
+Every point file begins with an HMAC-SHA256 (the user's private manifest key,
+``rubcli.io.manifest``) over the plan's digest, the point's key and its bytes, so a file
+edited, copied under another point's name, or made by someone else fails the check; such
+a file is ignored (``rejected``) and its point computed again. A chain's stored final
+state is inside the checked bytes, so a tampered state never seeds the next point.
+Without a private place for the key the check falls back to SHA-256 (it still catches
+corruption; the ownership check keeps other users out).
 """
 
 from __future__ import annotations
 
+import hashlib
+import hmac
 import json
 import os
 import shutil
+import stat
 from pathlib import Path
 
 import numpy as np
 
 from rubcli.analysis.sweep.point import PointResult
 
-FORMAT = 2
+FORMAT = 3
 SUFFIX = ".point"
+MAX_POINT_BYTES = 1 << 30  # no point's sections and spectrum come near this
+MAC_BYTES = 64  # hex digits of the HMAC-SHA256 that begins each point file
+
+
+class StoreError(ValueError):
+    """A store directory that is not this user's own: never adopted, written or removed."""
+
+
+def _mac(digest: str, key: str, payload: bytes) -> bytes:
+    from rubcli.io import manifest
+
+    found = manifest._key()
+    message = b"rubcli point\0" + digest.encode() + b"\0" + key.encode() + b"\0" + payload
+    if found is None:
+        return hashlib.sha256(message).hexdigest().encode()
+    return hmac.new(found[0], message, hashlib.sha256).hexdigest().encode()
 
 
 class PointStore:
@@ -34,6 +64,36 @@ class PointStore:
         self.digest = digest
         self.plan = plan
         self._ready = False
+        self.rejected: list[str] = []  # point files that failed the check (recomputed)
+
+    def check(self, *, create: bool = False) -> bool:
+        """True when the directory exists and is this user's own (made now if ``create``);
+        False when it does not exist; StoreError when it is someone else's or open to
+        others' writes."""
+        if create:
+            try:
+                self.directory.parent.mkdir(parents=True, exist_ok=True)
+                self.directory.mkdir(mode=0o700)
+                return True
+            except FileExistsError:
+                pass
+        try:
+            st = os.lstat(self.directory)
+        except FileNotFoundError:
+            return False
+        problem = None
+        if not stat.S_ISDIR(st.st_mode):
+            problem = "is not a directory (a link or a file)"
+        elif st.st_uid != os.getuid():
+            problem = f"belongs to another user (uid {st.st_uid})"
+        elif st.st_mode & 0o022:
+            problem = f"can be written by other users (mode {stat.S_IMODE(st.st_mode):o})"
+        if problem:
+            raise StoreError(
+                f"{self.directory}: the resume store {problem}: it is not trusted and not "
+                f"used; remove it (rm -r '{self.directory}') or choose another output dir"
+            )
+        return True
 
     def _file(self, key: str) -> Path:
         return self.directory / f"{key}{SUFFIX}"
@@ -41,7 +101,7 @@ class PointStore:
     def save(self, key: str, result: PointResult) -> None:
         """Write one point atomically: a JSON header line, then the arrays' float64 bytes."""
         if not self._ready:
-            self.directory.mkdir(parents=True, exist_ok=True)
+            self.check(create=True)
             marker = self.directory / "plan.json"
             if self.plan is not None and not marker.exists():
                 text = json.dumps({"digest": self.digest, "plan": self.plan}, indent=1)
@@ -63,19 +123,31 @@ class PointStore:
             (json.dumps(meta).encode(), b"\n", section.tobytes(), final.tobytes(),
              spectrum.astype(np.float64).tobytes())
         )  # fmt: skip
-        _atomic_bytes(self._file(key), payload)
+        _atomic_bytes(self._file(key), _mac(self.digest, key, payload) + b"\n" + payload)
 
     def load(self) -> dict[str, PointResult]:
-        """Every stored point of this plan, by key (unreadable files are ignored)."""
+        """Every stored point of this plan, by key: only files that pass the check (the
+        others are listed in ``rejected`` and their points computed again)."""
         out: dict[str, PointResult] = {}
-        if not self.directory.is_dir():
+        self.rejected = []
+        if not self.check():
             return out
         for path in sorted(self.directory.glob(f"*{SUFFIX}")):
             if path.name.startswith("."):
                 continue
+            key = path.name[: -len(SUFFIX)]
             try:
+                if not path.is_file() or path.is_symlink():
+                    raise ValueError("not a regular file")
+                if path.stat().st_size > MAX_POINT_BYTES:
+                    raise ValueError("too large for a point")
                 data = path.read_bytes()
-                head, _, body = data.partition(b"\n")
+                mac, payload = data[:MAC_BYTES], data[MAC_BYTES + 1 :]
+                if data[MAC_BYTES : MAC_BYTES + 1] != b"\n" or not hmac.compare_digest(
+                    mac, _mac(self.digest, key, payload)
+                ):
+                    raise ValueError("checksum mismatch")
+                head, _, body = payload.partition(b"\n")
                 meta = json.loads(head.decode())
                 if meta.get("digest") != self.digest or meta.get("format") != FORMAT:
                     continue
@@ -86,7 +158,7 @@ class PointStore:
                 section = values[:n_section].reshape(-1, 4).copy()
                 final = values[n_section : n_section + n_final]
                 spectrum = values[n_section + n_final :]
-                out[path.name[: -len(SUFFIX)]] = PointResult(
+                out[key] = PointResult(
                     ok=bool(meta["ok"]),
                     message=str(meta["message"]),
                     scalars={k: float(v) for k, v in meta["scalars"].items()},
@@ -95,11 +167,17 @@ class PointStore:
                     spectrum=spectrum.copy() if spectrum.size else None,
                     wall_time_s=float(meta.get("wall_time_s", 0.0)),
                 )
-            except (OSError, ValueError, KeyError, UnicodeDecodeError):
-                continue  # an unreadable file: that point is computed again
+            except (OSError, ValueError, KeyError, TypeError, UnicodeDecodeError):
+                self.rejected.append(path.name)  # that point is computed again
         return out
 
     def remove(self) -> None:
+        """Remove the store, only if it is this user's own."""
+        try:
+            if not self.check():
+                return
+        except StoreError:
+            return
         shutil.rmtree(self.directory, ignore_errors=True)
 
 
