@@ -1,15 +1,15 @@
-"""End to end: the wall time and peak memory of a whole `rubcli run` (issue 13, target 2).
+"""End to end: the wall time and peak memory of a whole `rubcli run`.
 
 Runs ``rubcli run CASE --method METHOD --periods P`` in a fresh process for each P, and
 measures the process's wall time, CPU time (user + system) and peak resident memory
 (``os.wait4``: the child's own ``ru_utime``, ``ru_stime``, ``ru_maxrss``), beside the solve
 time and the start-up (numba cache load, the first compiled call) that the run reports in
-its report.json; ``ratio`` is wall / (solve + start-up), issue 13's measure (target: 3).
+its report.json; ``ratio`` is wall / (solve + start-up): what a run costs beyond its solve.
 With ``--source DIR`` the CLI is imported from another source tree (e.g. an older commit
 extracted with ``git archive``), so that two versions are measured in one run, alternating
 per horizon::
 
-    git archive 62d4633 rubcli | tar -x -C out/before
+    git archive REV rubcli | tar -x -C out/before
     python benchmarks/end_to_end.py --periods 5000 10000 20000 \\
         --source out/before --label before --source . --label after
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import datetime
 import os
 import platform
 from pathlib import Path
@@ -19,9 +18,9 @@ def cpu_model() -> str:
 
 
 def describe() -> str:
-    """One line: date, cores, CPU model, Python, load average at the start."""
+    """One line: cores, CPU model, numpy/numba versions, Python, load average at the start."""
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     return (
-        f"{datetime.date.today().isoformat()}; {os.cpu_count()} cores, {cpu_model()}; "
+        f"{os.cpu_count()} cores, {cpu_model()}; "
         f"Python {platform.python_version()}; load average at start {load:.2f}"
     )

@@ -1,15 +1,15 @@
-"""Peak memory and wall time of `rubcli run` with and without its figures (issue 13, target 2).
+"""Peak memory and wall time of `rubcli run` with and without its figures.
 
 The paper's case (Figure 3(a) parameters), 10,000 forcing periods at 100 samples per period
-(1,000,001 samples), one fast method (`dop853-jit`), no CSV (streaming the CSV is a
-separate change): each configuration runs `rubcli run` in a fresh process under
+(1,000,001 samples), one fast method (`dop853-jit`), no CSV (its cost is
+measured by ``end_to_end.py``): each configuration runs `rubcli run` in a fresh process under
 `/usr/bin/time -v`, which reports the peak resident set size of the whole command.
 
     python benchmarks/plot_memory.py                      # this checkout
     python benchmarks/plot_memory.py --baseline DIR       # and an older checkout beside it
 
 ``--baseline DIR`` runs the same commands with ``PYTHONPATH=DIR`` (a tree of an older
-commit, e.g. ``git archive b79379c | tar -x -C DIR``), in the same session, so the two
+commit, e.g. ``git archive REV | tar -x -C DIR``), in the same run, so the two
 are measured side by side. A warm-up run first loads (or compiles) the numba cache of
 each tree. Prints a markdown table and writes it to ``benchmarks/plot_memory.md``.
 """

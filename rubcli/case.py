@@ -12,7 +12,7 @@ message has one line per problem, naming the file, the dotted field and what is 
 
     my.toml: model.K: Input should be greater than 0 (got -1.0)
 
-The key names are a contract with users (issue 2): add keys, don't rename them. The full
+The key names are a contract with users: add keys, don't rename them. The full
 reference is ``docs/cases.md``. The method names come from the registry's data
 (``rubcli.solvers.registry``), which loads no solver.
 """

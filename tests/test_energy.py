@@ -191,7 +191,7 @@ def test_failed_run_is_balanced_over_its_partial_span():
     assert math.isfinite(balance.relative_residual) and balance.relative_residual < 1e-5
 
 
-# ------------------------------------------- the compiled one-pass core (issue 13, target 2)
+# ------------------------------------------- the compiled one-pass core
 
 _SERIES = ("tau", "kinetic", "rotor_spring", "stator", "work_unbalance", "damping", "friction",
            "contact_dissipation", "spin_drive", "residual")  # fmt: skip

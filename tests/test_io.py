@@ -87,7 +87,7 @@ def test_staged_names_are_plain_file_names(tmp_path):
         staged.path("../escape.csv")
 
 
-# ------------------------------------------------- compiled CSV text (issue 13, target 2)
+# ------------------------------------------------- compiled CSV text
 
 
 def _awkward_floats(n: int, seed: int = 3) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Issue 12's reliability defects, one test each (each failed before its fix), and --json.
+"""Reliability defects, one test each, and --json.
 
 Output dirs: checked before solving, staged on the target's filesystem, cleaned on
 signals, with a manifest (report.json's ``files``) that makes reruns safe. Results: a
@@ -566,7 +566,7 @@ def test_csv_fields():
     assert io.csv_field('a, "b"') == '"a, ""b"""'
 
 
-# ------------------------------------------------------------- layers (issue 10)
+# ------------------------------------------------------------- layers
 
 
 def _imports(path: Path) -> set[str]:

@@ -1,5 +1,5 @@
 """`rubcli sweep` and `rubcli.sweep`: numbers against exact solutions, executors that agree
-bit for bit, resumption after a kill, and bad sweep tables (issue 11, docs/sweeps.md).
+bit for bit, resumption after a kill, and bad sweep tables (docs/sweeps.md).
 
 The sweeps here are tiny (a few points, a few dozen forcing periods each)."""
 
