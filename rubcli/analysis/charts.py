@@ -1,0 +1,176 @@
+"""Closed-form stability charts of the synchronous motions in a parameter plane.
+
+On the isotropic machine the two synchronous motions are known exactly (model notes,
+section 5), so their existence and stability in any plane of two parameters need no
+integration:
+
+- the **free whirl** ``W = E / (1 - eta^2 + 2 i nu eta)`` exists while ``|W| <= 1`` and is
+  always stable (a damped linear oscillator); its **grazing** curve is ``|W| = 1``, i.e.
+  ``e^2 eta^4 = (1 - eta^2)^2 + (2 nu eta)^2``;
+- the **synchronous forward rub** of radius ``r > 1`` solves the quadratic
+  ``(a^2 + b^2) r^2 - 2 K (a + mu b) r + K^2 (1 + mu^2) - E^2 = 0`` with
+  ``a = 1 - eta^2 + K``, ``b = 2 nu eta + mu K``; its **fold** curve is where the
+  quadratic has a double root ``r_f = K (a + mu b) / (a^2 + b^2) > 1`` (discriminant
+  ``K^2 (a + mu b)^2 - (a^2 + b^2) (K^2 (1 + mu^2) - E^2) = 0``); its **stability** is that
+  of the equilibrium in the frame turning with the forcing
+  (``rubcli.analysis.synchronous``), and its **stability boundary** is where the largest
+  real part of those eigenvalues crosses zero (a Neimark-Sacker point of the stroboscopic
+  map when the crossing pair is complex).
+
+Each point of the plane is put in one region: free whirl only, synchronous rub only, both
+(the hysteresis band of a run-up and run-down), or neither (no stable synchronous motion:
+the rotor is in a partial rub, a torus, or dry whip; which of them takes a simulation).
+The curves here are the reference against which continued curves are checked.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import brentq
+
+from rubcli import model
+from rubcli.analysis.synchronous import synchronous_rubs
+from rubcli.model import ModelParams
+
+NEITHER, FREE, RUB, BOTH = 0, 1, 2, 3
+REGIONS = {
+    NEITHER: "no stable synchronous motion (partial rub, torus or dry whip)",
+    FREE: "free whirl",
+    RUB: "synchronous rub",
+    BOTH: "free whirl and synchronous rub (hysteresis)",
+}
+FREE_GRAZING, RUB_FOLD, RUB_STABILITY = "free_grazing", "rub_fold", "rub_stability"
+CURVE_KINDS = (FREE_GRAZING, RUB_FOLD, RUB_STABILITY)
+
+
+def _with(params: ModelParams, **values: float) -> ModelParams:
+    return dataclasses.replace(params, **{k: float(v) for k, v in values.items()})
+
+
+def free_radius(params: ModelParams) -> float:
+    """|W| of the free synchronous whirl (clearances)."""
+    w, _ = model.free_steady_state(0.0, params)
+    return float(abs(w))
+
+
+def free_grazing_speeds(nu: float, e: float) -> list[float]:
+    """The speed ratios eta > 0 at which the free whirl touches the stator, ascending.
+
+    ``e^2 eta^4 = (1 - eta^2)^2 + 4 nu^2 eta^2`` is a quadratic in ``u = eta^2``:
+    ``(1 - e^2) u^2 + (4 nu^2 - 2) u + 1 = 0``.
+    """
+    a, b, c = 1.0 - e * e, 4.0 * nu * nu - 2.0, 1.0
+    if a == 0.0:
+        roots = [-c / b]
+    else:
+        disc = b * b - 4.0 * a * c
+        if disc < 0.0:
+            return []
+        q = -0.5 * (b + math.copysign(math.sqrt(disc), b))
+        roots = [q / a, c / q]
+    return sorted(math.sqrt(u) for u in roots if u > 0.0)
+
+
+def rub_fold_discriminant(params: ModelParams) -> float:
+    """The quarter discriminant of the synchronous-rub quadratic in r (zero at a fold)."""
+    K, mu, E = params.K, params.mu, params.E
+    a = 1.0 - params.eta**2 + K
+    b = 2.0 * params.nu * params.eta + mu * K
+    return K**2 * (a + mu * b) ** 2 - (a * a + b * b) * (K**2 * (1.0 + mu * mu) - E * E)
+
+
+def rub_fold_radius(params: ModelParams) -> float:
+    """The double root r_f = K (a + mu b) / (a^2 + b^2) of the quadratic."""
+    K, mu = params.K, params.mu
+    a = 1.0 - params.eta**2 + K
+    b = 2.0 * params.nu * params.eta + mu * K
+    return K * (a + mu * b) / (a * a + b * b)
+
+
+def _stable_rub_growth(params: ModelParams) -> float:
+    """Largest real part of the eigenvalues of the largest forward rub (nan: none)."""
+    rubs = [rub for rub in synchronous_rubs(params) if rub.forward_slip]
+    return rubs[-1].growth_rate if rubs else math.nan
+
+
+def region(params: ModelParams) -> int:
+    """The region (NEITHER, FREE, RUB, BOTH) of one parameter point."""
+    free = free_radius(params) <= 1.0
+    rub = any(r.forward_slip and r.stable for r in synchronous_rubs(params))
+    return (FREE if free else 0) | (RUB if rub else 0)
+
+
+@dataclass
+class Chart:
+    """Regions on a grid and the closed-form curves of one parameter plane."""
+
+    x_name: str
+    y_name: str
+    x: np.ndarray  # (nx,)
+    y: np.ndarray  # (ny,)
+    regions: np.ndarray  # (ny, nx) of NEITHER/FREE/RUB/BOTH
+    curves: dict[str, list[tuple[float, float]]]  # kind -> (x, y) points
+
+    def curve_rows(self) -> list[tuple[float, float, str]]:
+        """(x, y, kind) for every curve point, kind by kind, y then x ascending."""
+        rows = []
+        for kind in CURVE_KINDS:
+            points = sorted(self.curves.get(kind, []), key=lambda p: (p[1], p[0]))
+            rows.extend((px, py, kind) for px, py in points)
+        return rows
+
+
+def _roots_along(g: Callable[[float], float], xs: np.ndarray, keep) -> list[float]:
+    """Roots of g between consecutive grid points with a sign change (Brent), kept if
+    ``keep(root)``; nan values (no such motion) bound no bracket."""
+    values = [g(float(x)) for x in xs]
+    out = []
+    for x0, x1, g0, g1 in zip(xs[:-1], xs[1:], values[:-1], values[1:], strict=True):
+        if not (math.isfinite(g0) and math.isfinite(g1)) or (g0 > 0.0) == (g1 > 0.0):
+            continue
+        try:
+            root = brentq(g, float(x0), float(x1), xtol=1e-13, rtol=1e-14)
+        except ValueError:
+            continue  # g turned nan inside the bracket
+        if keep(root):
+            out.append(root)
+    return out
+
+
+def closed_form_chart(
+    params: ModelParams,
+    x_name: str,
+    x_range: tuple[float, float],
+    y_name: str,
+    y_range: tuple[float, float],
+    nx: int = 121,
+    ny: int = 61,
+) -> Chart:
+    """Regions and curves in the plane (x_name, y_name) over the given ranges; every other
+    parameter as in ``params``. Curves are located along x (Brent) at each grid value of y."""
+    xs = np.linspace(*x_range, nx)
+    ys = np.linspace(*y_range, ny)
+    regions = np.zeros((ny, nx), dtype=int)
+    curves: dict[str, list[tuple[float, float]]] = {k: [] for k in CURVE_KINDS}
+    for j, yv in enumerate(ys):
+        row = _with(params, **{y_name: yv})
+        for i, xv in enumerate(xs):
+            regions[j, i] = region(_with(row, **{x_name: xv}))
+
+        def at(xv: float, row=row) -> ModelParams:
+            return _with(row, **{x_name: xv})
+
+        for xv in _roots_along(lambda v: free_radius(at(v)) - 1.0, xs, lambda v: True):
+            curves[FREE_GRAZING].append((xv, float(yv)))
+        folds = _roots_along(
+            lambda v: rub_fold_discriminant(at(v)), xs, lambda v: rub_fold_radius(at(v)) > 1.0
+        )
+        curves[RUB_FOLD].extend((xv, float(yv)) for xv in folds)
+        for xv in _roots_along(lambda v: _stable_rub_growth(at(v)), xs, lambda v: True):
+            curves[RUB_STABILITY].append((xv, float(yv)))
+    return Chart(x_name, y_name, xs, ys, regions, curves)
