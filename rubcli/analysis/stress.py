@@ -1,6 +1,6 @@
 """The stress suite: extreme cases, each run with every method, within a budget.
 
-``stress_cases(quick)`` lists the built-in cases (issue 5): stiff stators from
+``stress_cases(quick)`` lists the built-in cases: stiff stators from
 ``K = 17.6`` to ``1.75e6`` (Table 1's range), friction ``mu = 0 ... 0.1`` including the
 dry-whip (stick/roll) regime, no damping, grazing orbits, a 10,000-period horizon, a
 large eccentricity and starts deep inside the stator. ``run_suite`` solves each case with

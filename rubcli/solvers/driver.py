@@ -1,4 +1,4 @@
-"""The event loop every method runs in: one driver, each method a stepper (issue 10).
+"""The event loop every method runs in: one driver, each method a stepper.
 
 A run integrates one regime at a time (free flight, slip+, slip-, stick) and stops at
 every event (contact entry/exit, slip reversal, stick entry/exit), so that no step

@@ -1,4 +1,4 @@
-"""The method registry: what each method is, as data (issue 10).
+"""The method registry: what each method is, as data.
 
 Every method is one ``MethodSpec``: its name, its family, the setting that tunes its
 accuracy (``knob``: ``rtol`` for the error-controlled integrators, ``steps_per_period``

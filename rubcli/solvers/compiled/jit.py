@@ -83,7 +83,8 @@ jit_inline = numba.njit(cache=True, nogil=True, inline="always")
 # (``jit_fused``), whose products and sums may fuse into FMA instructions where the host
 # has them (every x86-64 since 2013, every ARM64): each fused a * b + c is rounded once
 # instead of twice, so those series round a little differently on a host without FMA.
-# It makes a frictionless taylor run about 4 % faster (benchmarks/RESULTS.md 8.6).
+# It makes a frictionless taylor run about 4 % faster (measured against the uncontracted
+# series in one run).
 # (taylor's series once allowed reassociation, which vectorised their short sums: on an
 # AMD EPYC (Zen 4) host that was 7-16 % slower per run, and its rounding followed the
 # host's vector width.)

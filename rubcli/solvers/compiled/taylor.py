@@ -243,7 +243,7 @@ def _slip_coefficients(fr, fi, pars, sign, order, C, W):
     multiply-adds an order, against 6 m for q, u = q^(-1/2) and u w. The accelerations
     need P up to order N - 1; z_N and P_N are for the slip pre-check alone, so without
     friction they are left out (the top order is the costliest: 6-7 % of the series at
-    N = 13 and 18, benchmarks/RESULTS.md 8.6)."""
+    N = 13 and 18)."""
     nu2, eta, E, K = 2.0 * pars[0], pars[1], pars[2], pars[4]
     mu_c = pars[5] * sign
     M = MAX_ORDER
