@@ -5,6 +5,7 @@ The sweeps here are tiny (a few points, a few dozen forcing periods each)."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -510,3 +511,52 @@ def test_a_tampered_chain_point_is_recomputed_not_trusted(fig3_params, tmp_path)
     for key, ref in reference.items():
         np.testing.assert_array_equal(results[key].section, ref.section)
         assert results[key].final_state == ref.final_state
+
+
+def _running(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return False
+    return state != "Z"
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's")
+def test_local_workers_die_with_a_killed_sweep(tmp_path):
+    # SIGKILL gives the parent no chance to stop its pool: the workers must not live on
+    case = Path(__file__).resolve().parents[1] / "cases" / "paper" / "fig3-mu-sweep.toml"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "rubcli", "sweep", str(case), "--workers", "2",
+         "--oversubscribe", "--out", str(tmp_path / "out")],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )  # fmt: skip
+
+    def children() -> list[int]:
+        found = []
+        for entry in Path("/proc").iterdir():
+            try:
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            except (OSError, IndexError):
+                continue
+            if int(fields[1]) == proc.pid:
+                found.append(int(entry.name))
+        return found
+
+    try:
+        deadline = time.monotonic() + 300
+        while len(children()) < 2 and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.2)
+        workers = children()
+        assert len(workers) >= 2, "the sweep never started its workers"
+    finally:
+        proc.kill()
+        proc.wait()
+    deadline = time.monotonic() + 10
+    alive = workers
+    while alive and time.monotonic() < deadline:
+        time.sleep(0.2)
+        alive = [pid for pid in workers if _running(pid)]
+    for pid in alive:  # do not leave them behind even when the test fails
+        with contextlib.suppress(OSError):
+            os.kill(pid, signal.SIGKILL)
+    assert not alive, f"workers {alive} outlived their killed parent"

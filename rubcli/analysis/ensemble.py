@@ -33,7 +33,6 @@ gives the median without assuming a law.
 
 from __future__ import annotations
 
-import concurrent.futures as cf
 import math
 from collections import Counter
 from collections.abc import Callable, Sequence
@@ -43,6 +42,7 @@ import numpy as np
 
 from rubcli import model
 from rubcli.analysis import response as rsp
+from rubcli.analysis.processes import local_pool
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 
@@ -371,7 +371,7 @@ def run_ensemble(
                 progress(len(results))
     else:
         _warm_up(tasks)  # compile or load the kernels once, before the workers fork
-        with cf.ProcessPoolExecutor(max_workers=workers) as pool:
+        with local_pool(workers) as pool:
             for result in pool.map(run_member, tasks):
                 results.append(result)
                 if progress is not None:

@@ -18,6 +18,7 @@ import os
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
+from rubcli.analysis.processes import local_pool
 from rubcli.analysis.sweep.engine import InProcessExecutor, RunStats, run_plan, warm_up
 from rubcli.analysis.sweep.plan import Axis, SweepPlan
 from rubcli.analysis.sweep.store import PointStore, StoreError
@@ -151,7 +152,7 @@ def execute(
         pools: list[cf.ProcessPoolExecutor] = []
 
         def rebuild() -> cf.Executor:
-            pools.append(cf.ProcessPoolExecutor(max_workers=n))
+            pools.append(local_pool(n))
             return pools[-1]
 
         try:
