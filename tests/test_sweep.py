@@ -560,3 +560,13 @@ def test_local_workers_die_with_a_killed_sweep(tmp_path):
         with contextlib.suppress(OSError):
             os.kill(pid, signal.SIGKILL)
     assert not alive, f"workers {alive} outlived their killed parent"
+
+
+def test_a_dask_batch_never_puts_the_work_of_all_workers_into_one_task(fig3_params):
+    from rubcli.analysis.sweep import dask_batch
+
+    plan = _small_plan(fig3_params)  # one axis, up and down: two chains
+    assert plan.n_chains == 2 and len(plan.chains()) == 2
+    assert dask_batch(1000, 2, plan.n_chains) == 1  # each worker gets a chain
+    assert dask_batch(1000, 2) == 8  # independent points: 8 per task
+    assert dask_batch(1000, 2, 1000) == 8 and dask_batch(10, 2, 10) == 1

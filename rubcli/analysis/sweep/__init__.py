@@ -98,9 +98,13 @@ def dask_executor(client) -> Iterator[cf.Executor]:
         executor.shutdown(wait=False)
 
 
-def dask_batch(n_points: int, n_workers: int) -> int:
-    """Points per Dask task: up to DASK_MAX_BATCH, keeping >= 8 tasks per worker."""
-    return max(1, min(DASK_MAX_BATCH, n_points // (8 * n_workers)))
+def dask_batch(n_points: int, n_workers: int, n_chains: int | None = None) -> int:
+    """Points per Dask task: up to DASK_MAX_BATCH, keeping >= 8 tasks per worker and, as
+    a batch holds the next points of different chains, no more chains in a batch than
+    keep every worker busy (two chains on two workers: one point a task, not one task
+    holding both chains' points on one worker)."""
+    limit = DASK_MAX_BATCH if n_chains is None else max(1, n_chains // n_workers)
+    return max(1, min(DASK_MAX_BATCH, limit, n_points // (8 * n_workers)))
 
 
 def dask_workers(client) -> int:
@@ -143,7 +147,7 @@ def execute(
             with dask_executor(client) as executor:
                 results, stats = run_plan(
                     plan, executor, store=store, workers=n, progress=progress,
-                    batch=dask_batch(plan.n_points, n),
+                    batch=dask_batch(plan.n_points, n, plan.n_chains),
                 )  # fmt: skip
             return results, stats, f"dask ({n} workers at {client.scheduler.address})"
         if n == 1:

@@ -141,6 +141,15 @@ class SweepPlan:
     def n_points(self) -> int:
         return math.prod(self.shape) * len(self.directions)
 
+    @property
+    def n_chains(self) -> int:
+        """Chains that can run side by side: every point when independent, else one per
+        direction and row of the other axes."""
+        per_direction = math.prod(self.shape[1:])
+        return sum(
+            math.prod(self.shape) if d == "independent" else per_direction for d in self.directions
+        )
+
     def point(self, direction: str, index: tuple[int, ...]) -> Point:
         values = {a.parameter: a.values[i] for a, i in zip(self.axes, index, strict=True)}
         model = {k: v for k, v in values.items() if k in MODEL_AXES}
