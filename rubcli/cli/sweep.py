@@ -225,7 +225,8 @@ def _write(case_file, case, plan, ds, results, stats, where, wall, target, outpu
             "points": plan.n_points,
             "points_computed_this_run": stats.computed,
             "points_resumed": stats.resumed,
-            "points_retried": stats.retried,
+            # resubmissions after a lost local worker; on Dask, Dask's own (not seen here)
+            "points_retried": None if where.startswith("dask") else stats.retried,
             "points_failed": n_failed,
             "failed": _failures(ds),
             "class_counts": _class_counts(ds),

@@ -149,7 +149,14 @@ def execute(
                     plan, executor, store=store, workers=n, progress=progress,
                     batch=dask_batch(plan.n_points, n, plan.n_chains),
                 )  # fmt: skip
-            return results, stats, f"dask ({n} workers at {client.scheduler.address})"
+            return (
+                results,
+                stats,
+                (
+                    f"dask ({n} workers at the start, scheduler {client.scheduler.address}; "
+                    "Dask resubmits a lost worker's tasks itself, uncounted here)"
+                ),
+            )
         if n == 1:
             results, stats = run_plan(plan, InProcessExecutor(), store=store, progress=progress)
             return results, stats, "this process (1 worker)"
