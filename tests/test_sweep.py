@@ -570,3 +570,21 @@ def test_a_dask_batch_never_puts_the_work_of_all_workers_into_one_task(fig3_para
     assert dask_batch(1000, 2, plan.n_chains) == 1  # each worker gets a chain
     assert dask_batch(1000, 2) == 8  # independent points: 8 per task
     assert dask_batch(1000, 2, 1000) == 8 and dask_batch(10, 2, 10) == 1
+
+
+@pytest.mark.parametrize(
+    ("address", "says"),
+    [("garbage!!", "not a scheduler address"), ("", "not a scheduler address"),
+     ("http://127.0.0.1:8786", "not http://")],
+)  # fmt: skip
+def test_a_bad_scheduler_address_is_one_message_without_a_late_traceback(tmp_path, address, says):
+    # a distributed.Client that failed to connect used to print a TimeoutError traceback
+    # from its finaliser 20 s after the message
+    run = subprocess.run(
+        [sys.executable, "-m", "rubcli", "sweep", _write(tmp_path, FREE_CASE), "--scheduler",
+         address, "--out", str(tmp_path / "out")],
+        capture_output=True, text=True, timeout=120, check=False,
+    )  # fmt: skip
+    assert run.returncode == 2 and says in run.stderr
+    assert "Traceback" not in run.stderr and "Exception ignored" not in run.stderr
+    assert len(run.stderr.strip().splitlines()) == 1

@@ -72,6 +72,32 @@ def check_workers(workers: int | None, *, oversubscribe: bool = False) -> int:
     return workers
 
 
+def reachable_or_raise(address: str, timeout: float) -> None:
+    """SchedulerError unless ``address`` is a tcp:// or tls:// address that accepts a
+    connection: checked before a ``Client`` is made, since a Client whose connection fails
+    prints a traceback from its finaliser some 20 s later."""
+    import socket
+
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    try:
+        scheme, location = parse_address(address)
+        host, port = parse_host_port(location)
+    except ValueError as exc:
+        raise SchedulerError(f"not a scheduler address ({exc}): give tcp://host:port") from None
+    if scheme not in ("tcp", "tls"):
+        raise SchedulerError(
+            f"{address!r}: a Dask scheduler speaks tcp:// or tls://, not {scheme}://"
+        )
+    try:
+        with socket.create_connection((host, port), timeout=timeout):
+            pass
+    except OSError as exc:
+        raise SchedulerError(
+            f"cannot reach the Dask scheduler at {address!r} within {timeout:g} s: {exc}"
+        ) from None
+
+
 def connect(address: str, timeout: float = CONNECT_TIMEOUT_S):
     """A ``distributed.Client`` of the scheduler at ``address``; SchedulerError if not."""
     try:
@@ -80,6 +106,7 @@ def connect(address: str, timeout: float = CONNECT_TIMEOUT_S):
         raise SchedulerError(
             'Dask is not installed: pip install -e ".[dask]" (or "rubcli[dask]")'
         ) from None
+    reachable_or_raise(address, timeout)
     try:
         return Client(address, timeout=timeout, set_as_default=False)
     except (OSError, TimeoutError, ValueError) as exc:
