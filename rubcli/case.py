@@ -637,6 +637,17 @@ class CaseFile(_Section):
         return self
 
     @model_validator(mode="after")
+    def _sweep_resolves_its_samples(self) -> CaseFile:
+        if self.sweep is not None and self.time.samples_per_period < SWEEP_MIN_SAMPLES:
+            raise PydanticCustomError(
+                "sweep_samples",
+                f"time.samples_per_period: a sweep needs at least {SWEEP_MIN_SAMPLES} samples "
+                "per period (its spectrum and contact measures) (got "
+                f"{self.time.samples_per_period})",
+            )
+        return self
+
+    @model_validator(mode="after")
     def _model_xor_physical(self) -> CaseFile:
         # The loader reports this with a field name before pydantic runs; this keeps the
         # rule for anyone who validates a dict directly.
@@ -645,6 +656,7 @@ class CaseFile(_Section):
         return self
 
 
+SWEEP_MIN_SAMPLES = 8  # as analysis.sweep.plan.SweepPlan requires
 _MODEL_XOR_PHYSICAL = "give exactly one of [model] (nondimensional) and [physical] (SI units)"
 _TABLES = frozenset(CaseFile.model_fields)
 

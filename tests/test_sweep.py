@@ -588,3 +588,12 @@ def test_a_bad_scheduler_address_is_one_message_without_a_late_traceback(tmp_pat
     assert run.returncode == 2 and says in run.stderr
     assert "Traceback" not in run.stderr and "Exception ignored" not in run.stderr
     assert len(run.stderr.strip().splitlines()) == 1
+
+
+def test_a_sweep_case_with_too_few_samples_is_refused_naming_the_field(tmp_path):
+    text = FREE_CASE.replace("samples_per_period = 32", "samples_per_period = 4")
+    assert text != FREE_CASE
+    case = _write(tmp_path, text)
+    result = CliRunner().invoke(app, ["sweep", str(case), "--out", str(tmp_path / "out")])
+    assert result.exit_code == 2 and "time.samples_per_period" in result.output
+    assert "Traceback" not in result.output and not (tmp_path / "out").exists()
