@@ -638,12 +638,30 @@ class CaseFile(_Section):
 
     @model_validator(mode="after")
     def _sweep_resolves_its_samples(self) -> CaseFile:
-        if self.sweep is not None and self.time.samples_per_period < SWEEP_MIN_SAMPLES:
+        if self.sweep is None:
+            return self
+        sps = self.time.samples_per_period
+        if sps < SWEEP_MIN_SAMPLES:
             raise PydanticCustomError(
                 "sweep_samples",
                 f"time.samples_per_period: a sweep needs at least {SWEEP_MIN_SAMPLES} samples "
-                "per period (its spectrum and contact measures) (got "
-                f"{self.time.samples_per_period})",
+                f"per period (its spectrum and contact measures) (got {sps})",
+            )
+        if self.sweep.spectrum_max_order > sps / 2:
+            raise PydanticCustomError(
+                "sweep_spectrum",
+                f"sweep.spectrum_max_order: at most time.samples_per_period / 2 = {sps / 2:g} "
+                "(the highest order the recorded samples resolve) (got "
+                f"{self.sweep.spectrum_max_order:g})",
+            )
+        need = self.sweep.record_periods * sps * RUN_BYTES_PER_SAMPLE
+        if need > MAX_CASE_MEMORY_BYTES / SWEEP_POINTS_IN_MEMORY:
+            raise PydanticCustomError(
+                "sweep_memory",
+                f"sweep.record_periods: {self.sweep.record_periods} recorded periods at "
+                f"{sps} samples each need about {_gib(need)} per point in memory, and a "
+                f"sweep holds up to {SWEEP_POINTS_IN_MEMORY} points at once (one per worker); "
+                f"more than the {_gib(MAX_CASE_MEMORY_BYTES)} a case may ask for",
             )
         return self
 
@@ -657,6 +675,7 @@ class CaseFile(_Section):
 
 
 SWEEP_MIN_SAMPLES = 8  # as analysis.sweep.plan.SweepPlan requires
+SWEEP_POINTS_IN_MEMORY = 8  # points solved at once on a machine of up to 8 cores
 _MODEL_XOR_PHYSICAL = "give exactly one of [model] (nondimensional) and [physical] (SI units)"
 _TABLES = frozenset(CaseFile.model_fields)
 

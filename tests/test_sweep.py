@@ -597,3 +597,17 @@ def test_a_sweep_case_with_too_few_samples_is_refused_naming_the_field(tmp_path)
     result = CliRunner().invoke(app, ["sweep", str(case), "--out", str(tmp_path / "out")])
     assert result.exit_code == 2 and "time.samples_per_period" in result.output
     assert "Traceback" not in result.output and not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(
+    ("change", "says"),
+    [("record_periods = 10000000", "GiB per point"),
+     ("record_periods = 8\nspectrum_max_order = 1e9", "at most time.samples_per_period / 2")],
+)  # fmt: skip
+def test_sweep_sizes_that_cannot_work_are_refused_before_any_point(tmp_path, change, says):
+    text = FREE_CASE.replace("record_periods = 8", change)
+    assert text != FREE_CASE
+    case = _write(tmp_path, text)
+    result = CliRunner().invoke(app, ["sweep", str(case), "--out", str(tmp_path / "out")])
+    assert result.exit_code == 2 and says in result.output
+    assert "Traceback" not in result.output and not (tmp_path / "out").exists()
