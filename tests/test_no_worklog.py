@@ -2,7 +2,8 @@
 
 Scans every tracked text file (code, docs, cases, benchmarks, CI) for words that say how
 the project was developed rather than what it does: ticket numbers, work-session numbers
-and tags like ``s21``, calendar dates, "measured today", and commit hashes quoted as the
+and tags (an ``s`` and two digits), calendar dates, "measured" followed by "to-day", and
+commit hashes quoted as the
 code's history. History lives in git; result files say what and how, not when.
 """
 
@@ -24,7 +25,7 @@ PATTERNS = {
     "work-session tag": r"(?<![\w.])s(1\d|2\d)(?![\w.])",
     "this work session": r"\bthis " + "session" + r"\b",
     "date": r"\b20\d\d-[01]\d-[0-3]\d\b",
-    "measured today": r"\bmeasured " + "today" + r"\b",
+    "measured + today": r"\bmeasured " + "today" + r"\b",
     "commit quoted as history": r"\b(commit|main at)\s+[0-9a-f]{7,40}\b",
 }
 REGEX = re.compile("|".join(f"(?P<g{i}>{p})" for i, p in enumerate(PATTERNS.values())), re.I)
@@ -38,9 +39,7 @@ def tracked_text_files() -> list[Path]:
         ).stdout
     except (OSError, subprocess.CalledProcessError):
         pytest.skip("not a git checkout")
-    this = Path(__file__).resolve()  # its own examples are the patterns' test data
-    files = [ROOT / f for f in out.split() if Path(f).suffix in SUFFIXES]
-    return [f for f in files if f.resolve() != this]
+    return [ROOT / f for f in out.split() if Path(f).suffix in SUFFIXES]
 
 
 def test_no_word_refers_to_how_the_project_was_developed():
@@ -58,19 +57,26 @@ def test_no_word_refers_to_how_the_project_was_developed():
     assert not hits, "\n".join(hits[:60]) + f"\n({len(hits)} in all)"
 
 
+def _example(text: str) -> str:
+    """A line of history written with a '|' inside its key word, so that this file itself
+    holds none (the scan covers it too)."""
+    return text.replace("|", "")
+
+
 @pytest.mark.parametrize(
     "line, found",
     [
-        ("see issue 13", True),
-        ("(issues 11, 14)", True),
-        ("re-measured in session 21", True),
-        ("--tag s22-fma", True),
-        ("2026-11-22 18:14", True),
-        ("was main at 52eef76", True),
+        (_example("see iss|ue 13"), True),
+        (_example("(iss|ues 11, 14)"), True),
+        (_example("re-measured in sess|ion 21"), True),
+        (_example("--tag s|22-fma"), True),
+        (_example("20|26-11-22 18:14"), True),
+        (_example("was main at 52e|ef76"), True),
         ("A[6, 0] = 3.7109375e-2", False),
         ("the s-plane and 12 sessions of a sweep", False),
         ("K = 17.6, mu = 0.03", False),
     ],
 )
 def test_the_patterns_catch_what_they_should_and_only_that(line, found):
+    assert "|" not in line
     assert bool(REGEX.search(line)) is found
