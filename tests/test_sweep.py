@@ -432,6 +432,21 @@ def test_workers_beyond_the_cores_are_refused_unless_oversubscribed(tmp_path):
     )  # fmt: skip
     assert run.returncode == 2 and "--workers: 100000 processes" in run.stderr
     assert "Traceback" not in run.stderr and not (tmp_path / "out").exists()
+    local = CliRunner().invoke(
+        app,
+        [
+            "sweep",
+            str(_write(tmp_path, FREE_CASE)),
+            "--scheduler",
+            "local",
+            "--workers",
+            "100000",
+            "--out",
+            str(tmp_path / "out"),
+        ],
+    )  # fmt: skip  (a local Dask cluster of as many workers is refused alike)
+    assert local.exit_code == 2 and "--workers: 100000 processes" in local.output
+    assert not (tmp_path / "out").exists()
 
 
 def _stored_point(store_dir):

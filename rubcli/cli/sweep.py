@@ -91,7 +91,8 @@ def command(
     from rubcli import sweeps
     from rubcli.analysis import sweep as engine
 
-    if scheduler is None and cfg.scheduler is None:
+    address = scheduler if scheduler is not None else cfg.scheduler
+    if address in (None, LOCAL_SCHEDULER):  # local processes, or a local Dask cluster
         try:
             workers = engine.check_workers(workers, oversubscribe=oversubscribe)
         except ValueError as exc:
@@ -100,7 +101,6 @@ def command(
     target = command_dir(case, "sweep", out)
     plan = sweeps.plan_from_case(case, quick)
     output = prepare_output(target, force, wait, expected_files(plan))  # before any work
-    address = scheduler if scheduler is not None else cfg.scheduler
     client = cluster = None
     if address is not None:
         try:
