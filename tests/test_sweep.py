@@ -432,6 +432,7 @@ def test_workers_beyond_the_cores_are_refused_unless_oversubscribed(tmp_path):
     )  # fmt: skip
     assert run.returncode == 2 and "--workers: 100000 processes" in run.stderr
     assert "Traceback" not in run.stderr and not (tmp_path / "out").exists()
+    # a local Dask cluster of as many workers is refused alike
     local = CliRunner().invoke(
         app,
         [
@@ -444,7 +445,7 @@ def test_workers_beyond_the_cores_are_refused_unless_oversubscribed(tmp_path):
             "--out",
             str(tmp_path / "out"),
         ],
-    )  # fmt: skip  (a local Dask cluster of as many workers is refused alike)
+    )  # fmt: skip
     assert local.exit_code == 2 and "--workers: 100000 processes" in local.output
     assert not (tmp_path / "out").exists()
 

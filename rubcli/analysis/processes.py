@@ -4,8 +4,8 @@ A ``ProcessPoolExecutor``'s workers wait for their next task on a pipe; when the
 killed outright (SIGKILL, the OOM killer) nothing tells them, and they go on computing
 their current task and then wait for ever. On Linux each worker asks the kernel to kill it
 when its parent dies (``prctl(PR_SET_PDEATHSIG, SIGKILL)``): the parent keeps every
-finished result, so a worker has nothing to save. Elsewhere the workers end at their next
-read of the closed pipe.
+finished result, so a worker has nothing to save. Elsewhere nothing ends such workers
+early: stop a command with Ctrl-C or SIGTERM, which shut its pool down.
 """
 
 from __future__ import annotations

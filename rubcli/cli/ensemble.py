@@ -17,7 +17,6 @@ Exit codes: 0 done; 1 every run failed; 2 invalid input (nothing written).
 
 from __future__ import annotations
 
-import os
 import time
 from pathlib import Path
 from typing import Annotated
@@ -87,9 +86,15 @@ def command(
     if problems:
         console.error_lines(f"cannot run the ensemble of {case_file}", problems)
         raise typer.Exit(EXIT_INVALID)
+    from rubcli.analysis.sweep import check_workers
+
+    try:
+        workers = check_workers(workers)  # no more processes than cores
+    except ValueError as exc:
+        console.error(f"--{exc}")
+        raise typer.Exit(EXIT_INVALID) from None
     target = command_dir(case, "ensemble", out)
     plan = prepare_output(target, force, wait, EXPECTED_FILES)
-    workers = workers or os.cpu_count() or 1
     with console.machine_readable(json):
         started = time.perf_counter()
         tasks = en.member_tasks(

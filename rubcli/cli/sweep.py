@@ -96,7 +96,7 @@ def command(
         try:
             workers = engine.check_workers(workers, oversubscribe=oversubscribe)
         except ValueError as exc:
-            console.error(f"--{exc}")
+            console.error(f"--{exc}; --oversubscribe allows it")
             raise typer.Exit(EXIT_INVALID) from None
     target = command_dir(case, "sweep", out)
     plan = sweeps.plan_from_case(case, quick)

@@ -67,7 +67,7 @@ def check_workers(workers: int | None, *, oversubscribe: bool = False) -> int:
     if workers > cores and not oversubscribe:
         raise ValueError(
             f"workers: {workers} processes on {cores} core(s): at most {cores} "
-            "(points are CPU-bound; more processes only slow the sweep), or oversubscribe"
+            "(each run is CPU-bound: more processes only slow the work down)"
         )
     return workers
 
