@@ -413,6 +413,8 @@ class SweepSection(_Section):
     max_points: int = Field(default=DEFAULT_SWEEP_MAX_POINTS, ge=1)  # budget
     scheduler: str | None = Field(default=None, min_length=1)  # Dask scheduler address
     scheduler_timeout_s: float = Field(default=10.0, gt=0, le=600)  # bounded connect wait
+    # how long a Dask sweep waits for a lost scheduler, or for a worker when none is left
+    scheduler_lost_timeout_s: float = Field(default=60.0, gt=0, le=3600)
 
     _values_unique = field_validator("values")(_unique)
 

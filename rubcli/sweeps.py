@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from rubcli import case as case_module
-from rubcli.analysis.sweep import SweepPlan, connect, execute
+from rubcli.analysis.sweep import SweepPlan, close_client, connect, execute
 from rubcli.analysis.sweep.plan import Axis
 
 # --quick: every axis thinned to at most this many values (its ends kept), short runs.
@@ -121,9 +121,10 @@ def sweep(
         client = own = connect(scheduler, timeout=cfg.scheduler_timeout_s)
     try:
         results, _stats, _where = execute(
-            plan, workers=workers, client=client, store_dir=store_dir, oversubscribe=oversubscribe
-        )
+            plan, workers=workers, client=client, store_dir=store_dir,
+            oversubscribe=oversubscribe, lost_timeout_s=cfg.scheduler_lost_timeout_s,
+        )  # fmt: skip
     finally:
         if own is not None:
-            own.close()
+            close_client(own)
     return build_dataset(plan, results, case_attrs(case))

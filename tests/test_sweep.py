@@ -5,6 +5,7 @@ The sweeps here are tiny (a few points, a few dozen forcing periods each)."""
 
 from __future__ import annotations
 
+import concurrent.futures as cf
 import contextlib
 import json
 import math
@@ -627,3 +628,126 @@ def test_sweep_sizes_that_cannot_work_are_refused_before_any_point(tmp_path, cha
     result = CliRunner().invoke(app, ["sweep", str(case), "--out", str(tmp_path / "out")])
     assert result.exit_code == 2 and says in result.output
     assert "Traceback" not in result.output and not (tmp_path / "out").exists()
+
+
+class _DroppingExecutor(cf.Executor):
+    """Runs a task's first ``good`` submissions here, then returns every later one
+    cancelled, as Dask's executor does when its scheduler connection drops."""
+
+    def __init__(self, good: int):
+        self.good = good
+
+    def submit(self, fn, /, *args, **kwargs):  # type: ignore[override]
+        future: cf.Future = cf.Future()
+        if self.good > 0:
+            self.good -= 1
+            future.set_result(fn(*args, **kwargs))
+        else:
+            future.cancel()
+        return future
+
+
+def test_a_dropped_task_is_never_stored_as_a_result(fig3_params, tmp_path):
+    """Cancelled tasks (a lost scheduler) are held, not recorded as failed points; the
+    watch stops the run with the finished points stored and nothing else."""
+    from rubcli.analysis.sweep import ExecutorLostError, PointStore, run_plan
+
+    plan = _small_plan(fig3_params)
+    store = PointStore(tmp_path / "store", plan.digest(), plan.to_dict())
+    calls = []
+
+    def watch() -> None:
+        calls.append(1)
+        if len(calls) >= 2:
+            raise ExecutorLostError("the scheduler is unreachable")
+
+    with pytest.raises(ExecutorLostError):
+        run_plan(plan, _DroppingExecutor(good=2), store=store, workers=1, watch=watch)
+    stored = dict(PointStore(tmp_path / "store", plan.digest(), plan.to_dict()).load())
+    assert len(stored) == 2 and all(r.ok for r in stored.values())
+
+
+def test_a_dropped_task_goes_back_once_the_executor_is_well(fig3_params):
+    from rubcli.analysis.sweep import run_plan
+
+    plan = _small_plan(fig3_params)
+    reference, _, _ = execute(plan, workers=1)
+
+    class Flaky(_DroppingExecutor):
+        def submit(self, fn, /, *args, **kwargs):  # type: ignore[override]
+            self.good = 0 if self.good == 3 else 1  # drops every fourth task
+            return super().submit(fn, *args, **kwargs)
+
+    results, _stats = run_plan(plan, Flaky(good=1), workers=1, watch=lambda: None)
+    assert {k: r.final_state for k, r in results.items()} == {
+        k: r.final_state for k, r in reference.items()
+    }
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.mark.parametrize("lost", ["scheduler", "workers"])
+def test_a_dask_sweep_that_loses_its_cluster_stops_with_its_points_kept(tmp_path, lost):
+    """A real scheduler and worker; one of them is killed mid-sweep: the sweep stops in
+    bounded time with exit 69, one message and no traceback, its finished points kept for
+    a local resume."""
+    pytest.importorskip("distributed")
+    address = f"tcp://127.0.0.1:{_free_port()}"
+    values = ", ".join(f"{0.5 + 0.01 * i:.2f}" for i in range(150))
+    text = FREE_CASE.replace("values = [0.5, 0.8, 1.0, 1.3, 2.0]", f"values = [{values}]")
+    text = text.replace("transient_periods = 80", "transient_periods = 400")
+    case = _write(tmp_path, text + "scheduler_lost_timeout_s = 4.0\n")
+    out = tmp_path / "out"
+    quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}
+    port = address.rsplit(":", 1)[1]
+    scheduler = subprocess.Popen(
+        [sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
+         "--port", port, "--no-dashboard"], **quiet,
+    )  # fmt: skip
+    worker = subprocess.Popen(
+        [sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads", "1",
+         "--no-nanny", "--no-dashboard"], **quiet,
+    )  # fmt: skip
+    sweep = None
+    try:
+        sweep = _run_cli(["sweep", str(case), "--out", str(out), "--scheduler", address])
+        store = None
+        deadline = time.monotonic() + 240
+        while time.monotonic() < deadline and sweep.poll() is None:
+            stores = list(tmp_path.glob(".out.sweep-*"))
+            if stores and len(list(stores[0].glob("*.point"))) >= 3:
+                store = stores[0]
+                break
+            time.sleep(0.1)
+        assert store is not None, "the sweep never stored a point"
+        (scheduler if lost == "scheduler" else worker).kill()
+        killed = time.monotonic()
+        _stdout, stderr = sweep.communicate(timeout=120)
+        waited = time.monotonic() - killed
+    finally:
+        for proc in (sweep, scheduler, worker):
+            if proc is not None and proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    assert sweep.returncode == 69, stderr
+    says = "is unreachable" if lost == "scheduler" else "has no worker"
+    assert says in stderr and "points are kept in" in stderr
+    assert "Traceback" not in stderr and "Error" not in stderr.replace(str(case), "")
+    assert waited < 60
+    assert not out.exists()
+    kept = len(list(store.glob("*.point")))
+    assert 3 <= kept < 150
+    resumed = subprocess.run(
+        [sys.executable, "-m", "rubcli", "sweep", str(case), "--out", str(out),
+         "--workers", "1", "--json"],
+        cwd=REPO, capture_output=True, text=True, timeout=600, check=False,
+    )  # fmt: skip
+    assert resumed.returncode == 0, resumed.stderr
+    report = json.loads((out / "report.json").read_text())
+    assert report["points_resumed"] == kept and report["points_failed"] == 0

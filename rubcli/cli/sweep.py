@@ -14,9 +14,13 @@ point is done; the store is then removed.
 
 Output dir: ``--out DIR``, else ``sweep/`` inside the case's output dir.
 
+A Dask sweep whose scheduler stays unreachable, or has no worker left, for
+``[sweep] scheduler_lost_timeout_s`` stops with exit 69; the finished points are kept.
+
 Exit codes: 0 done (failed points are results); 2 invalid input or unreachable scheduler;
-74 the outputs could not be written (the finished points are kept); 75 the output dir is
-in use; 128 + N stopped by signal N (130 Ctrl-C; the finished points are kept).
+69 the Dask scheduler or all its workers were lost mid-sweep (the finished points are
+kept); 74 the outputs could not be written (the finished points are kept); 75 the output
+dir is in use; 128 + N stopped by signal N (130 Ctrl-C; the finished points are kept).
 """
 
 from __future__ import annotations
@@ -43,6 +47,8 @@ from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 
 LOCAL_SCHEDULER = "local"
 EXIT_INTERRUPTED = 130  # Ctrl-C: the finished points are kept for the next run
+EXIT_LOST = 69  # EX_UNAVAILABLE: the Dask scheduler or its workers were lost mid-sweep
+CLOSE_TIMEOUT_S = 5.0  # bounded wait to close a Dask client (its scheduler may be gone)
 
 
 def store_dir_for(target: Path, digest: str) -> Path:
@@ -141,15 +147,20 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
                 store_dir=store_dir,
                 oversubscribe=True,  # the command checked --workers against the cores
                 progress=lambda done, total: bar(done),
+                lost_timeout_s=case.settings.sweep.scheduler_lost_timeout_s,
             )
     except engine.StoreError as exc:
         console.error(str(exc))
         raise typer.Exit(EXIT_INVALID) from None
+    except engine.ExecutorLostError as exc:
+        console.error(f"{case_file}: {exc}: {_kept(store_dir, plan)}; run the same command "
+                      "again once the cluster is back (or with --workers to run here)")  # fmt: skip
+        raise typer.Exit(EXIT_LOST) from None
     except (KeyboardInterrupt, io.Terminated) as exc:
         _interrupted(exc, store_dir, plan)
     finally:
         if client is not None:
-            client.close()
+            engine.close_client(client, CLOSE_TIMEOUT_S)
         if cluster is not None:
             cluster.close()
     wall = time.perf_counter() - started
@@ -187,11 +198,15 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
     console.info(f"wrote {len(files)} files to {target}: {', '.join(files)}")
 
 
+def _kept(store_dir: Path, plan) -> str:
+    kept = len(list(store_dir.glob("*.point"))) if store_dir.is_dir() else 0
+    return f"{kept} of {plan.n_points} points are kept in {store_dir}"
+
+
 def _interrupted(exc: BaseException, store_dir: Path, plan) -> None:
     """Stopped before the outputs were written: say where the finished points are kept."""
-    kept = len(list(store_dir.glob("*.point"))) if store_dir.is_dir() else 0
     console.error(
-        f"interrupted: {kept} of {plan.n_points} points are kept in {store_dir}; "
+        f"interrupted: {_kept(store_dir, plan)}; "
         "run the same command again to compute only the others (or remove it)"
     )
     code = exc.exit_code if isinstance(exc, io.Terminated) else EXIT_INTERRUPTED

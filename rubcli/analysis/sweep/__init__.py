@@ -15,16 +15,24 @@ from __future__ import annotations
 import concurrent.futures as cf
 import contextlib
 import os
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from rubcli.analysis.processes import local_pool
-from rubcli.analysis.sweep.engine import InProcessExecutor, RunStats, run_plan, warm_up
+from rubcli.analysis.sweep.engine import (
+    ExecutorLostError,
+    InProcessExecutor,
+    RunStats,
+    run_plan,
+    warm_up,
+)
 from rubcli.analysis.sweep.plan import Axis, SweepPlan
 from rubcli.analysis.sweep.store import PointStore, StoreError
 
 __all__ = [
     "Axis",
+    "ExecutorLostError",
     "PointStore",
     "StoreError",
     "RunStats",
@@ -37,6 +45,7 @@ __all__ = [
 ]
 
 CONNECT_TIMEOUT_S = 10.0  # bounded wait for a Dask scheduler
+LOST_TIMEOUT_S = 60.0  # bounded wait for a lost scheduler, or for a worker when none is left
 DASK_MAX_BATCH = 8  # points per Dask task at most: a round trip costs milliseconds
 
 
@@ -122,7 +131,8 @@ def dask_executor(client) -> Iterator[cf.Executor]:
     try:
         yield executor
     finally:
-        executor.shutdown(wait=False)
+        with contextlib.suppress(Exception):  # a client that lost its scheduler may refuse
+            executor.shutdown(wait=False)
 
 
 def dask_batch(n_points: int, n_workers: int, n_chains: int | None = None) -> int:
@@ -135,10 +145,65 @@ def dask_batch(n_points: int, n_workers: int, n_chains: int | None = None) -> in
 
 
 def dask_workers(client) -> int:
+    """The scheduler's worker count now (0 when it has none)."""
     try:
-        return max(1, len(client.scheduler_info(n_workers=-1)["workers"]))
+        return len(client.scheduler_info(n_workers=-1)["workers"])
     except TypeError:  # older distributed without n_workers
-        return max(1, len(client.scheduler_info()["workers"]))
+        return len(client.scheduler_info()["workers"])
+
+
+def dask_watch(client, lost_timeout_s: float) -> Callable[[], None]:
+    """A ``run_plan`` watch: ``ExecutorLostError`` once the scheduler has been unreachable, or
+    has had no worker, for ``lost_timeout_s`` (at once when the client gave up and closed).
+
+    A scheduler killed mid-sweep cancels every task in flight and leaves the client
+    reconnecting; workers that all died leave the tasks pending with nobody to run them.
+    Either way nothing would ever come back: the watch bounds the wait."""
+    address = client.scheduler.address
+    lost_since: float | None = None
+
+    def watch() -> None:
+        nonlocal lost_since
+        problem = None
+        if client.status != "running":
+            problem = f"the Dask scheduler at {address} is unreachable"
+        else:
+            try:
+                if dask_workers(client) == 0:
+                    problem = f"the Dask scheduler at {address} has no worker"
+            except Exception:  # its connection dropped between the two calls
+                problem = f"the Dask scheduler at {address} is unreachable"
+        now = time.monotonic()
+        if problem is None:
+            lost_since = None
+            return
+        if lost_since is None:
+            lost_since = now
+        if client.status in ("closing", "closed") or now - lost_since >= lost_timeout_s:
+            raise ExecutorLostError(f"{problem} (waited {now - lost_since:.0f} s)")
+
+    return watch
+
+
+def close_client(client, timeout: float = CONNECT_TIMEOUT_S) -> None:
+    """Close a Dask client in bounded time, quietly (its scheduler may be gone)."""
+    with quiet_dask_client(), contextlib.suppress(Exception):
+        client.close(timeout=timeout)
+
+
+@contextlib.contextmanager
+def quiet_dask_client() -> Iterator[None]:
+    """Silence ``distributed.client``'s own error log while a sweep runs: a lost scheduler
+    is reported by the sweep in one line, not by tracebacks from the client's reconnect."""
+    import logging
+
+    logger = logging.getLogger("distributed.client")
+    level = logger.level
+    logger.setLevel(logging.CRITICAL)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
 
 
 def execute(
@@ -150,6 +215,7 @@ def execute(
     store_dir: str | Path | None = None,
     progress: Callable[[int, int], None] | None = None,
     oversubscribe: bool = False,
+    lost_timeout_s: float = LOST_TIMEOUT_S,
 ):
     """Run ``plan``; returns ``(results by point key, RunStats, executor description)``.
 
@@ -157,6 +223,8 @@ def execute(
     on Dask; otherwise ``workers`` local processes (default: all cores; 1 runs here).
     ``store_dir`` keeps finished points so that an interrupted run resumes.
     ``oversubscribe`` allows more local processes than cores (``check_workers``).
+    On Dask, ``ExecutorLostError`` once the scheduler has been unreachable, or has had no
+    worker, for ``lost_timeout_s`` (the finished points are in the store).
     """
     if client is None and scheduler is None:
         n = check_workers(workers, oversubscribe=oversubscribe)
@@ -169,12 +237,13 @@ def execute(
         client = own_client = connect(scheduler)
     try:
         if client is not None:
-            n = dask_workers(client)
+            n = max(1, dask_workers(client))
             client.run(warm_up, plan.method, plan.options)  # kernels loaded on every worker
-            with dask_executor(client) as executor:
+            with quiet_dask_client(), dask_executor(client) as executor:
                 results, stats = run_plan(
                     plan, executor, store=store, workers=n, progress=progress,
                     batch=dask_batch(plan.n_points, n, plan.n_chains),
+                    watch=dask_watch(client, lost_timeout_s),
                 )  # fmt: skip
             return (
                 results,
@@ -203,4 +272,4 @@ def execute(
         return results, stats, f"process pool ({n} workers)"
     finally:
         if own_client is not None:
-            own_client.close()
+            close_client(own_client)

@@ -14,7 +14,12 @@ Executors (all ``concurrent.futures`` executors):
   pool, which is rebuilt, and the points it held are submitted again (up to
   ``MAX_RETRIES`` times each);
 - Dask: ``distributed.Client(address).get_executor()``, Dask's own executor over its
-  futures; Dask itself retries the tasks of a lost worker.
+  futures; Dask itself retries the tasks of a lost worker. A ``watch`` callable, called
+  every ``WATCH_INTERVAL_S`` while points are in flight, raises ``ExecutorLostError`` when the
+  scheduler or every worker has been gone too long: the finished points stay stored.
+  A task that comes back cancelled (its scheduler connection dropped) is never recorded
+  as a result: its point is held and submitted again once the watch finds the executor
+  well (``ExecutorLostError`` after ``MAX_RETRIES`` such drops of one point).
 
 The numba kernels are compiled (or loaded from numba's cache) in the parent by a tiny
 solve before any worker starts (``warm_up``).
@@ -23,6 +28,8 @@ solve before any worker starts (``warm_up``).
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
+import time
 from collections.abc import Callable
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
@@ -33,6 +40,11 @@ from rubcli.analysis.sweep.store import PointStore
 
 MAX_RETRIES = 3  # a point whose worker died this many times is recorded as failed
 IN_FLIGHT_PER_WORKER = 4  # points queued per worker (keeps memory and Ctrl-C short)
+WATCH_INTERVAL_S = 2.0  # how often ``watch`` looks at the executor while waiting
+
+
+class ExecutorLostError(Exception):
+    """The executor can no longer run points (a Dask scheduler gone, no worker left)."""
 
 
 class InProcessExecutor(cf.Executor):
@@ -100,13 +112,15 @@ def run_plan(
     batch: int = 1,
     progress: Callable[[int, int], None] | None = None,
     rebuild: Callable[[], cf.Executor] | None = None,
+    watch: Callable[[], None] | None = None,
 ) -> tuple[dict[str, PointResult], RunStats]:
     """Compute every missing point of ``plan``; returns all results by point key.
 
     ``batch`` points of different chains go in one task (fewer round trips on Dask; the
     points of a batch are stored when it returns). ``rebuild`` makes a new executor when
     the current one breaks (a local pool whose worker died); ``progress(done, total)`` is
-    called after every point.
+    called after every point; ``watch()`` is called at least every ``WATCH_INTERVAL_S``
+    and raises ``ExecutorLostError`` to stop the run (the points finished so far are stored).
     """
     results: dict[str, PointResult] = dict(store.load()) if store is not None else {}
     stats = RunStats(resumed=len(results), rejected=len(store.rejected) if store else 0)
@@ -160,10 +174,39 @@ def run_plan(
         if progress is not None:
             progress(done_count, total)
 
+    held: list[tuple[_Cursor, Point]] = []  # points whose task the executor dropped
+    cancelled: dict[str, int] = {}
+    watched = time.monotonic()
+
+    def look() -> None:
+        """``watch()`` (ExecutorLostError stops the run); the held points go back once it
+        finds the executor well."""
+        nonlocal watched
+        assert watch is not None
+        watch()
+        watched = time.monotonic()
+        for cursor, point in held:
+            cancelled[point.key] = cancelled.get(point.key, 0) + 1
+            if cancelled[point.key] > MAX_RETRIES:
+                dropped = f"the executor dropped point {point.key} {MAX_RETRIES} times"
+                raise ExecutorLostError(dropped)
+            ready.append(cursor)
+        held.clear()
+
     try:
         fill()
-        while in_flight:
-            finished, _ = cf.wait(list(in_flight), return_when=cf.FIRST_COMPLETED)
+        while in_flight or held:
+            if not in_flight:
+                time.sleep(WATCH_INTERVAL_S)
+                finished: set[cf.Future] = set()
+            else:
+                finished, _ = cf.wait(
+                    list(in_flight),
+                    timeout=None if watch is None else WATCH_INTERVAL_S,
+                    return_when=cf.FIRST_COMPLETED,
+                )
+            if watch is not None and (held or time.monotonic() - watched >= WATCH_INTERVAL_S):
+                look()
             broken = False
             for future in finished:
                 group = in_flight.pop(future)
@@ -179,8 +222,15 @@ def run_plan(
                             record(point, failed(f"worker died {MAX_RETRIES} times on it"))
                         ready.append(cursor)
                     continue
-                except Exception as exc:  # Dask: KilledWorker after its own retries, ...
-                    returned = [failed(f"executor: {type(exc).__name__}: {exc}")] * len(group)
+                except Exception as exc:  # compute_points never raises: the executor did
+                    if watch is not None and type(exc).__name__ != "KilledWorker":
+                        # Dask cancelled it (its scheduler connection dropped): not a
+                        # result; held until the watch finds the executor well again
+                        held.extend((cursor, point) for cursor, point, _task in group)
+                        continue
+                    # KilledWorker: the point killed Dask's workers as often as Dask allows
+                    message = f"executor: {type(exc).__name__}: {exc}"
+                    returned = [failed(message)] * len(group)
                 for (cursor, point, _task), result in zip(group, returned, strict=True):
                     record(point, result)
                     ready.append(cursor)
@@ -200,5 +250,6 @@ def run_plan(
             fill()
     finally:
         for future in in_flight:
-            future.cancel()
+            with contextlib.suppress(Exception):  # a closed Dask client may refuse
+                future.cancel()
     return results, stats
