@@ -387,6 +387,20 @@ class SweepAxis(_Section):
         return tuple(float(v) for v in grid)
 
 
+class RecognitionSection(_Section):
+    """[sweep.recognition]: attractor recognition with early stopping on a basin grid
+    (docs/sweeps.md, "Basins at full resolution"). On by default for a basin grid."""
+
+    enabled: bool = True
+    tolerance: float = Field(default=0.01, gt=0, le=1)  # normalised section distance
+    consecutive: int = Field(default=10, ge=1, le=10_000)  # periods in a row on it
+    basin_cell: float = Field(default=0.05, ge=0, le=1)  # 0: no basin cells
+    basin_hits: int = Field(default=3, ge=1, le=10_000)  # periods in a row in its cells
+    check_every: int = Field(default=5, ge=1, le=10_000)  # periods between looks
+    seed_points: int = Field(default=64, ge=1, le=100_000)  # starts learned from first
+    escape_radius: float = Field(default=1e3, gt=0, le=1e6)  # diverged beyond this
+
+
 class SweepSection(_Section):
     """[sweep]: settings of `rubcli sweep` (bifurcation diagrams, maps, basins).
 
@@ -415,6 +429,7 @@ class SweepSection(_Section):
     scheduler_timeout_s: float = Field(default=10.0, gt=0, le=600)  # bounded connect wait
     # how long a Dask sweep waits for a lost scheduler, or for a worker when none is left
     scheduler_lost_timeout_s: float = Field(default=60.0, gt=0, le=3600)
+    recognition: RecognitionSection = Field(default_factory=RecognitionSection)
 
     _values_unique = field_validator("values")(_unique)
 

@@ -20,7 +20,8 @@ import numpy as np
 
 from rubcli import case as case_module
 from rubcli.analysis.sweep import SweepPlan, close_client, connect, execute
-from rubcli.analysis.sweep.plan import Axis
+from rubcli.analysis.sweep.attractors import Recognition
+from rubcli.analysis.sweep.plan import INITIAL_AXES, Axis
 
 # --quick: every axis thinned to at most this many values (its ends kept), short runs.
 QUICK_VALUES = 5
@@ -54,6 +55,10 @@ def plan_from_case(case: case_module.Case, quick: bool = False) -> SweepPlan:
         transient = min(transient, QUICK_TRANSIENT_PERIODS)
         record = min(record, QUICK_RECORD_PERIODS)
     options = options_for(cfg.method, case.solver_options)
+    basin = axes[0].parameter in INITIAL_AXES
+    recognition = None
+    if basin and cfg.recognition.enabled:
+        recognition = Recognition(**cfg.recognition.model_dump(exclude={"enabled"}))
     return SweepPlan(
         params=case.params,
         initial=case.problem.initial,
@@ -72,6 +77,7 @@ def plan_from_case(case: case_module.Case, quick: bool = False) -> SweepPlan:
         if quick
         else cfg.lyapunov_periods,
         name=case.name,
+        recognition=recognition,
     )
 
 

@@ -398,6 +398,8 @@ def test_shipped_sweep_cases_run_quick(path, tmp_path):
     expected = {"sweep.nc", "sweep.csv", "report.json"}
     if plan.is_basin:
         expected.add("basins.png")
+        if plan.recognition is not None:
+            expected.add("convergence.png")
     elif len(plan.axes) == 2:
         expected.add("map.png")
     else:

@@ -129,6 +129,7 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
     """The sweep itself, once its inputs, output dir and executor are checked."""
     from rubcli import sweeps
     from rubcli.analysis import sweep as engine
+    from rubcli.analysis.sweep import basins
     from rubcli.analysis.sweep.dataset import build_dataset
 
     store_dir = store_dir_for(target, plan.digest())
@@ -166,7 +167,8 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
     wall = time.perf_counter() - started
     files: list[str] = []
     try:
-        ds = build_dataset(plan, results, sweeps.case_attrs(case))
+        build = basins.build_dataset if plan.recognition is not None else build_dataset
+        ds = build(plan, results, sweeps.case_attrs(case))
         report = _write(case_file, case, plan, ds, results, stats, where, wall, target,
                         output, files, _title(case, plan), workers, scheduler, out,
                         quick)  # fmt: skip
@@ -193,8 +195,11 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
             f"{stats.rejected} stored point file(s) in {store_dir} failed the store's check "
             "(edited, corrupted or not written by this user): those points were computed again"
         )
-    for name, count in _class_lines(ds):
-        console.info(f"  {name}: {count}")
+    if plan.recognition is not None:
+        _basin_lines(report["basins"])
+    else:
+        for name, count in _class_lines(ds):
+            console.info(f"  {name}: {count}")
     console.info(f"wrote {len(files)} files to {target}: {', '.join(files)}")
 
 
@@ -216,20 +221,28 @@ def _interrupted(exc: BaseException, store_dir: Path, plan) -> None:
 def _write(case_file, case, plan, ds, results, stats, where, wall, target, output, files,
            title, workers, scheduler, out, quick) -> dict:  # fmt: skip
     """Write the sweep's files into its output dir (staged, committed as a whole)."""
+    from rubcli.analysis.sweep import basins
     from rubcli.analysis.sweep.dataset import csv_text
     from rubcli.plotting import sweep as plots
 
+    recognised = plan.recognition is not None
     with io.staged_output_dir(target, output) as staged:
         io.write_netcdf(ds, staged.path("sweep.nc"))
-        io.write_text(staged.path("sweep.csv"), csv_text(ds, plan))
+        text = basins.csv_text(ds, plan) if recognised else csv_text(ds, plan)
+        io.write_text(staged.path("sweep.csv"), text)
         files += ["sweep.nc", "sweep.csv"]
         for name in _figures(plan):
-            make = getattr(plots, f"{name.removesuffix('.png')}_figure")
+            stem = name.removesuffix(".png")
+            make = getattr(plots, f"recognised_{stem}_figure" if stem == "basins" and
+                           recognised else f"{stem}_figure")  # fmt: skip
             io.save_figure(make(ds, title), staged.path(name))
             files.append(name)
         files.append("report.json")
-        n_failed = int((ds["status"].values != 0).sum())
-        computed_s = sum(r.wall_time_s for r in results.values())
+        found = basins.summary(ds) if recognised else None
+        n_failed = found["failed"] if found else int((ds["status"].values != 0).sum())
+        computed_s = (
+            results.compute_s if recognised else sum(r.wall_time_s for r in results.values())
+        )
         command_line = {"case_file": str(case_file), "out": str(out) if out else None,
                         "workers": workers, "scheduler": scheduler, "quick": quick}  # fmt: skip
         report = {
@@ -243,8 +256,11 @@ def _write(case_file, case, plan, ds, results, stats, where, wall, target, outpu
             # resubmissions after a lost local worker; on Dask, Dask's own (not seen here)
             "points_retried": None if where.startswith("dask") else stats.retried,
             "points_failed": n_failed,
-            "failed": _failures(ds),
-            "class_counts": _class_counts(ds),
+            **(
+                {"basins": found}
+                if found
+                else {"failed": _failures(ds), "class_counts": _class_counts(ds)}
+            ),
             "compute_time_s": computed_s,
             "wall_time_s": wall,
             "files": files,
@@ -261,7 +277,7 @@ def expected_files(plan) -> tuple[str, ...]:
 def _figures(plan) -> list[str]:
     """The figures of a sweep, by file name (``rubcli.plotting.sweep.<stem>_figure``)."""
     if plan.is_basin:
-        return ["basins.png"]
+        return ["basins.png"] + (["convergence.png"] if plan.recognition is not None else [])
     if len(plan.axes) == 1:
         return ["bifurcation.png", "summary.png"] + (["cascade.png"] if plan.spectrum else [])
     return ["map.png"]
@@ -288,10 +304,25 @@ def _title(case, plan) -> str:
     swept = {a.parameter for a in plan.axes}
     fixed = ", ".join(f"{k}={v:g}" for k, v in p.as_dict().items() if k not in swept)
     axes = " and ".join(a.parameter for a in plan.axes)
-    return (
-        f"{case.name}: sweep of {axes} ({plan.direction}; {plan.transient_periods} transient + "
-        f"{plan.record_periods} recorded periods per point)\n{fixed}"
-    )
+    if plan.recognition is not None:
+        budget = plan.transient_periods + plan.record_periods
+        how = f"each start until its attractor is recognised, at most {budget} periods"
+    else:
+        how = (f"{plan.direction}; {plan.transient_periods} transient + "
+               f"{plan.record_periods} recorded periods per point")  # fmt: skip
+    return f"{case.name}: sweep of {axes} ({how})\n{fixed}"
+
+
+def _basin_lines(found: dict) -> None:
+    """The attractors of a basin grid and how its starts were labelled, on the console."""
+    for a in found["attractors"]:
+        console.info(f"  A{a['label']}: {a['name']}: {100 * a['basin_fraction']:.1f} % of starts")
+    for name in ("not_recognised", "diverged", "failed"):
+        if found[name]:
+            console.info(f"  {name.replace('_', ' ')}: {found[name]} starts")
+    how = ", ".join(f"{n} {k}" for k, n in found["recognised_by"].items() if n)
+    console.info(f"  labelled by: {how}; {found['mean_periods_integrated']:.1f} periods "
+                 "integrated a start on average")  # fmt: skip
 
 
 def _failures(ds) -> list[dict]:

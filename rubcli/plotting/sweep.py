@@ -6,6 +6,7 @@ cascade, 2-D maps and basins of attraction. They only draw; the numbers come fro
 from __future__ import annotations
 
 import numpy as np
+from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.figure import Figure
@@ -349,5 +350,112 @@ def basins_figure(ds, title: str) -> Figure:
             ax.set_title("attractor reached from each start (dashed: the clearance z = 1)",
                          fontsize=9)  # fmt: skip
     ax.set_xlabel(_label(dims[0]))
+    fig.suptitle(title, fontsize=10)
+    return fig
+
+
+# -------------------------------------------------------- a basin grid with recognition
+
+ATTRACTOR_PALETTE = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple",
+                     "tab:brown", "tab:pink", "tab:olive", "tab:cyan", "gold")  # fmt: skip
+# the codes below 0 (attractors.UNRECOGNISED, DIVERGED, FAILED)
+SPECIAL = {-1: ("0.8", "not recognised (ran to the budget)"), -2: ("black", "diverged"),
+           -3: ("white", "failed")}  # fmt: skip
+
+
+def _grid_image(ax, ds, values, dims, **kwargs):
+    """``values`` over the start grid as an image (a million starts draw as fast as a
+    hundred); a 1-D grid is a strip."""
+    x = ds[dims[0]].values
+    if len(dims) == 1:
+        image = np.asarray(values)[None, :]
+        y = np.array([-0.5, 0.5])
+    else:
+        image = np.asarray(values).T
+        y = ds[dims[1]].values
+    dx = (x[-1] - x[0]) / max(1, len(x) - 1) if len(x) > 1 else 1.0
+    dy = (y[-1] - y[0]) / max(1, len(y) - 1) if len(y) > 1 else 1.0
+    extent = (x[0] - dx / 2, x[-1] + dx / 2, y[0] - dy / 2, y[-1] + dy / 2)
+    shown = ax.imshow(image, origin="lower", extent=extent, interpolation="nearest",
+                      aspect="auto", **kwargs)  # fmt: skip
+    ax.set_xlabel(_label(dims[0]))
+    if len(dims) == 1:
+        ax.set_yticks([])
+    else:
+        ax.set_ylabel(_label(dims[1]))
+        if {"x0", "y0"} == set(dims):
+            t = np.linspace(0, 2 * np.pi, 200)
+            ax.plot(np.cos(t), np.sin(t), color="k", linestyle="--", linewidth=0.8)
+            ax.set_xlim(extent[:2])
+            ax.set_ylim(extent[2:])
+            ax.set_aspect("equal")
+    return shown
+
+
+def _basin_dims(ds) -> list[str]:
+    return list(ds["attractor_label"].dims)
+
+
+def recognised_basins_figure(ds, title: str) -> Figure:
+    """Each start coloured by the attractor it reached, with the attractors' descriptors
+    and basin fractions in the legend."""
+    dims = _basin_dims(ds)
+    label = ds["attractor_label"].values.astype(int)
+    n_attr = ds.sizes["attractor"]
+    colours = [ATTRACTOR_PALETTE[k % len(ATTRACTOR_PALETTE)] for k in range(n_attr)]
+    codes = sorted(SPECIAL) + list(range(n_attr))  # -3 ... n_attr - 1
+    palette = [SPECIAL[c][0] for c in sorted(SPECIAL)] + colours
+    cmap = ListedColormap(palette)
+    norm = BoundaryNorm(np.arange(codes[0], codes[-1] + 2) - 0.5, len(palette))
+    fig = _new_figure(11.0, 6.4)
+    ax = fig.subplots()
+    _grid_image(ax, ds, label, dims, cmap=cmap, norm=norm)
+    handles = []
+    for k in range(n_attr):
+        share = float(ds["basin_fraction"].values[k])
+        name = str(ds["attractor_name"].values[k])
+        handles.append(Patch(color=colours[k], label=f"A{k}: {name} ({100 * share:.1f} %)"))
+    for code in sorted(SPECIAL, reverse=True):
+        count = int((label == code).sum())
+        if count:
+            colour, text = SPECIAL[code]
+            share = 100 * count / label.size
+            handles.append(Patch(facecolor=colour, edgecolor="k", label=f"{text} ({share:.1f} %)"))
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8,
+              title="attractor (basin share)", title_fontsize=8)  # fmt: skip
+    s_b, s_bb = ds.attrs.get("basin_entropy"), ds.attrs.get("boundary_basin_entropy")
+    entropy = ""
+    if s_b is not None and np.isfinite(s_b):
+        entropy = f"; basin entropy {s_b:.3f}, boundary basin entropy {s_bb:.3f}"
+    ax.set_title(
+        f"attractor reached from each of {label.size} starts{entropy}"
+        + ("\n(dashed: the clearance z = 1)" if {"x0", "y0"} == set(dims) else ""),
+        fontsize=9,
+    )
+    fig.suptitle(title, fontsize=10)
+    return fig
+
+
+def convergence_figure(ds, title: str) -> Figure:
+    """When each start reached its attractor, and what it cost (periods integrated), on
+    one colour scale."""
+    dims = _basin_dims(ds)
+    conv = np.ma.masked_invalid(ds["convergence_period"].values.astype(float))
+    cost = ds["periods_integrated"].values.astype(float)
+    top = float(max(np.nanmax(cost) if cost.size else 1.0, conv.max() if conv.count() else 1.0))
+    fig = _new_figure(13.0, 5.6)
+    axes = fig.subplots(1, 2, sharex=True, sharey=True)
+    cmap = colormaps["viridis"].with_extremes(bad="white")
+    shown = _grid_image(axes[0], ds, conv, dims, cmap=cmap, vmin=0, vmax=top)
+    _grid_image(axes[1], ds, cost, dims, cmap=cmap, vmin=0, vmax=top)
+    fig.colorbar(shown, ax=list(axes), label="forcing periods", shrink=0.9)
+    axes[0].set_title("period at which the start reached its attractor\n(white: not known)",
+                      fontsize=9)  # fmt: skip
+    budget = int(ds["periods_integrated"].values.max()) if cost.size else 0
+    axes[1].set_title(
+        f"periods integrated before the start was recognised\n(mean {cost.mean():.1f}; "
+        f"largest {budget})",
+        fontsize=9,
+    )
     fig.suptitle(title, fontsize=10)
     return fig

@@ -52,8 +52,12 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module 'rubcli.solvers' has no attribute {name!r}")
 
 
-def solve(problem: Problem, method: str, **options) -> Solution:
+def solve(problem: Problem, method: str, *, watch=None, **options) -> Solution:
     """Solve ``problem`` with ``method`` (a name of the registry).
+
+    ``watch`` (a ``driver.Watch``) looks at the samples as they are filled and may end
+    the run early (attractor recognition in basin sweeps); the solution then holds the
+    samples up to that point, with success and the watch's message.
 
     ``options`` are the method's own (``registry.SPECS[method].takes``): an option it does
     not take (a misspelling, or another method's, e.g. ``rtol`` for ``analytic``) is a
@@ -77,7 +81,18 @@ def solve(problem: Problem, method: str, **options) -> Solution:
         raise ValueError(f"solve(): unknown method {method!r}; choose from {', '.join(methods)}")
     check_options(method, options)
     start = time.perf_counter()
-    solution = methods[method](problem, **options)
+    if watch is None:
+        solution = methods[method](problem, **options)
+    else:
+        from rubcli.solvers.driver import WATCH, Watch
+
+        if not isinstance(watch, Watch):
+            raise TypeError(f"solve(): watch must be a rubcli.solvers.driver.Watch, got {watch!r}")
+        token = WATCH.set(watch)
+        try:
+            solution = methods[method](problem, **options)
+        finally:
+            WATCH.reset(token)
     solution.wall_time_s = time.perf_counter() - start
     return solution
 

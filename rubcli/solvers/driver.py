@@ -29,6 +29,9 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
+from contextvars import ContextVar
+from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
@@ -39,6 +42,22 @@ from rubcli.solution import FAILED, KIND_NAMES, SUCCESS, Events, Solution, Switc
 from rubcli.solvers.events import StormGuard, apply_event, initial_kind
 
 PROGRESS_FRACTION = 0.01  # report progress about every 1 % of the span
+
+
+@dataclass(frozen=True)
+class Watch:
+    """Ends a run early. The run goes in legs of ``every`` samples; at the end of each,
+    ``check(samples)`` gets the states of the samples filled since its last call (an
+    ``(n, 4)`` view); a string it returns ends the run there, with success and that
+    string as its message. Every method's stepper reads the leg's end as ``run.t_end``,
+    so a watched run is the same run stopped at a sample (its steps end on the legs'
+    ends, as a run of that span would)."""
+
+    every: int
+    check: Callable[[np.ndarray], str | None]
+
+
+WATCH: ContextVar[Watch | None] = ContextVar("rubcli_watch", default=None)  # solve(watch=)
 
 
 class Stepper(Protocol):
@@ -228,11 +247,17 @@ class Run:
 
 
 def integrate(run: Run, stepper: Stepper) -> Solution:
-    """The event loop: advance the stepper until the end, a failure or the budget."""
+    """The event loop: advance the stepper until the end, a failure or the budget (or
+    until the ``Watch`` set by ``solve(watch=...)`` ends the run)."""
+    watch = WATCH.get()
+    final, last = run.t_end, run.t_eval.size - 1
+    seen = run.k  # samples shown to the watch so far
+    if watch is not None:
+        run.t_end = float(run.t_eval[min(run.k - 1 + watch.every, last)])
     try:
         # a run that blows up is reported as a failed method, not by numpy warnings
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            while run.tau < run.t_end:
+            while run.tau < final:
                 stepper.advance(run)
                 if run.failed:
                     break
@@ -243,11 +268,19 @@ def integrate(run: Run, stepper: Stepper) -> Solution:
                 if reason:
                     run.fail(reason)
                     break
+                if watch is not None and run.tau >= run.t_end and run.k > seen:
+                    stop = watch.check(run.states[seen : run.k])
+                    seen = run.k
+                    if stop is not None:
+                        run.message = stop
+                        break
+                    run.t_end = float(run.t_eval[min(run.k - 1 + watch.every, last)])
                 run.report_progress()
     except Exception as exc:  # noqa: BLE001 - a solver's exception is a failed method
         # e.g. arithmetic beyond the floating-point range (absurd parameters)
         run.fail(f"{run.method} failed at tau = {run.tau:.6g}: {type(exc).__name__}: {exc}")
-    if not run.failed:
+    run.t_end = final
+    if not run.failed and run.k == run.t_eval.size:
         run.report_progress(final=True)
     return run.solution(stepper.settings)
 

@@ -206,6 +206,21 @@ def quiet_dask_client() -> Iterator[None]:
         logger.setLevel(level)
 
 
+def _run(plan: SweepPlan, executor: cf.Executor, *, store, workers: int = 1, batch: int = 1,
+         progress=None, rebuild=None, watch=None):  # fmt: skip
+    """``engine.run_plan``, or ``basins.run_basins`` for a grid with recognition."""
+    if plan.recognition is None:
+        return run_plan(plan, executor, store=store, workers=workers, batch=batch,
+                        progress=progress, rebuild=rebuild, watch=watch)  # fmt: skip
+    from rubcli.analysis.sweep.basins import run_basins
+
+    result = run_basins(plan, plan.recognition, executor, store=store, progress=progress,
+                        rebuild=rebuild, watch=watch)  # fmt: skip
+    stats = RunStats(computed=result.points_computed, resumed=result.points_resumed,
+                     rejected=result.chunks_rejected)  # fmt: skip
+    return result, stats
+
+
 def execute(
     plan: SweepPlan,
     *,
@@ -217,7 +232,8 @@ def execute(
     oversubscribe: bool = False,
     lost_timeout_s: float = LOST_TIMEOUT_S,
 ):
-    """Run ``plan``; returns ``(results by point key, RunStats, executor description)``.
+    """Run ``plan``; returns ``(results by point key, RunStats, executor description)``;
+    for a basin grid with recognition, the results are a ``basins.BasinResult``.
 
     ``client`` (a ``distributed.Client``) or ``scheduler`` (its address) runs the points
     on Dask; otherwise ``workers`` local processes (default: all cores; 1 runs here).
@@ -231,16 +247,17 @@ def execute(
     store = PointStore(store_dir, plan.digest(), plan.to_dict()) if store_dir else None
     if store is not None:
         store.check()  # StoreError before any work when the store is not this user's
-    warm_up(plan.method, plan.options)
+    warm_up(plan.method, plan.options, plan.recognition is not None)
     own_client = None
     if client is None and scheduler is not None:
         client = own_client = connect(scheduler)
     try:
         if client is not None:
             n = max(1, dask_workers(client))
-            client.run(warm_up, plan.method, plan.options)  # kernels loaded on every worker
+            # the kernels loaded on every worker
+            client.run(warm_up, plan.method, plan.options, plan.recognition is not None)
             with quiet_dask_client(), dask_executor(client) as executor:
-                results, stats = run_plan(
+                results, stats = _run(
                     plan, executor, store=store, workers=n, progress=progress,
                     batch=dask_batch(plan.n_points, n, plan.n_chains),
                     watch=dask_watch(client, lost_timeout_s),
@@ -254,7 +271,7 @@ def execute(
                 ),
             )
         if n == 1:
-            results, stats = run_plan(plan, InProcessExecutor(), store=store, progress=progress)
+            results, stats = _run(plan, InProcessExecutor(), store=store, progress=progress)
             return results, stats, "this process (1 worker)"
         pools: list[cf.ProcessPoolExecutor] = []
 
@@ -263,7 +280,7 @@ def execute(
             return pools[-1]
 
         try:
-            results, stats = run_plan(
+            results, stats = _run(
                 plan, rebuild(), store=store, workers=n, progress=progress, rebuild=rebuild
             )
         finally:

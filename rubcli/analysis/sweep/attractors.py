@@ -45,6 +45,22 @@ SAME_ATTRACTOR_SHARE = 0.9  # a learned cloud this much inside a known attractor
 PERIODIC_MAX = 32  # at most this many distinct section clusters make a periodic orbit
 
 
+@dataclass(frozen=True)
+class Recognition:
+    """The settings of attractor recognition (``[sweep.recognition]``)."""
+
+    tolerance: float = 0.01  # distance in the normalised section that counts as "on"
+    consecutive: int = 10  # periods in a row on a learned attractor
+    basin_cell: float = 0.05  # side of a basin cell (0: no basin cells)
+    basin_hits: int = 3  # periods in a row in cells of one attractor
+    check_every: int = 5  # periods between looks at a trajectory
+    seed_points: int = 64  # starts run to the budget first, to learn from
+    escape_radius: float = 1e3  # a section point beyond this has diverged
+
+    def to_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
 def normalised(states: np.ndarray, eta: float) -> np.ndarray:
     """Section states ``(n, 4)`` as ``(x, y, vx / eta, vy / eta)``."""
     out = np.array(states, dtype=float, ndmin=2)
@@ -134,11 +150,18 @@ class AttractorSet:
 
     def match(self, point: np.ndarray) -> int | None:
         """The label of the learned attractor ``point`` lies on (the nearest), or None."""
-        best, best_gap = None, math.inf
+        return self.match_block(np.asarray(point, dtype=float)[None, :])[0]
+
+    def match_block(self, points: np.ndarray) -> list[int | None]:
+        """``match`` for every row of ``points`` (one array operation per attractor)."""
+        best = [None] * len(points)
+        best_gap = np.full(len(points), np.inf)
         for attractor in self.attractors:
-            gap = float(_nearest(attractor.cloud, point[None, :])[0]) / attractor.radius
-            if gap <= 1.0 and gap < best_gap:
-                best, best_gap = attractor.label, gap
+            gap = _nearest(attractor.cloud, points) / attractor.radius
+            better = (gap <= 1.0) & (gap < best_gap)
+            best_gap = np.where(better, gap, best_gap)
+            for i in np.flatnonzero(better).tolist():
+                best[i] = attractor.label
         return best
 
     def learn(self, cloud: np.ndarray) -> int:
@@ -159,83 +182,137 @@ class AttractorSet:
         return label
 
 
+AMBIGUOUS = -1  # a cell visited on the way to two different attractors
+CELL_BITS = 15  # bits per cell index in a packed key (4 x 15 bits in an int64)
+MAX_CELLS = 2_000_000  # cells kept at most (about 28 MB); later cells are not added
+
+
+@dataclass
+class CellMap:
+    """Basin cells: cells of the normalised stroboscopic section (a grid of side
+    ``size``) that trajectories visited on their way to a learned attractor, each with
+    that attractor's label (``AMBIGUOUS`` when visited on the way to two) and the periods
+    that were left, from the cell, to the attractor. Keys are the four cell indices
+    packed into an int64, sorted."""
+
+    size: float
+    keys: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
+    labels: np.ndarray = field(default_factory=lambda: np.empty(0, np.int16))
+    remaining: np.ndarray = field(default_factory=lambda: np.empty(0, np.int32))
+
+    def pack(self, points: np.ndarray) -> np.ndarray:
+        """Each point's cell key; -1 for a point outside the packable range."""
+        half = 1 << (CELL_BITS - 1)
+        with np.errstate(invalid="ignore", over="ignore"):
+            index = np.floor(np.asarray(points, dtype=float) / self.size) + half
+        valid = np.all(np.isfinite(index) & (index >= 0) & (index < 2 * half), axis=1)
+        index = np.where(valid[:, None], index, 0).astype(np.int64)
+        keys = index[:, 0]
+        for j in range(1, 4):
+            keys = (keys << CELL_BITS) | index[:, j]
+        return np.where(valid, keys, -1)
+
+    def lookup(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each point's cell label (AMBIGUOUS when none is known) and periods left."""
+        keys = self.pack(points)
+        if self.keys.size == 0:
+            return np.full(len(keys), AMBIGUOUS, np.int16), np.zeros(len(keys), np.int32)
+        at = np.clip(np.searchsorted(self.keys, keys), 0, self.keys.size - 1)
+        hit = (self.keys[at] == keys) & (keys >= 0)
+        return np.where(hit, self.labels[at], AMBIGUOUS), np.where(hit, self.remaining[at], 0)
+
+    def merged(self, keys: np.ndarray, labels: np.ndarray, remaining: np.ndarray) -> CellMap:
+        """This map with new visits (in order: an earlier visit's periods left are kept;
+        a cell reached on the way to two attractors becomes AMBIGUOUS for good)."""
+        room = max(0, MAX_CELLS - self.keys.size)
+        keep = keys >= 0
+        keys, labels, remaining = keys[keep], labels[keep], remaining[keep]
+        if keys.size == 0:
+            return self
+        all_keys = np.concatenate([self.keys, keys])
+        all_labels = np.concatenate([self.labels, labels.astype(np.int16)])
+        all_left = np.concatenate([self.remaining, remaining.astype(np.int32)])
+        order = np.argsort(all_keys, kind="stable")  # known cells first, then visit order
+        k, lab, left = all_keys[order], all_labels[order], all_left[order]
+        first = np.flatnonzero(np.r_[True, k[1:] != k[:-1]])
+        lo = np.minimum.reduceat(lab, first)
+        hi = np.maximum.reduceat(lab, first)
+        new_keys = k[first]
+        is_new = ~np.isin(new_keys, self.keys, assume_unique=True)
+        if is_new.sum() > room:  # keep the known cells and the first new ones by key
+            allowed = np.flatnonzero(is_new)[room:]
+            is_kept = np.ones(new_keys.size, bool)
+            is_kept[allowed] = False
+        else:
+            is_kept = np.ones(new_keys.size, bool)
+        agree = lo == hi  # an ambiguous cell foretells no time either
+        return CellMap(
+            self.size,
+            new_keys[is_kept],
+            np.where(agree, lo, AMBIGUOUS).astype(np.int16)[is_kept],
+            np.where(agree, left[first], 0).astype(np.int32)[is_kept],
+        )
+
+
 @dataclass
 class Recogniser:
-    """Feeds section points one period at a time; says when a run of ``consecutive``
-    points on one attractor is complete."""
+    """Feeds section points in blocks; says when a start is recognised: ``consecutive``
+    points in a row on one learned attractor, or (with ``cells``) ``basin_hits`` points
+    in a row in basin cells of one attractor."""
 
     attractors: AttractorSet
+    cells: CellMap | None = None
+    basin_hits: int = 3
     label: int | None = None
     run: int = 0
     run_start: int = 0  # the period (1-based) of the run's first point
+    basin_label: int = AMBIGUOUS
+    basin_run: int = 0
+    basin_eta: int = 0  # the convergence period the basin run's first cell foretells
+    how: str = ""  # "attractor", "basin" or "diverged" once recognised
+    convergence: int = 0  # the period the start reached its attractor (foretold by a cell)
 
     def feed(self, point: np.ndarray, period: int) -> int | None:
         """The recognised label once the run is long enough, else None."""
-        if not np.all(np.isfinite(point)) or np.linalg.norm(point) > self.attractors.escape_radius:
-            self.label, self.run_start = DIVERGED, period
-            return DIVERGED
-        label = self.attractors.match(point)
-        if label is None:
-            self.label, self.run = None, 0
-            return None
-        if label != self.label:
-            self.label, self.run, self.run_start = label, 0, period
-        self.run += 1
-        return label if self.run >= self.attractors.consecutive else None
+        found = self.feed_block(np.asarray(point, dtype=float)[None, :], period)
+        return None if found is None else found[0]
 
-
-@dataclass
-class StartResult:
-    """Where one start went: the attractor (or a code), when, and at what cost."""
-
-    label: int  # an attractor's label, or UNRECOGNISED, DIVERGED, FAILED
-    recognised: bool  # stopped early on a learned attractor (or divergence)
-    convergence_period: int  # first period of the recognising run (0 if none)
-    periods: int  # forcing periods integrated
-    final_state: tuple[float, float, float, float]
-    tail: np.ndarray  # the last section points (normalised), to learn from
-    message: str = ""
-
-
-def run_start(
-    params,
-    start,
-    attractors: AttractorSet,
-    *,
-    budget_periods: int,
-    method: str,
-    options: dict,
-    check_every: int = 10,
-    tail_periods: int = 100,
-) -> StartResult:
-    """Integrate from ``start`` in blocks of ``check_every`` periods until recognised or
-    ``budget_periods`` are spent; the tail (last ``tail_periods`` section points) is kept
-    for learning when the budget is spent."""
-    from rubcli.problem import Problem
-    from rubcli.solvers import solve
-
-    recogniser = Recogniser(attractors)
-    state = tuple(float(v) for v in start)
-    done = 0
-    tail: list[np.ndarray] = []
-    while done < budget_periods:
-        n = min(check_every, budget_periods - done)
-        sol = solve(
-            Problem.from_periods(params, state, n, 1, name="basin-start"), method, **options
-        )
-        if not sol.success:
-            return StartResult(FAILED, False, 0, done, state, np.empty((0, 4)), sol.message)
-        section = normalised(np.asarray(sol.states)[1:], params.eta)
-        for k, point in enumerate(section):
-            label = recogniser.feed(point, done + k + 1)
-            if label is not None:
-                final = tuple(float(v) for v in np.asarray(sol.states)[k + 1])
-                return StartResult(
-                    label, True, recogniser.run_start, done + k + 1, final,  # type: ignore[arg-type]
-                    section[: k + 1],
-                )  # fmt: skip
-        tail.append(section)
-        state = tuple(float(v) for v in np.asarray(sol.states)[-1])
-        done += n
-    cloud = np.concatenate(tail)[-tail_periods:] if tail else np.empty((0, 4))
-    return StartResult(UNRECOGNISED, False, 0, done, state, cloud)  # type: ignore[arg-type]
+    def feed_block(self, points: np.ndarray, first_period: int) -> tuple[int, int] | None:
+        """Feed consecutive section points (the first at period ``first_period``); at the
+        first that completes a recognition, ``(label, its index in points)``."""
+        escape = self.attractors.escape_radius
+        finite = np.all(np.isfinite(points), axis=1)
+        clean = np.where(finite[:, None], points, 0.0)
+        labels = self.attractors.match_block(clean)
+        norms = np.linalg.norm(clean, axis=1)
+        if self.cells is not None:
+            cell_labels, cell_left = self.cells.lookup(clean)
+        for i, label in enumerate(labels):
+            period = first_period + i
+            if not finite[i] or norms[i] > escape:
+                self.label, self.run_start = DIVERGED, period
+                self.how, self.convergence = "diverged", period
+                return DIVERGED, i
+            if label is None:
+                self.label, self.run = None, 0
+            else:
+                if label != self.label:
+                    self.label, self.run, self.run_start = label, 0, period
+                self.run += 1
+                if self.run >= self.attractors.consecutive:
+                    self.how, self.convergence = "attractor", self.run_start
+                    return label, i
+            if self.cells is None:
+                continue
+            cell = int(cell_labels[i])
+            if cell == AMBIGUOUS:
+                self.basin_label, self.basin_run = AMBIGUOUS, 0
+                continue
+            if cell != self.basin_label:
+                self.basin_label, self.basin_run = cell, 0
+                self.basin_eta = period + int(cell_left[i])
+            self.basin_run += 1
+            if self.basin_run >= self.basin_hits:
+                self.how, self.convergence = "basin", self.basin_eta
+                return cell, i
+        return None

@@ -76,8 +76,9 @@ def task_for(plan: SweepPlan, point: Point, start) -> PointTask:
     )
 
 
-def warm_up(method: str, options: dict) -> None:
-    """Compile or load the solver's kernels here, before workers start (a 2-period solve)."""
+def warm_up(method: str, options: dict, recognition: bool = False) -> None:
+    """Compile or load the solver's kernels here, before workers start (a 2-period solve),
+    and with ``recognition`` the basin recognition kernel."""
     from rubcli.model import ModelParams
     from rubcli.problem import Problem
     from rubcli.solvers import solve
@@ -85,6 +86,10 @@ def warm_up(method: str, options: dict) -> None:
     params = ModelParams(nu=0.01, eta=0.8, e=1.0, K=10.0, mu=0.1, Rp=5.0, phi0=0.0)
     problem = Problem.from_periods(params, (0.9, 0.0, 0.0, 0.0), 2, 8)
     solve(problem, method, **options)
+    if recognition:
+        from rubcli.analysis.sweep import basins
+
+        basins.warm_up()
 
 
 @dataclass

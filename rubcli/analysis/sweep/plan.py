@@ -21,6 +21,7 @@ import math
 from dataclasses import dataclass, field
 from itertools import product
 
+from rubcli.analysis.sweep.attractors import Recognition
 from rubcli.model import ModelParams
 
 MODEL_AXES = ("nu", "eta", "e", "K", "mu", "Rp", "phi0")
@@ -102,6 +103,7 @@ class SweepPlan:
     lyapunov: bool = False
     lyapunov_periods: int = 100
     name: str = "sweep"
+    recognition: Recognition | None = None  # a basin grid with early stopping (basins.py)
 
     def __post_init__(self) -> None:
         if not 1 <= len(self.axes) <= 2:
@@ -113,6 +115,8 @@ class SweepPlan:
             raise ValueError("cannot mix model parameters and initial-state axes")
         if self.is_basin and self.direction != "independent":
             raise ValueError("an initial-state grid needs direction = 'independent'")
+        if self.recognition is not None and not self.is_basin:
+            raise ValueError("attractor recognition is for a grid of start states (basins)")
         if self.record_periods < 8 or self.transient_periods < 0:
             raise ValueError("record_periods must be >= 8 and transient_periods >= 0")
         if self.samples_per_period < 8:
@@ -204,6 +208,7 @@ class SweepPlan:
             "spectrum_max_order": self.spectrum_max_order,
             "lyapunov": self.lyapunov,
             "lyapunov_periods": self.lyapunov_periods,
+            **({} if self.recognition is None else {"recognition": self.recognition.to_dict()}),
         }
 
     def digest(self) -> str:

@@ -1,4 +1,5 @@
-"""The resumable store of finished points: one small file per point.
+"""The resumable store of finished points: one small file per point (or, for a basin
+grid with recognition, one file per chunk of starts).
 
 The store is a directory named after the plan's digest (a hash of everything that
 changes the numbers), so a changed case never reuses another case's points. Each point
@@ -38,6 +39,7 @@ from rubcli.analysis.sweep.point import PointResult
 
 FORMAT = 3
 SUFFIX = ".point"
+CHUNK_SUFFIX = ".chunk"  # a chunk of basin starts (``basins``), checked like a point
 MAX_POINT_BYTES = 1 << 30  # no point's sections and spectrum come near this
 MAC_BYTES = 64  # hex digits of the HMAC-SHA256 that begins each point file
 
@@ -98,8 +100,7 @@ class PointStore:
     def _file(self, key: str) -> Path:
         return self.directory / f"{key}{SUFFIX}"
 
-    def save(self, key: str, result: PointResult) -> None:
-        """Write one point atomically: a JSON header line, then the arrays' float64 bytes."""
+    def _prepare(self) -> None:
         if not self._ready:
             self.check(create=True)
             marker = self.directory / "plan.json"
@@ -107,6 +108,43 @@ class PointStore:
                 text = json.dumps({"digest": self.digest, "plan": self.plan}, indent=1)
                 _atomic_bytes(marker, text.encode())
             self._ready = True
+
+    def save_blob(self, name: str, payload: bytes) -> None:
+        """Write one chunk of results (``name.chunk``) atomically, checksummed as a point."""
+        self._prepare()
+        path = self.directory / f"{name}{CHUNK_SUFFIX}"
+        _atomic_bytes(path, _mac(self.digest, name, payload) + b"\n" + payload)
+
+    def load_blobs(self) -> dict[str, bytes]:
+        """Every stored chunk that passes the check, by name (the others are listed in
+        ``rejected`` and computed again)."""
+        out: dict[str, bytes] = {}
+        self.rejected = []
+        if not self.check():
+            return out
+        for path in sorted(self.directory.glob(f"*{CHUNK_SUFFIX}")):
+            if path.name.startswith("."):
+                continue
+            name = path.name[: -len(CHUNK_SUFFIX)]
+            try:
+                if not path.is_file() or path.is_symlink():
+                    raise ValueError("not a regular file")
+                if path.stat().st_size > MAX_POINT_BYTES:
+                    raise ValueError("too large for a chunk")
+                data = path.read_bytes()
+                mac, payload = data[:MAC_BYTES], data[MAC_BYTES + 1 :]
+                if data[MAC_BYTES : MAC_BYTES + 1] != b"\n" or not hmac.compare_digest(
+                    mac, _mac(self.digest, name, payload)
+                ):
+                    raise ValueError("checksum mismatch")
+                out[name] = payload
+            except (OSError, ValueError):
+                self.rejected.append(path.name)
+        return out
+
+    def save(self, key: str, result: PointResult) -> None:
+        """Write one point atomically: a JSON header line, then the arrays' float64 bytes."""
+        self._prepare()
         section = np.ascontiguousarray(result.section, dtype=np.float64)
         final = np.asarray(result.final_state if result.final_state is not None else [], float)
         spectrum = np.asarray(result.spectrum if result.spectrum is not None else [], float)

@@ -1,0 +1,188 @@
+"""Basin grids with attractor recognition (rubcli/analysis/sweep/basins.py).
+
+The labels are checked against an independent method: every start integrated for its
+whole budget and labelled by the learned attractor its final state lies on. The
+compiled scan is checked against the numpy recogniser on exact maps, the watched solve
+against an unwatched one, and the basin entropy against boxes counted by hand."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from rubcli.analysis.sweep import Axis, SweepPlan, execute
+from rubcli.analysis.sweep import recognise_kernel as kernel
+from rubcli.analysis.sweep.attractors import (
+    AMBIGUOUS,
+    AttractorSet,
+    CellMap,
+    Recogniser,
+    Recognition,
+    normalised,
+)
+from rubcli.analysis.sweep.basins import HOW, basin_entropy, rounds, run_basins, seed_indices
+from rubcli.analysis.sweep.engine import InProcessExecutor
+from rubcli.model import ModelParams
+from rubcli.problem import Problem
+from rubcli.solvers import solve
+from rubcli.solvers.driver import Watch
+
+# cases/examples/basins.toml: a rub and a free whirl coexist at eta = 2
+MACHINE = ModelParams(nu=0.05, eta=2.0, e=0.3, K=10.0, mu=0.02, Rp=5.0, phi0=0.0)
+OPTIONS = {"rtol": 1e-8, "atol": 1e-10}
+
+
+def _plan(n: int, recognition: Recognition | None = None) -> SweepPlan:
+    values = tuple(np.linspace(-1.5, 1.5, n))
+    return SweepPlan(
+        MACHINE, (0.0, 0.0, 0.0, 0.0), (Axis("x", values), Axis("y", values)),
+        transient_periods=150, record_periods=16, options=OPTIONS,
+        recognition=recognition or Recognition(),
+    )  # fmt: skip
+
+
+def test_a_watched_solve_is_the_same_run_stopped_where_the_watch_says():
+    problem = Problem.from_periods(MACHINE, (1.2, 0.3, 0.0, 0.0), 40, 1)
+    whole = solve(problem, "dop853-jit", **OPTIONS)
+    seen: list[int] = []
+    watched = solve(problem, "dop853-jit", watch=Watch(7, lambda s: seen.append(len(s))),
+                    **OPTIONS)  # fmt: skip
+    assert seen == [7, 7, 7, 7, 7, 5] and watched.success and len(watched.t) == 41
+    # the legs end on samples, so the steps differ: states agree to the tolerance
+    np.testing.assert_allclose(watched.states, whole.states, atol=1e-6)
+    calls: list[int] = []
+
+    def stop_third(states):
+        calls.append(1)
+        return "seen enough" if len(calls) == 3 else None
+
+    stopped = solve(problem, "rk45", watch=Watch(5, stop_third), **OPTIONS)
+    assert stopped.success and stopped.message == "seen enough" and len(stopped.t) == 16
+    with pytest.raises(TypeError, match="watch"):
+        solve(problem, "rk45", watch=lambda s: None)
+
+
+def _numpy_scan(known, cells, points, hits):
+    recogniser = Recogniser(known, cells, hits)
+    found = recogniser.feed_block(points, 1)
+    if found is None:
+        return None
+    return found[0], found[1], recogniser.how, recogniser.convergence
+
+
+def _kernel_scan(known, cells, points, hits):
+    clouds = np.concatenate([a.cloud for a in known.attractors])
+    offsets = np.r_[0, np.cumsum([len(a.cloud) for a in known.attractors])].astype(np.int64)
+    radii = np.array([a.radius for a in known.attractors])
+    state = np.array([kernel.NONE, 0, 0, kernel.AMBIGUOUS, 0, 0], np.int64)
+    at, label, how, conv = kernel.scan(
+        points, 1, clouds, offsets, radii, known.consecutive, cells.keys, cells.labels,
+        cells.remaining, cells.size, hits, known.escape_radius, state,
+    )  # fmt: skip
+    if at < 0:
+        return None
+    return int(label), int(at), HOW[int(how)], int(conv)
+
+
+def test_the_compiled_scan_decides_as_the_numpy_recogniser():
+    rng = np.random.default_rng(7)
+    centres = np.array([[0.4, -0.2, 0.1, 0.3], [-1.0, 0.5, 0.0, 0.2]])
+    known = AttractorSet(tolerance=0.01, consecutive=4)
+    for c in centres:
+        known.learn(c + 1e-4 * rng.standard_normal((16, 4)))
+    # cells: a path to attractor 1 marked with the periods left
+    path = centres[1] + np.linspace(1.0, 0.2, 12)[:, None] * np.array([0.5, 0.5, 0.5, 0.5])
+    cells = CellMap(0.05).merged(
+        CellMap(0.05).pack(path), np.full(12, 1, np.int16), np.arange(30, 18, -1, dtype=np.int32)
+    )
+    cases = [
+        centres[0] + 0.5 ** np.arange(1, 30)[:, None] * 0.3,  # contracts onto attractor 0
+        path[2:9] + 1e-3,  # walks the cells of attractor 1
+        np.vstack([centres[1] + 2.0, [[np.nan, 0, 0, 0]]]),  # diverges
+        centres[1] + 0.3 + 0.01 * rng.standard_normal((20, 4)),  # nowhere known
+    ]
+    for hits in (1, 3):
+        for points in cases:
+            expected = _numpy_scan(known, cells, points, hits)
+            assert _kernel_scan(known, cells, points, hits) == expected
+    assert _numpy_scan(known, cells, cases[0], 3)[2] == "attractor"
+    assert _numpy_scan(known, cells, cases[1], 3)[2] == "basin"
+
+
+def test_cells_reached_on_the_way_to_two_attractors_become_ambiguous():
+    cells = CellMap(0.1)
+    points = np.array([[0.01, 0, 0, 0], [0.51, 0, 0, 0], [1.01, 0, 0, 0]])
+    keys = cells.pack(points)
+    first = cells.merged(keys[:2], np.array([0, 0], np.int16), np.array([5, 4], np.int32))
+    second = first.merged(keys[1:], np.array([1, 1], np.int16), np.array([9, 8], np.int32))
+    labels, left = second.lookup(points)
+    assert labels.tolist() == [0, AMBIGUOUS, 1]
+    assert left.tolist() == [5, 0, 8]  # an ambiguous cell foretells nothing
+    assert second.lookup(np.array([[7.0, 7, 7, 7]]))[0].tolist() == [AMBIGUOUS]
+    assert cells.pack(np.array([[1e9, 0, 0, 0]])).tolist() == [-1]
+
+
+def test_basin_entropy_counts_the_boxes():
+    assert basin_entropy(np.zeros((10, 10))) == (0.0, 0.0)
+    half = np.zeros((10, 10), int)
+    half[:, 5:] = 1  # boxes of 5 x 5: every box holds one label
+    assert basin_entropy(half) == (0.0, 0.0)
+    stripes = np.zeros((10, 10), int)
+    stripes[:, 3:] = 1  # the two left boxes hold 15 and 10 starts of the two labels
+    p = np.array([15, 10]) / 25
+    s = float(-(p * np.log(p)).sum())
+    s_b, s_bb = basin_entropy(stripes)
+    assert math.isclose(s_b, s / 2) and math.isclose(s_bb, s)
+
+
+def test_rounds_and_seed_depend_on_the_grid_alone():
+    assert [len(r) for r in rounds(30)] == [4, 8, 16, 2]
+    seed = seed_indices((31, 31), 64)
+    assert len(seed) == 64 and len(set(seed.tolist())) == 64
+    rows, cols = np.unravel_index(seed, (31, 31))
+    assert set(rows.tolist()) == set(cols.tolist()) == {0, 4, 9, 13, 17, 21, 26, 30}
+
+
+def test_recognised_labels_agree_with_integrating_every_start_to_its_budget():
+    plan = _plan(15)
+    result = run_basins(plan, plan.recognition, InProcessExecutor())
+    assert len(result.attractors) == 2
+    budget = plan.transient_periods + plan.record_periods
+    assert result.periods.max() < budget and result.periods.mean() < budget / 4
+    centres = np.array([[a["x_mean"], a["y_mean"]] for a in result.attractors])
+    values = plan.axes[0].values
+    for i, x in enumerate(values):
+        for j, y in enumerate(values):
+            final = solve(Problem.from_periods(MACHINE, (x, y, 0, 0), budget, 1),
+                          "dop853-jit", **OPTIONS).states[-1]  # fmt: skip
+            gaps = np.hypot(*(final[:2] - centres).T)
+            assert gaps.min() < 1e-3, "a start not settled after its whole budget"
+            assert result.label[i, j] == int(np.argmin(gaps)), (x, y)
+
+
+def test_labels_do_not_depend_on_workers_and_survive_a_tampered_store(tmp_path):
+    plan = _plan(21)
+    alone, _, where = execute(plan, workers=1)
+    assert where.startswith("this process")
+    store_dir = tmp_path / "store"
+    pooled, stats, _ = execute(plan, workers=2, oversubscribe=True, store_dir=store_dir)
+    for name in ("label", "how", "convergence", "periods"):
+        np.testing.assert_array_equal(getattr(alone, name), getattr(pooled, name))
+    assert stats.computed == plan.n_points
+    chunks = sorted(store_dir.glob("chunk-*.chunk"))
+    assert len(chunks) == math.ceil(plan.n_points / 64)
+    data = bytearray(chunks[1].read_bytes())
+    data[-20] ^= 1  # one flipped byte
+    chunks[1].write_bytes(bytes(data))
+    chunks[2].unlink()
+    resumed, stats, _ = execute(plan, workers=1, store_dir=store_dir)
+    assert stats.rejected == 1 and stats.computed == 2 * 64
+    assert stats.resumed == plan.n_points - 2 * 64
+    np.testing.assert_array_equal(resumed.label, alone.label)
+
+
+def test_normalised_weighs_velocity_by_the_speed():
+    states = np.array([[1.0, 0.0, 0.0, 2.0]])
+    np.testing.assert_array_equal(normalised(states, 2.0), [[1.0, 0.0, 0.0, 1.0]])
