@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import datetime as dt
 import os
 import platform
 import resource
@@ -49,7 +48,13 @@ from rubcli.model import ModelParams
 HERE = Path(__file__).resolve().parent
 PARAMS = ModelParams(nu=0.05, eta=1.0, e=0.3, K=10.0, mu=0.02, Rp=5.0, phi0=0.0)
 OPTIONS = {"rtol": 1e-8, "atol": 1e-10}
-TRANSIENT, RECORD, SPP = 200, 100, 32
+SPP = 32
+TRANSIENT, RECORD = 200, 100  # per point; --transient and --record change them
+
+
+def set_periods(transient: int, record: int) -> None:
+    global TRANSIENT, RECORD
+    TRANSIENT, RECORD = transient, record
 
 
 def plan_for(n: int, energy: bool = False) -> SweepPlan:
@@ -128,7 +133,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--points", type=int, default=400)
     parser.add_argument("--subset", type=int, default=8, help="points for energy and scipy")
+    parser.add_argument("--transient", type=int, default=TRANSIENT)
+    parser.add_argument("--record", type=int, default=RECORD)
     args = parser.parse_args()
+    set_periods(args.transient, args.record)
     n, sub = args.points, args.subset
     load_before = os.getloadavg()[0]
     periods = n * (TRANSIENT + RECORD)
@@ -143,6 +151,7 @@ def main() -> None:
     rows.append(("1 worker (in-process)", wall1, wall1, 1))
     wall2, res2, cpu2 = timed(plan, workers=2)
     rows.append(("2 local processes", wall2, wall1, 2))
+    compute2 = sum(r.wall_time_s for r in res2.values())
 
     from distributed import Client, LocalCluster
 
@@ -176,8 +185,9 @@ def main() -> None:
     lines = [
         "# Sweep engine benchmark (`benchmarks/sweep.py`)",
         "",
-        f"Command: `python benchmarks/sweep.py --points {n} --subset {sub}`. "
-        f"{dt.date.today().isoformat()}, Python {platform.python_version()}, "
+        f"Command: `python benchmarks/sweep.py --points {n} --subset {sub} --transient "
+        f"{TRANSIENT} --record {RECORD}`. "
+        f"Python {platform.python_version()}, "
         f"{platform.machine()}, 2 cores shared with other work (load average "
         f"{load_before:.1f} before, {os.getloadavg()[0]:.1f} after).",
         "",
@@ -207,6 +217,10 @@ def main() -> None:
         f"{overhead / mean_point:.1%} of it; without the one-off build of the Dataset "
         f"({BUILD_SECONDS[0]:.2f} s per sweep) {overhead - BUILD_SECONDS[0] / n:.2e} s = "
         f"{(overhead - BUILD_SECONDS[0] / n) / mean_point:.1%} per point.",
+        f"- Engine overhead with 2 local processes, in CPU: (CPU of this process and its "
+        f"workers - the points' own compute) / that compute = "
+        f"{(cpu2 - compute2) / compute2:.1%} (the Dataset's build "
+        f"{BUILD_SECONDS[1] / compute2:.1%} of it).",
         f"- Energy balance of the recorded window: +{energy_per_point * 1e3:.0f} ms per point "
         f"({energy_per_point / ne_per_point:.1f}x a point without it; {sub} points).",
         f"- Plain scipy loop (solve_ivp RK45 with events, one point after another): "

@@ -680,6 +680,14 @@ class CaseFile(_Section):
                 f"sweep holds up to {SWEEP_POINTS_IN_MEMORY} points at once (one per worker); "
                 f"more than the {_gib(MAX_CASE_MEMORY_BYTES)} a case may ask for",
             )
+        need, what = sweep_memory(self.sweep)
+        if need > MAX_CASE_MEMORY_BYTES:
+            raise PydanticCustomError(
+                "sweep_memory",
+                f"sweep: {what} need about {_gib(need)} of memory until the files are "
+                f"written, more than the {_gib(MAX_CASE_MEMORY_BYTES)} a case may ask for; "
+                "sweep fewer points (or record fewer periods) per case",
+            )
         return self
 
     @model_validator(mode="after")
@@ -692,6 +700,25 @@ class CaseFile(_Section):
 
 
 SWEEP_MIN_SAMPLES = 8  # as analysis.sweep.plan.SweepPlan requires
+# What a sweep holds until its files are written (benchmarks/sweep_memory.py: the slope
+# of the peak RSS between two sizes). A point of a model-parameter sweep measured 3,000
+# bytes plus 174 per recorded period (247 with its spectrum); a start of a basin grid
+# with recognition 340 (its label, time and cost, and its CSV row). With a margin:
+SWEEP_POINT_BYTES = 4500
+SWEEP_PERIOD_BYTES = 300
+BASIN_START_BYTES = 500
+
+
+def sweep_memory(sweep: SweepSection) -> tuple[float, str]:
+    """The bytes a sweep holds until its files are written, and what they are for."""
+    n = sweep.n_points()
+    basin = all(a.parameter in SWEEP_INITIAL_PARAMETERS for a in sweep.resolved_axes())
+    if basin and sweep.recognition.enabled:
+        return n * BASIN_START_BYTES, f"{n} starts"
+    per_point = SWEEP_POINT_BYTES + SWEEP_PERIOD_BYTES * sweep.record_periods
+    return n * per_point, f"{n} points of {sweep.record_periods} recorded periods"
+
+
 SWEEP_POINTS_IN_MEMORY = 8  # points solved at once on a machine of up to 8 cores
 _MODEL_XOR_PHYSICAL = "give exactly one of [model] (nondimensional) and [physical] (SI units)"
 _TABLES = frozenset(CaseFile.model_fields)

@@ -106,7 +106,9 @@ def sweep(
     store_dir: str | Path | None = None,
     oversubscribe: bool = False,
 ):
-    """Run the ``[sweep]`` of ``case`` (a path or a loaded Case); returns an xarray.Dataset.
+    """Run the ``[sweep]`` of ``case`` (a path or a loaded Case); returns an xarray.Dataset
+    (for a basin grid with recognition, ``basins.build_dataset``'s: one attractor label
+    per start).
 
     ``workers`` local processes (default all cores, 1 = in this process), or a Dask
     ``client`` / ``scheduler`` address (default: ``[sweep] scheduler``). ``store_dir``
@@ -133,4 +135,8 @@ def sweep(
     finally:
         if own is not None:
             close_client(own)
+    if plan.recognition is not None:
+        from rubcli.analysis.sweep import basins
+
+        return basins.build_dataset(plan, results, case_attrs(case))
     return build_dataset(plan, results, case_attrs(case))

@@ -183,6 +183,150 @@ def test_labels_do_not_depend_on_workers_and_survive_a_tampered_store(tmp_path):
     np.testing.assert_array_equal(resumed.label, alone.label)
 
 
+_DIE: dict = {"marker": "", "always": False, "real": None}
+
+
+def _dying_chunk(task):
+    """Kills its worker process: once (marker file), or every time."""
+    import os
+    from pathlib import Path
+
+    marker = Path(_DIE["marker"])
+    if _DIE["always"] or not marker.exists():
+        marker.write_text("died")
+        os._exit(1)
+    return _DIE["real"](task)
+
+
+@pytest.mark.parametrize("always", [False, True])
+def test_a_chunk_whose_worker_dies_is_run_again_or_failed(tmp_path, monkeypatch, always):
+    """A worker that dies breaks the pool: its chunks run again on a new pool (the labels
+    of a run in one process), and a chunk that kills every worker it meets is recorded
+    as failed starts, not retried for ever."""
+    import multiprocessing
+
+    from rubcli.analysis.sweep import basins
+
+    if multiprocessing.get_start_method() != "fork":
+        pytest.skip("the patched worker function reaches the workers only by fork")
+    plan = _plan(9)
+    reference, _, _ = execute(plan, workers=1)
+    _DIE.update(marker=str(tmp_path / "died"), always=always, real=basins.compute_chunk)
+    monkeypatch.setattr(basins, "compute_chunk", _dying_chunk)
+    result, _, where = execute(plan, workers=2, oversubscribe=True)
+    assert where == "process pool (2 workers)" and (tmp_path / "died").exists()
+    if always:
+        assert (result.label == -3).all() and "worker died 3 times" in result.messages[0]
+    else:
+        np.testing.assert_array_equal(result.label, reference.label)
+
+
 def test_normalised_weighs_velocity_by_the_speed():
     states = np.array([[1.0, 0.0, 0.0, 2.0]])
     np.testing.assert_array_equal(normalised(states, 2.0), [[1.0, 0.0, 0.0, 1.0]])
+
+
+BASIN_CASE = """
+[case]
+name = "basins-dask"
+[model]
+nu = 0.05
+eta = 2.0
+e = 0.3
+K = 10.0
+mu = 0.02
+Rp = 5.0
+[initial]
+x = 0.0
+y = 0.0
+[time]
+periods = 10
+samples_per_period = 32
+[solver]
+rtol = 1e-8
+atol = 1e-10
+[sweep]
+direction = "independent"
+transient_periods = 150
+record_periods = 16
+[[sweep.axes]]
+parameter = "x"
+start = -1.5
+stop = 1.5
+num = 61
+[[sweep.axes]]
+parameter = "y"
+start = -1.5
+stop = 1.5
+num = 61
+"""
+
+
+def test_a_dask_basin_sweep_survives_a_killed_worker(tmp_path):
+    """A real scheduler and two workers; one worker is killed mid-sweep: Dask runs its
+    chunks on the other, and the labels equal those of this process."""
+    import subprocess
+    import sys
+    import time
+
+    pytest.importorskip("distributed")
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    address = f"tcp://127.0.0.1:{port}"
+    case = tmp_path / "case.toml"
+    case.write_text(BASIN_CASE)
+    quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}
+    scheduler = subprocess.Popen(
+        [sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
+         "--port", str(port), "--no-dashboard"], **quiet,
+    )  # fmt: skip
+    workers = [
+        subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "distributed.cli.dask_worker",
+                address,
+                "--nthreads",
+                "1",
+                "--no-nanny",
+                "--no-dashboard",
+            ],
+            **quiet,
+        )  # fmt: skip
+        for _ in range(2)
+    ]
+    sweep = None
+    try:
+        sweep = subprocess.Popen(
+            [sys.executable, "-m", "rubcli", "sweep", str(case), "--out", str(tmp_path / "out"),
+             "--scheduler", address, "--json"],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        )  # fmt: skip
+        deadline = time.monotonic() + 240
+        while time.monotonic() < deadline and sweep.poll() is None:
+            stores = list(tmp_path.glob(".out.sweep-*"))
+            if stores and len(list(stores[0].glob("chunk-*.chunk"))) >= 2:
+                break
+            time.sleep(0.05)
+        workers[0].kill()
+        _stdout, stderr = sweep.communicate(timeout=300)
+    finally:
+        for proc in (sweep, scheduler, *workers):
+            if proc is not None and proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    assert sweep.returncode == 0, stderr
+    import xarray as xr
+
+    with xr.open_dataset(tmp_path / "out" / "sweep.nc", engine="h5netcdf") as ds:
+        labels = ds["attractor_label"].values
+    from rubcli.case import load_case
+    from rubcli.sweeps import plan_from_case
+
+    plan = plan_from_case(load_case(case))
+    alone, _, _ = execute(plan, workers=1)
+    np.testing.assert_array_equal(labels, alone.label)

@@ -581,14 +581,14 @@ def test_local_workers_die_with_a_killed_sweep(tmp_path):
     assert not alive, f"workers {alive} outlived their killed parent"
 
 
-def test_a_dask_batch_never_puts_the_work_of_all_workers_into_one_task(fig3_params):
-    from rubcli.analysis.sweep import dask_batch
+def test_a_task_batch_never_puts_the_work_of_all_workers_into_one_task(fig3_params):
+    from rubcli.analysis.sweep import task_batch
 
     plan = _small_plan(fig3_params)  # one axis, up and down: two chains
     assert plan.n_chains == 2 and len(plan.chains()) == 2
-    assert dask_batch(1000, 2, plan.n_chains) == 1  # each worker gets a chain
-    assert dask_batch(1000, 2) == 8  # independent points: 8 per task
-    assert dask_batch(1000, 2, 1000) == 8 and dask_batch(10, 2, 10) == 1
+    assert task_batch(1000, 2, plan.n_chains) == 1  # each worker gets a chain
+    assert task_batch(1000, 2) == 8  # independent points: 8 per task
+    assert task_batch(1000, 2, 1000) == 8 and task_batch(10, 2, 10) == 1
 
 
 @pytest.mark.parametrize(
@@ -621,10 +621,15 @@ def test_a_sweep_case_with_too_few_samples_is_refused_naming_the_field(tmp_path)
 @pytest.mark.parametrize(
     ("change", "says"),
     [("record_periods = 10000000", "GiB per point"),
-     ("record_periods = 8\nspectrum_max_order = 1e9", "at most time.samples_per_period / 2")],
+     ("record_periods = 8\nspectrum_max_order = 1e9", "at most time.samples_per_period / 2"),
+     # 500,000 points of 100 periods: 16 GiB at the measured 4,500 + 300 x 100 bytes
+     ("record_periods = 100\nmax_points = 1000000\nstart = 0.5\nstop = 4.0\nnum = 500000",
+      "until the files are written")],
 )  # fmt: skip
 def test_sweep_sizes_that_cannot_work_are_refused_before_any_point(tmp_path, change, says):
     text = FREE_CASE.replace("record_periods = 8", change)
+    if "num = 500000" in change:
+        text = text.replace("values = [0.5, 0.8, 1.0, 1.3, 2.0]\n", "")
     assert text != FREE_CASE
     case = _write(tmp_path, text)
     result = CliRunner().invoke(app, ["sweep", str(case), "--out", str(tmp_path / "out")])

@@ -136,7 +136,10 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
     console.info(
         f"{case.name}: sweep of {', '.join(a.parameter for a in plan.axes)} "
         f"({plan.n_points} points, {plan.direction}, {plan.transient_periods} + "
-        f"{plan.record_periods} periods each, {plan.method})" + (" (quick)" if quick else "")
+        f"{plan.record_periods} periods each"
+        + (", stopped once the attractor is recognised" if plan.recognition else "")
+        + f", {plan.method})"
+        + (" (quick)" if quick else "")
     )
     started = time.perf_counter()
     try:

@@ -46,7 +46,7 @@ __all__ = [
 
 CONNECT_TIMEOUT_S = 10.0  # bounded wait for a Dask scheduler
 LOST_TIMEOUT_S = 60.0  # bounded wait for a lost scheduler, or for a worker when none is left
-DASK_MAX_BATCH = 8  # points per Dask task at most: a round trip costs milliseconds
+MAX_BATCH = 8  # points per task at most: a Dask round trip costs milliseconds, a pool's ~0.1
 
 
 class SchedulerError(Exception):
@@ -135,13 +135,13 @@ def dask_executor(client) -> Iterator[cf.Executor]:
             executor.shutdown(wait=False)
 
 
-def dask_batch(n_points: int, n_workers: int, n_chains: int | None = None) -> int:
-    """Points per Dask task: up to DASK_MAX_BATCH, keeping >= 8 tasks per worker and, as
-    a batch holds the next points of different chains, no more chains in a batch than
-    keep every worker busy (two chains on two workers: one point a task, not one task
-    holding both chains' points on one worker)."""
-    limit = DASK_MAX_BATCH if n_chains is None else max(1, n_chains // n_workers)
-    return max(1, min(DASK_MAX_BATCH, limit, n_points // (8 * n_workers)))
+def task_batch(n_points: int, n_workers: int, n_chains: int | None = None) -> int:
+    """Points per task (Dask or a local pool): up to MAX_BATCH, keeping >= 8 tasks per
+    worker and, as a batch holds the next points of different chains, no more chains in
+    a batch than keep every worker busy (two chains on two workers: one point a task,
+    not one task holding both chains' points on one worker)."""
+    limit = MAX_BATCH if n_chains is None else max(1, n_chains // n_workers)
+    return max(1, min(MAX_BATCH, limit, n_points // (8 * n_workers)))
 
 
 def dask_workers(client) -> int:
@@ -259,7 +259,7 @@ def execute(
             with quiet_dask_client(), dask_executor(client) as executor:
                 results, stats = _run(
                     plan, executor, store=store, workers=n, progress=progress,
-                    batch=dask_batch(plan.n_points, n, plan.n_chains),
+                    batch=task_batch(plan.n_points, n, plan.n_chains),
                     watch=dask_watch(client, lost_timeout_s),
                 )  # fmt: skip
             return (
@@ -281,8 +281,9 @@ def execute(
 
         try:
             results, stats = _run(
-                plan, rebuild(), store=store, workers=n, progress=progress, rebuild=rebuild
-            )
+                plan, rebuild(), store=store, workers=n, progress=progress, rebuild=rebuild,
+                batch=task_batch(plan.n_points, n, plan.n_chains),
+            )  # fmt: skip
         finally:
             for pool in pools:
                 pool.shutdown(wait=True, cancel_futures=True)

@@ -2,33 +2,25 @@
 
 A basin grid integrates every start for its whole budget although most starts reach a
 known attractor long before. Here a start is stopped as soon as its trajectory is
-recognised on an attractor already learned, and the attractor and the time are recorded.
+recognised, and the attractor and the time are recorded (``basins`` runs the grid).
 
-**Method** (matching in the stroboscopic section, in the spirit of Attractors.jl's
-``AttractorsViaRecurrences``, with the cell grid replaced by the distance to learned
-points). The section is the state at the end of every forcing period, normalised as
-``(x, y, vx / eta, vy / eta)`` (clearances; a synchronous orbit of radius r has velocity
-eta r, so both halves weigh alike). An attractor is *learned* from a trajectory that ran
-to its budget: the cloud of its last section points. Its *radius* is the larger of the
-user's ``tolerance`` and the largest nearest-neighbour distance within the cloud, so a
-closed curve (a torus, the dry whip) sampled by finitely many points is covered between
-its samples, while a fixed point or a period-p orbit keeps the tolerance. A trajectory is
-*recognised* on attractor A when ``consecutive`` successive section points each lie
-within A's radius of A's cloud; its convergence time is the first period of that run.
-A state beyond ``escape_radius`` is recognised at once as divergence.
+**Method** (in the spirit of Attractors.jl's ``AttractorsViaRecurrences``). The section
+is the state at the end of every forcing period, normalised as ``(x, y, vx / eta,
+vy / eta)`` (clearances; a synchronous orbit of radius r has velocity eta r, so both
+halves weigh alike). An attractor is *learned* from a trajectory that ran to its budget:
+the cloud of its last section points, once it has ``settled`` (each half of the tail
+near the other). Its *radius* is the larger of the user's ``tolerance`` and the largest
+nearest-neighbour gap within the cloud, so a closed curve (a torus, the dry whip) sampled
+by finitely many points is covered between its samples, while a fixed point or a
+period-p orbit keeps the tolerance. A trajectory is *recognised* on attractor A when
+``consecutive`` successive section points each lie within A's radius of A's cloud (its
+convergence time is the first period of that run), or, with a ``CellMap``, when
+``basin_hits`` successive points fall into *basin cells* that earlier trajectories
+crossed on their way to A. A state beyond ``escape_radius`` has diverged.
+``recognise_kernel.scan`` is the compiled form of ``Recogniser.feed_block``.
 
-**Failure modes**, and what is done about them:
-
-- an attractor not learned yet: nothing matches, the trajectory runs to its budget and
-  the caller learns the attractor from its tail (``AttractorSet.learn``), so it is known
-  to every later start;
-- a long chaotic transient: it runs to the budget and is reported *not recognised*
-  (``UNRECOGNISED``) with the periods integrated, never guessed;
-- a transient that shadows a learned attractor for ``consecutive`` periods and then
-  leaves it is mislabelled: raise ``consecutive`` (the cost grows by as many periods);
-- two attractors closer than a radius are one for this method: lower ``tolerance``.
-
-Nothing here imports the case loader; the solver is called through ``rubcli.solvers``.
+The failure modes are listed in docs/sweeps.md ("Basins at full resolution").
+Nothing here imports the case loader or a solver.
 """
 
 from __future__ import annotations
@@ -41,7 +33,10 @@ import numpy as np
 UNRECOGNISED = -1  # ran to its budget without being recognised
 DIVERGED = -2  # left the escape radius
 FAILED = -3  # the solver failed
-SAME_ATTRACTOR_SHARE = 0.9  # a learned cloud this much inside a known attractor is that one
+SAME_ATTRACTOR_SHARE = 0.75  # a learned cloud this much near a known attractor is that one
+# A new tail within this many radii of a known cloud is that attractor sampled again: a
+# torus or a chaotic set sampled by a hundred points leaves gaps a new sampling falls in.
+SAME_FACTOR = 3.0
 PERIODIC_MAX = 32  # at most this many distinct section clusters make a periodic orbit
 
 
@@ -68,7 +63,7 @@ def normalised(states: np.ndarray, eta: float) -> np.ndarray:
     return out
 
 
-def _nearest(cloud: np.ndarray, points: np.ndarray) -> np.ndarray:
+def nearest(cloud: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Distance of every point to the nearest point of ``cloud`` (brute force, in blocks)."""
     out = np.empty(len(points))
     for i in range(0, len(points), 256):
@@ -128,7 +123,7 @@ class Attractor:
     descriptor: dict
 
     def contains(self, points: np.ndarray) -> np.ndarray:
-        return _nearest(self.cloud, points) <= self.radius
+        return nearest(self.cloud, points) <= self.radius
 
 
 @dataclass
@@ -157,7 +152,7 @@ class AttractorSet:
         best = [None] * len(points)
         best_gap = np.full(len(points), np.inf)
         for attractor in self.attractors:
-            gap = _nearest(attractor.cloud, points) / attractor.radius
+            gap = nearest(attractor.cloud, points) / attractor.radius
             better = (gap <= 1.0) & (gap < best_gap)
             best_gap = np.where(better, gap, best_gap)
             for i in np.flatnonzero(better).tolist():
@@ -166,20 +161,41 @@ class AttractorSet:
 
     def learn(self, cloud: np.ndarray) -> int:
         """The label of the attractor whose tail ``cloud`` is (normalised section points):
-        a known one if at least ``SAME_ATTRACTOR_SHARE`` of the cloud lies on it, else a
-        new one, learned from this cloud."""
+        a known one if at least ``SAME_ATTRACTOR_SHARE`` of the cloud lies within
+        ``SAME_FACTOR`` radii of it, else a new one, learned from this cloud (check
+        ``settled`` first: a tail still in its transient is no attractor)."""
         cloud = np.asarray(cloud, dtype=float)
         for attractor in self.attractors:
-            if attractor.contains(cloud).mean() >= SAME_ATTRACTOR_SHARE:
+            near = nearest(attractor.cloud, cloud) <= SAME_FACTOR * attractor.radius
+            if near.mean() >= SAME_ATTRACTOR_SHARE:
                 return attractor.label
-        radius = self.tolerance
-        if len(cloud) > 1:
-            d = np.sqrt(((cloud[:, None, :] - cloud[None, :, :]) ** 2).sum(axis=-1))
-            np.fill_diagonal(d, np.inf)
-            radius = max(radius, float(d.min(axis=1).max()))
         label = len(self.attractors)
+        radius = cloud_radius(cloud, self.tolerance)
         self.attractors.append(Attractor(label, cloud, radius, describe(cloud, self.tolerance)))
         return label
+
+    def settled(self, cloud: np.ndarray) -> bool:
+        """Whether a tail has settled on its attractor: each half of it lies (a share of
+        ``SAME_ATTRACTOR_SHARE``) within ``SAME_FACTOR`` radii of the other half. A tail
+        that drifts (a transient from a partial rub into dry whip, a slow spiral) is not."""
+        cloud = np.asarray(cloud, dtype=float)
+        if len(cloud) < 4:
+            return True
+        first, second = cloud[: len(cloud) // 2], cloud[len(cloud) // 2 :]
+        for a, b in ((first, second), (second, first)):
+            reach = SAME_FACTOR * cloud_radius(a, self.tolerance)
+            if (nearest(a, b) <= reach).mean() < SAME_ATTRACTOR_SHARE:
+                return False
+        return True
+
+
+def cloud_radius(cloud: np.ndarray, tolerance: float) -> float:
+    """The tolerance, or the largest nearest-neighbour gap within the cloud if larger."""
+    if len(cloud) < 2:
+        return tolerance
+    d = np.sqrt(((cloud[:, None, :] - cloud[None, :, :]) ** 2).sum(axis=-1))
+    np.fill_diagonal(d, np.inf)
+    return max(tolerance, float(d.min(axis=1).max()))
 
 
 AMBIGUOUS = -1  # a cell visited on the way to two different attractors

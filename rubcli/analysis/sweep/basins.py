@@ -24,6 +24,7 @@ memory is bounded by the labels of the grid (12 bytes a start) and the cell map
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import io
 import math
 import time
@@ -35,11 +36,13 @@ import numpy as np
 from rubcli.analysis.sweep.attractors import (
     DIVERGED,
     FAILED,
+    SAME_FACTOR,
     UNRECOGNISED,
     AttractorSet,
     CellMap,
     Recognition,
     describe,
+    nearest,
     normalised,
 )
 from rubcli.analysis.sweep.plan import INITIAL_AXES, SweepPlan
@@ -140,6 +143,16 @@ class ChunkResult:
                 z["cell_keys"], z["cell_labels"], z["cell_remaining"], float(z["compute_s"]),
                 dict(zip(z["message_index"].tolist(), z["messages"].tolist(), strict=True)),
             )  # fmt: skip
+
+
+def failed_chunk(n: int, message: str) -> ChunkResult:
+    """A chunk of ``n`` starts that could not be computed: every start failed."""
+    return ChunkResult(
+        np.full(n, FAILED, np.int16), np.full(n, HOW.index("failed"), np.int8),
+        np.full(n, np.nan, np.float32), np.zeros(n, np.int32), {},
+        np.empty(0, np.int64), np.empty(0, np.int16), np.empty(0, np.int32),
+        messages=dict.fromkeys(range(n), message),
+    )  # fmt: skip
 
 
 def compute_chunk(task: ChunkTask) -> ChunkResult:
@@ -262,16 +275,22 @@ class _Learner:
     def absorb_seed(self, result: ChunkResult) -> None:
         """Learn the seed's attractors from its tails, then add the cells each seed
         trajectory crossed before it settled (from the last period off its attractor)."""
-        whole = {i: t for i, t in result.tails.items() if len(t) and np.all(np.isfinite(t))}
-        for i in sorted(whole):
-            result.label[i] = self.set.learn(whole[i][-self._record :])
+        whole = {}
+        for i in sorted(result.tails):
+            tail = result.tails[i]
+            if len(tail) and np.all(np.isfinite(tail)) and self.set.settled(tail[-self._record :]):
+                result.label[i] = self.set.learn(tail[-self._record :])
+                whole[i] = tail
         if self.cells is None:
             return
         keys, labels, left = [], [], []
         for i in sorted(whole):
             label = int(result.label[i])
             attractor = self.set.attractors[label]
-            off = np.flatnonzero(~attractor.contains(whole[i]))
+            # on it: within the reach that learning allows (a torus or a chaotic set is
+            # sampled by its tail only, and the earlier points fall between the samples)
+            reach = SAME_FACTOR * attractor.radius
+            off = np.flatnonzero(nearest(attractor.cloud, whole[i]) > reach)
             settled = int(off[-1]) + 2 if off.size else 1  # first period on it for good
             section = whole[i][: settled - 1]
             keys.append(self.cells.pack(section))
@@ -286,9 +305,8 @@ class _Learner:
         """Label the chunk's budget-spent starts by their tails; add its cells."""
         for i in sorted(result.tails):
             tail = result.tails[i]
-            if not len(tail) or not np.all(np.isfinite(tail)):
-                continue
-            result.label[i] = self.set.learn(tail)
+            if len(tail) and np.all(np.isfinite(tail)) and self.set.settled(tail):
+                result.label[i] = self.set.learn(tail)  # else: not recognised, said so
         if self.cells is not None and result.cell_keys.size:
             self.cells = self.cells.merged(
                 result.cell_keys, result.cell_labels, result.cell_remaining
@@ -312,7 +330,7 @@ def run_basins(
     pool; ``watch`` is the Dask executor's health check (``engine.run_plan``)."""
     from concurrent.futures.process import BrokenProcessPool
 
-    from rubcli.analysis.sweep.engine import WATCH_INTERVAL_S, ExecutorLostError
+    from rubcli.analysis.sweep.engine import MAX_RETRIES, WATCH_INTERVAL_S, ExecutorLostError
 
     n = math.prod(plan.shape)
     size = chunk_size(n)
@@ -336,8 +354,23 @@ def run_basins(
             result.chunks_rejected += 1
             return None
 
-    def compute(names: list[str], tasks: list[ChunkTask]) -> dict[str, ChunkResult]:
-        """The chunks ``names`` (stored or computed), all of them."""
+    def finish(name: str, chunk: ChunkResult, counted: bool) -> None:
+        nonlocal done
+        result.chunks_computed += 1
+        if store is not None:
+            store.save_blob(name, chunk.to_bytes())
+        if counted:
+            result.points_computed += len(chunk.label)
+            done += len(chunk.label)
+            if progress is not None:
+                progress(done, n)
+
+    def compute(names: list[str], tasks: list[ChunkTask], counted: bool = True):
+        """The chunks ``names``, all of them: stored ones loaded, the others computed.
+        A chunk whose worker died (a broken local pool) or that the executor dropped
+        (Dask, its scheduler connection lost) is submitted again; after MAX_RETRIES
+        deaths its starts are recorded as failed, after MAX_RETRIES drops the run
+        stops (``ExecutorLostError``). ``counted``: its starts count in the progress."""
         nonlocal executor, done
         found: dict[str, ChunkResult] = {}
         todo: dict[str, ChunkTask] = {}
@@ -346,15 +379,18 @@ def run_basins(
             if loaded is not None and len(loaded.label) == len(task.starts):
                 found[name] = loaded
                 result.chunks_resumed += 1
-                result.points_resumed += len(task.starts) if name != "seed" else 0
-                done += len(task.starts)
+                if counted:
+                    result.points_resumed += len(task.starts)
+                    done += len(task.starts)
             else:
                 todo[name] = task
-        if progress is not None:
+        if progress is not None and counted:
             progress(done, n)
-        attempts: dict[str, int] = {}
+        deaths: dict[str, int] = {}
+        drops: dict[str, int] = {}
         while todo:
             in_flight = {executor.submit(compute_chunk, todo[k]): k for k in todo}
+            lost: list[str] = []  # chunks held by a pool that broke
             watched = time.monotonic()
             try:
                 while in_flight:
@@ -370,12 +406,13 @@ def run_basins(
                         try:
                             chunk = future.result()
                         except BrokenProcessPool:
+                            lost.append(name)
                             raise
-                        except Exception as exc:  # the executor dropped it: run it again
-                            attempts[name] = attempts.get(name, 0) + 1
-                            if attempts[name] > 3:
+                        except Exception as exc:  # dropped by the executor, not a result
+                            drops[name] = drops.get(name, 0) + 1
+                            if drops[name] > MAX_RETRIES:
                                 raise ExecutorLostError(
-                                    f"the executor dropped chunk {name} 3 times "
+                                    f"the executor dropped chunk {name} {MAX_RETRIES} times "
                                     f"({type(exc).__name__})"
                                 ) from None
                             if watch is not None:
@@ -383,30 +420,31 @@ def run_basins(
                             continue
                         found[name] = chunk
                         del todo[name]
-                        result.chunks_computed += 1
-                        result.points_computed += len(chunk.label) if name != "seed" else 0
-                        if store is not None:
-                            store.save_blob(name, chunk.to_bytes())
-                        done += len(chunk.label)
-                        if progress is not None:
-                            progress(done, n)
+                        finish(name, chunk, counted)
             except BrokenProcessPool:
                 if rebuild is None:
                     raise RuntimeError("the process pool broke and cannot be rebuilt") from None
+                for name in [*lost, *in_flight.values()]:  # lost with the pool
+                    deaths[name] = deaths.get(name, 0) + 1
+                    if deaths[name] >= MAX_RETRIES:
+                        why = f"worker died {MAX_RETRIES} times on its chunk"
+                        chunk = failed_chunk(len(todo.pop(name).starts), why)
+                        found[name] = chunk
+                        finish(name, chunk, counted)
+                in_flight = {}
                 executor.shutdown(wait=False, cancel_futures=True)
                 executor = rebuild()
             finally:
                 for future in in_flight:
-                    future.cancel()
+                    with contextlib.suppress(Exception):  # a closed Dask client may refuse
+                        future.cancel()
         return found
 
     # the seed: strided starts run to the budget (no recognition), learned in order
     seed = seed_indices(plan.shape, rec.seed_points)
     blank = Recognition(**{**rec.to_dict(), "basin_cell": 0.0})
     seed_task = ChunkTask(plan, blank, starts_of(plan, seed), [], None, whole_sections=True)
-    done_before = done
-    seed_result = compute(["seed"], [seed_task])["seed"]
-    done = done_before  # the seed's starts are counted with their chunks
+    seed_result = compute(["seed"], [seed_task], counted=False)["seed"]
     learner.absorb_seed(seed_result)
     result.seed_points = len(seed)
     result.compute_s += seed_result.compute_s
