@@ -149,6 +149,8 @@ def test_recognised_labels_agree_with_integrating_every_start_to_its_budget():
     plan = _plan(15)
     result = run_basins(plan, plan.recognition, InProcessExecutor())
     assert len(result.attractors) == 2
+    # labelled by z, whatever was found first: the free whirl (0.40), then the rub (1.59)
+    assert [round(a["z_min"], 2) for a in result.attractors] == [0.40, 1.59]
     budget = plan.transient_periods + plan.record_periods
     assert result.periods.max() < budget and result.periods.mean() < budget / 4
     centres = np.array([[a["x_mean"], a["y_mean"]] for a in result.attractors])

@@ -384,12 +384,27 @@ def _grid_image(ax, ds, values, dims, **kwargs):
     else:
         ax.set_ylabel(_label(dims[1]))
         if {"x0", "y0"} == set(dims):
-            t = np.linspace(0, 2 * np.pi, 200)
-            ax.plot(np.cos(t), np.sin(t), color="k", linestyle="--", linewidth=0.8)
+            if _shows_clearance(extent):
+                t = np.linspace(0, 2 * np.pi, 400)
+                ax.plot(np.cos(t), np.sin(t), color="k", linestyle="--", linewidth=0.8)
             ax.set_xlim(extent[:2])
             ax.set_ylim(extent[2:])
             ax.set_aspect("equal")
     return shown
+
+
+def _shows_clearance(extent) -> bool:
+    """Whether the clearance circle z = 1 crosses the start grid's extent."""
+    t = np.linspace(0, 2 * np.pi, 4000)
+    x, y = np.cos(t), np.sin(t)
+    return bool(np.any((x >= extent[0]) & (x <= extent[1]) & (y >= extent[2]) & (y <= extent[3])))
+
+
+def _clearance_drawn(ds, dims) -> bool:
+    if {"x0", "y0"} != set(dims):
+        return False
+    x, y = ds[dims[0]].values, ds[dims[1]].values
+    return _shows_clearance((x.min(), x.max(), y.min(), y.max()))
 
 
 def _basin_dims(ds) -> list[str]:
@@ -429,7 +444,7 @@ def recognised_basins_figure(ds, title: str) -> Figure:
         entropy = f"; basin entropy {s_b:.3f}, boundary basin entropy {s_bb:.3f}"
     ax.set_title(
         f"attractor reached from each of {label.size} starts{entropy}"
-        + ("\n(dashed: the clearance z = 1)" if {"x0", "y0"} == set(dims) else ""),
+        + ("\n(dashed: the clearance z = 1)" if _clearance_drawn(ds, dims) else ""),
         fontsize=9,
     )
     fig.suptitle(title, fontsize=10)

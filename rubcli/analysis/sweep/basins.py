@@ -468,9 +468,21 @@ def run_basins(
                 result.messages[a + i] = message
     for array in ("label", "how", "convergence", "periods"):
         setattr(result, array, getattr(result, array).reshape(plan.shape))
-    result.attractors = [
+    described = [
         {**describe(a.cloud, rec.tolerance), "radius": a.radius} for a in learner.set.attractors
     ]
+
+    # labels in order of the attractors' smallest z (then largest), not of discovery:
+    # the same machine gives the same labels and colours whatever grid found them first
+    def by_z(k: int) -> tuple[float, float]:
+        return round(described[k]["z_min"], 6), described[k]["z_max"]
+
+    order = sorted(range(len(described)), key=by_z)
+    new_label = np.empty(len(order) + 3, np.int16)
+    new_label[3:][order] = np.arange(len(order))
+    new_label[:3] = (FAILED, DIVERGED, UNRECOGNISED)  # -3, -2, -1 stay
+    result.label = new_label[result.label.astype(np.int64) + 3]
+    result.attractors = [described[k] for k in order]
     result.cells = 0 if learner.cells is None else int(learner.cells.keys.size)
     return result
 
