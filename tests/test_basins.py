@@ -332,3 +332,39 @@ def test_a_dask_basin_sweep_survives_a_killed_worker(tmp_path):
     plan = plan_from_case(load_case(case))
     alone, _, _ = execute(plan, workers=1)
     np.testing.assert_array_equal(labels, alone.label)
+
+
+def test_a_chunk_that_kills_dask_workers_is_failed_and_a_dropped_one_run_again():
+    """Dask's KilledWorker (the chunk killed every worker Dask gave it) fails the chunk's
+    starts; a cancelled task (its scheduler connection dropped) is submitted again."""
+    import concurrent.futures as cf
+
+    from rubcli.analysis.sweep.basins import compute_chunk
+
+    killed = type("KilledWorker", (Exception,), {})
+
+    class Failing(cf.Executor):
+        def __init__(self, error):
+            self.error, self.calls = error, 0
+
+        def submit(self, fn, /, *args, **kwargs):  # type: ignore[override]
+            self.calls += 1
+            future: cf.Future = cf.Future()
+            if self.error is killed or self.calls % 3 == 1:  # every third task dropped
+                if self.error is killed:
+                    future.set_exception(killed("worker died"))
+                else:  # as Dask's executor does: cancelled, and its waiters told
+                    future.cancel()
+                    future.set_running_or_notify_cancel()
+            else:
+                future.set_result(fn(*args, **kwargs))
+            return future
+
+    plan = _plan(9)
+    result = run_basins(plan, plan.recognition, Failing(killed), watch=lambda: None)
+    assert (result.label == -3).all() and "killed Dask's workers" in result.messages[0]
+    reference = run_basins(plan, plan.recognition, InProcessExecutor())
+    dropping = Failing(cf.CancelledError)
+    again = run_basins(plan, plan.recognition, dropping, watch=lambda: None)
+    np.testing.assert_array_equal(again.label, reference.label)
+    assert dropping.calls > 2 and compute_chunk is not None

@@ -649,8 +649,9 @@ class _DroppingExecutor(cf.Executor):
         if self.good > 0:
             self.good -= 1
             future.set_result(fn(*args, **kwargs))
-        else:
+        else:  # as Dask's executor does: cancelled, and its waiters told
             future.cancel()
+            future.set_running_or_notify_cancel()
         return future
 
 

@@ -409,6 +409,12 @@ def run_basins(
                             lost.append(name)
                             raise
                         except Exception as exc:  # dropped by the executor, not a result
+                            if type(exc).__name__ == "KilledWorker":  # after Dask's retries
+                                why = f"the chunk killed Dask's workers: {exc}"
+                                chunk = failed_chunk(len(todo.pop(name).starts), why)
+                                found[name] = chunk
+                                finish(name, chunk, counted)
+                                continue
                             drops[name] = drops.get(name, 0) + 1
                             if drops[name] > MAX_RETRIES:
                                 raise ExecutorLostError(
