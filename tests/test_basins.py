@@ -368,3 +368,37 @@ def test_a_chunk_that_kills_dask_workers_is_failed_and_a_dropped_one_run_again()
     again = run_basins(plan, plan.recognition, dropping, watch=lambda: None)
     np.testing.assert_array_equal(again.label, reference.label)
     assert dropping.calls > 2 and compute_chunk is not None
+
+
+def test_an_interrupted_basin_sweep_counts_the_starts_it_keeps(tmp_path):
+    """SIGINT during a basin sweep: the message counts the starts in the stored chunks,
+    and the same command resumes them."""
+    import json
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    case = tmp_path / "case.toml"
+    case.write_text(BASIN_CASE)
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "rubcli", "sweep", str(case), "--out", str(out),
+               "--workers", "1"]  # fmt: skip
+    sweep = subprocess.Popen(command, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL,
+                             text=True)  # fmt: skip
+    deadline = time.monotonic() + 240
+    while time.monotonic() < deadline and sweep.poll() is None:
+        stores = list(tmp_path.glob(".out.sweep-*"))
+        if stores and len(list(stores[0].glob("chunk-*.chunk"))) >= 3:
+            break
+        time.sleep(0.05)
+    sweep.send_signal(signal.SIGINT)
+    _, stderr = sweep.communicate(timeout=120)
+    assert sweep.returncode == 130, stderr
+    kept = int(stderr.split("interrupted: ")[1].split(" of ")[0])
+    assert kept >= 2 * 64 and kept % 64 == 0 and "of 3721 points are kept" in stderr
+    resumed = subprocess.run([*command, "--json"], capture_output=True, text=True,
+                             timeout=600, check=False)  # fmt: skip
+    assert resumed.returncode == 0, resumed.stderr
+    report = json.loads((out / "report.json").read_text())
+    assert report["points_resumed"] >= kept

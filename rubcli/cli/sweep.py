@@ -181,9 +181,8 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
         engine.PointStore(store_dir, plan.digest()).remove()  # the outputs are in place
         raise
     except io.OutputWriteError as exc:
-        kept = len(list(store_dir.glob("*.point"))) if store_dir.is_dir() else 0
-        console.error(f"{exc}; the {kept} computed points are kept in {store_dir}: make room "
-                      "and run the same command again to write them")  # fmt: skip
+        console.error(f"{exc}; {_kept(store_dir, plan)}: make room and run the same command "
+                      "again to write them")  # fmt: skip
         raise typer.Exit(EXIT_WRITE) from None
     engine.PointStore(store_dir, plan.digest()).remove()
     report_stale(output)
@@ -207,7 +206,19 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
 
 
 def _kept(store_dir: Path, plan) -> str:
-    kept = len(list(store_dir.glob("*.point"))) if store_dir.is_dir() else 0
+    """How many finished points the store holds: one a ``.point`` file, or the starts of
+    each ``chunk-<c>.chunk`` of a basin grid with recognition."""
+    if not store_dir.is_dir():
+        kept = 0
+    elif plan.recognition is not None:
+        from rubcli.analysis.sweep.basins import chunk_size
+
+        n, size = plan.n_points, chunk_size(plan.n_points)
+        chunks = [p.name.removeprefix("chunk-").removesuffix(".chunk")
+                  for p in store_dir.glob("chunk-*.chunk")]  # fmt: skip
+        kept = sum(max(0, min(size, n - int(c) * size)) for c in chunks if c.isdigit())
+    else:
+        kept = len(list(store_dir.glob("*.point")))
     return f"{kept} of {plan.n_points} points are kept in {store_dir}"
 
 

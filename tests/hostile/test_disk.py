@@ -47,9 +47,7 @@ def test_a_sweep_whose_netcdf_does_not_fit_keeps_its_points(run_cli, case_file, 
                   preexec=fsize_limit(16000))  # fmt: skip
     assert run.code == 74, run.stderr
     assert "could not write the outputs" in run.stderr
-    assert "the 5 computed points are kept in" in run.stderr and "run the same command" in (
-        run.stderr
-    )
+    assert "5 of 5 points are kept in" in run.stderr and "run the same command" in (run.stderr)
     assert not out_dir.exists()  # made for the sweep, removed again: nothing half-written
     run = run_cli("sweep", case, "--out", out_dir, "--workers", "1")
     assert run.code == 0, run.stderr
