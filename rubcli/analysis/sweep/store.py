@@ -31,6 +31,7 @@ import json
 import os
 import shutil
 import stat
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -118,29 +119,35 @@ class PointStore:
     def load_blobs(self) -> dict[str, bytes]:
         """Every stored chunk that passes the check, by name (the others are listed in
         ``rejected`` and computed again)."""
-        out: dict[str, bytes] = {}
         self.rejected = []
+        return dict(self._verified(CHUNK_SUFFIX))
+
+    def _verified(self, suffix: str) -> Iterator[tuple[str, bytes]]:
+        """``(name, payload)`` of every ``*suffix`` file of the store that is a regular
+        file of at most MAX_POINT_BYTES whose checksum holds; the others go to
+        ``rejected``."""
         if not self.check():
-            return out
-        for path in sorted(self.directory.glob(f"*{CHUNK_SUFFIX}")):
+            return
+        for path in sorted(self.directory.glob(f"*{suffix}")):
             if path.name.startswith("."):
                 continue
-            name = path.name[: -len(CHUNK_SUFFIX)]
+            name = path.name[: -len(suffix)]
             try:
                 if not path.is_file() or path.is_symlink():
                     raise ValueError("not a regular file")
                 if path.stat().st_size > MAX_POINT_BYTES:
-                    raise ValueError("too large for a chunk")
+                    raise ValueError("too large for the store")
                 data = path.read_bytes()
-                mac, payload = data[:MAC_BYTES], data[MAC_BYTES + 1 :]
-                if data[MAC_BYTES : MAC_BYTES + 1] != b"\n" or not hmac.compare_digest(
-                    mac, _mac(self.digest, name, payload)
-                ):
-                    raise ValueError("checksum mismatch")
-                out[name] = payload
             except (OSError, ValueError):
                 self.rejected.append(path.name)
-        return out
+                continue
+            mac, payload = data[:MAC_BYTES], data[MAC_BYTES + 1 :]
+            if data[MAC_BYTES : MAC_BYTES + 1] != b"\n" or not hmac.compare_digest(
+                mac, _mac(self.digest, name, payload)
+            ):
+                self.rejected.append(path.name)  # edited, corrupted or not ours
+                continue
+            yield name, payload
 
     def save(self, key: str, result: PointResult) -> None:
         """Write one point atomically: a JSON header line, then the arrays' float64 bytes."""
@@ -168,23 +175,8 @@ class PointStore:
         others are listed in ``rejected`` and their points computed again)."""
         out: dict[str, PointResult] = {}
         self.rejected = []
-        if not self.check():
-            return out
-        for path in sorted(self.directory.glob(f"*{SUFFIX}")):
-            if path.name.startswith("."):
-                continue
-            key = path.name[: -len(SUFFIX)]
+        for key, payload in self._verified(SUFFIX):
             try:
-                if not path.is_file() or path.is_symlink():
-                    raise ValueError("not a regular file")
-                if path.stat().st_size > MAX_POINT_BYTES:
-                    raise ValueError("too large for a point")
-                data = path.read_bytes()
-                mac, payload = data[:MAC_BYTES], data[MAC_BYTES + 1 :]
-                if data[MAC_BYTES : MAC_BYTES + 1] != b"\n" or not hmac.compare_digest(
-                    mac, _mac(self.digest, key, payload)
-                ):
-                    raise ValueError("checksum mismatch")
                 head, _, body = payload.partition(b"\n")
                 meta = json.loads(head.decode())
                 if meta.get("digest") != self.digest or meta.get("format") != FORMAT:
@@ -205,8 +197,8 @@ class PointStore:
                     spectrum=spectrum.copy() if spectrum.size else None,
                     wall_time_s=float(meta.get("wall_time_s", 0.0)),
                 )
-            except (OSError, ValueError, KeyError, TypeError, UnicodeDecodeError):
-                self.rejected.append(path.name)  # that point is computed again
+            except (ValueError, KeyError, TypeError, UnicodeDecodeError):
+                self.rejected.append(f"{key}{SUFFIX}")  # that point is computed again
         return out
 
     def remove(self) -> None:
