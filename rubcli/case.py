@@ -461,6 +461,12 @@ class SweepSection(_Section):
                 "mixes a model parameter and an initial-state axis; sweep either model "
                 "parameters or the initial state (a basin grid), not both",
             )
+        if not all(initial) and "recognition" in self.model_fields_set:
+            raise PydanticCustomError(
+                "sweep_recognition",
+                "[sweep.recognition] is for a grid of start states (basins): a point of a "
+                "model-parameter sweep has attractors of its own; remove the table",
+            )
         if all(initial) and self.direction != "independent":
             raise PydanticCustomError(
                 "sweep_direction",

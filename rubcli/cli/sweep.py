@@ -194,7 +194,7 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
     )
     if stats.rejected:
         console.warning(
-            f"{stats.rejected} stored point file(s) in {store_dir} failed the store's check "
+            f"{stats.rejected} stored file(s) in {store_dir} failed the store's check "
             "(edited, corrupted or not written by this user): those points were computed again"
         )
     if plan.recognition is not None:

@@ -56,6 +56,12 @@ class Watch:
     every: int
     check: Callable[[np.ndarray], str | None]
 
+    def __post_init__(self) -> None:
+        if isinstance(self.every, bool) or not isinstance(self.every, int) or self.every < 1:
+            raise ValueError(f"Watch: every must be an integer >= 1 (got {self.every!r})")
+        if not callable(self.check):
+            raise TypeError(f"Watch: check must be callable (got {self.check!r})")
+
 
 WATCH: ContextVar[Watch | None] = ContextVar("rubcli_watch", default=None)  # solve(watch=)
 
@@ -250,10 +256,10 @@ def integrate(run: Run, stepper: Stepper) -> Solution:
     """The event loop: advance the stepper until the end, a failure or the budget (or
     until the ``Watch`` set by ``solve(watch=...)`` ends the run)."""
     watch = WATCH.get()
-    final, last = run.t_end, run.t_eval.size - 1
+    final = run.t_end
     seen = run.k  # samples shown to the watch so far
     if watch is not None:
-        run.t_end = float(run.t_eval[min(run.k - 1 + watch.every, last)])
+        run.t_end = _leg_end(run, watch.every)
     try:
         # a run that blows up is reported as a failed method, not by numpy warnings
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
@@ -268,13 +274,14 @@ def integrate(run: Run, stepper: Stepper) -> Solution:
                 if reason:
                     run.fail(reason)
                     break
-                if watch is not None and run.tau >= run.t_end and run.k > seen:
-                    stop = watch.check(run.states[seen : run.k])
-                    seen = run.k
-                    if stop is not None:
-                        run.message = stop
-                        break
-                    run.t_end = float(run.t_eval[min(run.k - 1 + watch.every, last)])
+                if watch is not None and run.tau >= run.t_end:
+                    if run.k > seen:
+                        stop = watch.check(run.states[seen : run.k])
+                        seen = run.k
+                        if stop is not None:
+                            run.message = stop
+                            break
+                    run.t_end = _leg_end(run, watch.every)
                 run.report_progress()
     except Exception as exc:  # noqa: BLE001 - a solver's exception is a failed method
         # e.g. arithmetic beyond the floating-point range (absurd parameters)
@@ -283,6 +290,14 @@ def integrate(run: Run, stepper: Stepper) -> Solution:
     if not run.failed and run.k == run.t_eval.size:
         run.report_progress(final=True)
     return run.solution(stepper.settings)
+
+
+def _leg_end(run: Run, every: int) -> float:
+    """The end of a watched run's next leg: ``every`` samples past the last one filled,
+    and past ``run.tau`` in any case (so that every leg moves the run on)."""
+    last = run.t_eval.size - 1
+    after = int(np.searchsorted(run.t_eval, run.tau, side="right"))
+    return float(run.t_eval[min(max(run.k - 1 + every, after), last)])
 
 
 def record_kernel_events(run: Run, n: int, taus, kinds, states, regimes) -> bool:

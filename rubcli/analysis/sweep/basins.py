@@ -28,6 +28,7 @@ import contextlib
 import io
 import math
 import time
+import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -350,8 +351,8 @@ def run_basins(
             return None
         try:
             return ChunkResult.from_bytes(data)
-        except (ValueError, KeyError, OSError):
-            result.chunks_rejected += 1
+        except (ValueError, KeyError, OSError, EOFError, zipfile.BadZipFile):
+            result.chunks_rejected += 1  # checked bytes of another layout: computed again
             return None
 
     def finish(name: str, chunk: ChunkResult, counted: bool) -> None:
