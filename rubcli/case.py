@@ -461,7 +461,9 @@ class SweepSection(_Section):
                 "mixes a model parameter and an initial-state axis; sweep either model "
                 "parameters or the initial state (a basin grid), not both",
             )
-        if not all(initial) and "recognition" in self.model_fields_set:
+        # (a table equal to the defaults is harmless: a case re-validated with overrides
+        # carries every field, so "given" cannot be told from "defaulted")
+        if not all(initial) and self.recognition != RecognitionSection():
             raise PydanticCustomError(
                 "sweep_recognition",
                 "[sweep.recognition] is for a grid of start states (basins): a point of a "

@@ -149,8 +149,16 @@ def test_recognised_labels_agree_with_integrating_every_start_to_its_budget():
     plan = _plan(15)
     result = run_basins(plan, plan.recognition, InProcessExecutor())
     assert len(result.attractors) == 2
-    # labelled by z, whatever was found first: the free whirl (0.40), then the rub (1.59)
-    assert [round(a["z_min"], 2) for a in result.attractors] == [0.40, 1.59]
+    # labelled by z, whatever was found first: the free whirl, then the synchronous rub,
+    # each at its closed-form radius (model notes, section 5; E = e eta^2)
+    p = MACHINE
+    big_e = p.e * p.eta**2
+    free = big_e / abs(1 - p.eta**2 + 2j * p.nu * p.eta)
+    a, b = 1 - p.eta**2 + p.K, 2 * p.nu * p.eta + p.mu * p.K
+    rub = max(np.roots([a * a + b * b, -2 * p.K * (a + p.mu * b),
+                        p.K**2 * (1 + p.mu**2) - big_e**2]).real)  # fmt: skip
+    radii = [(a_["z_min"], a_["z_max"]) for a_ in result.attractors]
+    assert np.allclose(radii, [(free, free), (rub, rub)], atol=1e-4)
     budget = plan.transient_periods + plan.record_periods
     assert result.periods.max() < budget and result.periods.mean() < budget / 4
     centres = np.array([[a["x_mean"], a["y_mean"]] for a in result.attractors])
