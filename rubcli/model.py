@@ -119,17 +119,17 @@ class ModelParams:
         return asdict(self)
 
 
+# The parameter record of the compiled cores: one float64 array (``params_vector``), read
+# by these names, never by position. A parameter of the machine is added here (and in
+# ``ModelParams`` and the case schema); the loops pass the record through unread.
+PARAMETER_RECORD = ("nu", "eta", "E", "phi0", "K", "mu", "Rp")
+P_NU, P_ETA, P_E, P_PHI0, P_K, P_MU, P_RP = range(len(PARAMETER_RECORD))
+N_PARAMS = len(PARAMETER_RECORD)
+
+
 def params_vector(params: ModelParams) -> tuple[float, ...]:
-    """(nu, eta, E, phi0, K, mu, Rp): the parameters in the order the cores take them."""
-    return (
-        float(params.nu),
-        float(params.eta),
-        float(params.E),
-        float(params.phi0),
-        float(params.K),
-        float(params.mu),
-        float(params.Rp),
-    )
+    """The parameters as the cores take them, in the order of ``PARAMETER_RECORD``."""
+    return tuple(float(getattr(params, name)) for name in PARAMETER_RECORD)
 
 
 def friction_sign(regime: int) -> float:
@@ -380,6 +380,23 @@ def rhs_jacobian_array(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu, Rp, regime):
         jac[3, 0] -= K * j10
         jac[3, 1] -= K * j11
     return jac
+
+
+def rhs_record(tau, x, y, vx, vy, pars, regime):
+    """``rhs_entries`` with the parameters from a record (``params_vector``). Compilable
+    core."""
+    return rhs_entries(
+        tau, x, y, vx, vy, pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0], pars[P_K],
+        pars[P_MU], pars[P_RP], regime,
+    )  # fmt: skip
+
+
+def rhs_jacobian_record(tau, x, y, vx, vy, pars, regime):
+    """``rhs_jacobian_array`` with the parameters from a record. Compilable core."""
+    return rhs_jacobian_array(
+        tau, x, y, vx, vy, pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0], pars[P_K],
+        pars[P_MU], pars[P_RP], regime,
+    )  # fmt: skip
 
 
 def _rhs_args(tau, s, params: ModelParams, regime: int):

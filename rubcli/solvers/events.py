@@ -20,6 +20,7 @@ from collections.abc import Callable
 import numpy as np
 
 from rubcli import model
+from rubcli.model import P_E, P_ETA, P_K, P_MU, P_NU, P_PHI0, P_RP
 from rubcli.solution import KIND_NAMES, SwitchEvent
 
 # A free orbit whose largest penetration stays below this many clearances is taken as
@@ -187,8 +188,10 @@ def stick_margin(t, x, y, vx, vy, pars, sign):
     """sign T - mu K (z - 1) (1 + STICK_EXIT_MARGIN): stick ends on side ``sign`` where
     this rises through 0 (the needed friction leaves the friction cone); scalars or
     arrays (compilable core)."""
-    T = model.stick_friction_value(t, x, y, vx, vy, pars[0], pars[1], pars[2], pars[3])
-    limit = pars[5] * pars[4] * (np.hypot(x, y) - 1.0)
+    T = model.stick_friction_value(
+        t, x, y, vx, vy, pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0]
+    )
+    limit = pars[P_MU] * pars[P_K] * (np.hypot(x, y) - 1.0)
     return sign * T - limit * (1.0 + model.STICK_EXIT_MARGIN)
 
 
@@ -273,7 +276,7 @@ def event_search(ev, fill=None, compile=None, compile_inline=None):
             return sign * (x**2 + y**2 - 1.0)
         if deriv:
             return -sign * model.slip_velocity_rate(x, y, vx, vy, drow[2], drow[3])
-        return -sign * model.slip_velocity_value(x, y, vx, vy, pars[6] * pars[1])
+        return -sign * model.slip_velocity_value(x, y, vx, vy, pars[P_RP] * pars[P_ETA])
 
     def event_values(ctx, t, fn, sign, pars, d, row, drow):
         """``event_value`` and its rate at t from one evaluation of the segment (three
@@ -288,7 +291,7 @@ def event_search(ev, fill=None, compile=None, compile_inline=None):
         if fn == FN_SURFACE:
             return sign * (x**2 + y**2 - 1.0), sign * (2.0 * (x * vx + y * vy))
         return (
-            -sign * model.slip_velocity_value(x, y, vx, vy, pars[6] * pars[1]),
+            -sign * model.slip_velocity_value(x, y, vx, vy, pars[P_RP] * pars[P_ETA]),
             -sign * model.slip_velocity_rate(x, y, vx, vy, drow[2], drow[3]),
         )
 
@@ -489,9 +492,9 @@ def event_search(ev, fill=None, compile=None, compile_inline=None):
         )  # fmt: skip
         if not math.isnan(t):
             best, kind = t, EXIT
-        if pars[5] > 0.0 and regime != model.STICK:
+        if pars[P_MU] > 0.0 and regime != model.STICK:
             sign = float(regime)
-            level = band * (1.0 + abs(pars[6] * pars[1]))
+            level = band * (1.0 + abs(pars[P_RP] * pars[P_ETA]))
             fill(ctx, slip, sign, grid, n, pars, d, row, drow, hv, hd)
             t = crossing(
                 ctx, slip, sign, grid, hv, hd, n, starts[1], 0.0, level, starts[2], pars,

@@ -18,6 +18,9 @@ import math
 import numpy as np
 
 from rubcli.model import (
+    P_ETA,
+    P_MU,
+    P_RP,
     friction_sign,
 )
 from rubcli.solvers.compiled.jit import (
@@ -141,7 +144,7 @@ def _fill_samples(polar, tau, tb, pars, ws, t_eval, out_states, k, work):
 @jit
 def _event_args(regime, pars, starts):
     """(sign, check_slip, spin, starts) of a slip regime, for ``_check_step``."""
-    eta, mu, Rp = pars[1], pars[5], pars[6]
+    eta, mu, Rp = pars[P_ETA], pars[P_MU], pars[P_RP]
     return float(regime), mu > 0.0, Rp * eta, starts
 
 
@@ -175,7 +178,7 @@ def advance_contact(
     Returns ``(tau, state, k, steps, reason)`` (reason: a ``STOP_*`` code); the step
     from ``(tau, state)`` has not been taken.
     """
-    eta, mu, Rp = pars[1], pars[5], pars[6]
+    eta, mu, Rp = pars[P_ETA], pars[P_MU], pars[P_RP]
     mu_c = mu * friction_sign(regime)
     check_slip = mu > 0.0
     sign = float(regime)
@@ -274,7 +277,7 @@ def advance_contact_adaptive(
     ``STOP_PYTHON``, else ``STOP_LIMIT``.
     """
     tol, safety, min_factor, max_factor, h_max, min_step = control
-    mu_c = pars[5] * friction_sign(regime)
+    mu_c = pars[P_MU] * friction_sign(regime)
     first_args = _event_args(regime, pars, starts)
     later_args = _event_args(regime, pars, (False, False, False))
     s = state.copy()

@@ -7,6 +7,8 @@ import math
 import numpy as np
 
 from rubcli.model import (
+    P_ETA,
+    P_RP,
     rolling_velocity,
 )
 from rubcli.solvers.compiled.dop853 import (
@@ -148,7 +150,9 @@ def advance_dop853(
         while k < n_out and t_eval[k] <= t_stop:
             _dop853_dense_at(t_eval[k], tau, h, y, F, row)
             if regime == STICK_REGIME:  # samples in stick are reported projected
-                row[2], row[3] = rolling_velocity(row[0], row[1], row[2], row[3], pars[6] * pars[1])
+                row[2], row[3] = rolling_velocity(
+                    row[0], row[1], row[2], row[3], pars[P_RP] * pars[P_ETA]
+                )
             for i in range(4):
                 out_states[k, i] = row[i]
             out_regimes[k] = regime

@@ -25,6 +25,8 @@ COMPILABLE_CORES = (
     model.rolling_velocity,
     model.rhs_entries,
     model.rhs_jacobian_array,
+    model.rhs_record,
+    model.rhs_jacobian_record,
     model.slip_velocity_rate,
     model.polar_entries,
     model.cartesian_entries,

@@ -24,7 +24,17 @@ import math
 
 from numba.extending import register_jitable
 
-from rubcli.model import STICK, free_flight_value, free_steady_value, rhs_entries
+from rubcli.model import (
+    P_E,
+    P_ETA,
+    P_K,
+    P_NU,
+    P_PHI0,
+    STICK,
+    free_flight_value,
+    free_steady_value,
+    rhs_record,
+)
 from rubcli.solvers.compiled.jit import jit
 from rubcli.solvers.compiled.propagators import _evaluate
 
@@ -32,14 +42,14 @@ from rubcli.solvers.compiled.propagators import _evaluate
 @jit
 def free_omega_max(pars):
     """``analytic.FreeFlight.omega_max``: max(eta, sqrt|1 - nu^2|, 1)."""
-    nu, eta = pars[0], pars[1]
+    nu, eta = pars[P_NU], pars[P_ETA]
     return max(eta, math.sqrt(abs(1.0 - nu * nu)), 1.0)
 
 
 @jit
 def _free_prepare(tau0, s0, pars, ff):
     """The free flight from (tau0, s0): ff = (tau0, Re d0, Im d0, Re dv0, Im dv0)."""
-    wp0, vp0 = free_steady_value(tau0, pars[0], pars[1], pars[2], pars[3])
+    wp0, vp0 = free_steady_value(tau0, pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0])
     d0 = complex(s0[0], s0[1]) - wp0
     dv0 = complex(s0[2], s0[3]) - vp0
     ff[0] = tau0
@@ -54,7 +64,7 @@ def _free_at(t, ff, pars, row):
     """``model.free_flight`` at a scalar time t, into row."""
     d0 = complex(ff[1], ff[2])
     dv0 = complex(ff[3], ff[4])
-    w, v = free_flight_value(t, ff[0], d0, dv0, pars[0], pars[1], pars[2], pars[3])
+    w, v = free_flight_value(t, ff[0], d0, dv0, pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0])
     row[0] = w.real
     row[1] = w.imag
     row[2] = v.real
@@ -67,7 +77,7 @@ def free_ev(t, deriv, ctx, row, drow):
     ff, pars = ctx
     _free_at(t, ff, pars, row)
     if deriv:
-        nu, eta, E, phi0 = pars[0], pars[1], pars[2], pars[3]
+        nu, eta, E, phi0 = pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0]
         phase = eta * t + phi0
         drow[0] = row[2]
         drow[1] = row[3]
@@ -77,15 +87,13 @@ def free_ev(t, deriv, ctx, row, drow):
 
 @register_jitable
 def _stick_f(t, x, y, vx, vy, pars):
-    return rhs_entries(
-        t, x, y, vx, vy, pars[0], pars[1], pars[2], pars[3], pars[4], pars[5], pars[6], STICK
-    )
+    return rhs_record(t, x, y, vx, vy, pars, STICK)
 
 
 @register_jitable
 def stick_omega_max(pars):
     """``analytic.StickStep.omega_max``: max(eta, 1, sqrt(1 + K))."""
-    return max(pars[1], 1.0, math.sqrt(1.0 + pars[4]))
+    return max(pars[P_ETA], 1.0, math.sqrt(1.0 + pars[P_K]))
 
 
 @register_jitable

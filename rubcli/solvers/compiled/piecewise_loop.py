@@ -32,6 +32,13 @@ import numpy as np
 
 from rubcli.model import (
     FREE,
+    P_E,
+    P_ETA,
+    P_K,
+    P_MU,
+    P_NU,
+    P_PHI0,
+    P_RP,
     STICK,
     STICK_EXIT_MARGIN,
     friction_sign,
@@ -115,8 +122,8 @@ def advance_piecewise(
     free_frac, contact_frac, first_chunk, free_chunk = fractions
     capacity = ev_tau.shape[0]
     n_out = t_eval.shape[0]
-    spin = pars[6] * pars[1]
-    check_slip = pars[5] > 0.0
+    spin = pars[P_RP] * pars[P_ETA]
+    check_slip = pars[P_MU] > 0.0
     ws = _workspace()
     st = np.empty((4, 4))
     meta = np.empty(2)
@@ -225,7 +232,7 @@ def advance_piecewise(
             stick_at(t_ev, st, meta, row)
         else:  # slip: one linearised contact step
             tb = min(t_end, tau + h)
-            mu_c = pars[5] * friction_sign(regime)
+            mu_c = pars[P_MU] * friction_sign(regime)
             cond, omega = _prepare(polar, tau, state, pars, mu_c, ws, run_time(warm))
             # Python uses the eigenbasis while cond2(V) <= cond_limit, and cond2 <= 4
             # cond1: proceed only where Python surely uses it too (advance_contact)
@@ -297,8 +304,8 @@ def _stick_may_have_event(grid, n, st, meta, pars, S, W, hv, hd, row, on_surface
     """
     if _surface_may_cross(grid, S, n, -1.0, 1.0, hv, hd, on_surface):
         return True
-    nu, eta, E, phi0 = pars[0], pars[1], pars[2], pars[3]
-    cone = pars[5] * pars[4] * (1.0 + STICK_EXIT_MARGIN)
+    nu, eta, E, phi0 = pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0]
+    cone = pars[P_MU] * pars[P_K] * (1.0 + STICK_EXIT_MARGIN)
     d = 1e-6 * max(1.0, grid[n] - grid[0])
     for i in range(n + 1):
         t = grid[i]

@@ -14,6 +14,11 @@ import math
 import numpy as np
 
 from rubcli.model import (
+    P_E,
+    P_ETA,
+    P_K,
+    P_NU,
+    P_PHI0,
     cartesian_entries,
     linearised_contact_arrays,
     polar_entries,
@@ -125,7 +130,7 @@ def _prepare_polar(tau0, s0, pars, mu_c, ws, warm):
     eigen-coefficients of f0 and f_tau.
     """
     lam, _, _, coef, _, real, M, _, _, _, _, _, _, _, _, Vinv = ws
-    nu, eta, E, phi0, K = pars[0], pars[1], pars[2], pars[3], pars[4]
+    nu, eta, E, phi0, K = pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0], pars[P_K]
     r, theta, u, omega = polar_entries(s0[0], s0[1], s0[2], s0[3])
     f0 = polar_rhs_entries(tau0, r, theta, u, omega, nu, eta, E, phi0, K, mu_c)
     J, f_tau = polar_jacobian_arrays(tau0, r, theta, u, omega, nu, eta, E, phi0, K, mu_c)
@@ -196,7 +201,7 @@ def _prepare_cartesian(tau0, s0, pars, mu_c, ws, warm):
     c of d0, ``coef[1]`` the harmonic amplitude S_hat.
     """
     lam, _, LU, coef, piv, real, M, _, _, _, _, _, x, _, _, Vinv = ws
-    nu, eta, E, phi0, K = pars[0], pars[1], pars[2], pars[3], pars[4]
+    nu, eta, E, phi0, K = pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0], pars[P_K]
     A, b = linearised_contact_arrays(s0[0], s0[1], K, nu, mu_c)
     M[:, :] = A
     for i in range(4):
@@ -239,7 +244,7 @@ def _prepare_cartesian(tau0, s0, pars, mu_c, ws, warm):
 def _evaluate_cartesian(dt, tau, pars, ws, out, dout):
     """LinearisedContact.states and .derivatives at tau = tau0 + dt."""
     lam, V, _, coef, _, real, M, _, _, _, _, _, e, _, _, _ = ws
-    eta, E, phi0 = pars[1], pars[2], pars[3]
+    eta, E, phi0 = pars[P_ETA], pars[P_E], pars[P_PHI0]
     phase = eta * tau + phi0
     rot = cmath.exp(1j * phase)
     for j in range(4):

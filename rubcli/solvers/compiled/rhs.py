@@ -6,10 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rubcli.model import (
-    rhs_entries,
-    rhs_jacobian_array,
-)
+from rubcli.model import rhs_jacobian_record, rhs_record
 from rubcli.solvers.compiled.jit import (
     jit,
 )
@@ -17,8 +14,7 @@ from rubcli.solvers.compiled.jit import (
 
 @jit
 def _rhs_into(t, y, pars, regime, out):
-    nu, eta, E, phi0, K, mu, Rp = pars[0], pars[1], pars[2], pars[3], pars[4], pars[5], pars[6]
-    vx, vy, ax, ay = rhs_entries(t, y[0], y[1], y[2], y[3], nu, eta, E, phi0, K, mu, Rp, regime)
+    vx, vy, ax, ay = rhs_record(t, y[0], y[1], y[2], y[3], pars, regime)
     out[0], out[1], out[2], out[3] = vx, vy, ax, ay
 
 
@@ -42,5 +38,4 @@ def rhs_columns(t, S, pars, regime):
 @jit
 def rhs_jacobian(t, s, pars, regime):
     """``model.rhs_jacobian`` compiled."""
-    nu, eta, E, phi0, K, mu, Rp = pars[0], pars[1], pars[2], pars[3], pars[4], pars[5], pars[6]
-    return rhs_jacobian_array(t, s[0], s[1], s[2], s[3], nu, eta, E, phi0, K, mu, Rp, regime)
+    return rhs_jacobian_record(t, s[0], s[1], s[2], s[3], pars, regime)

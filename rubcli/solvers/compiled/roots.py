@@ -9,7 +9,7 @@ run too), and the application of an event (``events.switch_regime``).
 from __future__ import annotations
 
 from rubcli import model
-from rubcli.model import rolling_velocity
+from rubcli.model import P_E, P_ETA, P_K, P_MU, P_NU, P_PHI0, P_RP, rolling_velocity
 from rubcli.solvers.compiled.dop853 import DOP_SCAN_POINTS, _dop853_dense_at
 from rubcli.solvers.compiled.jit import jit
 from rubcli.solvers.compiled.precheck import (
@@ -49,13 +49,13 @@ def _dop853_may_have_event(t_old, h, y_old, F, pars, regime, grid, S, dS, hv, hd
         return True
     if regime == STICK_REGIME:
         return _stick_may_exit(grid, S, n, t_old, h, y_old, F, pars, hv, hd, row)
-    if regime == FREE_REGIME or pars[5] == 0.0:
+    if regime == FREE_REGIME or pars[P_MU] == 0.0:
         return False
     for k in range(n + 1):
         _rhs_into(grid[k], S[k], pars, regime, row)
         for i in range(4):
             dS[k, i] = row[i]
-    spin = pars[6] * pars[1]
+    spin = pars[P_RP] * pars[P_ETA]
     return _slip_may_cross(grid, S, dS, n, float(regime), spin, 1.0, hv, hd, starts)
 
 
@@ -111,10 +111,10 @@ def _apply_event(kind, t, s, regime, pars):
     is projected onto the rolling constraint in place when stick begins or ends."""
     new, recorded, project = switch_regime(
         kind, t, s[0], s[1], s[2], s[3], regime,
-        pars[0], pars[1], pars[2], pars[3], pars[4], pars[5], pars[6],
+        pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0], pars[P_K], pars[P_MU], pars[P_RP],
     )  # fmt: skip
     if project:
-        s[2], s[3] = rolling_velocity(s[0], s[1], s[2], s[3], pars[6] * pars[1])
+        s[2], s[3] = rolling_velocity(s[0], s[1], s[2], s[3], pars[P_RP] * pars[P_ETA])
     return new, recorded
 
 

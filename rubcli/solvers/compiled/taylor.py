@@ -87,7 +87,20 @@ import math
 
 import numpy as np
 
-from rubcli.model import rhs_entries, rolling_velocity, slip_velocity_rate, slip_velocity_value
+from rubcli.model import (
+    N_PARAMS,
+    P_E,
+    P_ETA,
+    P_K,
+    P_MU,
+    P_NU,
+    P_PHI0,
+    P_RP,
+    rhs_entries,
+    rolling_velocity,
+    slip_velocity_rate,
+    slip_velocity_value,
+)
 from rubcli.solvers.compiled.jit import (
     STOP_END,
     STOP_EVENT,
@@ -186,7 +199,7 @@ def taylor_coefficients(t0, s, pars, regime, order, C, W):
     loop, ``advance_taylor``, calls the free and slip series itself: see there.)"""
     for i in range(4):
         C[i, 0] = s[i]
-    fr, fi = _forcing(pars[1], pars[3], t0)
+    fr, fi = _forcing(pars[P_ETA], pars[P_PHI0], t0)
     if regime == STICK_REGIME:
         _stick_coefficients(fr, fi, pars, order, C, W)
         _inverse_radius_terms(C[0], C[1], W[0], W[2], order)
@@ -206,7 +219,7 @@ def taylor_coefficients(t0, s, pars, regime, order, C, W):
 def _free_coefficients(fr, fi, pars, order, C, W):
     """``taylor_coefficients`` in free flight, with the series of q = x^2 + y^2 (W[0],
     for the pre-check)."""
-    nu2, eta, E = 2.0 * pars[0], pars[1], pars[2]
+    nu2, eta, E = 2.0 * pars[P_NU], pars[P_ETA], pars[P_E]
     M = MAX_ORDER
     x0, y0 = C[0, 0], C[1, 0]
     W[23, M], W[24, M] = x0, y0
@@ -244,8 +257,8 @@ def _slip_coefficients(fr, fi, pars, sign, order, C, W):
     need P up to order N - 1; z_N and P_N are for the slip pre-check alone, so without
     friction they are left out (the top order is the costliest: 6-7 % of the series at
     N = 13 and 18)."""
-    nu2, eta, E, K = 2.0 * pars[0], pars[1], pars[2], pars[4]
-    mu_c = pars[5] * sign
+    nu2, eta, E, K = 2.0 * pars[P_NU], pars[P_ETA], pars[P_E], pars[P_K]
+    mu_c = pars[P_MU] * sign
     M = MAX_ORDER
     x0, y0 = C[0, 0], C[1, 0]
     W[23, M], W[24, M] = x0, y0
@@ -317,7 +330,7 @@ def _stick_coefficients(fr, fi, pars, order, C, W):
     """``taylor_coefficients`` in stick: the rolling law of ``model.rhs_entries`` (the
     velocity projected onto r theta' = -Rp eta, the needed friction T on it, the normal
     force K (z - 1) / z and the tangential force T / z), term by term."""
-    nu, eta, E, K, Rp = pars[0], pars[1], pars[2], pars[4], pars[6]
+    nu, eta, E, K, Rp = pars[P_NU], pars[P_ETA], pars[P_E], pars[P_K], pars[P_RP]
     x, y, vx, vy = C[0], C[1], C[2], C[3]
     q, u, fac, fc, fs = W[0], W[2], W[3], W[4], W[5]
     d, rad, a1, a2, vxp, vyp = W[8], W[9], W[10], W[11], W[12], W[13]
@@ -580,7 +593,7 @@ def _may_have_event(C, order, h, regime, pars, W, eps):
     surface's series (and the slip's) stays below zero by a margin (``_stays_below``)."""
     if _surface_may_cross(C, order, h, regime, W):
         return True
-    if regime == FREE_REGIME or pars[5] == 0.0:
+    if regime == FREE_REGIME or pars[P_MU] == 0.0:
         return False
     H = W[10]
     # v_r = Rp eta + P_x vy - P_y vx, P = w / z (W[4], W[5]): its series; the margin
@@ -591,7 +604,7 @@ def _may_have_event(C, order, h, regime, pars, W, eps):
     sign = float(regime)
     for k in range(order + 1):
         H[k] = -sign * (_cauchy(px, vy, k) - _cauchy(py, vx, k))
-    spin = pars[6] * pars[1]
+    spin = pars[P_RP] * pars[P_ETA]
     H[0] -= sign * spin
     scale = 1.0 + abs(spin) + abs(H[0])
     margin = PRECHECK_MARGIN * scale + 100.0 * eps * scale
@@ -650,7 +663,7 @@ def _slip_clear(C, order, h, regime, pars):
     whirl = x * vy - y * vx
     dp = abs(x) * d3 + abs(vy) * d0 + d0 * d3 + abs(y) * d2 + abs(vx) * d1 + d1 * d2
     spread = dp / (z - dz) + abs(whirl) * dz / (z * (z - dz))
-    spin = pars[6] * pars[1]
+    spin = pars[P_RP] * pars[P_ETA]
     v_r = spin + whirl / z
     scale = 1.0 + abs(spin) + abs(v_r) + spread
     return float(regime) * v_r - spread > PRECHECK_MARGIN * scale
@@ -665,7 +678,7 @@ def step_clear(C, order, h, regime, pars, W, starts):
     taking the step's arrays reference-counts each of them (atomic operations) on every
     step."""
     clear = not (regime == STICK_REGIME or starts[0] or starts[1])
-    if clear and regime != FREE_REGIME and pars[5] > 0.0:
+    if clear and regime != FREE_REGIME and pars[P_MU] > 0.0:
         clear = _slip_clear(C, order, h, regime, pars)
     if clear:
         clear = _surface_clear_quick(C, order, h, regime, W)
@@ -681,7 +694,7 @@ def step_events(C, order, h, regime, pars, W, eps, starts, band):
     every other by ``_may_have_event``, its slip part first by the O(N) ``_slip_clear``."""
     if regime == STICK_REGIME or starts[1]:
         return SCAN_ALL
-    slip = regime != FREE_REGIME and pars[5] > 0.0
+    slip = regime != FREE_REGIME and pars[P_MU] > 0.0
     slip_clear = (not slip) or _slip_clear(C, order, h, regime, pars)
     if starts[0]:
         surface = _surface_start_may_cross(C, order, h, regime, W, SURFACE_BAND * band)
@@ -696,12 +709,12 @@ def step_events(C, order, h, regime, pars, W, eps, starts, band):
 @jit
 def scan_points(h, regime, pars, s):
     """Intervals of the event scan of a step of length h (module docstring)."""
-    eta = pars[1]
+    eta = pars[P_ETA]
     omega = 1.0 + abs(eta)
     if regime != FREE_REGIME:
         r2 = s[0] * s[0] + s[1] * s[1]
         theta_dot = abs(s[0] * s[3] - s[1] * s[2]) / r2 if r2 > 0.0 else 0.0
-        omega += math.sqrt(1.0 + pars[4]) + theta_dot
+        omega += math.sqrt(1.0 + pars[P_K]) + theta_dot
     n = int(math.ceil(SCAN_PER_PERIOD * h * omega / (2.0 * math.pi)))
     return min(MAX_SCAN, max(MIN_SCAN, n))
 
@@ -710,20 +723,20 @@ def scan_points(h, regime, pars, s):
 
 
 CTX_T0, CTX_ORDER, CTX_REGIME, CTX_PARS = 0, 1, 2, 3  # the flat segment (_taylor_ev)
-CTX_COEFFICIENTS = CTX_PARS + 7  # C[i, k] at CTX_COEFFICIENTS + 4 k + i
+CTX_COEFFICIENTS = CTX_PARS + N_PARAMS  # C[i, k] at CTX_COEFFICIENTS + 4 k + i
 CTX_SIZE = CTX_COEFFICIENTS + 4 * (MAX_ORDER + 1)
 
 
 @jit
 def fill_context(ctx, t0, C, order, pars, regime):
     """The step's polynomial as ``events.locate``'s segment: one flat float64 array
-    (t0, order, regime, the 7 parameters, C by orders), so that the search passes one
+    (t0, order, regime, the parameter record, C by orders), so that the search passes one
     array through its calls instead of a tuple holding two (fewer reference counts: a
     located step costs about 2/3 of the time)."""
     ctx[CTX_T0] = t0
     ctx[CTX_ORDER] = order
     ctx[CTX_REGIME] = regime
-    for i in range(7):
+    for i in range(N_PARAMS):
         ctx[CTX_PARS + i] = pars[i]
     for k in range(order + 1):
         base = CTX_COEFFICIENTS + 4 * k
@@ -750,8 +763,8 @@ def _taylor_ev(t, deriv, ctx, row, drow):
     if deriv:
         p = CTX_PARS
         vx, vy, ax, ay = rhs_entries(
-            t, v0, v1, v2, v3, ctx[p], ctx[p + 1], ctx[p + 2], ctx[p + 3], ctx[p + 4],
-            ctx[p + 5], ctx[p + 6], int(ctx[CTX_REGIME]),
+            t, v0, v1, v2, v3, ctx[p + P_NU], ctx[p + P_ETA], ctx[p + P_E], ctx[p + P_PHI0],
+            ctx[p + P_K], ctx[p + P_MU], ctx[p + P_RP], int(ctx[CTX_REGIME]),
         )  # fmt: skip
         drow[0], drow[1], drow[2], drow[3] = vx, vy, ax, ay
 
@@ -766,7 +779,7 @@ def _taylor_fill(ctx, fn, sign, grid, n, pars, d, row, drow, hv, hd):
     t0 = ctx[CTX_T0]
     p = CTX_PARS
     regime = int(ctx[CTX_REGIME])
-    spin = pars[6] * pars[1]
+    spin = pars[P_RP] * pars[P_ETA]
     for i in range(n + 1):
         t = grid[i]
         if fn == FN_STICK:
@@ -792,8 +805,8 @@ def _taylor_fill(ctx, fn, sign, grid, n, pars, d, row, drow, hv, hd):
             hd[i] = sign * (2.0 * (x * vx + y * vy))
         else:  # FN_SLIP (FN_GIVEN is no taylor segment's)
             _, _, ax, ay = rhs_entries(
-                t, x, y, vx, vy, ctx[p], ctx[p + 1], ctx[p + 2], ctx[p + 3], ctx[p + 4],
-                ctx[p + 5], ctx[p + 6], regime,
+                t, x, y, vx, vy, ctx[p + P_NU], ctx[p + P_ETA], ctx[p + P_E], ctx[p + P_PHI0],
+                ctx[p + P_K], ctx[p + P_MU], ctx[p + P_RP], regime,
             )  # fmt: skip
             hv[i] = -sign * slip_velocity_value(x, y, vx, vy, spin)
             hd[i] = -sign * slip_velocity_rate(x, y, vx, vy, ax, ay)
@@ -873,7 +886,7 @@ def advance_taylor(
         else:
             for i in range(4):
                 C[i, 0] = y[i]
-            fr, fi = _forcing(pars[1], pars[3], tau)
+            fr, fi = _forcing(pars[P_ETA], pars[P_PHI0], tau)
             if regime == FREE_REGIME:
                 _free_coefficients(fr, fi, pars, order, C, W)
             else:
@@ -911,7 +924,9 @@ def advance_taylor(
         while k < n_out and t_eval[k] <= t_stop:
             dense_at(t_eval[k], tau, C, order, row)
             if regime == STICK_REGIME:
-                row[2], row[3] = rolling_velocity(row[0], row[1], row[2], row[3], pars[6] * pars[1])
+                row[2], row[3] = rolling_velocity(
+                    row[0], row[1], row[2], row[3], pars[P_RP] * pars[P_ETA]
+                )
             for i in range(4):
                 out_states[k, i] = row[i]
             out_regimes[k] = regime
