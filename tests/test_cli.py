@@ -355,7 +355,7 @@ def test_solver_failure_exits_1_and_still_writes(tmp_path):
 
 
 def test_solver_exception_is_reported_not_swallowed(tmp_path, monkeypatch):
-    def broken(problem, **options):
+    def broken(problem, options):
         raise RuntimeError("solver exploded")
 
     monkeypatch.setitem(solvers.METHODS, "dop853", broken)

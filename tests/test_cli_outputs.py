@@ -233,7 +233,7 @@ def test_stress_exits_1_when_a_solver_raises(tmp_path, monkeypatch):
     """A solver that raises is a bug the suite reports: status 'error', exit 1, and the
     table is still written."""
 
-    def broken(problem, **options):
+    def broken(problem, options):
         raise RuntimeError("solver exploded")
 
     monkeypatch.setitem(solvers.METHODS, "dop853-jit", broken)

@@ -82,9 +82,9 @@ def count_solves(monkeypatch):
     calls = []
     original = solvers.METHODS["rk45"]
 
-    def counting(problem, **options):
+    def counting(problem, options):
         calls.append(problem)
-        return original(problem, **options)
+        return original(problem, options)
 
     monkeypatch.setitem(solvers.METHODS, "rk45", counting)
     return calls

@@ -1,8 +1,9 @@
 """Solvers: ``solve(problem, method, **options)`` for every method of the registry.
 
-The methods are described as data in ``registry.py`` (name, knob, options, order,
-capabilities); each family's module registers its solver function against those names
-with ``register``. The families are imported on first use of ``solve`` or ``METHODS``,
+The methods are described as data in ``registry.py`` (name, family, knob, typed options,
+order); each family's module registers its solver functions, ``fn(problem, options)``
+with the method's typed options, against those names with ``register``. A family is
+imported when one of its methods first runs (every family on first use of ``METHODS``),
 so that ``rubcli.solvers.registry`` (used by the case schema) stays light.
 """
 
@@ -15,17 +16,16 @@ from typing import Any
 
 from rubcli.problem import Problem
 from rubcli.solution import Solution
-from rubcli.solvers.registry import SPECS, check_options, options_for  # noqa: F401
-
-SolverFn = Callable[..., Solution]
-_METHODS: dict[str, SolverFn] = {}
-# The modules that register the methods' solver functions.
-_FAMILIES = (
-    "rubcli.solvers.analytic",
-    "rubcli.solvers.scipy_ivp",
-    "rubcli.solvers.dop853_jit",
-    "rubcli.solvers.taylor",
+from rubcli.solvers.registry import (  # noqa: F401
+    FAMILY_MODULES,
+    SPECS,
+    Options,
+    method_options,
+    options_for,
 )
+
+SolverFn = Callable[[Problem, Options], Solution]
+_METHODS: dict[str, SolverFn] = {}
 
 
 def register(name: str) -> Callable[[SolverFn], SolverFn]:
@@ -40,9 +40,11 @@ def register(name: str) -> Callable[[SolverFn], SolverFn]:
     return deco
 
 
-def _methods() -> dict[str, SolverFn]:
-    for module in _FAMILIES:  # (imported once; a no-op afterwards)
-        importlib.import_module(module)
+def _methods(family: str | None = None) -> dict[str, SolverFn]:
+    """The registered solver functions, after importing the modules of ``family`` (every
+    family if None; imported once, a no-op afterwards)."""
+    for name in FAMILY_MODULES if family is None else (family,):
+        importlib.import_module(FAMILY_MODULES[name])
     return _METHODS
 
 
@@ -76,13 +78,13 @@ def solve(problem: Problem, method: str, *, watch=None, **options) -> Solution:
             f"solve(): method must be a method name (a str), got {type(method).__name__}; "
             f"choose from {', '.join(SPECS)}"
         )
-    methods = _methods()
-    if method not in methods:
-        raise ValueError(f"solve(): unknown method {method!r}; choose from {', '.join(methods)}")
-    check_options(method, options)
+    if method not in SPECS:
+        raise ValueError(f"solve(): unknown method {method!r}; choose from {', '.join(SPECS)}")
+    typed = method_options(method, options)
+    methods = _methods(SPECS[method].family)
     start = time.perf_counter()
     if watch is None:
-        solution = methods[method](problem, **options)
+        solution = methods[method](problem, typed)
     else:
         from rubcli.solvers.driver import WATCH, Watch
 
@@ -90,7 +92,7 @@ def solve(problem: Problem, method: str, *, watch=None, **options) -> Solution:
             raise TypeError(f"solve(): watch must be a rubcli.solvers.driver.Watch, got {watch!r}")
         token = WATCH.set(watch)
         try:
-            solution = methods[method](problem, **options)
+            solution = methods[method](problem, typed)
         finally:
             WATCH.reset(token)
     solution.wall_time_s = time.perf_counter() - start

@@ -56,6 +56,7 @@ from rubcli.solvers.events import (
     scan_spacing,
     start_flags,
 )
+from rubcli.solvers.registry import StepOptions
 
 
 def _expm(M: np.ndarray) -> np.ndarray:
@@ -523,15 +524,7 @@ class PiecewiseStepper:
 
 
 def solve_piecewise(
-    problem: Problem,
-    method: str,
-    linearisation: str,
-    steps_per_period: int = 400,
-    analytic_tol: float | None = None,
-    max_steps: int = 5_000_000,
-    max_wall_time_s: float = 600.0,
-    progress=None,
-    compiled: bool = True,
+    problem: Problem, method: str, linearisation: str, options: StepOptions
 ) -> Solution:
     """The piecewise method with a given contact linearisation ('cartesian' or 'polar').
 
@@ -543,20 +536,22 @@ def solve_piecewise(
     same step doubling and control as ``PiecewiseStepper``); ``compiled=False`` is the
     pure-Python path.
     """
+    o = options
     run = driver.Run(
-        problem, method, max_steps=max_steps, max_wall_time_s=max_wall_time_s, progress=progress
-    )
-    stepper = PiecewiseStepper(run, linearisation, steps_per_period, analytic_tol, compiled)
+        problem, method, max_steps=o.max_steps, max_wall_time_s=o.max_wall_time_s,
+        progress=o.progress,
+    )  # fmt: skip
+    stepper = PiecewiseStepper(run, linearisation, o.steps_per_period, o.analytic_tol, o.compiled)
     return driver.integrate(run, stepper)
 
 
 @register("analytic")
-def solve_analytic(problem: Problem, **options) -> Solution:
+def solve_analytic(problem: Problem, options: StepOptions) -> Solution:
     """The paper's method: Cartesian Taylor linearisation of the contact force (eq. 9-14)."""
-    return solve_piecewise(problem, "analytic", "cartesian", **options)
+    return solve_piecewise(problem, "analytic", "cartesian", options)
 
 
 @register("analytic-polar")
-def solve_analytic_polar(problem: Problem, **options) -> Solution:
+def solve_analytic_polar(problem: Problem, options: StepOptions) -> Solution:
     """The paper's idea with the contact phase linearised in polar coordinates."""
-    return solve_piecewise(problem, "analytic-polar", "polar", **options)
+    return solve_piecewise(problem, "analytic-polar", "polar", options)

@@ -37,16 +37,10 @@ from rubcli.solvers import compiled as kernels
 from rubcli.solvers import driver, register
 from rubcli.solvers.events import (
     NO_EVENT,
-    earliest_event,
     start_flags,
 )
-from rubcli.solvers.scipy_ivp import (
-    RESTART_BAND_FLOOR,
-    SCAN_POINTS,
-    _rhs_functions,
-    fill_samples,
-    solve_scipy,
-)
+from rubcli.solvers.registry import CompiledOptions, ToleranceOptions
+from rubcli.solvers.shared import RESTART_BAND_FLOOR, SCAN_POINTS, locate_in_python
 
 CHUNK_STEPS = 2000  # committed steps per kernel call: budget and progress checks between
 EVENT_BUFFER = 256  # events the kernel may apply before it returns to flush them
@@ -156,47 +150,23 @@ class Dop853Stepper:
             self.at_event, self.new_segment = True, True
 
 
-def locate_in_python(run: driver.Run, dense, t_new: float, intervals: int, last_kind, band):
-    """A compiled loop's pending step [run.tau, t_new] with its dense output ``dense``:
-    the Python event code (``events.earliest_event`` on ``intervals`` scan intervals)
-    finds its earliest event, and its samples up to that event (or t_new) are filled.
-    Returns the event ``(tau, kind)`` or None; the caller moves the run on."""
-    run.stats["nsteps"] += 1
-    run.stats["python_steps"] += 1
-    grid = np.linspace(run.tau, t_new, intervals + 1)
-    derivatives = _rhs_functions(run.params, run.regime, True)[2]
-    event = earliest_event(dense, derivatives, grid, run.regime, run.params, last_kind, band)
-    t_stop = event[0] if event else t_new
-    run.k = fill_samples(
-        dense, run.t_eval, run.k, t_stop, run.regime, run.params, run.states, run.regimes
-    )
-    return event
-
-
-def solve_dop853_jit(
-    problem: Problem,
-    rtol: float = 1e-8,
-    atol: float = 1e-10,
-    max_steps: int = 5_000_000,
-    max_wall_time_s: float = 600.0,
-    progress=None,
-    compiled: bool = True,
-    compiled_events: bool = True,
-) -> Solution:
+def solve_dop853_jit(problem: Problem, options: CompiledOptions) -> Solution:
     """scipy's DOP853 in a compiled step loop; ``compiled_events=False`` hands every
     possible event to the Python event code (a check of the compiled one)."""
-    if not (compiled and kernels.ensure_fresh()):
+    o = options
+    if not (o.compiled and kernels.ensure_fresh()):
         # the same algorithm, run by scipy (kernels unusable or compiled=False)
-        sol = solve_scipy(
-            problem, "dop853", rtol, atol, max_steps, max_wall_time_s, progress, compiled=False
-        )
+        from rubcli.solvers import METHODS
+
+        scipy_options = {f: getattr(o, f) for f in ToleranceOptions.names()}
+        sol = METHODS["dop853"](problem, ToleranceOptions(**{**scipy_options, "compiled": False}))
         sol.method = "dop853-jit"
         return sol
     run = driver.Run(
-        problem, "dop853-jit", max_steps=max_steps, max_wall_time_s=max_wall_time_s,
-        progress=progress,
+        problem, "dop853-jit", max_steps=o.max_steps, max_wall_time_s=o.max_wall_time_s,
+        progress=o.progress,
     )  # fmt: skip
-    return driver.integrate(run, Dop853Stepper(run, rtol, atol, compiled_events))
+    return driver.integrate(run, Dop853Stepper(run, o.rtol, o.atol, o.compiled_events))
 
 
 register("dop853-jit")(solve_dop853_jit)

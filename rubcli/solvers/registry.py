@@ -1,14 +1,17 @@
 """The method registry: what each method is, as data.
 
-Every method is one ``MethodSpec``: its name, its family, the setting that tunes its
-accuracy (``knob``: ``rtol`` for the error-controlled integrators, ``steps_per_period``
-for the fixed-step analytic methods), the options it takes, its order and what it can do.
+Every method is one ``MethodSpec``, built by keyword: its name, its family (the module
+that runs it), the setting that tunes its accuracy (``knob``: ``rtol`` for the
+error-controlled integrators, ``steps_per_period`` for the fixed-step analytic methods),
+its typed options (``StepOptions``, ``ToleranceOptions``, ``CompiledOptions``: every field
+checked on construction), its order, whether it uses the Jacobian, and a one-line summary.
 Everything that needs to know about methods derives from this table: the case schema's
-list of method names (``rubcli.case``), the work-precision ladders
-(``analysis.work_precision.ladder``), the stress suite's variants, ``solve``'s check of
-its options (an option the method does not take is a ``TypeError`` naming it; a value
-out of its domain a ``ValueError``) and ``options_for`` (a settings dict cut down to one
-method's options).
+list of method names (``rubcli.case``), the family module ``solve`` imports, the
+work-precision ladders (``analysis.work_precision.ladder``), the stress suite's variants,
+the scipy methods' Jacobian, ``solve``'s options (``method_options``: an option the
+method does not take is a ``TypeError`` naming it; a value out of its domain a
+``ValueError``), ``options_for`` (a settings dict cut down to one method's options) and
+the method table of docs/solvers.md (tests/test_registry.py).
 
 This module is data only: it imports nothing heavy, so that the case schema can use it
 without loading numba or scipy. The solver functions register themselves against these
@@ -24,143 +27,178 @@ from __future__ import annotations
 import difflib
 import math
 import numbers
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, fields
 
-# Options every method takes (besides ``progress``, a callback of tau).
-COMMON_OPTIONS = ("max_steps", "max_wall_time_s", "compiled")
 RTOL, STEPS_PER_PERIOD = "rtol", "steps_per_period"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
+class Options:
+    """What every method takes: its budgets, the compiled switch and a progress callback
+    of tau. Each field is checked on construction (``option_problem``): a TypeError or
+    ValueError naming the option."""
+
+    max_steps: int = 5_000_000
+    max_wall_time_s: float = 600.0
+    compiled: bool = True  # False: the pure-Python path (taylor: the Python event code)
+    progress: Callable[[float], None] | None = None
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            found = option_problem(f.name, getattr(self, f.name))
+            if found is not None:
+                kind, why = found
+                raise kind(f"solve(): option {f.name} {why}")
+
+    @classmethod
+    def names(cls) -> tuple[str, ...]:
+        return tuple(f.name for f in fields(cls))
+
+
+@dataclass(frozen=True, kw_only=True)
+class StepOptions(Options):
+    """The analytic methods': fixed steps of period / steps_per_period in contact, or
+    adaptive steps by step doubling to ``analytic_tol`` (steps_per_period sets the first)."""
+
+    steps_per_period: int = 400
+    analytic_tol: float | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class ToleranceOptions(Options):
+    """The error-controlled integrators': relative and absolute local error per step."""
+
+    rtol: float = 1e-8
+    atol: float = 1e-10
+
+
+@dataclass(frozen=True, kw_only=True)
+class CompiledOptions(ToleranceOptions):
+    """The compiled loops': ``compiled_events=False`` hands every step where an event is
+    possible to the Python event code (a check of the compiled one)."""
+
+    compiled_events: bool = True
+
+
+@dataclass(frozen=True, kw_only=True)
 class MethodSpec:
     """One method, as data."""
 
     name: str
-    family: str  # "analytic" (closed forms + linearised contact), "scipy", "compiled-rk"
+    family: str  # the module that runs it: a key of FAMILY_MODULES
     knob: str  # the accuracy setting a work-precision ladder varies: RTOL or STEPS_PER_PERIOD
-    options: tuple[str, ...]  # its own options, besides COMMON_OPTIONS and progress
-    order: int | None  # global order in its step (error-controlled: of the scheme; None: set
-    # by the tolerance)
-    implicit: bool  # uses a Jacobian (stiff-capable in the usual sense)
-    compiled: bool  # has a numba path (``compiled=False`` selects the pure-Python one)
+    options: type[Options]  # its typed options
+    order: int | None  # its (highest) global order; None: set by the tolerance (taylor)
+    implicit: bool  # uses the Jacobian of the right-hand side (stiff-capable)
     adaptive: str | None  # the option that switches on adaptive steps, if the knob is not one
     summary: str
 
     @property
     def takes(self) -> tuple[str, ...]:
         """Every option ``solve`` accepts for this method."""
-        return COMMON_OPTIONS + self.options + ("progress",)
+        return self.options.names()
 
 
-_ANALYTIC = ("steps_per_period", "analytic_tol")
-_TOLERANCES = ("rtol", "atol")
+# The module of each family: it registers the family's solver functions (rubcli.solvers).
+FAMILY_MODULES = {
+    "analytic": "rubcli.solvers.analytic",
+    "scipy": "rubcli.solvers.scipy_ivp",
+    "compiled-rk": "rubcli.solvers.dop853_jit",
+    "compiled-taylor": "rubcli.solvers.taylor",
+}
+
+
+def _scipy(name: str, order: int, implicit: bool, summary: str) -> MethodSpec:
+    return MethodSpec(
+        name=name, family="scipy", knob=RTOL, options=ToleranceOptions, order=order,
+        implicit=implicit, adaptive=None, summary=summary,
+    )  # fmt: skip
+
 
 SPECS: dict[str, MethodSpec] = {
     spec.name: spec
     for spec in (
         MethodSpec(
-            "analytic",
-            "analytic",
-            STEPS_PER_PERIOD,
-            _ANALYTIC,
-            2,
-            False,
-            True,
-            "analytic_tol",
-            "the paper's method: closed-form free flight, Cartesian Taylor-linearised contact",
+            name="analytic",
+            family="analytic",
+            knob=STEPS_PER_PERIOD,
+            options=StepOptions,
+            order=2,
+            implicit=False,
+            adaptive="analytic_tol",
+            summary="the paper's method: closed-form free flight, first-order Taylor "
+            "linearisation of the contact force in Cartesian coordinates each step, solved "
+            "exactly",
         ),
         MethodSpec(
-            "analytic-polar",
-            "analytic",
-            STEPS_PER_PERIOD,
-            _ANALYTIC,
-            2,
-            False,
-            True,
-            "analytic_tol",
-            "the paper's idea with the contact linearised in polar form (K enters linearly)",
+            name="analytic-polar",
+            family="analytic",
+            knob=STEPS_PER_PERIOD,
+            options=StepOptions,
+            order=2,
+            implicit=False,
+            adaptive="analytic_tol",
+            summary="the same scheme with the contact phase locally linearised in polar "
+            "coordinates, where `K` is linear",
         ),
-        MethodSpec(
+        _scipy(
             "rk45",
-            "scipy",
-            RTOL,
-            _TOLERANCES,
             5,
             False,
-            True,
-            None,
-            "scipy RK45 (Dormand-Prince 5(4), the paper's ODE45) with event restarts",
+            "scipy RK45, Dormand-Prince 5(4) (error estimate of order "
+            "4): MATLAB's ODE45, the paper's reference",
         ),
-        MethodSpec(
-            "dop853",
-            "scipy",
-            RTOL,
-            _TOLERANCES,
-            8,
-            False,
-            True,
-            None,
-            "scipy DOP853 (Hairer's 8(5,3)) with event restarts",
-        ),
-        MethodSpec(
-            "radau",
-            "scipy",
-            RTOL,
-            _TOLERANCES,
-            5,
-            True,
-            True,
-            None,
-            "scipy Radau IIA (implicit, order 5) with event restarts",
-        ),
-        MethodSpec(
-            "bdf",
-            "scipy",
-            RTOL,
-            _TOLERANCES,
-            5,
-            True,
-            True,
-            None,
-            "scipy BDF (implicit multistep, orders 1-5) with event restarts",
-        ),
-        MethodSpec(
+        _scipy("dop853", 8, False, "scipy DOP853, Dormand-Prince 8(5,3)"),
+        _scipy("radau", 5, True, "scipy Radau IIA, implicit, L-stable"),
+        _scipy("bdf", 5, True, "scipy BDF, implicit multistep, variable order 1-5"),
+        _scipy(
             "lsoda",
-            "scipy",
-            RTOL,
-            _TOLERANCES,
             12,
             True,
-            True,
-            None,
-            "scipy LSODA (ODEPACK Adams/BDF switching) with event restarts",
+            "scipy LSODA (ODEPACK), switching between Adams (orders 1-12) and BDF (1-5)",
         ),
         MethodSpec(
-            "dop853-jit",
-            "compiled-rk",
-            RTOL,
-            _TOLERANCES + ("compiled_events",),
-            8,
-            False,
-            True,
-            None,
-            "scipy's DOP853 step for step in a numba loop, events located in compiled code",
+            name="dop853-jit",
+            family="compiled-rk",
+            knob=RTOL,
+            options=CompiledOptions,
+            order=8,
+            implicit=False,
+            adaptive=None,
+            summary="scipy's DOP853, step for step, with the step loop compiled (numba)",
         ),
         MethodSpec(
-            "taylor",
-            "compiled-taylor",
-            RTOL,
-            _TOLERANCES + ("compiled_events",),
-            None,
-            False,
-            True,
-            None,
-            "adaptive Taylor series (order from rtol) in a numba loop, events on its polynomial",
+            name="taylor",
+            family="compiled-taylor",
+            knob=RTOL,
+            options=CompiledOptions,
+            order=None,
+            implicit=False,
+            adaptive=None,
+            summary="adaptive Taylor series of the rub equations (automatic-differentiation "
+            "recurrences, compiled), events on each step's polynomial; order N = "
+            "ceil(-0.5 ln rtol) + 6: 13 at 1e-6, 18 at 1e-10",
         ),
     )  # fmt: skip
 }
 NAMES: tuple[str, ...] = tuple(SPECS)
 ALL_OPTIONS: tuple[str, ...] = tuple(dict.fromkeys(o for s in SPECS.values() for o in s.takes))
+
+
+def method_table() -> str:
+    """The table of methods in docs/solvers.md (tests/test_registry.py keeps it current)."""
+    rows = ["| method | what it is | highest order | settings |", "|---|---|---|---|"]
+    for m in SPECS.values():
+        order = "from `rtol`" if m.order is None else str(m.order)
+        if m.knob == STEPS_PER_PERIOD:
+            settings = " or ".join(f"`{k}`" for k in (m.knob, m.adaptive) if k)
+        else:
+            settings = ", ".join(
+                f"`{k}`" for k in m.takes if k in ("rtol", "atol", "compiled_events")
+            )
+        rows.append(f"| `{m.name}` | {m.summary} | {order} | {settings} |")
+    return "\n".join(rows) + "\n"
 
 
 def spec(name: str) -> MethodSpec:
@@ -182,10 +220,11 @@ def options_for(method: str, options: dict) -> dict:
     return {k: v for k, v in options.items() if k in takes}
 
 
-def check_options(method: str, options: dict) -> None:
-    """TypeError naming every option ``method`` does not take: a misspelling, or an option
-    of another method (``rtol`` given to ``analytic``), which would otherwise be dropped
-    without a word. Then ``check_option_values``."""
+def method_options(method: str, options: dict) -> Options:
+    """``options`` as ``method``'s typed options: a TypeError naming every option the
+    method does not take (a misspelling, or an option of another method, ``rtol`` given
+    to ``analytic``, which would otherwise be dropped without a word), then a TypeError
+    or ValueError naming the first value out of its domain."""
     takes = spec(method).takes
     foreign = [k for k in options if k not in takes]
     if foreign:
@@ -207,7 +246,7 @@ def check_options(method: str, options: dict) -> None:
             f"solve() got option(s) {names} that {method!r} does not take{hint}; "
             f"{method!r} takes {', '.join(takes)}"
         )
-    check_option_values(options)
+    return spec(method).options(**options)
 
 
 def _is_int(value) -> bool:
@@ -223,7 +262,7 @@ def _is_bool(value) -> bool:
     return isinstance(value, bool) or type(value).__name__ in ("bool", "bool_")
 
 
-def _option_problem(name: str, value) -> tuple[type[Exception], str] | None:
+def option_problem(name: str, value) -> tuple[type[Exception], str] | None:
     """(exception class, why) if ``value`` is not valid for the option ``name``."""
     if name in ("rtol", "analytic_tol"):
         if name == "analytic_tol" and value is None:
@@ -253,15 +292,3 @@ def _option_problem(name: str, value) -> tuple[type[Exception], str] | None:
     elif name == "progress" and value is not None and not callable(value):
         return TypeError, f"must be a callable of tau (or None), got {type(value).__name__}"
     return None
-
-
-def check_option_values(options: dict) -> None:
-    """TypeError or ValueError naming the first option whose value is out of its domain
-    (docs/cases.md, [solver]): tolerances finite with 0 < rtol < 1 and atol > 0, counts
-    positive ints, the wall-time budget finite and positive, switches bools, ``progress``
-    a callable."""
-    for name, value in options.items():
-        found = _option_problem(name, value)
-        if found is not None:
-            kind, why = found
-            raise kind(f"solve(): option {name} {why}")

@@ -43,6 +43,8 @@ from rubcli.solvers.events import (
     NO_EVENT,
     earliest_event,
 )
+from rubcli.solvers.registry import SPECS, ToleranceOptions
+from rubcli.solvers.shared import RESTART_BAND_FLOOR, SCAN_POINTS, fill_samples, rhs_functions
 
 # The class of ``scipy.integrate`` for each method: scipy is imported when a scipy
 # method runs, not with the registry (a `rubcli run` of a compiled method never loads it).
@@ -53,19 +55,6 @@ SCIPY_CLASSES = {
     "bdf": "BDF",
     "lsoda": "LSODA",
 }
-IMPLICIT = {"radau", "bdf", "lsoda"}
-RESTART_BAND_FLOOR = 1e-12
-SCAN_POINTS = 4  # sub-intervals per step in which events are scanned on the dense output
-
-
-def _column_derivatives(fun):
-    """derivatives(t, S) for states S of shape (4, n) from a rhs of one state."""
-
-    def derivatives(t, S):
-        t = np.broadcast_to(np.asarray(t, dtype=float), (S.shape[1],))
-        return np.array([fun(t[k], S[:, k]) for k in range(S.shape[1])]).T
-
-    return derivatives
 
 
 class ScipyStepper:
@@ -97,9 +86,9 @@ class ScipyStepper:
         }
 
     def _start_segment(self, run: driver.Run) -> None:
-        fun, jac, self.derivatives = _rhs_functions(run.params, run.regime, self.compiled)
+        fun, jac, self.derivatives = rhs_functions(run.params, run.regime, self.compiled)
         options = {"rtol": self.rtol, "atol": self.atol}
-        if self.name in IMPLICIT and run.regime != model.STICK:
+        if SPECS[self.name].implicit and run.regime != model.STICK:
             options["jac"] = jac
         self.solver = self.cls(fun, run.tau, run.state, run.t_end, **options)
         run.stats["n_segments"] += 1
@@ -144,61 +133,13 @@ class ScipyStepper:
         run.switch(event[0], event[1], dense(event[0]))
 
 
-def solve_scipy(
-    problem: Problem,
-    name: str,
-    rtol: float = 1e-8,
-    atol: float = 1e-10,
-    max_steps: int = 5_000_000,
-    max_wall_time_s: float = 600.0,
-    progress=None,
-    compiled: bool = True,
-) -> Solution:
+def solve_scipy(problem: Problem, options: ToleranceOptions, name: str) -> Solution:
+    o = options
     run = driver.Run(
-        problem, name, max_steps=max_steps, max_wall_time_s=max_wall_time_s, progress=progress
-    )
-    return driver.integrate(run, ScipyStepper(run, name, rtol, atol, compiled))
-
-
-def fill_samples(dense, t_eval, k, t_stop, regime, params, out_states, out_regimes) -> int:
-    """Samples ``t_eval[k:]`` up to ``t_stop`` from a step's dense output (projected onto
-    the rolling constraint in stick); returns the next sample to fill."""
-    while k < t_eval.size and t_eval[k] <= t_stop:
-        sample = dense(t_eval[k])
-        if regime == model.STICK:
-            sample = model.project_to_rolling(sample, params)
-        out_states[k], out_regimes[k] = sample, regime
-        k += 1
-    return k
-
-
-def _rhs_fun(t, s, params, regime):
-    return model.rhs(t, s, params, regime)
-
-
-def _jac_fun(t, s, params, regime):
-    return model.rhs_jacobian(t, s, params, regime)
-
-
-def _rhs_functions(params: model.ModelParams, regime: int, compiled: bool):
-    """(fun, jac, derivatives) of one regime: compiled kernels or model.py in Python."""
-    if not compiled:
-        fun = partial(_rhs_fun, params=params, regime=regime)
-        return fun, partial(_jac_fun, params=params, regime=regime), _column_derivatives(fun)
-    pars = np.array(model.params_vector(params))
-    rhs, jacobian, columns = kernels.rhs, kernels.rhs_jacobian, kernels.rhs_columns
-
-    def fun(t, s):
-        return rhs(t, s, pars, regime)
-
-    def jac(t, s):
-        return jacobian(t, s, pars, regime)
-
-    def derivatives(t, S):
-        t = np.broadcast_to(np.asarray(t, dtype=float), (S.shape[1],))
-        return columns(np.ascontiguousarray(t), np.ascontiguousarray(S, dtype=float), pars, regime)
-
-    return fun, jac, derivatives
+        problem, name, max_steps=o.max_steps, max_wall_time_s=o.max_wall_time_s,
+        progress=o.progress,
+    )  # fmt: skip
+    return driver.integrate(run, ScipyStepper(run, name, o.rtol, o.atol, o.compiled))
 
 
 def _register(name: str) -> None:

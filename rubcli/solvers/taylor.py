@@ -35,9 +35,9 @@ from rubcli.solution import Solution
 from rubcli.solvers import compiled as kernels
 from rubcli.solvers import driver, register
 from rubcli.solvers.compiled import taylor as taylor_kernels
-from rubcli.solvers.dop853_jit import locate_in_python
 from rubcli.solvers.events import NO_EVENT, start_flags
-from rubcli.solvers.scipy_ivp import RESTART_BAND_FLOOR
+from rubcli.solvers.registry import CompiledOptions
+from rubcli.solvers.shared import RESTART_BAND_FLOOR, locate_in_python
 
 # steps per kernel call, with budget and progress checks between: 20,000 steps are 5-20
 # ms (0.25-1 us a step); a call costs ~20 us of dispatch (2,000 cost 1.3 % at mu = 0.03)
@@ -150,25 +150,17 @@ class TaylorStepper:
             self.at_event = True
 
 
-def solve_taylor(
-    problem: Problem,
-    rtol: float = 1e-8,
-    atol: float = 1e-10,
-    max_steps: int = 5_000_000,
-    max_wall_time_s: float = 600.0,
-    progress=None,
-    compiled: bool = True,
-    compiled_events: bool = True,
-) -> Solution:
+def solve_taylor(problem: Problem, options: CompiledOptions) -> Solution:
     """Adaptive Taylor series (order from rtol, ``taylor_kernels.taylor_order``) with
     located events. There is no pure-Python path: ``compiled=False`` only hands every
     possible event to the Python event code (as ``compiled_events=False``)."""
+    o = options
     kernels.ensure_fresh()
     run = driver.Run(
-        problem, "taylor", max_steps=max_steps, max_wall_time_s=max_wall_time_s,
-        progress=progress,
+        problem, "taylor", max_steps=o.max_steps, max_wall_time_s=o.max_wall_time_s,
+        progress=o.progress,
     )  # fmt: skip
-    stepper = TaylorStepper(run, rtol, atol, bool(compiled_events and compiled))
+    stepper = TaylorStepper(run, o.rtol, o.atol, bool(o.compiled_events and o.compiled))
     return driver.integrate(run, stepper)
 
 

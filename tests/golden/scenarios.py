@@ -16,6 +16,7 @@ from rubcli import model
 from rubcli.analysis import stress
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
+from rubcli.solvers.registry import SPECS
 
 FIG3 = {"nu": 0.009478, "eta": 0.7818, "e": 7.52, "Rp": 46.16}
 FIG3_START = (0.88544, -0.8039, 0.0, 0.0)
@@ -83,7 +84,7 @@ def python_settings() -> dict[str, tuple[str, dict]]:
 
 # The implicit scipy methods cost about a second a run: pinned where events of every kind
 # occur (their steppers share the event code and the driver with rk45 and dop853).
-IMPLICIT = ("radau", "bdf", "lsoda")
+IMPLICIT = tuple(m for m, spec in SPECS.items() if spec.implicit)  # radau, bdf, lsoda
 IMPLICIT_SCENARIOS = ("stiff-K1.76e4-mu0.03", "stick-slip", "ring-K1.75e6")
 
 

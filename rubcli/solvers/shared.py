@@ -1,0 +1,88 @@
+"""What the method families share: the regime's right-hand side for Python code, the
+samples of a step's dense output, and the Python event search of a compiled loop's
+pending step. The families (``analytic``, ``scipy_ivp``, ``dop853_jit``, ``taylor``)
+import these from here, never from each other."""
+
+from __future__ import annotations
+
+from functools import partial
+
+import numpy as np
+
+from rubcli import model
+from rubcli.solvers import compiled as kernels
+from rubcli.solvers import driver
+from rubcli.solvers.events import earliest_event
+
+# The restart band of an event (the band around the surface in which the segment that
+# an event began does not see it again) is max(RESTART_BAND_FLOOR, rtol).
+RESTART_BAND_FLOOR = 1e-12
+SCAN_POINTS = 4  # sub-intervals per step in which events are scanned on the dense output
+
+
+def _column_derivatives(fun):
+    """derivatives(t, S) for states S of shape (4, n) from a rhs of one state."""
+
+    def derivatives(t, S):
+        t = np.broadcast_to(np.asarray(t, dtype=float), (S.shape[1],))
+        return np.array([fun(t[k], S[:, k]) for k in range(S.shape[1])]).T
+
+    return derivatives
+
+
+def fill_samples(dense, t_eval, k, t_stop, regime, params, out_states, out_regimes) -> int:
+    """Samples ``t_eval[k:]`` up to ``t_stop`` from a step's dense output (projected onto
+    the rolling constraint in stick); returns the next sample to fill."""
+    while k < t_eval.size and t_eval[k] <= t_stop:
+        sample = dense(t_eval[k])
+        if regime == model.STICK:
+            sample = model.project_to_rolling(sample, params)
+        out_states[k], out_regimes[k] = sample, regime
+        k += 1
+    return k
+
+
+def _rhs_fun(t, s, params, regime):
+    return model.rhs(t, s, params, regime)
+
+
+def _jac_fun(t, s, params, regime):
+    return model.rhs_jacobian(t, s, params, regime)
+
+
+def rhs_functions(params: model.ModelParams, regime: int, compiled: bool):
+    """(fun, jac, derivatives) of one regime: compiled kernels or model.py in Python."""
+    if not compiled:
+        fun = partial(_rhs_fun, params=params, regime=regime)
+        return fun, partial(_jac_fun, params=params, regime=regime), _column_derivatives(fun)
+    pars = np.array(model.params_vector(params))
+    rhs, jacobian, columns = kernels.rhs, kernels.rhs_jacobian, kernels.rhs_columns
+
+    def fun(t, s):
+        return rhs(t, s, pars, regime)
+
+    def jac(t, s):
+        return jacobian(t, s, pars, regime)
+
+    def derivatives(t, S):
+        t = np.broadcast_to(np.asarray(t, dtype=float), (S.shape[1],))
+        return columns(np.ascontiguousarray(t), np.ascontiguousarray(S, dtype=float), pars, regime)
+
+    return fun, jac, derivatives
+
+
+def locate_in_python(run: driver.Run, dense, t_new: float, intervals: int, last_kind, band):
+    """A compiled loop's pending step [run.tau, t_new] with its dense output ``dense``:
+    the Python event code (``events.earliest_event`` on ``intervals`` scan intervals)
+    finds its earliest event, and its samples up to that event (or t_new) are filled.
+    Returns the event ``(tau, kind)`` or None; the caller moves the run on."""
+    run.stats["nsteps"] += 1
+    run.stats["python_steps"] += 1
+    grid = np.linspace(run.tau, t_new, intervals + 1)
+    derivatives = rhs_functions(run.params, run.regime, True)[2]
+    event = earliest_event(dense, derivatives, grid, run.regime, run.params, last_kind, band)
+    t_stop = event[0] if event else t_new
+    run.k = fill_samples(
+        dense, run.t_eval, run.k, t_stop, run.regime, run.params, run.states, run.regimes
+    )
+    return event
