@@ -8,6 +8,9 @@ for all of them, and case files that drive the ``rubcli`` command line::
     case = load_case("cases/paper/fig3a.toml")
     solution = solve(case.problem, "analytic", steps_per_period=400)
 
+Periodic orbits and their continuation are ``shoot`` and ``continue_branch`` (keyword
+``ContinuationSettings``); a solution's switches are its ``Events``.
+
 Every name is imported on first use, so that ``import rubcli`` itself is light (the
 ``rubcli`` command handles signals before numpy is imported) and importing the numerical
 core (``rubcli.model``) does not load the solvers.
@@ -23,11 +26,17 @@ __all__ = [
     "METHODS",
     "Case",
     "CaseError",
+    "ContinuationSettings",
+    "Events",
     "ModelParams",
+    "PeriodicOrbit",
     "Problem",
     "Solution",
+    "SwitchEvent",
     "__version__",
+    "continue_branch",
     "load_case",
+    "shoot",
     "solve",
     "sweep",
 ]
@@ -36,6 +45,12 @@ _LAZY = {
     "ModelParams": "rubcli.model",
     "Problem": "rubcli.problem",
     "Solution": "rubcli.solution",
+    "Events": "rubcli.solution",
+    "SwitchEvent": "rubcli.solution",
+    "shoot": "rubcli.analysis.orbits",
+    "PeriodicOrbit": "rubcli.analysis.orbits",
+    "continue_branch": "rubcli.analysis.continuation",
+    "ContinuationSettings": "rubcli.analysis.continuation",
     "solve": "rubcli.solvers",
     "METHODS": "rubcli.solvers",
     "load_case": "rubcli.case",
@@ -47,10 +62,12 @@ _LAZY = {
 if TYPE_CHECKING:
     from typing import Any
 
+    from rubcli.analysis.continuation import ContinuationSettings, continue_branch
+    from rubcli.analysis.orbits import PeriodicOrbit, shoot
     from rubcli.case import Case, CaseError, load_case
     from rubcli.model import ModelParams
     from rubcli.problem import Problem
-    from rubcli.solution import Solution
+    from rubcli.solution import Events, Solution, SwitchEvent
     from rubcli.solvers import METHODS, solve
     from rubcli.sweeps import sweep
 

@@ -137,8 +137,16 @@ def test_neimark_sacker_of_the_synchronous_rub_located_to_the_eigenvalue_crossin
     assert abs(independent - 0.0103) < 1e-4  # the value docs/stability.md quotes
     params = dataclasses.replace(PAPER, mu=0.008)
     s0 = model.synchronous_rub(np.array([0.0]), params)[:, 0]
-    settings = cn.ContinuationSettings("mu", 0.008, 0.014, 0.002, 1e-6, 0.004, max_points=5,
-                                       directions=(1,))  # fmt: skip
+    settings = cn.ContinuationSettings(
+        parameter="mu",
+        p_min=0.008,
+        p_max=0.014,
+        step=0.002,
+        min_step=1e-6,
+        max_step=0.004,
+        max_points=5,
+        directions=(1,),
+    )
     branch = cn.continue_branch(params, s0, settings)
     kinds = [b.kind for b in branch.bifurcations]
     assert kinds == [cn.NEIMARK_SACKER]
@@ -161,8 +169,16 @@ def test_fold_of_the_rub_branch_located_to_the_quadratics_double_root():
     independent = brentq(discriminant, 1.2, 1.3, xtol=1e-15)
     params = dataclasses.replace(RUN_UP, eta=1.23)
     s0 = model.synchronous_rub(np.array([0.0]), params)[:, 0]
-    settings = cn.ContinuationSettings("eta", 1.2, 1.3, 0.005, 1e-6, 0.01, max_points=10,
-                                       directions=(1,))  # fmt: skip
+    settings = cn.ContinuationSettings(
+        parameter="eta",
+        p_min=1.2,
+        p_max=1.3,
+        step=0.005,
+        min_step=1e-6,
+        max_step=0.01,
+        max_points=10,
+        directions=(1,),
+    )
     branch = cn.continue_branch(params, s0, settings)
     folds = [b for b in branch.bifurcations if b.kind == cn.FOLD]
     assert len(folds) == 1 and folds[0].located
@@ -178,8 +194,16 @@ def test_grazing_of_the_free_whirl_located_to_the_closed_form():
 
     independent = brentq(free_radius_minus_one, 0.9, 1.0, xtol=1e-15)
     params = dataclasses.replace(RUN_UP, eta=0.96)
-    settings = cn.ContinuationSettings("eta", 0.96, 0.99, 0.005, 1e-6, 0.01, max_points=6,
-                                       directions=(1,))  # fmt: skip
+    settings = cn.ContinuationSettings(
+        parameter="eta",
+        p_min=0.96,
+        p_max=0.99,
+        step=0.005,
+        min_step=1e-6,
+        max_step=0.01,
+        max_points=6,
+        directions=(1,),
+    )
     branch = cn.continue_branch(params, [0.0, 0.0, 0.0, 0.0], settings)
     grazes = [b for b in branch.bifurcations if b.kind == cn.GRAZING]
     assert len(grazes) == 1 and grazes[0].located
@@ -197,8 +221,16 @@ def test_unstable_rub_meets_the_free_branch_in_a_nonsmooth_fold_at_grazing():
     params = dataclasses.replace(RUN_UP, eta=1.0687)
     r_unstable = model.synchronous_rub_radii(params)[0]
     s0 = model.synchronous_rub(np.array([0.0]), params, r_unstable)[:, 0]
-    settings = cn.ContinuationSettings("eta", 0.6, 1.6, 0.02, 1e-6, 0.05, max_points=4,
-                                       directions=(-1,))  # fmt: skip
+    settings = cn.ContinuationSettings(
+        parameter="eta",
+        p_min=0.6,
+        p_max=1.6,
+        step=0.02,
+        min_step=1e-6,
+        max_step=0.05,
+        max_points=4,
+        directions=(-1,),
+    )
     branch = cn.continue_branch(params, s0, settings)
     assert not branch.points[-1].stable and branch.points[0].stable  # unstable rub -> free
     kinds = {b.kind: b for b in branch.bifurcations}
@@ -213,7 +245,9 @@ def test_newton_failure_and_point_budget_end_cleanly():
         ob.shoot(PAPER, [3.0, 0.0, 0.0, 0.0], max_iter=1)
     assert "did not converge in 1 iterations" in str(info.value)
     assert info.value.state.shape == (4,) and info.value.residual > 1e-3
-    settings = cn.ContinuationSettings("eta", 0.6, 1.6, 0.02, 1e-5, 0.05, max_points=2)
+    settings = cn.ContinuationSettings(
+        parameter="eta", p_min=0.6, p_max=1.6, step=0.02, min_step=1e-5, max_step=0.05, max_points=2
+    )
     branch = cn.continue_branch(RUN_UP, [0.0, 0.0, 0.0, 0.0], settings)
     assert branch.stops == {"forward": "point budget used (2 points)",
                             "backward": "reached the lower bound eta = 0.6"}  # fmt: skip

@@ -27,6 +27,7 @@ by Brent's method on the continuous test functions, by bisection on the counts.
 from __future__ import annotations
 
 import math
+import numbers
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -35,7 +36,7 @@ import numpy as np
 
 from rubcli import model
 from rubcli.analysis import orbits as ob
-from rubcli.model import ModelParams
+from rubcli.model import PARAMETER_SIGNS, ModelParams
 
 FOLD, FLIP, NEIMARK_SACKER, GRAZING, STICK_ONSET = (
     "fold",
@@ -55,16 +56,21 @@ LOCATED_WIDTH = 1e-6
 MAX_HALVINGS = 4
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class ContinuationSettings:
-    """What to continue and how (the [orbits] table, nondimensional)."""
+    """What to continue and how (the [orbits] table, nondimensional), by keyword::
+
+        ContinuationSettings(parameter="mu", p_min=0.0, p_max=0.06, step=0.002)
+
+    ``min_step`` defaults to step / 1000 and ``max_step`` to 5 step, as in a case file.
+    Every field is checked on construction: a ValueError naming it."""
 
     parameter: str
     p_min: float
     p_max: float
     step: float  # first step, parameter units
-    min_step: float
-    max_step: float
+    min_step: float | None = None
+    max_step: float | None = None
     max_points: int = 200  # per direction
     directions: tuple[int, ...] = (1, -1)
     k: int = 1
@@ -75,6 +81,50 @@ class ContinuationSettings:
     locate: bool = True
     locate_xtol: float = 1e-12  # Brent tolerance on the segment fraction
     max_wall_time_s: float | None = None  # the run's wall-time budget (None: unbounded)
+
+    def __post_init__(self) -> None:
+        if self.min_step is None:
+            object.__setattr__(self, "min_step", self.step / 1000.0)
+        if self.max_step is None:
+            object.__setattr__(self, "max_step", 5.0 * self.step)
+        problem = self._problem()
+        if problem:
+            raise ValueError(f"ContinuationSettings: {problem}")
+
+    def _problem(self) -> str | None:
+        if self.parameter not in PARAMETER_SIGNS:
+            return f"parameter {self.parameter!r} is not one of {', '.join(PARAMETER_SIGNS)}"
+        reals = ("p_min", "p_max", "step", "min_step", "max_step", "newton_tol", "rtol", "atol")
+        for name in reals:
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, numbers.Real):
+                return f"{name} must be a real number (got {value!r})"
+            if not math.isfinite(value):
+                return f"{name} must be finite (got {value!r})"
+        if not self.p_min < self.p_max:
+            return f"p_min must be below p_max (got {self.p_min!r} >= {self.p_max!r})"
+        if not 0.0 < self.min_step <= self.step <= self.max_step:
+            return (
+                f"steps must satisfy 0 < min_step <= step <= max_step (got {self.min_step!r},"
+                f" {self.step!r}, {self.max_step!r})"
+            )
+        for name in ("max_points", "k", "max_newton"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
+                return f"{name} must be an int >= 1 (got {value!r})"
+        if not self.directions or any(d not in (1, -1) for d in self.directions):
+            return f"directions must hold 1 and/or -1 (got {self.directions!r})"
+        for name in ("newton_tol", "rtol"):
+            if not 0.0 < getattr(self, name) < 1.0:
+                return f"{name} must satisfy 0 < {name} < 1 (got {getattr(self, name)!r})"
+        if not self.atol > 0.0:
+            return f"atol must be > 0 (got {self.atol!r})"
+        budget = self.max_wall_time_s
+        if budget is not None and not (
+            isinstance(budget, numbers.Real) and math.isfinite(budget) and budget > 0
+        ):
+            return f"max_wall_time_s must be finite and > 0 seconds, or None (got {budget!r})"
+        return None
 
     @property
     def scale(self) -> float:

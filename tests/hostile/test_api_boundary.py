@@ -210,9 +210,17 @@ def test_continuation_step_past_the_domain_stops_the_branch_with_a_message():
     p = ModelParams(nu=0.05, eta=0.05, e=0.1, K=10.0)
     w, v = model.free_steady_state(0.0, p)
     settings = cn.ContinuationSettings(
-        "eta", -0.5, 0.5, 0.1, 0.06, 0.2, max_points=5, directions=(-1,),
-        rtol=1e-10, atol=1e-10,
-    )  # fmt: skip
+        parameter="eta",
+        p_min=-0.5,
+        p_max=0.5,
+        step=0.1,
+        min_step=0.06,
+        max_step=0.2,
+        max_points=5,
+        directions=(-1,),
+        rtol=1e-10,
+        atol=1e-10,
+    )
     branch = cn.continue_branch(p, (w.real, w.imag, v.real, v.imag), settings)
     assert branch.status == "ok" and len(branch.points) == 1
     assert "eta = -0.0499949 leaves the model's domain" in branch.stops["backward"]
