@@ -18,6 +18,7 @@ import numba
 import numpy as np
 
 from rubcli import model
+from rubcli.model import N_PARAMS, P_E, P_ETA, P_K, P_MU, P_NU, P_PHI0, P_RP
 
 jit = numba.njit(cache=True, nogil=True)  # runs beside the CSV thread (io.Background)
 # The per-node helpers are inlined in numba's IR: called, each would count references to
@@ -31,8 +32,8 @@ FREE, STICK = model.FREE, model.STICK
 # Columns, as energy._IN ... energy._ABS_FRIC
 _IN, _DAMP, _FRIC, _SLIP, _SPIN, _ABS_IN, _ABS_FRIC = range(7)
 N_TERMS = 7
-# After the model's 7 parameters, ``pv`` carries energy.DERIVATIVE_STEP and SMALL_SHIFT
-_DERIVATIVE_STEP, _SMALL_SHIFT = 7, 8
+# After the model's parameter record, ``pv`` carries energy.DERIVATIVE_STEP and SMALL_SHIFT
+_DERIVATIVE_STEP, _SMALL_SHIFT = N_PARAMS, N_PARAMS + 1
 
 
 @jit_inline
@@ -83,7 +84,8 @@ def _powers_at(c, s, tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu, Rp, regime, 
 def _shifted_powers(c, s, tau, x, y, vx, vy, pv, regime, out):
     """``energy.powers`` of one state (a node's shifted along the motion) into out[0:7],
     given the cos and sin of its phase."""
-    nu, eta, E, phi0, K, mu, Rp = pv[0], pv[1], pv[2], pv[3], pv[4], pv[5], pv[6]
+    nu, eta, E, phi0 = pv[P_NU], pv[P_ETA], pv[P_E], pv[P_PHI0]
+    K, mu, Rp = pv[P_K], pv[P_MU], pv[P_RP]
     z = np.hypot(x, y) if regime != FREE else 0.0
     _powers_at(c, s, tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu, Rp, regime, out)
 
@@ -112,7 +114,8 @@ def _power_and_rate(node, spacing, pv, regime, P, dP, shifted):
     """Powers P at a node and their rates dP (central differences along the motion);
     returns z = hypot(x, y) at the node. The phase's cos and sin and z are computed once
     for the powers and the accelerations (the same values the two would compute)."""
-    nu, eta, E, phi0, K, mu, Rp = pv[0], pv[1], pv[2], pv[3], pv[4], pv[5], pv[6]
+    nu, eta, E, phi0 = pv[P_NU], pv[P_ETA], pv[P_E], pv[P_PHI0]
+    K, mu, Rp = pv[P_K], pv[P_MU], pv[P_RP]
     tau, x, y, vx, vy = node[0], node[1], node[2], node[3], node[4]
     phase = eta * tau + phi0
     c = np.cos(phase)
@@ -154,7 +157,7 @@ def _piece_pass(p, n, t, states, bounds, pv, regime, fine, coarse, cum_out, ener
     ``offset`` on. Returns the energy at the first and last node and its largest
     magnitude."""
     start_tau, start_state, end_tau, end_state, lo = bounds
-    K = pv[4]
+    K = pv[P_K]
     prev = np.empty(5)
     cur = np.empty(5)
     nxt = np.empty(5)

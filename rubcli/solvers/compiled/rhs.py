@@ -6,7 +6,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from rubcli.model import rhs_jacobian_record, rhs_record
+from rubcli.model import (
+    P_E,
+    P_ETA,
+    P_K,
+    P_MU,
+    P_NU,
+    P_PHI0,
+    P_RP,
+    rhs_entries,
+    rhs_jacobian_record,
+)
 from rubcli.solvers.compiled.jit import (
     jit,
 )
@@ -14,7 +24,11 @@ from rubcli.solvers.compiled.jit import (
 
 @jit
 def _rhs_into(t, y, pars, regime, out):
-    vx, vy, ax, ay = rhs_record(t, y[0], y[1], y[2], y[3], pars, regime)
+    # the record unpacked here, not through model.rhs_record: one call level less in
+    # DOP853's stages, which LLVM then inlines whole
+    nu, eta, E, phi0 = pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0]
+    K, mu, Rp = pars[P_K], pars[P_MU], pars[P_RP]
+    vx, vy, ax, ay = rhs_entries(t, y[0], y[1], y[2], y[3], nu, eta, E, phi0, K, mu, Rp, regime)
     out[0], out[1], out[2], out[3] = vx, vy, ax, ay
 
 

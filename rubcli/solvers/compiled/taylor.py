@@ -867,7 +867,7 @@ def advance_taylor(
     hd = np.empty(MAX_SCAN + 1)
     ctx = np.empty(CTX_SIZE)
     pars_surface = pars.copy()
-    pars_surface[5] = 0.0
+    pars_surface[P_MU] = 0.0
     n_out = t_eval.shape[0]
     capacity = events_tau.shape[0]
     steps = 0
