@@ -627,6 +627,52 @@ class EnsembleSection(_Section):
         return value
 
 
+# =========================================================================== [chart]
+# Owned by `rubcli chart` (docs/charts.md): a plane of two model parameters.
+
+ChartParameter = Literal["nu", "eta", "e", "K", "mu", "Rp"]
+MAX_CHART_GRID = 2001  # grid values per axis
+
+
+class ChartSection(_Section):
+    """[chart]: the plane of the stability chart (nondimensional, also for [physical] cases);
+    every other parameter is the case's."""
+
+    x: ChartParameter  # the horizontal parameter
+    x_min: float
+    x_max: float
+    y: ChartParameter  # the vertical parameter
+    y_min: float
+    y_max: float
+    nx: int = Field(default=201, ge=2, le=MAX_CHART_GRID)  # grid values of x
+    ny: int = Field(default=101, ge=2, le=MAX_CHART_GRID)  # grid values of y
+
+    @model_validator(mode="after")
+    def _plane(self) -> ChartSection:
+        if self.x == self.y:
+            raise PydanticCustomError(
+                "chart_plane", "x and y must be two different parameters (both are {name})",
+                {"name": self.x},
+            )  # fmt: skip
+        for axis in ("x", "y"):
+            name, lo, hi = (
+                getattr(self, axis),
+                getattr(self, f"{axis}_min"),
+                getattr(self, f"{axis}_max"),
+            )
+            if not lo < hi:
+                raise PydanticCustomError(
+                    "chart_window", f"{axis}_min must be below {axis}_max (got {lo!r}, {hi!r})"
+                )
+            for bound in (lo, hi):
+                why = model.parameter_problem(name, bound)
+                if why:
+                    raise PydanticCustomError(
+                        "chart_window", f"{axis} = {name}: {name} {why} (got {bound!r} as a bound)"
+                    )
+        return self
+
+
 # ======================================================================= whole file
 
 
@@ -646,6 +692,7 @@ class CaseFile(_Section):
     sweep: SweepSection | None = None
     orbits: OrbitsSection | None = None
     ensemble: EnsembleSection | None = None
+    chart: ChartSection | None = None
 
     @model_validator(mode="after")
     def _run_fits_in_memory(self) -> CaseFile:

@@ -9,13 +9,20 @@ against the sign of the rotating-frame eigenvalues on either side.
 
 from __future__ import annotations
 
+import csv
 import dataclasses
+import json
+from pathlib import Path
 
+import numpy as np
 import pytest
+from typer.testing import CliRunner
 
 from rubcli import model
 from rubcli.analysis import charts as ch
 from rubcli.analysis.synchronous import synchronous_rubs
+from rubcli.case import load_case
+from rubcli.cli.app import app
 from rubcli.model import ModelParams
 
 # The paper's machine (model notes, section 6) with a light unbalance, without friction:
@@ -35,22 +42,29 @@ def test_free_grazing_speeds_touch_the_stator():
 
 def test_chart_curves_agree_with_independent_counts():
     chart = ch.closed_form_chart(RUN_UP, "eta", (0.5, 5.0), "e", (0.03, 0.07), nx=46, ny=3)
+    rows = set(chart.y.tolist())
     folds = chart.curves[ch.RUB_FOLD]
-    assert len(folds) == 3  # one fold of the rub branch per value of e
+    assert len([f for f in folds if f[1] in rows]) == 3  # one fold of the rub per row of e
+    assert len(folds) > 3  # and where the fold curve crosses the columns of eta
     for eta, e in folds:
-        p = dataclasses.replace(RUN_UP, e=e)
-        below = model.synchronous_rub_radii(dataclasses.replace(p, eta=eta - 1e-6))
-        above = model.synchronous_rub_radii(dataclasses.replace(p, eta=eta + 1e-6))
+        # the curve is crossed along the axis on which the point was located
+        step = {"e": 1e-7} if e not in rows else {"eta": 1e-6}
+        (name, d), p = next(iter(step.items())), dataclasses.replace(RUN_UP, eta=eta, e=e)
+        below = model.synchronous_rub_radii(dataclasses.replace(p, **{name: getattr(p, name) - d}))
+        above = model.synchronous_rub_radii(dataclasses.replace(p, **{name: getattr(p, name) + d}))
         assert {len(below), len(above)} == {0, 2}
         pair = below or above
-        r_f = ch.rub_fold_radius(dataclasses.replace(p, eta=eta))
+        r_f = ch.rub_fold_radius(p)
         assert min(pair) < r_f < max(pair) and max(pair) - min(pair) < 1e-2
     grazings = chart.curves[ch.FREE_GRAZING]
-    assert len(grazings) == 6  # both sides of the critical speed, three values of e
+    assert len([g for g in grazings if g[1] in rows]) == 6  # both sides of resonance, 3 rows
     for eta, e in grazings:
-        assert eta == pytest.approx(
-            min(ch.free_grazing_speeds(RUN_UP.nu, e), key=lambda s: abs(s - eta)), abs=1e-10
-        )
+        w, _ = model.free_steady_state(0.0, dataclasses.replace(RUN_UP, eta=eta, e=e))
+        assert abs(w) == pytest.approx(1.0, abs=1e-9)
+        if e in rows:
+            assert eta == pytest.approx(
+                min(ch.free_grazing_speeds(RUN_UP.nu, e), key=lambda s: abs(s - eta)), abs=1e-10
+            )
     # inside the hysteresis band both motions are stable; beyond the fold only the free one
     upper_graze = ch.free_grazing_speeds(RUN_UP.nu, 0.05)[1]
     fold = next(eta for eta, e in folds if abs(e - 0.05) < 1e-12)
@@ -65,8 +79,84 @@ def test_rub_stability_boundary_in_friction():
     paper = ModelParams(nu=0.009478, eta=0.7818, e=7.52, K=17.6, mu=0.0, Rp=46.16)
     chart = ch.closed_form_chart(paper, "mu", (0.0, 0.03), "eta", (0.7818, 0.7818), nx=7, ny=1)
     ((mu_ns, _),) = chart.curves[ch.RUB_STABILITY]
+    # the Neimark-Sacker point that continuation locates by shooting and Floquet
+    # multipliers (docs/orbits.md; tests/test_orbits.py), an independent route
+    assert mu_ns == pytest.approx(0.0102872304102, abs=1e-9)
     for mu, stable in ((mu_ns - 1e-7, True), (mu_ns + 1e-7, False)):
         rub = synchronous_rubs(dataclasses.replace(paper, mu=mu))[-1]
         assert rub.stable == stable
         crossing = rub.eigenvalues[abs(rub.eigenvalues.real) < 1e-4]
         assert crossing.size == 2 and abs(crossing[0].imag) > 0.1
+
+
+# ------------------------------------------------------------------ rubcli chart
+
+REPO = Path(__file__).resolve().parents[1]
+CHART_CASES = ("paper/fig3-chart.toml", "examples/run-up-chart.toml")
+
+
+@pytest.mark.parametrize("name", CHART_CASES)
+def test_chart_command_on_the_shipped_cases(name, tmp_path):
+    """Every curve point it writes lies on its curve by an independent route: the free
+    whirl's amplitude is 1 (model.free_steady_state), the rub's quadratic has a double
+    root there (its two radii meet), the rub's eigenvalues cross the imaginary axis."""
+    out = tmp_path / "chart"
+    result = CliRunner().invoke(app, ["chart", str(REPO / "cases" / name), "--quick",
+                                      "--out", str(out)])  # fmt: skip
+    assert result.exit_code == 0, result.output
+    assert {p.name for p in out.iterdir()} == {"chart.png", "curve.csv", "chart.nc",
+                                               "report.json"}  # fmt: skip
+    case = load_case(REPO / "cases" / name)
+    c = case.settings.chart
+    report = json.loads((out / "report.json").read_text())
+    assert report["plane"]["nx"] == 41 and report["plane"]["ny"] == 21
+    assert sum(report["region_fractions"].values()) == pytest.approx(1.0)
+    with (out / "curve.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert rows and set(rows[0]) == {c.x, c.y, "kind"}
+    assert {k: sum(r["kind"] == k for r in rows) for k in ch.CURVE_KINDS} == report["curve_points"]
+    for row in rows:
+        p = dataclasses.replace(case.params, **{c.x: float(row[c.x]), c.y: float(row[c.y])})
+        if row["kind"] == ch.FREE_GRAZING:
+            assert abs(model.free_steady_state(0.0, p)[0]) == pytest.approx(1.0, abs=1e-9)
+        elif row["kind"] == ch.RUB_FOLD:
+            eps = 1e-6 * max(1.0, abs(p.eta))
+            radii = [model.synchronous_rub_radii(dataclasses.replace(p, eta=p.eta + d))
+                     for d in (-eps, eps)]  # fmt: skip
+            assert (
+                sorted(len(r) for r in radii) == [0, 2]
+                or max(abs(r[0] - r[-1]) for r in radii if r) < 1e-2
+            )
+        else:
+            rub = [r for r in synchronous_rubs(p) if r.forward_slip][-1]
+            assert abs(rub.growth_rate) < 1e-8
+    import xarray as xr
+
+    with xr.open_dataset(out / "chart.nc", engine="h5netcdf") as ds:
+        assert ds["region"].shape == (21, 41)
+        assert set(np.unique(ds["region"].values)) <= set(ch.REGIONS)
+
+
+def test_chart_refuses_a_case_without_or_with_a_bad_table(tmp_path):
+    base = (REPO / "cases" / "paper" / "fig3-chart.toml").read_text()
+    head = base[: base.index("[chart]")]
+    runner = CliRunner()
+    for table, message in [
+        ("", "missing table [chart]"),
+        ('[chart]\nx = "eta"\nx_min = 0.1\nx_max = 2.0\ny = "eta"\ny_min = 0.1\ny_max = 1.0\n',
+         "two different parameters"),
+        ('[chart]\nx = "eta"\nx_min = 2.0\nx_max = 0.1\ny = "mu"\ny_min = 0\ny_max = 1\n',
+         "x_min must be below x_max"),
+        ('[chart]\nx = "eta"\nx_min = 0.0\nx_max = 2.0\ny = "mu"\ny_min = 0\ny_max = 1\n',
+         "eta must be > 0"),
+        ('[chart]\nx = "omega"\nx_min = 0.1\nx_max = 2.0\ny = "mu"\ny_min = 0\ny_max = 1\n',
+         "chart.x"),
+    ]:  # fmt: skip
+        path = tmp_path / "case.toml"
+        path.write_text(head + table)
+        out = tmp_path / "out"
+        result = runner.invoke(app, ["chart", str(path), "--out", str(out)])
+        assert result.exit_code == 2, (table, result.output)
+        assert message in result.output and str(path) in result.output, result.output
+        assert "Traceback" not in result.output
+        assert not out.exists()

@@ -105,6 +105,19 @@ def region(params: ModelParams) -> int:
     return (FREE if free else 0) | (RUB if rub else 0)
 
 
+def _fold_field(params: ModelParams) -> float:
+    """The fold discriminant where its double root lies outside the clearance, else nan."""
+    return rub_fold_discriminant(params) if rub_fold_radius(params) > 1.0 else math.nan
+
+
+# The scalar whose zero level is each curve (nan where the curve cannot lie).
+CURVE_FUNCTIONS: dict[str, Callable[[ModelParams], float]] = {
+    FREE_GRAZING: lambda p: free_radius(p) - 1.0,
+    RUB_FOLD: _fold_field,
+    RUB_STABILITY: lambda p: _stable_rub_growth(p),
+}
+
+
 @dataclass
 class Chart:
     """Regions on a grid and the closed-form curves of one parameter plane."""
@@ -114,7 +127,8 @@ class Chart:
     x: np.ndarray  # (nx,)
     y: np.ndarray  # (ny,)
     regions: np.ndarray  # (ny, nx) of NEITHER/FREE/RUB/BOTH
-    curves: dict[str, list[tuple[float, float]]]  # kind -> (x, y) points
+    curves: dict[str, list[tuple[float, float]]]  # kind -> located (x, y) points
+    fields: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)  # kind -> (ny, nx)
 
     def curve_rows(self) -> list[tuple[float, float, str]]:
         """(x, y, kind) for every curve point, kind by kind, y then x ascending."""
@@ -124,11 +138,19 @@ class Chart:
             rows.extend((px, py, kind) for px, py in points)
         return rows
 
+    def region_fractions(self) -> dict[str, float]:
+        """The share of the grid in each region."""
+        return {REGIONS[c]: float(np.mean(self.regions == c)) for c in REGIONS}
+
 
 def _roots_along(g: Callable[[float], float], xs: np.ndarray, keep) -> list[float]:
     """Roots of g between consecutive grid points with a sign change (Brent), kept if
     ``keep(root)``; nan values (no such motion) bound no bracket."""
     values = [g(float(x)) for x in xs]
+    return _roots_in(g, xs, values, keep)
+
+
+def _roots_in(g, xs, values, keep) -> list[float]:
     out = []
     for x0, x1, g0, g1 in zip(xs[:-1], xs[1:], values[:-1], values[1:], strict=True):
         if not (math.isfinite(g0) and math.isfinite(g1)) or (g0 > 0.0) == (g1 > 0.0):
@@ -152,25 +174,77 @@ def closed_form_chart(
     ny: int = 61,
 ) -> Chart:
     """Regions and curves in the plane (x_name, y_name) over the given ranges; every other
-    parameter as in ``params``. Curves are located along x (Brent) at each grid value of y."""
+    parameter as in ``params``. Each curve's function is evaluated on the grid
+    (``Chart.fields``), and its zeros are located by Brent between grid values of a sign
+    change, along x at each grid value of y and along y at each grid value of x (a curve
+    that runs nearly parallel to one axis is found along the other)."""
     xs = np.linspace(*x_range, nx)
     ys = np.linspace(*y_range, ny)
     regions = np.zeros((ny, nx), dtype=int)
-    curves: dict[str, list[tuple[float, float]]] = {k: [] for k in CURVE_KINDS}
+    fields = {k: np.full((ny, nx), math.nan) for k in CURVE_KINDS}
     for j, yv in enumerate(ys):
         row = _with(params, **{y_name: yv})
         for i, xv in enumerate(xs):
-            regions[j, i] = region(_with(row, **{x_name: xv}))
+            point = _with(row, **{x_name: xv})
+            rubs = synchronous_rubs(point)
+            free = free_radius(point) <= 1.0
+            rub = any(r.forward_slip and r.stable for r in rubs)
+            regions[j, i] = (FREE if free else 0) | (RUB if rub else 0)
+            forward = [r for r in rubs if r.forward_slip]
+            fields[FREE_GRAZING][j, i] = free_radius(point) - 1.0
+            fields[RUB_FOLD][j, i] = _fold_field(point)
+            fields[RUB_STABILITY][j, i] = forward[-1].growth_rate if forward else math.nan
+    found: dict[str, set[tuple[float, float]]] = {k: set() for k in CURVE_KINDS}
+    for kind, f in CURVE_FUNCTIONS.items():
+        keep = _keep(kind, params, x_name, y_name)
+        if nx > 1:
+            for j, yv in enumerate(ys):
 
-        def at(xv: float, row=row) -> ModelParams:
-            return _with(row, **{x_name: xv})
+                def along_x(v: float, yv=yv, f=f) -> float:
+                    return f(_with(params, **{x_name: v, y_name: yv}))
 
-        for xv in _roots_along(lambda v: free_radius(at(v)) - 1.0, xs, lambda v: True):
-            curves[FREE_GRAZING].append((xv, float(yv)))
-        folds = _roots_along(
-            lambda v: rub_fold_discriminant(at(v)), xs, lambda v: rub_fold_radius(at(v)) > 1.0
-        )
-        curves[RUB_FOLD].extend((xv, float(yv)) for xv in folds)
-        for xv in _roots_along(lambda v: _stable_rub_growth(at(v)), xs, lambda v: True):
-            curves[RUB_STABILITY].append((xv, float(yv)))
-    return Chart(x_name, y_name, xs, ys, regions, curves)
+                def on_x(v: float, yv=yv, keep=keep) -> bool:
+                    return keep(v, yv)
+
+                for root in _roots_in(along_x, xs, fields[kind][j], on_x):
+                    found[kind].add((root, float(yv)))
+        if ny > 1:
+            for i, xv in enumerate(xs):
+
+                def along_y(v: float, xv=xv, f=f) -> float:
+                    return f(_with(params, **{x_name: xv, y_name: v}))
+
+                def on_y(v: float, xv=xv, keep=keep) -> bool:
+                    return keep(xv, v)
+
+                for root in _roots_in(along_y, ys, fields[kind][:, i], on_y):
+                    found[kind].add((float(xv), root))
+    curves = {k: sorted(v, key=lambda p: (p[1], p[0])) for k, v in found.items()}
+    return Chart(x_name, y_name, xs, ys, regions, curves, fields)
+
+
+def _keep(kind: str, params: ModelParams, x_name: str, y_name: str):
+    """Which zeros of a curve's function are points of the curve: the fold's where its
+    double root lies outside the clearance (its function is nan elsewhere, so this only
+    rejects a root Brent found next to that edge)."""
+    if kind != RUB_FOLD:
+        return lambda xv, yv: True
+    return lambda xv, yv: rub_fold_radius(_with(params, **{x_name: xv, y_name: yv})) > 1.0
+
+
+def chart_dataset(chart: Chart, params: ModelParams):
+    """The chart as an xarray Dataset: ``region`` on the grid (codes in its attributes),
+    the function of each curve (its zero level is the curve; nan where it cannot lie), and
+    the parameters held fixed."""
+    import xarray as xr
+
+    coords = {chart.y_name: chart.y, chart.x_name: chart.x}
+    dims = (chart.y_name, chart.x_name)
+    data = {
+        "region": (dims, chart.regions.astype(np.int8),
+                   {"codes": ", ".join(f"{c}: {name}" for c, name in REGIONS.items())}),
+        **{f"{kind}_function": (dims, chart.fields[kind]) for kind in CURVE_KINDS},
+    }  # fmt: skip
+    fixed = {k: float(v) for k, v in params.as_dict().items()
+             if k not in (chart.x_name, chart.y_name)}  # fmt: skip
+    return xr.Dataset(data, coords=coords, attrs={"fixed_" + k: v for k, v in fixed.items()})

@@ -17,6 +17,7 @@ from typer.core import TyperGroup
 
 from rubcli import __version__, io
 from rubcli.cli import (
+    chart,
     compare,
     console,
     ensemble,
@@ -129,6 +130,7 @@ app.command("stress")(stress.command)
 app.command("sweep")(sweep.command)
 app.command("orbits")(orbits.command)
 app.command("ensemble")(ensemble.command)
+app.command("chart")(chart.command)
 
 
 def _version(value: bool) -> None:

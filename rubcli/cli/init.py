@@ -51,6 +51,14 @@ _OPTIONAL_TABLES = """
 # transient_periods = 200       # discarded at every point
 # record_periods = 100          # recorded at every point
 
+# [chart]                       # `rubcli chart`: regions of the synchronous motions
+# x = "eta"                     # a plane of two of nu, eta, e, K, mu, Rp (docs/charts.md)
+# x_min = 0.1
+# x_max = 2.0
+# y = "mu"
+# y_min = 0.0
+# y_max = 0.1
+
 # [ensemble]                    # `rubcli ensemble`: a cloud of starts, a tolerance ladder
 # runs = 20                     # starts: [initial] and 19 within `spread` of it
 # spread = 1e-6                 # clearances

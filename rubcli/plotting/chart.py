@@ -1,0 +1,88 @@
+"""Figure of a stability chart: regions of the synchronous motions in a parameter plane.
+
+The regions (``analysis.charts``: free whirl only, synchronous rub only, both, neither)
+fill the plane as an image in four fixed colours; the closed-form curves that bound them
+(the free whirl's grazing, the rub's fold, the rub's stability boundary) are drawn as the
+zero level of each curve's function on the chart's grid, one colour and dash per kind.
+It only draws.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.colors import BoundaryNorm, ListedColormap
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
+
+from rubcli.analysis import charts as ch
+
+REGION_COLOURS = {
+    ch.NEITHER: "#d9d9d9",
+    ch.FREE: "#a6cee3",
+    ch.RUB: "#fdbf6f",
+    ch.BOTH: "#b2df8a",
+}
+CURVE_STYLES = {  # kind: (colour, line style)
+    ch.FREE_GRAZING: ("#1f4e9c", "-"),
+    ch.RUB_FOLD: ("#b30000", "--"),
+    ch.RUB_STABILITY: ("#000000", ":"),
+}
+CURVE_LABELS = {
+    ch.FREE_GRAZING: "grazing of the free whirl (|W| = 1)",
+    ch.RUB_FOLD: "fold of the synchronous rub",
+    ch.RUB_STABILITY: "stability boundary of the rub (Neimark-Sacker)",
+}
+SYMBOLS = {"eta": "eta = Omega / omega", "mu": "mu (friction)", "e": "e (unbalance / clearance)",
+           "nu": "nu (damping ratio)", "K": "K (stator / rotor stiffness)",
+           "Rp": "Rp (rotor radius / clearance)", "phi0": "phi0 (rad)"}  # fmt: skip
+
+
+def _label(name: str) -> str:
+    return SYMBOLS.get(name, name)
+
+
+def chart_figure(chart: ch.Chart, title: str, here: tuple[float, float] | None = None) -> Figure:
+    """The chart's regions and closed-form curves; ``here``: the case's own (x, y), marked
+    where it lies in the plane."""
+    fig = Figure(figsize=(10.0, 6.5), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    codes = sorted(REGION_COLOURS)
+    cmap = ListedColormap([REGION_COLOURS[c] for c in codes])
+    norm = BoundaryNorm(np.arange(len(codes) + 1) - 0.5, cmap.N)
+    ax.pcolormesh(chart.x, chart.y, chart.regions, cmap=cmap, norm=norm, shading="nearest",
+                  rasterized=True)  # fmt: skip
+    present = set(np.unique(chart.regions).tolist())
+    handles: list = [
+        Patch(color=REGION_COLOURS[c], label=ch.REGIONS[c]) for c in codes if c in present
+    ]
+    for kind in ch.CURVE_KINDS:
+        colour, style = CURVE_STYLES[kind]
+        field = np.ma.masked_invalid(chart.fields.get(kind, np.full(chart.regions.shape, np.nan)))
+        if not chart.curves.get(kind) or field.count() == 0:
+            continue
+        ax.contour(chart.x, chart.y, field, levels=[0.0], colors=[colour],
+                   linestyles=[style], linewidths=1.8)  # fmt: skip
+        handles.append(Line2D([], [], color=colour, linestyle=style, linewidth=1.8,
+                              label=CURVE_LABELS[kind]))  # fmt: skip
+    if (
+        here is not None
+        and chart.x[0] <= here[0] <= chart.x[-1]
+        and (chart.y[0] <= here[1] <= chart.y[-1])
+    ):
+        ax.plot(*here, marker="*", markersize=14, color="white", markeredgecolor="black",
+                linestyle="none", clip_on=False)  # fmt: skip
+        handles.append(Line2D([], [], marker="*", markersize=12, color="white",
+                              markeredgecolor="black", linestyle="none",
+                              label=f"the case: {chart.x_name} = {here[0]:g}, "
+                              f"{chart.y_name} = {here[1]:g}"))  # fmt: skip
+    ax.set_xlim(chart.x[0], chart.x[-1])
+    ax.set_ylim(chart.y[0], chart.y[-1])
+    ax.set_xlabel(_label(chart.x_name))
+    ax.set_ylabel(_label(chart.y_name))
+    ax.set_title(title, fontsize="medium")
+    fig.legend(handles=handles, loc="outside lower center", ncols=2, fontsize="small",
+               frameon=False)  # fmt: skip
+    return fig
