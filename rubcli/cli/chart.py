@@ -23,7 +23,6 @@ from typing import Annotated
 import typer
 
 from rubcli import io
-from rubcli.analysis import charts as ch
 from rubcli.cli import console
 from rubcli.cli.common import (
     ForceOption,
@@ -59,6 +58,8 @@ def command(
         console.error(f"{case.source}: chart: missing table [chart] (docs/charts.md)")
         raise typer.Exit(EXIT_INVALID)
     nx, ny = (min(c.nx, QUICK_GRID[0]), min(c.ny, QUICK_GRID[1])) if quick else (c.nx, c.ny)
+    from rubcli.analysis import charts as ch  # (scipy: loaded by this command only)
+
     target = command_dir(case, "chart", out)
     plan = prepare_output(target, force, wait, EXPECTED_FILES)
     with console.machine_readable(json):
