@@ -30,8 +30,8 @@ from rubcli import model
 from rubcli.analysis import continuation as cn
 from rubcli.analysis import orbits as ob
 from rubcli.case import load_case
-from rubcli.cli.orbits import settings_from_case, start_guess
 from rubcli.model import ModelParams
+from rubcli.studies.orbits import settings_from_case, start_guess
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -160,3 +160,17 @@ def test_chart_refuses_a_case_without_or_with_a_bad_table(tmp_path):
         assert message in result.output and str(path) in result.output, result.output
         assert "Traceback" not in result.output
         assert not out.exists()
+
+
+def test_chart_study_from_python(tmp_path):
+    """The library path of the command: the study, then its files in one commit."""
+    from rubcli.studies.chart import FILES, chart_of
+
+    case = load_case(REPO / "cases" / "examples" / "run-up-chart.toml")
+    result = chart_of(case, quick=True)
+    assert result.chart.regions.shape == (21, 41)
+    report = result.write(tmp_path / "chart")
+    assert sorted(report["files"]) == sorted(FILES)
+    assert {p.name for p in (tmp_path / "chart").iterdir()} == set(FILES)
+    with pytest.raises(ValueError, match="missing table \\[chart\\]"):
+        chart_of(load_case(REPO / "cases" / "paper" / "fig3a.toml"))

@@ -368,7 +368,7 @@ def _sweep_nc(path, coordinate="eta"):
 
 
 def test_overlay_of_a_sweep(tmp_path):
-    from rubcli.cli.orbits import load_overlay
+    from rubcli.studies.orbits import load_overlay
 
     nc = tmp_path / "sweep.nc"
     _sweep_nc(nc)
@@ -406,3 +406,25 @@ def test_shipped_orbit_cases_quick(tmp_path, name):
         assert ns["kind"] == "neimark_sacker"
         assert abs(ns["parameter"] - 0.010287230410) < 1e-6  # brentq value, test above
     assert math.isfinite(report["wall_time_s"])
+
+
+def test_orbits_study_from_python(tmp_path):
+    """The library path of `rubcli orbits`: the study with its progress, then its files."""
+    from pathlib import Path
+
+    from rubcli.case import load_case
+    from rubcli.studies.orbits import FILES, continue_orbits
+
+    case = load_case(Path(__file__).resolve().parents[1] / "cases/paper/fig3-orbits.toml")
+    seen = []
+    result = continue_orbits(case, quick=True, progress=lambda *a: seen.append(a))
+    assert result.ok and seen[0][0] == "the starting orbit"
+    assert seen[-1][1] == len(result.branch.points) and seen[-1][2] == 2 * 12 + 1
+    (ns,) = result.branch.bifurcations
+    assert ns.kind == cn.NEIMARK_SACKER and abs(ns.parameter - 0.010287230410) < 1e-6
+    report = result.write(tmp_path / "orbits")
+    assert {p.name for p in (tmp_path / "orbits").iterdir()} == set(FILES)
+    assert report["branch"]["n_points"] == len(result.branch.points)
+    bad = load_case(Path(__file__).resolve().parents[1] / "cases/paper/fig3a.toml")
+    with pytest.raises(ValueError, match=r"missing table \[orbits\]"):
+        continue_orbits(bad)

@@ -16,13 +16,11 @@ Exit codes: 0 done; 2 invalid input (nothing written).
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
-from rubcli import io
 from rubcli.cli import console
 from rubcli.cli.common import (
     ForceOption,
@@ -35,8 +33,6 @@ from rubcli.cli.common import (
 )
 from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 
-QUICK_GRID = (41, 21)  # --quick: at most this many grid values of x and y
-EXPECTED_FILES = ("chart.png", "curve.csv", "chart.nc", "report.json")
 OutOption = Annotated[
     Path | None, typer.Option("--out", help="Output dir (default: <case dir>/chart).")
 ]
@@ -57,39 +53,15 @@ def command(
     if c is None:
         console.error(f"{case.source}: chart: missing table [chart] (docs/charts.md)")
         raise typer.Exit(EXIT_INVALID)
-    nx, ny = (min(c.nx, QUICK_GRID[0]), min(c.ny, QUICK_GRID[1])) if quick else (c.nx, c.ny)
-    from rubcli.analysis import charts as ch  # (scipy: loaded by this command only)
+    from rubcli.studies import chart as study  # (scipy: loaded by this command only)
 
     target = command_dir(case, "chart", out)
-    plan = prepare_output(target, force, wait, EXPECTED_FILES)
+    plan = prepare_output(target, force, wait, study.FILES)
     with console.machine_readable(json):
-        started = time.perf_counter()
-        with console.notice_if_slow(f"charting {nx} x {ny} points in ({c.x}, {c.y})"):
-            chart = ch.closed_form_chart(
-                case.params, c.x, (c.x_min, c.x_max), c.y, (c.y_min, c.y_max), nx=nx, ny=ny
-            )
-        fixed = {k: v for k, v in case.params.as_dict().items() if k not in (c.x, c.y)}
-        report = {
-            **io.report_envelope("chart", {"case_file": str(case_file), "out": str(target),
-                                           "quick": quick}, case.to_dict()),
-            "wall_time_s": time.perf_counter() - started,
-            "plane": {"x": c.x, "x_range": [c.x_min, c.x_max], "nx": nx,
-                      "y": c.y, "y_range": [c.y_min, c.y_max], "ny": ny},
-            "fixed": fixed,
-            "region_fractions": chart.region_fractions(),
-            "curve_points": {k: len(chart.curves[k]) for k in ch.CURVE_KINDS},
-        }  # fmt: skip
-        with io.staged_output_dir(target, plan) as staged:
-            io.write_rows_csv(staged.path("curve.csv"), (c.x, c.y, "kind"), chart.curve_rows())
-            io.write_netcdf(ch.chart_dataset(chart, case.params), staged.path("chart.nc"))
-            from rubcli.plotting.chart import chart_figure
-
-            held = ", ".join(f"{k} = {v:g}" for k, v in fixed.items() if k != "phi0")
-            title = f"{case.name}: synchronous motions in ({c.x}, {c.y}); {held}"
-            here = (getattr(case.params, c.x), getattr(case.params, c.y))
-            io.save_figure(chart_figure(chart, title, here), staged.path("chart.png"))
-            report["files"] = sorted(f.name for f in staged.staging.iterdir()) + ["report.json"]
-            staged.write_report(report)
+        with console.notice_if_slow(f"charting {c.nx} x {c.ny} points in ({c.x}, {c.y})"):
+            result = study.chart_of(case, quick=quick)
+        command_line = {"case_file": str(case_file), "out": str(target), "quick": quick}
+        report = result.write(target, plan, command_line)
         report_stale(plan)
         emit(report, json)
         rows = [[name, f"{share:.1%}"] for name, share in report["region_fractions"].items()]

@@ -1,0 +1,10 @@
+"""The studies behind the commands, as library functions.
+
+Each module takes a validated case (``rubcli.load_case``) and its options, does the work,
+and returns a typed result whose ``write(directory)`` writes the command's files in one
+atomic commit through ``rubcli.io``; progress comes back through a callback. The command
+line (``rubcli.cli``) only parses, calls and prints.
+
+- ``orbits``: periodic orbits continued in one parameter (``rubcli orbits``);
+- ``chart``: the stability chart of a parameter plane (``rubcli chart``).
+"""

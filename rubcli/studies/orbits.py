@@ -1,0 +1,310 @@
+"""Periodic orbits of a case continued in one parameter (``rubcli orbits``), as a library
+study: ``continue_orbits(case)`` returns an ``OrbitsResult``, whose ``write(directory)``
+writes ``branch.csv``, ``branch.nc``, ``branch.png``, ``multipliers.png`` and
+``report.json`` in one atomic commit (``rubcli.io``).
+
+The case's ``[orbits]`` table (docs/orbits.md) sets the continuation; the starting orbit
+is shot from ``[initial]``, from the end of a transient, or from the exact synchronous rub.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rubcli import __version__, io, model
+from rubcli.analysis import continuation as cn
+from rubcli.analysis import orbits as ob
+from rubcli.case import Case, OrbitsSection
+
+FILES = ("branch.csv", "branch.nc", "branch.png", "multipliers.png", "report.json")
+QUICK_MAX_POINTS = 12
+QUICK_TOL = 1e-10
+OVERLAY_CANDIDATES = ("strobe_z", "section_z", "z_section", "stroboscopic_z", "poincare_z", "z")
+CSV_COLUMNS = (
+    "index", "parameter", "value", "k", "x", "y", "vx", "vy", "max_z", "min_z",
+    "contact_fraction", "stick_fraction", "contact_phases", "stable", "n_unstable",
+    "max_multiplier_modulus", *(f"multiplier{i}_{part}" for i in range(1, 5)
+                                for part in ("re", "im")),
+    "label", "located", "newton_iterations",
+)  # fmt: skip
+
+
+# Progress of a study: (phase, orbits computed so far, orbits at most).
+Progress = Callable[[str, int, int], None]
+
+
+def settings_from_case(
+    case: Case, quick: bool = False, max_wall_time_s: float | None = None
+) -> cn.ContinuationSettings:
+    """The continuation settings of a case's [orbits] table (``max_wall_time_s``: the
+    command line's budget instead of the table's)."""
+    o = case.settings.orbits
+    assert o is not None
+    directions = {"both": (1, -1), "up": (1,), "down": (-1,)}[o.directions]
+    return cn.ContinuationSettings(
+        parameter=o.parameter,
+        p_min=o.min,
+        p_max=o.max,
+        step=o.step,
+        min_step=o.resolved_min_step(),
+        max_step=o.resolved_max_step(),
+        max_points=min(o.max_points, QUICK_MAX_POINTS) if quick else o.max_points,
+        directions=directions,
+        k=o.period,
+        newton_tol=max(o.newton_tol, 1e-9) if quick else o.newton_tol,
+        max_newton=o.max_newton,
+        rtol=max(o.rtol, QUICK_TOL) if quick else o.rtol,
+        atol=max(o.atol, QUICK_TOL) if quick else o.atol,
+        locate=o.locate,
+        max_wall_time_s=o.max_wall_time_s if max_wall_time_s is None else max_wall_time_s,
+    )
+
+
+def check_case(case: Case) -> list[str]:
+    """Problems of a case for ``rubcli orbits`` beyond the schema (file and field named)."""
+    src, o = case.source, case.settings.orbits
+    if o is None:
+        return [f"{src}: orbits: missing table [orbits] (rubcli orbits needs it; docs/orbits.md)"]
+    value = float(getattr(case.params, o.parameter))
+    problems = []
+    if not o.min <= value <= o.max:
+        table = "model" if case.settings.model is not None else "physical (nondimensional)"
+        problems.append(
+            f"{src}: orbits.min/max: the starting value {table} {o.parameter} = {value:.6g} "
+            f"lies outside the window [{o.min:g}, {o.max:g}]"
+        )
+    if o.start == "synchronous_rub":
+        rubs = [r for r in model.synchronous_rub_radii(case.params)]
+        if not rubs or not model.synchronous_rub_is_forward(rubs[-1], case.params):
+            problems.append(
+                f"{src}: orbits.start: these parameters have no forward synchronous full "
+                'annular rub to start from (use start = "initial" or "transient")'
+            )
+    elif o.start == "initial" and o.transient_periods:
+        problems.append(f'{src}: orbits.transient_periods: only used with start = "transient"')
+    return problems
+
+
+def load_overlay(path: Path, parameter: str, variable: str | None):
+    """(parameter values, z values, label) of a sweep.nc, or a list of problems."""
+    try:
+        import xarray as xr
+    except ImportError:  # pragma: no cover - xarray is a dependency
+        return [f"{path}: --overlay needs xarray and h5netcdf (pip install xarray h5netcdf)"]
+    if not path.is_file():
+        return [f"{path}: --overlay: file not found"]
+    try:
+        ds = xr.open_dataset(path, engine="h5netcdf")
+    except Exception as exc:  # any unreadable file is bad input, not a crash
+        return [f"{path}: --overlay: not a readable NetCDF file ({type(exc).__name__}: {exc})"]
+    with ds:
+        if parameter not in ds.coords and parameter not in ds.dims:
+            return [f"{path}: --overlay: no coordinate {parameter!r} (the branch's parameter);"
+                    f" coordinates: {', '.join(map(str, ds.coords)) or 'none'}"]  # fmt: skip
+        names = [variable] if variable else [n for n in OVERLAY_CANDIDATES if n in ds.data_vars]
+        if not names:
+            names = [str(n) for n, v in ds.data_vars.items() if parameter in v.dims and "z" in n]
+        if not names or names[0] not in ds.data_vars:
+            wanted = variable or " or ".join(OVERLAY_CANDIDATES)
+            return [f"{path}: --overlay: no stroboscopic variable {wanted} over {parameter!r}"]
+        var = ds[names[0]]
+        if parameter not in var.dims:
+            return [f"{path}: --overlay: variable {names[0]!r} does not depend on {parameter!r}"]
+        var = var.transpose(parameter, ...)
+        values = np.asarray(var.values, dtype=float)
+        coord = np.asarray(ds[parameter].values, dtype=float)
+    from rubcli.plotting.orbits import overlay_points
+
+    px, pz = overlay_points(coord, values)
+    return px, pz, f"sweep: {names[0]} ({path.name})"
+
+
+# ------------------------------------------------------------------------ the study
+
+
+@dataclass
+class OrbitsResult:
+    """A continued branch with what produced it; ``write`` puts it in a directory."""
+
+    case: Case
+    settings: cn.ContinuationSettings
+    guess: np.ndarray | None  # the starting guess (None: the transient ran out of time)
+    branch: cn.Branch
+    wall_time_s: float
+    quick: bool = False
+    overlay: tuple | None = field(default=None, repr=False)  # (x, z, label) under the branch
+
+    @property
+    def ok(self) -> bool:
+        return self.branch.status == "ok"
+
+    def report(self, command_line: dict[str, Any]) -> dict[str, Any]:
+        """The report.json of the study (``command_line``: what was asked for)."""
+        return {
+            **io.report_envelope("orbits", command_line, self.case.to_dict()),
+            "wall_time_s": self.wall_time_s,
+            "quick": self.quick,
+            "continuation": dict(self.settings.__dict__),
+            "start_guess": None if self.guess is None else [float(v) for v in self.guess],
+            "branch": self.branch.to_dict(),
+            "overlay": command_line.get("overlay"),
+        }
+
+    def write(
+        self, directory: str | Path, plan: io.OutputPlan | None = None,
+        command_line: dict[str, Any] | None = None,
+    ) -> dict[str, Any]:  # fmt: skip
+        """Write the outputs into ``directory`` as one commit (``plan``: the dir as the
+        caller opened and checked it; without one it is opened here); returns the report.
+        A failed branch writes report.json alone."""
+        report = self.report(command_line or {"out": str(directory)})
+        branch = self.branch
+        with io.staged_output_dir(directory, plan) as staged:
+            if self.ok:
+                attrs = {"case": self.case.name, "parameter": branch.parameter,
+                         "rubcli_version": __version__, "stops": branch.stops}  # fmt: skip
+                write_branch_csv(staged.path("branch.csv"), branch)
+                io.write_netcdf(branch_dataset(branch, attrs), staged.path("branch.nc"))
+                from rubcli.plotting.orbits import branch_figure, multipliers_figure
+
+                title = title_of(self.case, branch)
+                io.save_figure(branch_figure(branch, title, self.overlay),
+                               staged.path("branch.png"))  # fmt: skip
+                io.save_figure(multipliers_figure(branch, title), staged.path("multipliers.png"))
+            report["files"] = sorted(p.name for p in staged.staging.iterdir()) + ["report.json"]
+            staged.write_report(report)
+        return report
+
+
+def continue_orbits(
+    case: Case,
+    *,
+    quick: bool = False,
+    max_wall_time_s: float | None = None,
+    overlay: tuple | None = None,
+    progress: Progress | None = None,
+) -> OrbitsResult:
+    """Shoot the case's starting orbit and continue it (its ``[orbits]`` table; checked
+    first with ``check_case``). ``quick``: 12 points per direction at tolerance 1e-10;
+    ``max_wall_time_s``: the budget instead of the table's; ``progress(phase, done,
+    total)`` as it goes."""
+    problems = check_case(case)
+    if problems:
+        raise ValueError("; ".join(problems))
+    o: OrbitsSection = case.settings.orbits
+    settings = settings_from_case(case, quick, max_wall_time_s)
+    t0 = time.perf_counter()
+    deadline = cn.deadline_of(settings, t0)
+    total = settings.max_points * len(settings.directions) + 1
+    report = progress or (lambda phase, done, total: None)
+    report("the starting orbit", 0, total)
+    try:
+        guess = start_guess(case, o, deadline)
+    except ob.WallTimeBudgetError:
+        guess = None
+    phase = f"continuation in {o.parameter}"
+    report(phase, 0, total)
+    if guess is None:
+        branch = cn.Branch(o.parameter, settings, [], [], {}, 0, "failed",
+                           "no starting orbit: wall-time budget exhausted (max_wall_time_s = "
+                           f"{settings.max_wall_time_s:g}) in the transient",
+                           budget_exhausted=True)  # fmt: skip
+    else:
+
+        def count(n: int) -> None:
+            report(phase, n, total)
+
+        branch = cn.continue_branch(case.params, guess, settings, count, deadline)
+    return OrbitsResult(case, settings, guess, branch, time.perf_counter() - t0, quick, overlay)
+
+
+# ------------------------------------------------------------------------ products
+
+
+def _row(index: int, name: str, pt: cn.BranchPoint) -> list[str]:
+    m = np.zeros(4, dtype=complex)
+    m[: pt.multipliers.size] = pt.multipliers[:4]
+    cells = [str(index), name, f"{pt.parameter:.17g}", str(pt.k)]
+    cells += [f"{v:.17g}" for v in pt.state]
+    cells += [f"{pt.max_z:.17g}", f"{pt.min_z:.17g}", f"{pt.contact_fraction:.12g}",
+              f"{pt.stick_fraction:.12g}", str(pt.contact_phases), str(pt.stable).lower(),
+              str(pt.n_unstable), f"{np.max(np.abs(pt.multipliers)):.17g}"]  # fmt: skip
+    for v in m:
+        cells += [f"{v.real:.17g}", f"{v.imag:.17g}"]
+    cells += [pt.label, str(bool(pt.label)).lower(), str(pt.newton_iterations)]
+    return cells
+
+
+def write_branch_csv(path: Path, branch: cn.Branch) -> None:
+    lines = [",".join(CSV_COLUMNS)]
+    for i, pt in enumerate(branch.rows()):
+        lines.append(",".join(_row(i, branch.parameter, pt)))
+    io.write_text(path, "\n".join(lines) + "\n")
+
+
+def branch_dataset(branch: cn.Branch, attrs: dict[str, Any]):
+    """The branch as an xarray Dataset (dims ``point`` and ``multiplier``)."""
+    import xarray as xr
+
+    rows = branch.rows()
+    n = len(rows)
+    mult = np.zeros((n, 4), dtype=complex)
+    for i, pt in enumerate(rows):
+        mult[i, : pt.multipliers.size] = pt.multipliers[:4]
+    states = np.array([pt.state for pt in rows]).reshape(n, 4)
+    data = {
+        branch.parameter: ("point", np.array([pt.parameter for pt in rows])),
+        "k": ("point", np.array([pt.k for pt in rows], dtype=np.int32)),
+        "max_z": ("point", np.array([pt.max_z for pt in rows])),
+        "min_z": ("point", np.array([pt.min_z for pt in rows])),
+        "contact_fraction": ("point", np.array([pt.contact_fraction for pt in rows])),
+        "stick_fraction": ("point", np.array([pt.stick_fraction for pt in rows])),
+        "contact_phases": ("point", np.array([pt.contact_phases for pt in rows], dtype=np.int32)),
+        "stable": ("point", np.array([pt.stable for pt in rows], dtype=np.int8)),
+        "multiplier_re": (("point", "multiplier"), mult.real),
+        "multiplier_im": (("point", "multiplier"), mult.imag),
+        "label": ("point", np.array([pt.label for pt in rows], dtype=object).astype(str)),
+    }
+    for j, name in enumerate(("x", "y", "vx", "vy")):
+        data[name] = ("point", states[:, j])
+    ds = xr.Dataset(data, coords={"point": np.arange(n), "multiplier": np.arange(4)})
+    ds["stable"].attrs["meaning"] = "1 if every multiplier lies inside the unit circle"
+    ds["max_z"].attrs["units"] = "clearances"
+    ds.attrs.update({k: v if isinstance(v, str | int | float) else io_json(v)
+                     for k, v in attrs.items()})  # fmt: skip
+    return ds
+
+
+def io_json(value: Any) -> str:
+    import json
+
+    return json.dumps(io.to_jsonable(value))
+
+
+def title_of(case: Case, branch: cn.Branch) -> str:
+    p = case.params
+    fixed = {k: v for k, v in p.as_dict().items() if k != branch.parameter}
+    text = ", ".join(f"{k}={v:g}" for k, v in fixed.items())
+    head = f"{case.name}: periodic orbits (k={branch.settings.k}) continued in {branch.parameter}"
+    return f"{head}\n{text}"
+
+
+def start_guess(case: Case, o: OrbitsSection, deadline: float | None = None) -> np.ndarray:
+    """The starting guess for shooting: [initial], after a transient, or the exact rub
+    (WallTimeBudgetError if the transient runs past ``deadline``)."""
+    params = case.params
+    if o.start == "synchronous_rub":
+        return model.synchronous_rub(np.array([0.0]), params)[:, 0]
+    initial = np.array(case.problem.initial, dtype=float)
+    if o.start == "transient":
+        try:
+            return ob.transient_state(params, initial, o.transient_periods * o.period, deadline)
+        except ob.OrbitError:
+            return initial
+    return initial
