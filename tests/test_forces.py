@@ -35,8 +35,9 @@ from rubcli.analysis.forces import (
 )
 from rubcli.case import load_case
 from rubcli.cli.app import app
-from rubcli.cli.forces_map import FORCES_COLUMNS, make_outputs, output_dir
+from rubcli.cli.forces_map import output_dir
 from rubcli.model import ModelParams, contact_eigenvalues, contact_force, taylor_force
+from rubcli.studies.forces_map import FORCES_COLUMNS, write_forces_map
 
 EPS = np.finfo(float).eps
 NU = 0.009478  # Table 1
@@ -522,7 +523,7 @@ def test_shipped_forces_map_cases_run_at_a_small_resolution(tmp_path, name):
     case = dataclasses.replace(
         case, settings=case.settings.model_copy(update={"forces_map": small})
     )
-    report = make_outputs(case, tmp_path, {"case_file": name})
+    report = write_forces_map(case, tmp_path, command_line={"case_file": name})
     expected = {
         "forces": "forces_map.csv",
         "taylor_error": "taylor_error.csv",
@@ -540,7 +541,7 @@ def test_grid_csv_is_formatted_in_blocks_row_by_row():
     """The grid tables are formatted a block of rows at a time (one 8.3 GiB block once
     failed at resolution 6688): the blocks cover the grid in its order (y outer, x inner)
     and hold at most ``rows`` rows each."""
-    from rubcli.cli.forces_map import grid_blocks
+    from rubcli.studies.forces_map import grid_blocks
 
     x, y = np.linspace(-1.0, 1.0, 5), np.linspace(-2.0, 2.0, 4)
     field = np.arange(20.0).reshape(4, 5)
