@@ -259,9 +259,9 @@ def test_stress_into_an_existing_dir_and_interrupted(tmp_path, monkeypatch):
     out.mkdir()
     (out / "keep.txt").write_text("mine")
     (out / "stress.csv").write_text("old")
-    from rubcli.cli import stress as stress_cli
+    from rubcli.studies import stress as stress_study
 
-    monkeypatch.setattr(stress_cli, "markdown_text", interrupt)
+    monkeypatch.setattr(stress_study, "markdown_text", interrupt)
     result = invoke("stress", *STRESS_SELECTION, "--out", out, "--force")
     assert result.exit_code == 130
     assert (out / "stress.csv").read_text() == "old"  # the half-staged table never moved in

@@ -22,15 +22,12 @@ do not change the exit code. Files are staged and moved in at the end.
 
 from __future__ import annotations
 
-import dataclasses
-import datetime as dt
-import math
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
-from rubcli import __version__, io
+from rubcli import io
 from rubcli.analysis import stress
 from rubcli.cli import console
 from rubcli.cli.common import (
@@ -43,70 +40,10 @@ from rubcli.cli.common import (
     report_stale,
 )
 from rubcli.cli.validate import EXIT_INVALID
+from rubcli.studies import stress as study
+from rubcli.studies.stress import short_number
 
 EXIT_FAILED = 1
-
-
-def _cell(value: object) -> object:
-    """stress.csv keeps flags as 1/0."""
-    return int(value) if isinstance(value, bool) else value
-
-
-def write_csv(path: Path, runs: list[stress.StressRun]) -> None:
-    rows = [[_cell(v) for v in run.as_row().values()] for run in runs]
-    io.write_rows_csv(path, stress.RUN_COLUMNS, rows, nonfinite="")
-
-
-def _short(value: float | None, fmt: str = ".2g") -> str:
-    if value is None or (isinstance(value, float) and not math.isfinite(value)):
-        return "-"
-    return format(value, fmt)
-
-
-def markdown_text(
-    runs: list[stress.StressRun], cases: list[stress.StressCase], quick: bool, command: str
-) -> str:
-    """stress.md: the cases, then one table row per run."""
-    mode = "quick" if quick else "full"
-    lines = [
-        f"# rubcli stress ({mode})",
-        "",
-        f"`{command}`, rubcli {__version__}, "
-        f"{dt.datetime.now(dt.UTC).isoformat(timespec='seconds')}.",
-        "",
-        "Error: max |w - w_ref| (clearances) over the samples the run shares with its "
-        "reference. Energy residual: |ΔE - (W_in - D_damp - D_fric)| / throughput; it is "
-        "informative only above its quadrature floor (docs/stability.md).",
-        "",
-        "## Cases",
-        "",
-        "| case | periods | samples/period | what |",
-        "|---|---|---|---|",
-    ]
-    for case in cases:
-        periods = case.quick_periods if quick else case.periods
-        lines.append(f"| {case.name} | {periods:g} | {case.samples_per_period} | "
-                     f"{case.description} |")  # fmt: skip
-    lines += [
-        "",
-        "## Runs",
-        "",
-        "| case | method | status | wall s | periods | steps | events | reference | error "
-        "| energy res. | quad. floor | max pen. | NaN | warning / message |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
-    ]
-    for r in runs:
-        message = (r.warning if r.status == "success" else r.message).replace("|", "/")
-        if r.warning and r.status == "success":
-            message = f"**WARNING: {message}**"
-        lines.append(
-            f"| {r.case} | {r.method} | {r.status} | {r.wall_time_s:.2f} | "
-            f"{r.periods:.4g}/{r.target_periods:g} | {r.n_steps if r.n_steps is not None else '-'}"
-            f" | {r.n_events} | {r.reference or '-'} | {_short(r.error)} | "
-            f"{_short(r.energy_residual)} | {_short(r.energy_quadrature_error)} | "
-            f"{_short(r.max_penetration, '.3g')} | {'yes' if r.nan else 'no'} | {message} |"
-        )
-    return "\n".join(lines) + "\n"
 
 
 def command(
@@ -150,7 +87,7 @@ def command(
             raise typer.Exit(EXIT_INVALID)
         methods = list(dict.fromkeys(method))
     target = out if out is not None else Path("out/stress-quick" if quick else "out/stress")
-    plan = prepare_output(target, force, wait, ("stress.csv", "stress.md", io.REPORT_NAME))
+    plan = prepare_output(target, force, wait, study.FILES)
     with machine_readable(json):
         runs, report = _stress(cases, methods, quick, target, plan, case, method)
     emit(report, json)
@@ -186,28 +123,17 @@ def _stress(
                 + ("" if run.status == "success" else f"  {run.message}")
             )
 
-        runs = stress.run_suite(cases, methods, quick=quick, on_run=on_run)
+        result = study.run_stress(cases, methods, quick=quick, on_run=on_run)
 
     parts = ["rubcli stress"] + (["--quick"] if quick else [])
     parts += [f"--case {c}" for c in case or []] + [f"--method {m}" for m in method or []]
-    files = ["stress.csv", "stress.md", io.REPORT_NAME]
     command_line = {"quick": quick, "cases": case or None, "methods": method or None}
-    report = {
-        **io.report_envelope("stress", command_line),
-        "quick": quick,
-        "success": all(stress.clean(r) for r in runs),
-        "runs": [dataclasses.asdict(r) for r in runs],
-        "files": files,
-    }
-    with io.staged_output_dir(target, plan) as staged:
-        write_csv(staged.path("stress.csv"), runs)
-        io.write_text(staged.path("stress.md"), markdown_text(runs, cases, quick, " ".join(parts)))
-        staged.write_report(report)
+    report = result.write(target, plan, command_line, " ".join(parts))
     report_stale(plan)
-
+    runs = result.runs
     rows = [
-        [r.case, r.method, r.status, f"{r.wall_time_s:.2f}", _short(r.error),
-         _short(r.energy_residual), "yes" if r.nan else "no", r.warning]
+        [r.case, r.method, r.status, f"{r.wall_time_s:.2f}", short_number(r.error),
+         short_number(r.energy_residual), "yes" if r.nan else "no", r.warning]
         for r in runs
     ]  # fmt: skip
     console.table(
@@ -215,5 +141,5 @@ def _stress(
         ["case", "method", "status", "wall s", "error", "energy res.", "NaN", "warning"],
         rows,
     )
-    console.info(f"wrote {', '.join(files)} to {target}")
+    console.info(f"wrote {', '.join(report['files'])} to {target}")
     return runs, report

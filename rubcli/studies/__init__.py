@@ -6,5 +6,8 @@ atomic commit through ``rubcli.io``; progress comes back through a callback. The
 line (``rubcli.cli``) only parses, calls and prints.
 
 - ``orbits``: periodic orbits continued in one parameter (``rubcli orbits``);
-- ``chart``: the stability chart of a parameter plane (``rubcli chart``).
+- ``chart``: the stability chart of a parameter plane (``rubcli chart``);
+- ``forces_map``: the contact force maps, the Taylor error, the contact eigenvalues
+  (``rubcli forces-map``; each product written as it is made, to hold one grid at a time);
+- ``stress``: the built-in suite of extreme cases (``rubcli stress``).
 """
