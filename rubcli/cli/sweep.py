@@ -44,16 +44,12 @@ from rubcli.cli.common import (
     report_stale,
 )
 from rubcli.cli.validate import EXIT_INVALID, load_or_exit
+from rubcli.studies import sweep as study
 
 LOCAL_SCHEDULER = "local"
 EXIT_INTERRUPTED = 130  # Ctrl-C: the finished points are kept for the next run
 EXIT_LOST = 69  # EX_UNAVAILABLE: the Dask scheduler or its workers were lost mid-sweep
 CLOSE_TIMEOUT_S = 5.0  # bounded wait to close a Dask client (its scheduler may be gone)
-
-
-def store_dir_for(target: Path, digest: str) -> Path:
-    """The hidden store of finished points, beside the output dir."""
-    return target.parent / f".{target.name}.sweep-{digest}"
 
 
 def command(
@@ -106,12 +102,12 @@ def command(
             raise typer.Exit(EXIT_INVALID) from None
     target = command_dir(case, "sweep", out)
     plan = sweeps.plan_from_case(case, quick)
-    output = prepare_output(target, force, wait, expected_files(plan))  # before any work
+    output = prepare_output(target, force, wait, study.expected_files(plan))  # before any work
     client = cluster = None
     if address is not None:
         try:
             if address == LOCAL_SCHEDULER:
-                client, cluster = _local_cluster(workers)
+                client, cluster = study.local_cluster(workers)
             else:
                 client = engine.connect(address, timeout=cfg.scheduler_timeout_s)
         except engine.SchedulerError as exc:
@@ -132,7 +128,7 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
     from rubcli.analysis.sweep import basins
     from rubcli.analysis.sweep.dataset import build_dataset
 
-    store_dir = store_dir_for(target, plan.digest())
+    store_dir = study.store_dir_for(target, plan.digest())
     console.info(
         f"{case.name}: sweep of {', '.join(a.parameter for a in plan.axes)} "
         f"({plan.n_points} points, {plan.direction}, {plan.transient_periods} + "
@@ -157,8 +153,9 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
         console.error(str(exc))
         raise typer.Exit(EXIT_INVALID) from None
     except engine.ExecutorLostError as exc:
-        console.error(f"{case_file}: {exc}: {_kept(store_dir, plan)}; run the same command "
-                      "again once the cluster is back (or with --workers to run here)")  # fmt: skip
+        kept = study.kept_text(store_dir, plan)
+        console.error(f"{case_file}: {exc}: {kept}; run the same command again once the "
+                      "cluster is back (or with --workers to run here)")  # fmt: skip
         raise typer.Exit(EXIT_LOST) from None
     except (KeyboardInterrupt, io.Terminated) as exc:
         _interrupted(exc, store_dir, plan)
@@ -168,21 +165,22 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
         if cluster is not None:
             cluster.close()
     wall = time.perf_counter() - started
-    files: list[str] = []
+    command_line = {"case_file": str(case_file), "out": str(out) if out else None,
+                    "workers": workers, "scheduler": scheduler, "quick": quick}  # fmt: skip
     try:
         build = basins.build_dataset if plan.recognition is not None else build_dataset
         ds = build(plan, results, sweeps.case_attrs(case))
-        report = _write(case_file, case, plan, ds, results, stats, where, wall, target,
-                        output, files, _title(case, plan), workers, scheduler, out,
-                        quick)  # fmt: skip
+        report = study.write_outputs(case, plan, ds, results, stats, where, wall, target,
+                                     output, command_line)  # fmt: skip
     except (KeyboardInterrupt, io.Terminated) as exc:
         if target not in io.outputs.COMMITTED:
             _interrupted(exc, store_dir, plan)
         engine.PointStore(store_dir, plan.digest()).remove()  # the outputs are in place
         raise
     except io.OutputWriteError as exc:
-        console.error(f"{exc}; {_kept(store_dir, plan)}: make room and run the same command "
-                      "again to write them")  # fmt: skip
+        kept = study.kept_text(store_dir, plan)
+        console.error(f"{exc}; {kept}: make room and run the same command again to write "
+                      "them")  # fmt: skip
         raise typer.Exit(EXIT_WRITE) from None
     engine.PointStore(store_dir, plan.digest()).remove()
     report_stale(output)
@@ -202,129 +200,18 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
     else:
         for name, count in _class_lines(ds):
             console.info(f"  {name}: {count}")
+    files = report["files"]
     console.info(f"wrote {len(files)} files to {target}: {', '.join(files)}")
-
-
-def _kept(store_dir: Path, plan) -> str:
-    """How many finished points the store holds: one a ``.point`` file, or the starts of
-    each ``chunk-<c>.chunk`` of a basin grid with recognition."""
-    if not store_dir.is_dir():
-        kept = 0
-    elif plan.recognition is not None:
-        from rubcli.analysis.sweep.basins import chunk_size
-
-        n, size = plan.n_points, chunk_size(plan.n_points)
-        chunks = [p.name.removeprefix("chunk-").removesuffix(".chunk")
-                  for p in store_dir.glob("chunk-*.chunk")]  # fmt: skip
-        kept = sum(max(0, min(size, n - int(c) * size)) for c in chunks if c.isdigit())
-    else:
-        kept = len(list(store_dir.glob("*.point")))
-    return f"{kept} of {plan.n_points} points are kept in {store_dir}"
 
 
 def _interrupted(exc: BaseException, store_dir: Path, plan) -> None:
     """Stopped before the outputs were written: say where the finished points are kept."""
     console.error(
-        f"interrupted: {_kept(store_dir, plan)}; "
+        f"interrupted: {study.kept_text(store_dir, plan)}; "
         "run the same command again to compute only the others (or remove it)"
     )
     code = exc.exit_code if isinstance(exc, io.Terminated) else EXIT_INTERRUPTED
     raise typer.Exit(code) from None
-
-
-def _write(case_file, case, plan, ds, results, stats, where, wall, target, output, files,
-           title, workers, scheduler, out, quick) -> dict:  # fmt: skip
-    """Write the sweep's files into its output dir (staged, committed as a whole)."""
-    from rubcli.analysis.sweep import basins
-    from rubcli.analysis.sweep.dataset import csv_text
-    from rubcli.plotting import sweep as plots
-
-    recognised = plan.recognition is not None
-    with io.staged_output_dir(target, output) as staged:
-        io.write_netcdf(ds, staged.path("sweep.nc"))
-        text = basins.csv_text(ds, plan) if recognised else csv_text(ds, plan)
-        io.write_text(staged.path("sweep.csv"), text)
-        files += ["sweep.nc", "sweep.csv"]
-        for name in _figures(plan):
-            stem = name.removesuffix(".png")
-            make = getattr(plots, f"recognised_{stem}_figure" if stem == "basins" and
-                           recognised else f"{stem}_figure")  # fmt: skip
-            io.save_figure(make(ds, title), staged.path(name))
-            files.append(name)
-        files.append("report.json")
-        found = basins.summary(ds) if recognised else None
-        n_failed = found["failed"] if found else int((ds["status"].values != 0).sum())
-        computed_s = (
-            results.compute_s if recognised else sum(r.wall_time_s for r in results.values())
-        )
-        command_line = {"case_file": str(case_file), "out": str(out) if out else None,
-                        "workers": workers, "scheduler": scheduler, "quick": quick}  # fmt: skip
-        report = {
-            **io.report_envelope("sweep", command_line, case.to_dict()),
-            "plan": plan.to_dict(),
-            "plan_digest": plan.digest(),
-            "executor": where,
-            "points": plan.n_points,
-            "points_computed_this_run": stats.computed,
-            "points_resumed": stats.resumed,
-            # resubmissions after a lost local worker; on Dask, Dask's own (not seen here)
-            "points_retried": None if where.startswith("dask") else stats.retried,
-            "points_failed": n_failed,
-            **(
-                {"basins": found}
-                if found
-                else {"failed": _failures(ds), "class_counts": _class_counts(ds)}
-            ),
-            "compute_time_s": computed_s,
-            "wall_time_s": wall,
-            "files": files,
-        }
-        staged.write_report(report)
-    return report
-
-
-def expected_files(plan) -> tuple[str, ...]:
-    """The files ``rubcli sweep`` writes for ``plan``."""
-    return ("sweep.nc", "sweep.csv", *_figures(plan), "report.json")
-
-
-def _figures(plan) -> list[str]:
-    """The figures of a sweep, by file name (``rubcli.plotting.sweep.<stem>_figure``)."""
-    if plan.is_basin:
-        return ["basins.png"] + (["convergence.png"] if plan.recognition is not None else [])
-    if len(plan.axes) == 1:
-        return ["bifurcation.png", "summary.png"] + (["cascade.png"] if plan.spectrum else [])
-    return ["map.png"]
-
-
-def _local_cluster(workers: int | None):
-    """A local Dask cluster of processes on loopback (for trying the Dask path)."""
-    from rubcli.analysis import sweep as engine
-
-    try:
-        from distributed import Client, LocalCluster
-    except ImportError:
-        raise engine.SchedulerError('Dask is not installed: pip install -e ".[dask]"') from None
-    n = workers or engine.default_workers()
-    cluster = LocalCluster(
-        n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-        dashboard_address=None,
-    )  # fmt: skip
-    return Client(cluster, set_as_default=False), cluster
-
-
-def _title(case, plan) -> str:
-    p = case.params
-    swept = {a.parameter for a in plan.axes}
-    fixed = ", ".join(f"{k}={v:g}" for k, v in p.as_dict().items() if k not in swept)
-    axes = " and ".join(a.parameter for a in plan.axes)
-    if plan.recognition is not None:
-        budget = plan.transient_periods + plan.record_periods
-        how = f"each start until its attractor is recognised, at most {budget} periods"
-    else:
-        how = (f"{plan.direction}; {plan.transient_periods} transient + "
-               f"{plan.record_periods} recorded periods per point")  # fmt: skip
-    return f"{case.name}: sweep of {axes} ({how})\n{fixed}"
 
 
 def _basin_lines(found: dict) -> None:
@@ -339,27 +226,6 @@ def _basin_lines(found: dict) -> None:
                  "integrated a start on average")  # fmt: skip
 
 
-def _failures(ds) -> list[dict]:
-    out = []
-    status = ds["status"]
-    dims = status.dims
-    for index in zip(*(status.values != 0).nonzero(), strict=True):
-        at = {d: ds[d].values[i].item() for d, i in zip(dims, index, strict=True)}
-        at["message"] = str(ds["message"].values[index])
-        out.append(at)
-    return out
-
-
-def _class_counts(ds) -> dict[str, int]:
-    from rubcli.analysis.sweep.point import RESPONSE_CLASSES
-
-    ok = ds["status"].values == 0
-    codes = ds["response_class"].values[ok].astype(int)
-    counts = {name: int((codes == i).sum()) for i, name in enumerate(RESPONSE_CLASSES)}
-    counts["failed"] = int((~ok).sum())
-    return {k: v for k, v in counts.items() if v}
-
-
 UNCONFIRMED = "chaotic, unconfirmed (Birkhoff test only: no Lyapunov exponent computed)"
 
 
@@ -370,7 +236,7 @@ def _class_lines(ds) -> list[tuple[str, int]]:
 
     from rubcli.analysis.sweep.point import RESPONSE_CLASSES
 
-    counts = _class_counts(ds)
+    counts = study.class_counts(ds)
     chaotic = RESPONSE_CLASSES.index("chaotic")
     ok = ds["status"].values == 0
     unconfirmed = int(

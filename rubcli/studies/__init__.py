@@ -9,5 +9,7 @@ line (``rubcli.cli``) only parses, calls and prints.
 - ``chart``: the stability chart of a parameter plane (``rubcli chart``);
 - ``forces_map``: the contact force maps, the Taylor error, the contact eigenvalues
   (``rubcli forces-map``; each product written as it is made, to hold one grid at a time);
-- ``stress``: the built-in suite of extreme cases (``rubcli stress``).
+- ``stress``: the built-in suite of extreme cases (``rubcli stress``);
+- ``sweep``: the files of a finished parameter sweep and the store of its finished points
+  (``rubcli sweep``; the sweep itself is ``rubcli.sweep(case)``).
 """

@@ -1,0 +1,156 @@
+"""The writing side of a parameter sweep (``rubcli sweep``): the files of a finished
+sweep in one atomic commit (``write_outputs``), what they are (``expected_files``), and
+where a sweep keeps its finished points until then (``store_dir_for``, ``kept_text``).
+
+The sweep itself is ``rubcli.sweep(case)`` (``rubcli.sweeps``: the plan of a case, the
+engine ``rubcli.analysis.sweep``); docs/sweeps.md.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from rubcli import io
+
+
+def store_dir_for(target: Path, digest: str) -> Path:
+    """The hidden store of finished points, beside the output dir."""
+    return target.parent / f".{target.name}.sweep-{digest}"
+
+
+def expected_files(plan) -> tuple[str, ...]:
+    """The files ``rubcli sweep`` writes for ``plan``."""
+    return ("sweep.nc", "sweep.csv", *figures(plan), "report.json")
+
+
+def figures(plan) -> list[str]:
+    """The figures of a sweep, by file name (``rubcli.plotting.sweep.<stem>_figure``)."""
+    if plan.is_basin:
+        return ["basins.png"] + (["convergence.png"] if plan.recognition is not None else [])
+    if len(plan.axes) == 1:
+        return ["bifurcation.png", "summary.png"] + (["cascade.png"] if plan.spectrum else [])
+    return ["map.png"]
+
+
+def write_outputs(
+    case, plan, ds, results, stats, where: str, wall: float, target: str | Path,
+    output: io.OutputPlan | None = None, command_line: dict[str, Any] | None = None,
+) -> dict[str, Any]:  # fmt: skip
+    """Write a finished sweep's files into ``target`` in one commit (``output``: the dir as
+    the caller opened and checked it; without one it is opened here): sweep.nc, sweep.csv,
+    its figures and report.json; returns the report. ``results``, ``stats`` and
+    ``where`` are ``rubcli.analysis.sweep.execute``'s; ``ds`` its dataset."""
+    from rubcli.analysis.sweep import basins
+    from rubcli.analysis.sweep.dataset import csv_text
+    from rubcli.plotting import sweep as plots
+
+    recognised = plan.recognition is not None
+    title, files = title_of(case, plan), []
+    with io.staged_output_dir(target, output) as staged:
+        io.write_netcdf(ds, staged.path("sweep.nc"))
+        text = basins.csv_text(ds, plan) if recognised else csv_text(ds, plan)
+        io.write_text(staged.path("sweep.csv"), text)
+        files += ["sweep.nc", "sweep.csv"]
+        for name in figures(plan):
+            stem = name.removesuffix(".png")
+            make = getattr(plots, f"recognised_{stem}_figure" if stem == "basins" and
+                           recognised else f"{stem}_figure")  # fmt: skip
+            io.save_figure(make(ds, title), staged.path(name))
+            files.append(name)
+        files.append("report.json")
+        found = basins.summary(ds) if recognised else None
+        n_failed = found["failed"] if found else int((ds["status"].values != 0).sum())
+        computed_s = (
+            results.compute_s if recognised else sum(r.wall_time_s for r in results.values())
+        )
+        report = {
+            **io.report_envelope("sweep", command_line or {"out": str(target)}, case.to_dict()),
+            "plan": plan.to_dict(),
+            "plan_digest": plan.digest(),
+            "executor": where,
+            "points": plan.n_points,
+            "points_computed_this_run": stats.computed,
+            "points_resumed": stats.resumed,
+            # resubmissions after a lost local worker; on Dask, Dask's own (not seen here)
+            "points_retried": None if where.startswith("dask") else stats.retried,
+            "points_failed": n_failed,
+            **(
+                {"basins": found}
+                if found
+                else {"failed": failures(ds), "class_counts": class_counts(ds)}
+            ),
+            "compute_time_s": computed_s,
+            "wall_time_s": wall,
+            "files": files,
+        }
+        staged.write_report(report)
+    return report
+
+
+def title_of(case, plan) -> str:
+    p = case.params
+    swept = {a.parameter for a in plan.axes}
+    fixed = ", ".join(f"{k}={v:g}" for k, v in p.as_dict().items() if k not in swept)
+    axes = " and ".join(a.parameter for a in plan.axes)
+    if plan.recognition is not None:
+        budget = plan.transient_periods + plan.record_periods
+        how = f"each start until its attractor is recognised, at most {budget} periods"
+    else:
+        how = (f"{plan.direction}; {plan.transient_periods} transient + "
+               f"{plan.record_periods} recorded periods per point")  # fmt: skip
+    return f"{case.name}: sweep of {axes} ({how})\n{fixed}"
+
+
+def failures(ds) -> list[dict]:
+    out = []
+    status = ds["status"]
+    dims = status.dims
+    for index in zip(*(status.values != 0).nonzero(), strict=True):
+        at = {d: ds[d].values[i].item() for d, i in zip(dims, index, strict=True)}
+        at["message"] = str(ds["message"].values[index])
+        out.append(at)
+    return out
+
+
+def class_counts(ds) -> dict[str, int]:
+    from rubcli.analysis.sweep.point import RESPONSE_CLASSES
+
+    ok = ds["status"].values == 0
+    codes = ds["response_class"].values[ok].astype(int)
+    counts = {name: int((codes == i).sum()) for i, name in enumerate(RESPONSE_CLASSES)}
+    counts["failed"] = int((~ok).sum())
+    return {k: v for k, v in counts.items() if v}
+
+
+def kept_text(store_dir: Path, plan) -> str:
+    """How many finished points the store holds: one a ``.point`` file, or the starts of
+    each ``chunk-<c>.chunk`` of a basin grid with recognition."""
+    if not store_dir.is_dir():
+        kept = 0
+    elif plan.recognition is not None:
+        from rubcli.analysis.sweep.basins import chunk_size
+
+        n, size = plan.n_points, chunk_size(plan.n_points)
+        chunks = [p.name.removeprefix("chunk-").removesuffix(".chunk")
+                  for p in store_dir.glob("chunk-*.chunk")]  # fmt: skip
+        kept = sum(max(0, min(size, n - int(c) * size)) for c in chunks if c.isdigit())
+    else:
+        kept = len(list(store_dir.glob("*.point")))
+    return f"{kept} of {plan.n_points} points are kept in {store_dir}"
+
+
+def local_cluster(workers: int | None):
+    """A local Dask cluster of processes on loopback (for trying the Dask path)."""
+    from rubcli.analysis import sweep as engine
+
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise engine.SchedulerError('Dask is not installed: pip install -e ".[dask]"') from None
+    n = workers or engine.default_workers()
+    cluster = LocalCluster(
+        n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+        dashboard_address=None,
+    )  # fmt: skip
+    return Client(cluster, set_as_default=False), cluster
