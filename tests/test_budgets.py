@@ -215,7 +215,7 @@ def test_start_up_warm_up_has_budgets_of_its_own(tmp_path, monkeypatch):
     once spent its 5e6-step budget there before the timed run spent it again."""
     from rubcli import solvers
     from rubcli.analysis import work_precision
-    from rubcli.cli import run
+    from rubcli.studies import run
 
     path = tmp_path / "case.toml"
     path.write_text(CASE.replace('methods = ["dop853"]', 'methods = ["lsoda", "analytic"]'))

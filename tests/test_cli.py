@@ -467,8 +467,9 @@ def test_run_says_the_kernels_compile_when_start_up_is_slow(tmp_path, monkeypatc
     import threading
 
     from rubcli.cli import console, run
+    from rubcli.studies import run as run_study
 
-    original = run.start_up
+    original = run_study.start_up
     announced = threading.Event()
     original_info = console.info
 
@@ -482,7 +483,7 @@ def test_run_says_the_kernels_compile_when_start_up_is_slow(tmp_path, monkeypatc
         return original(case)
 
     monkeypatch.setattr(console, "info", info)
-    monkeypatch.setattr(run, "start_up", slow_start_up)
+    monkeypatch.setattr(run_study, "start_up", slow_start_up)
     monkeypatch.setattr(run, "START_UP_NOTICE_S", 0.01)
     out = tmp_path / "out"
     result = invoke("run", write_case(tmp_path, CASE), "-m", "dop853-jit", "--out", out)

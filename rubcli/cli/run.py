@@ -33,20 +33,15 @@ deep inside the stator): the files are written, but the result must not be trust
 
 from __future__ import annotations
 
-import contextlib
 import gc
-import importlib
 import math
-import time
 from pathlib import Path
 from typing import Annotated, Any
 
-import numpy as np
 import typer
 
 from rubcli import io
-from rubcli.analysis import panels
-from rubcli.analysis.checks import WARNING, method_summary
+from rubcli.analysis.checks import WARNING
 from rubcli.case import KNOWN_METHODS, Case, CaseError
 from rubcli.cli import console
 from rubcli.cli.common import (
@@ -59,11 +54,10 @@ from rubcli.cli.common import (
     report_stale,
 )
 from rubcli.cli.validate import EXIT_INVALID, load_or_exit
-from rubcli.solution import Solution
+from rubcli.studies import run as study
 
 EXIT_FAILED = 1
 EXIT_WARNING = 3
-ERROR = "error"  # status of a method whose solver raised an exception
 
 
 def _check_methods(names: list[str] | None) -> list[str] | None:
@@ -100,230 +94,6 @@ COMPILING_NOTICE = (
     "minute on an idle 2-core machine, longer on a busy one); later runs load them in about "
     "a second"
 )
-
-
-def start_up(case: Case) -> float:
-    """Run every method over the first 1/20 forcing period, untimed by the report.
-
-    A process pays numba's compilation (first run on a machine) or cache load (about
-    0.3-0.5 s) at its first compiled call; without this, that one-off cost would be
-    charged to whichever method runs first. The warm-up has budgets of its own
-    (``solvers.warm_up_options``: 2000 steps, 2 s past compiling), never the run's: a
-    stiff case once spent a whole 5e6-step budget here before its timed run spent it
-    again. Returns the seconds it took.
-    """
-    from rubcli import solvers
-    from rubcli.analysis.reference import truncate_problem
-
-    t0 = case.problem.t_span[0]
-    short = truncate_problem(case.problem, t0 + case.params.period / 20.0)
-    start = time.perf_counter()
-    for name in case.methods:
-        with contextlib.suppress(Exception):  # the timed run reports any failure
-            solvers.solve(short, name, **solvers.warm_up_options(case.options_for(name)))
-        io.checkpoint()  # a termination signal is never taken for a solver's failure
-    return time.perf_counter() - start
-
-
-def solve_method(case: Case, name: str) -> tuple[Solution | None, dict[str, Any] | None]:
-    """Solve the case with one method behind a progress bar: ``(solution, None)``, or
-    ``(None, entry)`` if the solver raised (status ``error``, its traceback printed: the
-    other methods still run and the run exits 1)."""
-    from rubcli import solvers
-
-    t0, t1 = case.problem.t_span
-    start = time.perf_counter()
-    with console.progress_bar(f"{name:<8}", total=t1 - t0) as update:
-        try:
-            solution = solvers.solve(
-                case.problem,
-                name,
-                **case.options_for(name),
-                progress=lambda tau: update(tau - t0),
-            )
-        except Exception as exc:  # noqa: BLE001 - reported with its traceback, run exits 1
-            io.checkpoint()  # a termination signal is never taken for a solver's failure
-            console.exception(exc)
-            entry = {
-                "status": ERROR,
-                "message": f"{type(exc).__name__}: {exc}",
-                "wall_time_s": time.perf_counter() - start,
-                "settings": case.options_for(name),
-            }
-            return None, entry
-    return solution, None
-
-
-def method_entry(
-    case: Case, solution: Solution, balances: dict[str, Any] | None = None
-) -> dict[str, Any]:
-    """The report entry of a solution. When the case plots ``energy`` and ``balances`` is
-    given, the energy balance is computed once here, for the entry, and kept in
-    ``balances[method]`` for energy.png."""
-    balance = None
-    if balances is not None and "energy" in case.settings.output.plots:
-        balance = _balance_or_none(solution)
-        if balance is not None:
-            balances[solution.method] = balance
-    return method_summary(solution, balance)
-
-
-def _balance_or_none(solution: Solution):
-    """The energy balance with its series (None if a state is not finite)."""
-    from rubcli.analysis.energy import energy_balance
-
-    if not np.all(np.isfinite(solution.states)):
-        return None
-    with np.errstate(all="ignore"):
-        return energy_balance(solution)
-
-
-def response_settings(case: Case) -> panels.ResponseSettings | None:
-    """The case's ``[analysis]`` as response settings (None unless ``response = true``)."""
-    analysis = case.settings.analysis
-    if analysis is None or not analysis.response:
-        return None
-    return panels.ResponseSettings(**analysis.model_dump(exclude={"response"}))
-
-
-def import_plotting_in_background(case: Case, background: io.Background) -> None:
-    """Import the plotting modules (matplotlib's figure and Agg canvas, about 0.3 s) in the
-    background thread, first, if the case draws any figure: the main thread meanwhile
-    computes the report entries, whose compiled energy balance releases the GIL; when it
-    reaches the figures the import is done (or it waits for it at the import lock)."""
-    if case.settings.output.plots:
-        background.submit(_import_plotting)
-
-
-def _import_plotting() -> None:
-    importlib.import_module("rubcli.plotting.run")
-    gc.freeze()  # matplotlib's modules, as the other imports (``_run``)
-
-
-def write_csvs_in_background(
-    case: Case, solutions: list[Solution], staged: io.StagedOutput, background: io.Background
-) -> None:
-    """Hand each solution's CSV (if the case writes CSV) to the background thread
-    (``io.Background``). Called once every method is solved: a method's timing is never
-    shared with the writer. The main thread meanwhile computes the report entries (the
-    compiled energy balance) and draws the figures; the CSV formatter and the energy
-    kernel release the GIL, so on two cores they run side by side."""
-    if not case.settings.output.csv:
-        return
-    for solution in solutions:
-        name = f"{solution.method}.csv"
-        blocks = io.shared_solution_blocks(solution, case.scale)  # the main thread helps
-        background.submit(io.write_solution_csv, staged.path(name), solution, case.scale,
-                          blocks=blocks, progress=(f"{name:<12}", float(solution.t.size)),
-                          helper=blocks.work)  # fmt: skip
-
-
-def write_outputs(
-    case: Case,
-    solutions: list[Solution],
-    entries: dict[str, dict[str, Any]],
-    command_line: dict[str, Any],
-    staged: io.StagedOutput,
-    background: io.Background,
-    balances: dict[str, Any] | None = None,
-) -> dict[str, Any]:
-    """Write the requested figures and report.json into the staged output dir, the CSVs
-    having been handed to ``background`` (``write_csvs_in_background``); waits for them;
-    return the report. ``balances``: energy balances already computed, by method."""
-    from rubcli.plotting import run as plots
-
-    output = case.settings.output
-    files: list[str] = []
-    if output.csv:
-        for solution in solutions:
-            name = f"{solution.method}.csv"
-            entries[solution.method]["files"] = [name]
-            files.append(name)
-    title = plots.parameters_title(case.name, case.params)
-    failures = {n: e["message"] for n, e in entries.items() if e["status"] == ERROR}
-    transient = case.settings.analysis.transient_periods if case.settings.analysis else None
-    spectra = _spectra(case, solutions, entries, transient)
-    for plot in output.plots:
-        if plot == "energy":
-            figure = _energy_figure(solutions, title, case.scale, balances)
-        elif plot == "spectrum":
-            figure = _spectrum_figure(spectra, failures, title, case.scale)
-        elif plot == "orbit":
-            figure = plots.orbit_figure(
-                solutions, title, scale=case.scale, transient_periods=transient,
-                failures=failures,
-            )  # fmt: skip
-        else:
-            figure = plots.time_figure(solutions, title, scale=case.scale, failures=failures,
-                                       transient_periods=transient)  # fmt: skip
-        io.save_figure(figure, staged.path(f"{plot}.png"))
-        files.append(f"{plot}.png")
-    response = None
-    settings = response_settings(case)
-    if settings is not None and solutions:
-        results = panels.run_responses(solutions, settings, progress=console.progress_bar)
-        for result in results:
-            entries[result.method]["response"] = result.to_dict()
-        response = panels.response_summary(results)
-        io.save_figure(_poincare_figure(case, results), staged.path("poincare.png"))
-        files.append("poincare.png")
-    background.wait(console.progress_bar)  # the CSVs, before the report names them
-    files.append(io.REPORT_NAME)
-    report = {
-        **io.report_envelope("run", command_line, case.to_dict()),
-        "success": all(e["status"] == "success" for e in entries.values()),
-        "methods": entries,
-        "response": response,
-        "files": files,
-    }
-    staged.write_report(report)
-    return report
-
-
-def _poincare_figure(case: Case, results: list[panels.MethodResponse]):
-    from rubcli.plotting.compare import poincare_figure
-    from rubcli.plotting.run import parameters_title
-
-    sections = [(r.method, r.section, r.response) for r in results if r.section is not None]
-    return poincare_figure(sections, parameters_title(case.name, case.params))
-
-
-def _energy_figure(solutions: list[Solution], title: str, scale=None, balances=None):
-    """energy.png: the energy balance of every method (``plots = ["energy"]``), reusing
-    the balances computed for the report (``balances``, by method) where there are."""
-    from rubcli.analysis.energy import energy_balance
-    from rubcli.plotting.energy import energy_figure
-
-    balances = balances or {}
-    drawn = [balances[s.method] if s.method in balances else energy_balance(s) for s in solutions]
-    return energy_figure(solutions, drawn, title, scale=scale)
-
-
-def _spectra(case: Case, solutions: list[Solution], entries: dict, transient: float | None):
-    """Full spectrum of each solution over its steady span (``analysis.spectrum``).
-
-    Adds ``entries[method]["spectrum"]`` (dominant whirl order, direction, amplitude; rad/s
-    for a [physical] case; null for a failed run) and returns the figure's panels.
-    """
-    from rubcli.analysis.spectrum import steady_spectrum
-
-    omega_scale = None if case.scale is None else case.scale.omega
-    panels = []
-    for sol in solutions:
-        spectrum = steady_spectrum(sol, transient)
-        summary = None if spectrum is None else spectrum.to_dict(omega_scale)
-        entries[sol.method]["spectrum"] = summary
-        note = "" if spectrum is not None else f"{sol.status}: {sol.message}"
-        panels.append((sol.method, spectrum, note))
-    return panels
-
-
-def _spectrum_figure(panels, failures: dict[str, str], title: str, scale=None):
-    """spectrum.png (``plots = [..., "spectrum"]``): one panel per method."""
-    from rubcli.plotting.spectrum import spectrum_figure
-
-    panels = panels + [(name, None, f"error: {why}") for name, why in failures.items()]
-    return spectrum_figure(panels, title, scale=scale)
 
 
 def _summary_rows(entries: dict[str, dict[str, Any]]) -> list[list[str]]:
@@ -389,7 +159,7 @@ def command(
     if unavailable:
         console.error(f"{case_file}: solver.methods: not available: {', '.join(unavailable)}")
         raise typer.Exit(EXIT_INVALID)
-    plan = prepare_output(target, force, wait, expected_files(case))
+    plan = prepare_output(target, force, wait, study.expected_files(case))
 
     with machine_readable(json):
         report = _run(case, case_file, method, out, periods, plan)
@@ -407,16 +177,6 @@ def command(
         raise typer.Exit(EXIT_WARNING)
 
 
-def expected_files(case: Case) -> tuple[str, ...]:
-    """The files a run of ``case`` writes (``write_outputs``)."""
-    output = case.settings.output
-    names = [f"{m}.csv" for m in case.methods] if output.csv else []
-    names += [f"{plot}.png" for plot in output.plots]
-    if response_settings(case) is not None:
-        names.append("poincare.png")
-    return (*names, io.REPORT_NAME)
-
-
 def _run(
     case: Case,
     case_file: Path,
@@ -430,8 +190,6 @@ def _run(
         f"{case.name}: {problem.periods:g} periods (tau 0 .. {problem.t_span[1]:.6g}), "
         f"methods {', '.join(case.methods)}"
     )
-    solutions: list[Solution] = []
-    entries: dict[str, dict[str, Any]] = {}
     command_line = {
         "case_file": str(case_file),
         "methods": method or None,
@@ -440,30 +198,21 @@ def _run(
     }
     # Solved first, every method alone (its timing is its own); then the plotting modules
     # are imported and the CSVs written in the background while the report entries are
-    # computed and the figures drawn.
+    # computed and the figures drawn (``RunResult.write``).
     # What the imports made lives as long as the process: out of the cyclic collector's
     # full passes (they would walk numba's and the modules' objects again and again).
     # Not unfrozen afterwards: the interpreter's last collection at exit would then walk
     # them all (0.15-0.3 s measured); a caller that goes on in this process only keeps
     # the few garbage cycles made before the run.
     gc.freeze()
-    with io.staged_output_dir(case.output_dir, plan) as staged, io.Background() as background:
-        with console.notice_if_slow(COMPILING_NOTICE, START_UP_NOTICE_S):
-            startup = start_up(case)
-        if startup > 0.05:
-            console.info(f"start-up (compiled kernels loaded or compiled): {startup:.2f} s")
-        for name in case.methods:
-            solution, failure = solve_method(case, name)
-            entries[name] = failure if solution is None else {}  # (the report's order)
-            if solution is not None:
-                solutions.append(solution)
-        import_plotting_in_background(case, background)
-        write_csvs_in_background(case, solutions, staged, background)
-        balances: dict[str, Any] = {}
-        for solution in solutions:
-            entries[solution.method] = method_entry(case, solution, balances)
-            entries[solution.method]["startup_s"] = startup
-        report = write_outputs(case, solutions, entries, command_line, staged, background, balances)
+    with console.notice_if_slow(COMPILING_NOTICE, START_UP_NOTICE_S):
+        startup = study.start_up(case)
+    if startup > 0.05:
+        console.info(f"start-up (compiled kernels loaded or compiled): {startup:.2f} s")
+    result = study.run_case(case, progress_bar=console.progress_bar, on_error=console.exception,
+                            startup_s=startup)  # fmt: skip
+    report = result.write(case.output_dir, plan, command_line, console.progress_bar)
+    entries = report["methods"]
     report_stale(plan)
 
     console.table(
