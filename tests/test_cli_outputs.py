@@ -157,10 +157,10 @@ def test_compare_into_an_existing_dir_and_interrupted(tmp_path, monkeypatch):
     out.mkdir()
     (out / "keep.txt").write_text("mine")
     (out / "report.json").write_text('{"old": true}')
-    from rubcli.cli import compare as compare_cli
+    from rubcli.studies import compare as compare_study
 
     # interrupted after orbits.png is staged, before report.md and report.json
-    monkeypatch.setattr(compare_cli, "report_markdown", interrupt)
+    monkeypatch.setattr(compare_study, "report_markdown", interrupt)
     result = invoke("compare", path, "--quick", "--out", out, "--force")
     assert result.exit_code == 130  # typer's exit code for an interrupt (128 + SIGINT)
     assert names(out) == {"keep.txt", "report.json"}

@@ -11,8 +11,9 @@ import pytest
 import xarray as xr
 from typer.testing import CliRunner
 
-from rubcli.cli import compare, console, orbits, sweep
+from rubcli.cli import console, orbits, sweep
 from rubcli.cli.app import app
+from rubcli.studies import compare as compare_study
 
 runner = CliRunner()
 
@@ -31,11 +32,12 @@ def test_compare_quick_help_and_report_state_the_spans_it_runs():
     result = runner.invoke(app, ["compare", "--help"], env={"COLUMNS": "200"})
     text = " ".join(result.output.split())
     assert "5-period horizon" not in text
-    assert f"each orbit over at most {compare.QUICK_ORBIT_PERIODS:g}" in text
-    assert f"work-precision over at most {compare.QUICK_HORIZON_PERIODS:g}" in text
+    assert f"each orbit over at most {compare_study.QUICK_ORBIT_PERIODS:g}" in text
+    assert f"work-precision over at most {compare_study.QUICK_HORIZON_PERIODS:g}" in text
     # report.md states the span the orbits were solved over, not the case's [time] periods
-    panels = [SimpleNamespace(problem=SimpleNamespace(periods=compare.QUICK_ORBIT_PERIODS))] * 2
-    assert compare._orbit_periods(panels) == f"{compare.QUICK_ORBIT_PERIODS:g}"
+    quick = compare_study.QUICK_ORBIT_PERIODS
+    panels = [SimpleNamespace(problem=SimpleNamespace(periods=quick))] * 2
+    assert compare_study._orbit_periods(panels) == f"{quick:g}"
 
 
 ROWS = [

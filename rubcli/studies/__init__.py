@@ -5,6 +5,10 @@ and returns a typed result whose ``write(directory)`` writes the command's files
 atomic commit through ``rubcli.io``; progress comes back through a callback. The command
 line (``rubcli.cli``) only parses, calls and prints.
 
+- ``run``: a case solved with each of its methods, its CSVs, figures and report
+  (``rubcli run``);
+- ``compare``: the reference, the work-precision ladders and the orbit panels
+  (``rubcli compare``);
 - ``orbits``: periodic orbits continued in one parameter (``rubcli orbits``);
 - ``chart``: the stability chart of a parameter plane (``rubcli chart``);
 - ``forces_map``: the contact force maps, the Taylor error, the contact eigenvalues
