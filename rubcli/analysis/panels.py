@@ -321,3 +321,11 @@ def orbit_panel(
 def panels_response_summary(panels: Sequence[OrbitPanel]) -> dict[str, Any] | None:
     """Top-level ``response`` of a compare report: the first panel's methods."""
     return response_summary(panels[0].responses) if panels else None
+
+
+def response_settings(analysis) -> ResponseSettings | None:
+    """A case's ``[analysis]`` table as response settings (None unless ``response =
+    true``)."""
+    if analysis is None or not analysis.response:
+        return None
+    return ResponseSettings(**analysis.model_dump(exclude={"response"}))

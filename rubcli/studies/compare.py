@@ -18,7 +18,7 @@ from typing import Any
 from rubcli import io
 from rubcli.analysis import panels as panel_study
 from rubcli.analysis import work_precision as wpm
-from rubcli.analysis.panels import OrbitPanel, ProgressFactory, no_progress
+from rubcli.analysis.panels import OrbitPanel, ProgressFactory, no_progress, response_settings
 from rubcli.case import AnalysisSection, Case, CompareSection
 from rubcli.problem import Problem
 from rubcli.solvers.registry import SPECS, STEPS_PER_PERIOD
@@ -102,13 +102,6 @@ def write_work_precision_csv(path: Path, result: wpm.WorkPrecision) -> None:
 
 
 # ------------------------------------------------------------------------ orbits
-
-
-def response_settings(analysis: AnalysisSection | None) -> panel_study.ResponseSettings | None:
-    """``[analysis]`` as response settings (None unless ``response = true``)."""
-    if analysis is None or not analysis.response:
-        return None
-    return panel_study.ResponseSettings(**analysis.model_dump(exclude={"response"}))
 
 
 def orbit_panel(

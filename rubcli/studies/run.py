@@ -28,11 +28,9 @@ from rubcli.analysis.checks import method_summary
 from rubcli.analysis.panels import ProgressFactory, no_progress
 from rubcli.case import Case
 from rubcli.solution import Solution
+from rubcli.studies.compare import response_settings
 
 ERROR = "error"  # status of a method whose solver raised an exception
-# A progress bar: (description, total) -> a context manager yielding update(done), as
-# ``rubcli.cli.console.progress_bar``; ``no_progress`` shows nothing.
-ProgressBar = ProgressFactory
 
 
 def start_up(case: Case) -> float:
@@ -61,7 +59,7 @@ def start_up(case: Case) -> float:
 def solve_method(
     case: Case,
     name: str,
-    progress_bar: ProgressBar = no_progress,
+    progress_bar: ProgressFactory = no_progress,
     on_error: Callable[[BaseException], None] | None = None,
 ) -> tuple[Solution | None, dict[str, Any] | None]:
     """Solve the case with one method: ``(solution, None)``, or ``(None, entry)`` if the
@@ -122,7 +120,7 @@ class RunResult:
 
     def write(
         self, directory: str | Path, plan: io.OutputPlan | None = None,
-        command_line: dict[str, Any] | None = None, progress_bar: ProgressBar = no_progress,
+        command_line: dict[str, Any] | None = None, progress_bar: ProgressFactory = no_progress,
     ) -> dict[str, Any]:  # fmt: skip
         """Write the case's products into ``directory`` as one commit (``plan``: the dir
         as the caller opened and checked it; without one it is opened here); returns the
@@ -140,7 +138,7 @@ class RunResult:
 def run_case(
     case: Case,
     *,
-    progress_bar: ProgressBar = no_progress,
+    progress_bar: ProgressFactory = no_progress,
     on_error: Callable[[BaseException], None] | None = None,
     startup_s: float | None = None,
 ) -> RunResult:
@@ -183,14 +181,6 @@ def _balance_or_none(solution: Solution):
         return energy_balance(solution)
 
 
-def response_settings(case: Case) -> panels.ResponseSettings | None:
-    """The case's ``[analysis]`` as response settings (None unless ``response = true``)."""
-    analysis = case.settings.analysis
-    if analysis is None or not analysis.response:
-        return None
-    return panels.ResponseSettings(**analysis.model_dump(exclude={"response"}))
-
-
 def import_plotting_in_background(case: Case, background: io.Background) -> None:
     """Import the plotting modules (matplotlib's figure and Agg canvas, about 0.3 s) in the
     background thread, first, if the case draws any figure: the main thread meanwhile
@@ -231,7 +221,7 @@ def write_outputs(
     staged: io.StagedOutput,
     background: io.Background,
     balances: dict[str, Any] | None = None,
-    progress_bar: ProgressBar = no_progress,
+    progress_bar: ProgressFactory = no_progress,
 ) -> dict[str, Any]:
     """Write the requested figures and report.json into the staged output dir, the CSVs
     having been handed to ``background`` (``write_csvs_in_background``); waits for them;
@@ -265,7 +255,7 @@ def write_outputs(
         io.save_figure(figure, staged.path(f"{plot}.png"))
         files.append(f"{plot}.png")
     response = None
-    settings = response_settings(case)
+    settings = response_settings(case.settings.analysis)
     if settings is not None and solutions:
         results = panels.run_responses(solutions, settings, progress=progress_bar)
         for result in results:
@@ -337,6 +327,6 @@ def expected_files(case: Case) -> tuple[str, ...]:
     output = case.settings.output
     names = [f"{m}.csv" for m in case.methods] if output.csv else []
     names += [f"{plot}.png" for plot in output.plots]
-    if response_settings(case) is not None:
+    if response_settings(case.settings.analysis) is not None:
         names.append("poincare.png")
     return (*names, io.REPORT_NAME)
