@@ -27,6 +27,7 @@ PATTERNS = {
     "date": r"\b20\d\d-[01]\d-[0-3]\d\b",
     "measured + today": r"\bmeasured " + "today" + r"\b",
     "commit quoted as history": r"\b(commit|main at)\s+[0-9a-f]{7,40}\b",
+    "the ticket as a source": r"\bthe " + "issue" + r"('s| names| asks| says)\b",
 }
 REGEX = re.compile("|".join(f"(?P<g{i}>{p})" for i, p in enumerate(PATTERNS.values())), re.I)
 NAMES = list(PATTERNS)
@@ -72,6 +73,8 @@ def _example(text: str) -> str:
         (_example("--tag s|22-fma"), True),
         (_example("20|26-11-22 18:14"), True),
         (_example("was main at 52e|ef76"), True),
+        (_example("the floor the iss|ue names"), True),
+        ("an open issue of numba's tracker", False),
         ("A[6, 0] = 3.7109375e-2", False),
         ("the s-plane and 12 sessions of a sweep", False),
         ("K = 17.6, mu = 0.03", False),
