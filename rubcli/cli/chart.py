@@ -34,7 +34,7 @@ from rubcli.cli.common import (
 from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 
 OutOption = Annotated[
-    Path | None, typer.Option("--out", help="Output dir (default: <case dir>/chart).")
+    Path | None, typer.Option("--out", "-o", help="Output dir (default: <case dir>/chart).")
 ]
 QuickOption = Annotated[bool, typer.Option("--quick", help="CI mode: a 41 x 21 grid.")]
 
@@ -47,7 +47,7 @@ def command(
     force: ForceOption = False,
     wait: WaitOption = False,
 ) -> None:
-    """Regions of the synchronous motions in a parameter plane ([chart] table)."""
+    """Regions of the synchronous motions in a parameter plane (the case's chart table)."""
     case = load_or_exit(case_file)
     c = case.settings.chart
     if c is None:

@@ -62,7 +62,7 @@ def settings_of(case, quick: bool) -> tuple[dict, list[str]]:
 
 
 OutOption = Annotated[
-    Path | None, typer.Option("--out", help="Output dir (default: <case dir>/ensemble).")
+    Path | None, typer.Option("--out", "-o", help="Output dir (default: <case dir>/ensemble).")
 ]
 WorkersOption = Annotated[
     int | None, typer.Option("--workers", "-w", min=1, help="Local processes (default: all cores).")
@@ -80,7 +80,7 @@ def command(
     force: ForceOption = False,
     wait: WaitOption = False,
 ) -> None:
-    """Attractor fractions and escape times over a cloud of starts ([ensemble] table)."""
+    """Attractor fractions and escape times over a cloud of starts (the ensemble table)."""
     case = load_or_exit(case_file)
     s, problems = settings_of(case, quick)
     if problems:
