@@ -19,6 +19,7 @@ from rubcli import io
 from rubcli.analysis import panels as panel_study
 from rubcli.analysis import work_precision as wpm
 from rubcli.analysis.panels import OrbitPanel, ProgressFactory, no_progress, response_settings
+from rubcli.analysis.reference import Reference
 from rubcli.case import AnalysisSection, Case, CompareSection
 from rubcli.problem import Problem
 from rubcli.solvers.registry import SPECS, STEPS_PER_PERIOD
@@ -64,7 +65,7 @@ def _fmt(value: float | None, spec: str = ".3g") -> str:
 def work_precision(
     case: Case, cfg: CompareSection, quick: bool, threshold: float,
     progress_bar: ProgressFactory = no_progress,
-):  # fmt: skip
+) -> wpm.WorkPrecision:  # fmt: skip
     """Reference and work-precision table of the case (step 1 and 2)."""
     periods = cfg.horizon_periods or case.settings.time.periods
     if quick:
@@ -111,7 +112,7 @@ def orbit_panel(
     threshold: float,
     analysis: AnalysisSection | None,
     quick: bool,
-    reference=None,
+    reference: Reference | None = None,
     progress_bar: ProgressFactory = no_progress,
 ) -> OrbitPanel:
     """One mu (``rubcli.analysis.panels.orbit_panel`` on the case's problem of that mu)."""
@@ -183,7 +184,7 @@ def write_sweep_csv(path: Path, panels: list[OrbitPanel]) -> None:
 
 
 def report_markdown(case: Case, wp: wpm.WorkPrecision | None, panels: list[OrbitPanel],
-                    quick: bool, targets=wpm.TARGETS) -> str:  # fmt: skip
+                    quick: bool, targets: tuple[float, ...] = wpm.TARGETS) -> str:  # fmt: skip
     """The human-readable summary (report.md)."""
     from rubcli.plotting.compare import table_rows
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import resource
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -34,7 +35,7 @@ GRID_BLOCK_ROWS = 65_536
 
 def grid_blocks(
     x: np.ndarray, y: np.ndarray, fields: list[np.ndarray], rows: int = GRID_BLOCK_ROWS
-):
+) -> Iterator[list[np.ndarray]]:
     """The grid table in blocks of ``rows`` rows, one row per grid point (y outer, x
     inner): x, y, then each field (indexed ``[iy, ix]``); nothing of the size of the grid
     is allocated."""
@@ -45,7 +46,9 @@ def grid_blocks(
         yield [x[index % n], y[index // n], *(f[start : start + index.size] for f in flat)]
 
 
-def write_grid_csv(path: Path, columns: tuple[str, ...], x, y, fields) -> Path:
+def write_grid_csv(
+    path: Path, columns: tuple[str, ...], x: np.ndarray, y: np.ndarray, fields: list[np.ndarray]
+) -> Path:
     """Numeric CSV of a grid, shortest round-trip repr of each float, NaN an empty field,
     formatted and written block by block (``grid_blocks``). Atomic."""
     return io.write_csv(path, columns, grid_blocks(x, y, fields), nonfinite="")

@@ -13,7 +13,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -21,6 +21,9 @@ from rubcli import __version__, io, model
 from rubcli.analysis import continuation as cn
 from rubcli.analysis import orbits as ob
 from rubcli.case import Case, OrbitsSection
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 FILES = ("branch.csv", "branch.nc", "branch.png", "multipliers.png", "report.json")
 QUICK_MAX_POINTS = 12
@@ -91,7 +94,9 @@ def check_case(case: Case) -> list[str]:
     return problems
 
 
-def load_overlay(path: Path, parameter: str, variable: str | None):
+def load_overlay(
+    path: Path, parameter: str, variable: str | None
+) -> tuple[np.ndarray, np.ndarray, str] | list[str]:
     """(parameter values, z values, label) of a sweep.nc, or a list of problems."""
     try:
         import xarray as xr
@@ -248,7 +253,7 @@ def write_branch_csv(path: Path, branch: cn.Branch) -> None:
     io.write_text(path, "\n".join(lines) + "\n")
 
 
-def branch_dataset(branch: cn.Branch, attrs: dict[str, Any]):
+def branch_dataset(branch: cn.Branch, attrs: dict[str, Any]) -> xr.Dataset:
     """The branch as an xarray Dataset (dims ``point`` and ``multiplier``)."""
     import xarray as xr
 

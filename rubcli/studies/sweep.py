@@ -9,9 +9,16 @@ engine ``rubcli.analysis.sweep``); docs/sweeps.md.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rubcli import io
+
+if TYPE_CHECKING:  # (the engine, xarray and Dask load only when a sweep runs)
+    import xarray as xr
+
+    from rubcli.analysis.sweep import SweepPlan
+    from rubcli.analysis.sweep.engine import RunStats
+    from rubcli.case import Case
 
 
 def store_dir_for(target: Path, digest: str) -> Path:
@@ -19,12 +26,12 @@ def store_dir_for(target: Path, digest: str) -> Path:
     return target.parent / f".{target.name}.sweep-{digest}"
 
 
-def expected_files(plan) -> tuple[str, ...]:
+def expected_files(plan: SweepPlan) -> tuple[str, ...]:
     """The files ``rubcli sweep`` writes for ``plan``."""
     return ("sweep.nc", "sweep.csv", *figures(plan), "report.json")
 
 
-def figures(plan) -> list[str]:
+def figures(plan: SweepPlan) -> list[str]:
     """The figures of a sweep, by file name (``rubcli.plotting.sweep.<stem>_figure``)."""
     if plan.is_basin:
         return ["basins.png"] + (["convergence.png"] if plan.recognition is not None else [])
@@ -34,7 +41,8 @@ def figures(plan) -> list[str]:
 
 
 def write_outputs(
-    case, plan, ds, results, stats, where: str, wall: float, target: str | Path,
+    case: Case, plan: SweepPlan, ds: xr.Dataset, results: Any, stats: RunStats, where: str,
+    wall: float, target: str | Path,
     output: io.OutputPlan | None = None, command_line: dict[str, Any] | None = None,
 ) -> dict[str, Any]:  # fmt: skip
     """Write a finished sweep's files into ``target`` in one commit (``output``: the dir as
@@ -88,7 +96,7 @@ def write_outputs(
     return report
 
 
-def title_of(case, plan) -> str:
+def title_of(case: Case, plan: SweepPlan) -> str:
     p = case.params
     swept = {a.parameter for a in plan.axes}
     fixed = ", ".join(f"{k}={v:g}" for k, v in p.as_dict().items() if k not in swept)
@@ -102,7 +110,7 @@ def title_of(case, plan) -> str:
     return f"{case.name}: sweep of {axes} ({how})\n{fixed}"
 
 
-def failures(ds) -> list[dict]:
+def failures(ds: xr.Dataset) -> list[dict]:
     out = []
     status = ds["status"]
     dims = status.dims
@@ -113,7 +121,7 @@ def failures(ds) -> list[dict]:
     return out
 
 
-def class_counts(ds) -> dict[str, int]:
+def class_counts(ds: xr.Dataset) -> dict[str, int]:
     from rubcli.analysis.sweep.point import RESPONSE_CLASSES
 
     ok = ds["status"].values == 0
@@ -123,7 +131,7 @@ def class_counts(ds) -> dict[str, int]:
     return {k: v for k, v in counts.items() if v}
 
 
-def kept_text(store_dir: Path, plan) -> str:
+def kept_text(store_dir: Path, plan: SweepPlan) -> str:
     """How many finished points the store holds: one a ``.point`` file, or the starts of
     each ``chunk-<c>.chunk`` of a basin grid with recognition."""
     if not store_dir.is_dir():
@@ -140,7 +148,7 @@ def kept_text(store_dir: Path, plan) -> str:
     return f"{kept} of {plan.n_points} points are kept in {store_dir}"
 
 
-def local_cluster(workers: int | None):
+def local_cluster(workers: int | None) -> tuple[Any, Any]:
     """A local Dask cluster of processes on loopback (for trying the Dask path)."""
     from rubcli.analysis import sweep as engine
 
