@@ -646,6 +646,8 @@ class ChartSection(_Section):
     y_max: float
     nx: int = Field(default=201, ge=2, le=MAX_CHART_GRID)  # grid values of x
     ny: int = Field(default=101, ge=2, le=MAX_CHART_GRID)  # grid values of y
+    x_spacing: Literal["linear", "log"] = "linear"  # of the grid values of x
+    y_spacing: Literal["linear", "log"] = "linear"
 
     @model_validator(mode="after")
     def _plane(self) -> ChartSection:
@@ -663,6 +665,11 @@ class ChartSection(_Section):
             if not lo < hi:
                 raise PydanticCustomError(
                     "chart_window", f"{axis}_min must be below {axis}_max (got {lo!r}, {hi!r})"
+                )
+            if getattr(self, f"{axis}_spacing") == "log" and not lo > 0.0:
+                raise PydanticCustomError(
+                    "chart_window",
+                    f'{axis}_spacing = "log" needs {axis}_min > 0 (got {lo!r})',
                 )
             for bound in (lo, hi):
                 why = model.parameter_problem(name, bound)

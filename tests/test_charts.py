@@ -174,3 +174,26 @@ def test_chart_study_from_python(tmp_path):
     assert {p.name for p in (tmp_path / "chart").iterdir()} == set(FILES)
     with pytest.raises(ValueError, match="missing table \\[chart\\]"):
         chart_of(load_case(REPO / "cases" / "paper" / "fig3a.toml"))
+
+
+def test_a_log_spaced_axis_spans_decades(tmp_path):
+    """K over six decades: the grid is geometric with exact ends, the figure's axis is
+    logarithmic, and a log axis that starts at zero is refused."""
+    base = (REPO / "cases" / "paper" / "fig3-chart.toml").read_text()
+    head = base[: base.index("[chart]")]
+    plane = '[chart]\nx = "K"\nx_min = 1\nx_max = 1e6\nx_spacing = "log"\ny = "mu"\n'
+    path = tmp_path / "case.toml"
+    path.write_text(head + plane + "y_min = 0\ny_max = 0.1\nnx = 13\nny = 5\n")
+    from rubcli.studies.chart import chart_of
+
+    result = chart_of(load_case(path))
+    x = result.chart.x
+    assert x[0] == 1.0 and x[-1] == 1e6 and result.chart.log_x and not result.chart.log_y
+    assert np.allclose(np.diff(np.log10(x)), 0.5)
+    report = result.write(tmp_path / "out")
+    assert report["plane"]["x_spacing"] == "log"
+    path.write_text(head + plane.replace("x_min = 1", "x_min = 0") + "y_min = 0\ny_max = 0.1\n")
+    out = tmp_path / "refused"
+    cli = CliRunner().invoke(app, ["chart", str(path), "--out", str(out)])
+    assert cli.exit_code == 2 and 'x_spacing = "log" needs x_min > 0' in cli.output
+    assert not out.exists()

@@ -129,6 +129,8 @@ class Chart:
     regions: np.ndarray  # (ny, nx) of NEITHER/FREE/RUB/BOTH
     curves: dict[str, list[tuple[float, float]]]  # kind -> located (x, y) points
     fields: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)  # kind -> (ny, nx)
+    log_x: bool = False  # the grid values of x are evenly spaced in their logarithm
+    log_y: bool = False
 
     def curve_rows(self) -> list[tuple[float, float, str]]:
         """(x, y, kind) for every curve point, kind by kind, y then x ascending."""
@@ -172,14 +174,16 @@ def closed_form_chart(
     y_range: tuple[float, float],
     nx: int = 121,
     ny: int = 61,
+    x_spacing: str = "linear",
+    y_spacing: str = "linear",
 ) -> Chart:
     """Regions and curves in the plane (x_name, y_name) over the given ranges; every other
     parameter as in ``params``. Each curve's function is evaluated on the grid
     (``Chart.fields``), and its zeros are located by Brent between grid values of a sign
     change, along x at each grid value of y and along y at each grid value of x (a curve
     that runs nearly parallel to one axis is found along the other)."""
-    xs = np.linspace(*x_range, nx)
-    ys = np.linspace(*y_range, ny)
+    xs = _grid(x_range, nx, x_spacing)
+    ys = _grid(y_range, ny, y_spacing)
     regions = np.zeros((ny, nx), dtype=int)
     fields = {k: np.full((ny, nx), math.nan) for k in CURVE_KINDS}
     for j, yv in enumerate(ys):
@@ -220,7 +224,18 @@ def closed_form_chart(
                 for root in _roots_in(along_y, ys, fields[kind][:, i], on_y):
                     found[kind].add((float(xv), root))
     curves = {k: sorted(v, key=lambda p: (p[1], p[0])) for k, v in found.items()}
-    return Chart(x_name, y_name, xs, ys, regions, curves, fields)
+    log_x, log_y = x_spacing == "log", y_spacing == "log"
+    return Chart(x_name, y_name, xs, ys, regions, curves, fields, log_x, log_y)
+
+
+def _grid(bounds: tuple[float, float], n: int, spacing: str) -> np.ndarray:
+    """n values from bounds[0] to bounds[1], evenly spaced ("linear") or evenly spaced in
+    their logarithm ("log"; the ends exact)."""
+    if spacing == "log":
+        values = np.geomspace(*bounds, n)
+        values[0], values[-1] = bounds
+        return values
+    return np.linspace(*bounds, n)
 
 
 def _keep(kind: str, params: ModelParams, x_name: str, y_name: str):

@@ -78,6 +78,10 @@ def chart_figure(chart: ch.Chart, title: str, here: tuple[float, float] | None =
                               markeredgecolor="black", linestyle="none",
                               label=f"the case: {chart.x_name} = {here[0]:g}, "
                               f"{chart.y_name} = {here[1]:g}"))  # fmt: skip
+    if chart.log_x:
+        ax.set_xscale("log")
+    if chart.log_y:
+        ax.set_yscale("log")
     ax.set_xlim(chart.x[0], chart.x[-1])
     ax.set_ylim(chart.y[0], chart.y[-1])
     ax.set_xlabel(_label(chart.x_name))

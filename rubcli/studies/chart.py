@@ -40,7 +40,8 @@ class ChartResult:
             **io.report_envelope("chart", command_line, self.case.to_dict()),
             "wall_time_s": self.wall_time_s,
             "plane": {"x": c.x, "x_range": [c.x_min, c.x_max], "nx": int(chart.x.size),
-                      "y": c.y, "y_range": [c.y_min, c.y_max], "ny": int(chart.y.size)},
+                      "x_spacing": c.x_spacing, "y": c.y, "y_range": [c.y_min, c.y_max],
+                      "ny": int(chart.y.size), "y_spacing": c.y_spacing},
             "fixed": self.fixed,
             "region_fractions": chart.region_fractions(),
             "curve_points": {k: len(chart.curves[k]) for k in ch.CURVE_KINDS},
@@ -77,6 +78,7 @@ def chart_of(case: Case, *, quick: bool = False) -> ChartResult:
     nx, ny = (min(c.nx, QUICK_GRID[0]), min(c.ny, QUICK_GRID[1])) if quick else (c.nx, c.ny)
     started = time.perf_counter()
     chart = ch.closed_form_chart(
-        case.params, c.x, (c.x_min, c.x_max), c.y, (c.y_min, c.y_max), nx=nx, ny=ny
-    )
+        case.params, c.x, (c.x_min, c.x_max), c.y, (c.y_min, c.y_max), nx=nx, ny=ny,
+        x_spacing=c.x_spacing, y_spacing=c.y_spacing,
+    )  # fmt: skip
     return ChartResult(case, c, chart, time.perf_counter() - started, quick)
