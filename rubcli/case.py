@@ -648,6 +648,7 @@ class ChartSection(_Section):
     ny: int = Field(default=101, ge=2, le=MAX_CHART_GRID)  # grid values of y
     x_spacing: Literal["linear", "log"] = "linear"  # of the grid values of x
     y_spacing: Literal["linear", "log"] = "linear"
+    check_points: int = Field(default=0, ge=0, le=50)  # values of x checked by continuation
 
     @model_validator(mode="after")
     def _plane(self) -> ChartSection:

@@ -113,8 +113,16 @@ def test_chart_command_on_the_shipped_cases(name, tmp_path):
     assert sum(report["region_fractions"].values()) == pytest.approx(1.0)
     with (out / "curve.csv").open() as f:
         rows = list(csv.DictReader(f))
-    assert rows and set(rows[0]) == {c.x, c.y, "kind"}
-    assert {k: sum(r["kind"] == k for r in rows) for k in ch.CURVE_KINDS} == report["curve_points"]
+    assert rows and set(rows[0]) == {c.x, c.y, "kind", "source", "distance_to_closed_form"}
+    closed = [r for r in rows if r["source"] == "closed form"]
+    continued = [r for r in rows if r["source"] == "continuation"]
+    counts = {k: sum(r["kind"] == k for r in closed) for k in ch.CURVE_KINDS}
+    assert counts == report["curve_points"]
+    # the check: the rub shot and continued at 2 speeds (quick), its bifurcations located
+    # from its multipliers, on the closed-form curves
+    assert report["continuation_check"]["x_values"] == 2 and len(continued) >= 2
+    for row in continued:
+        assert float(row["distance_to_closed_form"]) < 1e-8
     for row in rows:
         p = dataclasses.replace(case.params, **{c.x: float(row[c.x]), c.y: float(row[c.y])})
         if row["kind"] == ch.FREE_GRAZING:
@@ -166,8 +174,12 @@ def test_chart_study_from_python(tmp_path):
     """The library path of the command: the study, then its files in one commit."""
     from rubcli.studies.chart import FILES, chart_of
 
-    case = load_case(REPO / "cases" / "examples" / "run-up-chart.toml")
+    text = (REPO / "cases" / "examples" / "run-up-chart.toml").read_text()
+    path = tmp_path / "case.toml"
+    path.write_text(text.replace("check_points = 6", "check_points = 0"))  # (checked above)
+    case = load_case(path)
     result = chart_of(case, quick=True)
+    assert result.continued == [] and result.check_summary()["x_values"] == 0
     assert result.chart.regions.shape == (21, 41)
     report = result.write(tmp_path / "chart")
     assert sorted(report["files"]) == sorted(FILES)

@@ -263,3 +263,88 @@ def chart_dataset(chart: Chart, params: ModelParams):
     fixed = {k: float(v) for k, v in params.as_dict().items()
              if k not in (chart.x_name, chart.y_name)}  # fmt: skip
     return xr.Dataset(data, coords=coords, attrs={"fixed_" + k: v for k, v in fixed.items()})
+
+
+# ------------------------------------------------- the check by continuation
+
+
+@dataclass(frozen=True)
+class ContinuedPoint:
+    """A bifurcation of the synchronous rub located by shooting and continuation
+    (``rubcli.analysis.continuation``) at a fixed x, and the closed-form curve's y there."""
+
+    x: float
+    y: float
+    kind: str  # FREE_GRAZING, RUB_FOLD or RUB_STABILITY
+    closed_form_y: float  # nan: no closed-form root near it
+
+    @property
+    def deviation(self) -> float:
+        return abs(self.y - self.closed_form_y)
+
+
+# The bifurcations of the rub branch that lie on the chart's curves: its fold, its
+# Neimark-Sacker point, and its grazing (r = 1, where it meets the free whirl).
+CONTINUED_KINDS = {"fold": RUB_FOLD, "neimark_sacker": RUB_STABILITY, "grazing": FREE_GRAZING}
+
+
+def continued_points(
+    params: ModelParams, chart: Chart, n: int, progress: Callable[[int], None] | None = None
+) -> list[ContinuedPoint]:
+    """At ``n`` values of x across the chart (its interior), the synchronous rub shot at the
+    first grid value of y where it exists, continued in y over the chart's range both
+    ways, and its located folds, Neimark-Sacker points and grazings: an independent check
+    of the closed-form curves (each point carries the closed form's y next to it)."""
+    from rubcli.analysis import continuation as cn
+
+    out: list[ContinuedPoint] = []
+    lo, hi = float(chart.y[0]), float(chart.y[-1])
+    step = (hi - lo) / 30.0
+    for i, xv in enumerate(_interior(chart.x, n)):
+        column = _with(params, **{chart.x_name: xv})
+        start = next((yv for yv in chart.y if _forward_rub(_with(column, **{chart.y_name: yv}))),
+                     None)  # fmt: skip
+        if start is not None:
+            at = _with(column, **{chart.y_name: float(start)})
+            r = max(model.synchronous_rub_radii(at))
+            state = model.synchronous_rub(np.array([0.0]), at, r)[:, 0]
+            settings = cn.ContinuationSettings(
+                parameter=chart.y_name, p_min=lo, p_max=hi, step=step, max_points=200,
+                rtol=1e-10, atol=1e-10, newton_tol=1e-9, max_wall_time_s=60.0,
+            )  # fmt: skip
+            branch = cn.continue_branch(at, state, settings)
+            for b in branch.bifurcations:
+                kind = CONTINUED_KINDS.get(b.kind)
+                if kind is not None and b.located:
+                    y = float(b.parameter)
+                    out.append(ContinuedPoint(xv, y, kind, _closed_form_y(column, chart, kind, y)))
+        if progress is not None:
+            progress(i + 1)
+    return out
+
+
+def _interior(values: np.ndarray, n: int) -> list[float]:
+    """n values of the grid's span, evenly spread inside it (its ends left out)."""
+    if n <= 0:
+        return []
+    fractions = (np.arange(n) + 0.5) / n
+    return [float(values[0] + f * (values[-1] - values[0])) for f in fractions]
+
+
+def _forward_rub(params: ModelParams) -> bool:
+    radii = model.synchronous_rub_radii(params)
+    return bool(radii) and model.synchronous_rub_is_forward(max(radii), params)
+
+
+def _closed_form_y(column: ModelParams, chart: Chart, kind: str, y: float) -> float:
+    """The closed-form curve's root in y nearest to ``y`` at this x (nan: none within a
+    tenth of the chart's height)."""
+    f = CURVE_FUNCTIONS[kind]
+    span = 0.1 * (chart.y[-1] - chart.y[0])
+    ys = np.linspace(max(chart.y[0], y - span), min(chart.y[-1], y + span), 41)
+
+    def g(v: float) -> float:
+        return f(_with(column, **{chart.y_name: v}))
+
+    roots = _roots_along(g, ys, lambda v: True)
+    return min(roots, key=lambda r: abs(r - y)) if roots else math.nan

@@ -16,6 +16,7 @@ Exit codes: 0 done; 2 invalid input (nothing written).
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 from typing import Annotated
 
@@ -58,12 +59,22 @@ def command(
     target = command_dir(case, "chart", out)
     plan = prepare_output(target, force, wait, study.FILES)
     with console.machine_readable(json):
-        with console.notice_if_slow(f"charting {c.nx} x {c.ny} points in ({c.x}, {c.y})"):
-            result = study.chart_of(case, quick=quick)
+        checks = min(c.check_points, study.QUICK_CHECK_POINTS) if quick else c.check_points
+        with (
+            console.notice_if_slow(f"charting {c.nx} x {c.ny} points in ({c.x}, {c.y})"),
+            console.progress_bar("continuation check", total=checks)
+            if checks
+            else contextlib.nullcontext(None) as update,
+        ):
+            result = study.chart_of(case, quick=quick, progress=update)
         command_line = {"case_file": str(case_file), "out": str(target), "quick": quick}
         report = result.write(target, plan, command_line)
         report_stale(plan)
         emit(report, json)
         rows = [[name, f"{share:.1%}"] for name, share in report["region_fractions"].items()]
         console.table(f"regions of ({c.x}, {c.y})", ["region", "share of the plane"], rows)
+        for kind, found in report["continuation_check"]["by_kind"].items():
+            if found["points"]:
+                console.info(f"{kind}: {found['points']} points located by continuation, "
+                             f"within {found['max_distance']:.1e} of the closed form")  # fmt: skip
         console.success(f"wrote {', '.join(report['files'])} to {target}")

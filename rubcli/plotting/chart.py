@@ -43,9 +43,12 @@ def _label(name: str) -> str:
     return SYMBOLS.get(name, name)
 
 
-def chart_figure(chart: ch.Chart, title: str, here: tuple[float, float] | None = None) -> Figure:
+def chart_figure(
+    chart: ch.Chart, title: str, here: tuple[float, float] | None = None, continued=(),
+) -> Figure:  # fmt: skip
     """The chart's regions and closed-form curves; ``here``: the case's own (x, y), marked
-    where it lies in the plane."""
+    where it lies in the plane; ``continued``: the points located by continuation
+    (``charts.ContinuedPoint``), drawn on the curves as open markers."""
     fig = Figure(figsize=(10.0, 6.5), layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.subplots()
@@ -67,6 +70,19 @@ def chart_figure(chart: ch.Chart, title: str, here: tuple[float, float] | None =
                    linestyles=[style], linewidths=1.8)  # fmt: skip
         handles.append(Line2D([], [], color=colour, linestyle=style, linewidth=1.8,
                               label=CURVE_LABELS[kind]))  # fmt: skip
+    for kind in ch.CURVE_KINDS:
+        points = [p for p in continued if p.kind == kind]
+        if not points:
+            continue
+        colour = CURVE_STYLES[kind][0]
+        ax.plot([p.x for p in points], [p.y for p in points], linestyle="none", marker="o",
+                markersize=8, markerfacecolor="white", markeredgecolor=colour,
+                markeredgewidth=1.8, zorder=5)  # fmt: skip
+        worst = max(p.deviation for p in points)
+        handles.append(Line2D([], [], linestyle="none", marker="o", markerfacecolor="white",
+                              markeredgecolor=colour, markeredgewidth=1.8,
+                              label=f"located by continuation ({len(points)}; within "
+                              f"{worst:.0e} of the line)"))  # fmt: skip
     if (
         here is not None
         and chart.x[0] <= here[0] <= chart.x[-1]
