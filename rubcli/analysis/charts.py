@@ -299,7 +299,10 @@ def continued_points(
 
     out: list[ContinuedPoint] = []
     lo, hi = float(chart.y[0]), float(chart.y[-1])
-    step = (hi - lo) / 30.0
+    # a first step of 1/30 of the range; on a log-spaced axis a tenth of its lower end, the
+    # largest step the range's thirtieth (the corrector's steps grow between the two)
+    step, largest = ((0.1 * lo, (hi - lo) / 30.0) if chart.log_y else
+                     ((hi - lo) / 30.0, (hi - lo) / 6.0))  # fmt: skip
     for i, xv in enumerate(_interior(chart.x, n)):
         column = _with(params, **{chart.x_name: xv})
         start = next((yv for yv in chart.y if _forward_rub(_with(column, **{chart.y_name: yv}))),
@@ -309,7 +312,8 @@ def continued_points(
             r = max(model.synchronous_rub_radii(at))
             state = model.synchronous_rub(np.array([0.0]), at, r)[:, 0]
             settings = cn.ContinuationSettings(
-                parameter=chart.y_name, p_min=lo, p_max=hi, step=step, max_points=200,
+                parameter=chart.y_name, p_min=lo, p_max=hi, step=min(step, largest),
+                max_step=largest, max_points=200,
                 rtol=1e-10, atol=1e-10, newton_tol=1e-9, max_wall_time_s=60.0,
             )  # fmt: skip
             branch = cn.continue_branch(at, state, settings)
