@@ -100,9 +100,20 @@ def _stable_rub_growth(params: ModelParams) -> float:
 
 def region(params: ModelParams) -> int:
     """The region (NEITHER, FREE, RUB, BOTH) of one parameter point."""
-    free = free_radius(params) <= 1.0
-    rub = any(r.forward_slip and r.stable for r in synchronous_rubs(params))
-    return (FREE if free else 0) | (RUB if rub else 0)
+    return point_values(params)[0]
+
+
+def point_values(params: ModelParams) -> tuple[int, float, float, float]:
+    """The region of one parameter point and the value there of each curve's function
+    (free grazing, rub fold, rub stability; nan where the curve cannot lie), from one
+    evaluation of the free whirl and the synchronous rubs."""
+    free_r = free_radius(params)
+    rubs = synchronous_rubs(params)
+    forward = [r for r in rubs if r.forward_slip]
+    rub = any(r.stable for r in forward)
+    code = (FREE if free_r <= 1.0 else 0) | (RUB if rub else 0)
+    growth = forward[-1].growth_rate if forward else math.nan
+    return code, free_r - 1.0, _fold_field(params), growth
 
 
 def _fold_field(params: ModelParams) -> float:
@@ -189,43 +200,36 @@ def closed_form_chart(
     for j, yv in enumerate(ys):
         row = _with(params, **{y_name: yv})
         for i, xv in enumerate(xs):
-            point = _with(row, **{x_name: xv})
-            rubs = synchronous_rubs(point)
-            free = free_radius(point) <= 1.0
-            rub = any(r.forward_slip and r.stable for r in rubs)
-            regions[j, i] = (FREE if free else 0) | (RUB if rub else 0)
-            forward = [r for r in rubs if r.forward_slip]
-            fields[FREE_GRAZING][j, i] = free_radius(point) - 1.0
-            fields[RUB_FOLD][j, i] = _fold_field(point)
-            fields[RUB_STABILITY][j, i] = forward[-1].growth_rate if forward else math.nan
+            code, *values = point_values(_with(row, **{x_name: xv}))
+            regions[j, i] = code
+            for kind, value in zip(CURVE_KINDS, values, strict=True):
+                fields[kind][j, i] = value
     found: dict[str, set[tuple[float, float]]] = {k: set() for k in CURVE_KINDS}
     for kind, f in CURVE_FUNCTIONS.items():
-        keep = _keep(kind, params, x_name, y_name)
-        if nx > 1:
+        keep_x, keep_y = _keep(kind, params, x_name, y_name), _keep(kind, params, y_name, x_name)
+        if nx > 1:  # along x, at each grid value of y
             for j, yv in enumerate(ys):
-
-                def along_x(v: float, yv=yv, f=f) -> float:
-                    return f(_with(params, **{x_name: v, y_name: yv}))
-
-                def on_x(v: float, yv=yv, keep=keep) -> bool:
-                    return keep(v, yv)
-
-                for root in _roots_in(along_x, xs, fields[kind][j], on_x):
+                for root in _roots_on_line(f, params, x_name, y_name, float(yv), xs,
+                                           fields[kind][j], keep_x):  # fmt: skip
                     found[kind].add((root, float(yv)))
-        if ny > 1:
+        if ny > 1:  # along y, at each grid value of x
             for i, xv in enumerate(xs):
-
-                def along_y(v: float, xv=xv, f=f) -> float:
-                    return f(_with(params, **{x_name: xv, y_name: v}))
-
-                def on_y(v: float, xv=xv, keep=keep) -> bool:
-                    return keep(xv, v)
-
-                for root in _roots_in(along_y, ys, fields[kind][:, i], on_y):
+                for root in _roots_on_line(f, params, y_name, x_name, float(xv), ys,
+                                           fields[kind][:, i], keep_y):  # fmt: skip
                     found[kind].add((float(xv), root))
     curves = {k: sorted(v, key=lambda p: (p[1], p[0])) for k, v in found.items()}
     log_x, log_y = x_spacing == "log", y_spacing == "log"
     return Chart(x_name, y_name, xs, ys, regions, curves, fields, log_x, log_y)
+
+
+def _roots_on_line(f, params, along: str, held: str, at: float, grid, values, keep):
+    """The zeros of a curve's function along one grid line: ``along`` varies over ``grid``
+    (where the function has ``values``), ``held`` is ``at``; ``keep(v, at)`` filters."""
+
+    def g(v: float) -> float:
+        return f(_with(params, **{along: v, held: at}))
+
+    return _roots_in(g, grid, values, lambda v: keep(v, at))
 
 
 def _grid(bounds: tuple[float, float], n: int, spacing: str) -> np.ndarray:
@@ -239,9 +243,9 @@ def _grid(bounds: tuple[float, float], n: int, spacing: str) -> np.ndarray:
 
 
 def _keep(kind: str, params: ModelParams, x_name: str, y_name: str):
-    """Which zeros of a curve's function are points of the curve: the fold's where its
-    double root lies outside the clearance (its function is nan elsewhere, so this only
-    rejects a root Brent found next to that edge)."""
+    """Which zeros of a curve's function are points of the curve, as keep(x value, y
+    value): the fold's where its double root lies outside the clearance (its function is
+    nan elsewhere, so this only rejects a root Brent found next to that edge)."""
     if kind != RUB_FOLD:
         return lambda xv, yv: True
     return lambda xv, yv: rub_fold_radius(_with(params, **{x_name: xv, y_name: yv})) > 1.0
