@@ -427,35 +427,21 @@ def measure_case(case: Case, quick: bool, repeats: int, budget: float, log) -> d
         first_pass(setting)
         settings.append(setting)
 
-    build = 0.0
-    for tol in tols:
-        t0 = time.perf_counter()
-        hy = Heyoka(params, tol)
-        build += time.perf_counter() - t0
+    for name, model_class in (("heyoka", Heyoka), ("heyoka-switched", HeyokaSwitched)):
+        build = 0.0
+        for tol in tols:
+            t0 = time.perf_counter()
+            integrator = model_class(params, tol)
+            build += time.perf_counter() - t0
 
-        def heyoka_run(hy=hy):
-            state, events, steps, status, note = hy.run(problem.initial, t_end, budget)
-            return state, steps, events, status, note
+            def heyoka_run(integrator=integrator):
+                state, events, steps, status, note = integrator.run(problem.initial, t_end, budget)
+                return state, steps, events, status, note
 
-        setting = Setting("heyoka", tol, heyoka_run)
-        first_pass(setting)
-        settings.append(setting)
-    setup["heyoka"] = build
-
-    build = 0.0
-    for tol in tols:
-        t0 = time.perf_counter()
-        hs = HeyokaSwitched(params, tol)
-        build += time.perf_counter() - t0
-
-        def switched_run(hs=hs):
-            state, events, steps, status, note = hs.run(problem.initial, t_end, budget)
-            return state, steps, events, status, note
-
-        setting = Setting("heyoka-switched", tol, switched_run)
-        first_pass(setting)
-        settings.append(setting)
-    setup["heyoka-switched"] = build
+            setting = Setting(name, tol, heyoka_run)
+            first_pass(setting)
+            settings.append(setting)
+        setup[name] = build
 
     timed_again = [s for s in settings if s.result[3] == "success" and s.times[0] <= budget / 4]
     for _ in range(repeats - 1):

@@ -30,17 +30,14 @@ from rubcli.analysis import whirls as wh
 from rubcli.case import Case, OrbitsSection
 from rubcli.cli import console
 from rubcli.cli.common import emit, prepare_output, report_stale
+from rubcli.studies.orbits import CSV_COLUMNS as ORBIT_COLUMNS
 
 EXIT_FAILED = 1
 QUICK_MAX_POINTS = 12
 UNUSED = ("period", "start", "transient_periods", "rtol", "atol")  # periodic orbits only
 EXPECTED_FILES = ("branch.csv", "branch.png", "report.json")
 CSV_COLUMNS = (
-    "index", "parameter", "value", "k", "x", "y", "vx", "vy", "max_z", "min_z",
-    "contact_fraction", "stick_fraction", "contact_phases", "stable", "n_unstable",
-    "max_multiplier_modulus", *(f"multiplier{i}_{part}" for i in range(1, 5)
-                                for part in ("re", "im")),
-    "label", "located", "newton_iterations",
+    *ORBIT_COLUMNS,  # a periodic orbit's columns, then the whirl's own
     "branch", "mode", "radius", "whirl_rate", "whirl_order", "slip_velocity",
     "friction_needed", "growth_rate",
     *(f"eigenvalue{i}_{part}" for i in range(1, 5) for part in ("re", "im")),
