@@ -240,6 +240,61 @@ def test_unstable_rub_meets_the_free_branch_in_a_nonsmooth_fold_at_grazing():
     assert "nonsmooth fold" in kinds[cn.FOLD].note
 
 
+# A stiff stator without friction: the synchronous whirl is a circle, so the free branch
+# touches the stator all round at once, and past it the amplitude saturates: the branch
+# leaves each grazing at a sharp corner that a tangent predictor cannot follow.
+STIFF = ModelParams(nu=0.02, eta=1.0, e=0.05, K=10.0, mu=0.0, Rp=5.0)
+
+
+def _stiff_grazings() -> tuple[float, float]:
+    def free_radius_minus_one(eta):
+        return STIFF.e * eta**2 / abs(1 - eta**2 + 2j * STIFF.nu * eta) - 1.0
+
+    return (brentq(free_radius_minus_one, 0.9, 1.0, xtol=1e-15),
+            brentq(free_radius_minus_one, 1.0, 1.2, xtol=1e-15))  # fmt: skip
+
+
+def _stiff_settings(lo: float, hi: float, direction: int) -> cn.ContinuationSettings:
+    return cn.ContinuationSettings(
+        parameter="eta", p_min=lo, p_max=hi, step=0.01, max_points=40,
+        directions=(direction,), rtol=1e-11, atol=1e-11,
+    )  # fmt: skip
+
+
+def test_stiff_stator_free_branch_continues_through_grazing_onto_the_rub():
+    lower, _ = _stiff_grazings()
+    params = dataclasses.replace(STIFF, eta=0.97)
+    branch = cn.continue_branch(params, [0.0, 0.0, 0.0, 0.0], _stiff_settings(0.97, 1.0, 1))
+    assert "upper bound" in branch.stops["forward"], branch.stops
+    (graze,) = [b for b in branch.bifurcations if b.kind == cn.GRAZING]
+    assert graze.located and abs(graze.parameter - lower) < 1e-9
+    assert branch.points[0].max_z < 1.0 and branch.points[-1].contact_fraction == 1.0
+    assert branch.points[-1].stable  # the rub born at the lower grazing is stable
+
+
+@pytest.mark.parametrize("side", ["unstable rub", "free whirl"])
+def test_stiff_stator_nonsmooth_fold_at_the_upper_grazing_from_either_side(side):
+    """Down the unstable rub to r = 1, where the branch turns back up as the free whirl; or
+    down the free whirl to r = 1, where it turns back up as the unstable rub."""
+    _, upper = _stiff_grazings()
+    params = dataclasses.replace(STIFF, eta=1.04)
+    if side == "unstable rub":
+        r_unstable = model.synchronous_rub_radii(params)[0]
+        s0 = model.synchronous_rub(np.array([0.0]), params, r_unstable)[:, 0]
+    else:
+        w, v = model.free_steady_state(0.0, params)
+        s0 = [w.real, w.imag, v.real, v.imag]
+    branch = cn.continue_branch(params, s0, _stiff_settings(1.0, 1.04, -1))
+    assert "upper bound" in branch.stops["backward"], branch.stops
+    kinds = {b.kind: b for b in branch.bifurcations}
+    assert set(kinds) == {cn.GRAZING, cn.FOLD}
+    for bif in kinds.values():
+        assert bif.located and abs(bif.parameter - upper) < 1e-9
+    assert "nonsmooth fold" in kinds[cn.FOLD].note
+    ends = {pt.stable for pt in (branch.points[0], branch.points[-1])}
+    assert ends == {True, False}  # the free whirl is stable, the small rub is not
+
+
 def test_newton_failure_and_point_budget_end_cleanly():
     with pytest.raises(ob.NewtonError) as info:
         ob.shoot(PAPER, [3.0, 0.0, 0.0, 0.0], max_iter=1)

@@ -288,7 +288,8 @@ class ContinuedPoint:
 
 
 # The bifurcations of the rub branch that lie on the chart's curves: its fold, its
-# Neimark-Sacker point, and its grazing (r = 1, where it meets the free whirl).
+# Neimark-Sacker point, and its grazing (r = 1, where it meets the free whirl; the
+# nonsmooth fold reported there is that grazing, not the rub's fold).
 CONTINUED_KINDS = {"fold": RUB_FOLD, "neimark_sacker": RUB_STABILITY, "grazing": FREE_GRAZING}
 
 
@@ -323,7 +324,7 @@ def continued_points(
             branch = cn.continue_branch(at, state, settings)
             for b in branch.bifurcations:
                 kind = CONTINUED_KINDS.get(b.kind)
-                if kind is not None and b.located:
+                if kind is not None and b.located and not b.nonsmooth:
                     y = float(b.parameter)
                     out.append(ContinuedPoint(xv, y, kind, _closed_form_y(column, chart, kind, y)))
         if progress is not None:

@@ -54,6 +54,9 @@ BISECTION_TOL = 1e-7
 LOCATED_WIDTH = 1e-6
 # Step halvings of the damped Newton corrector.
 MAX_HALVINGS = 4
+# The parameter offsets (scaled, relative) tried past a corner of the branch.
+CORNER_FIRST_OFFSET = 1e-6
+CORNER_LAST_OFFSET = 1e-3
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -183,6 +186,7 @@ class Bifurcation:
     located: bool
     test_value: float
     note: str = ""
+    nonsmooth: bool = False  # at a grazing point, where Phi jumps (not a smooth crossing)
 
     @property
     def parameter(self) -> float:
@@ -196,6 +200,7 @@ class Bifurcation:
             "test_value": self.test_value,
             "between_points": list(self.between),
             "note": self.note,
+            "nonsmooth": self.nonsmooth,
             "point": self.point.to_dict(),
         }
 
@@ -290,6 +295,15 @@ class CorrectorError(Exception):
     """A corrector (Newton on the branch) that did not converge."""
 
 
+def _deflated(G: np.ndarray, X: np.ndarray, avoid: np.ndarray | None) -> float:
+    """The residual Newton reduces: max |G|, deflated away from ``avoid`` (``correct``)."""
+    res = float(np.max(np.abs(G)))
+    if avoid is None:
+        return res
+    d = X[:4] - avoid
+    return res * (1.0 + 1.0 / max(float(d @ d), 1e-300))
+
+
 class _Problem:
     """G(X) and its Jacobian for one parameter, in scaled coordinates X = (x0, q)."""
 
@@ -357,19 +371,24 @@ class _Problem:
             monodromy=fl.monodromy,
         )
 
-    def correct(self, X_pred: np.ndarray, normal: np.ndarray) -> tuple[np.ndarray, BranchPoint]:
+    def correct(
+        self, X_pred: np.ndarray, normal: np.ndarray, avoid: np.ndarray | None = None
+    ) -> tuple[np.ndarray, BranchPoint]:
         """Newton on G = 0, normal . (X - X_pred) = 0 from X_pred.
 
         A step that does not reduce the residual is halved (up to ``MAX_HALVINGS`` times):
         the map is only piecewise smooth where an orbit grazes, and full Newton steps can
-        cycle across the kink there.
+        cycle across the kink there. ``avoid``: a known orbit (state) that Newton must not
+        return to: deflation, Newton on ``(1 + 1/|x - avoid|^2) G`` (P. E. Farrell, A.
+        Birkisson, S. W. Funke, SIAM J. Sci. Comput. 37 (2015) A2026), which keeps the
+        other roots and removes that one; where the deflated iteration stalls (the orbit
+        sought lies past a kink of the map), plain Newton goes on from where it stopped.
         """
         X = X_pred.copy()
         fl, G = self._residual(X)
         dPdq = self._dPdq(X)
-        res = float(np.max(np.abs(G)))
         for it in range(self.s.max_newton + 1):
-            if res <= self.s.newton_tol * ob.residual_scale(X[:4]):
+            if float(np.max(np.abs(G))) <= self.s.newton_tol * ob.residual_scale(X[:4]):
                 self.last = (X.copy(), fl.monodromy, dPdq)  # reused by tangent()
                 return X, self.point(X, fl, it)
             if it == self.s.max_newton:
@@ -379,20 +398,30 @@ class _Problem:
             A[:4, 4] = dPdq
             A[4] = normal
             rhs = np.concatenate([-G, [-float(normal @ (X - X_pred))]])
+            if avoid is not None:
+                d = X[:4] - avoid
+                dd = max(float(d @ d), 1e-300)
+                m = 1.0 + 1.0 / dd
+                A[:4] *= m
+                A[:4, :4] += np.outer(G, -2.0 * d / dd**2)
+                rhs[:4] *= m
             try:
                 dX = np.linalg.solve(A, rhs)
             except np.linalg.LinAlgError:
                 raise CorrectorError("singular bordered Jacobian") from None
+            res = _deflated(G, X, avoid)
             lam = 1.0
             for halving in range(MAX_HALVINGS + 1):
                 X_new = X + lam * dX
                 fl_new, G_new = self._residual(X_new)
-                res_new = float(np.max(np.abs(G_new)))
-                if res_new < res or halving == MAX_HALVINGS:
+                if _deflated(G_new, X_new, avoid) < res or halving == MAX_HALVINGS:
                     break
                 lam /= 2.0
-            X, fl, G, res = X_new, fl_new, G_new, res_new
+            X, fl, G = X_new, fl_new, G_new
             dPdq = self._dPdq(X)
+        if avoid is not None:  # deflation brought X near another root: plain Newton there
+            return self.correct(X, normal)
+        res = float(np.max(np.abs(G)))
         raise CorrectorError(f"no convergence in {self.s.max_newton} iterations ({res:.3g})")
 
     def _residual(self, X: np.ndarray):
@@ -487,7 +516,7 @@ def continue_branch(
         name = "forward" if direction > 0 else "backward"
         arm: list[tuple[np.ndarray, BranchPoint]] = []
         try:
-            reason = _one_direction(prob, X0, direction, done, progress, arm)
+            reason = _one_direction(prob, (X0, first), direction, done, progress, arm)
         except ob.WallTimeBudgetError:
             reason, exhausted = budget, True
         arms[direction] = arm
@@ -508,9 +537,11 @@ def continue_branch(
                   budget_exhausted=exhausted)  # fmt: skip
 
 
-def _one_direction(prob: _Problem, X0, direction, done, progress, out) -> str:
-    """Continue from X0 in ``direction``, appending (X, point) to ``out``; returns why it
-    stopped (WallTimeBudgetError passes through, ``out`` keeping the points so far)."""
+def _one_direction(prob: _Problem, start, direction, done, progress, out) -> str:
+    """Continue from ``start`` (X0, its point) in ``direction``, appending (X, point) to
+    ``out``; returns why it stopped (WallTimeBudgetError passes through, ``out`` keeping
+    the points so far)."""
+    X0, first = start
     s = prob.s
     ds = s.step / s.scale
     ds_min, ds_max = s.min_step / s.scale, s.max_step / s.scale
@@ -527,10 +558,16 @@ def _one_direction(prob: _Problem, X0, direction, done, progress, out) -> str:
         try:
             X_new, pt = prob.correct(X_pred, t)
         except CorrectorError as exc:
-            if ds / 2.0 < ds_min:
+            if ds / 2.0 >= ds_min:
+                ds /= 2.0
+                continue
+            last = out[-1][1] if out else first
+            crossed = _cross_corner(prob, X, last, t)
+            if crossed is None:
                 return f"corrector failed at the minimum step: {exc}"
-            ds /= 2.0
-            continue
+            X_new, pt = crossed
+            t = _away_from_corner(prob, X, last, X_new, pt, ds_min)
+            ds = s.step / s.scale
         q = X_new[4]
         if q > q_max or q < q_min:
             bound = q_max if q > q_max else q_min
@@ -556,6 +593,74 @@ def _one_direction(prob: _Problem, X0, direction, done, progress, out) -> str:
         elif pt.newton_iterations >= 5:
             ds = max(ds * 0.6, ds_min)
         X, t = X_new, t_new
+
+
+def _cross_corner(prob: _Problem, X, last: BranchPoint, t):
+    """The branch past a corner, where the tangent of one smooth piece leads nowhere.
+
+    Where an orbit grazes the stator (or a contact phase appears or vanishes), the map is
+    only piecewise smooth: the branch on the other side may leave at a sharp angle (a stiff
+    stator saturates the amplitude) or turn back (a nonsmooth fold), and the predictor
+    along the old tangent finds nothing however short the step. Here orbits are corrected
+    at fixed parameter offsets ``h`` past the last point, onward and back, over a doubling
+    ladder from ``CORNER_FIRST_OFFSET`` to ``CORNER_LAST_OFFSET`` (relative, scaled).
+    Newton starts from the last state, from the orbit of the other side's flow extended
+    smoothly (free flight leaving contact, contact locked in slip entering it) and, where
+    it returns to the last piece, deflated away from that orbit. The first that lies on
+    another piece (the other side of ``max z = 1``, or another number of contact phases)
+    and within ``sqrt(h)`` of the last point (a branch leaves a grazing like a square root
+    at most: a farther orbit is another branch) is returned with its point, or None.
+    """
+    onward = 1.0 if t[4] >= 0.0 else -1.0
+    normal = np.zeros(5)
+    normal[4] = 1.0
+    # the smooth extensions of the flows on the other side: leaving contact, the free
+    # flow; entering it, the contact flow locked in slip either way (a full rub's orbit)
+    locked = (model.FREE,) if last.max_z > 1.0 else (model.SLIP_POSITIVE, model.SLIP_NEGATIVE)
+    extensions = [_Problem(prob.params, prob.s, locked=r, deadline=prob.deadline) for r in locked]
+    unit = max(1.0, abs(X[4]))
+    h = CORNER_FIRST_OFFSET * unit
+    while h <= CORNER_LAST_OFFSET * unit:
+        for side in (onward, -onward):
+            guess = X.copy()
+            guess[4] = X[4] + side * h
+            same = None  # the orbit of the last piece at this value, once found
+            for way in ("direct", *extensions, "deflated"):
+                try:
+                    if way == "direct":
+                        X_new, pt = prob.correct(guess, normal)
+                    elif way != "deflated":  # from the orbit of a smooth extension
+                        X_new, pt = prob.correct(way.correct(guess, normal)[0], normal)
+                    elif same is not None:
+                        X_new, pt = prob.correct(guess, normal, avoid=same[:4])
+                    else:
+                        continue
+                except CorrectorError:
+                    continue
+                other_piece = (pt.max_z - 1.0) * (last.max_z - 1.0) < 0.0 or (
+                    pt.contact_phases != last.contact_phases
+                )
+                if not other_piece:
+                    same = X_new
+                elif np.linalg.norm(X_new - X) <= math.sqrt(h):
+                    return X_new, pt
+        h *= 2.0
+    return None
+
+
+def _away_from_corner(prob: _Problem, X, last: BranchPoint, X_new, pt: BranchPoint, ds: float):
+    """The direction along the new piece that leaves the corner: past a grazing, the one
+    in which ``|max z - 1|`` grows (a probe step of ``ds``; a probe that finds no orbit
+    points into the corner); elsewhere, the one along the chord from the last point."""
+    chord = (X_new - X) / float(np.linalg.norm(X_new - X))
+    t = prob.tangent(X_new, chord, 1)
+    if (pt.max_z - 1.0) * (last.max_z - 1.0) >= 0.0:
+        return t
+    try:
+        _, probe = prob.correct(X_new + ds * t, t)
+    except CorrectorError:
+        return -t
+    return t if abs(probe.max_z - 1.0) > abs(pt.max_z - 1.0) else -t
 
 
 def _at_bound(prob: _Problem, X_a, X_b, bound: float):
@@ -608,7 +713,8 @@ def detect(
                     f"{b.n_unstable} multipliers lie outside the unit circle (nonsmooth {kind})"
                 )
                 found.append(Bifurcation(kind, _labelled(graze.point, kind), (i, i + 1),
-                                         graze.located, test(graze.point), note))  # fmt: skip
+                                         graze.located, test(graze.point), note,
+                                         nonsmooth=True))  # fmt: skip
                 continue
             found.extend(_locate_continuous(prob, Xs, points, i, kind, test, locate))
         if _has_stick(a) != _has_stick(b):
@@ -619,21 +725,56 @@ def detect(
 def _locate_grazing(prob: _Problem, Xs, points, i, locate) -> Bifurcation:
     """Grazing between points i and i+1 (one of them free), located on the smooth side.
 
-    The orbit on the free side is continued with contact switched off (its smooth
-    extension: ``locked`` free flow), and the root of its max z - 1 is where it touches
-    the stator. Newton on the switching map itself cycles near a grazing orbit; if the
-    smooth side cannot be corrected, bisection on "touches or not" is used instead.
+    The free orbit is continued with contact switched off (its smooth extension:
+    ``locked`` free flow, corrected at fixed parameter values), and the root of its
+    ``max z - 1`` in the parameter is where it touches the stator: Brent's method, on a
+    bracket widened past the other point where the branch turns back at the corner (a
+    nonsmooth fold: both points on one side of the grazing value). The orbit found there
+    is on both pieces (the contact force vanishes at z = 1). The bracket grows from the
+    free point in the direction in which the free orbit's max z grows. Newton on the switching map
+    itself cycles near a grazing orbit; if the smooth side cannot be corrected, bisection
+    on "touches or not" along the segment is used instead.
     """
     if not locate:
         return _locate_continuous(prob, Xs, points, i, GRAZING, grazing_test, False)[0]
+    between = (i, i + 1)
+    free = i if points[i].max_z < 1.0 else i + 1
+    other = 2 * i + 1 - free
     side = _Problem(prob.params, prob.s, locked=model.FREE, deadline=prob.deadline)
+    normal = np.zeros(5)
+    normal[4] = 1.0
     cache: dict[float, BranchPoint] = {}
+
+    def g(q: float) -> float:
+        if q not in cache:
+            guess = Xs[free].copy()
+            guess[4] = q
+            cache[q] = side.correct(guess, normal)[1]
+        return grazing_test(cache[q])
+
+    q_free, q_other = float(Xs[free][4]), float(Xs[other][4])
     try:
-        for theta in (0.0, 1.0):
-            cache[theta] = _on_segment(side, Xs[i], Xs[i + 1], theta)
-    except CorrectorError as exc:
+        g_free = g(q_free)
+        span = q_other - q_free
+        if span == 0.0:
+            span = CORNER_FIRST_OFFSET * max(1.0, abs(q_free))
+        if g(q_free + span) < g_free:  # max z of the free orbit grows the other way
+            span = -span
+        far = q_free + span
+        for _ in range(20):  # widen past the other point (a corner that turns back)
+            if (g(far) > 0.0) != (g_free > 0.0):
+                break
+            span *= 2.0
+            far = q_free + span
+        else:
+            raise CorrectorError("no parameter value with max z > 1 on the smooth side")
+        from scipy.optimize import brentq
+
+        xtol = prob.s.locate_xtol * max(1.0, abs(q_free))
+        q = brentq(g, min(q_free, far), max(q_free, far), xtol=xtol, rtol=1e-14, maxiter=80)
+    except (CorrectorError, ValueError, RuntimeError) as exc:
         return _locate_count(prob, Xs, points, i, GRAZING, _touches, locate, f"{exc}; ")
-    return _locate_continuous(side, Xs, points, i, GRAZING, grazing_test, locate, cache)[0]
+    return Bifurcation(GRAZING, _labelled(cache[q], GRAZING), between, True, g(q))
 
 
 def _touches(point: BranchPoint) -> bool:
