@@ -43,6 +43,7 @@ import numpy as np
 from rubcli import model
 from rubcli.analysis import response as rsp
 from rubcli.analysis.processes import local_pool
+from rubcli.analysis.sweep.attractors import normalised
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 
@@ -91,6 +92,10 @@ class MemberResult:
     lyapunov_stderr: float = math.nan
     contraction_rate: float = math.nan
     rotation_number: float = math.nan
+    # the final window's stroboscopic section as (x, y, vx / eta, vy / eta): the mean of
+    # its points and the length of their extent (the attractor's place and size)
+    section_centre: tuple[float, float, float, float] | None = None
+    section_size: float = math.nan
 
     def to_dict(self) -> dict:
         return {k: (None if isinstance(v, float) and math.isnan(v) else v)
@@ -160,6 +165,7 @@ def run_member(task: MemberTask) -> MemberResult:
     weights = np.where(spread > 0.0, spread, 1.0)
     settled = response.kind in REGULAR and regime != CHANGING
     evidence = response.evidence()
+    section = normalised(final, task.params.eta)
     return MemberResult(
         task.index, task.method, rtol, task.offset, True, response.message,
         attractor=f"{regime}, {response.kind}", regime=regime, kind=response.kind,
@@ -172,6 +178,8 @@ def run_member(task: MemberTask) -> MemberResult:
         lyapunov=evidence["lyapunov"], lyapunov_stderr=evidence["lyapunov_stderr"],
         contraction_rate=evidence["contraction_rate"],
         rotation_number=evidence["rotation_number"],
+        section_centre=tuple(float(v) for v in section.mean(axis=0)),
+        section_size=float(np.linalg.norm(np.ptp(section, axis=0))),
     )  # fmt: skip
 
 
@@ -306,6 +314,27 @@ class EnsembleResult:
         }
 
 
+STATE = ("x", "y", "vx", "vy")
+
+
+def box_starts(
+    start: Sequence[float], box: dict[str, tuple[float, float] | None], runs: int, seed: int
+) -> np.ndarray:
+    """``runs`` starts drawn uniformly (seeded) over a box of the state space, ``(runs, 4)``.
+
+    ``box`` maps each of x, y, vx, vy to its ``(lo, hi)``, or to None to hold it at
+    ``start``. Four uniforms are drawn per start whichever sides are given, so a side's
+    draws do not change when another side is added or removed."""
+    uniform = np.random.default_rng(seed).random((runs, 4))
+    out = np.tile(np.asarray(start, dtype=float), (runs, 1))
+    for k, name in enumerate(STATE):
+        side = box.get(name)
+        if side is not None:
+            lo, hi = side
+            out[:, k] = lo + (hi - lo) * uniform[:, k]
+    return out
+
+
 def member_tasks(
     params: ModelParams,
     start: Sequence[float],
@@ -322,17 +351,27 @@ def member_tasks(
     lyapunov: bool,
     lyapunov_periods: int,
     settle_tolerance: float,
+    starts: np.ndarray | None = None,
 ) -> list[MemberTask]:
-    """The runs: ``runs`` starts (the first the case's own) at every (method, rtol)."""
+    """The runs: ``runs`` starts (the first the case's own) at every (method, rtol);
+    ``starts`` (an array ``(n, 4)``) replaces that cloud by these starts (``runs`` and
+    ``spread`` unused), each with its distance from ``start`` as its offset."""
     from rubcli.solvers import options_for
 
-    rng = np.random.default_rng(seed)
     base = np.asarray(start, dtype=float)
-    starts = [(tuple(base), 0.0)]
-    for _ in range(runs - 1):
-        direction = rng.normal(size=4)
-        offset = base + spread * direction / np.linalg.norm(direction)
-        starts.append((tuple(float(v) for v in offset), spread))
+    if starts is not None:
+        drawn = np.asarray(starts, dtype=float)
+        offsets = np.linalg.norm(drawn - base, axis=1)
+        cloud = [
+            (tuple(float(v) for v in s), float(d)) for s, d in zip(drawn, offsets, strict=True)
+        ]
+    else:
+        rng = np.random.default_rng(seed)
+        cloud = [(tuple(base), 0.0)]
+        for _ in range(runs - 1):
+            direction = rng.normal(size=4)
+            offset = base + spread * direction / np.linalg.norm(direction)
+            cloud.append((tuple(float(v) for v in offset), spread))
     tasks = []
     for method in methods:
         for rtol in rtols:
@@ -340,7 +379,7 @@ def member_tasks(
             if rtol is not None:
                 opts["rtol"], opts["atol"] = rtol, rtol * 1e-2
             opts = options_for(method, opts)
-            for s, offset in starts:
+            for s, offset in cloud:
                 tasks.append(MemberTask(len(tasks), params, s, offset, method, opts, periods,
                                         samples_per_period, record_periods, lyapunov,
                                         lyapunov_periods, settle_tolerance))  # fmt: skip
