@@ -1,8 +1,8 @@
 """``rubcli ensemble CASE [--out DIR] [--workers N] [--quick]``: a fragile outcome in numbers.
 
 Runs the case's ``[ensemble]`` table (``rubcli.analysis.ensemble``; docs/reproduction.md):
-the case from a cloud of starts at every setting of a tolerance ladder, the end of each
-run classified and named, and writes
+the case from a cloud of starts (or a box of them, ``starts = "box"``) at every setting of
+a tolerance ladder, the end of each run classified and named, and writes
 
 - ``ensemble.csv``: one row per run: method, rtol, start offset, attractor, regime, class,
   settled, time to reach the attractor (forcing periods), contact and stick fractions,
@@ -11,6 +11,12 @@ run classified and named, and writes
   transient;
 - ``report.json``: the case, the settings, the fractions with their intervals, the
   lifetime of the transient (mean, interval, median, per attractor), failed runs.
+
+With ``[ensemble] parameter`` it runs the basin stability along that parameter instead
+(``rubcli.studies.basin_stability``; docs/charts.md): the same starts at every value, the
+attractors followed from value to value, and writes ``basin_stability.csv`` (per value and
+attractor: count, runs, fraction, 95 % interval), ``basin_stability.png`` and
+``report.json`` (with the minimal perturbation off the free whirl, where asked).
 
 Exit codes: 0 done; 1 every run failed; 2 invalid input (nothing written).
 """
@@ -68,7 +74,11 @@ WorkersOption = Annotated[
     int | None, typer.Option("--workers", "-w", min=1, help="Local processes (default: all cores).")
 ]
 EXPECTED_FILES = ("ensemble.csv", "ensemble.png", "report.json")
-QuickOption = Annotated[bool, typer.Option("--quick", help="CI mode: 4 runs of 300 periods.")]
+QuickOption = Annotated[
+    bool,
+    typer.Option("--quick", help="CI mode: 4 runs of 300 periods (along a parameter: 12 runs "
+                 "at 3 values)."),
+]  # fmt: skip
 
 
 def command(
@@ -82,6 +92,10 @@ def command(
 ) -> None:
     """Attractor fractions and escape times over a cloud of starts (the ensemble table)."""
     case = load_or_exit(case_file)
+    e = case.settings.ensemble
+    if e is not None and e.parameter is not None:
+        _basin_stability(case_file, case, out, workers, quick, json, force, wait)
+        return
     s, problems = settings_of(case, quick)
     if problems:
         console.error_lines(f"cannot run the ensemble of {case_file}", problems)
@@ -97,6 +111,8 @@ def command(
     plan = prepare_output(target, force, wait, EXPECTED_FILES)
     with console.machine_readable(json):
         started = time.perf_counter()
+        starts = (en.box_starts(case.problem.initial, e.box(), s["runs"], s["seed"])
+                  if s["starts"] == "box" else None)  # fmt: skip
         tasks = en.member_tasks(
             case.params, case.problem.initial, runs=s["runs"], spread=s["spread"],
             seed=s["seed"], methods=s["methods"], rtols=s["rtols"],
@@ -104,6 +120,7 @@ def command(
             samples_per_period=case.settings.time.samples_per_period,
             record_periods=s["record_periods"], lyapunov=s["lyapunov"],
             lyapunov_periods=s["lyapunov_periods"], settle_tolerance=s["settle_tolerance"],
+            starts=starts,
         )  # fmt: skip
         with console.progress_bar(f"ensemble of {len(tasks)} runs", total=len(tasks)) as update:
             result = en.run_ensemble(tasks, workers=min(workers, len(tasks)), progress=update,
@@ -126,9 +143,14 @@ def command(
                 from rubcli.plotting.ensemble import ensemble_figure
 
                 p = case.params
+                where = (
+                    f"starts within {s['spread']:g}"
+                    if starts is None
+                    else "starts in a box: "
+                    + ", ".join(f"{k} in [{v[0]:g}, {v[1]:g}]" for k, v in e.box().items() if v)
+                )
                 title = (f"{case.name}: {len(tasks)} runs of {s['periods']} periods, mu = "
-                         f"{p.mu:g}, eta = {p.eta:g}, e = {p.e:g}, starts within "
-                         f"{s['spread']:g}")  # fmt: skip
+                         f"{p.mu:g}, eta = {p.eta:g}, e = {p.e:g}, {where}")  # fmt: skip
                 io.save_figure(ensemble_figure(result, title), staged.path("ensemble.png"))
             report["files"] = sorted(f.name for f in staged.staging.iterdir()) + ["report.json"]
             staged.write_report(report)
@@ -145,4 +167,57 @@ def command(
         if life["mean"]:
             console.info(f"mean lifetime of the transient: {life['mean']:.0f} forcing periods "
                          f"[{life['lower']:.0f}, {life['upper']:.0f}] (95 %)")  # fmt: skip
+        console.success(f"wrote {', '.join(report['files'])} to {target}")
+
+
+def _basin_stability(case_file, case, out, workers, quick, json, force, wait) -> None:
+    """``[ensemble] parameter``: the basin stability along it (rubcli.studies.basin_stability)."""
+    from rubcli.analysis.sweep import check_workers
+    from rubcli.studies import basin_stability as study
+
+    s, problems = study.settings_of(case, quick)
+    if problems:
+        console.error_lines(f"cannot run the ensemble of {case_file}", problems)
+        raise typer.Exit(EXIT_INVALID)
+    try:
+        workers = check_workers(workers)  # no more processes than cores
+    except ValueError as exc:
+        console.error(f"--{exc}")
+        raise typer.Exit(EXIT_INVALID) from None
+    target = command_dir(case, "ensemble", out)
+    plan = prepare_output(target, force, wait, study.FILES)
+    with console.machine_readable(json):
+        n = len(s["values"])
+        bar = f"basin stability: {n} values of {s['parameter']}"
+        with console.progress_bar(bar, total=1.0) as update:
+            result = study.basin_stability_of(
+                case, quick=quick, workers=workers, progress=lambda done, n: update(done / n)
+            )
+        command_line = {"case_file": str(case_file), "out": str(target), "quick": quick,
+                        "workers": workers}  # fmt: skip
+        report = result.write(target, plan, command_line)
+        report_stale(plan)
+        emit(report, json)
+        basin = result.basin
+        if not any(basin.good_runs(i) for i in range(n)):
+            console.error(f"{case_file}: every run failed; see {target}/report.json")
+            raise typer.Exit(1)
+        labels = basin.labels
+        rows = []
+        for i, value in enumerate(basin.values):
+            f = basin.fractions(i)
+            rows.append([f"{value:g}", str(basin.good_runs(i))]
+                        + [f"{f[k]['fraction']:.2f} [{f[k]['ci_low']:.2f}, {f[k]['ci_high']:.2f}]"
+                           for k in labels] + [str(basin.failed_runs(i))])  # fmt: skip
+        console.table(f"where the runs end along {basin.parameter} (fraction [95 %])",
+                      [basin.parameter, "runs", *labels, "failed"], rows)  # fmt: skip
+        for p in basin.perturbations:
+            if p.found:
+                d = ", ".join(f"{v:.2f}" for v in p.direction)
+                console.info(f"{basin.parameter} = {p.value:g}: minimal perturbation <= "
+                             f"{p.size:.3g} along ({d}) onto {p.reached}")  # fmt: skip
+            else:
+                why = "not found" if p.computable else "not computable"
+                console.info(f"{basin.parameter} = {p.value:g}: minimal perturbation {why}: "
+                             f"{p.reason}")  # fmt: skip
         console.success(f"wrote {', '.join(report['files'])} to {target}")
