@@ -307,3 +307,21 @@ def test_quick_run_of_the_shipped_case_writes_every_file(tmp_path):
     assert kicks[0]["reason"].startswith("no free whirl") and not kicks[0]["computable"]
     assert kicks[2]["reason"].startswith("no rub") and not kicks[2]["computable"]
     assert kicks[1]["computable"] and kicks[1]["size"] > 0 and kicks[1]["directions_tried"] == 8
+
+
+def test_the_shaded_band_runs_from_the_free_whirls_grazing_to_the_rubs_fold():
+    """The figure's shaded span: from the grazing speed (the quadratic in eta^2 of
+    e^2 eta^4 = (1 - eta^2)^2 + 4 nu^2 eta^2) to the double root of the rub's quadratic."""
+    from scipy.optimize import brentq
+
+    from rubcli.analysis.charts import rub_fold_discriminant
+    from rubcli.case import load_case
+    from rubcli.studies.basin_stability import both_spans
+
+    nu, e = RUN_UP["nu"], RUN_UP["e"]
+    a, b = 1.0 - e * e, 4.0 * nu * nu - 2.0
+    grazing = math.sqrt((-b + math.sqrt(b * b - 4.0 * a)) / (2.0 * a))  # the upper root
+    fold = brentq(lambda eta: rub_fold_discriminant(ModelParams(eta=eta, **RUN_UP)), 2.5, 3.4)
+    case = load_case(REPO / "cases/examples/basin-stability.toml")
+    [(lo, hi)] = both_spans(case, "eta", [1.0, 3.4])
+    assert lo == pytest.approx(grazing, abs=1e-8) and hi == pytest.approx(fold, abs=1e-8)

@@ -66,7 +66,8 @@ def basin_stability_figure(
         for lo, hi in both_spans if axes is not None else ():
             axes.axvspan(lo, hi, color=BOTH_COLOUR, alpha=0.3, lw=0, zorder=0)
     if both_spans:
-        both = "free whirl and synchronous rub both stable (closed form)"
+        where = ", ".join(f"{lo:.3f} to {hi:.3f}" for lo, hi in both_spans)
+        both = f"free whirl and synchronous rub both stable ({result.parameter} {where})"
         handles.append(Patch(color=BOTH_COLOUR, alpha=0.5, label=both))
     for k, label in enumerate(labels):
         f = [result.fractions(i)[label] for i in order]
@@ -99,9 +100,9 @@ def basin_stability_figure(
     ax.grid(True, alpha=0.3)
     runs = sorted({result.good_runs(i) for i in range(len(values))})
     failed = sum(result.failed_runs(i) for i in range(len(values)))
-    left_out = f", {failed} failed runs left out" if failed else ""
-    ax.set_title(f"basin stability: {'/'.join(map(str, runs))} runs per value{left_out}",
-                 fontsize="medium")  # fmt: skip
+    left_out = f"; {failed} failed runs left out" if failed else ""
+    ax.set_title(f"basin stability: share of the {'/'.join(map(str, runs))} runs at each value "
+                 f"that end on each attractor{left_out}", fontsize="medium")  # fmt: skip
     if ax_p is not None:
         handles += _perturbation_panel(ax_p, result)
     (ax_p if ax_p is not None else ax).set_xlabel(
@@ -126,8 +127,8 @@ def _perturbation_panel(ax, result: BasinStability) -> list:
         ax.errorbar(v, size, yerr=[size - lower, np.zeros_like(size)], fmt="o-", color="k",
                     ms=6, capsize=3, lw=1.4)  # fmt: skip
         handles.append(Line2D([], [], marker="o", color="k", lw=1.4,
-                              label="minimal perturbation found (an upper bound; bar: down "
-                              "to the largest size that returned)"))  # fmt: skip
+                              label="minimal perturbation (an upper bound; bar: its "
+                              "bracket)"))  # fmt: skip
     top = max([p.size for p in found] + [0.0])
     missing = [p for p in result.perturbations if p.computable and not p.found]
     limit = result.settings.get("perturbation_max", math.nan)

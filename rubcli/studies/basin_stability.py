@@ -60,24 +60,36 @@ def settings_of(case: Case, quick: bool = False) -> tuple[dict, list[str]]:
 
 def both_spans(case: Case, parameter: str, values: list[float]) -> list[tuple[float, float]]:
     """The ranges of ``parameter`` within the values where the closed forms give both the
-    free whirl and a stable synchronous rub (``analysis.charts``, region "both")."""
+    free whirl and a stable synchronous rub (``analysis.charts``, region "both"), each edge
+    between two grid values located by bisection to 1e-9 of the range."""
     import dataclasses
 
     from rubcli.analysis import charts as ch
 
+    def both(v: float) -> bool:
+        return ch.region(dataclasses.replace(case.params, **{parameter: float(v)})) == ch.BOTH
+
+    def edge(outside: float, inside: float) -> float:
+        while abs(inside - outside) > 1e-9 * span:
+            middle = 0.5 * (outside + inside)
+            outside, inside = (middle, inside) if not both(middle) else (outside, middle)
+        return inside
+
     grid = np.linspace(min(values), max(values), BOTH_GRID)
-    both = np.array([ch.region(dataclasses.replace(case.params, **{parameter: float(v)}))
-                     == ch.BOTH for v in grid])  # fmt: skip
+    span = float(grid[-1] - grid[0])
+    flags = [both(v) for v in grid]
     spans, k = [], 0
     while k < grid.size:
-        if both[k]:
-            j = k
-            while j + 1 < grid.size and both[j + 1]:
-                j += 1
-            spans.append((float(grid[k]), float(grid[j])))
-            k = j + 1
-        else:
+        if not flags[k]:
             k += 1
+            continue
+        j = k
+        while j + 1 < grid.size and flags[j + 1]:
+            j += 1
+        lo = edge(grid[k - 1], grid[k]) if k > 0 else grid[k]
+        hi = edge(grid[j + 1], grid[j]) if j + 1 < grid.size else grid[j]
+        spans.append((float(lo), float(hi)))
+        k = j + 1
     return spans
 
 
