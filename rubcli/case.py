@@ -727,13 +727,15 @@ class EnsembleSection(_Section):
         return self
 
     def parameter_values(self) -> tuple[float, ...]:
-        """The values of ``parameter`` in the order given (a linear range start ... stop);
+        """The values of ``parameter`` in the order given (a linear range start ... stop,
+        each rounded to 12 significant digits: 1.8, not linspace's 1.7999999999999998);
         empty without a parameter."""
         if self.values is not None:
             return tuple(float(v) for v in self.values)
         if self.start is None or self.stop is None or self.num is None:
             return ()
-        return tuple(float(v) for v in np.linspace(self.start, self.stop, self.num))
+        grid = np.linspace(self.start, self.stop, self.num)
+        return tuple(float(f"{v:.12g}") for v in grid)
 
     def box(self) -> dict[str, tuple[float, float] | None]:
         """The box of starts by state coordinate (None: held at the case's [initial])."""
