@@ -325,3 +325,23 @@ def test_the_shaded_band_runs_from_the_free_whirls_grazing_to_the_rubs_fold():
     case = load_case(REPO / "cases/examples/basin-stability.toml")
     [(lo, hi)] = both_spans(case, "eta", [1.0, 3.4])
     assert lo == pytest.approx(grazing, abs=1e-8) and hi == pytest.approx(fold, abs=1e-8)
+
+
+def test_a_single_ensemble_can_draw_its_starts_from_a_box(tmp_path):
+    """Without a parameter, starts = "box" replaces the cloud: at eta = 0.5 (the free whirl
+    alone) every start ends on it, and each run's offset is its start's distance from
+    [initial]: only x is drawn, uniform on [-1, 1], so the offsets lie in [0, 1] and the
+    first is |lo + (hi - lo) u| for the seed's first uniform."""
+    case = tmp_path / "bs.toml"
+    table = 'starts = "box"\nbox_x = [-1.0, 1.0]\nseed = 5'
+    text = CASE.format(table=table).replace("eta = 2.0", "eta = 0.5")
+    case.write_text(text.replace("runs = 2", "runs = 3"))
+    out = tmp_path / "out"
+    result = CliRunner().invoke(app, ["ensemble", str(case), "--out", str(out), "-w", "1"])
+    assert result.exit_code == 0, result.output
+    rows = list(csv.DictReader((out / "ensemble.csv").open()))
+    assert [r["attractor"] for r in rows] == ["free whirl, periodic"] * 3
+    offsets = [float(r["start_offset"]) for r in rows]
+    assert all(0.0 <= d <= 1.0 for d in offsets) and len(set(offsets)) == 3
+    first_uniform = np.random.default_rng(5).random(4)[0]
+    assert offsets[0] == pytest.approx(abs(-1.0 + 2.0 * first_uniform), rel=1e-12)
