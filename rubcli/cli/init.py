@@ -64,6 +64,14 @@ _OPTIONAL_TABLES = """
 # spread = 1e-6                 # clearances
 # periods = 2000                # per run
 # rtols = [1e-8, 1e-10]         # every start at every tolerance
+# parameter = "eta"             # or: the same starts at each value (basin stability,
+# start = 1.0                   #   docs/charts.md); values: start/stop/num or values = [...]
+# stop = 3.4
+# num = 13
+# starts = "box"                # uniform over a box (a side not given stays at [initial])
+# box_x = [-1.5, 1.5]
+# box_y = [-1.5, 1.5]
+# minimal_perturbation = true   # the smallest kick found off the free whirl, per value
 """
 
 SAMPLE_CASE = f"""\

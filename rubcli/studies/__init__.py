@@ -11,6 +11,9 @@ line (``rubcli.cli``) only parses, calls and prints.
   (``rubcli compare``);
 - ``orbits``: periodic orbits continued in one parameter (``rubcli orbits``);
 - ``chart``: the stability chart of a parameter plane (``rubcli chart``);
+- ``basin_stability``: the share of a box of starts on each attractor along a parameter,
+  and the minimal perturbation off the free whirl (``rubcli ensemble`` with
+  ``[ensemble] parameter``);
 - ``forces_map``: the contact force maps, the Taylor error, the contact eigenvalues
   (``rubcli forces-map``; each product written as it is made, to hold one grid at a time);
 - ``stress``: the built-in suite of extreme cases (``rubcli stress``);
