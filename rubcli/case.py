@@ -547,6 +547,13 @@ class OrbitsSection(_Section):
     atol: float = Field(default=1e-12, gt=0, lt=1e-3)
     locate: bool = True  # locate each detected bifurcation on its test function
     max_wall_time_s: float = Field(default=3600.0, gt=0)  # the run's budget, seconds
+    # each located fold, period doubling, Neimark-Sacker point and grazing continued in a
+    # second parameter over [second_min, second_max] (docs/orbits.md, "Two parameters")
+    second_parameter: OrbitParameter | None = None
+    second_min: float | None = None
+    second_max: float | None = None
+    curve_step: float = Field(default=0.02, gt=0, le=0.5)  # first step, fraction of windows
+    curve_points: int = Field(default=100, ge=1, le=10_000)  # per direction of each curve
 
     @model_validator(mode="after")
     def _window(self) -> OrbitsSection:
@@ -578,6 +585,7 @@ class OrbitsSection(_Section):
                 "orbits_step", "step {step} is wider than the window max - min = {w}",
                 {"step": self.step, "w": width},
             )  # fmt: skip
+        self._second_window()
         lo, hi = self.resolved_min_step(), self.resolved_max_step()
         if lo < MIN_ORBIT_STEP_FRACTION * width:
             raise PydanticCustomError(
@@ -591,6 +599,39 @@ class OrbitsSection(_Section):
                 {"lo": lo, "s": self.step, "hi": hi},
             )  # fmt: skip
         return self
+
+    def _second_window(self) -> None:
+        name, lo, hi = self.second_parameter, self.second_min, self.second_max
+        if name is None:
+            if lo is not None or hi is not None:
+                raise PydanticCustomError(
+                    "orbits_second", "second_min/second_max need second_parameter"
+                )
+            return
+        if self.kind != "periodic":
+            raise PydanticCustomError(
+                "orbits_second", 'second_parameter continues bifurcations of kind = "periodic"'
+            )
+        if name == self.parameter:
+            raise PydanticCustomError(
+                "orbits_second", "second_parameter must differ from parameter (both are {n})",
+                {"n": name},
+            )  # fmt: skip
+        if lo is None or hi is None:
+            raise PydanticCustomError(
+                "orbits_second", "second_parameter needs second_min and second_max"
+            )
+        if not lo < hi:
+            raise PydanticCustomError(
+                "orbits_second", "second_min must be below second_max (got {lo}, {hi})",
+                {"lo": lo, "hi": hi},
+            )  # fmt: skip
+        for bound in (lo, hi):
+            why = model.parameter_problem(name, bound)
+            if why:
+                raise PydanticCustomError(
+                    "orbits_second", f"{name} {why} (got {bound!r} as a bound of second_min/max)"
+                )
 
     def resolved_min_step(self) -> float:
         return self.min_step if self.min_step is not None else self.step / 1000.0

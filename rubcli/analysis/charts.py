@@ -348,12 +348,31 @@ def _forward_rub(params: ModelParams) -> bool:
 def _closed_form_y(column: ModelParams, chart: Chart, kind: str, y: float) -> float:
     """The closed-form curve's root in y nearest to ``y`` at this x (nan: none within a
     tenth of the chart's height)."""
-    f = CURVE_FUNCTIONS[kind]
     span = 0.1 * (chart.y[-1] - chart.y[0])
-    ys = np.linspace(max(chart.y[0], y - span), min(chart.y[-1], y + span), 41)
+    window = (float(chart.y[0]), float(chart.y[-1]))
+    return closed_form_root(column, kind, chart.y_name, y, span, window)
+
+
+def closed_form_root(
+    params: ModelParams, kind: str, name: str, near: float, span: float,
+    window: tuple[float, float] | None = None,
+) -> float:  # fmt: skip
+    """The root in parameter ``name`` of the closed-form curve ``kind`` (CURVE_KINDS)
+    nearest to ``near``, among those within ``span`` of it (and inside ``window``); every
+    other parameter as in ``params``. nan: none there."""
+    f = CURVE_FUNCTIONS[kind]
+    lo, hi = near - span, near + span
+    if window is not None:
+        lo, hi = max(window[0], lo), min(window[1], hi)
+    sign = model.PARAMETER_SIGNS.get(name)  # stay inside the parameter's domain
+    if sign == ">= 0":
+        lo = max(lo, 0.0)
+    elif sign == "> 0":
+        lo = max(lo, 1e-3 * near)
+    values = np.linspace(lo, hi, 41)
 
     def g(v: float) -> float:
-        return f(_with(column, **{chart.y_name: v}))
+        return f(_with(params, **{name: v}))
 
-    roots = _roots_along(g, ys, lambda v: True)
-    return min(roots, key=lambda r: abs(r - y)) if roots else math.nan
+    roots = _roots_along(g, values, lambda v: True)
+    return min(roots, key=lambda r: abs(r - near)) if roots else math.nan

@@ -41,6 +41,9 @@ _OPTIONAL_TABLES = """
 # max = 0.06
 # step = 0.002                  # first continuation step
 # start = "synchronous_rub"     # guess: "initial", "transient" or "synchronous_rub"
+# second_parameter = "eta"      # each located bifurcation continued in a second parameter
+# second_min = 0.6              # its window (curve.csv, curves.png)
+# second_max = 1.0
 
 # [sweep]                       # `rubcli sweep`: bifurcation diagrams, maps, basins
 # parameter = "mu"              # nu, eta, e, K, mu, Rp, phi0 (or x, y, vx, vy: basins)

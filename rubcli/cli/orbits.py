@@ -62,6 +62,15 @@ def summary_lines(branch: cn.Branch) -> list[list[str]]:
     return rows
 
 
+def curve_line(curve, report: dict) -> list[str]:
+    """The console's row for one continued curve."""
+    distance = report["max_distance_to_closed_form"]
+    ends = curve.message if curve.status != "ok" else "; ".join(curve.stops.values())
+    shown = "-" if distance is None else f"{distance:.2g}"
+    start = f"{curve.names[0]} = {curve.start.parameter:.10g}"
+    return [curve.kind, start, str(len(curve.points)), shown, ends]
+
+
 # ------------------------------------------------------------------------ command
 
 
@@ -122,7 +131,7 @@ def command(
         console.error_lines(f"cannot continue orbits of {case_file}", problems)
         raise typer.Exit(EXIT_INVALID)
     target = command_dir(case, "orbits", out)
-    plan = prepare_output(target, force, wait, study.FILES)  # before any work
+    plan = prepare_output(target, force, wait, study.files_for(case))  # before any work
     with console.machine_readable(json):
         _orbits(case_file, case, target, plan, overlay, overlay_data, quick, max_wall_time, json)
 
@@ -173,4 +182,11 @@ def _orbits(case_file, case, target, plan, overlay, overlay_data, quick, max_wal
         )
     else:
         console.info("no bifurcation detected on the branch")
+    if case.settings.orbits.second_parameter:
+        console.table(
+            f"bifurcations continued in {case.settings.orbits.second_parameter}",
+            ["kind", "from", "points", "|distance| to closed form", "ends"],
+            [curve_line(c, report) for c, report in zip(result.curves,
+                                                          report["curves"], strict=True)],
+        )  # fmt: skip
     console.success(f"wrote {', '.join(report['files'])} to {target}")

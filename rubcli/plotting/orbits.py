@@ -262,3 +262,74 @@ def overlay_points(parameter: np.ndarray, values: np.ndarray) -> tuple[np.ndarra
 
 
 __all__: Sequence[str] = ("branch_figure", "multipliers_figure", "overlay_points")
+
+
+def curves_figure(
+    curves: Sequence,
+    names: tuple[str, str],
+    windows: tuple[tuple[float, float], tuple[float, float]],
+    branch_at: float,
+    title: str,
+    closed_form=None,
+) -> Figure:
+    """Bifurcations continued in two parameters (``analysis.curves.Curve``): each curve in
+    its kind's colour as a wide translucent line through its computed points, its start
+    (the point located on the branch) in its kind's marker; the branch itself as a dashed
+    line at ``p2 = branch_at``; ``closed_form`` (an ``analysis.charts.Chart`` of the same
+    plane), its curves as thin dark lines on top, so that a continued curve lying on its
+    closed form shows as a dark line inside a coloured band."""
+    from rubcli.plotting.chart import CURVE_LABELS, CURVE_STYLES, SYMBOLS
+
+    fig = _new_figure(8.6, 6.4)
+    ax = fig.add_subplot()
+    handles = []
+    ax.axhline(branch_at, color="0.45", lw=1.0, ls="--", zorder=1)
+    handles.append(Line2D([], [], color="0.45", lw=1.0, ls="--",
+                          label=f"the branch ({names[1]} = {branch_at:g})"))  # fmt: skip
+    seen = set()
+    for curve in curves:
+        marker, color, size = kind_style(curve.kind)
+        if not curve.points:  # not continued (on another curve): its point on the branch
+            ax.plot(curve.start.parameter, branch_at, marker=marker, color=color, ms=size,
+                    mec="k", ls="", zorder=5)  # fmt: skip
+            continue
+        p1 = [pt.values[0] for pt in curve.points]
+        p2 = [pt.values[1] for pt in curve.points]
+        ax.plot(p1, p2, color=color, lw=6.0, alpha=0.35, solid_capstyle="round", zorder=2)
+        ax.plot(p1, p2, "o", color=color, ms=3.0, zorder=3)
+        start = curve.points[curve.start_index]
+        ax.plot(*start.values, marker=marker, color=color, ms=size, mec="k", ls="", zorder=5)
+        if curve.kind not in seen:
+            seen.add(curve.kind)
+            name = curve.kind.replace("_", " ")
+            handles.append(Line2D([], [], color=color, lw=6.0, alpha=0.35, marker="o", ms=3.0,
+                                  mfc=color, label=f"{name}, continued"))  # fmt: skip
+            handles.append(Line2D([], [], color=color, marker=marker, ms=size * 0.7, mec="k",
+                                  ls="", label=f"{name} located on the branch"))  # fmt: skip
+    if closed_form is not None:
+        for kind, field in closed_form.fields.items():
+            if not np.any(np.isfinite(field)) or not curve_kind_present(curves, kind):
+                continue
+            style = CURVE_STYLES[kind][1]  # black, in the chart's dash for the kind
+            ax.contour(closed_form.x, closed_form.y, field, levels=[0.0], colors=["k"],
+                       linewidths=1.0, linestyles=[style], zorder=4)  # fmt: skip
+            handles.append(Line2D([], [], color="k", lw=1.0, ls=style,
+                                  label=f"closed form: {CURVE_LABELS[kind]}"))  # fmt: skip
+    ax.set_xlim(*windows[0])
+    ax.set_ylim(*windows[1])
+    ax.set_xlabel(f"{SYMBOLS.get(names[0], names[0])}, nondimensional")
+    ax.set_ylabel(f"{SYMBOLS.get(names[1], names[1])}, nondimensional")
+    ax.grid(True, alpha=0.3)
+    ax.set_title(title, fontsize=9)
+    if not any(curve.points for curve in curves):
+        ax.text(0.5, 0.5, "no bifurcation of the branch could be continued",
+                transform=ax.transAxes, ha="center", va="center")  # fmt: skip
+    fig.legend(handles=handles, loc="outside lower center", ncols=2, fontsize=8, frameon=False)
+    return fig
+
+
+def curve_kind_present(curves: Sequence, closed_kind: str) -> bool:
+    """Whether a continued curve of the kind that ``closed_kind`` checks is drawn."""
+    from rubcli.analysis.curves import CLOSED_FORMS
+
+    return any(CLOSED_FORMS.get(c.kind) == closed_kind and c.points for c in curves)

@@ -9,6 +9,7 @@ is shot from ``[initial]``, from the end of a transient, or from the exact synch
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -19,6 +20,7 @@ import numpy as np
 
 from rubcli import __version__, io, model
 from rubcli.analysis import continuation as cn
+from rubcli.analysis import curves as cv
 from rubcli.analysis import orbits as ob
 from rubcli.case import Case, OrbitsSection
 
@@ -26,7 +28,9 @@ if TYPE_CHECKING:
     import xarray as xr
 
 FILES = ("branch.csv", "branch.nc", "branch.png", "multipliers.png", "report.json")
+CURVE_FILES = ("curve.csv", "curves.png")  # with [orbits] second_parameter
 QUICK_MAX_POINTS = 12
+QUICK_CURVE_POINTS = 3
 QUICK_TOL = 1e-10
 OVERLAY_CANDIDATES = ("strobe_z", "section_z", "z_section", "stroboscopic_z", "poincare_z", "z")
 CSV_COLUMNS = (
@@ -69,6 +73,27 @@ def settings_from_case(
     )
 
 
+def files_for(case: Case) -> tuple[str, ...]:
+    """The files ``rubcli orbits`` writes for this case."""
+    o = case.settings.orbits
+    return FILES + (CURVE_FILES if o is not None and o.second_parameter else ())
+
+
+def curve_settings_from_case(case: Case, quick: bool = False) -> cv.CurveSettings | None:
+    """The settings of the curves of a case's [orbits] table (None: no second parameter)."""
+    o = case.settings.orbits
+    if o is None or o.second_parameter is None:
+        return None
+    branch = settings_from_case(case, quick)
+    return cv.CurveSettings(
+        parameter=o.parameter, p_min=o.min, p_max=o.max, second=o.second_parameter,
+        s_min=o.second_min, s_max=o.second_max, step=o.curve_step,
+        max_points=min(o.curve_points, QUICK_CURVE_POINTS) if quick else o.curve_points,
+        k=o.period, newton_tol=branch.newton_tol, max_newton=branch.max_newton,
+        rtol=branch.rtol, atol=branch.atol,
+    )  # fmt: skip
+
+
 def check_case(case: Case) -> list[str]:
     """Problems of a case for ``rubcli orbits`` beyond the schema (file and field named)."""
     src, o = case.source, case.settings.orbits
@@ -91,6 +116,14 @@ def check_case(case: Case) -> list[str]:
             )
     elif o.start == "initial" and o.transient_periods:
         problems.append(f'{src}: orbits.transient_periods: only used with start = "transient"')
+    if o.second_parameter is not None:
+        second = float(getattr(case.params, o.second_parameter))
+        if not o.second_min <= second <= o.second_max:
+            problems.append(
+                f"{src}: orbits.second_min/second_max: the case's {o.second_parameter} = "
+                f"{second:.6g} (where the branch's bifurcations lie) is outside the window "
+                f"[{o.second_min:g}, {o.second_max:g}]"
+            )
     return problems
 
 
@@ -144,6 +177,7 @@ class OrbitsResult:
     wall_time_s: float
     quick: bool = False
     overlay: tuple | None = field(default=None, repr=False)  # (x, z, label) under the branch
+    curves: list[cv.Curve] = field(default_factory=list)  # bifurcations in a 2nd parameter
 
     @property
     def ok(self) -> bool:
@@ -159,6 +193,11 @@ class OrbitsResult:
             "start_guess": None if self.guess is None else [float(v) for v in self.guess],
             "branch": self.branch.to_dict(),
             "overlay": command_line.get("overlay"),
+            **(
+                {"curves": [curve_report(c, self.case) for c in self.curves]}
+                if self.case.settings.orbits.second_parameter
+                else {}
+            ),  # fmt: skip
         }
 
     def write(
@@ -182,9 +221,83 @@ class OrbitsResult:
                 io.save_figure(branch_figure(branch, title, self.overlay),
                                staged.path("branch.png"))  # fmt: skip
                 io.save_figure(multipliers_figure(branch, title), staged.path("multipliers.png"))
+                if self.case.settings.orbits.second_parameter:
+                    self.write_curves(staged)
             report["files"] = sorted(p.name for p in staged.staging.iterdir()) + ["report.json"]
             staged.write_report(report)
         return report
+
+    def write_curves(self, staged: io.StagedOutput) -> None:
+        """curve.csv and curves.png of the bifurcations continued in the second parameter."""
+        from rubcli.plotting.orbits import curves_figure
+
+        o = self.case.settings.orbits
+        names = (o.parameter, o.second_parameter)
+        lines = [",".join(curve_columns(names))]
+        for i, curve in enumerate(self.curves):
+            distances = closed_form_distances(curve, self.case)
+            for pt, distance in zip(curve.points, distances, strict=True):
+                cells = [str(i), curve.kind, *(f"{v:.17g}" for v in pt.values)]
+                cells += [f"{v:.17g}" for v in pt.state]
+                cells += [f"{pt.max_z:.17g}", f"{pt.contact_fraction:.12g}",
+                          f"{pt.test_value:.6g}", f"{distance:.3g}" if math.isfinite(distance)
+                          else ""]  # fmt: skip
+                lines.append(",".join(cells))
+        io.write_text(staged.path("curve.csv"), "\n".join(lines) + "\n")
+        title = (
+            f"{self.case.name}: bifurcations of the k={o.period} orbits continued in "
+            f"({o.parameter}, {o.second_parameter})\n{fixed_text(self.case, names)}"
+        )
+        windows = ((o.min, o.max), (o.second_min, o.second_max))
+        closed = None
+        if o.period == 1:  # the synchronous motions' closed-form curves, as a check
+            from rubcli.analysis import charts
+
+            closed = charts.closed_form_chart(self.case.params, o.parameter, windows[0],
+                                              o.second_parameter, windows[1], 121, 81)  # fmt: skip
+        here = float(getattr(self.case.params, o.second_parameter))
+        figure = curves_figure(self.curves, names, windows, here, title, closed)
+        io.save_figure(figure, staged.path("curves.png"))
+
+
+def curve_columns(names: tuple[str, str]) -> tuple[str, ...]:
+    """The columns of curve.csv: one per parameter, the orbit, and the closed-form check."""
+    return ("curve", "kind", *names, "x", "y", "vx", "vy", "max_z", "contact_fraction",
+            "test_value", "distance_to_closed_form")  # fmt: skip
+
+
+def closed_form_distances(curve: cv.Curve, case: Case) -> list[float]:
+    """Each point's distance in the second parameter from the closed-form curve of its
+    kind at its first parameter (nan where no closed form applies: k > 1, a period
+    doubling, a fold or Neimark-Sacker point of an orbit not in contact all round)."""
+    from rubcli.analysis import charts
+
+    o = case.settings.orbits
+    kind = cv.CLOSED_FORMS.get(curve.kind)
+    out = []
+    for pt in curve.points:
+        rub = curve.kind == cn.GRAZING or pt.contact_fraction == 1.0
+        if kind is None or o.period != 1 or not rub:
+            out.append(math.nan)
+            continue
+        at = ob.with_parameter(case.params, o.parameter, pt.values[0])
+        span = 0.05 * (o.second_max - o.second_min)
+        root = charts.closed_form_root(at, kind, o.second_parameter, pt.values[1], span)
+        out.append(abs(pt.values[1] - root))
+    return out
+
+
+def curve_report(curve: cv.Curve, case: Case) -> dict[str, Any]:
+    """A curve in report.json, with its largest distance from the closed form."""
+    distances = [d for d in closed_form_distances(curve, case) if math.isfinite(d)]
+    return {**curve.to_dict(),
+            "max_distance_to_closed_form": max(distances) if distances else None}  # fmt: skip
+
+
+def fixed_text(case: Case, names: tuple[str, ...]) -> str:
+    """The parameters held fixed, as text."""
+    fixed = {k: v for k, v in case.params.as_dict().items() if k not in names}
+    return ", ".join(f"{k}={v:g}" for k, v in fixed.items())
 
 
 def continue_orbits(
@@ -226,7 +339,18 @@ def continue_orbits(
             report(phase, n, total)
 
         branch = cn.continue_branch(case.params, guess, settings, count, deadline)
-    return OrbitsResult(case, settings, guess, branch, time.perf_counter() - t0, quick, overlay)
+    curves: list[cv.Curve] = []
+    curve_settings = curve_settings_from_case(case, quick)
+    if curve_settings is not None and branch.status == "ok" and not branch.budget_exhausted:
+        phase = f"bifurcations continued in {o.second_parameter}"
+        report(phase, 0, 1)
+
+        def counted(n: int) -> None:
+            report(phase, n, 2 * curve_settings.max_points + 1)
+
+        curves = cv.continue_curves(case.params, branch, curve_settings, deadline, counted)
+    wall = time.perf_counter() - t0
+    return OrbitsResult(case, settings, guess, branch, wall, quick, overlay, curves)
 
 
 # ------------------------------------------------------------------------ products
@@ -293,9 +417,7 @@ def io_json(value: Any) -> str:
 
 
 def title_of(case: Case, branch: cn.Branch) -> str:
-    p = case.params
-    fixed = {k: v for k, v in p.as_dict().items() if k != branch.parameter}
-    text = ", ".join(f"{k}={v:g}" for k, v in fixed.items())
+    text = fixed_text(case, (branch.parameter,))
     head = f"{case.name}: periodic orbits (k={branch.settings.k}) continued in {branch.parameter}"
     return f"{head}\n{text}"
 
