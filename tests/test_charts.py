@@ -92,7 +92,7 @@ def test_rub_stability_boundary_in_friction():
 # ------------------------------------------------------------------ rubcli chart
 
 REPO = Path(__file__).resolve().parents[1]
-CHART_CASES = ("paper/fig3-chart.toml", "examples/run-up-chart.toml")
+CHART_CASES = ("paper/fig3-chart.toml", "examples/run-up-chart.toml", "examples/mu-eta-map.toml")
 
 
 @pytest.mark.parametrize("name", CHART_CASES)
@@ -120,7 +120,8 @@ def test_chart_command_on_the_shipped_cases(name, tmp_path):
     assert counts == report["curve_points"]
     # the check: the rub shot and continued at 2 speeds (quick), its bifurcations located
     # from its multipliers, on the closed-form curves
-    assert report["continuation_check"]["x_values"] == 2 and len(continued) >= 2
+    checked = min(c.check_points, 2)
+    assert report["continuation_check"]["x_values"] == checked and len(continued) >= checked
     for row in continued:
         assert float(row["distance_to_closed_form"]) < 1e-8
     for row in rows:
@@ -143,6 +144,59 @@ def test_chart_command_on_the_shipped_cases(name, tmp_path):
     with xr.open_dataset(out / "chart.nc", engine="h5netcdf") as ds:
         assert ds["region"].shape == (21, 41)
         assert set(np.unique(ds["region"].values)) <= set(ch.REGIONS)
+
+
+@pytest.fixture(scope="module")
+def quick_map_sweep(tmp_path_factory) -> Path:
+    """The quick run-up map (5 x 5 points) of cases/examples/mu-eta-map.toml."""
+    out = tmp_path_factory.mktemp("sweep")
+    case = REPO / "cases/examples/mu-eta-map.toml"
+    result = CliRunner().invoke(app, ["sweep", str(case), "--quick", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    return out / "sweep.nc"
+
+
+def test_chart_with_a_sweep_beside_it(quick_map_sweep, tmp_path):
+    """What each point of the sweep settled on agrees with the closed forms: a point on
+    the free whirl where the free whirl exists (|W| < 1, model.free_steady_state), one on
+    the synchronous rub where a stable rub exists (analysis.synchronous)."""
+    out = tmp_path / "chart"
+    case = REPO / "cases/examples/mu-eta-map.toml"
+    result = CliRunner().invoke(app, ["chart", str(case), "--quick", "--out", str(out),
+                                      "--overlay", str(quick_map_sweep)])  # fmt: skip
+    assert result.exit_code == 0, result.output
+    report = json.loads((out / "report.json").read_text())
+    overlay = report["sweep_overlay"]
+    assert overlay["direction"] == "up" and overlay["points"] == 25
+    assert sum(sum(row.values()) for row in overlay["by_region"].values()) == 25
+    assert overlay["contradictions"] == 0
+    from rubcli.studies.chart import load_sweep_map
+
+    params = load_case(case).params
+    sweep = load_sweep_map(quick_map_sweep, load_case(case).settings.chart, params)
+    for j, mu in enumerate(sweep.y):
+        for i, eta in enumerate(sweep.x):
+            at = dataclasses.replace(params, eta=float(eta), mu=float(mu))
+            name = sweep.labels[sweep.regimes[j, i]]
+            if name == "free whirl":
+                assert abs(model.free_steady_state(0.0, at)[0]) < 1.0
+            elif name == "synchronous rub":
+                assert any(r.stable and r.forward_slip for r in synchronous_rubs(at))
+
+
+def test_chart_refuses_an_overlay_of_another_machine_or_plane(quick_map_sweep, tmp_path):
+    runner = CliRunner()
+    for case, overlay, message in [
+        ("paper/fig3-chart.toml", quick_map_sweep, "another machine: K = 10 (the case: 17.6)"),
+        ("examples/run-up-chart.toml", quick_map_sweep, "not a sweep over (eta, e): no e"),
+        ("examples/mu-eta-map.toml", tmp_path / "none.nc", "file not found"),
+    ]:  # fmt: skip
+        out = tmp_path / "out"
+        result = runner.invoke(app, ["chart", str(REPO / "cases" / case), "--out", str(out),
+                                     "--overlay", str(overlay)])  # fmt: skip
+        assert result.exit_code == 2, result.output
+        assert message in " ".join(result.output.split()), result.output
+        assert not out.exists() and "Traceback" not in result.output
 
 
 def test_chart_refuses_a_case_without_or_with_a_bad_table(tmp_path):

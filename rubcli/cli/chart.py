@@ -1,11 +1,14 @@
-"""``rubcli chart CASE [--out DIR] [--quick]``: the stability chart of a parameter plane.
+"""``rubcli chart CASE [--out DIR] [--quick] [--overlay sweep.nc]``: the stability chart of a
+parameter plane.
 
 Runs the case's ``[chart]`` table (``rubcli.analysis.charts``; docs/charts.md): on the
 isotropic machine the synchronous motions are known in closed form, so each point of the
 plane is put in its region (free whirl, synchronous rub, both, or neither) and the curves
 that bound the regions are located without an integration. Writes
 
-- ``chart.png``: the regions and the curves;
+- ``chart.png``: the regions and the curves (with ``--overlay``, beside them what each
+  point of a ``rubcli sweep`` over the same plane settled on: free whirl, synchronous rub,
+  partial rub, dry whip or dry whirl, under the same curves);
 - ``curve.csv``: every located curve point: the two parameters and the curve's kind
   (``free_grazing``, ``rub_fold``, ``rub_stability``);
 - ``chart.nc``: the regions on the grid and each curve's function;
@@ -44,6 +47,10 @@ def command(
     case_file: Annotated[Path, typer.Argument(metavar="CASE", help="The case file (TOML).")],
     out: OutOption = None,
     quick: QuickOption = False,
+    overlay: Annotated[
+        Path | None,
+        typer.Option("--overlay", help="A sweep.nc over the same plane, drawn beside it."),
+    ] = None,
     json: JsonOption = False,
     force: ForceOption = False,
     wait: WaitOption = False,
@@ -56,6 +63,12 @@ def command(
         raise typer.Exit(EXIT_INVALID)
     from rubcli.studies import chart as study  # (scipy: loaded by this command only)
 
+    sweep = None
+    if overlay is not None:
+        sweep = study.load_sweep_map(overlay, c, case.params)
+        if isinstance(sweep, list):
+            console.error_lines(f"cannot chart {case_file}", sweep)
+            raise typer.Exit(EXIT_INVALID)
     target = command_dir(case, "chart", out)
     plan = prepare_output(target, force, wait, study.FILES)
     with console.machine_readable(json):
@@ -66,8 +79,9 @@ def command(
             if checks
             else contextlib.nullcontext(None) as update,
         ):
-            result = study.chart_of(case, quick=quick, progress=update)
-        command_line = {"case_file": str(case_file), "out": str(target), "quick": quick}
+            result = study.chart_of(case, quick=quick, progress=update, sweep=sweep)
+        command_line = {"case_file": str(case_file), "out": str(target), "quick": quick,
+                        "overlay": str(overlay) if overlay is not None else None}  # fmt: skip
         report = result.write(target, plan, command_line)
         report_stale(plan)
         emit(report, json)
@@ -77,4 +91,11 @@ def command(
             if found["points"]:
                 console.info(f"{kind}: {found['points']} points located by continuation, "
                              f"within {found['max_distance']:.1e} of the closed form")  # fmt: skip
+        overlaid = report["sweep_overlay"]
+        if overlaid is not None:
+            console.info(
+                f"sweep ({overlaid['direction']}, {overlaid['points']} points): "
+                f"{overlaid['contradictions']} on a synchronous motion where the closed form "
+                "says it is not stable"
+            )
         console.success(f"wrote {', '.join(report['files'])} to {target}")

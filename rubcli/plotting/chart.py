@@ -24,6 +24,15 @@ REGION_COLOURS = {
     ch.RUB: "#fdbf6f",
     ch.BOTH: "#b2df8a",
 }
+SWEEP_COLOURS = {  # the synchronous motions in their regions' colours
+    "free whirl": REGION_COLOURS[ch.FREE],
+    "synchronous rub": REGION_COLOURS[ch.RUB],
+    "modulated full rub": "#ff7f00",
+    "partial rub": "#fb9a99",
+    "dry whip": "#cab2d6",
+    "dry whirl": "#ffff99",
+    "no result": "#ffffff",
+}
 CURVE_STYLES = {  # kind: (colour, line style)
     ch.FREE_GRAZING: ("#1f4e9c", "-"),
     ch.RUB_FOLD: ("#b30000", "--"),
@@ -45,13 +54,20 @@ def _label(name: str) -> str:
 
 def chart_figure(
     chart: ch.Chart, title: str, here: tuple[float, float] | None = None, continued=(),
+    sweep=None,
 ) -> Figure:  # fmt: skip
     """The chart's regions and closed-form curves; ``here``: the case's own (x, y), marked
     where it lies in the plane; ``continued``: the points located by continuation
-    (``charts.ContinuedPoint``), drawn on the curves as open markers."""
-    fig = Figure(figsize=(10.0, 6.5), layout="constrained")
+    (``charts.ContinuedPoint``), drawn on the curves as open markers; ``sweep``: a sweep
+    of the plane (``studies.chart.SweepMap``), what each of its points settled on drawn
+    in a second panel under the same curves, on the same axes."""
+    fig = Figure(figsize=(16.0, 6.8) if sweep is not None else (10.0, 6.5),
+                 layout="constrained")  # fmt: skip
     FigureCanvasAgg(fig)
-    ax = fig.subplots()
+    if sweep is None:
+        ax, right = fig.subplots(), None
+    else:
+        ax, right = fig.subplots(1, 2, sharex=True, sharey=True)
     codes = sorted(REGION_COLOURS)
     cmap = ListedColormap([REGION_COLOURS[c] for c in codes])
     norm = BoundaryNorm(np.arange(len(codes) + 1) - 0.5, cmap.N)
@@ -61,15 +77,10 @@ def chart_figure(
     handles: list = [
         Patch(color=REGION_COLOURS[c], label=ch.REGIONS[c]) for c in codes if c in present
     ]
-    for kind in ch.CURVE_KINDS:
-        colour, style = CURVE_STYLES[kind]
-        field = np.ma.masked_invalid(chart.fields.get(kind, np.full(chart.regions.shape, np.nan)))
-        if not chart.curves.get(kind) or field.count() == 0:
-            continue
-        ax.contour(chart.x, chart.y, field, levels=[0.0], colors=[colour],
-                   linestyles=[style], linewidths=1.8)  # fmt: skip
-        handles.append(Line2D([], [], color=colour, linestyle=style, linewidth=1.8,
-                              label=CURVE_LABELS[kind]))  # fmt: skip
+    handles += _curves(ax, chart)
+    if right is not None:
+        handles += _sweep_panel(right, sweep)
+        _curves(right, chart)
     for kind in ch.CURVE_KINDS:
         points = [p for p in continued if p.kind == kind]
         if not points:
@@ -102,7 +113,41 @@ def chart_figure(
     ax.set_ylim(chart.y[0], chart.y[-1])
     ax.set_xlabel(_label(chart.x_name))
     ax.set_ylabel(_label(chart.y_name))
-    ax.set_title(title, fontsize="medium")
-    fig.legend(handles=handles, loc="outside lower center", ncols=2, fontsize="small",
-               frameon=False)  # fmt: skip
+    if right is None:
+        ax.set_title(title, fontsize="medium")
+    else:
+        fig.suptitle(title, fontsize="medium")
+        ax.set_title("closed form: where each synchronous motion is stable", fontsize="medium")
+        right.set_xlabel(_label(chart.x_name))
+        right.set_title(f"simulated: what each point of the sweep settled on ({sweep.direction}"
+                        f", {sweep.regimes.size} points)", fontsize="medium")  # fmt: skip
+    fig.legend(handles=handles, loc="outside lower center", ncols=3 if right is not None else 2,
+               fontsize="small", frameon=False)  # fmt: skip
     return fig
+
+
+def _curves(ax, chart: ch.Chart) -> list:
+    """The closed-form curves as the zero level of each curve's function; their handles."""
+    handles = []
+    for kind in ch.CURVE_KINDS:
+        colour, style = CURVE_STYLES[kind]
+        field = np.ma.masked_invalid(chart.fields.get(kind, np.full(chart.regions.shape, np.nan)))
+        if not chart.curves.get(kind) or field.count() == 0:
+            continue
+        ax.contour(chart.x, chart.y, field, levels=[0.0], colors=[colour],
+                   linestyles=[style], linewidths=1.8)  # fmt: skip
+        handles.append(Line2D([], [], color=colour, linestyle=style, linewidth=1.8,
+                              label=CURVE_LABELS[kind]))  # fmt: skip
+    return handles
+
+
+def _sweep_panel(ax, sweep) -> list:
+    """The sweep's regimes as cells around its points; their handles."""
+    colours = [SWEEP_COLOURS[name] for name in sweep.labels]
+    cmap = ListedColormap(colours)
+    norm = BoundaryNorm(np.arange(len(colours) + 1) - 0.5, cmap.N)
+    ax.pcolormesh(sweep.x, sweep.y, sweep.regimes, cmap=cmap, norm=norm, shading="nearest",
+                  rasterized=True)  # fmt: skip
+    present = set(np.unique(sweep.regimes).tolist())
+    return [Patch(facecolor=SWEEP_COLOURS[name], edgecolor="0.5", label=f"simulated: {name}")
+            for i, name in enumerate(sweep.labels) if i in present]  # fmt: skip

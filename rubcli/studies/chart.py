@@ -5,6 +5,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -18,9 +20,111 @@ from rubcli.analysis import charts as ch
 from rubcli.case import Case, ChartSection
 
 FILES = ("chart.png", "curve.csv", "chart.nc", "report.json")
+# What a sweep's point settled on (``analysis.ensemble.regime_of``), drawn beside the regions
+SWEEP_REGIMES = ("free whirl", "synchronous rub", "modulated full rub", "partial rub",
+                 "dry whip", "dry whirl", "no result")  # fmt: skip
 QUICK_GRID = (41, 21)  # quick: at most this many grid values of x and y
 QUICK_CHECK_POINTS = 2  # quick: at most this many values of x checked by continuation
 CSV_COLUMNS_TAIL = ("kind", "source", "distance_to_closed_form")
+
+
+@dataclass
+class SweepMap:
+    """A ``rubcli sweep`` over the chart's two parameters: what each point settled on."""
+
+    path: Path
+    direction: str  # the sweep direction shown ("up", "down" or "independent")
+    x: np.ndarray  # (nx,) the sweep's values of the chart's x
+    y: np.ndarray  # (ny,)
+    regimes: np.ndarray  # (ny, nx) indices into SWEEP_REGIMES
+    names: tuple[str, str]  # the chart's (x, y) parameters
+    labels: tuple[str, ...] = SWEEP_REGIMES  # the name of each regime index
+
+    def cross_table(self, params) -> dict[str, dict[str, int]]:
+        """How many sweep points of each regime lie in each closed-form region."""
+        table: dict[str, dict[str, int]] = {}
+        for j, yv in enumerate(self.y):
+            for i, xv in enumerate(self.x):
+                at = dataclasses.replace(params, **{self.names[0]: float(xv),
+                                                    self.names[1]: float(yv)})  # fmt: skip
+                code = ch.region(at)
+                row = table.setdefault(ch.REGIONS[code], {})
+                name = self.labels[self.regimes[j, i]]
+                row[name] = row.get(name, 0) + 1
+        return table
+
+
+def contradictions(table: dict[str, dict[str, int]]) -> int:
+    """Sweep points on a synchronous motion where the closed forms say it is not stable:
+    a free whirl outside the regions with a stable free whirl, a synchronous rub outside
+    those with a stable rub. (Other attractors may coexist with a stable synchronous motion:
+    they are not contradictions.)"""
+    free = {ch.REGIONS[ch.FREE], ch.REGIONS[ch.BOTH]}
+    rub = {ch.REGIONS[ch.RUB], ch.REGIONS[ch.BOTH]}
+    out = 0
+    for region, row in table.items():
+        out += row.get("free whirl", 0) if region not in free else 0
+        out += row.get("synchronous rub", 0) if region not in rub else 0
+    return out
+
+
+def load_sweep_map(path: Path, table: ChartSection, params) -> SweepMap | list[str]:
+    """The sweep.nc at ``path`` as a SweepMap over the chart's plane, or its problems: it
+    must sweep the chart's two parameters (any order) with the chart's other parameters
+    held at the case's values. Of a run-up and run-down, the run-up is shown."""
+    import json
+
+    try:
+        import xarray as xr
+
+        ds = xr.open_dataset(path, engine="h5netcdf")
+    except FileNotFoundError:
+        return [f"{path}: --overlay: file not found"]
+    except Exception as exc:  # any unreadable file is bad input, not a crash
+        return [f"{path}: --overlay: not a readable NetCDF file ({type(exc).__name__}: {exc})"]
+    with ds:
+        needed = ("contact_fraction", "stick_fraction", "whirl_order", "status",
+                  "response_class", "response_period")  # fmt: skip
+        missing = [n for n in (table.x, table.y, *needed) if n not in ds.variables]
+        if missing:
+            return [f"{path}: --overlay: not a sweep over ({table.x}, {table.y}): "
+                    f"no {', '.join(missing)}"]  # fmt: skip
+        try:
+            held = json.loads(ds.attrs.get("plan", "{}")).get("params", {})
+        except ValueError:
+            held = {}
+        ours = params.as_dict()
+        differ = [f"{k} = {v:g} (the case: {ours[k]:g})" for k, v in held.items()
+                  if k in ours and k not in (table.x, table.y) and not math.isclose(
+                      v, ours[k], rel_tol=1e-12, abs_tol=1e-15)]  # fmt: skip
+        if differ:
+            return [f"{path}: --overlay: another machine: {', '.join(differ)}"]
+        directions = [str(d) for d in ds["direction"].values]
+        direction = "up" if "up" in directions else directions[0]
+        one = ds.sel(direction=direction).transpose(table.y, table.x, ...)
+        contact = np.asarray(one["contact_fraction"].values, dtype=float)
+        stick = np.asarray(one["stick_fraction"].values, dtype=float)
+        order = np.asarray(one["whirl_order"].values, dtype=float)
+        ok = np.asarray(one["status"].values) == 0
+        kind = np.asarray(one["response_class"].values, dtype=float)
+        period = np.asarray(one["response_period"].values, dtype=float)
+        x = np.asarray(one[table.x].values, dtype=float)
+        y = np.asarray(one[table.y].values, dtype=float)
+    from rubcli.analysis.ensemble import regime_of
+    from rubcli.analysis.response import CONVERGING, KINDS, PERIODIC
+
+    # a forward whirl in contact all round is the synchronous rub only when it repeats
+    # every forcing period (or converges to such an orbit); else it is modulated (a torus)
+    synchronous = np.isin(kind, [KINDS.index(PERIODIC), KINDS.index(CONVERGING)]) & (period == 1)
+    regimes = np.full(contact.shape, SWEEP_REGIMES.index("no result"), dtype=int)
+    for index in np.ndindex(contact.shape):
+        values = (contact[index], stick[index], order[index])
+        if ok[index] and all(math.isfinite(v) for v in values):
+            name = regime_of(*values)
+            if name == "synchronous rub" and not synchronous[index]:
+                name = "modulated full rub"
+            regimes[index] = SWEEP_REGIMES.index(name)
+    return SweepMap(Path(path), direction, x, y, regimes, (table.x, table.y))
 
 
 @dataclass
@@ -33,6 +137,7 @@ class ChartResult:
     wall_time_s: float
     quick: bool = False
     continued: list[ch.ContinuedPoint] = field(default_factory=list)
+    sweep: SweepMap | None = None  # drawn beside the regions (--overlay)
 
     @property
     def fixed(self) -> dict[str, float]:
@@ -52,7 +157,18 @@ class ChartResult:
             "region_fractions": chart.region_fractions(),
             "curve_points": {k: len(chart.curves[k]) for k in ch.CURVE_KINDS},
             "continuation_check": self.check_summary(),
+            "sweep_overlay": self.sweep_summary(),
         }  # fmt: skip
+
+    def sweep_summary(self) -> dict[str, Any] | None:
+        """The overlaid sweep: its file, direction, and how its points' regimes fall in the
+        closed-form regions (None without one)."""
+        if self.sweep is None:
+            return None
+        table = self.sweep.cross_table(self.case.params)
+        return {"file": str(self.sweep.path), "direction": self.sweep.direction,
+                "points": int(self.sweep.regimes.size), "by_region": table,
+                "contradictions": contradictions(table)}  # fmt: skip
 
     def check_summary(self) -> dict[str, Any]:
         """The points located by continuation and their largest distance in y from the
@@ -90,7 +206,7 @@ class ChartResult:
             held = ", ".join(f"{k} = {v:g}" for k, v in self.fixed.items() if k != "phi0")
             title = f"{case.name}: synchronous motions in ({c.x}, {c.y}); {held}"
             here = (getattr(case.params, c.x), getattr(case.params, c.y))
-            figure = chart_figure(chart, title, here, self.continued)
+            figure = chart_figure(chart, title, here, self.continued, self.sweep)
             io.save_figure(figure, staged.path("chart.png"))
             report["files"] = sorted(f.name for f in staged.staging.iterdir()) + ["report.json"]
             staged.write_report(report)
@@ -98,12 +214,14 @@ class ChartResult:
 
 
 def chart_of(
-    case: Case, *, quick: bool = False, progress: Callable[[int], None] | None = None
-) -> ChartResult:
+    case: Case, *, quick: bool = False, progress: Callable[[int], None] | None = None,
+    sweep: SweepMap | None = None,
+) -> ChartResult:  # fmt: skip
     """The regions and closed-form curves of the case's ``[chart]`` plane, checked by
     continuation at ``check_points`` values of x (``quick``: a grid of at most 41 x 21,
-    at most 2 values checked; ``progress(n)``: values of x checked so far); ValueError if
-    the case has no ``[chart]`` table."""
+    at most 2 values checked; ``progress(n)``: values of x checked so far; ``sweep``: a
+    sweep of the plane, ``load_sweep_map``, drawn beside the regions); ValueError if the
+    case has no ``[chart]`` table."""
     c = case.settings.chart
     if c is None:
         raise ValueError(f"{case.source}: chart: missing table [chart] (docs/charts.md)")
@@ -115,4 +233,5 @@ def chart_of(
     )  # fmt: skip
     n = min(c.check_points, QUICK_CHECK_POINTS) if quick else c.check_points
     continued = ch.continued_points(case.params, chart, n, progress)
-    return ChartResult(case, c, chart, time.perf_counter() - started, quick, continued)
+    wall = time.perf_counter() - started
+    return ChartResult(case, c, chart, wall, quick, continued, sweep)
