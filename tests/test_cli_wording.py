@@ -11,9 +11,10 @@ import pytest
 import xarray as xr
 from typer.testing import CliRunner
 
-from rubcli.cli import console, orbits, sweep
+from rubcli.cli import console, orbits
 from rubcli.cli.app import app
 from rubcli.studies import compare as compare_study
+from rubcli.studies import sweep
 
 runner = CliRunner()
 
@@ -101,10 +102,10 @@ def _classes(codes, lyapunov) -> xr.Dataset:
 def test_sweep_counts_chaos_without_an_exponent_as_unconfirmed():
     nan = float("nan")
     # 0 periodic, 2 chaotic (RESPONSE_CLASSES order): two without an exponent, one with
-    lines = dict(sweep._class_lines(_classes([0, 2, 2, 2], [nan, nan, nan, 0.05])))
+    lines = dict(sweep.class_lines(_classes([0, 2, 2, 2], [nan, nan, nan, 0.05])))
     assert lines["periodic"] == 1
     assert lines[sweep.UNCONFIRMED] == 2
     assert lines["chaotic (positive Lyapunov exponent)"] == 1
     assert "chaotic" not in lines
     # every chaotic point confirmed: printed as the report counts them
-    assert dict(sweep._class_lines(_classes([2], [0.05]))) == {"chaotic": 1}
+    assert dict(sweep.class_lines(_classes([2], [0.05]))) == {"chaotic": 1}

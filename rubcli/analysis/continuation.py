@@ -57,6 +57,9 @@ MAX_HALVINGS = 4
 # The parameter offsets (scaled, relative) tried past a corner of the branch.
 CORNER_FIRST_OFFSET = 1e-6
 CORNER_LAST_OFFSET = 1e-3
+# Only a branch whose last orbit is this close to grazing (|max z - 1|) is tried past a
+# corner; elsewhere a corrector failing at the smallest step ends the direction at once.
+CORNER_BAND = 0.05
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -562,7 +565,8 @@ def _one_direction(prob: _Problem, start, direction, done, progress, out) -> str
                 ds /= 2.0
                 continue
             last = out[-1][1] if out else first
-            crossed = _cross_corner(prob, X, last, t)
+            near = abs(last.max_z - 1.0) < CORNER_BAND  # a corner lies at a grazing
+            crossed = _cross_corner(prob, X, last, t) if near else None
             if crossed is None:
                 return f"corrector failed at the minimum step: {exc}"
             X_new, pt = crossed

@@ -123,20 +123,10 @@ def command(
 def _sweep(case_file, case, plan, target, output, client, cluster, workers, scheduler, out,
            quick, json) -> None:  # fmt: skip
     """The sweep itself, once its inputs, output dir and executor are checked."""
-    from rubcli import sweeps
     from rubcli.analysis import sweep as engine
-    from rubcli.analysis.sweep import basins
-    from rubcli.analysis.sweep.dataset import build_dataset
 
     store_dir = study.store_dir_for(target, plan.digest())
-    console.info(
-        f"{case.name}: sweep of {', '.join(a.parameter for a in plan.axes)} "
-        f"({plan.n_points} points, {plan.direction}, {plan.transient_periods} + "
-        f"{plan.record_periods} periods each"
-        + (", stopped once the attractor is recognised" if plan.recognition else "")
-        + f", {plan.method})"
-        + (" (quick)" if quick else "")
-    )
+    console.info(study.describe(case, plan, quick))
     started = time.perf_counter()
     try:
         with console.count_bar("sweep points", total=plan.n_points) as bar:
@@ -168,8 +158,7 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
     command_line = {"case_file": str(case_file), "out": str(out) if out else None,
                     "workers": workers, "scheduler": scheduler, "quick": quick}  # fmt: skip
     try:
-        build = basins.build_dataset if plan.recognition is not None else build_dataset
-        ds = build(plan, results, sweeps.case_attrs(case))
+        ds = study.dataset(case, plan, results)
         report = study.write_outputs(case, plan, ds, results, stats, where, wall, target,
                                      output, command_line)  # fmt: skip
     except (KeyboardInterrupt, io.Terminated) as exc:
@@ -198,7 +187,7 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
     if plan.recognition is not None:
         _basin_lines(report["basins"])
     else:
-        for name, count in _class_lines(ds):
+        for name, count in study.class_lines(ds):
             console.info(f"  {name}: {count}")
     files = report["files"]
     console.info(f"wrote {len(files)} files to {target}: {', '.join(files)}")
@@ -224,30 +213,3 @@ def _basin_lines(found: dict) -> None:
     how = ", ".join(f"{n} {k}" for k, n in found["recognised_by"].items() if n)
     console.info(f"  labelled by: {how}; {found['mean_periods_integrated']:.1f} periods "
                  "integrated a start on average")  # fmt: skip
-
-
-UNCONFIRMED = "chaotic, unconfirmed (Birkhoff test only: no Lyapunov exponent computed)"
-
-
-def _class_lines(ds) -> list[tuple[str, int]]:
-    """The class counts as the console prints them: a "chaotic" point without a Lyapunov
-    exponent is counted apart as unconfirmed, as its row of sweep.csv says."""
-    import numpy as np
-
-    from rubcli.analysis.sweep.point import RESPONSE_CLASSES
-
-    counts = study.class_counts(ds)
-    chaotic = RESPONSE_CLASSES.index("chaotic")
-    ok = ds["status"].values == 0
-    unconfirmed = int(
-        (ok & (ds["response_class"].values == chaotic) & ~np.isfinite(ds["lyapunov"].values)).sum()
-    )
-    lines = []
-    for name, count in counts.items():
-        if name == "chaotic" and unconfirmed:
-            if count > unconfirmed:
-                lines.append(("chaotic (positive Lyapunov exponent)", count - unconfirmed))
-            lines.append((UNCONFIRMED, unconfirmed))
-        else:
-            lines.append((name, count))
-    return lines

@@ -131,6 +131,56 @@ def class_counts(ds: xr.Dataset) -> dict[str, int]:
     return {k: v for k, v in counts.items() if v}
 
 
+UNCONFIRMED = "chaotic, unconfirmed (Birkhoff test only: no Lyapunov exponent computed)"
+
+
+def class_lines(ds: xr.Dataset) -> list[tuple[str, int]]:
+    """The class counts as the console prints them: a "chaotic" point without a Lyapunov
+    exponent is counted apart as unconfirmed, as its row of sweep.csv says."""
+    import numpy as np
+
+    from rubcli.analysis.sweep.point import RESPONSE_CLASSES
+
+    counts = class_counts(ds)
+    chaotic = RESPONSE_CLASSES.index("chaotic")
+    ok = ds["status"].values == 0
+    unconfirmed = int(
+        (ok & (ds["response_class"].values == chaotic) & ~np.isfinite(ds["lyapunov"].values)).sum()
+    )
+    lines = []
+    for name, count in counts.items():
+        if name == "chaotic" and unconfirmed:
+            if count > unconfirmed:
+                lines.append(("chaotic (positive Lyapunov exponent)", count - unconfirmed))
+            lines.append((UNCONFIRMED, unconfirmed))
+        else:
+            lines.append((name, count))
+    return lines
+
+
+def describe(case: Case, plan: SweepPlan, quick: bool = False) -> str:
+    """One line on what the sweep runs."""
+    return (
+        f"{case.name}: sweep of {', '.join(a.parameter for a in plan.axes)} "
+        f"({plan.n_points} points, {plan.direction}, {plan.transient_periods} + "
+        f"{plan.record_periods} periods each"
+        + (", stopped once the attractor is recognised" if plan.recognition else "")
+        + f", {plan.method})"
+        + (" (quick)" if quick else "")
+    )
+
+
+def dataset(case: Case, plan: SweepPlan, results: dict) -> xr.Dataset:
+    """The results of every point as the sweep's Dataset (a basin grid's with its
+    attractors when it recognises them)."""
+    from rubcli import sweeps
+    from rubcli.analysis.sweep import basins
+    from rubcli.analysis.sweep.dataset import build_dataset
+
+    build = basins.build_dataset if plan.recognition is not None else build_dataset
+    return build(plan, results, sweeps.case_attrs(case))
+
+
 def kept_text(store_dir: Path, plan: SweepPlan) -> str:
     """How many finished points the store holds: one a ``.point`` file, or the starts of
     each ``chunk-<c>.chunk`` of a basin grid with recognition."""
