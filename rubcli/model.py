@@ -28,8 +28,18 @@ import cmath
 import math
 import numbers
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from numpy.typing import ArrayLike
+
+# What the cores that work "from scalars or arrays" take and give: a float or an array
+FloatOrArray = float | np.ndarray
+ComplexOrArray = complex | np.ndarray
 
 # Regime codes carried by solutions (one per sample and per segment).
 FREE = 0
@@ -76,7 +86,7 @@ def parameter_problem(name: str, value: float) -> str | None:
     return None
 
 
-def real_number(owner: str, name: str, value) -> float:
+def real_number(owner: str, name: str, value: object) -> float:
     """``value`` as a float; TypeError naming ``owner.name`` if it is not a real number
     (a bool, a string, None, an array are refused)."""
     if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):
@@ -142,12 +152,12 @@ def friction_sign(regime: int) -> float:
 # --------------------------------------------------------------------------- forces
 
 
-def radius(x, y):
+def radius(x: FloatOrArray, y: FloatOrArray) -> FloatOrArray:
     """z = sqrt(x^2 + y^2), in clearances."""
     return np.hypot(x, y)
 
 
-def penetration_factor(x, y):
+def penetration_factor(x: FloatOrArray, y: FloatOrArray) -> FloatOrArray:
     """(1 - 1/z) where z > 1, else 0: the scalar factor of the contact force."""
     z = np.hypot(x, y)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -155,7 +165,9 @@ def penetration_factor(x, y):
     return factor if np.ndim(factor) else float(factor)
 
 
-def contact_force(x, y, K: float, mu_c: float):
+def contact_force(
+    x: FloatOrArray, y: FloatOrArray, K: float, mu_c: float
+) -> tuple[FloatOrArray, FloatOrArray]:
     """Force of the stator on the rotor, ``(Fx, Fy) = -K f``, nondimensional (eq. 5-6 corrected).
 
     Zero inside the clearance (z <= 1). ``mu_c`` is the signed friction coefficient
@@ -168,20 +180,22 @@ def contact_force(x, y, K: float, mu_c: float):
     return fx, fy
 
 
-def normal_force(x, y, K: float):
+def normal_force(x: FloatOrArray, y: FloatOrArray, K: float) -> FloatOrArray:
     """Magnitude of the normal contact force, K (z - 1) for z > 1, else 0."""
     z = np.hypot(x, y)
     out = np.where(z > 1.0, K * (z - 1.0), 0.0)
     return out if np.ndim(out) else float(out)
 
 
-def slip_velocity_value(x, y, vx, vy, spin):
+def slip_velocity_value(x: float, y: float, vx: float, vy: float, spin: float) -> float:
     """v_r of one state from scalars, ``spin = Rp eta`` (compilable core; 0 whirl at z = 0)."""
     z = math.hypot(x, y)
     return spin + ((x * vy - y * vx) / z if z > 0.0 else 0.0)
 
 
-def slip_velocity(x, y, vx, vy, Rp: float, eta: float):
+def slip_velocity(
+    x: FloatOrArray, y: FloatOrArray, vx: FloatOrArray, vy: FloatOrArray, Rp: float, eta: float
+) -> FloatOrArray:
     """v_r = Rp eta + (x vy - y vx) / z: slip of the rotor surface on the stator (notes 1, 6)."""
     if isinstance(x, float) and isinstance(y, float):  # one state: the event code's case
         return float(slip_velocity_value(x, y, vx, vy, Rp * eta))
@@ -192,7 +206,14 @@ def slip_velocity(x, y, vx, vy, Rp: float, eta: float):
     return out if np.ndim(out) else float(out)
 
 
-def slip_velocity_rate(x, y, vx, vy, ax, ay):
+def slip_velocity_rate(
+    x: FloatOrArray,
+    y: FloatOrArray,
+    vx: FloatOrArray,
+    vy: FloatOrArray,
+    ax: FloatOrArray,
+    ay: FloatOrArray,
+) -> FloatOrArray:
     """d v_r / dtau from the state and its acceleration (ax, ay); scalars or arrays.
 
     v_r = Rp eta + w / z with w = x vy - y vx, so dv_r/dtau = (x ay - y ax) / z - w z' / z^2
@@ -204,7 +225,7 @@ def slip_velocity_rate(x, y, vx, vy, ax, ay):
     return (x * ay - y * ax) / z - whirl * zdot / (z * z)
 
 
-def force_jacobian_entries(x0: float, y0: float, mu_c: float):
+def force_jacobian_entries(x0: float, y0: float, mu_c: float) -> tuple[float, float, float, float]:
     """Entries (j00, j01, j10, j11) of ``force_jacobian`` (compilable core)."""
     a = x0 * x0 + y0 * y0
     z0 = math.sqrt(a)
@@ -226,7 +247,9 @@ def force_jacobian(x0: float, y0: float, mu_c: float) -> np.ndarray:
     return np.array([[j00, j01], [j10, j11]])
 
 
-def taylor_force(x0: float, y0: float, x, y, K: float, mu_c: float):
+def taylor_force(
+    x0: float, y0: float, x: FloatOrArray, y: FloatOrArray, K: float, mu_c: float
+) -> tuple[FloatOrArray, FloatOrArray]:
     """First-order Taylor expansion about (x0, y0) of the contact force ``-K f`` (eq. 9-14).
 
     Uses the paper's constant terms D1 = -x0/sqrt(alpha), D2 = -y0/sqrt(alpha), so
@@ -240,7 +263,9 @@ def taylor_force(x0: float, y0: float, x, y, K: float, mu_c: float):
     return -K * (f1x - mu_c * f1y), -K * (f1y + mu_c * f1x)
 
 
-def linearised_contact_arrays(x0: float, y0: float, K: float, nu: float, mu_c: float):
+def linearised_contact_arrays(
+    x0: float, y0: float, K: float, nu: float, mu_c: float
+) -> tuple[np.ndarray, np.ndarray]:
     """``(A, b)`` of ``linearised_contact_system`` from scalars (compilable core)."""
     j00, j01, j10, j11 = force_jacobian_entries(x0, y0, mu_c)
     factor = 1.0 - 1.0 / math.hypot(x0, y0)
@@ -261,7 +286,9 @@ def linearised_contact_arrays(x0: float, y0: float, K: float, nu: float, mu_c: f
     return A, b
 
 
-def linearised_contact_system(s0, params: ModelParams, mu_c: float):
+def linearised_contact_system(
+    s0: Sequence[float] | np.ndarray, params: ModelParams, mu_c: float
+) -> tuple[np.ndarray, np.ndarray]:
     """The contact equation linearised about the state ``s0`` (eq. 13-14, corrected).
 
     Returns ``(A, b)`` of the first-order system ``s' = A s + b + q(tau)`` where
@@ -280,7 +307,17 @@ def contact_eigenvalues(x0: float, y0: float, params: ModelParams, mu_c: float) 
     return np.linalg.eigvals(A)
 
 
-def stick_friction_value(tau, x, y, vx, vy, nu: float, eta: float, E: float, phi0: float):
+def stick_friction_value(
+    tau: FloatOrArray,
+    x: FloatOrArray,
+    y: FloatOrArray,
+    vx: FloatOrArray,
+    vy: FloatOrArray,
+    nu: float,
+    eta: float,
+    E: float,
+    phi0: float,
+) -> FloatOrArray:
     """``stick_friction`` from scalars or arrays (compilable core)."""
     r = np.hypot(x, y)
     phase = eta * tau + phi0
@@ -291,7 +328,14 @@ def stick_friction_value(tau, x, y, vx, vy, nu: float, eta: float, E: float, phi
     return E * sin_rel - r_dot * theta_dot - 2.0 * nu * r_theta_dot
 
 
-def stick_friction(tau, x, y, vx, vy, params: ModelParams):
+def stick_friction(
+    tau: FloatOrArray,
+    x: FloatOrArray,
+    y: FloatOrArray,
+    vx: FloatOrArray,
+    vy: FloatOrArray,
+    params: ModelParams,
+) -> FloatOrArray:
     """Tangential force T = mu_eq K (z - 1) that holds v_r constant (notes section 4).
 
     From the polar equations with (r theta')' = 0:
@@ -303,7 +347,15 @@ def stick_friction(tau, x, y, vx, vy, params: ModelParams):
     return stick_friction_value(tau, x, y, vx, vy, params.nu, params.eta, params.E, params.phi0)
 
 
-def tangential_force(tau, x, y, vx, vy, params: ModelParams, regime):
+def tangential_force(
+    tau: FloatOrArray,
+    x: FloatOrArray,
+    y: FloatOrArray,
+    vx: FloatOrArray,
+    vy: FloatOrArray,
+    params: ModelParams,
+    regime: int | np.ndarray,
+) -> FloatOrArray:
     """Signed tangential contact force in each regime (positive opposes positive slip).
 
     ``mu_c K (z - 1)`` when slipping, the rolling force ``stick_friction`` in stick,
@@ -328,7 +380,10 @@ def tangential_force(tau, x, y, vx, vy, params: ModelParams, regime):
 # ------------------------------------------------------------------ right-hand side
 
 
-def rhs_entries(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu, Rp, regime):
+def rhs_entries(
+    tau: float, x: float, y: float, vx: float, vy: float, nu: float, eta: float, E: float,
+    phi0: float, K: float, mu: float, Rp: float, regime: int,
+) -> tuple[float, float, float, float]:  # fmt: skip
     """``rhs`` from scalars: (vx, vy, ax, ay) (compilable core)."""
     if regime == STICK:
         vx, vy = rolling_velocity(x, y, vx, vy, Rp * eta)
@@ -350,7 +405,10 @@ def rhs_entries(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu, Rp, regime):
     return vx, vy, ax, ay
 
 
-def rhs_jacobian_array(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu, Rp, regime):
+def rhs_jacobian_array(
+    tau: float, x: float, y: float, vx: float, vy: float, nu: float, eta: float, E: float,
+    phi0: float, K: float, mu: float, Rp: float, regime: int,
+) -> np.ndarray:  # fmt: skip
     """``rhs_jacobian`` from scalars (compilable core)."""
     jac = np.zeros((4, 4))
     jac[0, 2] = 1.0
@@ -382,7 +440,10 @@ def rhs_jacobian_array(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu, Rp, regime):
     return jac
 
 
-def rhs_record(tau, x, y, vx, vy, pars, regime):
+def rhs_record(
+    tau: float, x: float, y: float, vx: float, vy: float, pars: np.ndarray | tuple[float, ...],
+    regime: int,
+) -> tuple[float, float, float, float]:  # fmt: skip
     """``rhs_entries`` with the parameters from a record (``params_vector``). Compilable
     core."""
     return rhs_entries(
@@ -391,7 +452,9 @@ def rhs_record(tau, x, y, vx, vy, pars, regime):
     )  # fmt: skip
 
 
-def rhs_jacobian_record(tau, x, y, vx, vy, pars, regime):
+def rhs_jacobian_record(
+    tau: float, x: float, y: float, vx: float, vy: float, pars: np.ndarray, regime: int
+) -> np.ndarray:
     """``rhs_jacobian_array`` with the parameters from a record. Compilable core."""
     return rhs_jacobian_array(
         tau, x, y, vx, vy, pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0], pars[P_K],
@@ -411,7 +474,9 @@ def _rhs_args(tau, s, params: ModelParams, regime: int):
     )
 
 
-def rhs(tau: float, s, params: ModelParams, regime: int) -> np.ndarray:
+def rhs(
+    tau: float, s: Sequence[float] | np.ndarray, params: ModelParams, regime: int
+) -> np.ndarray:
     """Right-hand side in a fixed regime (regime-locked, smooth in s).
 
     In a contact regime the contact law is applied whatever z is (its smooth extension),
@@ -421,19 +486,24 @@ def rhs(tau: float, s, params: ModelParams, regime: int) -> np.ndarray:
     return np.array(rhs_entries(*_rhs_args(tau, s, params, regime)))
 
 
-def rhs_jacobian(tau: float, s, params: ModelParams, regime: int) -> np.ndarray:
+def rhs_jacobian(
+    tau: float, s: Sequence[float] | np.ndarray, params: ModelParams, regime: int
+) -> np.ndarray:
     """Jacobian of ``rhs`` with respect to the state (for implicit solvers)."""
     return rhs_jacobian_array(*_rhs_args(tau, s, params, regime))
 
 
-def entry_regime_value(x, y, vx, vy, mu, spin):
+def entry_regime_value(x: float, y: float, vx: float, vy: float, mu: float, spin: float) -> int:
     """The slip direction a contact starts in: the sign of v_r (compilable core)."""
     if mu == 0.0:
         return SLIP_POSITIVE
     return SLIP_POSITIVE if slip_velocity_value(x, y, vx, vy, spin) >= 0.0 else SLIP_NEGATIVE
 
 
-def zero_slip_regime_value(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu):
+def zero_slip_regime_value(
+    tau: float, x: float, y: float, vx: float, vy: float, nu: float, eta: float, E: float,
+    phi0: float, K: float, mu: float,
+) -> int:  # fmt: skip
     """``regime_at_zero_slip`` from scalars: Filippov's rule (compilable core)."""
     needed = stick_friction_value(tau, x, y, vx, vy, nu, eta, E, phi0)
     limit = mu * K * (math.hypot(x, y) - 1.0)
@@ -444,7 +514,9 @@ def zero_slip_regime_value(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu):
     return STICK
 
 
-def regime_of_state(s, params: ModelParams, tau: float | None = None) -> int:
+def regime_of_state(
+    s: Sequence[float] | np.ndarray, params: ModelParams, tau: float | None = None
+) -> int:
     """The regime a state is in by position and slip (z > 1 means contact; v_r = 0 may stick)."""
     x, y, vx, vy = s[0], s[1], s[2], s[3]
     if math.hypot(x, y) <= 1.0:
@@ -457,7 +529,7 @@ def regime_of_state(s, params: ModelParams, tau: float | None = None) -> int:
     return SLIP_POSITIVE if v_r >= 0.0 else SLIP_NEGATIVE
 
 
-def regime_at_zero_slip(tau: float, s, params: ModelParams) -> int:
+def regime_at_zero_slip(tau: float, s: Sequence[float] | np.ndarray, params: ModelParams) -> int:
     """Regime of a contact state with v_r = 0 (notes section 4), by Filippov's rule.
 
     With T the friction needed to hold v_r = 0 and L = mu K (z - 1) the friction limit,
@@ -469,7 +541,7 @@ def regime_at_zero_slip(tau: float, s, params: ModelParams) -> int:
     return zero_slip_regime_value(float(tau), s[0], s[1], s[2], s[3], nu, eta, E, phi0, K, mu)
 
 
-def project_to_rolling(s, params: ModelParams) -> np.ndarray:
+def project_to_rolling(s: ArrayLike, params: ModelParams) -> np.ndarray:
     """The state with its tangential velocity set so that v_r = 0 exactly (r theta' = -Rp eta).
 
     In stick the tangential velocity is fixed by the rolling constraint, not a free
@@ -483,7 +555,9 @@ def project_to_rolling(s, params: ModelParams) -> np.ndarray:
     return np.array([x, y, vx, vy])
 
 
-def rolling_velocity(x, y, vx, vy, spin: float):
+def rolling_velocity(
+    x: FloatOrArray, y: FloatOrArray, vx: FloatOrArray, vy: FloatOrArray, spin: float
+) -> tuple[FloatOrArray, FloatOrArray]:
     """Velocity with its radial part kept and r theta' = -spin (compilable core)."""
     r = np.hypot(x, y)
     radial = (x * vx + y * vy) / r
@@ -505,32 +579,39 @@ def rolling_whirl_radius(params: ModelParams) -> float:
 # ------------------------------------------------------------------ polar form
 
 
-def polar_entries(x, y, vx, vy):
+def polar_entries(
+    x: FloatOrArray, y: FloatOrArray, vx: FloatOrArray, vy: FloatOrArray
+) -> tuple[FloatOrArray, FloatOrArray, FloatOrArray, FloatOrArray]:
     """(r, theta, r', theta') from (x, y, vx, vy), scalars or arrays (compilable core)."""
     r = np.hypot(x, y)
     return r, np.arctan2(y, x), (x * vx + y * vy) / r, (x * vy - y * vx) / (r * r)
 
 
-def cartesian_entries(r, theta, u, omega):
+def cartesian_entries(
+    r: FloatOrArray, theta: FloatOrArray, u: FloatOrArray, omega: FloatOrArray
+) -> tuple[FloatOrArray, FloatOrArray, FloatOrArray, FloatOrArray]:
     """(x, y, vx, vy) from (r, theta, r', theta'), scalars or arrays (compilable core)."""
     c = np.cos(theta)
     sn = np.sin(theta)
     return r * c, r * sn, u * c - r * omega * sn, u * sn + r * omega * c
 
 
-def to_polar(s) -> np.ndarray:
+def to_polar(s: ArrayLike) -> np.ndarray:
     """(x, y, vx, vy) -> (r, theta, r', theta'); shape (4,) or (4, n)."""
     x, y, vx, vy = np.asarray(s, dtype=float)
     return np.array(polar_entries(x, y, vx, vy))
 
 
-def from_polar(p) -> np.ndarray:
+def from_polar(p: ArrayLike) -> np.ndarray:
     """(r, theta, r', theta') -> (x, y, vx, vy); shape (4,) or (4, n)."""
     r, theta, u, omega = np.asarray(p, dtype=float)
     return np.array(cartesian_entries(r, theta, u, omega))
 
 
-def polar_rhs_entries(tau, r, theta, u, omega, nu, eta, E, phi0, K, mu_c):
+def polar_rhs_entries(
+    tau: float, r: float, theta: float, u: float, omega: float, nu: float, eta: float,
+    E: float, phi0: float, K: float, mu_c: float,
+) -> tuple[float, float, float, float]:  # fmt: skip
     """``polar_rhs`` from scalars: (r', theta', r'', theta'') (compilable core)."""
     psi = eta * tau + phi0 - theta
     r_acc = r * omega * omega - 2.0 * nu * u - r - K * (r - 1.0) + E * math.cos(psi)
@@ -538,7 +619,10 @@ def polar_rhs_entries(tau, r, theta, u, omega, nu, eta, E, phi0, K, mu_c):
     return u, omega, r_acc, (tangential + E * math.sin(psi)) / r
 
 
-def polar_jacobian_arrays(tau, r, theta, u, omega, nu, eta, E, phi0, K, mu_c):
+def polar_jacobian_arrays(
+    tau: float, r: float, theta: float, u: float, omega: float, nu: float, eta: float,
+    E: float, phi0: float, K: float, mu_c: float,
+) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """``(J, f_tau)`` of ``polar_jacobian`` from scalars (compilable core)."""
     psi = eta * tau + phi0 - theta
     sin_psi = math.sin(psi)
@@ -567,7 +651,9 @@ def _polar_args(tau, p, params: ModelParams, mu_c: float):
     return float(tau), r, theta, u, omega, nu, eta, E, phi0, K, float(mu_c)
 
 
-def polar_rhs(tau: float, p, params: ModelParams, mu_c: float) -> np.ndarray:
+def polar_rhs(
+    tau: float, p: Sequence[float] | np.ndarray, params: ModelParams, mu_c: float
+) -> np.ndarray:
     """Contact equations in polar form (notes section 1), slipping with friction mu_c.
 
     r'' = r theta'^2 - 2 nu r' - r - K (r - 1) + E cos(psi)
@@ -577,7 +663,9 @@ def polar_rhs(tau: float, p, params: ModelParams, mu_c: float) -> np.ndarray:
     return np.array(polar_rhs_entries(*_polar_args(tau, p, params, mu_c)))
 
 
-def polar_jacobian(tau: float, p, params: ModelParams, mu_c: float):
+def polar_jacobian(
+    tau: float, p: Sequence[float] | np.ndarray, params: ModelParams, mu_c: float
+) -> tuple[np.ndarray, np.ndarray]:
     """(J, f_tau): Jacobian of ``polar_rhs`` in (r, theta, r', theta') and its tau-derivative."""
     return polar_jacobian_arrays(*_polar_args(tau, p, params, mu_c))
 
@@ -585,7 +673,9 @@ def polar_jacobian(tau: float, p, params: ModelParams, mu_c: float):
 # ------------------------------------------------------------------ exact solutions
 
 
-def free_steady_state(tau, params: ModelParams):
+def free_steady_state(
+    tau: FloatOrArray, params: ModelParams
+) -> tuple[ComplexOrArray, ComplexOrArray]:
     """Steady free whirl (notes 5): w_p = E exp(i(eta tau + phi0)) / (1 - eta^2 + 2 i nu eta).
 
     Returns complex position and complex velocity (arrays or scalars). At the undamped
@@ -595,7 +685,9 @@ def free_steady_state(tau, params: ModelParams):
     return free_steady_value(tau, params.nu, params.eta, params.E, params.phi0)
 
 
-def free_steady_value(tau, nu, eta, E, phi0):
+def free_steady_value(
+    tau: FloatOrArray, nu: float, eta: float, E: float, phi0: float
+) -> tuple[ComplexOrArray, ComplexOrArray]:
     """``free_steady_state`` from scalars, tau a scalar or an array (compilable core)."""
     denom = complex(1.0 - eta**2, 2.0 * nu * eta)
     rot = np.exp(1j * (eta * tau + phi0))
@@ -607,7 +699,7 @@ def free_steady_value(tau, nu, eta, E, phi0):
     return w, 1j * eta * w
 
 
-def damped_basis(dt, nu):
+def damped_basis(dt: FloatOrArray, nu: float) -> tuple[FloatOrArray, FloatOrArray]:
     """C(t) = cos(beta t), S(t) = sin(beta t)/beta with beta^2 = 1 - nu^2, for any nu >= 0;
     dt a scalar or an array (compilable core).
 
@@ -623,7 +715,10 @@ def damped_basis(dt, nu):
     return 0.0 * dt + 1.0, dt + 0.0
 
 
-def free_flight_value(tau, tau0, d0, dv0, nu, eta, E, phi0):
+def free_flight_value(
+    tau: FloatOrArray, tau0: float, d0: complex, dv0: complex, nu: float, eta: float, E: float,
+    phi0: float,
+) -> tuple[ComplexOrArray, ComplexOrArray]:  # fmt: skip
     """(w, v) = (x + i y, vx + i vy) at tau (a scalar or an array) of the free flight
     whose homogeneous part is d0, dv0 at tau0 (the start minus ``free_steady_value``
     there): eq. (7-8) with exp(-nu tau), correction 4 (compilable core)."""
@@ -636,7 +731,9 @@ def free_flight_value(tau, tau0, d0, dv0, nu, eta, E, phi0):
     return wp + wh, vp + vh
 
 
-def free_flight(tau, tau0: float, s0, params: ModelParams) -> np.ndarray:
+def free_flight(
+    tau: FloatOrArray, tau0: float, s0: Sequence[float] | np.ndarray, params: ModelParams
+) -> np.ndarray:
     """Closed-form free flight (eq. 7-8, with exp(-nu tau), correction 4).
 
     The state at times ``tau`` (scalar or array) of the linear no-contact system started
@@ -684,7 +781,7 @@ def synchronous_rub_amplitude(r: float, params: ModelParams) -> complex:
     return params.E * cmath.exp(1j * params.phi0) / denom
 
 
-def synchronous_rub(tau, params: ModelParams, r: float | None = None) -> np.ndarray:
+def synchronous_rub(tau: FloatOrArray, params: ModelParams, r: float | None = None) -> np.ndarray:
     """Exact synchronous forward full annular rub w = A exp(i eta tau): states, shape (4, n).
 
     ``r`` defaults to the largest admissible radius. Valid only while v_r > 0 on it

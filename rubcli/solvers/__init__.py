@@ -12,7 +12,7 @@ from __future__ import annotations
 import importlib
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rubcli.problem import Problem
 from rubcli.solution import Solution
@@ -23,6 +23,9 @@ from rubcli.solvers.registry import (  # noqa: F401
     method_options,
     options_for,
 )
+
+if TYPE_CHECKING:
+    from rubcli.solvers.driver import Watch
 
 SolverFn = Callable[[Problem, Options], Solution]
 _METHODS: dict[str, SolverFn] = {}
@@ -54,7 +57,7 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module 'rubcli.solvers' has no attribute {name!r}")
 
 
-def solve(problem: Problem, method: str, *, watch=None, **options) -> Solution:
+def solve(problem: Problem, method: str, *, watch: Watch | None = None, **options: Any) -> Solution:
     """Solve ``problem`` with ``method`` (a name of the registry).
 
     ``watch`` (a ``driver.Watch``) looks at the samples as they are filled and may end

@@ -40,6 +40,7 @@ The paths agree to round-off (tests/test_kernels.py, tests/test_piecewise_loop.p
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -57,6 +58,9 @@ from rubcli.solvers.events import (
     start_flags,
 )
 from rubcli.solvers.registry import StepOptions
+
+if TYPE_CHECKING:
+    from rubcli.model import FloatOrArray
 
 
 def _expm(M: np.ndarray) -> np.ndarray:
@@ -86,10 +90,10 @@ class FreeFlight:
         beta = math.sqrt(abs(1.0 - params.nu**2))
         self.omega_max = max(params.eta, beta, 1.0)
 
-    def states(self, t):
+    def states(self, t: FloatOrArray) -> np.ndarray:
         return model.free_flight(t, self.tau0, self.s0, self.params)
 
-    def derivatives(self, t, S):
+    def derivatives(self, t: FloatOrArray, S: np.ndarray) -> np.ndarray:
         p = self.params
         phase = p.eta * np.asarray(t) + p.phi0
         ax = p.E * np.cos(phase) - 2.0 * p.nu * S[2] - S[0]
@@ -126,7 +130,7 @@ class LinearisedContact:
             return np.real(self.S_hat * np.exp(1j * phase))
         return np.real(self.S_hat[:, None] * np.exp(1j * phase)[None, :])
 
-    def states(self, t):
+    def states(self, t: FloatOrArray) -> np.ndarray:
         t = np.asarray(t, dtype=float)
         dt = t - self.tau0
         if self.use_expm:
@@ -141,7 +145,7 @@ class LinearisedContact:
         s_c = self.s_c if dt.ndim == 0 else self.s_c[:, None]
         return s_c + self._harmonic(t) + hom
 
-    def derivatives(self, t, S):
+    def derivatives(self, t: FloatOrArray, S: np.ndarray) -> np.ndarray:
         p = self.params
         phase = p.eta * np.asarray(t, dtype=float) + p.phi0
         out = self.A @ S + (self.b if S.ndim == 1 else self.b[:, None])
@@ -188,7 +192,7 @@ class PolarLinearisedContact:
             self.c1 = np.linalg.solve(V, self.f_tau.astype(complex))
         self.omega_max = max(float(np.max(np.abs(lam.imag))), params.eta, 1.0)
 
-    def polar_states(self, t) -> np.ndarray:
+    def polar_states(self, t: FloatOrArray) -> np.ndarray:
         dt = np.atleast_1d(np.asarray(t, dtype=float) - self.tau0)
         if self.use_expm:
             M = np.zeros((6, 6))
@@ -203,10 +207,10 @@ class PolarLinearisedContact:
         out = self.p0[:, None] + y
         return out[:, 0] if np.ndim(t) == 0 else out
 
-    def states(self, t):
+    def states(self, t: FloatOrArray) -> np.ndarray:
         return model.from_polar(self.polar_states(t))
 
-    def derivatives(self, t, S):
+    def derivatives(self, t: FloatOrArray, S: np.ndarray) -> np.ndarray:
         """Time derivative of the linearised solution, in Cartesian form."""
         t = np.asarray(t, dtype=float)
         P = self.polar_states(t)
@@ -246,7 +250,7 @@ class StickStep:
         self.s0, self.s1, self.f0, self.f1 = self.st
         self.omega_max = piecewise.stick_omega_max(self.pars)
 
-    def states(self, t):
+    def states(self, t: FloatOrArray) -> np.ndarray:
         t = np.asarray(t, dtype=float)
         if t.ndim == 0:
             out = np.empty(4)
@@ -259,7 +263,7 @@ class StickStep:
             out[:, i] = row
         return out
 
-    def derivatives(self, t, S):
+    def derivatives(self, t: FloatOrArray, S: np.ndarray) -> np.ndarray:
         t = np.broadcast_to(np.asarray(t, dtype=float), (S.shape[1],))
         return np.array(
             [model.rhs(t[j], S[:, j], self.params, model.STICK) for j in range(S.shape[1])]

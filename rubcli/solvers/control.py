@@ -11,12 +11,17 @@ and the compiled one (``compiled/contact.py``) call the same functions.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import numpy as np
+
 SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 4.0
 MAX_STEP_FRACTION = 1.0 / 8.0  # of the forcing period, in adaptive mode
 MIN_STEP_FRACTION = 1e-12  # of the forcing period: a step this short is always accepted
 
 
-def doubling_error(full, halves, start) -> float:
+def doubling_error(full: np.ndarray, halves: np.ndarray, start: np.ndarray) -> float:
     """The step-doubling error estimate from the end of the full step, the end of the two
     half steps and the start state (arrays of 4; a NaN propagates). Compilable core."""
     largest = 0.0
@@ -27,7 +32,10 @@ def doubling_error(full, halves, start) -> float:
     return largest * 4.0 / 3.0
 
 
-def next_step(step, err, tol, safety, min_factor, max_factor, min_step):
+def next_step(
+    step: float, err: float, tol: float, safety: float, min_factor: float, max_factor: float,
+    min_step: float,
+) -> tuple[float, bool]:  # fmt: skip
     """(the proposed next step, accept this one) after a step of ``step`` with error
     ``err`` (compilable core)."""
     factor = safety * (tol / max(err, 1e-300)) ** (1 / 3)

@@ -102,7 +102,9 @@ class EventRecorder:
         self.regimes[i] = event.regime_before, event.regime_after
         self.n = i + 1
 
-    def extend(self, n: int, taus, kinds, states, regimes) -> None:
+    def extend(
+        self, n: int, taus: np.ndarray, kinds: np.ndarray, states: np.ndarray, regimes: np.ndarray
+    ) -> None:
         """Append the first ``n`` events of a compiled loop's buffers (``regimes``: (n, 2),
         before and after)."""
         self._reserve(n)
@@ -200,7 +202,7 @@ class Run:
             return False
         return True
 
-    def switch(self, tau: float, kind: int, state) -> bool:
+    def switch(self, tau: float, kind: int, state: np.ndarray) -> bool:
         """Apply and record the event ``kind`` located at ``tau`` with the state there.
 
         The run moves to the event: ``tau``, the state (projected onto the rolling
@@ -300,7 +302,9 @@ def _leg_end(run: Run, every: int) -> float:
     return float(run.t_eval[min(max(run.k - 1 + every, after), last)])
 
 
-def record_kernel_events(run: Run, n: int, taus, kinds, states, regimes) -> bool:
+def record_kernel_events(
+    run: Run, n: int, taus: np.ndarray, kinds: np.ndarray, states: np.ndarray, regimes: np.ndarray
+) -> bool:
     """Record the ``n`` events a compiled loop located and applied itself (its event
     buffers, copied into the run's columns); False on a switch storm, with the samples
     past the storm dropped. The storm guard counts events at one instant, so a batch in

@@ -16,12 +16,22 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
 from rubcli import model
 from rubcli.model import P_E, P_ETA, P_K, P_MU, P_NU, P_PHI0, P_RP
 from rubcli.solution import KIND_NAMES, SwitchEvent
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from numpy.typing import ArrayLike
+
+    from rubcli.model import FloatOrArray
+
+_T = TypeVar("_T")  # run_time's and compile_time's value: what goes in comes out
 
 # A free orbit whose largest penetration stays below this many clearances is taken as
 # a grazing touch that does not enter contact (the force there is below K * 1e-12).
@@ -135,7 +145,10 @@ def start_flags(last_kind: int) -> tuple[bool, bool, bool]:
     )
 
 
-def switch_regime(kind, tau, x, y, vx, vy, regime, nu, eta, E, phi0, K, mu, Rp):
+def switch_regime(
+    kind: int, tau: float, x: float, y: float, vx: float, vy: float, regime: int, nu: float,
+    eta: float, E: float, phi0: float, K: float, mu: float, Rp: float,
+) -> tuple[int, int, bool]:  # fmt: skip
     """The switch at a located event of ``kind`` (compilable core).
 
     Returns ``(new regime, kind as recorded, project)``: contact exit -> free; contact
@@ -174,7 +187,7 @@ TINY = np.finfo(float).tiny
 BRENT_ITERATIONS = 100
 
 
-def linspace_into(grid, a, b, n):
+def linspace_into(grid: np.ndarray, a: float, b: float, n: int) -> None:
     """``np.linspace(a, b, n + 1)`` into ``grid[:n + 1]``, element for element (numpy's
     ``k * step + a`` with the exact end point): the scan grids of the compiled loops are
     the Python paths' (compilable core)."""
@@ -184,7 +197,15 @@ def linspace_into(grid, a, b, n):
     grid[n] = b
 
 
-def stick_margin(t, x, y, vx, vy, pars, sign):
+def stick_margin(
+    t: FloatOrArray,
+    x: FloatOrArray,
+    y: FloatOrArray,
+    vx: FloatOrArray,
+    vy: FloatOrArray,
+    pars: np.ndarray,
+    sign: float,
+) -> FloatOrArray:
     """sign T - mu K (z - 1) (1 + STICK_EXIT_MARGIN): stick ends on side ``sign`` where
     this rises through 0 (the needed friction leaves the friction cone); scalars or
     arrays (compilable core)."""
@@ -195,7 +216,7 @@ def stick_margin(t, x, y, vx, vy, pars, sign):
     return sign * T - limit * (1.0 + model.STICK_EXIT_MARGIN)
 
 
-def run_time(value):
+def run_time(value: _T) -> _T:
     """``value`` itself. Compiled code passes a constant (an event-function kind, a flag,
     a grid size) through it to another compiled function: numba compiles a callee once
     for every distinct constant argument it is handed (and once more for each constant
@@ -209,7 +230,7 @@ def run_time(value):
     return value
 
 
-def compile_time(value):
+def compile_time(value: _T) -> _T:
     """``value`` itself, compiled as a plain jitted function: a constant stays a constant
     (numba compiles the callee for it, and folds the branches on it). ``event_search``
     passes the event-function kinds through it instead of ``run_time`` for ``taylor``,
@@ -219,7 +240,12 @@ def compile_time(value):
     return value
 
 
-def event_search(ev, fill=None, compile=None, compile_inline=None):
+def event_search(
+    ev: Callable[..., None],
+    fill: Callable[..., None] | None = None,
+    compile: Callable[[Callable[..., Any]], Callable[..., Any]] | None = None,
+    compile_inline: Callable[[Callable[..., Any]], Callable[..., Any]] | None = None,
+) -> tuple[Callable[..., tuple[float, int]], Callable[..., float]]:
     """The event search over one kind of segment: ``(locate, crossing)``.
 
     ``ev(t, deriv, ctx, row, drow)`` evaluates the segment: it writes the state at t into
@@ -250,7 +276,10 @@ def event_search(ev, fill=None, compile=None, compile_inline=None):
     check of the next state.
     """
 
-    def stick_value(ctx, t, sign, deriv, pars, d, row, drow):
+    def stick_value(
+        ctx: Any, t: float, sign: float, deriv: bool, pars: np.ndarray, d: float,
+        row: np.ndarray, drow: np.ndarray,
+    ) -> float:  # fmt: skip
         """The stick margin of side ``sign`` at t, or (``deriv``) its rate by central
         differences of half-width d."""
         if not deriv:
@@ -262,7 +291,10 @@ def event_search(ev, fill=None, compile=None, compile_inline=None):
         down = stick_margin(t - d, row[0], row[1], row[2], row[3], pars, sign)
         return (up - down) / (2.0 * d)
 
-    def event_value(ctx, t, fn, sign, deriv, pars, d, row, drow):
+    def event_value(
+        ctx: Any, t: float, fn: int, sign: float, deriv: bool, pars: np.ndarray, d: float,
+        row: np.ndarray, drow: np.ndarray,
+    ) -> float:  # fmt: skip
         """The event function ``fn`` (or its rate, ``deriv``) of the segment at t."""
         if fn == FN_STICK:
             return stick_value(ctx, t, sign, deriv, pars, d, row, drow)
@@ -278,7 +310,10 @@ def event_search(ev, fill=None, compile=None, compile_inline=None):
             return -sign * model.slip_velocity_rate(x, y, vx, vy, drow[2], drow[3])
         return -sign * model.slip_velocity_value(x, y, vx, vy, pars[P_RP] * pars[P_ETA])
 
-    def event_values(ctx, t, fn, sign, pars, d, row, drow):
+    def event_values(
+        ctx: Any, t: float, fn: int, sign: float, pars: np.ndarray, d: float, row: np.ndarray,
+        drow: np.ndarray,
+    ) -> tuple[float, float]:  # fmt: skip
         """``event_value`` and its rate at t from one evaluation of the segment (three
         for the stick margin's central differences): the same numbers."""
         if fn == FN_STICK:
@@ -295,12 +330,18 @@ def event_search(ev, fill=None, compile=None, compile_inline=None):
             -sign * model.slip_velocity_rate(x, y, vx, vy, drow[2], drow[3]),
         )
 
-    def fill_values(ctx, fn, sign, grid, n, pars, d, row, drow, hv, hd):
+    def fill_values(
+        ctx: Any, fn: int, sign: float, grid: np.ndarray, n: int, pars: np.ndarray, d: float,
+        row: np.ndarray, drow: np.ndarray, hv: np.ndarray, hd: np.ndarray,
+    ) -> None:  # fmt: skip
         """The event function and its rate on ``grid[:n + 1]``, point by point."""
         for i in range(n + 1):
             hv[i], hd[i] = event_values(ctx, grid[i], fn, sign, pars, d, row, drow)
 
-    def brentq(ctx, a, b, fa, fb, fn, sign, deriv, pars, d, row, drow):
+    def brentq(
+        ctx: Any, a: float, b: float, fa: float, fb: float, fn: int, sign: float, deriv: bool,
+        pars: np.ndarray, d: float, row: np.ndarray, drow: np.ndarray,
+    ) -> float:  # fmt: skip
         """Root of the event function (or of its rate) in [a, b], fa and fb of opposite
         signs: scipy's ``brentq`` (scipy/optimize/Zeros/brentq.c, Brent's method with its
         extrapolation formula) transcribed, with ``XTOL`` and ``RTOL``."""
@@ -367,9 +408,10 @@ def event_search(ev, fill=None, compile=None, compile_inline=None):
         return brentq(ctx, a, b, da, db, fn, sign, yes, pars, d, row, drow)
 
     def crossing(
-        ctx, fn, sign, grid, hv, hd, n, on_surface, tolerance, level, immediate, pars, d,
-        row, drow,
-    ):  # fmt: skip
+        ctx: Any, fn: int, sign: float, grid: np.ndarray, hv: np.ndarray, hd: np.ndarray, n: int,
+        on_surface: bool, tolerance: float, level: float, immediate: bool, pars: np.ndarray,
+        d: float, row: np.ndarray, drow: np.ndarray,
+    ) -> float:  # fmt: skip
         """First time in (grid[0], grid[n]] where the event function goes from < 0 to >= 0,
         or NaN; ``hv`` and ``hd`` hold it and its rate on the grid (``hv[0]`` is changed).
 
@@ -460,7 +502,11 @@ def event_search(ev, fill=None, compile=None, compile_inline=None):
                     return _root(ctx, a, tm, fn, sign, pars, d, row, drow), math.nan, math.nan
         return math.nan, math.nan, math.nan
 
-    def locate(ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow):
+    def locate(
+        ctx: Any, regime: int, pars: np.ndarray, grid: np.ndarray, n: int,
+        starts: tuple[bool, bool, bool], band: float, hv: np.ndarray, hd: np.ndarray,
+        row: np.ndarray, drow: np.ndarray,
+    ) -> tuple[float, int]:  # fmt: skip
         """Earliest event of ``regime`` in (grid[0], grid[n]]: ``(tau, kind)``, or
         ``(NaN, NO_EVENT)``; the first of equal times in the order below is kept.
 
@@ -532,7 +578,15 @@ def event_search(ev, fill=None, compile=None, compile_inline=None):
     return locate, crossing
 
 
-def earliest_event(states, derivatives, grid, regime, params, last_kind, restart_band=1e-12):
+def earliest_event(
+    states: Callable[[FloatOrArray], np.ndarray],
+    derivatives: Callable[[FloatOrArray, np.ndarray], np.ndarray],
+    grid: ArrayLike,
+    regime: int,
+    params: model.ModelParams,
+    last_kind: int,
+    restart_band: float = 1e-12,
+) -> tuple[float, int] | None:
     """Earliest event of ``regime`` in (grid[0], grid[-1]]: (tau, kind) or None.
 
     The event search on a Python segment: ``states(t)`` gives its state at a scalar or
@@ -561,7 +615,7 @@ class _PythonSegment:
         self.S = states(grid)
         self.dS = None
 
-    def ev(self, t, deriv, row, drow):
+    def ev(self, t: float, deriv: bool, row: np.ndarray, drow: np.ndarray) -> None:
         s = self.states(t)
         row[:] = s
         if deriv:
@@ -569,7 +623,10 @@ class _PythonSegment:
         if not (np.all(np.isfinite(row)) and (not deriv or np.all(np.isfinite(drow)))):
             raise ValueError(f"the segment is not finite at tau = {t!r}")
 
-    def fill(self, fn, sign, grid, n, pars, d, row, drow, hv, hd):
+    def fill(
+        self, fn: int, sign: float, grid: np.ndarray, n: int, pars: np.ndarray, d: float,
+        row: np.ndarray, drow: np.ndarray, hv: np.ndarray, hd: np.ndarray,
+    ) -> None:  # fmt: skip
         S = self.S
         if fn == FN_SURFACE:
             hv[:] = sign * surface_value(S)
@@ -594,7 +651,7 @@ class _GivenFunction:
     def __init__(self, h, dh):
         self.h, self.dh = h, dh
 
-    def ev(self, t, deriv, row, drow):
+    def ev(self, t: float, deriv: bool, row: np.ndarray, drow: np.ndarray) -> None:
         row[0] = self.h(t)
         if deriv:
             drow[0] = self.dh(t)
@@ -614,7 +671,7 @@ def _python_fill(segment, fn, sign, grid, n, pars, d, row, drow, hv, hd):
 _python_locate, _python_crossing = event_search(_python_ev, _python_fill)
 
 
-def initial_kind(s, regime: int, params) -> int:
+def initial_kind(s: Sequence[float] | np.ndarray, regime: int, params: model.ModelParams) -> int:
     """The event surface an initial state lies on, if any (so it is not re-detected)."""
     if abs(math.hypot(s[0], s[1]) - 1.0) <= 1e-14:
         return ENTRY if regime != model.FREE else EXIT
@@ -625,7 +682,9 @@ def initial_kind(s, regime: int, params) -> int:
     return NO_EVENT
 
 
-def apply_event(tau: float, kind: int, state, regime: int, params):
+def apply_event(
+    tau: float, kind: int, state: ArrayLike, regime: int, params: model.ModelParams
+) -> tuple[np.ndarray, int, int, SwitchEvent]:
     """The switch at a located event (``switch_regime``), applied to a Python state.
 
     Returns ``(state, new_regime, recorded kind, SwitchEvent)``; the state is projected

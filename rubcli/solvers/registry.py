@@ -262,7 +262,7 @@ def _is_bool(value) -> bool:
     return isinstance(value, bool) or type(value).__name__ in ("bool", "bool_")
 
 
-def option_problem(name: str, value) -> tuple[type[Exception], str] | None:
+def option_problem(name: str, value: object) -> tuple[type[Exception], str] | None:
     """(exception class, why) if ``value`` is not valid for the option ``name``."""
     if name in ("rtol", "analytic_tol"):
         if name == "analytic_tol" and value is None:

@@ -6,6 +6,7 @@ import these from here, never from each other."""
 from __future__ import annotations
 
 from functools import partial
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -13,6 +14,11 @@ from rubcli import model
 from rubcli.solvers import compiled as kernels
 from rubcli.solvers import driver
 from rubcli.solvers.events import earliest_event
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from rubcli.model import FloatOrArray
 
 # The restart band of an event (the band around the surface in which the segment that
 # an event began does not see it again) is max(RESTART_BAND_FLOOR, rtol).
@@ -23,14 +29,17 @@ SCAN_POINTS = 4  # sub-intervals per step in which events are scanned on the den
 def _column_derivatives(fun):
     """derivatives(t, S) for states S of shape (4, n) from a rhs of one state."""
 
-    def derivatives(t, S):
+    def derivatives(t: FloatOrArray, S: np.ndarray) -> np.ndarray:
         t = np.broadcast_to(np.asarray(t, dtype=float), (S.shape[1],))
         return np.array([fun(t[k], S[:, k]) for k in range(S.shape[1])]).T
 
     return derivatives
 
 
-def fill_samples(dense, t_eval, k, t_stop, regime, params, out_states, out_regimes) -> int:
+def fill_samples(
+    dense: Callable[[float], np.ndarray], t_eval: np.ndarray, k: int, t_stop: float,
+    regime: int, params: model.ModelParams, out_states: np.ndarray, out_regimes: np.ndarray,
+) -> int:  # fmt: skip
     """Samples ``t_eval[k:]`` up to ``t_stop`` from a step's dense output (projected onto
     the rolling constraint in stick); returns the next sample to fill."""
     while k < t_eval.size and t_eval[k] <= t_stop:
@@ -50,7 +59,13 @@ def _jac_fun(t, s, params, regime):
     return model.rhs_jacobian(t, s, params, regime)
 
 
-def rhs_functions(params: model.ModelParams, regime: int, compiled: bool):
+def rhs_functions(
+    params: model.ModelParams, regime: int, compiled: bool
+) -> tuple[
+    Callable[[float, np.ndarray], np.ndarray],
+    Callable[[float, np.ndarray], np.ndarray],
+    Callable[[FloatOrArray, np.ndarray], np.ndarray],
+]:
     """(fun, jac, derivatives) of one regime: compiled kernels or model.py in Python."""
     if not compiled:
         fun = partial(_rhs_fun, params=params, regime=regime)
@@ -58,20 +73,27 @@ def rhs_functions(params: model.ModelParams, regime: int, compiled: bool):
     pars = np.array(model.params_vector(params))
     rhs, jacobian, columns = kernels.rhs, kernels.rhs_jacobian, kernels.rhs_columns
 
-    def fun(t, s):
+    def fun(t: float, s: np.ndarray) -> np.ndarray:
         return rhs(t, s, pars, regime)
 
-    def jac(t, s):
+    def jac(t: float, s: np.ndarray) -> np.ndarray:
         return jacobian(t, s, pars, regime)
 
-    def derivatives(t, S):
+    def derivatives(t: FloatOrArray, S: np.ndarray) -> np.ndarray:
         t = np.broadcast_to(np.asarray(t, dtype=float), (S.shape[1],))
         return columns(np.ascontiguousarray(t), np.ascontiguousarray(S, dtype=float), pars, regime)
 
     return fun, jac, derivatives
 
 
-def locate_in_python(run: driver.Run, dense, t_new: float, intervals: int, last_kind, band):
+def locate_in_python(
+    run: driver.Run,
+    dense: Callable[[FloatOrArray], np.ndarray],
+    t_new: float,
+    intervals: int,
+    last_kind: int,
+    band: float,
+) -> tuple[float, int] | None:
     """A compiled loop's pending step [run.tau, t_new] with its dense output ``dense``:
     the Python event code (``events.earliest_event`` on ``intervals`` scan intervals)
     finds its earliest event, and its samples up to that event (or t_new) are filled.

@@ -150,21 +150,21 @@ def _event_args(regime, pars, starts):
 
 @jit
 def advance_contact(
-    polar,
-    tau,
-    state,
-    h,
-    t_end,
-    regime,
-    pars,
-    t_eval,
-    out_states,
-    k,
-    max_steps,
-    scan_fraction,
-    cond_limit,
-    starts,
-):
+    polar: bool,
+    tau: float,
+    state: np.ndarray,
+    h: float,
+    t_end: float,
+    regime: int,
+    pars: np.ndarray,
+    t_eval: np.ndarray,
+    out_states: np.ndarray,
+    k: int,
+    max_steps: int,
+    scan_fraction: float,
+    cond_limit: float,
+    starts: tuple[bool, bool, bool],
+) -> tuple[float, np.ndarray, int, int, int]:
     """Fixed contact steps of length h in one slip regime while no event can occur.
 
     ``polar`` selects the linearisation (``PolarLinearisedContact`` or
@@ -236,22 +236,22 @@ def advance_contact(
 
 @jit
 def advance_contact_adaptive(
-    polar,
-    tau,
-    state,
-    h,
-    t_end,
-    regime,
-    pars,
-    t_eval,
-    out_states,
-    k,
-    max_steps,
-    scan_fraction,
-    cond_limit,
-    starts,
-    control,
-):
+    polar: bool,
+    tau: float,
+    state: np.ndarray,
+    h: float,
+    t_end: float,
+    regime: int,
+    pars: np.ndarray,
+    t_eval: np.ndarray,
+    out_states: np.ndarray,
+    k: int,
+    max_steps: int,
+    scan_fraction: float,
+    cond_limit: float,
+    starts: tuple[bool, bool, bool],
+    control: tuple[float, float, float, float, float, float],
+) -> tuple[float, np.ndarray, int, int, int, float, int]:
     """Adaptive (step-doubling) contact steps in one slip regime while no event can occur.
 
     The step control of analytic.py's Python loop (``_doubling_error`` and the loop in

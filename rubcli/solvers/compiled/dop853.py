@@ -46,7 +46,10 @@ def _rms_norm(v):
 
 
 @jit
-def dop853_initial_step(t0, y0, f0, t_bound, pars, regime, rtol, atol):
+def dop853_initial_step(
+    t0: float, y0: np.ndarray, f0: np.ndarray, t_bound: float, pars: np.ndarray, regime: int,
+    rtol: float, atol: float,
+) -> float:  # fmt: skip
     """scipy's ``select_initial_step`` (Hairer, Norsett, Wanner II.4) for DOP853 (order 7)."""
     interval = abs(t_bound - t0)
     if interval == 0.0:
@@ -146,7 +149,9 @@ def _dop853_dense_at(t, t_old, h, y_old, F, out):
 
 
 @jit
-def dop853_dense_point(t, t_old, h, y_old, F):
+def dop853_dense_point(
+    t: float, t_old: float, h: float, y_old: np.ndarray, F: np.ndarray
+) -> np.ndarray:
     """The dense output at one time t: the state (4,)."""
     out = np.empty(4)
     _dop853_dense_at(t, t_old, h, y_old, F, out)
@@ -154,7 +159,9 @@ def dop853_dense_point(t, t_old, h, y_old, F):
 
 
 @jit
-def dop853_dense(t, t_old, h, y_old, F):
+def dop853_dense(
+    t: np.ndarray, t_old: float, h: float, y_old: np.ndarray, F: np.ndarray
+) -> np.ndarray:
     """The dense output at the times t (n,): states (4, n), as scipy's Dop853DenseOutput."""
     out = np.empty((4, t.shape[0]))
     row = np.empty(4)

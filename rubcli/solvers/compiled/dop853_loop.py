@@ -48,10 +48,13 @@ from rubcli.solvers.events import run_time, start_flags
 
 @jit
 def advance_dop853(
-    tau, y, f, h_abs, t_end, pars, regime, rtol, atol, t_eval, out_states, out_regimes, k,
-    max_steps, starts, y_new, f_new, F, band, events_tau, events_kind, events_state,
-    events_regimes, compiled_events,
-):  # fmt: skip
+    tau: float, y: np.ndarray, f: np.ndarray, h_abs: float, t_end: float, pars: np.ndarray,
+    regime: int, rtol: float, atol: float, t_eval: np.ndarray, out_states: np.ndarray,
+    out_regimes: np.ndarray, k: int, max_steps: int, starts: tuple[bool, bool, bool],
+    y_new: np.ndarray, f_new: np.ndarray, F: np.ndarray, band: float, events_tau: np.ndarray,
+    events_kind: np.ndarray, events_state: np.ndarray, events_regimes: np.ndarray,
+    compiled_events: bool,
+) -> tuple[float, float, float, int, int, int, int, int, int, bool]:  # fmt: skip
     """Adaptive DOP853 steps with their events (scipy's algorithm, the scipy methods' events).
 
     Each step is scipy's DOP853 step exactly: the same tableau, error norm, step-size

@@ -21,6 +21,7 @@ Every ``ev(t, deriv, ctx, row, drow)`` fills ``row`` with the state at ``t`` and
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 from numba.extending import register_jitable
 
@@ -38,9 +39,12 @@ from rubcli.model import (
 from rubcli.solvers.compiled.jit import jit
 from rubcli.solvers.compiled.propagators import _evaluate
 
+if TYPE_CHECKING:
+    import numpy as np
+
 
 @jit
-def free_omega_max(pars):
+def free_omega_max(pars: np.ndarray) -> float:
     """``analytic.FreeFlight.omega_max``: max(eta, sqrt|1 - nu^2|, 1)."""
     nu, eta = pars[P_NU], pars[P_ETA]
     return max(eta, math.sqrt(abs(1.0 - nu * nu)), 1.0)
@@ -72,7 +76,9 @@ def _free_at(t, ff, pars, row):
 
 
 @jit
-def free_ev(t, deriv, ctx, row, drow):
+def free_ev(
+    t: float, deriv: bool, ctx: tuple[np.ndarray, np.ndarray], row: np.ndarray, drow: np.ndarray
+) -> None:
     """ev of the free flight: ctx = (ff, pars); drow as ``FreeFlight.derivatives``."""
     ff, pars = ctx
     _free_at(t, ff, pars, row)
@@ -91,13 +97,16 @@ def _stick_f(t, x, y, vx, vy, pars):
 
 
 @register_jitable
-def stick_omega_max(pars):
+def stick_omega_max(pars: np.ndarray | tuple[float, ...]) -> float:
     """``analytic.StickStep.omega_max``: max(eta, 1, sqrt(1 + K))."""
     return max(pars[P_ETA], 1.0, math.sqrt(1.0 + pars[P_K]))
 
 
 @register_jitable
-def stick_prepare(tau0, s0, h, pars, st, meta):
+def stick_prepare(
+    tau0: float, s0: np.ndarray, h: float, pars: np.ndarray | tuple[float, ...], st: np.ndarray,
+    meta: np.ndarray,
+) -> None:  # fmt: skip
     """``StickStep(tau0, s0, h)``: st rows (s0, s1, f0, f1), meta = (tau0, h)."""
     x, y, vx, vy = s0[0], s0[1], s0[2], s0[3]
     k1 = _stick_f(tau0, x, y, vx, vy, pars)
@@ -126,7 +135,7 @@ def _hermite(t, meta):
 
 
 @register_jitable
-def stick_at(t, st, meta, row):
+def stick_at(t: float, st: np.ndarray, meta: np.ndarray, row: np.ndarray) -> None:
     """``StickStep.states`` at a scalar time (the order of its scalar expression)."""
     h = meta[1]
     h00, h10, h01, h11 = _hermite(t, meta)
@@ -135,7 +144,13 @@ def stick_at(t, st, meta, row):
 
 
 @jit
-def stick_ev(t, deriv, ctx, row, drow):
+def stick_ev(
+    t: float,
+    deriv: bool,
+    ctx: tuple[np.ndarray, np.ndarray, np.ndarray],
+    row: np.ndarray,
+    drow: np.ndarray,
+) -> None:
     """ev of a stick step: ctx = (st, meta, pars); drow = the rolling law's rhs there."""
     st, meta, pars = ctx
     stick_at(t, st, meta, row)
@@ -146,7 +161,13 @@ def stick_ev(t, deriv, ctx, row, drow):
 
 
 @jit
-def contact_ev(t, deriv, ctx, row, drow):
+def contact_ev(
+    t: float,
+    deriv: bool,
+    ctx: tuple[bool, float, np.ndarray, tuple[np.ndarray, ...]],
+    row: np.ndarray,
+    drow: np.ndarray,
+) -> None:
     """ev of a linearised contact step: ctx = (polar, tau0, pars, ws) (``_evaluate``)."""
     polar, tau0, pars, ws = ctx
     _evaluate(polar, tau0, t, pars, ws, row, drow)

@@ -95,10 +95,12 @@ PIECEWISE_COUNTS = {
 
 @jit
 def advance_piecewise(
-    polar, tau, state, h, t_end, regime, last_kind, pars, t_eval, out_states, out_regimes,
-    k, max_work, fractions, cond_limit, band, ff, free_active, ev_tau, ev_kind, ev_state,
-    ev_regimes, counts,
-):  # fmt: skip
+    polar: bool, tau: float, state: np.ndarray, h: float, t_end: float, regime: int,
+    last_kind: int, pars: np.ndarray, t_eval: np.ndarray, out_states: np.ndarray,
+    out_regimes: np.ndarray, k: int, max_work: int, fractions: tuple[float, float, float, float],
+    cond_limit: float, band: float, ff: np.ndarray, free_active: bool, ev_tau: np.ndarray,
+    ev_kind: np.ndarray, ev_state: np.ndarray, ev_regimes: np.ndarray, counts: np.ndarray,
+) -> tuple[float, int, int, int, int, bool, int]:  # fmt: skip
     """Advance the piecewise method from (tau, state) in ``regime`` (fixed steps ``h``).
 
     ``last_kind``: the event that began the segment (``NO_EVENT`` if none);

@@ -15,6 +15,7 @@ a stiff stator) is not evaluated at all.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 from rubcli.model import (
     slip_velocity_rate,
@@ -25,6 +26,9 @@ from rubcli.solvers.compiled.jit import (
     jit,
 )
 from rubcli.solvers.events import run_time
+
+if TYPE_CHECKING:
+    import numpy as np
 
 EVENT_MARGIN = 1e-9  # relative margin of the event pre-check (plus eps * cond(V) terms)
 
@@ -143,7 +147,9 @@ def _component_range(i, lam, V, coef, h):
 
 
 @jit
-def polar_step_clear(ws, h, cond, sign, check_slip, spin):
+def polar_step_clear(
+    ws: tuple[np.ndarray, ...], h: float, cond: float, sign: float, check_slip: bool, spin: float
+) -> bool:
     """True if the polar linearised step prepared in ``ws`` (``propagators._prepare_polar``)
     surely holds no event on [0, h]: r stays above 1 (no contact exit) and, with
     friction (``check_slip``), sign v_r = sign (Rp eta + r theta') above 0 (no slip

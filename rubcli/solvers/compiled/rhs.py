@@ -33,7 +33,7 @@ def _rhs_into(t, y, pars, regime, out):
 
 
 @jit
-def rhs(t, s, pars, regime):
+def rhs(t: float, s: np.ndarray, pars: np.ndarray, regime: int) -> np.ndarray:
     """``model.rhs`` compiled: the regime-locked right-hand side (pars = params_vector)."""
     out = np.empty(4)
     _rhs_into(t, s, pars, regime, out)
@@ -41,7 +41,7 @@ def rhs(t, s, pars, regime):
 
 
 @jit
-def rhs_columns(t, S, pars, regime):
+def rhs_columns(t: np.ndarray, S: np.ndarray, pars: np.ndarray, regime: int) -> np.ndarray:
     """``rhs`` for the states in the columns of S (4, n) at the times t (n,)."""
     out = np.empty_like(S)
     for k in range(S.shape[1]):
@@ -50,6 +50,6 @@ def rhs_columns(t, S, pars, regime):
 
 
 @jit
-def rhs_jacobian(t, s, pars, regime):
+def rhs_jacobian(t: float, s: np.ndarray, pars: np.ndarray, regime: int) -> np.ndarray:
     """``model.rhs_jacobian`` compiled."""
     return rhs_jacobian_record(t, s[0], s[1], s[2], s[3], pars, regime)

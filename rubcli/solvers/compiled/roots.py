@@ -8,6 +8,8 @@ run too), and the application of an event (``events.switch_regime``).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from rubcli import model
 from rubcli.model import P_E, P_ETA, P_K, P_MU, P_NU, P_PHI0, P_RP, rolling_velocity
 from rubcli.solvers.compiled.dop853 import DOP_SCAN_POINTS, _dop853_dense_at
@@ -20,6 +22,9 @@ from rubcli.solvers.compiled.precheck import (
 )
 from rubcli.solvers.compiled.rhs import _rhs_into
 from rubcli.solvers.events import event_search, run_time, stick_margin, switch_regime
+
+if TYPE_CHECKING:
+    import numpy as np
 
 FREE_REGIME, STICK_REGIME = model.FREE, model.STICK
 
@@ -119,8 +124,11 @@ def _apply_event(kind, t, s, regime, pars):
 
 
 @jit
-def apply_and_record(kind, t, s, regime, pars, events_tau, events_kind, events_state,
-                     events_regimes, n_events, y):  # fmt: skip
+def apply_and_record(
+    kind: int, t: float, s: np.ndarray, regime: int, pars: np.ndarray, events_tau: np.ndarray,
+    events_kind: np.ndarray, events_state: np.ndarray, events_regimes: np.ndarray, n_events: int,
+    y: np.ndarray,
+) -> tuple[int, int]:  # fmt: skip
     """A compiled loop's event: ``_apply_event`` on the state ``s`` at t (in place),
     recorded as entry ``n_events`` of the loop's event buffers, and copied into the
     loop's state ``y``, from which the next segment starts. Returns (new regime, kind

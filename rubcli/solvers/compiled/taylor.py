@@ -190,7 +190,10 @@ def _forcing(eta, phi0, t0):
 
 
 @jit
-def taylor_coefficients(t0, s, pars, regime, order, C, W):
+def taylor_coefficients(
+    t0: float, s: np.ndarray, pars: np.ndarray, regime: int, order: int, C: np.ndarray,
+    W: np.ndarray,
+) -> None:  # fmt: skip
     """The Taylor coefficients C[:, 0..order] (rows x, y, vx, vy; columns the orders)
     of the regime-locked solution through ``s`` at ``t0``; ``W`` (WORK_ROWS,
     WORK_COLS) is work space, left holding the series of q = z^2 (row 0) up to
@@ -367,7 +370,7 @@ def _stick_coefficients(fr, fi, pars, order, C, W):
 
 
 @jit
-def step_size(C, order, rtol, atol):
+def step_size(C: np.ndarray, order: int, rtol: float, atol: float) -> float:
     """Jorba & Zou's step (heyoka's safety factor): the last two terms below the state
     tolerance max(atol, rtol |s_0|_inf)."""
     scale = max(max(abs(C[0, 0]), abs(C[1, 0])), max(abs(C[2, 0]), abs(C[3, 0])))
@@ -391,7 +394,7 @@ def step_size(C, order, rtol, atol):
 
 
 @jit
-def dense_at(t, t0, C, order, out):
+def dense_at(t: float, t0: float, C: np.ndarray, order: int, out: np.ndarray) -> None:
     """The step's Taylor polynomial at t, into out (4,): by Estrin's scheme (pairs
     a_{k-1} + a_k dt, then Horner in dt^2), half the dependent operations of Horner's,
     since the step's end state is on the chain from one step to the next; the four rows'
@@ -418,7 +421,7 @@ def dense_at(t, t0, C, order, out):
 
 
 @jit
-def dense(t, t0, C, order):
+def dense(t: np.ndarray, t0: float, C: np.ndarray, order: int) -> np.ndarray:
     """``dense_at`` at the times t (n,): states (4, n)."""
     out = np.empty((4, t.shape[0]))
     row = np.empty(4)
@@ -670,7 +673,15 @@ def _slip_clear(C, order, h, regime, pars):
 
 
 @jit_inline
-def step_clear(C, order, h, regime, pars, W, starts):
+def step_clear(
+    C: np.ndarray,
+    order: int,
+    h: float,
+    regime: int,
+    pars: np.ndarray,
+    W: np.ndarray,
+    starts: tuple[bool, bool, bool],
+) -> bool:
     """True where ``step_events`` would return SCAN_NONE by its O(N) tests alone (a step
     that does not start on an event surface, the slip cleared by ``_slip_clear``, the
     surface by ``_surface_clear_quick``): most steps; False leaves the step to
@@ -686,7 +697,17 @@ def step_clear(C, order, h, regime, pars, W, starts):
 
 
 @jit
-def step_events(C, order, h, regime, pars, W, eps, starts, band):
+def step_events(
+    C: np.ndarray,
+    order: int,
+    h: float,
+    regime: int,
+    pars: np.ndarray,
+    W: np.ndarray,
+    eps: float,
+    starts: tuple[bool, bool, bool],
+    band: float,
+) -> int:
     """Which event functions ``locate`` must scan on a step: SCAN_NONE (none can reach
     its level: the step is clear), SCAN_SURFACE (the slip reversal surely cannot occur)
     or SCAN_ALL. Stick steps and steps that start on the slip surface are always
@@ -707,7 +728,7 @@ def step_events(C, order, h, regime, pars, W, eps, starts, band):
 
 
 @jit
-def scan_points(h, regime, pars, s):
+def scan_points(h: float, regime: int, pars: np.ndarray, s: np.ndarray) -> int:
     """Intervals of the event scan of a step of length h (module docstring)."""
     eta = pars[P_ETA]
     omega = 1.0 + abs(eta)
@@ -728,7 +749,9 @@ CTX_SIZE = CTX_COEFFICIENTS + 4 * (MAX_ORDER + 1)
 
 
 @jit
-def fill_context(ctx, t0, C, order, pars, regime):
+def fill_context(
+    ctx: np.ndarray, t0: float, C: np.ndarray, order: int, pars: np.ndarray, regime: int
+) -> None:
     """The step's polynomial as ``events.locate``'s segment: one flat float64 array
     (t0, order, regime, the parameter record, C by orders), so that the search passes one
     array through its calls instead of a tuple holding two (fewer reference counts: a
@@ -818,13 +841,39 @@ _locate_polynomial, _ = event_search(
 
 
 @jit
-def locate_in(ctx, pars, regime, grid, n, hv, hd, row, drow, starts, band):
+def locate_in(
+    ctx: np.ndarray,
+    pars: np.ndarray,
+    regime: int,
+    grid: np.ndarray,
+    n: int,
+    hv: np.ndarray,
+    hd: np.ndarray,
+    row: np.ndarray,
+    drow: np.ndarray,
+    starts: tuple[bool, bool, bool],
+    band: float,
+) -> tuple[float, int]:
     """``events.locate`` on the step's polynomial held in ``ctx`` (``fill_context``)."""
     return _locate_polynomial(ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow)
 
 
 @jit
-def locate(t0, C, order, pars, regime, grid, n, hv, hd, row, drow, starts, band):
+def locate(
+    t0: float,
+    C: np.ndarray,
+    order: int,
+    pars: np.ndarray,
+    regime: int,
+    grid: np.ndarray,
+    n: int,
+    hv: np.ndarray,
+    hd: np.ndarray,
+    row: np.ndarray,
+    drow: np.ndarray,
+    starts: tuple[bool, bool, bool],
+    band: float,
+) -> tuple[float, int]:
     """``events.locate`` on one step's polynomial (scan grid ``grid[:n + 1]``): (tau,
     kind) of the earliest event, or (NaN, NO_EVENT)."""
     ctx = np.empty(CTX_SIZE)
@@ -837,10 +886,13 @@ def locate(t0, C, order, pars, regime, grid, n, hv, hd, row, drow, starts, band)
 
 @jit
 def advance_taylor(
-    tau, y, t_end, pars, regime, order, rtol, atol, t_eval, out_states, out_regimes, k,
-    max_steps, starts, C, band, events_tau, events_kind, events_state, events_regimes,
-    compiled_events, info,
-):  # fmt: skip
+    tau: float, y: np.ndarray, t_end: float, pars: np.ndarray, regime: int, order: int,
+    rtol: float, atol: float, t_eval: np.ndarray, out_states: np.ndarray,
+    out_regimes: np.ndarray, k: int, max_steps: int, starts: tuple[bool, bool, bool],
+    C: np.ndarray, band: float, events_tau: np.ndarray, events_kind: np.ndarray,
+    events_state: np.ndarray, events_regimes: np.ndarray, compiled_events: bool,
+    info: np.ndarray,
+) -> tuple[float, float, int, int, int, int, int, bool]:  # fmt: skip
     """Taylor steps of order ``order`` with their events, from ``(tau, y)``.
 
     Like ``dop853_loop.advance_dop853``: each step's coefficients (``taylor_coefficients``)
