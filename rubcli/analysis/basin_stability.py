@@ -51,6 +51,7 @@ import dataclasses
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -427,7 +428,7 @@ def basin_stability(
     workers: int = 1,
     progress: Callable[[int, int], None] | None = None,
     settings: dict | None = None,
-    **run_settings,
+    **run_settings: Any,
 ) -> BasinStability:
     """Run the same starts at each value of ``parameter`` and name where each run ends.
 

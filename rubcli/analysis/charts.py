@@ -29,6 +29,7 @@ import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.optimize import brentq
@@ -36,6 +37,9 @@ from scipy.optimize import brentq
 from rubcli import model
 from rubcli.analysis.synchronous import synchronous_rubs
 from rubcli.model import ModelParams
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 NEITHER, FREE, RUB, BOTH = 0, 1, 2, 3
 REGIONS = {
@@ -251,7 +255,7 @@ def _keep(kind: str, params: ModelParams, x_name: str, y_name: str):
     return lambda xv, yv: rub_fold_radius(_with(params, **{x_name: xv, y_name: yv})) > 1.0
 
 
-def chart_dataset(chart: Chart, params: ModelParams):
+def chart_dataset(chart: Chart, params: ModelParams) -> xr.Dataset:
     """The chart as an xarray Dataset: ``region`` on the grid (codes in its attributes),
     the function of each curve (its zero level is the curve; nan where it cannot lie), and
     the parameters held fixed."""

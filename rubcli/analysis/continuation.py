@@ -31,12 +31,16 @@ import numbers
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rubcli import model
 from rubcli.analysis import orbits as ob
 from rubcli.model import PARAMETER_SIGNS, ModelParams
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 FOLD, FLIP, NEIMARK_SACKER, GRAZING, STICK_ONSET = (
     "fold",
@@ -327,7 +331,9 @@ class _Problem:
     def params_at(self, q: float) -> ModelParams:
         return ob.with_parameter(self.params, self.s.parameter, q * self.s.scale)
 
-    def evaluate(self, X: np.ndarray, derivative: bool = True):
+    def evaluate(
+        self, X: np.ndarray, derivative: bool = True
+    ) -> tuple[ob.FlowResult, np.ndarray, np.ndarray | None]:
         """(flow result, G, dP/dq or None) at X."""
         p = self.params_at(X[4])
         fl = ob.stroboscopic_map(
@@ -474,7 +480,7 @@ def deadline_of(settings: ContinuationSettings, start: float | None = None) -> f
 
 def continue_branch(
     params: ModelParams,
-    start_state,
+    start_state: ArrayLike,
     settings: ContinuationSettings,
     progress: Callable[[int], None] | None = None,
     deadline: float | None = None,

@@ -230,13 +230,15 @@ class _System:
             J[4, j] = (self.test(self.flow(shifted, True)) - T) / h
         return H, J, fl
 
-    def point(self, Z: np.ndarray, fl: ob.FlowResult, H: np.ndarray, iterations: int):
+    def point(self, Z: np.ndarray, fl: ob.FlowResult, H: np.ndarray, iterations: int) -> CurvePoint:
         multipliers = ob.floquet_multipliers(fl.monodromy)
         values = (float(Z[4] * self.scales[0]), float(Z[5] * self.scales[1]))
         return CurvePoint(values, Z[:4].copy(), multipliers, fl.max_z, fl.contact_fraction,
                           float(H[4]), iterations)  # fmt: skip
 
-    def correct(self, Z_pred: np.ndarray, normal: np.ndarray):
+    def correct(
+        self, Z_pred: np.ndarray, normal: np.ndarray
+    ) -> tuple[np.ndarray, CurvePoint, np.ndarray]:
         """Newton on H = 0, normal . (Z - Z_pred) = 0: (Z, point, Jacobian at Z)."""
         Z = Z_pred.copy()
         step = math.inf

@@ -63,12 +63,18 @@ needs, keeps no per-sample array.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rubcli import model
 from rubcli.analysis.regimes import Piece, solution_pieces
 from rubcli.solution import Solution
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
+    from rubcli.model import FloatOrArray
 
 DERIVATIVE_STEP = 1e-5  # central-difference step of the power rates, times the node spacing
 RICHARDSON_FACTOR = 15.0  # 2^4 - 1: order-4 rule on h and 2h
@@ -142,7 +148,9 @@ class EnergyBalance:
 # ----------------------------------------------------------------------- pointwise terms
 
 
-def mechanical_energy(states, params: model.ModelParams, regime) -> tuple:
+def mechanical_energy(
+    states: ArrayLike, params: model.ModelParams, regime: int | np.ndarray
+) -> tuple:
     """Kinetic 1/2 |v|^2, rotor spring 1/2 z^2, stator 1/2 K (z-1)^2 in contact (else 0).
 
     ``states`` has shape (n, 4) (or (4,)); ``regime`` is a code or an array of codes.
@@ -157,7 +165,9 @@ def mechanical_energy(states, params: model.ModelParams, regime) -> tuple:
     return kinetic, spring, np.broadcast_to(stator, z.shape).astype(float)
 
 
-def accelerations(tau, states, params: model.ModelParams, regime: int) -> np.ndarray:
+def accelerations(
+    tau: FloatOrArray, states: ArrayLike, params: model.ModelParams, regime: int
+) -> np.ndarray:
     """d(vx, vy)/dtau of states (shape (n, 4)) in one regime, vectorised.
 
     The contact force is the model's: ``model.contact_force`` when slipping; in stick the
@@ -182,7 +192,13 @@ def accelerations(tau, states, params: model.ModelParams, regime: int) -> np.nda
     return np.column_stack((ax, ay))
 
 
-def powers(tau, states, params: model.ModelParams, regime: int, phase=None) -> np.ndarray:
+def powers(
+    tau: FloatOrArray,
+    states: ArrayLike,
+    params: model.ModelParams,
+    regime: int,
+    phase: tuple[FloatOrArray, FloatOrArray] | None = None,
+) -> np.ndarray:
     """Power terms at states (shape (n, 4)) in one regime: array (n, 7).
 
     Columns: unbalance P_in, damping 2 nu |v|^2, friction on the translation -T r theta',
@@ -235,7 +251,7 @@ def _node_powers_and_rates(tau: np.ndarray, states: np.ndarray, params, regime: 
     return P, dP
 
 
-def shift_rotation(a):
+def shift_rotation(a: FloatOrArray) -> tuple[np.ndarray, np.ndarray]:
     """(cos a, sin a) for the phase shift ``a = eta delta`` of the central differences:
     the phase at ``tau +- delta`` is the node's rotated by ``+-a`` (exact to round-off,
     where ``eta (tau +- delta) + phi0`` would lose ``|eta tau| eps`` of ``a`` late in a

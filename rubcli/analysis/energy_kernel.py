@@ -224,8 +224,11 @@ def _piece_pass(p, n, t, states, bounds, pv, regime, fine, coarse, cum_out, ener
 
 
 @jit
-def balance_pass(t, states, regimes, start_tau, start_state, end_tau, end_state, lo, hi, pv,
-                 cum_out, energy_out):  # fmt: skip
+def balance_pass(
+    t: np.ndarray, states: np.ndarray, regimes: np.ndarray, start_tau: np.ndarray,
+    start_state: np.ndarray, end_tau: np.ndarray, end_state: np.ndarray, lo: np.ndarray,
+    hi: np.ndarray, pv: np.ndarray, cum_out: np.ndarray, energy_out: np.ndarray,
+) -> tuple[np.ndarray, float, float, float, float]:  # fmt: skip
     """The energy balance over every piece in one pass. ``pv``: the model's parameter
     vector (``model.params_vector``) followed by the derivative step and the small-shift
     limit of the power rates (``energy.DERIVATIVE_STEP``, ``energy.SMALL_SHIFT``).

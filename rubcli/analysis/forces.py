@@ -41,10 +41,18 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rubcli.model import ModelParams, contact_force, linearised_contact_system, taylor_force
+
+if TYPE_CHECKING:
+    from collections.abc import Iterator
+
+    from numpy.typing import ArrayLike
+
+    from rubcli.model import FloatOrArray
 
 DIRECTIONS: tuple[str, ...] = ("radial", "tangential", "worst")
 DEFAULT_DELTAS: tuple[float, ...] = tuple(float(d) for d in np.logspace(-6.0, -1.0, 11))
@@ -168,7 +176,7 @@ class TaylorError:
     extent: float
     band_radii: np.ndarray  # the expansion radii z0 sampled
 
-    def rows(self):
+    def rows(self) -> Iterator[tuple[float, float, str, float]]:
         """``(K, delta, direction, max_abs_error)`` tuples in the order K, direction, delta."""
         for k, K in enumerate(self.K_values):
             for d, direction in enumerate(self.directions):
@@ -196,7 +204,7 @@ class TaylorError:
         }
 
 
-def fit_loglog_slope(deltas, errors, floor: float = 0.0) -> float | None:
+def fit_loglog_slope(deltas: ArrayLike, errors: ArrayLike, floor: float = 0.0) -> float | None:
     """Least-squares slope of log(error) against log(delta), over errors above ``floor``.
 
     Returns None when fewer than three points are above the floor: the error is round-off
@@ -224,8 +232,8 @@ def band_radii(extent: float, n: int = BAND_RADII) -> np.ndarray:
 
 
 def taylor_error(
-    K_values,
-    deltas,
+    K_values: ArrayLike,
+    deltas: ArrayLike,
     mu_c: float,
     extent: float,
     *,
@@ -307,7 +315,9 @@ def _nan_to_neg(values: np.ndarray) -> np.ndarray:
     return np.where(np.isnan(values), -np.inf, values)
 
 
-def taylor_error_bound(K: float, mu: float, delta, z0: float = 1.0, direction: str = "worst"):
+def taylor_error_bound(
+    K: float, mu: float, delta: FloatOrArray, z0: float = 1.0, direction: str = "worst"
+) -> FloatOrArray:
     """Leading-order maximum force error of the expansion at distance delta (see taylor_error).
 
     ``K sqrt(1 + mu^2) C delta^2 / z0^2`` with ``C = 1/2`` tangentially and ``1/sqrt(3)``
@@ -363,7 +373,7 @@ def damped_eigenvalues(stiffness: np.ndarray, nu: float) -> np.ndarray:
     return lam
 
 
-def modal_summary(eigenvalues: np.ndarray):
+def modal_summary(eigenvalues: np.ndarray) -> tuple[FloatOrArray, FloatOrArray, FloatOrArray]:
     """``(max_real, freq_1, freq_2)`` from eigenvalues shaped ``(..., 4)`` as returned above.
 
     The frequencies are the |imaginary parts| of the two eigenvalue pairs, sorted
@@ -480,7 +490,7 @@ def friction_flutter_radius(mu: float) -> float:
     return 1.0 / (1.0 - c)
 
 
-def friction_flutter_threshold(z0):
+def friction_flutter_threshold(z0: FloatOrArray) -> np.ndarray:
     """The friction coefficient at which the contact modes merge at radius ``z0`` (> 1):
     the inverse of ``friction_flutter_radius``, ``mu = (1 - c) / (2 sqrt(c))`` with
     ``c = 1 - 1/z0`` (from ``sqrt(c) = sqrt(1 + mu^2) - mu``). Independent of K and of the

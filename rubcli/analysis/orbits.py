@@ -28,12 +28,16 @@ import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rubcli import model
 from rubcli.model import ModelParams
 from rubcli.solvers import events as ev
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 # Integration tolerances of the map (relative and absolute): tight, so the monodromy
 # matrix and the located bifurcations are accurate to ~1e-9.
@@ -194,10 +198,10 @@ def rolling_projection_jacobian(s: np.ndarray, params: ModelParams) -> np.ndarra
 def _event_functions(params: ModelParams, regime: int) -> list:
     """solve_ivp event functions of a regime, each tagged with its kind."""
 
-    def entry(t, Y):
+    def entry(t: float, Y: np.ndarray) -> float:
         return Y[0] * Y[0] + Y[1] * Y[1] - 1.0
 
-    def exit_(t, Y):
+    def exit_(t: float, Y: np.ndarray) -> float:
         return Y[0] * Y[0] + Y[1] * Y[1] - 1.0
 
     entry.terminal, entry.direction, entry.kind = True, 1.0, ev.ENTRY
@@ -207,7 +211,7 @@ def _event_functions(params: ModelParams, regime: int) -> list:
     out = [exit_]
     if params.mu > 0.0 and regime in (model.SLIP_POSITIVE, model.SLIP_NEGATIVE):
 
-        def reversal(t, Y):
+        def reversal(t: float, Y: np.ndarray) -> float:
             return model.slip_velocity(float(Y[0]), float(Y[1]), Y[2], Y[3], params.Rp, params.eta)
 
         reversal.terminal, reversal.kind = True, ev.REVERSAL
@@ -216,7 +220,7 @@ def _event_functions(params: ModelParams, regime: int) -> list:
     if regime == model.STICK:
         for sign in (1.0, -1.0):
 
-            def margin(t, Y, sign=sign):
+            def margin(t: float, Y: np.ndarray, sign: float = sign) -> float:
                 return _stick_margin(t, Y[:4], params, sign)
 
             margin.terminal, margin.direction, margin.kind = True, 1.0, ev.STICK_EXIT
@@ -231,7 +235,7 @@ def _start_regime(tau: float, s: np.ndarray, params: ModelParams) -> int:
 
 def flow(
     params: ModelParams,
-    s0,
+    s0: ArrayLike,
     tau0: float,
     tau1: float,
     *,
@@ -278,7 +282,7 @@ def flow(
         check_deadline(deadline)
         if variational:
 
-            def fun(t, Y, reg=reg):
+            def fun(t: float, Y: np.ndarray, reg: int = reg) -> np.ndarray:
                 check_deadline(deadline)
                 f = model.rhs_entries(t, Y[0], Y[1], Y[2], Y[3], *args, reg)
                 J = model.rhs_jacobian_array(t, Y[0], Y[1], Y[2], Y[3], *args, reg)
@@ -290,7 +294,7 @@ def flow(
             Y0 = np.concatenate([s, phi.ravel()])
         else:
 
-            def fun(t, Y, reg=reg):
+            def fun(t: float, Y: np.ndarray, reg: int = reg) -> np.ndarray:
                 check_deadline(deadline)
                 return np.array(model.rhs_entries(t, Y[0], Y[1], Y[2], Y[3], *args, reg))
 
@@ -373,7 +377,7 @@ def _refine_extreme(best, sign: float) -> float:
     if dense is None or tb <= ta:
         return value
 
-    def neg(t):
+    def neg(t: float) -> float:
         y = dense(t)
         return -sign * math.hypot(y[0], y[1])
 
@@ -388,12 +392,12 @@ def _refine_extreme(best, sign: float) -> float:
 
 def stroboscopic_map(
     params: ModelParams,
-    s0,
+    s0: ArrayLike,
     k: int = 1,
     *,
     variational: bool = True,
-    rtol=RTOL,
-    atol=ATOL,
+    rtol: float = RTOL,
+    atol: float = ATOL,
     locked: int | None = None,
     deadline: float | None = None,
 ) -> FlowResult:
@@ -445,7 +449,7 @@ def residual_scale(state: np.ndarray) -> float:
 
 def shoot(
     params: ModelParams,
-    guess,
+    guess: ArrayLike,
     k: int = 1,
     *,
     tol: float = 1e-10,
@@ -488,7 +492,7 @@ def shoot(
 
 
 def transient_state(
-    params: ModelParams, s0, periods: int, deadline: float | None = None
+    params: ModelParams, s0: ArrayLike, periods: int, deadline: float | None = None
 ) -> np.ndarray:
     """The state after ``periods`` forcing periods from s0 (a starting guess for shooting),
     integrated in pieces of ``TRANSIENT_CHUNK_PERIODS`` (bounded memory); WallTimeBudgetError

@@ -40,12 +40,16 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from rubcli import model
 from rubcli.analysis.synchronous import SynchronousRub, started_on_synchronous_rub
 from rubcli.problem import Problem
+
+if TYPE_CHECKING:
+    from rubcli.solution import Solution
 
 EXACT_FREE_FLIGHT = "exact-free-flight"
 EXACT_SYNCHRONOUS_RUB = "exact-synchronous-rub"
@@ -227,7 +231,7 @@ def numerical_reference(
     options = dict(REFERENCE_OPTIONS if options is None else options)
     check_options = dict(CHECK_OPTIONS if check_options is None else check_options)
 
-    def run(name: str, opts: dict, label: str):
+    def run(name: str, opts: dict, label: str) -> Solution:
         cb = None if progress is None else (lambda tau: progress(label, tau))
         return solve(problem, name, max_wall_time_s=max_wall_time_s, progress=cb, **opts)
 
@@ -289,7 +293,7 @@ def reference_solution(
     *,
     threshold: float = THRESHOLD,
     progress: Callable[[str, float], None] | None = None,
-    **numerical_options,
+    **numerical_options: Any,
 ) -> Reference:
     """The exact reference where the problem has one, otherwise ``numerical_reference``."""
     exact = exact_reference(problem)

@@ -61,6 +61,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -72,6 +73,10 @@ from rubcli.analysis.section_map import (
     linear_fit,
     section_frequencies,
 )
+
+if TYPE_CHECKING:
+    from rubcli.model import ModelParams
+    from rubcli.solution import Solution
 
 PERIODIC = "periodic"
 QUASI_PERIODIC = "quasi-periodic"
@@ -162,7 +167,7 @@ def stroboscopic_section(
     return PoincareSection(times, points, period, transient_periods)
 
 
-def section_from_solution(solution, transient_periods: float = 0.0) -> PoincareSection:
+def section_from_solution(solution: Solution, transient_periods: float = 0.0) -> PoincareSection:
     """Stroboscopic section of a ``Solution`` at the forcing period of its problem."""
     problem = solution.problem
     return stroboscopic_section(
@@ -303,7 +308,7 @@ def propagator_from_rhs(
     return propagate
 
 
-def rotor_propagator(params, method: str = "dop853", **options) -> Propagator:
+def rotor_propagator(params: ModelParams, method: str = "dop853", **options: Any) -> Propagator:
     """A propagator for the rotor: each call solves a Problem with ``rubcli.solvers.solve``.
 
     The solver locates its own contact switches and slip reversals, so the piecewise
@@ -473,7 +478,9 @@ def classify_section(
         points = points[:, None]
     n = points.shape[0]
 
-    def response(kind, period=None, message="", **evidence):
+    def response(
+        kind: str, period: int | None = None, message: str = "", **evidence: Any
+    ) -> Response:
         return Response(kind, period, evidence.pop("lyap", None), n, scale_, rel_tol,
                         distances, message, **evidence)  # fmt: skip
 
@@ -626,14 +633,14 @@ def _converging_text(
 
 
 def classify_solution(
-    solution,
+    solution: Solution,
     *,
     transient_periods: float,
     lyapunov: bool = True,
     lyapunov_periods: int = 200,
     lyapunov_method: str = "dop853",
     lyapunov_options: dict | None = None,
-    **classify_options,
+    **classify_options: Any,
 ) -> Response:
     """Classify the steady response of a rotor ``Solution``.
 

@@ -25,8 +25,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
+    from rubcli.solution import Solution
 
 FORWARD = "forward"
 BACKWARD = "backward"
@@ -75,7 +81,7 @@ def hann(n: int) -> np.ndarray:
     return 0.5 - 0.5 * np.cos(2.0 * math.pi * np.arange(n) / n)
 
 
-def full_spectrum(t, w, eta: float, *, floor: float = 1e-12) -> FullSpectrum:
+def full_spectrum(t: ArrayLike, w: ArrayLike, eta: float, *, floor: float = 1e-12) -> FullSpectrum:
     """The full spectrum of the complex signal ``w`` sampled at uniform times ``t``.
 
     ``eta`` is the running speed (orders are ``omega / eta``). The dominant line is the
@@ -143,7 +149,7 @@ def _refine_peak(amplitude: np.ndarray, peak: int) -> tuple[float, float]:
     return side * offset, b / response
 
 
-def solution_spectrum(solution, transient_periods: float = 0.0) -> FullSpectrum:
+def solution_spectrum(solution: Solution, transient_periods: float = 0.0) -> FullSpectrum:
     """The full spectrum of a Solution's whirl after ``transient_periods`` forcing periods.
 
     The record is cut to a whole number of forcing periods (so the 1X line falls on a
@@ -172,7 +178,9 @@ def default_transient(recorded_periods: float, transient_periods: float | None =
     return float(transient_periods)
 
 
-def steady_spectrum(solution, transient_periods: float | None = None) -> FullSpectrum | None:
+def steady_spectrum(
+    solution: Solution, transient_periods: float | None = None
+) -> FullSpectrum | None:
     """The full spectrum of a successful Solution over its steady span, or None.
 
     The steady span follows ``default_transient``; None for a failed run, a record of

@@ -40,6 +40,7 @@ import math
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -51,6 +52,9 @@ from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solution import SUCCESS, Solution
 from rubcli.solvers.registry import SPECS, options_for
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 ERROR = "error"  # status of a run whose solver raised (a bug: never expected)
 
@@ -168,7 +172,9 @@ def steady_unit_whirl(
     return params, (float(w.real), float(w.imag), float(v.real), float(v.imag))
 
 
-def touching_start(params: ModelParams, direction, period_fraction: float = 1.0):
+def touching_start(
+    params: ModelParams, direction: ArrayLike, period_fraction: float = 1.0
+) -> tuple[tuple[float, ...], float]:
     """A start whose free flight touches z = 1 once, tangentially, at its first maximum.
 
     Needs ``e = 0``: the free flight is then linear in the start, so scaling

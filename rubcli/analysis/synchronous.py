@@ -19,11 +19,15 @@ anywhere else. The Jacobian of the contact force is ``model.force_jacobian``.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rubcli import model
 from rubcli.model import ModelParams
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 
 def _complex_matrix(c: complex) -> np.ndarray:
@@ -85,7 +89,7 @@ def synchronous_rubs(params: ModelParams) -> list[SynchronousRub]:
 
 
 def started_on_synchronous_rub(
-    params: ModelParams, initial, tau0: float = 0.0, rel_tol: float = 1e-12
+    params: ModelParams, initial: ArrayLike, tau0: float = 0.0, rel_tol: float = 1e-12
 ) -> SynchronousRub | None:
     """The synchronous rub whose state at ``tau0`` is ``initial`` (within rel_tol), or None."""
     state = np.asarray(initial, dtype=float)

@@ -365,7 +365,9 @@ class _Tracer:
             t = -t
         return t
 
-    def correct(self, mode, guess, normal, anchor) -> tuple[np.ndarray, int] | None:
+    def correct(
+        self, mode: int, guess: np.ndarray, normal: np.ndarray, anchor: np.ndarray
+    ) -> tuple[np.ndarray, int] | None:
         """Newton on F = 0 and normal . (X - anchor) = 0."""
         x = guess.copy()
         for it in range(1, self.st.max_newton + 1):
@@ -383,21 +385,25 @@ class _Tracer:
                 return x, it
         return None
 
-    def at_value(self, mode, guess, q) -> tuple[np.ndarray, int] | None:
+    def at_value(self, mode: int, guess: np.ndarray, q: float) -> tuple[np.ndarray, int] | None:
         """The point of this mode at the parameter q (Newton with q fixed)."""
         return self.correct(mode, np.array([guess[0], guess[1], q]), np.array([0.0, 0.0, 1.0]),
                             np.array([0.0, 0.0, q]))  # fmt: skip
 
-    def on_segment(self, mode, a: np.ndarray, b: np.ndarray, theta: float):
+    def on_segment(
+        self, mode: int, a: np.ndarray, b: np.ndarray, theta: float
+    ) -> tuple[np.ndarray, int] | None:
         """The point of the branch on the hyperplane through a + theta (b - a), normal b - a."""
         anchor = a + theta * (b - a)
         return self.correct(mode, anchor, b - a, anchor)
 
-    def locate(self, mode, a, b, fn: Callable[[np.ndarray], float]) -> np.ndarray | None:
+    def locate(
+        self, mode: int, a: np.ndarray, b: np.ndarray, fn: Callable[[np.ndarray], float]
+    ) -> np.ndarray | None:
         """The root of fn between the branch points a (fn < 0 or > 0) and b (other sign)."""
         from scipy.optimize import brentq
 
-        def g(theta):
+        def g(theta: float) -> float:
             hit = self.on_segment(mode, a, b, theta)
             if hit is None:
                 raise ArithmeticError
@@ -502,11 +508,11 @@ def _trace(tracer: _Tracer, start: Whirl, direction: int, index: int):
     previous = start
     lo, hi = st.p_min / scale, st.p_max / scale
 
-    def point(x, label="", iterations=0):
+    def point(x: np.ndarray, label: str = "", iterations: int = 0) -> WhirlPoint:
         return WhirlPoint(make_whirl(mode, x[0], x[1], tracer.params(x[2])), x[2] * scale,
                           index, label, iterations)  # fmt: skip
 
-    def event(kind, x, note, located=True):
+    def event(kind: str, x: np.ndarray, note: str, located: bool = True) -> WhirlPoint:
         pt = point(x, kind)
         points.append(pt)
         events.append(WhirlEvent(kind, pt.value, pt, located, note))
@@ -607,7 +613,7 @@ def _stability_test(before: Whirl, after: Whirl, tracer: _Tracer, mode: int):
     lead = eig[np.argmax(eig.real)]
     complex_pair = abs(lead.imag) > 1e-9 * max(1.0, abs(lead))
 
-    def fn(z):
+    def fn(z: np.ndarray) -> float:
         w = make_whirl(mode, z[0], z[1], tracer.params(z[2]))
         e = w.nontrivial
         e = e[np.isfinite(e)]

@@ -141,7 +141,9 @@ class WorkPrecision:
         return {t: cheapest_for(self.rows, t, self.reference) for t in targets}
 
 
-def cheapest_for(rows: Sequence[Row], target: float, reference: Reference | None = None):
+def cheapest_for(
+    rows: Sequence[Row], target: float, reference: Reference | None = None
+) -> Row | None:
     """The fastest successful row with ``error_max <= target``, or None.
 
     None also when the target is below ``RESOLUTION_FACTOR`` times the reference's own

@@ -18,6 +18,7 @@ import os
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rubcli.analysis.processes import local_pool
 from rubcli.analysis.sweep.engine import (
@@ -29,6 +30,12 @@ from rubcli.analysis.sweep.engine import (
 )
 from rubcli.analysis.sweep.plan import Axis, SweepPlan
 from rubcli.analysis.sweep.store import PointStore, StoreError
+
+if TYPE_CHECKING:
+    from distributed import Client
+
+    from rubcli.analysis.sweep.basins import BasinResult
+    from rubcli.analysis.sweep.point import PointResult
 
 __all__ = [
     "Axis",
@@ -107,7 +114,7 @@ def reachable_or_raise(address: str, timeout: float) -> None:
         ) from None
 
 
-def connect(address: str, timeout: float = CONNECT_TIMEOUT_S):
+def connect(address: str, timeout: float = CONNECT_TIMEOUT_S) -> Client:
     """A ``distributed.Client`` of the scheduler at ``address``; SchedulerError if not."""
     try:
         from distributed import Client
@@ -125,7 +132,7 @@ def connect(address: str, timeout: float = CONNECT_TIMEOUT_S):
 
 
 @contextlib.contextmanager
-def dask_executor(client) -> Iterator[cf.Executor]:
+def dask_executor(client: Client) -> Iterator[cf.Executor]:
     """Dask's own ``concurrent.futures`` executor over ``client``."""
     executor = client.get_executor(pure=False)  # no hashing of the arguments per task
     try:
@@ -144,7 +151,7 @@ def task_batch(n_points: int, n_workers: int, n_chains: int | None = None) -> in
     return max(1, min(MAX_BATCH, limit, n_points // (8 * n_workers)))
 
 
-def dask_workers(client) -> int:
+def dask_workers(client: Client) -> int:
     """The scheduler's worker count now (0 when it has none)."""
     try:
         return len(client.scheduler_info(n_workers=-1)["workers"])
@@ -152,7 +159,7 @@ def dask_workers(client) -> int:
         return len(client.scheduler_info()["workers"])
 
 
-def dask_watch(client, lost_timeout_s: float) -> Callable[[], None]:
+def dask_watch(client: Client, lost_timeout_s: float) -> Callable[[], None]:
     """A ``run_plan`` watch: ``ExecutorLostError`` once the scheduler has been unreachable, or
     has had no worker, for ``lost_timeout_s`` (at once when the client gave up and closed).
 
@@ -185,7 +192,7 @@ def dask_watch(client, lost_timeout_s: float) -> Callable[[], None]:
     return watch
 
 
-def close_client(client, timeout: float = CONNECT_TIMEOUT_S) -> None:
+def close_client(client: Client, timeout: float = CONNECT_TIMEOUT_S) -> None:
     """Close a Dask client in bounded time, quietly (its scheduler may be gone)."""
     with quiet_dask_client(), contextlib.suppress(Exception):
         client.close(timeout=timeout)
@@ -226,12 +233,12 @@ def execute(
     *,
     workers: int | None = None,
     scheduler: str | None = None,
-    client=None,
+    client: Client | None = None,
     store_dir: str | Path | None = None,
     progress: Callable[[int, int], None] | None = None,
     oversubscribe: bool = False,
     lost_timeout_s: float = LOST_TIMEOUT_S,
-):
+) -> tuple[dict[str, PointResult] | BasinResult, RunStats, str]:
     """Run ``plan``; returns ``(results by point key, RunStats, executor description)``;
     for a basin grid with recognition, the results are a ``basins.BasinResult``.
 

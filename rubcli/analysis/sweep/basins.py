@@ -31,6 +31,7 @@ import time
 import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -47,6 +48,11 @@ from rubcli.analysis.sweep.attractors import (
     normalised,
 )
 from rubcli.analysis.sweep.plan import INITIAL_AXES, SweepPlan
+
+if TYPE_CHECKING:
+    import xarray as xr
+
+    from rubcli.analysis.sweep.store import PointStore
 
 # how a start was labelled (the codes of ``recognise_kernel``: 1, 2, 3)
 HOW = ("budget", "attractor", "basin", "diverged", "failed")
@@ -190,7 +196,9 @@ def compute_chunk(task: ChunkTask) -> ChunkResult:
         fed = [0]
         hit: list[tuple[int, int, int, int]] = []  # label, period, how, convergence
 
-        def check(states: np.ndarray, fed=fed, hit=hit) -> str | None:
+        def check(
+            states: np.ndarray, fed: list[int] = fed, hit: list[tuple[int, int, int, int]] = hit
+        ) -> str | None:
             at, label, how, convergence = kernel.scan(
                 normalised(states, eta), fed[0] + 1, cloud, offsets, radii,
                 rec.consecutive, cells.keys, cells.labels, cells.remaining, cells.size,
@@ -319,7 +327,7 @@ def run_basins(
     rec: Recognition,
     executor: cf.Executor,
     *,
-    store=None,
+    store: PointStore | None = None,
     progress: Callable[[int, int], None] | None = None,
     rebuild: Callable[[], cf.Executor] | None = None,
     watch: Callable[[], None] | None = None,
@@ -366,7 +374,9 @@ def run_basins(
             if progress is not None:
                 progress(done, n)
 
-    def compute(names: list[str], tasks: list[ChunkTask], counted: bool = True):
+    def compute(
+        names: list[str], tasks: list[ChunkTask], counted: bool = True
+    ) -> dict[str, ChunkResult]:
         """The chunks ``names``, all of them: stored ones loaded, the others computed.
         A chunk whose worker died (a broken local pool) or that the executor dropped
         (Dask, its scheduler connection lost) is submitted again; after MAX_RETRIES
@@ -550,7 +560,7 @@ def attractor_name(descriptor: dict) -> str:
     return f"{descriptor['kind']}, {where}, {z}"
 
 
-def build_dataset(plan: SweepPlan, result: BasinResult, attrs: dict | None = None):
+def build_dataset(plan: SweepPlan, result: BasinResult, attrs: dict | None = None) -> xr.Dataset:
     """The basin grid as an xarray Dataset: each start's attractor, how and when it was
     recognised and the periods it cost; the attractors with their descriptors and basin
     fractions; the basin entropies of the grid."""
@@ -609,7 +619,7 @@ def build_dataset(plan: SweepPlan, result: BasinResult, attrs: dict | None = Non
     return ds
 
 
-def csv_text(ds, plan: SweepPlan) -> str:
+def csv_text(ds: xr.Dataset, plan: SweepPlan) -> str:
     """One row per start: its state, attractor (label and name), how, when, cost."""
     import csv
     import io as text_io
@@ -636,7 +646,7 @@ def csv_text(ds, plan: SweepPlan) -> str:
     return buffer.getvalue()
 
 
-def summary(ds) -> dict:
+def summary(ds: xr.Dataset) -> dict:
     """What report.json and the console say of a basin grid."""
     how = ds["recognised_by"].values
     label = ds["attractor_label"].values

@@ -12,6 +12,7 @@ import csv
 import io as _io
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -24,11 +25,16 @@ from rubcli.analysis.sweep.point import (
     spectrum_orders,
 )
 
+if TYPE_CHECKING:
+    import xarray as xr
+
 STATUS_OK, STATUS_FAILED = 0, 1
 SECTION_VARIABLES = ("x", "y", "vx", "vy", "z")
 
 
-def build_dataset(plan: SweepPlan, results: dict[str, PointResult], attrs: dict | None = None):
+def build_dataset(
+    plan: SweepPlan, results: dict[str, PointResult], attrs: dict | None = None
+) -> xr.Dataset:
     """All points of ``plan`` (every one must be in ``results``) as an xarray Dataset."""
     import xarray as xr
 
@@ -94,13 +100,13 @@ def build_dataset(plan: SweepPlan, results: dict[str, PointResult], attrs: dict 
     return ds
 
 
-def write_netcdf(ds, path: str | Path) -> Path:
+def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:
     """NetCDF4 through h5netcdf (the caller writes into a staging dir)."""
     ds.to_netcdf(path, engine="h5netcdf")
     return Path(path)
 
 
-def csv_text(ds, plan: SweepPlan) -> str:
+def csv_text(ds: xr.Dataset, plan: SweepPlan) -> str:
     """One row per point and direction: axis values, scalar results, status, message."""
     buffer = _io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")

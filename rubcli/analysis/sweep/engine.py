@@ -33,10 +33,14 @@ import time
 from collections.abc import Callable
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 from rubcli.analysis.sweep.plan import Chain, Point, SweepPlan
 from rubcli.analysis.sweep.point import PointResult, PointTask, compute_points, failed
 from rubcli.analysis.sweep.store import PointStore
+
+if TYPE_CHECKING:
+    from collections.abc import Iterable
 
 MAX_RETRIES = 3  # a point whose worker died this many times is recorded as failed
 IN_FLIGHT_PER_WORKER = 4  # points queued per worker (keeps memory and Ctrl-C short)
@@ -50,7 +54,9 @@ class ExecutorLostError(Exception):
 class InProcessExecutor(cf.Executor):
     """Runs every submitted call at once, in this process (``--workers 1``)."""
 
-    def submit(self, fn, /, *args, **kwargs):  # type: ignore[override]
+    def submit(  # type: ignore[override]
+        self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any
+    ) -> cf.Future:
         future: cf.Future = cf.Future()
         try:
             future.set_result(fn(*args, **kwargs))
@@ -59,7 +65,7 @@ class InProcessExecutor(cf.Executor):
         return future
 
 
-def task_for(plan: SweepPlan, point: Point, start) -> PointTask:
+def task_for(plan: SweepPlan, point: Point, start: Iterable[float]) -> PointTask:
     return PointTask(
         params=point.params,
         start=tuple(float(v) for v in start),  # type: ignore[arg-type]

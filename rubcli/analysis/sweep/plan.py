@@ -20,9 +20,13 @@ import json
 import math
 from dataclasses import dataclass, field
 from itertools import product
+from typing import TYPE_CHECKING
 
 from rubcli.analysis.sweep.attractors import Recognition
 from rubcli.model import ModelParams
+
+if TYPE_CHECKING:
+    from collections.abc import Iterable
 
 MODEL_AXES = ("nu", "eta", "e", "K", "mu", "Rp", "phi0")
 INITIAL_AXES = ("x", "y", "vx", "vy")
@@ -30,7 +34,7 @@ DIRECTIONS = ("up", "down", "both", "independent")
 STATE_NAMES = ("x", "y", "vx", "vy")
 
 
-def point_key(direction: str, index) -> str:
+def point_key(direction: str, index: Iterable[int]) -> str:
     """The name of a point in results and in the store: ``up-3``, ``independent-2-7``."""
     return f"{direction}-" + "-".join(str(int(i)) for i in index)
 

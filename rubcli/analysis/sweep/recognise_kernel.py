@@ -24,7 +24,7 @@ CELL_BITS = 15
 
 
 @jit
-def cell_key(point, size):
+def cell_key(point: np.ndarray, size: float) -> int:
     """The packed cell key of a point (attractors.CellMap.pack); -1 outside the range."""
     half = 1 << (CELL_BITS - 1)
     key = 0
@@ -37,8 +37,11 @@ def cell_key(point, size):
 
 
 @jit
-def scan(points, first_period, clouds, offsets, radii, consecutive, keys, labels, left,
-         size, basin_hits, escape, state):  # fmt: skip
+def scan(
+    points: np.ndarray, first_period: int, clouds: np.ndarray, offsets: np.ndarray,
+    radii: np.ndarray, consecutive: int, keys: np.ndarray, labels: np.ndarray, left: np.ndarray,
+    size: float, basin_hits: int, escape: float, state: np.ndarray,
+) -> tuple[int, int, int, int]:  # fmt: skip
     """Feed ``points``; returns ``(index, label, how, convergence)`` of the point that
     completes a recognition, or index -1. ``keys`` empty: no basin cells."""
     n_attractors = radii.size
