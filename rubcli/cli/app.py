@@ -10,7 +10,7 @@ from __future__ import annotations
 import errno
 import os
 import sys
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from typer.core import TyperGroup
@@ -33,6 +33,9 @@ from rubcli.cli.common import EXIT_BUSY, EXIT_INVALID, EXIT_WRITE, close_outputs
 from rubcli.cli.entry import main
 from rubcli.io import signals
 
+if TYPE_CHECKING:
+    import click
+
 __all__ = ["app", "main"]
 
 
@@ -41,7 +44,7 @@ class RubcliGroup(TyperGroup):
     that cannot be written end it with a message on stderr and its exit code, never a
     traceback (README, "Exit codes")."""
 
-    def invoke(self, ctx: typer.Context):
+    def invoke(self, ctx: typer.Context) -> Any:
         io.outputs.COMMITTED.clear()
         try:
             result = super().invoke(ctx)
@@ -100,7 +103,7 @@ def _flags_show_no_type() -> None:
     if shown is None or getattr(shown, "_rubcli_flags", False):
         return
 
-    def display_type_rich(self, ctx):
+    def display_type_rich(self: click.Option, ctx: click.Context) -> str | None:
         if getattr(self, "is_flag", False) and not getattr(self, "count", False):
             return None
         return shown(self, ctx)

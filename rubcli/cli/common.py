@@ -22,13 +22,16 @@ from __future__ import annotations
 
 import atexit
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
 from rubcli import io
 from rubcli.cli import console
 from rubcli.cli.console import machine_readable
+
+if TYPE_CHECKING:
+    from rubcli.case import Case
 
 __all__ = [
     "EXIT_BUSY",
@@ -75,7 +78,7 @@ WaitOption = Annotated[
 ]
 
 
-def command_dir(case, command: str, out: Path | None) -> Path:
+def command_dir(case: Case, command: str, out: Path | None) -> Path:
     """The output dir rule: ``--out`` if given, else ``<case output dir>/<command>``
     (``run`` alone writes the case's output dir itself)."""
     return Path(out) if out is not None else case.output_dir / command

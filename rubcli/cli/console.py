@@ -24,6 +24,7 @@ import warnings
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TextIO
 
 from rich import box
 from rich.console import Console
@@ -98,7 +99,14 @@ def shorten(text: str, limit: int = MAX_VALUE_CHARS) -> str:
     return f"{text[: limit - 30]}... ({len(text)} characters)"
 
 
-def show_python_warning(message, category, filename, lineno, file=None, line=None) -> None:
+def show_python_warning(
+    message: Warning | str,
+    category: type[Warning],
+    filename: str,
+    lineno: int,
+    file: TextIO | None = None,
+    line: str | None = None,
+) -> None:
     """``warnings.showwarning`` replacement: one formatted line on stderr."""
     where = f"{Path(filename).name}:{lineno}"
     warning(f"{category.__name__}: {shorten(str(message))} ({where})")

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
@@ -43,6 +43,9 @@ from rubcli.cli.common import (
 )
 from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 
+if TYPE_CHECKING:
+    from rubcli.case import Case
+
 QUICK = {"runs": 4, "periods": 300, "record_periods": 100, "lyapunov_periods": 50}
 COLUMNS = ("run", "method", "rtol", "start_offset", "attractor", "regime", "kind", "settled",
            "settle_period", "contact_fraction", "stick_fraction", "whirl_order", "z_max",
@@ -50,7 +53,7 @@ COLUMNS = ("run", "method", "rtol", "start_offset", "attractor", "regime", "kind
            "message")  # fmt: skip
 
 
-def settings_of(case, quick: bool) -> tuple[dict, list[str]]:
+def settings_of(case: Case, quick: bool) -> tuple[dict, list[str]]:
     """The ensemble's settings from the case (and --quick), or the problems with it."""
     src, e = case.source, case.settings.ensemble
     if e is None:

@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 import time
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
@@ -48,6 +48,9 @@ from rubcli.cli.common import (
 from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 from rubcli.studies import orbits as study
 
+if TYPE_CHECKING:
+    from rubcli.analysis.curves import Curve
+
 EXIT_FAILED = 1
 
 
@@ -62,7 +65,7 @@ def summary_lines(branch: cn.Branch) -> list[list[str]]:
     return rows
 
 
-def curve_line(curve, report: dict) -> list[str]:
+def curve_line(curve: Curve, report: dict) -> list[str]:
     """The console's row for one continued curve."""
     distance = report["max_distance_to_closed_form"]
     ends = curve.message if curve.status != "ok" else "; ".join(curve.stops.values())

@@ -110,7 +110,7 @@ def write_branch_csv(path: Path, result: wh.WhirlContinuation) -> None:
 
 def run(
     case_file: Path, case: Case, target: Path, force: bool, wait: bool, quick: bool, json: bool
-):
+) -> None:
     """The whole command for a whirl case (inputs checked by the caller's schema)."""
     problems = check_case(case)
     if problems:
