@@ -26,6 +26,7 @@ arrays, and tests/test_io.py checks it field by field against ``repr`` and ``str
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
@@ -33,6 +34,14 @@ from llvmlite import ir
 from numba.core import types
 from numba.cpython.unsafe.numbers import leading_zeros
 from numba.extending import intrinsic
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Sequence
+
+    from numba.core.base import BaseContext
+    from numba.core.typing.templates import Signature
+
+    from rubcli.io.tables import Labels
 
 jit = numba.njit(cache=True, nogil=True)  # formats beside the figures (io.Background)
 
@@ -76,7 +85,12 @@ def _umul128(typingctx, a, b):
     """The 128-bit product of two uint64 as (high, low) words."""
     sig = types.UniTuple(types.uint64, 2)(types.uint64, types.uint64)
 
-    def codegen(context, builder, signature, args):
+    def codegen(
+        context: BaseContext,
+        builder: ir.IRBuilder,
+        signature: Signature,
+        args: tuple[ir.Value, ...],
+    ) -> ir.Value:
         wide = ir.IntType(128)
         product = builder.mul(builder.zext(args[0], wide), builder.zext(args[1], wide))
         low = builder.trunc(product, ir.IntType(64))
@@ -99,7 +113,7 @@ def _round_to_odd(g_hi, g_lo, cp):
 
 
 @jit
-def to_decimal(bits):
+def to_decimal(bits: np.uint64) -> tuple[np.uint64, int]:
     """(D, k) with the finite double > 0 of IEEE bits ``bits`` ~ D 10^k, D the shortest
     correctly rounded decimal significand (trailing zeros removed): Schubfach (Giulietti,
     figures 4 and 6 of the paper; the variables are the paper's). Integers below 2^53
@@ -182,7 +196,7 @@ def _eight(out, i, v):
 
 
 @jit
-def decimal_length(d):
+def decimal_length(d: np.uint64) -> int:
     """The number of decimal digits of 0 < d < 10^19: floor(log10 d) + 1, from the bit
     length (1233 / 4096 ~ log10 2), corrected once."""
     bit_length = 64 - np.int64(leading_zeros(d))
@@ -193,7 +207,7 @@ def decimal_length(d):
 
 
 @jit
-def write_digits(out, start, d, length):
+def write_digits(out: np.ndarray, start: int, d: np.uint64, length: int) -> None:
     """The ``length`` decimal digits of d (< 10^17) as ASCII into ``out[start:]``, right to
     left, two at a time (8 at a time in 32-bit arithmetic while d >= 10^8)."""
     end = start + length
@@ -213,7 +227,7 @@ def write_digits(out, start, d, length):
 
 
 @jit
-def format_float(value, bits, out, pos):
+def format_float(value: float, bits: np.uint64, out: np.ndarray, pos: int) -> int:
     """``repr(value)`` as ASCII into ``out[pos:]`` (``bits``: its IEEE bits as uint64);
     returns the new position, or -1 for NaN and infinities (Python's repr writes those).
 
@@ -281,7 +295,7 @@ def format_float(value, bits, out, pos):
 
 
 @jit
-def format_int(value, out, pos):
+def format_int(value: int, out: np.ndarray, pos: int) -> int:
     """``str(value)`` of an int64 as ASCII into ``out[pos:]``; returns the new position."""
     if value == 0:
         out[pos] = 48
@@ -375,7 +389,11 @@ def _coded_rows(codes: np.ndarray, names, encoded: dict[object, int]) -> np.ndar
     return rows[position] if codes.size else np.zeros(0, dtype=np.int64)
 
 
-def format_block(columns, text_field, nonfinite: str | None = None) -> bytes | memoryview | None:
+def format_block(
+    columns: Sequence[np.ndarray | Labels],
+    text_field: Callable[[object], str],
+    nonfinite: str | None = None,
+) -> bytes | memoryview | None:
     """The CSV rows of a block of columns (numpy arrays of equal length) as UTF-8 bytes
     (a bytes-like object: ``bytes`` or a ``memoryview`` of the formatted buffer),
     each float field exactly ``repr(value)`` (``nonfinite`` for NaN/inf if given), each

@@ -16,9 +16,13 @@ import sys
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    import xarray as xr
+    from matplotlib.figure import Figure
 
 
 @contextlib.contextmanager
@@ -155,7 +159,7 @@ def environment_info() -> dict[str, str]:
     }
 
 
-def write_netcdf(dataset, path: str | Path) -> Path:
+def write_netcdf(dataset: xr.Dataset, path: str | Path) -> Path:
     """Write an xarray Dataset as NetCDF4 (h5netcdf), atomically.
 
     The file is made in memory and written as bytes: HDF5 writing to a full disk itself
@@ -169,7 +173,7 @@ def write_netcdf(dataset, path: str | Path) -> Path:
     return Path(path)
 
 
-def save_figure(fig, path: str | Path, *, dpi: int = 120, close: bool = True) -> Path:
+def save_figure(fig: Figure, path: str | Path, *, dpi: int = 120, close: bool = True) -> Path:
     """Save a matplotlib figure atomically; the format follows the suffix of ``path``."""
     try:
         with atomic_path(path) as tmp:

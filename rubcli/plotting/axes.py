@@ -14,8 +14,17 @@ rasterisation.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+    from matplotlib.gridspec import SubplotSpec
+    from numpy.typing import ArrayLike
 
 GAP_FRACTION = 0.5  # split a value axis when an empty gap is over this share of the span
 MIN_SHARE = 0.05  # ... and each side holds at least this share of the values
@@ -24,7 +33,7 @@ DPI = 120  # the resolution figures are saved at (rubcli.io.save_figure)
 
 
 def split_ranges(
-    values, gap_fraction: float = GAP_FRACTION, min_share: float = MIN_SHARE
+    values: ArrayLike, gap_fraction: float = GAP_FRACTION, min_share: float = MIN_SHARE
 ) -> list[tuple[float, float]]:
     """``[(lo, hi)]``, or ``[(lo, a), (b, hi)]`` (ascending) when the finite values leave
     an empty gap ``(a, b)`` wider than ``gap_fraction`` of their whole span and each side
@@ -52,7 +61,13 @@ def padded(lo: float, hi: float, scale: float, pad: float = 0.06) -> tuple[float
     return lo - margin, hi + margin
 
 
-def broken_axes(fig, spec, ranges: list[tuple[float, float]], sharex=None, sharey=None):
+def broken_axes(
+    fig: Figure,
+    spec: SubplotSpec,
+    ranges: list[tuple[float, float]],
+    sharex: Axes | None = None,
+    sharey: Sequence[Axes] | None = None,
+) -> list[Axes]:
     """Axes in ``spec`` (a SubplotSpec) for the value ranges, the highest on top.
 
     One range: one axes. Two: two stacked axes whose heights follow their spans (the

@@ -14,8 +14,17 @@ there). Lines that persist across parameter values stack into a visible track.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from matplotlib.colors import Normalize
+
+if TYPE_CHECKING:
+    from collections.abc import Iterable
+
+    from matplotlib.axes import Axes
+    from matplotlib.collections import PathCollection
+    from numpy.typing import ArrayLike
 
 DYNAMIC_RANGE_DB = 60.0  # lines more than this far below the largest line are not drawn
 CMAP = "viridis_r"  # weak lines light (yellow), strong ones dark (purple) on white
@@ -35,7 +44,13 @@ def spectral_lines(amplitude: np.ndarray) -> np.ndarray:
     return np.flatnonzero(peak)
 
 
-def cascade_points(orders, params, amplitude, reference: float, dynamic_range_db: float):
+def cascade_points(
+    orders: ArrayLike,
+    params: ArrayLike,
+    amplitude: ArrayLike,
+    reference: float,
+    dynamic_range_db: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(order, parameter, level_db)`` of every line drawn: per spectrum (row of
     ``amplitude``, one per parameter value) its local maxima within ``dynamic_range_db``
     of ``reference`` (the figure's largest line), at most ``MAX_LINES`` of them."""
@@ -62,15 +77,15 @@ def cascade_points(orders, params, amplitude, reference: float, dynamic_range_db
 
 
 def draw_cascade(
-    ax,
-    orders,
-    params,
-    amplitude,
+    ax: Axes,
+    orders: ArrayLike,
+    params: ArrayLike,
+    amplitude: ArrayLike,
     *,
     reference: float | None = None,
     dynamic_range_db: float = DYNAMIC_RANGE_DB,
-    marked_orders=(-1.0, 1.0),
-):
+    marked_orders: Iterable[float] = (-1.0, 1.0),
+) -> PathCollection | None:
     """Draw the cascade of ``amplitude`` (rows: ``params``; columns: ``orders``) into
     ``ax``; returns the scatter (for a colour bar) or None when nothing was drawn.
 

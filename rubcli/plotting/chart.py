@@ -9,6 +9,8 @@ It only draws.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import BoundaryNorm, ListedColormap
@@ -17,6 +19,11 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from rubcli.analysis import charts as ch
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from rubcli.studies.chart import SweepMap
 
 REGION_COLOURS = {
     ch.NEITHER: "#d9d9d9",
@@ -53,8 +60,8 @@ def _label(name: str) -> str:
 
 
 def chart_figure(
-    chart: ch.Chart, title: str, here: tuple[float, float] | None = None, continued=(),
-    sweep=None,
+    chart: ch.Chart, title: str, here: tuple[float, float] | None = None,
+    continued: Sequence[ch.ContinuedPoint] = (), sweep: SweepMap | None = None,
 ) -> Figure:  # fmt: skip
     """The chart's regions and closed-form curves; ``here``: the case's own (x, y), marked
     where it lies in the plane; ``continued``: the points located by continuation

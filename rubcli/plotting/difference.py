@@ -10,12 +10,16 @@ is lost) is seen, not only stated. Used by orbit.png and time.png.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rubcli import units
 from rubcli.plotting import display
 from rubcli.solution import Solution
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 FLOOR = 1e-16  # a distance of exactly zero is drawn at this fraction of the orbit size
 DECADES = 8  # the axis spans at most this many decades below the largest distance
@@ -27,7 +31,7 @@ def comparable(solutions: Sequence[Solution]) -> list[Solution]:
 
 
 def draw_difference(
-    ax,
+    ax: Axes,
     solutions: Sequence[Solution],
     *,
     colors: Mapping[str, str] | None = None,

@@ -52,7 +52,9 @@ ENVELOPE_CHUNK = 65_536  # samples reduced at a time by ``envelope``
 CLEARANCE_STYLE = {"color": "0.2", "linestyle": "--", "linewidth": 1.0, "zorder": 5}
 
 
-def envelope(t: np.ndarray, values: np.ndarray, bins: int = ENVELOPE_BINS):
+def envelope(
+    t: np.ndarray, values: np.ndarray, bins: int = ENVELOPE_BINS
+) -> tuple[np.ndarray, np.ndarray]:
     """``(t, values)`` reduced to the min and max of each of ``bins`` groups of samples.
 
     Each group contributes its two extreme samples in time order, so the extremes of
@@ -67,7 +69,9 @@ def envelope(t: np.ndarray, values: np.ndarray, bins: int = ENVELOPE_BINS):
     return t[idx], values[idx]
 
 
-def envelope_band(t: np.ndarray, values: np.ndarray, bins: int = ENVELOPE_BINS):
+def envelope_band(
+    t: np.ndarray, values: np.ndarray, bins: int = ENVELOPE_BINS
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """``(t, lo, hi)``: the band between the min and the max of each of ``bins`` groups of
     samples, as steps (group k spans ``t[k]`` to ``t[k + 1]``; the last value repeats
     at the end), or None for a series short enough to draw as it is (``envelope``'s

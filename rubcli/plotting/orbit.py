@@ -35,12 +35,16 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib.colors import to_rgba
 
 from rubcli.plotting import display
 from rubcli.solution import Solution
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 COLORS = ("C0", "C3", "C2", "C1", "C4", "C5", "C6", "C8")
 FIRST_LINE = 2.6  # the first method's bold orbit (points)
@@ -77,7 +81,7 @@ class OrbitDrawing:
 
 
 def draw_orbits(
-    ax,
+    ax: Axes,
     solutions: Sequence[Solution],
     *,
     unit: float = 1.0,

@@ -11,6 +11,7 @@ These functions only draw; they never solve.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -18,6 +19,11 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from rubcli.analysis.continuation import Branch
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
+    from rubcli.analysis.charts import Chart
 
 MARKERS = {
     "fold": "s",
@@ -194,7 +200,13 @@ def _flat_limits(z: np.ndarray) -> tuple[float, float]:
     return mid - half, mid + half
 
 
-def label_offsets(ax, points, base=(7.0, 6.0), step: float = 11.0, near: float = 16.0):
+def label_offsets(
+    ax: Axes,
+    points: Sequence[tuple[float, float]],
+    base: tuple[float, float] = (7.0, 6.0),
+    step: float = 11.0,
+    near: float = 16.0,
+) -> list[tuple[float, float]]:
     """Offsets (points) of number labels at ``points`` (data coordinates) so that labels
     of points closer than ``near`` points on the page are stacked ``step`` apart instead
     of drawn over each other."""
@@ -270,7 +282,7 @@ def curves_figure(
     windows: tuple[tuple[float, float], tuple[float, float]],
     branch_at: float,
     title: str,
-    closed_form=None,
+    closed_form: Chart | None = None,
 ) -> Figure:
     """Bifurcations continued in two parameters (``analysis.curves.Curve``): each curve in
     its kind's colour as a wide translucent line through its computed points, its start

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -22,6 +23,9 @@ from rubcli import units
 from rubcli.analysis.spectrum import STATIC, FullSpectrum
 from rubcli.plotting import display
 from rubcli.plotting.run import _message_box, _new_figure
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 DYNAMIC_RANGE = 1e-6  # lines below this fraction of the largest are not drawn
 
@@ -39,7 +43,7 @@ def order_range(spectrum: FullSpectrum, level: float = 1e-3) -> float:
 
 
 def draw_spectrum(
-    ax,
+    ax: Axes,
     spectrum: FullSpectrum,
     *,
     scale: units.PhysicalScale | None = None,

@@ -5,6 +5,8 @@ cascade, 2-D maps and basins of attraction. They only draw; the numbers come fro
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -14,6 +16,9 @@ from matplotlib.patches import Patch
 
 from rubcli.analysis.sweep.point import RESPONSE_CLASSES
 from rubcli.plotting.cascade import DYNAMIC_RANGE_DB
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 DIRECTION_COLOURS = {"up": "tab:blue", "down": "tab:orange", "independent": "tab:blue"}
 # RESPONSE_CLASSES order: periodic ... undecided, converging
@@ -60,7 +65,7 @@ DIRECTION_MARKERS = {"up": "^", "down": "v", "independent": "o"}
 OTHER_DIRECTION = "0.78"  # the other direction, drawn behind for comparison
 
 
-def bifurcation_figure(ds, title: str) -> Figure:
+def bifurcation_figure(ds: xr.Dataset, title: str) -> Figure:
     """Stroboscopic z and x against the swept parameter, one column per direction.
 
     Each column draws its direction in colour over the other direction in light grey, so
@@ -164,7 +169,7 @@ def _direction_handles(ds, dirs) -> list:
     return handles
 
 
-def summary_figure(ds, title: str) -> Figure:
+def summary_figure(ds: xr.Dataset, title: str) -> Figure:
     """Contact/stick fraction, z range, whirl order with direction, class, Lyapunov; the
     first direction wide and light, the second thin on top, so neither hides the other."""
     (dim,) = _axes_dims(ds)
@@ -220,7 +225,9 @@ def summary_figure(ds, title: str) -> Figure:
     return fig
 
 
-def cascade_figure(ds, title: str, dynamic_range_db: float = DYNAMIC_RANGE_DB) -> Figure:
+def cascade_figure(
+    ds: xr.Dataset, title: str, dynamic_range_db: float = DYNAMIC_RANGE_DB
+) -> Figure:
     """Full-spectrum cascade per direction: the lines of x + i y by order and parameter,
     in dB of the largest line of the figure, down to ``dynamic_range_db`` below it
     (``plotting.cascade``: each line a marker, so none drops out of the image)."""
@@ -265,7 +272,7 @@ def _categorical(ax, values, x, y, colours, names, title):
     ax.set_title(title, fontsize=9)
 
 
-def map_figure(ds, title: str) -> Figure:
+def map_figure(ds: xr.Dataset, title: str) -> Figure:
     """A 2-D sweep: response class, whirl direction and max z as colour maps."""
     dim_x, dim_y = _axes_dims(ds)
     x, y = ds[dim_x].values, ds[dim_y].values
@@ -294,7 +301,7 @@ def map_figure(ds, title: str) -> Figure:
     return fig
 
 
-def attractor_labels(ds) -> tuple[np.ndarray, list[str]]:
+def attractor_labels(ds: xr.Dataset) -> tuple[np.ndarray, list[str]]:
     """Each point's attractor: class, whirl direction and, for a periodic one, its max z.
 
     Points that end on the same periodic orbit share class, direction and max z (to two
@@ -322,7 +329,7 @@ def attractor_labels(ds) -> tuple[np.ndarray, list[str]]:
     return codes, names
 
 
-def basins_figure(ds, title: str) -> Figure:
+def basins_figure(ds: xr.Dataset, title: str) -> Figure:
     """Basins of attraction over a grid of start states: one colour per attractor."""
     dims = _axes_dims(ds)
     codes, names = attractor_labels(ds)
@@ -411,7 +418,7 @@ def _basin_dims(ds) -> list[str]:
     return list(ds["attractor_label"].dims)
 
 
-def recognised_basins_figure(ds, title: str) -> Figure:
+def recognised_basins_figure(ds: xr.Dataset, title: str) -> Figure:
     """Each start coloured by the attractor it reached, with the attractors' descriptors
     and basin fractions in the legend."""
     dims = _basin_dims(ds)
@@ -451,7 +458,7 @@ def recognised_basins_figure(ds, title: str) -> Figure:
     return fig
 
 
-def convergence_figure(ds, title: str) -> Figure:
+def convergence_figure(ds: xr.Dataset, title: str) -> Figure:
     """When each start reached its attractor, and what it cost (periods integrated), on
     one colour scale."""
     dims = _basin_dims(ds)
