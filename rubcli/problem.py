@@ -5,10 +5,14 @@ from __future__ import annotations
 import math
 import numbers
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rubcli.model import MAX_MAGNITUDE, ModelParams, real_number
+
+if TYPE_CHECKING:
+    from collections.abc import Iterable, Sequence
 
 # The shortest time scale of the model, a contact oscillation (period 2 pi / sqrt(1 + K)),
 # must span at least this many doubles of tau anywhere in the span: a step of a twentieth
@@ -45,7 +49,7 @@ class Problem:
     def from_periods(
         cls,
         params: ModelParams,
-        initial,
+        initial: Iterable[float],
         periods: float,
         samples_per_period: int = 100,
         name: str = "problem",
@@ -143,7 +147,7 @@ def _time_grid(t_eval) -> np.ndarray:
     return t
 
 
-def resolution_problem(params: ModelParams, t_eval) -> str | None:
+def resolution_problem(params: ModelParams, t_eval: Sequence[float] | np.ndarray) -> str | None:
     """Why the span ``t_eval`` cannot resolve the contact oscillation of ``params``
     (``RESOLUTION_ULPS``), or None."""
     shortest = 2.0 * math.pi / math.sqrt(1.0 + params.K)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import operator
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import overload
+from typing import Any, overload
 
 import numpy as np
 
@@ -191,7 +191,13 @@ class Solution:
 
     @classmethod
     def from_samples(
-        cls, problem: Problem, method: str, k: int, states, regimes, **fields
+        cls,
+        problem: Problem,
+        method: str,
+        k: int,
+        states: np.ndarray,
+        regimes: np.ndarray,
+        **fields: Any,
     ) -> Solution:
         """The solution of a solver that filled ``states``/``regimes`` (buffers of the
         problem's sample count) up to sample ``k``; ``fields`` are the other fields.

@@ -15,6 +15,7 @@ from __future__ import annotations
 import contextlib
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -22,6 +23,10 @@ from rubcli import case as case_module
 from rubcli.analysis.sweep import SweepPlan, close_client, connect, execute
 from rubcli.analysis.sweep.attractors import Recognition
 from rubcli.analysis.sweep.plan import INITIAL_AXES, Axis
+
+if TYPE_CHECKING:
+    import xarray as xr
+    from distributed import Client
 
 # --quick: every axis thinned to at most this many values (its ends kept), short runs.
 QUICK_VALUES = 5
@@ -101,11 +106,11 @@ def sweep(
     *,
     workers: int | None = None,
     scheduler: str | None = None,
-    client=None,
+    client: Client | None = None,
     quick: bool = False,
     store_dir: str | Path | None = None,
     oversubscribe: bool = False,
-):
+) -> xr.Dataset:
     """Run the ``[sweep]`` of ``case`` (a path or a loaded Case); returns an xarray.Dataset
     (for a basin grid with recognition, ``basins.build_dataset``'s: one attractor label
     per start).

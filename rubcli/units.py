@@ -15,8 +15,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
 
 from rubcli.model import ModelParams
+
+if TYPE_CHECKING:
+    from rubcli.model import FloatOrArray
 
 
 @dataclass(frozen=True)
@@ -98,21 +102,21 @@ def nondimensional_state(
     )
 
 
-def seconds(tau, scale: PhysicalScale):
+def seconds(tau: FloatOrArray, scale: PhysicalScale) -> FloatOrArray:
     """Nondimensional time tau as seconds, t = tau / omega."""
     return tau / scale.omega
 
 
-def metres(position, scale: PhysicalScale):
+def metres(position: FloatOrArray, scale: PhysicalScale) -> FloatOrArray:
     """Positions in clearances as metres."""
     return position * scale.clearance
 
 
-def metres_per_second(velocity, scale: PhysicalScale):
+def metres_per_second(velocity: FloatOrArray, scale: PhysicalScale) -> FloatOrArray:
     """Nondimensional velocities d(x^)/dtau as m/s."""
     return velocity * scale.velocity
 
 
-def newtons(force, scale: PhysicalScale):
+def newtons(force: FloatOrArray, scale: PhysicalScale) -> FloatOrArray:
     """Nondimensional forces (units of k_r * clearance) as newtons."""
     return force * scale.force

@@ -11,13 +11,16 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from rubcli import io
 from rubcli.analysis import charts as ch
 from rubcli.case import Case, ChartSection
+
+if TYPE_CHECKING:
+    from rubcli.model import ModelParams
 
 FILES = ("chart.png", "curve.csv", "chart.nc", "report.json")
 # What a sweep's point settled on (``analysis.ensemble.regime_of``), drawn beside the regions
@@ -40,7 +43,7 @@ class SweepMap:
     names: tuple[str, str]  # the chart's (x, y) parameters
     labels: tuple[str, ...] = SWEEP_REGIMES  # the name of each regime index
 
-    def cross_table(self, params) -> dict[str, dict[str, int]]:
+    def cross_table(self, params: ModelParams) -> dict[str, dict[str, int]]:
         """How many sweep points of each regime lie in each closed-form region."""
         table: dict[str, dict[str, int]] = {}
         for j, yv in enumerate(self.y):
@@ -68,7 +71,7 @@ def contradictions(table: dict[str, dict[str, int]]) -> int:
     return out
 
 
-def load_sweep_map(path: Path, table: ChartSection, params) -> SweepMap | list[str]:
+def load_sweep_map(path: Path, table: ChartSection, params: ModelParams) -> SweepMap | list[str]:
     """The sweep.nc at ``path`` as a SweepMap over the chart's plane, or its problems: it
     must sweep the chart's two parameters (any order) with the chart's other parameters
     held at the case's values. Of a run-up and run-down, the run-up is shown."""
