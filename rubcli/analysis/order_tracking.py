@@ -25,7 +25,7 @@ least-squares problem with two right-hand sides. The speed of a revolution is th
 its 1X peak follows the instant the unbalance points at the probe. A forward circular
 whirl ``A_f exp(i phase)`` gives both probes ``R = |A_f|`` and ``lag = -arg A_f``: for the
 free whirl 0 degrees well below the critical speed, 90 at it, towards 180 above. The lag
-is unwrapped from one revolution to the next, the first value in [-90, 270) degrees.
+lies in [-90, 270) degrees, so that the lag of a single mode (0 to 180) never wraps.
 
 **Changing speed.** The fit assumes constant 1X vectors over a revolution. For a linear
 ramp ``eta' = a`` and a 1X vector ``A(eta)`` that follows the speed slowly, its error
@@ -77,7 +77,7 @@ class Revolutions:
     forward: np.ndarray = field(repr=False)  # A_f: forward 1X vector (complex)
     backward: np.ndarray = field(repr=False)  # A_b: backward 1X vector (complex)
     x_amplitude: np.ndarray = field(repr=False)  # probe x: 1X amplitude
-    x_lag_deg: np.ndarray = field(repr=False)  # probe x: 1X phase lag (degrees, unwrapped)
+    x_lag_deg: np.ndarray = field(repr=False)  # probe x: 1X phase lag (degrees)
     y_amplitude: np.ndarray = field(repr=False)
     y_lag_deg: np.ndarray = field(repr=False)
     x_peak_to_peak: np.ndarray = field(repr=False)  # max - min of x over the revolution
@@ -246,13 +246,10 @@ def order_track(tau, x, y, phase, eta, regimes=None) -> Revolutions:
 
 
 def probe_lag_deg(a, b, probe_angle_deg: float) -> np.ndarray:
-    """Phase lag (degrees) of a probe at ``probe_angle_deg`` reading ``a cos p + b sin p``
-    = ``R cos(p - probe_angle - lag)``; unwrapped along the array, the first value in
-    [-90, 270)."""
-    lag = np.unwrap(np.arctan2(b, a) - math.radians(probe_angle_deg))
-    if lag.size:
-        lag = lag - 2.0 * math.pi * math.floor((lag[0] + 0.5 * math.pi) / (2.0 * math.pi))
-    return np.degrees(lag)
+    """Phase lag (degrees, in [-90, 270)) of a probe at ``probe_angle_deg`` reading
+    ``a cos p + b sin p = R cos(p - probe_angle - lag)``."""
+    lag = np.degrees(np.arctan2(b, a)) - probe_angle_deg
+    return np.mod(lag + 90.0, 360.0) - 90.0
 
 
 def rub_events(tau, x, y, eta, regimes=None) -> RubEvents:
