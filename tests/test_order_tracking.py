@@ -107,7 +107,7 @@ def test_run_up_bias_within_the_derived_bound(rate):
     error = r.forward - a
     assert np.all(np.abs(error - leading) <= remainder)
     assert np.all(np.abs(error) <= np.abs(leading) + remainder)
-    # the bound: under 1 % of the peak up to a = 2e-3 (nu = 0.05); 2.6 % at 4e-3
+    # the bound: under 1 % of the peak up to a = 2e-3 (nu = 0.05); 2.3 % at 4e-3
     share = np.max(np.abs(leading) + remainder) / np.max(np.abs(a))
     assert share < (1e-2 if rate <= 2e-3 else 3e-2)
     # the linear change of A over a revolution leaks into A_b: |A_b| = eps eta |A'| / 2
