@@ -435,8 +435,10 @@ def orbit_snapshots_figure(
     for ax in axes[: len(picks)]:
         ax.set_xlim(-limit, limit)
         ax.set_ylim(-limit, limit)
-    for ax in axes[(rows - 1) * columns :]:
-        ax.set_xlabel("x (clearances)")
+    for i, ax in enumerate(axes[: len(picks)]):
+        if i + columns >= len(picks):  # no panel below: this one carries the x-axis
+            ax.xaxis.set_tick_params(labelbottom=True)
+            ax.set_xlabel("x (clearances)")
     for ax in axes[::columns]:
         ax.set_ylabel("y (clearances)")
     handles, labels = axes[0].get_legend_handles_labels()
