@@ -53,6 +53,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.interpolate import CubicSpline
 
 from rubcli.analysis.spectrum import hann
@@ -186,14 +187,17 @@ def revolution_bounds(phase: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return edges[:-1], edges[1:]
 
 
-def contact_mask(x, y, regimes=None) -> np.ndarray:
+def contact_mask(x: ArrayLike, y: ArrayLike, regimes: ArrayLike | None = None) -> np.ndarray:
     """Samples in contact: a nonzero regime code, or ``z > 1`` without codes."""
     if regimes is not None:
         return np.asarray(regimes) != FREE
     return np.hypot(x, y) > 1.0
 
 
-def order_track(tau, x, y, phase, eta, regimes=None) -> Revolutions:
+def order_track(
+    tau: ArrayLike, x: ArrayLike, y: ArrayLike, phase: ArrayLike, eta: ArrayLike,
+    regimes: ArrayLike | None = None,
+) -> Revolutions:  # fmt: skip
     """Order tracking per revolution (module docstring): 1X vectors, probe amplitude and
     lag, envelope and contact fraction. ValueError for non-uniform times, a phase that
     does not increase, less than one revolution or fewer than 8 samples in one."""
@@ -211,7 +215,7 @@ def order_track(tau, x, y, phase, eta, regimes=None) -> Revolutions:
     c, s = np.cos(phase[:n]), np.sin(phase[:n])
     basis = (np.ones(n), c, s)
 
-    def sums(values):
+    def sums(values: np.ndarray) -> np.ndarray:
         return np.add.reduceat(values, start)
 
     gram = np.empty((start.size, 3, 3))
@@ -245,14 +249,16 @@ def order_track(tau, x, y, phase, eta, regimes=None) -> Revolutions:
     )
 
 
-def probe_lag_deg(a, b, probe_angle_deg: float) -> np.ndarray:
+def probe_lag_deg(a: ArrayLike, b: ArrayLike, probe_angle_deg: float) -> np.ndarray:
     """Phase lag (degrees, in [-90, 270)) of a probe at ``probe_angle_deg`` reading
     ``a cos p + b sin p = R cos(p - probe_angle - lag)``."""
     lag = np.degrees(np.arctan2(b, a)) - probe_angle_deg
     return np.mod(lag + 90.0, 360.0) - 90.0
 
 
-def rub_events(tau, x, y, eta, regimes=None) -> RubEvents:
+def rub_events(
+    tau: ArrayLike, x: ArrayLike, y: ArrayLike, eta: ArrayLike, regimes: ArrayLike | None = None
+) -> RubEvents:
     """Every change between free flight and contact over the whole record, and the onset
     (first contact) and end (last release) of the rub with the speed there."""
     tau, x, y, eta = _checked(tau, x, y, eta)
@@ -274,7 +280,7 @@ def rub_events(tau, x, y, eta, regimes=None) -> RubEvents:
     return RubEvents(t, v, on, at_start, at_end, onset_tau, onset_eta, end_tau, end_eta)
 
 
-def time_in_regimes(tau, regimes) -> dict[str, float]:
+def time_in_regimes(tau: ArrayLike, regimes: ArrayLike) -> dict[str, float]:
     """Time spent in each regime: the interval from each sample to the next counts for
     the sample's regime (so the times add up to the record's length). Keys are the names
     of ``model.REGIME_NAMES`` (an unknown code by its number), zeros included."""
@@ -313,7 +319,10 @@ def summarize(
     )
 
 
-def analyse_transient(tau, x, y, phase, eta, regimes=None):
+def analyse_transient(
+    tau: ArrayLike, x: ArrayLike, y: ArrayLike, phase: ArrayLike, eta: ArrayLike,
+    regimes: ArrayLike | None = None,
+) -> tuple[Revolutions, RubEvents, TransientSummary]:  # fmt: skip
     """``(Revolutions, RubEvents, TransientSummary)`` of a run; without regime codes the
     time is split into ``free`` and ``contact`` by ``z > 1``."""
     revolutions = order_track(tau, x, y, phase, eta, regimes)
@@ -328,10 +337,10 @@ def analyse_transient(tau, x, y, phase, eta, regimes=None):
 
 
 def order_cascade(
-    tau,
-    x,
-    y,
-    phase,
+    tau: ArrayLike,
+    x: ArrayLike,
+    y: ArrayLike,
+    phase: ArrayLike,
     *,
     revolutions_per_window: int = REVOLUTIONS_PER_WINDOW,
     samples_per_revolution: int = SAMPLES_PER_REVOLUTION,

@@ -21,7 +21,7 @@ import contextlib
 from collections.abc import Callable, Iterable, Sequence
 from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -31,9 +31,6 @@ from rubcli.analysis.spectrum import FullSpectrum, steady_spectrum
 from rubcli.analysis.synchronous import synchronous_rubs
 from rubcli.problem import Problem
 from rubcli.solution import Solution
-
-if TYPE_CHECKING:
-    from rubcli.case import AnalysisSection
 
 ProgressFactory = Callable[[str, float], AbstractContextManager[Callable[[float], None]]]
 QUICK_LYAPUNOV_PERIODS = 30
@@ -326,9 +323,10 @@ def panels_response_summary(panels: Sequence[OrbitPanel]) -> dict[str, Any] | No
     return response_summary(panels[0].responses) if panels else None
 
 
-def response_settings(analysis: AnalysisSection | None) -> ResponseSettings | None:
-    """A case's ``[analysis]`` table as response settings (None unless ``response =
-    true``)."""
+def response_settings(analysis: Any) -> ResponseSettings | None:
+    """A case's ``[analysis]`` table (``rubcli.case.AnalysisSection``, or None) as response
+    settings (None unless ``response = true``). Typed ``Any``: the analysis layer does not
+    import the case schema, which sits above it."""
     if analysis is None or not analysis.response:
         return None
     return ResponseSettings(**analysis.model_dump(exclude={"response"}))

@@ -10,7 +10,7 @@ from __future__ import annotations
 import errno
 import os
 import sys
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import Annotated, Any
 
 import typer
 from typer.core import TyperGroup
@@ -32,9 +32,6 @@ from rubcli.cli import (
 from rubcli.cli.common import EXIT_BUSY, EXIT_INVALID, EXIT_WRITE, close_outputs
 from rubcli.cli.entry import main
 from rubcli.io import signals
-
-if TYPE_CHECKING:
-    import click
 
 __all__ = ["app", "main"]
 
@@ -103,7 +100,7 @@ def _flags_show_no_type() -> None:
     if shown is None or getattr(shown, "_rubcli_flags", False):
         return
 
-    def display_type_rich(self: click.Option, ctx: click.Context) -> str | None:
+    def display_type_rich(self: Any, ctx: typer.Context) -> str | None:  # self: TyperOption
         if getattr(self, "is_flag", False) and not getattr(self, "count", False):
             return None
         return shown(self, ctx)

@@ -27,6 +27,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from matplotlib.ticker import MaxNLocator
+from numpy.typing import ArrayLike
 
 from rubcli import model
 from rubcli.analysis.order_tracking import OrderCascade, Revolutions, RubEvents
@@ -111,7 +112,9 @@ def _rub_handles(revolutions: Revolutions, events: RubEvents | None, speed: Spee
     return handles
 
 
-def broken_at_wraps(s, lag_deg, jump: float = 180.0):
+def broken_at_wraps(
+    s: ArrayLike, lag_deg: ArrayLike, jump: float = 180.0
+) -> tuple[np.ndarray, np.ndarray]:
     """``(s, lag)`` with a NaN between consecutive points whose lag jumps by more than
     ``jump`` degrees (a wrap of the [-90, 270) range), so no line crosses the panel."""
     s, lag = np.asarray(s, dtype=float), np.asarray(lag_deg, dtype=float)
@@ -191,7 +194,9 @@ def _title(title: str, what: str, note: str) -> str:
     return f"{head}\n{note}"
 
 
-def polar_labels(points: np.ndarray, speeds: np.ndarray, span: float, count: int = POLAR_LABELS):
+def polar_labels(
+    points: np.ndarray, speeds: np.ndarray, span: float, count: int = POLAR_LABELS
+) -> list[tuple[int, float]]:
     """``(index, round speed)`` of the points to label: about ``count`` round speeds
     along the curve, each at the revolution nearest it in speed, skipping any point closer
     than 10 % of ``span`` to one already labelled."""
@@ -271,7 +276,7 @@ def order_limit(cascade: OrderCascade, reference: float) -> float:
     return min(wanted, nyquist)
 
 
-def dry_whip_order(params: model.ModelParams, eta) -> np.ndarray:
+def dry_whip_order(params: model.ModelParams, eta: ArrayLike) -> np.ndarray:
     """Order of the rolling backward whirl (dry whip, ``model.rolling_whirl_radius``):
     whirl rate ``-Rp eta / r`` over the speed ``eta``, i.e. ``-Rp / r(eta)``."""
     eta = np.atleast_1d(np.asarray(eta, dtype=float))
@@ -393,9 +398,9 @@ def snapshot_revolutions(
 
 
 def orbit_snapshots_figure(
-    tau,
-    x,
-    y,
+    tau: ArrayLike,
+    x: ArrayLike,
+    y: ArrayLike,
     revolutions: Revolutions,
     *,
     speeds: Sequence[float] | None = None,
