@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
@@ -99,17 +99,7 @@ def command(
     if e is not None and e.parameter is not None:
         _basin_stability(case_file, case, out, workers, quick, json, force, wait)
         return
-    s, problems = settings_of(case, quick)
-    if problems:
-        console.error_lines(f"cannot run the ensemble of {case_file}", problems)
-        raise typer.Exit(EXIT_INVALID)
-    from rubcli.analysis.sweep import check_workers
-
-    try:
-        workers = check_workers(workers)  # no more processes than cores
-    except ValueError as exc:
-        console.error(f"--{exc}")
-        raise typer.Exit(EXIT_INVALID) from None
+    s, workers = _checked(case_file, *settings_of(case, quick), workers)
     target = command_dir(case, "ensemble", out)
     plan = prepare_output(target, force, wait, EXPECTED_FILES)
     with console.machine_readable(json):
@@ -175,18 +165,9 @@ def command(
 
 def _basin_stability(case_file, case, out, workers, quick, json, force, wait) -> None:
     """``[ensemble] parameter``: the basin stability along it (rubcli.studies.basin_stability)."""
-    from rubcli.analysis.sweep import check_workers
     from rubcli.studies import basin_stability as study
 
-    s, problems = study.settings_of(case, quick)
-    if problems:
-        console.error_lines(f"cannot run the ensemble of {case_file}", problems)
-        raise typer.Exit(EXIT_INVALID)
-    try:
-        workers = check_workers(workers)  # no more processes than cores
-    except ValueError as exc:
-        console.error(f"--{exc}")
-        raise typer.Exit(EXIT_INVALID) from None
+    s, workers = _checked(case_file, *study.settings_of(case, quick), workers)
     target = command_dir(case, "ensemble", out)
     plan = prepare_output(target, force, wait, study.FILES)
     with console.machine_readable(json):
@@ -224,3 +205,20 @@ def _basin_stability(case_file, case, out, workers, quick, json, force, wait) ->
                 console.info(f"{basin.parameter} = {p.value:g}: minimal perturbation {why}: "
                              f"{p.reason}")  # fmt: skip
         console.success(f"wrote {', '.join(report['files'])} to {target}")
+
+
+def _checked(
+    case_file: Path, settings: Any, problems: list[str], workers: int | None
+) -> tuple[Any, int]:
+    """The settings and the number of workers, or exit 2 with the problems (the table's,
+    or more workers than cores)."""
+    from rubcli.analysis.sweep import check_workers
+
+    if problems:
+        console.error_lines(f"cannot run the ensemble of {case_file}", problems)
+        raise typer.Exit(EXIT_INVALID)
+    try:
+        return settings, check_workers(workers)  # no more processes than cores
+    except ValueError as exc:
+        console.error(f"--{exc}")
+        raise typer.Exit(EXIT_INVALID) from None
