@@ -199,6 +199,27 @@ def test_chart_refuses_an_overlay_of_another_machine_or_plane(quick_map_sweep, t
         assert not out.exists() and "Traceback" not in result.output
 
 
+def test_chart_refuses_an_overlay_that_varies_a_third_parameter(tmp_path):
+    import xarray as xr
+
+    dims = ("direction", "eta", "mu", "K")
+    shape = (1, 2, 2, 2)
+    names = ("contact_fraction", "stick_fraction", "whirl_order", "status", "response_class",
+             "response_period")  # fmt: skip
+    ds = xr.Dataset({n: (dims, np.zeros(shape)) for n in names},
+                    coords={"direction": ["up"], "eta": [1.0, 2.0], "mu": [0.0, 0.1],
+                            "K": [5.0, 10.0]})  # fmt: skip
+    path = tmp_path / "sweep.nc"
+    ds.to_netcdf(path, engine="h5netcdf")
+    out = tmp_path / "out"
+    case = REPO / "cases/examples/mu-eta-map.toml"
+    result = CliRunner().invoke(app, ["chart", str(case), "--out", str(out), "--overlay",
+                                      str(path)])  # fmt: skip
+    assert result.exit_code == 2, result.output
+    assert "the sweep also varies K" in " ".join(result.output.split())
+    assert not out.exists() and "Traceback" not in result.output
+
+
 def test_chart_refuses_a_case_without_or_with_a_bad_table(tmp_path):
     base = (REPO / "cases" / "paper" / "fig3-chart.toml").read_text()
     head = base[: base.index("[chart]")]

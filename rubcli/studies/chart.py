@@ -102,6 +102,11 @@ def load_sweep_map(path: Path, table: ChartSection, params: ModelParams) -> Swee
                       v, ours[k], rel_tol=1e-12, abs_tol=1e-15)]  # fmt: skip
         if differ:
             return [f"{path}: --overlay: another machine: {', '.join(differ)}"]
+        extra = [d for d in ds["contact_fraction"].dims if d not in ("direction", table.x, table.y)]
+        if extra:
+            also = ", ".join(map(str, extra))
+            return [f"{path}: --overlay: the sweep also varies {also}: only a sweep over "
+                    f"({table.x}, {table.y}) alone can be drawn in the plane"]  # fmt: skip
         directions = [str(d) for d in ds["direction"].values]
         direction = "up" if "up" in directions else directions[0]
         one = ds.sel(direction=direction).transpose(table.y, table.x, ...)
