@@ -13,6 +13,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -183,6 +184,12 @@ class OrbitsResult:
     def ok(self) -> bool:
         return self.branch.status == "ok"
 
+    @cached_property
+    def distances(self) -> list[list[float]]:
+        """Each curve point's distance from its closed form (``closed_form_distances``),
+        computed once for curve.csv and report.json."""
+        return [closed_form_distances(c, self.case) for c in self.curves]
+
     def report(self, command_line: dict[str, Any]) -> dict[str, Any]:
         """The report.json of the study (``command_line``: what was asked for)."""
         return {
@@ -194,7 +201,11 @@ class OrbitsResult:
             "branch": self.branch.to_dict(),
             "overlay": command_line.get("overlay"),
             **(
-                {"curves": [curve_report(c, self.case) for c in self.curves]}
+                {
+                    "curves": [
+                        curve_report(c, d) for c, d in zip(self.curves, self.distances, strict=True)
+                    ]
+                }
                 if self.case.settings.orbits.second_parameter
                 else {}
             ),  # fmt: skip
@@ -234,8 +245,7 @@ class OrbitsResult:
         o = self.case.settings.orbits
         names = (o.parameter, o.second_parameter)
         lines = [",".join(curve_columns(names))]
-        for i, curve in enumerate(self.curves):
-            distances = closed_form_distances(curve, self.case)
+        for i, (curve, distances) in enumerate(zip(self.curves, self.distances, strict=True)):
             for pt, distance in zip(curve.points, distances, strict=True):
                 cells = [str(i), curve.kind, *(f"{v:.17g}" for v in pt.values)]
                 cells += [f"{v:.17g}" for v in pt.state]
@@ -287,9 +297,9 @@ def closed_form_distances(curve: cv.Curve, case: Case) -> list[float]:
     return out
 
 
-def curve_report(curve: cv.Curve, case: Case) -> dict[str, Any]:
+def curve_report(curve: cv.Curve, distances: list[float]) -> dict[str, Any]:
     """A curve in report.json, with its largest distance from the closed form."""
-    distances = [d for d in closed_form_distances(curve, case) if math.isfinite(d)]
+    distances = [d for d in distances if math.isfinite(d)]
     return {**curve.to_dict(),
             "max_distance_to_closed_form": max(distances) if distances else None}  # fmt: skip
 
