@@ -200,17 +200,20 @@ def close_client(client: Client, timeout: float = CONNECT_TIMEOUT_S) -> None:
 
 @contextlib.contextmanager
 def quiet_dask_client() -> Iterator[None]:
-    """Silence ``distributed.client``'s own error log while a sweep runs: a lost scheduler
-    is reported by the sweep in one line, not by tracebacks from the client's reconnect."""
+    """Silence ``distributed.client``'s own error log, and tornado's log of an exception in
+    an event-loop callback (the client's, when its connection breaks), while a sweep runs:
+    a lost scheduler or worker is reported by the sweep in one line, not by tracebacks."""
     import logging
 
-    logger = logging.getLogger("distributed.client")
-    level = logger.level
-    logger.setLevel(logging.CRITICAL)
+    loggers = [logging.getLogger(name) for name in ("distributed.client", "tornado.application")]
+    levels = [logger.level for logger in loggers]
+    for logger in loggers:
+        logger.setLevel(logging.CRITICAL)
     try:
         yield
     finally:
-        logger.setLevel(level)
+        for logger, level in zip(loggers, levels, strict=True):
+            logger.setLevel(level)
 
 
 def _run(plan: SweepPlan, executor: cf.Executor, *, store, workers: int = 1, batch: int = 1,
