@@ -291,6 +291,9 @@ def _balance_combination(integrals: np.ndarray) -> np.ndarray:
 
 def _kernel_inputs(solution: Solution):
     from rubcli.analysis.regimes import piece_bounds
+    from rubcli.solvers.compiled import ensure_fresh
+
+    ensure_fresh()  # the kernel's cached copy follows model.py's record
 
     b = piece_bounds(solution)
     t = np.ascontiguousarray(solution.t, dtype=float)

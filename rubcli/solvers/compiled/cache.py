@@ -40,12 +40,16 @@ from rubcli.solvers.events import start_flags, switch_regime
 # The files whose functions the kernels compile in: the cores of ``jit.COMPILABLE_CORES``
 # and every module of this sub-package (a kernel calls into its neighbours: roots.py,
 # precheck.py, ...; and jit.py holds the decorators' flags, which numba's cache key
-# omits). A change to any of them recompiles every kernel once. The fingerprint of the
-# sources the cache was built from is kept in FINGERPRINT.
+# omits), and the energy balance's kernel, which reads model.py's cores and parameter
+# record (a cached copy would keep the record's old layout). A change to any of them
+# recompiles every kernel once. The fingerprint of the sources the cache was built
+# from is kept in FINGERPRINT.
+ENERGY_KERNEL = Path(__file__).parents[2] / "analysis" / "energy_kernel.py"
 CORE_FILES = (
     Path(model.__file__),
     Path(events.__file__),
     Path(control.__file__),
+    ENERGY_KERNEL,
     *sorted(Path(__file__).parent.glob("*.py")),
 )
 FINGERPRINT = Path(__file__).parent / "__pycache__" / "cores.fingerprint"
@@ -179,7 +183,9 @@ def _store_fingerprint(fingerprint: str) -> None:
 
 
 def _dispatchers() -> list:
-    """Every compiled function of the sub-package (the kernels and the probe)."""
+    """Every compiled function of the sub-package (the kernels and the probe) and of the
+    energy balance's kernel."""
+    from rubcli.analysis import energy_kernel
     from rubcli.solvers.compiled import (
         contact,
         dop853,
@@ -196,7 +202,7 @@ def _dispatchers() -> list:
 
     modules = (
         linalg, propagators, precheck, contact, rhs, dop853, roots, dop853_loop, taylor,
-        piecewise, piecewise_loop,
+        piecewise, piecewise_loop, energy_kernel,
     )  # fmt: skip
     found = [_probe]
     for module in modules:
