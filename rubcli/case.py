@@ -43,6 +43,7 @@ from rubcli import model, units
 from rubcli.model import ModelParams
 from rubcli.problem import Problem, resolution_problem
 from rubcli.solvers import registry
+from rubcli.speed import SpeedProfile
 
 MethodName = Literal[registry.NAMES]  # every method of the registry
 KNOWN_METHODS: tuple[str, ...] = get_args(MethodName)
@@ -151,7 +152,7 @@ class ModelSection(_Section):
     """[model]: nondimensional parameters (notes section 1)."""
 
     nu: float = Field(ge=0)  # damping ratio d_r / (2 omega m)
-    eta: float = Field(gt=0)  # speed ratio Omega / omega
+    eta: float | None = Field(default=None, gt=0)  # speed ratio Omega / omega (or [speed])
     e: float = Field(ge=0)  # unbalance eccentricity / clearance
     K: float = Field(gt=0)  # stator / rotor stiffness ratio
     mu: float = Field(default=0.0, ge=0)  # Coulomb friction coefficient
@@ -160,9 +161,11 @@ class ModelSection(_Section):
 
     @field_validator("nu", "eta", "e", "K", "mu", "Rp", "phi0")
     @classmethod
-    def _in_the_models_domain(cls, value: float, info) -> float:
+    def _in_the_models_domain(cls, value: float | None, info) -> float | None:
         """The model's domain (``model.parameter_problem``), the rule a [physical] table's
         converted values are checked against too."""
+        if value is None:  # eta given by [speed]
+            return value
         problem = model.parameter_problem(info.field_name, value)
         if problem:
             raise PydanticCustomError("model_domain", problem)
@@ -181,10 +184,95 @@ class PhysicalSection(_Section):
     k_s: float = Field(gt=0)  # stator stiffness, N/m
     clearance: float = Field(gt=0)  # radial clearance, m
     e: float = Field(ge=0)  # unbalance eccentricity, m
-    Omega: float = Field(gt=0)  # spin speed, rad/s
+    Omega: float | None = Field(default=None, gt=0)  # spin speed, rad/s (or [speed])
     Rp: float = Field(default=0.0, ge=0)  # rotor radius at the rub, m
     mu: float = Field(default=0.0, ge=0)  # Coulomb friction coefficient
     phi0: float = 0.0  # unbalance phase, rad
+
+
+# =========================================================================== [speed]
+
+SpeedProfileName = Literal["ramp", "table", "driven"]
+SpeedUnit = Literal["rpm", "rad/s"]
+
+
+class SpeedSection(_Section):
+    """[speed]: a speed that changes in time (docs/runup.md). With [model]: speeds as eta,
+    ``rate`` in d eta / d tau, ``tau`` in tau. With [physical]: speeds in ``unit`` (rpm
+    unless given), ``rate`` in that unit per second, ``t`` in seconds."""
+
+    model_config = ConfigDict(populate_by_name=True)
+
+    profile: SpeedProfileName
+    start: float | None = Field(default=None, alias="from", gt=0)  # ramp
+    to: float | None = Field(default=None, gt=0)  # ramp
+    rate: float | None = None  # ramp: signed, its sign that of to - from
+    tau: list[float] | None = Field(default=None, min_length=2)  # table, [model]
+    eta: list[float] | None = Field(default=None, min_length=2)  # table, [model]
+    t: list[float] | None = Field(default=None, min_length=2)  # table, [physical]: s
+    speed: list[float] | None = Field(default=None, min_length=2)  # table, [physical]
+    unit: SpeedUnit | None = None  # [physical] only
+    # speeds (as the profile's) at which orbits.png draws a revolution (default: picked)
+    snapshots: list[Annotated[float, Field(gt=0)]] | None = Field(default=None, min_length=1)
+
+    @model_validator(mode="after")
+    def _complete(self) -> SpeedSection:
+        if self.profile == "driven":
+            raise PydanticCustomError(
+                "speed_profile",
+                "profile = 'driven' (the spin as a state, driven by a motor) is not "
+                "available yet; give 'ramp' or 'table'",
+            )
+        ramp = {"from": self.start, "to": self.to, "rate": self.rate}
+        table = {"tau": self.tau, "eta": self.eta, "t": self.t, "speed": self.speed}
+        mine, other = (ramp, table) if self.profile == "ramp" else (table, ramp)
+        extra = [k for k, v in other.items() if v is not None]
+        if extra:
+            raise PydanticCustomError(
+                "speed_keys",
+                f"{', '.join(extra)} do not belong to profile = '{self.profile}'",
+            )
+        if self.profile == "ramp":
+            missing = [k for k, v in mine.items() if v is None]
+            if missing:
+                raise PydanticCustomError(
+                    "speed_keys", f"profile = 'ramp' needs {', '.join(missing)}"
+                )
+        else:
+            pairs = [(a, b) for a, b in (("tau", "eta"), ("t", "speed"))
+                     if table[a] is not None or table[b] is not None]  # fmt: skip
+            if len(pairs) != 1 or table[pairs[0][0]] is None or table[pairs[0][1]] is None:
+                raise PydanticCustomError(
+                    "speed_keys",
+                    "profile = 'table' needs tau and eta (with [model]) or t and speed "
+                    "(with [physical])",
+                )
+        return self
+
+    def snapshot_etas(self, scale: units.PhysicalScale | None) -> list[float] | None:
+        """``snapshots`` as speed ratios."""
+        if self.snapshots is None or scale is None:
+            return self.snapshots
+        per = units.speed_unit(self.unit or "rpm")
+        return [v * per / scale.omega for v in self.snapshots]
+
+    def profile_of(self, scale: units.PhysicalScale | None) -> SpeedProfile:
+        """The nondimensional profile (ValueError naming the problem)."""
+        if scale is None:
+            if self.unit is not None or self.t is not None:
+                raise ValueError("unit and t belong to a [physical] case; use tau and eta")
+            if self.profile == "ramp":
+                return SpeedProfile.ramp(self.start, self.to, self.rate)
+            return SpeedProfile(tau=tuple(self.tau), eta=tuple(self.eta))
+        if self.tau is not None:
+            raise ValueError("tau and eta belong to a [model] case; use t (s) and speed")
+        per = units.speed_unit(self.unit or "rpm")  # rad/s per unit
+        if self.profile == "ramp":
+            start, end = self.start * per / scale.omega, self.to * per / scale.omega
+            rate = self.rate * per / scale.omega**2  # (unit/s) -> d eta / d tau
+            return SpeedProfile.ramp(start, end, rate)
+        taus = tuple(t * scale.omega for t in self.t)
+        return SpeedProfile(tau=taus, eta=tuple(v * per / scale.omega for v in self.speed))
 
 
 # ========================================================================= [initial]
@@ -203,13 +291,18 @@ class InitialSection(_Section):
 
 
 class TimeSection(_Section):
-    """[time]: duration in forcing periods 2 pi / eta and the output sampling."""
+    """[time]: duration in forcing periods 2 pi / eta and the output sampling. With
+    [speed]: ``end`` (tau, or seconds with [physical]; default the profile's end) and
+    samples per revolution at the profile's highest speed."""
 
-    periods: float = Field(gt=0)
+    periods: float | None = Field(default=None, gt=0)
     samples_per_period: int = Field(gt=0)
+    end: float | None = Field(default=None, gt=0)
 
     @model_validator(mode="after")
     def _not_too_many_samples(self) -> TimeSection:
+        if self.periods is None:  # a [speed] run: checked once its span is known
+            return self
         n = self.periods * self.samples_per_period
         if n > MAX_OUTPUT_SAMPLES:
             # pydantic fills {name} templates without format specs: format here
@@ -848,6 +941,7 @@ class CaseFile(_Section):
     case: CaseSection
     model: ModelSection | None = None
     physical: PhysicalSection | None = None
+    speed: SpeedSection | None = None
     initial: InitialSection
     time: TimeSection
     solver: SolverSection = Field(default_factory=SolverSection)
@@ -861,7 +955,58 @@ class CaseFile(_Section):
     chart: ChartSection | None = None
 
     @model_validator(mode="after")
+    def _speed_given_once(self) -> CaseFile:
+        """The speed comes from [model] eta ([physical] Omega) or from [speed], and
+        [time] counts periods only at a constant speed."""
+        table = self.model if self.model is not None else self.physical
+        if table is None:
+            return self
+        name, where = ("eta", "model") if self.model is not None else ("Omega", "physical")
+        given = getattr(table, name) is not None
+        if self.speed is None:
+            if not given:
+                raise PydanticCustomError(
+                    "speed_missing", f"{where}.{name}: missing (or give a [speed] table)"
+                )
+            if self.time.periods is None:
+                raise PydanticCustomError("speed_missing", "time.periods: missing")
+            if self.time.end is not None:
+                raise PydanticCustomError(
+                    "speed_time",
+                    "time.end: belongs to a run with [speed]; at a constant speed give "
+                    "time.periods",
+                )
+            return self
+        if given:
+            raise PydanticCustomError(
+                "speed_twice", f"{where}.{name}: the speed is given by [speed]; remove {name}"
+            )
+        if self.time.periods is not None:
+            raise PydanticCustomError(
+                "speed_time",
+                "time.periods: a speed that changes has no fixed period; a [speed] run spans "
+                "its profile, or give time.end",
+            )
+        for other in ("sweep", "orbits", "ensemble", "chart", "forces_map"):
+            if getattr(self, other) is not None:
+                raise PydanticCustomError(
+                    "speed_table",
+                    f"[{other}]: needs a constant speed, and [speed] makes it change; run it "
+                    "from a case without [speed]",
+                )
+        if "methods" not in self.solver.model_fields_set:
+            solver = self.solver.model_copy(update={"methods": ["dop853-jit"]})
+            object.__setattr__(self, "solver", solver)
+        for method in self.solver.methods:
+            why = registry.unsupported(method, registry.SPEED_PROFILE)
+            if why:
+                raise PydanticCustomError("speed_method", f"solver.methods: {why}")
+        return self
+
+    @model_validator(mode="after")
     def _run_fits_in_memory(self) -> CaseFile:
+        if self.time.periods is None:  # a [speed] run: checked once its span is known
+            return self
         samples = self.time.periods * self.time.samples_per_period
         methods = len(self.solver.methods)
         need = samples * methods * RUN_BYTES_PER_SAMPLE
@@ -1018,6 +1163,7 @@ class Case:
                 "t_span": list(p.t_span),
                 "n_samples": int(p.t_eval.size),
                 "period": p.params.period,
+                "speed": p.speed.describe() if p.speed is not None else None,
             },
             "scale": self.scale.as_dict() if self.scale is not None else None,
         }
@@ -1113,6 +1259,59 @@ def validate_case(raw: dict[str, Any], source: str = "<case>") -> CaseFile:
     return settings
 
 
+def _assemble_speed_case(
+    settings: CaseFile,
+    values: dict[str, Any],
+    initial: tuple[float, float, float, float],
+    scale: units.PhysicalScale | None,
+    path: Path | None,
+    source: str,
+) -> Case:
+    """``assemble_case`` for a run with [speed]: the profile, its span (``time.end``, or
+    the profile's last knot) sampled at ``samples_per_period`` per revolution at its
+    highest speed."""
+    assert settings.speed is not None
+    try:
+        profile = settings.speed.profile_of(scale)
+    except (ValueError, ArithmeticError) as exc:
+        raise CaseError([f"{source}: speed: {exc}"]) from None
+    for i, eta in enumerate(profile.eta):
+        why = model.parameter_problem("eta", eta)
+        if why:
+            converts = f"converts to eta = {eta!r}: " if scale is not None else ""
+            raise CaseError([f"{source}: speed: speed {i + 1} of the profile: {converts}{why}"])
+    params = ModelParams(**{**values, "eta": profile.speed(0.0)})
+    end = settings.time.end
+    t_end = profile.end if end is None else end * (scale.omega if scale is not None else 1.0)
+    if not (0.0 < t_end <= model.MAX_MAGNITUDE):
+        why = f"outside (0, {model.MAX_MAGNITUDE:g}] (the model's domain, docs/cases.md)"
+        raise CaseError([f"{source}: time.end: the run ends at tau = {t_end!r}, {why}"])
+    why = resolution_problem(params, (0.0, t_end))
+    if why:
+        where = "model.K" if scale is None else f"physical: converts to K = {params.K!r}"
+        raise CaseError([f"{source}: {where}: {why}"])
+    step = 2.0 * math.pi / (max(profile.eta) * settings.time.samples_per_period)
+    n = int(math.ceil(t_end / step)) + 1
+    need = n * len(settings.solver.methods) * RUN_BYTES_PER_SAMPLE
+    if n > MAX_OUTPUT_SAMPLES or need > MAX_CASE_MEMORY_BYTES:
+        raise CaseError(
+            [
+                f"{source}: time.samples_per_period: {n:.3g} output samples over tau 0 .. "
+                f"{t_end:.6g} ({settings.time.samples_per_period} per revolution at the "
+                f"highest speed); at most {MAX_OUTPUT_SAMPLES:,} and "
+                f"{_gib(MAX_CASE_MEMORY_BYTES)} for all methods"
+            ]
+        )
+    problem = Problem(
+        params=params,
+        initial=initial,
+        t_eval=np.linspace(0.0, t_end, n),
+        name=settings.case.name,
+        speed=profile,
+    )
+    return Case(settings=settings, problem=problem, scale=scale, path=path)
+
+
 def assemble_case(
     settings: CaseFile, path: str | Path | None = None, source: str | None = None
 ) -> Case:
@@ -1135,6 +1334,8 @@ def assemble_case(
         # SI values can be valid one by one and still convert to nonsense (an overflow,
         # an underflow to 0): the converted values must lie in [model]'s domain.
         for name, value in values.items():
+            if value is None:  # eta from [speed]
+                continue
             why = model.parameter_problem(name, value)
             if why:
                 problems.append(f"{source}: physical: converts to {name} = {value!r}: {why}")
@@ -1149,6 +1350,8 @@ def assemble_case(
             problems.append(f"{source}: initial.{name}: {converts}{why}")
     if problems:
         raise CaseError(problems)
+    if settings.speed is not None:
+        return _assemble_speed_case(settings, values, initial, scale, path, source)
     params = ModelParams(**values)
     periods = settings.time.periods
     t_end = periods * params.period

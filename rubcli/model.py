@@ -27,7 +27,7 @@ from __future__ import annotations
 import cmath
 import math
 import numbers
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -106,6 +106,11 @@ class ModelParams:
     mu: float = 0.0  # Coulomb friction coefficient
     Rp: float = 0.0  # rotor radius / clearance
     phi0: float = 0.0  # unbalance phase (rad)
+    # A speed that changes (rubcli.speed): on one leg of a speed profile the speed is
+    # eta + rate (tau - tau0) and the unbalance phase eta tau + phi0 + rate (tau - tau0)^2 / 2
+    # (its exact integral). rate = 0 is the constant speed of the paper.
+    rate: float = 0.0
+    tau0: float = 0.0
 
     def __post_init__(self) -> None:
         for name in PARAMETER_SIGNS:
@@ -114,6 +119,21 @@ class ModelParams:
             if problem:
                 raise ValueError(f"ModelParams: {name} {problem} (got {value!r})")
             object.__setattr__(self, name, value)
+        for name in ("rate", "tau0"):
+            value = real_number("ModelParams", name, getattr(self, name))
+            if not (math.isfinite(value) and abs(value) <= MAX_MAGNITUDE):
+                raise ValueError(f"ModelParams: {name} must be finite (got {value!r})")
+            object.__setattr__(self, name, value)
+
+    def speed(self, tau: FloatOrArray) -> FloatOrArray:
+        """The speed ratio at tau: eta, or on a leg of a speed profile eta + rate (tau - tau0)."""
+        if self.rate == 0.0:
+            return self.eta if np.ndim(tau) == 0 else np.full(np.shape(tau), self.eta)
+        return self.eta + self.rate * (np.asarray(tau, dtype=float) - self.tau0)
+
+    def spin(self, tau: FloatOrArray) -> FloatOrArray:
+        """The rotor's surface speed Rp eta(tau) (the first term of v_r)."""
+        return self.Rp * self.speed(tau)
 
     @property
     def E(self) -> float:
@@ -126,14 +146,16 @@ class ModelParams:
         return 2.0 * math.pi / self.eta
 
     def as_dict(self) -> dict[str, float]:
-        return asdict(self)
+        """The machine's parameters (without a speed profile's leg)."""
+        return {name: getattr(self, name) for name in PARAMETER_SIGNS}
 
 
 # The parameter record of the compiled cores: one float64 array (``params_vector``), read
 # by these names, never by position. A parameter of the machine is added here (and in
 # ``ModelParams`` and the case schema); the loops pass the record through unread.
-PARAMETER_RECORD = ("nu", "eta", "E", "phi0", "K", "mu", "Rp")
-P_NU, P_ETA, P_E, P_PHI0, P_K, P_MU, P_RP = range(len(PARAMETER_RECORD))
+# e, rate and tau0 are read only where the speed changes (``unbalance_value``).
+PARAMETER_RECORD = ("nu", "eta", "E", "phi0", "K", "mu", "Rp", "e", "rate", "tau0")
+P_NU, P_ETA, P_E, P_PHI0, P_K, P_MU, P_RP, P_ECC, P_RATE, P_TAU0 = range(len(PARAMETER_RECORD))
 N_PARAMS = len(PARAMETER_RECORD)
 
 
@@ -307,6 +329,27 @@ def contact_eigenvalues(x0: float, y0: float, params: ModelParams, mu_c: float) 
     return np.linalg.eigvals(A)
 
 
+def unbalance_value(
+    tau: FloatOrArray, eta: float, E: float, phi0: float, e: float, rate: float, tau0: float
+) -> tuple[FloatOrArray, FloatOrArray]:
+    """The unbalance force (fx, fy) at tau, scalars or arrays (compilable core).
+
+    At constant speed (rate = 0) ``E (cos p, sin p)`` with ``p = eta tau + phi0``. On a leg
+    of a speed profile the speed is ``w = eta + rate (tau - tau0)``, the phase its exact
+    integral ``p = eta tau + phi0 + rate (tau - tau0)^2 / 2``, and the force
+    ``e (w^2 (cos p, sin p) + rate (sin p, -cos p))``: the second term is the tangential
+    inertia of the unbalance while the speed changes (docs/runup.md).
+    """
+    if rate == 0.0:
+        phase = eta * tau + phi0
+        return E * np.cos(phase), E * np.sin(phase)
+    d = tau - tau0
+    phase = eta * tau + phi0 + 0.5 * rate * d * d
+    w = eta + rate * d
+    c, sn = np.cos(phase), np.sin(phase)
+    return e * (w * w * c + rate * sn), e * (w * w * sn - rate * c)
+
+
 def stick_friction_value(
     tau: FloatOrArray,
     x: FloatOrArray,
@@ -317,15 +360,25 @@ def stick_friction_value(
     eta: float,
     E: float,
     phi0: float,
+    e: float = 0.0,
+    rate: float = 0.0,
+    tau0: float = 0.0,
+    Rp: float = 0.0,
 ) -> FloatOrArray:
-    """``stick_friction`` from scalars or arrays (compilable core)."""
+    """``stick_friction`` from scalars or arrays (compilable core); ``e``, ``rate``,
+    ``tau0``, ``Rp`` are read only while the speed changes (``unbalance_value``)."""
     r = np.hypot(x, y)
-    phase = eta * tau + phi0
-    sin_rel = (np.sin(phase) * x - np.cos(phase) * y) / r  # sin(phase - theta)
     r_dot = (x * vx + y * vy) / r
     r_theta_dot = (x * vy - y * vx) / r
     theta_dot = r_theta_dot / r
-    return E * sin_rel - r_dot * theta_dot - 2.0 * nu * r_theta_dot
+    if rate == 0.0:
+        phase = eta * tau + phi0
+        sin_rel = (np.sin(phase) * x - np.cos(phase) * y) / r  # sin(phase - theta)
+        return E * sin_rel - r_dot * theta_dot - 2.0 * nu * r_theta_dot
+    # the unbalance force along theta-hat, and r theta' = -Rp eta(tau) held: its rate
+    # -Rp rate is a tangential acceleration the friction must supply
+    fx, fy = unbalance_value(tau, eta, E, phi0, e, rate, tau0)
+    return (fy * x - fx * y) / r - r_dot * theta_dot - 2.0 * nu * r_theta_dot + Rp * rate
 
 
 def stick_friction(
@@ -344,7 +397,10 @@ def stick_friction(
     Works on scalars and arrays.
     """
     tau = np.asarray(tau, dtype=float)
-    return stick_friction_value(tau, x, y, vx, vy, params.nu, params.eta, params.E, params.phi0)
+    p = params
+    return stick_friction_value(
+        tau, x, y, vx, vy, p.nu, p.eta, p.E, p.phi0, p.e, p.rate, p.tau0, p.Rp
+    )
 
 
 def tangential_force(
@@ -382,19 +438,26 @@ def tangential_force(
 
 def rhs_entries(
     tau: float, x: float, y: float, vx: float, vy: float, nu: float, eta: float, E: float,
-    phi0: float, K: float, mu: float, Rp: float, regime: int,
+    phi0: float, K: float, mu: float, Rp: float, regime: int, e: float = 0.0,
+    rate: float = 0.0, tau0: float = 0.0,
 ) -> tuple[float, float, float, float]:  # fmt: skip
-    """``rhs`` from scalars: (vx, vy, ax, ay) (compilable core)."""
+    """``rhs`` from scalars: (vx, vy, ax, ay) (compilable core); ``e``, ``rate``, ``tau0``
+    are read only while the speed changes (``unbalance_value``)."""
     if regime == STICK:
-        vx, vy = rolling_velocity(x, y, vx, vy, Rp * eta)
-    phase = eta * tau + phi0
-    ax = E * math.cos(phase) - 2.0 * nu * vx - x
-    ay = E * math.sin(phase) - 2.0 * nu * vy - y
+        vx, vy = rolling_velocity(x, y, vx, vy, Rp * (eta + rate * (tau - tau0)))
+    if rate == 0.0:
+        phase = eta * tau + phi0
+        fx, fy = E * math.cos(phase), E * math.sin(phase)
+    else:
+        fx, fy = unbalance_value(tau, eta, E, phi0, e, rate, tau0)
+    ax = fx - 2.0 * nu * vx - x
+    ay = fy - 2.0 * nu * vy - y
     if regime == STICK:
         # normal force K (z - 1) along -r_hat, rolling friction T along -theta_hat
         z = math.hypot(x, y)
         normal = K * (z - 1.0) / z
-        tangential = stick_friction_value(tau, x, y, vx, vy, nu, eta, E, phi0) / z
+        T = stick_friction_value(tau, x, y, vx, vy, nu, eta, E, phi0, e, rate, tau0, Rp)
+        tangential = T / z
         ax -= normal * x - tangential * y
         ay -= normal * y + tangential * x
     elif regime != FREE:
@@ -407,7 +470,8 @@ def rhs_entries(
 
 def rhs_jacobian_array(
     tau: float, x: float, y: float, vx: float, vy: float, nu: float, eta: float, E: float,
-    phi0: float, K: float, mu: float, Rp: float, regime: int,
+    phi0: float, K: float, mu: float, Rp: float, regime: int, e: float = 0.0,
+    rate: float = 0.0, tau0: float = 0.0,
 ) -> np.ndarray:  # fmt: skip
     """``rhs_jacobian`` from scalars (compilable core)."""
     jac = np.zeros((4, 4))
@@ -426,8 +490,10 @@ def rhs_jacobian_array(
             sm = s.copy()
             sp[j] += step
             sm[j] -= step
-            fp = rhs_entries(tau, sp[0], sp[1], sp[2], sp[3], nu, eta, E, phi0, K, mu, Rp, STICK)
-            fm = rhs_entries(tau, sm[0], sm[1], sm[2], sm[3], nu, eta, E, phi0, K, mu, Rp, STICK)
+            fp = rhs_entries(tau, sp[0], sp[1], sp[2], sp[3], nu, eta, E, phi0, K, mu, Rp,
+                             STICK, e, rate, tau0)  # fmt: skip
+            fm = rhs_entries(tau, sm[0], sm[1], sm[2], sm[3], nu, eta, E, phi0, K, mu, Rp,
+                             STICK, e, rate, tau0)  # fmt: skip
             for i in range(4):
                 jac[i, j] = (fp[i] - fm[i]) / (2 * step)
     elif regime != FREE:
@@ -448,7 +514,7 @@ def rhs_record(
     core."""
     return rhs_entries(
         tau, x, y, vx, vy, pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0], pars[P_K],
-        pars[P_MU], pars[P_RP], regime,
+        pars[P_MU], pars[P_RP], regime, pars[P_ECC], pars[P_RATE], pars[P_TAU0],
     )  # fmt: skip
 
 
@@ -458,7 +524,7 @@ def rhs_jacobian_record(
     """``rhs_jacobian_array`` with the parameters from a record. Compilable core."""
     return rhs_jacobian_array(
         tau, x, y, vx, vy, pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0], pars[P_K],
-        pars[P_MU], pars[P_RP], regime,
+        pars[P_MU], pars[P_RP], regime, pars[P_ECC], pars[P_RATE], pars[P_TAU0],
     )  # fmt: skip
 
 
@@ -469,7 +535,7 @@ def _rhs_args(tau, s, params: ModelParams, regime: int):
         float(s[1]),
         float(s[2]),
         float(s[3]),
-        *params_vector(params),
+        params_vector(params),
         int(regime),
     )
 
@@ -483,14 +549,14 @@ def rhs(
     so a solver that stops at the events z = 1 and v_r = 0 never steps across a kink.
     In stick the law is evaluated on the state projected to rolling (``project_to_rolling``).
     """
-    return np.array(rhs_entries(*_rhs_args(tau, s, params, regime)))
+    return np.array(rhs_record(*_rhs_args(tau, s, params, regime)))
 
 
 def rhs_jacobian(
     tau: float, s: Sequence[float] | np.ndarray, params: ModelParams, regime: int
 ) -> np.ndarray:
     """Jacobian of ``rhs`` with respect to the state (for implicit solvers)."""
-    return rhs_jacobian_array(*_rhs_args(tau, s, params, regime))
+    return rhs_jacobian_record(*_rhs_args(tau, s, params, regime))
 
 
 def entry_regime_value(x: float, y: float, vx: float, vy: float, mu: float, spin: float) -> int:
@@ -502,10 +568,11 @@ def entry_regime_value(x: float, y: float, vx: float, vy: float, mu: float, spin
 
 def zero_slip_regime_value(
     tau: float, x: float, y: float, vx: float, vy: float, nu: float, eta: float, E: float,
-    phi0: float, K: float, mu: float,
+    phi0: float, K: float, mu: float, e: float = 0.0, rate: float = 0.0, tau0: float = 0.0,
+    Rp: float = 0.0,
 ) -> int:  # fmt: skip
     """``regime_at_zero_slip`` from scalars: Filippov's rule (compilable core)."""
-    needed = stick_friction_value(tau, x, y, vx, vy, nu, eta, E, phi0)
+    needed = stick_friction_value(tau, x, y, vx, vy, nu, eta, E, phi0, e, rate, tau0, Rp)
     limit = mu * K * (math.hypot(x, y) - 1.0)
     if needed > limit:
         return SLIP_POSITIVE
@@ -523,9 +590,11 @@ def regime_of_state(
         return FREE
     if params.mu == 0.0:
         return SLIP_POSITIVE
-    v_r = slip_velocity(x, y, vx, vy, params.Rp, params.eta)
-    if abs(v_r) <= 1e-12 * (1.0 + abs(params.Rp * params.eta)):
-        return regime_at_zero_slip(0.0 if tau is None else tau, s, params)
+    tau = params.tau0 if tau is None else tau
+    spin = params.spin(tau)
+    v_r = slip_velocity_value(x, y, vx, vy, spin)
+    if abs(v_r) <= 1e-12 * (1.0 + abs(spin)):
+        return regime_at_zero_slip(tau, s, params)
     return SLIP_POSITIVE if v_r >= 0.0 else SLIP_NEGATIVE
 
 
@@ -537,21 +606,28 @@ def regime_at_zero_slip(tau: float, s: Sequence[float] | np.ndarray, params: Mod
     is taken only if v_r leaves zero in it: slip+ if T > L, slip- if T < -L; otherwise
     neither is consistent and the rotor sticks (rolls).
     """
-    nu, eta, E, phi0, K, mu = params_vector(params)[:6]
-    return zero_slip_regime_value(float(tau), s[0], s[1], s[2], s[3], nu, eta, E, phi0, K, mu)
+    p = params
+    return zero_slip_regime_value(
+        float(tau), s[0], s[1], s[2], s[3], p.nu, p.eta, p.E, p.phi0, p.K, p.mu, p.e, p.rate,
+        p.tau0, p.Rp,
+    )  # fmt: skip
 
 
-def project_to_rolling(s: ArrayLike, params: ModelParams) -> np.ndarray:
+def project_to_rolling(
+    s: ArrayLike, params: ModelParams, tau: FloatOrArray | None = None
+) -> np.ndarray:
     """The state with its tangential velocity set so that v_r = 0 exactly (r theta' = -Rp eta).
 
     In stick the tangential velocity is fixed by the rolling constraint, not a free
     state: the stick law is evaluated on the projected state, stick samples are reported
     projected, and the state is projected at stick entry and exit, so integration drift
-    in v_r is neither fed back nor read as a new slip reversal. Shape (4,) or (4, n).
+    in v_r is neither fed back nor read as a new slip reversal. Shape (4,) or (4, n);
+    ``tau`` (a time or one per column) matters only while the speed changes.
     """
     s = np.asarray(s, dtype=float)
     x, y, vx, vy = s
-    vx, vy = rolling_velocity(x, y, vx, vy, params.Rp * params.eta)
+    spin = params.Rp * params.eta if params.rate == 0.0 else params.spin(tau)
+    vx, vy = rolling_velocity(x, y, vx, vy, spin)
     return np.array([x, y, vx, vy])
 
 

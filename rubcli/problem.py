@@ -9,7 +9,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rubcli.model import MAX_MAGNITUDE, ModelParams, real_number
+from rubcli.model import MAX_MAGNITUDE, FloatOrArray, ModelParams, real_number
+from rubcli.speed import SpeedProfile
 
 if TYPE_CHECKING:
     from collections.abc import Iterable, Sequence
@@ -33,6 +34,8 @@ class Problem:
     initial: tuple[float, float, float, float]  # (x, y, vx, vy) at t_eval[0]
     t_eval: np.ndarray = field(repr=False)
     name: str = "problem"
+    # a speed that changes in time (None: the constant params.eta)
+    speed: SpeedProfile | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.params, ModelParams):
@@ -41,6 +44,8 @@ class Problem:
         object.__setattr__(self, "t_eval", _time_grid(self.t_eval))
         if not isinstance(self.name, str):
             raise TypeError(f"Problem: name must be a str, got {_kind(self.name)}")
+        if self.speed is not None and not isinstance(self.speed, SpeedProfile):
+            raise TypeError(f"Problem: speed must be a SpeedProfile, got {_kind(self.speed)}")
         problem = resolution_problem(self.params, self.t_eval)
         if problem:
             raise ValueError(f"Problem: params.K = {self.params.K!r}: {problem}")
@@ -86,6 +91,20 @@ class Problem:
     @property
     def t_span(self) -> tuple[float, float]:
         return float(self.t_eval[0]), float(self.t_eval[-1])
+
+    def speed_at(self, tau: FloatOrArray) -> FloatOrArray:
+        """The speed ratio at tau (params.eta when the speed is constant)."""
+        if self.speed is None:
+            return self.params.eta if np.ndim(tau) == 0 else np.full(np.shape(tau), self.params.eta)
+        return self.speed.speed(tau)
+
+    def legs(self) -> list[tuple[float, ModelParams]]:
+        """``(start, params)`` of each leg of constant eta' over the span (one leg, from
+        its start, at constant speed; ``SpeedProfile.legs``)."""
+        t0, t1 = self.t_span
+        if self.speed is None:
+            return [(t0, self.params)]
+        return self.speed.legs(self.params, t0, t1)
 
     @property
     def periods(self) -> float:

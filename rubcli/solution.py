@@ -245,9 +245,23 @@ class Solution:
         return (self.regimes != model.FREE).astype(int)
 
     @property
+    def speed(self) -> np.ndarray:
+        """The speed ratio eta at each sample (constant unless ``problem.speed``)."""
+        return np.asarray(self.problem.speed_at(self.t), dtype=float)
+
+    @property
+    def phase(self) -> np.ndarray:
+        """The unbalance phase at each sample: phi0 + the integral of the speed (rad)."""
+        p, speed = self.problem.params, self.problem.speed
+        if speed is None:
+            return p.eta * self.t + p.phi0
+        return np.asarray(speed.phase(self.t, p.phi0), dtype=float)
+
+    @property
     def slip_velocity(self) -> np.ndarray:
         p = self.problem.params
-        return model.slip_velocity(self.x, self.y, self.vx, self.vy, p.Rp, p.eta)
+        eta = p.eta if self.problem.speed is None else self.speed
+        return model.slip_velocity(self.x, self.y, self.vx, self.vy, p.Rp, eta)
 
     @property
     def normal_force(self) -> np.ndarray:
@@ -258,9 +272,21 @@ class Solution:
     def friction_force(self) -> np.ndarray:
         """Signed tangential force (positive opposes positive slip): mu_c K (z - 1) when
         slipping, the rolling friction in stick, 0 in free flight (model.tangential_force)."""
-        return model.tangential_force(
-            self.t, self.x, self.y, self.vx, self.vy, self.problem.params, self.regimes
-        )
+        if self.problem.speed is None:
+            return model.tangential_force(
+                self.t, self.x, self.y, self.vx, self.vy, self.problem.params, self.regimes
+            )
+        out = np.zeros(self.t.size)  # leg by leg: each leg's line of speed
+        legs = self.problem.legs()
+        for i, (start, params) in enumerate(legs):
+            end = legs[i + 1][0] if i + 1 < len(legs) else np.inf
+            on = (self.t >= start) & (self.t < end) if i else self.t < end
+            if np.any(on):
+                out[on] = model.tangential_force(
+                    self.t[on], self.x[on], self.y[on], self.vx[on], self.vy[on], params,
+                    self.regimes[on],
+                )  # fmt: skip
+        return out
 
     @property
     def n_contact_switches(self) -> int:

@@ -59,7 +59,7 @@ def nondimensional_values(
     k_s: float,
     clearance: float,
     e: float,
-    Omega: float,
+    Omega: float | None,
     Rp: float = 0.0,
     mu: float = 0.0,
     phi0: float = 0.0,
@@ -73,7 +73,7 @@ def nondimensional_values(
     scale = physical_scale(m, k_r, k_s, clearance)
     values = {
         "nu": d_r / (2.0 * scale.omega * m),
-        "eta": Omega / scale.omega,
+        "eta": Omega / scale.omega if Omega is not None else None,
         "e": e / clearance,
         "K": k_s / k_r,
         "mu": mu,
@@ -81,6 +81,19 @@ def nondimensional_values(
         "phi0": phi0,
     }
     return values, scale
+
+
+RAD_PER_S = {"rpm": 2.0 * math.pi / 60.0, "rad/s": 1.0}
+
+
+def speed_unit(unit: str) -> float:
+    """rad/s per ``unit`` of speed ("rpm" or "rad/s")."""
+    return RAD_PER_S[unit]
+
+
+def rpm(eta: FloatOrArray, scale: PhysicalScale) -> FloatOrArray:
+    """A speed ratio as a spin speed in rpm."""
+    return eta * scale.omega * 60.0 / (2.0 * math.pi)
 
 
 def nondimensional_params(**si: float) -> tuple[ModelParams, PhysicalScale]:

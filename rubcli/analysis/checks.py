@@ -25,6 +25,7 @@ kept in ``solver_status``); see ``rubcli run``'s exit codes.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -55,6 +56,8 @@ def penetration_bound(problem: Problem) -> float | None:
     p = problem.params
     if not p.nu > 0:
         return None
+    if problem.speed is not None:  # at the profile's highest speed (e eta^2 grows with it)
+        p = replace(p, eta=max(problem.speed.eta))
     x, y, vx, vy = problem.initial
     z0 = math.hypot(x, y)
     energy = 0.5 * (vx * vx + vy * vy) + 0.5 * z0 * z0 + 0.5 * p.K * max(0.0, z0 - 1.0) ** 2
@@ -116,8 +119,8 @@ def method_summary(solution: Solution, balance: Any = None) -> dict[str, Any]:
     t_end = float(solution.t[-1]) if solution.t.size else None
     finite = bool(np.all(np.isfinite(solution.states)))
     with np.errstate(all="ignore"):
-        if not finite:
-            energy = None
+        if not finite or solution.problem.speed is not None:
+            energy = None  # the balance's power terms assume a constant speed
         elif balance is not None:
             energy = balance.summary()
         else:
@@ -138,7 +141,12 @@ def method_summary(solution: Solution, balance: Any = None) -> dict[str, Any]:
         "penetration_bound": penetration_bound(solution.problem),
         "time_in_regime": time_in_regimes(solution),
         "energy_residual": None if energy is None else energy["energy_residual"],
-        "energy": energy,
+        "energy": energy
+        if solution.problem.speed is None
+        else {
+            "note": "not computed for a speed that changes: the balance's power terms "
+            "assume a constant speed"
+        },
         "n_samples": int(solution.t.size),
         "tau_end": t_end,
         "settings": dict(solution.settings),

@@ -284,8 +284,8 @@ def flow(
 
             def fun(t: float, Y: np.ndarray, reg: int = reg) -> np.ndarray:
                 check_deadline(deadline)
-                f = model.rhs_entries(t, Y[0], Y[1], Y[2], Y[3], *args, reg)
-                J = model.rhs_jacobian_array(t, Y[0], Y[1], Y[2], Y[3], *args, reg)
+                f = model.rhs_record(t, Y[0], Y[1], Y[2], Y[3], args, reg)
+                J = model.rhs_jacobian_record(t, Y[0], Y[1], Y[2], Y[3], args, reg)
                 out = np.empty(20)
                 out[:4] = f
                 out[4:] = (J @ Y[4:].reshape(4, 4)).ravel()
@@ -296,7 +296,7 @@ def flow(
 
             def fun(t: float, Y: np.ndarray, reg: int = reg) -> np.ndarray:
                 check_deadline(deadline)
-                return np.array(model.rhs_entries(t, Y[0], Y[1], Y[2], Y[3], *args, reg))
+                return np.array(model.rhs_record(t, Y[0], Y[1], Y[2], Y[3], args, reg))
 
             Y0 = s.copy()
         evs = _event_functions(params, reg) if locked is None else []

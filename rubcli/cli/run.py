@@ -186,10 +186,13 @@ def _run(
     plan: io.OutputPlan,
 ) -> dict[str, Any]:
     problem = case.problem
-    console.info(
-        f"{case.name}: {problem.periods:g} periods (tau 0 .. {problem.t_span[1]:.6g}), "
-        f"methods {', '.join(case.methods)}"
-    )
+    if problem.speed is None:
+        span = f"{problem.periods:g} periods (tau 0 .. {problem.t_span[1]:.6g})"
+    else:
+        turns = problem.speed.phase(problem.t_span[1], 0.0) - problem.speed.phase(0.0, 0.0)
+        revolutions = turns / (2.0 * math.pi)
+        span = f"{problem.speed.text()}, tau 0 .. {problem.t_span[1]:.6g} ({revolutions:.0f} turns)"
+    console.info(f"{case.name}: {span}, methods {', '.join(case.methods)}")
     command_line = {
         "case_file": str(case_file),
         "methods": method or None,
@@ -222,6 +225,31 @@ def _run(
         caption="events: located switches; contact: share of time in contact; max pen: "
         "largest penetration (clearances); E resid: energy-balance residual (report.json)",
     )
+    for name, entry in entries.items():
+        if entry.get("transient") is not None:
+            console.info(_transient_line(name, entry["transient"]))
     files = report["files"]
     console.info(f"wrote {len(files)} files to {case.output_dir}: {', '.join(files)}")
     return report
+
+
+def _transient_line(method: str, transient: dict) -> str:
+    """One line of a run whose speed changes: the 1X peak and the rub's speeds."""
+    if "note" in transient:
+        return transient["note"]
+    rpm = "peak_1x_forward_rpm" in transient
+    unit, key = ("rpm", "rpm") if rpm else ("", "eta")
+
+    def speed(name: str) -> str:
+        value = transient.get(f"{name}_{key}")
+        if value is None:
+            return "-"
+        return f"{value:.0f} {unit}".strip() if rpm else f"eta {value:.4g}"
+
+    end = speed("rub_end") if transient.get("rub_end_eta") is not None else "still rubbing"
+    onset = speed("rub_onset") if transient.get("rub_onset_eta") is not None else "never"
+    return (
+        f"{method}: peak 1X {transient['peak_1x_forward_amplitude']:.4g} clearances at "
+        f"{speed('peak_1x_forward')}; rub from {onset} to {end}, "
+        f"{transient['rub_transitions']} rub starts over {transient['revolutions']} revolutions"
+    )

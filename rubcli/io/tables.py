@@ -43,6 +43,11 @@ CSV_COLUMNS = (
 )
 
 
+# A run whose speed changes (``Problem.speed``): the speed ratio and the unbalance phase
+# (rad, the exact integral of the speed), and with [physical] the speed in rpm.
+CSV_SPEED_COLUMNS = ("eta", "phase")
+CSV_SPEED_PHYSICAL_COLUMNS = ("speed_rpm",)
+
 CSV_PHYSICAL_COLUMNS = (
     "t_s",
     "x_m",
@@ -95,6 +100,11 @@ def solution_columns(
                 "friction_force_N": units.newtons(solution.friction_force, scale),
             }
         )
+    if solution.problem.speed is not None:
+        eta = solution.speed
+        columns.update({"eta": eta, "phase": solution.phase})
+        if scale is not None:
+            columns["speed_rpm"] = units.rpm(eta, scale)
     return columns
 
 
@@ -138,8 +148,14 @@ def solution_blocks(
         yield list(solution_columns(part, scale).values())
 
 
-def solution_header(scale: units.PhysicalScale | None = None) -> tuple[str, ...]:
-    return CSV_COLUMNS + (CSV_PHYSICAL_COLUMNS if scale is not None else ())
+def solution_header(
+    scale: units.PhysicalScale | None = None, speed: bool = False
+) -> tuple[str, ...]:
+    """The CSV header of a solution (``speed``: its speed changes, ``Problem.speed``)."""
+    header = CSV_COLUMNS + (CSV_PHYSICAL_COLUMNS if scale is not None else ())
+    if speed:
+        header += CSV_SPEED_COLUMNS + (CSV_SPEED_PHYSICAL_COLUMNS if scale is not None else ())
+    return header
 
 
 def write_solution_csv(
@@ -156,14 +172,16 @@ def write_solution_csv(
     made them, for other threads to help format."""
     if blocks is None:
         blocks = solution_blocks(solution, scale)
-    return write_csv(path, solution_header(scale), blocks, on_rows=on_rows)
+    header = solution_header(scale, solution.problem.speed is not None)
+    return write_csv(path, header, blocks, on_rows=on_rows)
 
 
 def shared_solution_blocks(
     solution: Solution, scale: units.PhysicalScale | None = None
 ) -> SharedBlocks:
     """A solution's CSV blocks, to be formatted by any thread (``SharedBlocks``)."""
-    return SharedBlocks(solution_blocks(solution, scale), len(solution_header(scale)))
+    width = len(solution_header(scale, solution.problem.speed is not None))
+    return SharedBlocks(solution_blocks(solution, scale), width)
 
 
 def csv_field(value: object, nonfinite: str | None = None) -> str:

@@ -48,17 +48,18 @@ def _line_style(index: int) -> dict:
     return {"linestyle": dashes, "linewidth": 1.1 if index == 1 else 0.9, "zorder": 2 + index}
 
 
-def parameters_title(name: str, params: ModelParams, vary_mu: bool = False) -> str:
+def parameters_title(
+    name: str, params: ModelParams, vary_mu: bool = False, speed: str | None = None
+) -> str:
     """A figure title: the case name and its nondimensional parameters.
 
     ``vary_mu``: the figure's panels differ in mu (a sweep), so mu is not one value.
+    ``speed``: the speed changes (``SpeedProfile.text``), so eta is not one value.
     """
     p = params
     mu = "mu: see each panel" if vary_mu else f"mu={p.mu:g}"
-    return (
-        f"{name}\nnu={p.nu:g}, eta={p.eta:g}, e={p.e:g}, K={p.K:g}, "
-        f"{mu}, Rp={p.Rp:g}, phi0={p.phi0:g}"
-    )
+    eta = speed if speed is not None else f"eta={p.eta:g}"
+    return f"{name}\nnu={p.nu:g}, {eta}, e={p.e:g}, K={p.K:g}, {mu}, Rp={p.Rp:g}, phi0={p.phi0:g}"
 
 
 def orbit_figure(

@@ -19,9 +19,11 @@ from rubcli.solution import Solution
 from rubcli.solvers.registry import (  # noqa: F401
     FAMILY_MODULES,
     SPECS,
+    SPEED_PROFILE,
     Options,
     method_options,
     options_for,
+    unsupported,
 )
 
 if TYPE_CHECKING:
@@ -84,6 +86,10 @@ def solve(problem: Problem, method: str, *, watch: Watch | None = None, **option
     if method not in SPECS:
         raise ValueError(f"solve(): unknown method {method!r}; choose from {', '.join(SPECS)}")
     typed = method_options(method, options)
+    if problem.speed is not None:
+        refused = unsupported(method, SPEED_PROFILE)
+        if refused:
+            raise ValueError(f"solve(): {refused}")
     methods = _methods(SPECS[method].family)
     start = time.perf_counter()
     if watch is None:

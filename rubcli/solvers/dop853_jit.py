@@ -96,6 +96,11 @@ class Dop853Stepper:
             "compiled_events": compiled_events,
         }
 
+    def new_leg(self, run: driver.Run) -> None:
+        """A new leg of the speed profile: its parameters, and a new segment."""
+        self.pars = np.array(model.params_vector(run.params))
+        self.new_segment = True
+
     def advance(self, run: driver.Run) -> None:
         stats, pars = run.stats, self.pars
         if self.new_segment:  # as scipy starts a solver: f and the initial step

@@ -39,7 +39,7 @@ import numpy as np
 from rubcli import model
 from rubcli.problem import Problem
 from rubcli.solution import FAILED, KIND_NAMES, SUCCESS, Events, Solution, SwitchEvent
-from rubcli.solvers.events import StormGuard, apply_event, initial_kind
+from rubcli.solvers.events import STICK_EXIT, StormGuard, apply_event, initial_kind
 
 PROGRESS_FRACTION = 0.01  # report progress about every 1 % of the span
 
@@ -67,7 +67,10 @@ WATCH: ContextVar[Watch | None] = ContextVar("rubcli_watch", default=None)  # so
 
 
 class Stepper(Protocol):
-    """What a method provides to the driver (module docstring)."""
+    """What a method provides to the driver (module docstring). A method that runs a
+    speed that changes (``rubcli.speed``) also has ``new_leg(run)``: the driver calls it
+    where one leg of the profile ends and the next begins (``run.params`` is the new
+    leg's); the stepper restarts its segment there, as after an event."""
 
     settings: dict
 
@@ -149,17 +152,21 @@ class Run:
         max_wall_time_s: float,
         progress=None,
     ):
-        self.problem, self.method, self.params = problem, method, problem.params
+        self.problem, self.method = problem, method
+        # the legs of constant eta' (one at constant speed): run.params is the current one's
+        self.legs = problem.legs()
+        self.leg = 0
+        self.params = self.legs[0][1]
         self.t_eval = problem.t_eval
         self.t_end = float(self.t_eval[-1])
         self.states = np.empty((self.t_eval.size, 4))
         self.regimes = np.empty(self.t_eval.size, dtype=int)
         self.state = np.array(problem.initial, dtype=float)
         self.tau = float(self.t_eval[0])
-        self.regime = model.regime_of_state(self.state, self.params)
+        self.regime = model.regime_of_state(self.state, self.params, self.tau)
         self.states[0], self.regimes[0] = self.state, self.regime
         self.k = 1  # the next sample to fill
-        self.last_kind = initial_kind(self.state, self.regime, self.params)
+        self.last_kind = initial_kind(self.state, self.regime, self.params, self.tau)
         self.recorder = EventRecorder()
         self.stats: dict[str, int] = {"nsteps": 0}
         self.status, self.message = SUCCESS, "reached the end of the time span"
@@ -172,6 +179,23 @@ class Run:
     @property
     def failed(self) -> bool:
         return self.status == FAILED
+
+    @property
+    def leg_end(self) -> float:
+        """Where the current leg of the speed profile ends (inf on the last)."""
+        return self.legs[self.leg + 1][0] if self.leg + 1 < len(self.legs) else math.inf
+
+    def next_leg(self, stepper: Stepper) -> None:
+        """Move to the next leg of the speed profile at its start (``run.tau``): the new
+        leg's parameters, the stepper restarted; a stick whose friction the new eta'
+        takes out of the friction cone ends there (Filippov's rule at the new rate)."""
+        self.leg += 1
+        self.params = self.legs[self.leg][1]
+        stepper.new_leg(self)
+        if self.regime == model.STICK:
+            after = model.regime_at_zero_slip(self.tau, self.state, self.params)
+            if after != model.STICK:
+                self.switch(self.tau, STICK_EXIT, self.state)
 
     @property
     def steps_left(self) -> int:
@@ -260,12 +284,20 @@ def integrate(run: Run, stepper: Stepper) -> Solution:
     watch = WATCH.get()
     final = run.t_end
     seen = run.k  # samples shown to the watch so far
-    if watch is not None:
-        run.t_end = _leg_end(run, watch.every)
+    watch_end = _leg_end(run, watch.every) if watch is not None else final
+    if len(run.legs) > 1 and not hasattr(stepper, "new_leg"):
+        run.fail(f"{run.method} does not run a speed that changes in time")
+        return run.solution(stepper.settings)
+    run.t_end = min(watch_end, run.leg_end)
     try:
         # a run that blows up is reported as a failed method, not by numpy warnings
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             while run.tau < final:
+                if run.tau >= run.leg_end:
+                    run.next_leg(stepper)
+                    run.t_end = min(watch_end, run.leg_end)
+                    if run.failed:
+                        break
                 stepper.advance(run)
                 if run.failed:
                     break
@@ -276,14 +308,15 @@ def integrate(run: Run, stepper: Stepper) -> Solution:
                 if reason:
                     run.fail(reason)
                     break
-                if watch is not None and run.tau >= run.t_end:
+                if watch is not None and run.tau >= watch_end:
                     if run.k > seen:
                         stop = watch.check(run.states[seen : run.k])
                         seen = run.k
                         if stop is not None:
                             run.message = stop
                             break
-                    run.t_end = _leg_end(run, watch.every)
+                    watch_end = _leg_end(run, watch.every)
+                    run.t_end = min(watch_end, run.leg_end)
                 run.report_progress()
     except Exception as exc:  # noqa: BLE001 - a solver's exception is a failed method
         # e.g. arithmetic beyond the floating-point range (absurd parameters)

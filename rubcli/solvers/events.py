@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import numpy as np
 
 from rubcli import model
-from rubcli.model import P_E, P_ETA, P_K, P_MU, P_NU, P_PHI0, P_RP
+from rubcli.model import P_E, P_ECC, P_ETA, P_K, P_MU, P_NU, P_PHI0, P_RATE, P_RP, P_TAU0
 from rubcli.solution import KIND_NAMES, SwitchEvent
 
 if TYPE_CHECKING:
@@ -64,13 +64,21 @@ def surface_rate(S: np.ndarray) -> np.ndarray:
     return 2.0 * (S[0] * S[2] + S[1] * S[3])
 
 
-def slip_value(S: np.ndarray, params: model.ModelParams) -> np.ndarray:
-    return model.slip_velocity(S[0], S[1], S[2], S[3], params.Rp, params.eta)
+def slip_value(S: np.ndarray, params: model.ModelParams, t: FloatOrArray) -> np.ndarray:
+    """v_r of states S (shape (4, n)) at the times t."""
+    return model.slip_velocity(S[0], S[1], S[2], S[3], params.Rp, params.speed(t))
 
 
-def slip_rate(S: np.ndarray, dS: np.ndarray) -> np.ndarray:
-    """d v_r / dtau from states S and their derivatives dS (both shape (4, n))."""
-    return model.slip_velocity_rate(S[0], S[1], S[2], S[3], dS[2], dS[3])
+def slip_rate(S: np.ndarray, dS: np.ndarray, params: model.ModelParams) -> np.ndarray:
+    """d v_r / dtau from states S and their derivatives dS (both shape (4, n)); the
+    surface speed's rate Rp eta' while the speed changes."""
+    out = model.slip_velocity_rate(S[0], S[1], S[2], S[3], dS[2], dS[3])
+    return out + params.Rp * params.rate if params.rate != 0.0 else out
+
+
+def spin_at(t: float, pars: np.ndarray) -> float:
+    """Rp eta(t) from a parameter record (compilable core)."""
+    return pars[P_RP] * (pars[P_ETA] + pars[P_RATE] * (t - pars[P_TAU0]))
 
 
 def first_crossing(
@@ -147,7 +155,8 @@ def start_flags(last_kind: int) -> tuple[bool, bool, bool]:
 
 def switch_regime(
     kind: int, tau: float, x: float, y: float, vx: float, vy: float, regime: int, nu: float,
-    eta: float, E: float, phi0: float, K: float, mu: float, Rp: float,
+    eta: float, E: float, phi0: float, K: float, mu: float, Rp: float, e: float = 0.0,
+    rate: float = 0.0, tau0: float = 0.0,
 ) -> tuple[int, int, bool]:  # fmt: skip
     """The switch at a located event of ``kind`` (compilable core).
 
@@ -160,12 +169,14 @@ def switch_regime(
     if kind == EXIT:
         new = model.FREE
     elif kind == ENTRY:
-        new = model.entry_regime_value(x, y, vx, vy, mu, Rp * eta)
+        new = model.entry_regime_value(x, y, vx, vy, mu, Rp * (eta + rate * (tau - tau0)))
     elif kind == STICK_EXIT:
-        needed = model.stick_friction_value(tau, x, y, vx, vy, nu, eta, E, phi0)
+        needed = model.stick_friction_value(tau, x, y, vx, vy, nu, eta, E, phi0, e, rate, tau0, Rp)
         new = model.SLIP_POSITIVE if needed > 0.0 else model.SLIP_NEGATIVE
     else:  # slip reversal
-        new = model.zero_slip_regime_value(tau, x, y, vx, vy, nu, eta, E, phi0, K, mu)
+        new = model.zero_slip_regime_value(
+            tau, x, y, vx, vy, nu, eta, E, phi0, K, mu, e, rate, tau0, Rp
+        )
     recorded = STICK_ENTRY if new == model.STICK else kind
     stick = regime == model.STICK or new == model.STICK
     return new, recorded, stick and regime != model.FREE and new != model.FREE
@@ -210,8 +221,9 @@ def stick_margin(
     this rises through 0 (the needed friction leaves the friction cone); scalars or
     arrays (compilable core)."""
     T = model.stick_friction_value(
-        t, x, y, vx, vy, pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0]
-    )
+        t, x, y, vx, vy, pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0], pars[P_ECC],
+        pars[P_RATE], pars[P_TAU0], pars[P_RP],
+    )  # fmt: skip
     limit = pars[P_MU] * pars[P_K] * (np.hypot(x, y) - 1.0)
     return sign * T - limit * (1.0 + model.STICK_EXIT_MARGIN)
 
@@ -307,8 +319,9 @@ def event_search(
                 return sign * (2.0 * (x * vx + y * vy))
             return sign * (x**2 + y**2 - 1.0)
         if deriv:
-            return -sign * model.slip_velocity_rate(x, y, vx, vy, drow[2], drow[3])
-        return -sign * model.slip_velocity_value(x, y, vx, vy, pars[P_RP] * pars[P_ETA])
+            rate = model.slip_velocity_rate(x, y, vx, vy, drow[2], drow[3])
+            return -sign * (rate + pars[P_RP] * pars[P_RATE])
+        return -sign * model.slip_velocity_value(x, y, vx, vy, spin_at(t, pars))
 
     def event_values(
         ctx: Any, t: float, fn: int, sign: float, pars: np.ndarray, d: float, row: np.ndarray,
@@ -325,9 +338,10 @@ def event_search(
         x, y, vx, vy = row[0], row[1], row[2], row[3]
         if fn == FN_SURFACE:
             return sign * (x**2 + y**2 - 1.0), sign * (2.0 * (x * vx + y * vy))
+        rate = model.slip_velocity_rate(x, y, vx, vy, drow[2], drow[3])
         return (
-            -sign * model.slip_velocity_value(x, y, vx, vy, pars[P_RP] * pars[P_ETA]),
-            -sign * model.slip_velocity_rate(x, y, vx, vy, drow[2], drow[3]),
+            -sign * model.slip_velocity_value(x, y, vx, vy, spin_at(t, pars)),
+            -sign * (rate + pars[P_RP] * pars[P_RATE]),
         )
 
     def fill_values(
@@ -540,7 +554,7 @@ def event_search(
             best, kind = t, EXIT
         if pars[P_MU] > 0.0 and regime != model.STICK:
             sign = float(regime)
-            level = band * (1.0 + abs(pars[P_RP] * pars[P_ETA]))
+            level = band * (1.0 + abs(spin_at(grid[0], pars)))
             fill(ctx, slip, sign, grid, n, pars, d, row, drow, hv, hd)
             t = crossing(
                 ctx, slip, sign, grid, hv, hd, n, starts[1], 0.0, level, starts[2], pars,
@@ -634,8 +648,8 @@ class _PythonSegment:
         elif fn == FN_SLIP:
             if self.dS is None:
                 self.dS = self.derivatives(grid, S)
-            hv[:] = -sign * slip_value(S, self.params)
-            hd[:] = -sign * slip_rate(S, self.dS)
+            hv[:] = -sign * slip_value(S, self.params, grid)
+            hd[:] = -sign * slip_rate(S, self.dS, self.params)
         else:
             hv[:] = stick_margin(grid, *S, pars, sign)
             up, down = grid + d, grid - d
@@ -671,13 +685,17 @@ def _python_fill(segment, fn, sign, grid, n, pars, d, row, drow, hv, hd):
 _python_locate, _python_crossing = event_search(_python_ev, _python_fill)
 
 
-def initial_kind(s: Sequence[float] | np.ndarray, regime: int, params: model.ModelParams) -> int:
-    """The event surface an initial state lies on, if any (so it is not re-detected)."""
+def initial_kind(
+    s: Sequence[float] | np.ndarray, regime: int, params: model.ModelParams, tau: float = 0.0
+) -> int:
+    """The event surface an initial state at ``tau`` lies on, if any (so it is not
+    re-detected)."""
     if abs(math.hypot(s[0], s[1]) - 1.0) <= 1e-14:
         return ENTRY if regime != model.FREE else EXIT
     if regime in (model.SLIP_POSITIVE, model.SLIP_NEGATIVE) and params.mu > 0.0:
-        v_r = model.slip_velocity(s[0], s[1], s[2], s[3], params.Rp, params.eta)
-        if abs(v_r) <= 1e-12 * (1.0 + abs(params.Rp * params.eta)):
+        spin = params.spin(tau)
+        v_r = model.slip_velocity(s[0], s[1], s[2], s[3], params.Rp, params.speed(tau))
+        if abs(v_r) <= 1e-12 * (1.0 + abs(spin)):
             return STICK_EXIT
     return NO_EVENT
 
@@ -695,6 +713,6 @@ def apply_event(
         kind, tau, state[0], state[1], state[2], state[3], regime, *model.params_vector(params)
     )
     if project:
-        state = model.project_to_rolling(state, params)
+        state = model.project_to_rolling(state, params, tau)
     event = SwitchEvent(tau, KIND_NAMES[recorded], tuple(state), regime, new_regime)
     return state, new_regime, recorded, event

@@ -93,6 +93,8 @@ class MethodSpec:
     implicit: bool  # uses the Jacobian of the right-hand side (stiff-capable)
     adaptive: str | None  # the option that switches on adaptive steps, if the knob is not one
     summary: str
+    # what the method runs beyond the paper's machine at constant speed (FEATURES)
+    features: frozenset[str] = frozenset()
 
     @property
     def takes(self) -> tuple[str, ...]:
@@ -109,10 +111,24 @@ FAMILY_MODULES = {
 }
 
 
+# Features of a machine or a run that not every method supports, with why a method
+# without it refuses: the case validation and ``solve`` derive their refusals from here.
+SPEED_PROFILE = "speed profile"
+FEATURES = {
+    SPEED_PROFILE: "a speed that changes in time ([speed])",
+}
+# why the methods without a feature lack it (named in the refusal)
+LACKS = {
+    ("analytic", SPEED_PROFILE): "its closed forms assume a constant speed",
+    ("analytic-polar", SPEED_PROFILE): "its closed forms assume a constant speed",
+    ("taylor", SPEED_PROFILE): "its series recurrences assume a constant speed",
+}
+
+
 def _scipy(name: str, order: int, implicit: bool, summary: str) -> MethodSpec:
     return MethodSpec(
         name=name, family="scipy", knob=RTOL, options=ToleranceOptions, order=order,
-        implicit=implicit, adaptive=None, summary=summary,
+        implicit=implicit, adaptive=None, summary=summary, features=frozenset({SPEED_PROFILE}),
     )  # fmt: skip
 
 
@@ -167,6 +183,7 @@ SPECS: dict[str, MethodSpec] = {
             implicit=False,
             adaptive=None,
             summary="scipy's DOP853, step for step, with the step loop compiled (numba)",
+            features=frozenset({SPEED_PROFILE}),
         ),
         MethodSpec(
             name="taylor",
@@ -199,6 +216,15 @@ def method_table() -> str:
             )
         rows.append(f"| `{m.name}` | {m.summary} | {order} | {settings} |")
     return "\n".join(rows) + "\n"
+
+
+def unsupported(method: str, feature: str) -> str | None:
+    """Why ``method`` cannot run ``feature`` (a key of FEATURES), or None if it can."""
+    if feature in spec(method).features:
+        return None
+    able = ", ".join(n for n, m in SPECS.items() if feature in m.features)
+    why = LACKS.get((method, feature), "it does not implement it")
+    return f"{method} does not run {FEATURES[feature]}: {why}; use one of {able}"
 
 
 def spec(name: str) -> MethodSpec:

@@ -99,6 +99,11 @@ class ScipyStepper:
         run.stats["njev"] += int(getattr(solver, "njev", 0) or 0)
         run.stats["nlu"] += int(getattr(solver, "nlu", 0) or 0)
 
+    def new_leg(self, run: driver.Run) -> None:
+        """A new leg of the speed profile: the next segment starts with its parameters."""
+        if self.solver is not None:
+            self._end_segment(run)
+
     def advance(self, run: driver.Run) -> None:
         if self.solver is None:
             self._start_segment(run)

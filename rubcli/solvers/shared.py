@@ -45,7 +45,7 @@ def fill_samples(
     while k < t_eval.size and t_eval[k] <= t_stop:
         sample = dense(t_eval[k])
         if regime == model.STICK:
-            sample = model.project_to_rolling(sample, params)
+            sample = model.project_to_rolling(sample, params, t_eval[k])
         out_states[k], out_regimes[k] = sample, regime
         k += 1
     return k

@@ -235,7 +235,10 @@ def write_outputs(
             name = f"{solution.method}.csv"
             entries[solution.method]["files"] = [name]
             files.append(name)
-    title = plots.parameters_title(case.name, case.params)
+    speed = case.problem.speed
+    title = plots.parameters_title(
+        case.name, case.params, speed=speed.text() if speed is not None else None
+    )
     failures = {n: e["message"] for n, e in entries.items() if e["status"] == ERROR}
     transient = case.settings.analysis.transient_periods if case.settings.analysis else None
     spectra = _spectra(case, solutions, entries, transient)
@@ -254,6 +257,8 @@ def write_outputs(
                                        transient_periods=transient)  # fmt: skip
         io.save_figure(figure, staged.path(f"{plot}.png"))
         files.append(f"{plot}.png")
+    if speed is not None:
+        files += _transient_outputs(case, solutions, entries, staged)
     response = None
     settings = response_settings(case.settings.analysis)
     if settings is not None and solutions:
@@ -274,6 +279,30 @@ def write_outputs(
     }
     staged.write_report(report)
     return report
+
+
+def _transient_outputs(
+    case: Case, solutions: list[Solution], entries: dict, staged: io.StagedOutput
+) -> list[str]:
+    """A run whose speed changes: each method's order tracking in its report entry
+    (``transient``), and the figures (``studies.transient.FIGURES``) of the first
+    method that has them. Returns the files written."""
+    from rubcli.studies import transient
+
+    drawn: list[str] = []
+    for solution in solutions:
+        result = transient.analyse(case, solution)
+        if isinstance(result, str):
+            entries[solution.method]["transient"] = {"note": result}
+            continue
+        entries[solution.method]["transient"] = result.to_dict()
+        if drawn:
+            continue
+        for name, figure in transient.figures(case, solution, result).items():
+            io.save_figure(figure, staged.path(f"{name}.png"))
+            drawn.append(f"{name}.png")
+        entries[solution.method]["transient"]["figures"] = list(drawn)
+    return drawn
 
 
 def _poincare_figure(case: Case, results: list[panels.MethodResponse]):
@@ -327,6 +356,10 @@ def expected_files(case: Case) -> tuple[str, ...]:
     output = case.settings.output
     names = [f"{m}.csv" for m in case.methods] if output.csv else []
     names += [f"{plot}.png" for plot in output.plots]
+    if case.problem.speed is not None:
+        from rubcli.studies.transient import FIGURES
+
+        names += [f"{name}.png" for name in FIGURES]
     if response_settings(case.settings.analysis) is not None:
         names.append("poincare.png")
     return (*names, io.REPORT_NAME)

@@ -7,8 +7,6 @@ import math
 import numpy as np
 
 from rubcli.model import (
-    P_ETA,
-    P_RP,
     rolling_velocity,
 )
 from rubcli.solvers.compiled.dop853 import (
@@ -43,7 +41,7 @@ from rubcli.solvers.compiled.roots import (
     _dop853_may_have_event,
     apply_and_record,
 )
-from rubcli.solvers.events import run_time, start_flags
+from rubcli.solvers.events import run_time, spin_at, start_flags
 
 
 @jit
@@ -154,7 +152,7 @@ def advance_dop853(
             _dop853_dense_at(t_eval[k], tau, h, y, F, row)
             if regime == STICK_REGIME:  # samples in stick are reported projected
                 row[2], row[3] = rolling_velocity(
-                    row[0], row[1], row[2], row[3], pars[P_RP] * pars[P_ETA]
+                    row[0], row[1], row[2], row[3], spin_at(t_eval[k], pars)
                 )
             for i in range(4):
                 out_states[k, i] = row[i]

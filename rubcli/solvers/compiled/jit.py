@@ -21,6 +21,7 @@ COMPILABLE_CORES = (
     model.friction_sign,
     model.force_jacobian_entries,
     model.linearised_contact_arrays,
+    model.unbalance_value,
     model.stick_friction_value,
     model.rolling_velocity,
     model.rhs_entries,
@@ -43,6 +44,7 @@ COMPILABLE_CORES = (
     control.doubling_error,
     control.next_step,
     events.stick_margin,
+    events.spin_at,
     events.linspace_into,
     events.run_time,
 )

@@ -73,7 +73,7 @@ def _step_may_have_event(grid, S, dS, n, sign, check_slip, spin, cond, hv, hd, s
     """
     if _surface_may_cross(grid, S, n, -1.0, cond, hv, hd, starts[0]):
         return True
-    return check_slip and _slip_may_cross(grid, S, dS, n, sign, spin, cond, hv, hd, starts)
+    return check_slip and _slip_may_cross(grid, S, dS, n, sign, spin, 0.0, cond, hv, hd, starts)
 
 
 @jit
@@ -91,16 +91,20 @@ def _surface_may_cross(grid, S, n, direction, cond, hv, hd, on_surface):
 
 
 @jit
-def _slip_may_cross(grid, S, dS, n, sign, spin, cond, hv, hd, starts):
-    """The pre-check for the slip reversal h = -sign v_r (mu > 0)."""
+def _slip_may_cross(grid, S, dS, n, sign, spin, spin_rate, cond, hv, hd, starts):
+    """The pre-check for the slip reversal h = -sign v_r (mu > 0); the surface speed is
+    ``spin`` at grid[0] and changes at ``spin_rate`` (Rp eta', 0 at constant speed)."""
     rel = EVENT_MARGIN + 64.0 * EPS * cond
     rate_scale = 0.0
+    spin_scale = abs(spin)
     for i in range(n + 1):
         x, y, vx, vy = S[i, 0], S[i, 1], S[i, 2], S[i, 3]
-        hv[i] = -sign * slip_velocity_value(x, y, vx, vy, spin)
-        hd[i] = -sign * slip_velocity_rate(x, y, vx, vy, dS[i, 2], dS[i, 3])
+        spin_i = spin + spin_rate * (grid[i] - grid[0])
+        hv[i] = -sign * slip_velocity_value(x, y, vx, vy, spin_i)
+        hd[i] = -sign * (slip_velocity_rate(x, y, vx, vy, dS[i, 2], dS[i, 3]) + spin_rate)
         rate_scale = max(rate_scale, abs(hd[i]))
-    margin_v = rel * (1.0 + abs(spin))
+        spin_scale = max(spin_scale, abs(spin_i))
+    margin_v = rel * (1.0 + spin_scale)
     return _may_cross(grid, hv, hd, n, margin_v, rel * (1.0 + rate_scale), starts[1], starts[2])
 
 

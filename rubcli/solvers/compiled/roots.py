@@ -11,7 +11,19 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from rubcli import model
-from rubcli.model import P_E, P_ETA, P_K, P_MU, P_NU, P_PHI0, P_RP, rolling_velocity
+from rubcli.model import (
+    P_E,
+    P_ECC,
+    P_ETA,
+    P_K,
+    P_MU,
+    P_NU,
+    P_PHI0,
+    P_RATE,
+    P_RP,
+    P_TAU0,
+    rolling_velocity,
+)
 from rubcli.solvers.compiled.dop853 import DOP_SCAN_POINTS, _dop853_dense_at
 from rubcli.solvers.compiled.jit import jit
 from rubcli.solvers.compiled.precheck import (
@@ -21,7 +33,13 @@ from rubcli.solvers.compiled.precheck import (
     _surface_may_cross,
 )
 from rubcli.solvers.compiled.rhs import _rhs_into
-from rubcli.solvers.events import event_search, run_time, stick_margin, switch_regime
+from rubcli.solvers.events import (
+    event_search,
+    run_time,
+    spin_at,
+    stick_margin,
+    switch_regime,
+)
 
 if TYPE_CHECKING:
     import numpy as np
@@ -60,8 +78,8 @@ def _dop853_may_have_event(t_old, h, y_old, F, pars, regime, grid, S, dS, hv, hd
         _rhs_into(grid[k], S[k], pars, regime, row)
         for i in range(4):
             dS[k, i] = row[i]
-    spin = pars[P_RP] * pars[P_ETA]
-    return _slip_may_cross(grid, S, dS, n, float(regime), spin, 1.0, hv, hd, starts)
+    spin, spin_rate = spin_at(grid[0], pars), pars[P_RP] * pars[P_RATE]
+    return _slip_may_cross(grid, S, dS, n, float(regime), spin, spin_rate, 1.0, hv, hd, starts)
 
 
 @jit
@@ -117,9 +135,10 @@ def _apply_event(kind, t, s, regime, pars):
     new, recorded, project = switch_regime(
         kind, t, s[0], s[1], s[2], s[3], regime,
         pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0], pars[P_K], pars[P_MU], pars[P_RP],
+        pars[P_ECC], pars[P_RATE], pars[P_TAU0],
     )  # fmt: skip
     if project:
-        s[2], s[3] = rolling_velocity(s[0], s[1], s[2], s[3], pars[P_RP] * pars[P_ETA])
+        s[2], s[3] = rolling_velocity(s[0], s[1], s[2], s[3], spin_at(t, pars))
     return new, recorded
 
 
