@@ -108,7 +108,12 @@ class Problem:
 
     @property
     def periods(self) -> float:
-        return (self.t_span[1] - self.t_span[0]) / self.params.period
+        """The span in forcing periods (with a speed that changes: revolutions of the
+        unbalance)."""
+        t0, t1 = self.t_span
+        if self.speed is not None:
+            return (self.speed.phase(t1, 0.0) - self.speed.phase(t0, 0.0)) / (2.0 * math.pi)
+        return (t1 - t0) / self.params.period
 
 
 def _kind(value) -> str:

@@ -251,3 +251,17 @@ def test_run_on_a_ramp_writes_the_transient_products(tmp_path):
     assert abs(model.free_steady_state(0.0, low)[0]) == pytest.approx(1.0, abs=1e-3)
     assert 0.8846 < transient["rub_onset_eta"] < transient["peak_1x_forward_eta"]
     assert report["case"]["nondimensional"]["speed"]["profile"] == "ramp"
+
+
+def test_compare_measures_error_against_run_time_on_a_ramp(tmp_path):
+    """The reference of a changing speed is numerical (the closed forms are constant-speed
+    ones): dop853-jit against lsoda; the error falls with the tolerance."""
+    out = tmp_path / "cmp"
+    case = "cases/runup/ramp-up-fast.toml"
+    root = __import__("pathlib").Path(__file__).resolve().parents[1]
+    result = CliRunner().invoke(app, ["compare", str(root / case), "--quick", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    report = json.loads((out / "report.json").read_text())
+    rows = report["work_precision"]["rows"]
+    errors = [r["error_max"] for r in rows if r["method"] == "dop853-jit"]
+    assert len(errors) >= 3 and errors == sorted(errors, reverse=True) and errors[-1] < 1e-7

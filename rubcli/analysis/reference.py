@@ -166,7 +166,10 @@ def _roundoff(states: np.ndarray, params: model.ModelParams, t_end: float) -> fl
 
 
 def exact_reference(problem: Problem) -> Reference | None:
-    """The exact reference of the problem if it has one (free flight, synchronous rub)."""
+    """The exact reference of the problem if it has one (free flight, synchronous rub; at a
+    constant speed only)."""
+    if problem.speed is not None:
+        return None
     params = problem.params
     t = problem.t_eval
     t_end = float(t[-1])
@@ -313,6 +316,7 @@ def truncate_problem(problem: Problem, tau_end: float) -> Problem:
         initial=problem.initial,
         t_eval=problem.t_eval[:keep].copy(),
         name=problem.name,
+        speed=problem.speed,
     )
 
 

@@ -7,6 +7,7 @@ Exit 0 if valid, 2 with one line per problem if not. ``--json`` prints only
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated
 
@@ -16,6 +17,7 @@ from rubcli import io
 from rubcli.case import Case, CaseError, load_case
 from rubcli.cli import console
 from rubcli.cli.common import EXIT_INVALID, JsonOption, emit
+from rubcli.problem import Problem
 
 __all__ = ["EXIT_INVALID", "command", "load_or_exit", "summary_lines"]
 
@@ -27,6 +29,15 @@ def load_or_exit(path: Path) -> Case:
     except CaseError as exc:
         console.error_lines(f"invalid case file {path}", exc.problems)
         raise typer.Exit(EXIT_INVALID) from None
+
+
+def _time_line(problem: Problem) -> str:
+    """The span and the samples (for a changing speed, the profile and its revolutions)."""
+    end, n = problem.t_span[1], problem.t_eval.size
+    if problem.speed is None:
+        return f"time      {problem.periods:g} periods = tau 0 .. {end:.6g}, {n} samples"
+    turns = (problem.speed.phase(end, 0.0) - problem.speed.phase(0.0, 0.0)) / (2.0 * math.pi)
+    return f"speed     {problem.speed.text()}: tau 0 .. {end:.6g}, {turns:.0f} turns, {n} samples"
 
 
 def summary_lines(case: Case) -> list[str]:
@@ -42,8 +53,7 @@ def summary_lines(case: Case) -> list[str]:
         f"model     nu={p.nu:.6g} eta={p.eta:.6g} e={p.e:.6g} K={p.K:.6g} "
         f"mu={p.mu:.6g} Rp={p.Rp:.6g} phi0={p.phi0:.6g}",
         "initial   x={:.6g} y={:.6g} vx={:.6g} vy={:.6g}".format(*problem.initial),
-        f"time      {problem.periods:g} periods = tau 0 .. {problem.t_span[1]:.6g}, "
-        f"{problem.t_eval.size} samples",
+        _time_line(problem),
         f"methods   {', '.join(case.methods)}",
         f"output    {case.output_dir}",
     ]

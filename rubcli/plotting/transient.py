@@ -443,11 +443,12 @@ def orbit_snapshots_figure(
     for i, ax in enumerate(axes[: len(picks)]):
         if i + columns >= len(picks):  # no panel below: this one carries the x-axis
             ax.xaxis.set_tick_params(labelbottom=True)
-            ax.set_xlabel("x (clearances)")
+    fig.supxlabel("x (clearances)", fontsize="medium")
     for ax in axes[::columns]:
         ax.set_ylabel("y (clearances)")
-    handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncols=3, fontsize="small")
-    fig.suptitle(_title(title, "orbit snapshots", "one revolution each, same axes"),
+    # the key in the title: a legend below or above the equal-aspect panels met their
+    # labels or the title (constrained layout does not reserve its room there)
+    key = "one revolution each, same axes; dashed circle: the clearance z = 1; dot: its start"
+    fig.suptitle(_title(title, "orbit snapshots", key),
                  fontsize="medium")  # fmt: skip
     return fig

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from rubcli import io
 from rubcli.analysis import panels as panel_study
 from rubcli.analysis import work_precision as wpm
@@ -42,8 +44,25 @@ CSV_COLUMNS = (
 # ------------------------------------------------------------------------- helpers
 
 
+def case_periods(case: Case) -> float:
+    """The case's span in periods: ``[time] periods``, or for a speed that changes the
+    revolutions of the unbalance over the profile's span."""
+    if case.problem.speed is None:
+        return case.settings.time.periods
+    return case.problem.periods
+
+
 def _problem(case: Case, periods: float, mu: float | None = None) -> Problem:
     params = case.params if mu is None else dataclasses.replace(case.params, mu=float(mu))
+    if case.problem.speed is not None:  # the first ``periods`` revolutions of the profile
+        from rubcli.analysis.reference import truncate_problem
+
+        t = case.problem.t_eval
+        turns = (case.problem.speed.phase(t, 0.0) - case.problem.speed.phase(t[0], 0.0)) / (
+            2.0 * math.pi
+        )
+        whole = dataclasses.replace(case.problem, params=params)
+        return truncate_problem(whole, float(np.interp(periods, turns, t)))
     return Problem.from_periods(
         params,
         case.problem.initial,
@@ -67,7 +86,7 @@ def work_precision(
     progress_bar: ProgressFactory = no_progress,
 ) -> wpm.WorkPrecision:  # fmt: skip
     """Reference and work-precision table of the case (step 1 and 2)."""
-    periods = cfg.horizon_periods or case.settings.time.periods
+    periods = cfg.horizon_periods or case_periods(case)
     if quick:
         periods = min(periods, QUICK_HORIZON_PERIODS)
     problem = _problem(case, periods)
@@ -116,7 +135,7 @@ def orbit_panel(
     progress_bar: ProgressFactory = no_progress,
 ) -> OrbitPanel:
     """One mu (``rubcli.analysis.panels.orbit_panel`` on the case's problem of that mu)."""
-    periods = case.settings.time.periods
+    periods = case_periods(case)
     if quick:
         periods = min(periods, QUICK_ORBIT_PERIODS)
     return panel_study.orbit_panel(
@@ -404,7 +423,7 @@ def compare_case(
     analysis = case.settings.analysis
     wp = work_precision(case, cfg, quick, threshold, progress_bar) if cfg.work_precision else None
     mus = cfg.mu if cfg.mu is not None else [None]
-    orbit_periods = case.settings.time.periods
+    orbit_periods = case_periods(case)
     if quick:
         orbit_periods = min(orbit_periods, QUICK_ORBIT_PERIODS)
     same = (
