@@ -20,6 +20,14 @@ _PLOTS = ", ".join(KNOWN_PLOTS)
 _OPTIONAL_TABLES = """
 # Optional tables (docs/cases.md and the docs of each command); uncomment to use.
 
+# [speed]                       # a speed that changes: run-up, coast-down (docs/runup.md)
+# profile = "ramp"              # or "table" (tau = [...], eta = [...]; t, speed in SI)
+# from = 0.5                    # the speed at tau = 0 (rpm with [physical])
+# to = 2.0                      # held once reached
+# rate = 0.002                  # d eta / d tau (rpm/s with [physical]), signed
+# (with [speed]: no eta/Omega and no [time] periods; the run spans the profile;
+#  methods dop853-jit or a scipy method)
+
 # [analysis]                    # response class of each run (Poincare section, Lyapunov)
 # response = true
 # transient_periods = 10        # default: half the run
