@@ -78,7 +78,10 @@ def slip_rate(S: np.ndarray, dS: np.ndarray, params: model.ModelParams) -> np.nd
 
 def spin_at(t: float, pars: np.ndarray) -> float:
     """Rp eta(t) from a parameter record (compilable core)."""
-    return pars[P_RP] * (pars[P_ETA] + pars[P_RATE] * (t - pars[P_TAU0]))
+    rate = pars[P_RATE]
+    if rate == 0.0:  # a constant speed (the event search's hot path)
+        return pars[P_RP] * pars[P_ETA]
+    return pars[P_RP] * (pars[P_ETA] + rate * (t - pars[P_TAU0]))
 
 
 def first_crossing(
@@ -320,7 +323,9 @@ def event_search(
             return sign * (x**2 + y**2 - 1.0)
         if deriv:
             rate = model.slip_velocity_rate(x, y, vx, vy, drow[2], drow[3])
-            return -sign * (rate + pars[P_RP] * pars[P_RATE])
+            if pars[P_RATE] != 0.0:
+                rate += pars[P_RP] * pars[P_RATE]
+            return -sign * rate
         return -sign * model.slip_velocity_value(x, y, vx, vy, spin_at(t, pars))
 
     def event_values(
@@ -339,10 +344,9 @@ def event_search(
         if fn == FN_SURFACE:
             return sign * (x**2 + y**2 - 1.0), sign * (2.0 * (x * vx + y * vy))
         rate = model.slip_velocity_rate(x, y, vx, vy, drow[2], drow[3])
-        return (
-            -sign * model.slip_velocity_value(x, y, vx, vy, spin_at(t, pars)),
-            -sign * (rate + pars[P_RP] * pars[P_RATE]),
-        )
+        if pars[P_RATE] != 0.0:
+            rate += pars[P_RP] * pars[P_RATE]
+        return -sign * model.slip_velocity_value(x, y, vx, vy, spin_at(t, pars)), -sign * rate
 
     def fill_values(
         ctx: Any, fn: int, sign: float, grid: np.ndarray, n: int, pars: np.ndarray, d: float,

@@ -31,10 +31,15 @@ def _rhs_into(t, y, pars, regime, out):
     # DOP853's stages, which LLVM then inlines whole
     nu, eta, E, phi0 = pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0]
     K, mu, Rp = pars[P_K], pars[P_MU], pars[P_RP]
-    e, rate, tau0 = pars[P_ECC], pars[P_RATE], pars[P_TAU0]
-    vx, vy, ax, ay = rhs_entries(
-        t, y[0], y[1], y[2], y[3], nu, eta, E, phi0, K, mu, Rp, regime, e, rate, tau0
-    )
+    rate = pars[P_RATE]
+    if rate == 0.0:  # a constant speed: the core compiled with rate = 0 folded in
+        vx, vy, ax, ay = rhs_entries(t, y[0], y[1], y[2], y[3], nu, eta, E, phi0, K, mu, Rp,
+                                     regime)  # fmt: skip
+    else:
+        e, tau0 = pars[P_ECC], pars[P_TAU0]
+        vx, vy, ax, ay = rhs_entries(
+            t, y[0], y[1], y[2], y[3], nu, eta, E, phi0, K, mu, Rp, regime, e, rate, tau0
+        )
     out[0], out[1], out[2], out[3] = vx, vy, ax, ay
 
 
