@@ -265,3 +265,38 @@ def test_compare_measures_error_against_run_time_on_a_ramp(tmp_path):
     rows = report["work_precision"]["rows"]
     errors = [r["error_max"] for r in rows if r["method"] == "dop853-jit"]
     assert len(errors) >= 3 and errors == sorted(errors, reverse=True) and errors[-1] < 1e-7
+
+
+def test_run_overlays_a_sweep_of_the_same_machine_under_the_bode_plot(tmp_path):
+    root = __import__("pathlib").Path(__file__).resolve().parents[1]
+    runner = CliRunner()
+    sweep = tmp_path / "sweep"
+    result = runner.invoke(app, ["sweep", str(root / "cases/examples/run-up.toml"), "--quick",
+                                 "--out", str(sweep)])  # fmt: skip
+    assert result.exit_code == 0, result.output
+    ramp = root / "cases/runup/ramp-up-fast.toml"
+    out = tmp_path / "out"
+    overlay = ["--overlay", str(sweep / "sweep.nc")]
+    result = runner.invoke(app, ["run", str(ramp), "--out", str(out), *overlay])
+    assert result.exit_code == 0, result.output
+    assert (out / "bode.png").stat().st_size > 0
+
+    from rubcli.case import load_case
+    from rubcli.studies.transient import load_steady
+
+    steady = load_steady(sweep / "sweep.nc", load_case(ramp))
+    assert set(steady.z_max) == {"up", "down"}
+    # on the rub branch the steady 1X whirl is the closed-form synchronous rub radius
+    k = int(np.argmin(np.abs(steady.eta - 2.0)))
+    rub = max(model.synchronous_rub_radii(
+        model.ModelParams(**{**RUN_UP.as_dict(), "eta": float(steady.eta[k])})))  # fmt: skip
+    assert steady.forward_1x["up"][k] == pytest.approx(rub, rel=1e-3)
+
+    # another machine, or a case without [speed]: exit 2 naming the problem
+    other = tmp_path / "other.toml"
+    other.write_text(ramp.read_text().replace("e = 0.3", "e = 0.2"))
+    result = runner.invoke(app, ["run", str(other), "--out", str(tmp_path / "o2"), *overlay])
+    assert result.exit_code == 2 and "another machine: e = 0.3" in result.output
+    result = runner.invoke(app, ["run", str(root / "cases/paper/fig3a.toml"), "--out",
+                                 str(tmp_path / "o3"), *overlay])  # fmt: skip
+    assert result.exit_code == 2 and "has no [speed]" in result.output

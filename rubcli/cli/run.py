@@ -36,7 +36,7 @@ from __future__ import annotations
 import gc
 import math
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
@@ -55,6 +55,9 @@ from rubcli.cli.common import (
 )
 from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 from rubcli.studies import run as study
+
+if TYPE_CHECKING:
+    from rubcli.plotting.transient import SteadyStates
 
 EXIT_FAILED = 1
 EXIT_WARNING = 3
@@ -144,6 +147,15 @@ def command(
             help="Duration in forcing periods instead of the case's time.periods (quick checks).",
         ),
     ] = None,
+    overlay: Annotated[
+        Path | None,
+        typer.Option(
+            "--overlay",
+            metavar="SWEEP_NC",
+            help="A case with [speed]: draw the steady states of a `rubcli sweep` over eta "
+            "of the same machine (its sweep.nc) under the Bode plot.",
+        ),
+    ] = None,
     force: ForceOption = False,
     wait: WaitOption = False,
     json: JsonOption = False,
@@ -159,10 +171,11 @@ def command(
     if unavailable:
         console.error(f"{case_file}: solver.methods: not available: {', '.join(unavailable)}")
         raise typer.Exit(EXIT_INVALID)
+    steady = _steady_or_exit(case, case_file, overlay)
     plan = prepare_output(target, force, wait, study.expected_files(case))
 
     with machine_readable(json):
-        report = _run(case, case_file, method, out, periods, plan)
+        report = _run(case, case_file, method, out, periods, plan, steady)
     emit(report, json)
     entries = report["methods"]
     failed = {n: e for n, e in entries.items() if e["status"] not in ("success", WARNING)}
@@ -184,6 +197,7 @@ def _run(
     out: Path | None,
     periods: float | None,
     plan: io.OutputPlan,
+    steady: SteadyStates | None = None,
 ) -> dict[str, Any]:
     problem = case.problem
     if problem.speed is None:
@@ -214,7 +228,7 @@ def _run(
         console.info(f"start-up (compiled kernels loaded or compiled): {startup:.2f} s")
     result = study.run_case(case, progress_bar=console.progress_bar, on_error=console.exception,
                             startup_s=startup)  # fmt: skip
-    report = result.write(case.output_dir, plan, command_line, console.progress_bar)
+    report = result.write(case.output_dir, plan, command_line, console.progress_bar, steady)
     entries = report["methods"]
     report_stale(plan)
 
@@ -231,6 +245,23 @@ def _run(
     files = report["files"]
     console.info(f"wrote {len(files)} files to {case.output_dir}: {', '.join(files)}")
     return report
+
+
+def _steady_or_exit(case: Case, case_file: Path, overlay: Path | None) -> SteadyStates | None:
+    """The steady states of ``--overlay`` (None without it); exit 2 naming the problem."""
+    if overlay is None:
+        return None
+    if case.problem.speed is None:
+        console.error(f"{case_file}: --overlay draws under a run-up's Bode plot: the case "
+                      "has no [speed]")  # fmt: skip
+        raise typer.Exit(EXIT_INVALID)
+    from rubcli.studies.transient import load_steady
+
+    steady = load_steady(overlay, case)
+    if isinstance(steady, list):
+        console.error_lines("cannot overlay the sweep", steady)
+        raise typer.Exit(EXIT_INVALID)
+    return steady
 
 
 def _transient_line(method: str, transient: dict) -> str:

@@ -122,6 +122,32 @@ def broken_at_wraps(
     return np.insert(s, cut, np.nan), np.insert(lag, cut, np.nan)
 
 
+@dataclass(frozen=True)
+class SteadyStates:
+    """Steady states of the same machine at constant speeds (a ``rubcli sweep`` over eta),
+    drawn under the Bode plot: per direction of the sweep, the speeds, the 1X whirl
+    radius of the recorded periods and their largest radius."""
+
+    eta: np.ndarray
+    forward_1x: dict[str, np.ndarray]  # by direction ("up", "down")
+    z_max: dict[str, np.ndarray]
+    source: str
+
+
+STEADY_MARKERS = {"up": "^", "down": "v"}
+
+
+def _draw_steady(full, zmax, steady: SteadyStates, speed: SpeedAxis) -> None:
+    for direction, marker in STEADY_MARKERS.items():
+        if direction not in steady.z_max:
+            continue
+        style = {"ls": "none", "marker": marker, "ms": 4.5, "mfc": "none", "color": "0.35",
+                 "zorder": 2}  # fmt: skip
+        label = f"steady state, sweep {direction} ({steady.source})"
+        full.plot(speed(steady.eta), steady.forward_1x[direction], label=label, **style)
+        zmax.plot(speed(steady.eta), steady.z_max[direction], label=label, **style)
+
+
 def bode_figure(
     revolutions: Revolutions,
     events: RubEvents | None = None,
@@ -129,6 +155,7 @@ def bode_figure(
     title: str = "",
     speed_unit: str = "eta",
     rpm_per_eta: float | None = None,
+    steady: SteadyStates | None = None,
 ) -> Figure:
     """The Bode plot of a transient run, one point per revolution against its mean speed.
 
@@ -136,7 +163,9 @@ def bode_figure(
     x and y probes; their phase lag (probe convention of ``order_tracking``). Right: the
     peak-to-peak displacement of x and y; the largest radius with the clearance; the
     share of each revolution in contact. The revolutions with contact are shaded, the rub
-    onset and end marked on every panel; one legend below the panels.
+    onset and end marked on every panel; one legend below the panels. ``steady``: the
+    steady states at constant speed under the 1X and largest-radius panels (open
+    triangles: up, down), so that the delay of a jump with acceleration shows.
     """
     speed = speed_axis(speed_unit, rpm_per_eta)
     s = speed(revolutions.eta)
@@ -168,6 +197,11 @@ def bode_figure(
     zmax.set_ylim(bottom=0.0, top=1.08 * max(1.0, float(np.max(revolutions.z_max))))
     contact.plot(s, revolutions.contact_fraction, color=RUB_COLOUR, lw=1.2,
                  label="contact fraction")  # fmt: skip
+    if steady is not None:
+        _draw_steady(full, zmax, steady, speed)
+        top = max(float(np.max(revolutions.z_max)), *(float(np.nanmax(v)) for v in
+                  steady.z_max.values()))  # fmt: skip
+        zmax.set_ylim(bottom=0.0, top=1.08 * max(1.0, top))
     contact.set_ylim(-0.03, 1.03)
     contact.set_ylabel("share of the revolution (-)")
     contact.set_title("time in contact per revolution", fontsize="medium")
@@ -179,8 +213,9 @@ def bode_figure(
     handles, labels = [], []
     for ax in (full, probe, zmax, contact):
         for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
-            handles.append(h)
-            labels.append(lab)
+            if lab not in labels:  # the steady states are in two panels
+                handles.append(h)
+                labels.append(lab)
     for h in _rub_handles(revolutions, events, speed):
         handles.append(h)
         labels.append(h.get_label())

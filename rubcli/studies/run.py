@@ -18,7 +18,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -29,6 +29,9 @@ from rubcli.analysis.panels import ProgressFactory, no_progress
 from rubcli.case import Case
 from rubcli.solution import Solution
 from rubcli.studies.compare import response_settings
+
+if TYPE_CHECKING:
+    from rubcli.plotting.transient import SteadyStates
 
 ERROR = "error"  # status of a method whose solver raised an exception
 
@@ -121,10 +124,12 @@ class RunResult:
     def write(
         self, directory: str | Path, plan: io.OutputPlan | None = None,
         command_line: dict[str, Any] | None = None, progress_bar: ProgressFactory = no_progress,
+        steady: SteadyStates | None = None,
     ) -> dict[str, Any]:  # fmt: skip
         """Write the case's products into ``directory`` as one commit (``plan``: the dir
         as the caller opened and checked it; without one it is opened here); returns the
-        report."""
+        report. ``steady``: a sweep's steady states under the Bode plot of a run whose
+        speed changes (``studies.transient.load_steady``)."""
         case = self.case
         command_line = command_line or {"out": str(directory)}
         with io.staged_output_dir(directory, plan) as staged, io.Background() as background:
@@ -132,7 +137,7 @@ class RunResult:
             write_csvs_in_background(case, self.solutions, staged, background)
             entries = self.entries()  # meanwhile: the compiled energy balance
             return write_outputs(case, self.solutions, entries, command_line, staged,
-                                 background, self._balances, progress_bar)  # fmt: skip
+                                 background, self._balances, progress_bar, steady)  # fmt: skip
 
 
 def run_case(
@@ -222,6 +227,7 @@ def write_outputs(
     background: io.Background,
     balances: dict[str, Any] | None = None,
     progress_bar: ProgressFactory = no_progress,
+    steady: SteadyStates | None = None,
 ) -> dict[str, Any]:
     """Write the requested figures and report.json into the staged output dir, the CSVs
     having been handed to ``background`` (``write_csvs_in_background``); waits for them;
@@ -258,7 +264,7 @@ def write_outputs(
         io.save_figure(figure, staged.path(f"{plot}.png"))
         files.append(f"{plot}.png")
     if speed is not None:
-        files += _transient_outputs(case, solutions, entries, staged)
+        files += _transient_outputs(case, solutions, entries, staged, steady)
     response = None
     settings = response_settings(case.settings.analysis)
     if settings is not None and solutions:
@@ -282,8 +288,9 @@ def write_outputs(
 
 
 def _transient_outputs(
-    case: Case, solutions: list[Solution], entries: dict, staged: io.StagedOutput
-) -> list[str]:
+    case: Case, solutions: list[Solution], entries: dict, staged: io.StagedOutput,
+    steady: SteadyStates | None = None,
+) -> list[str]:  # fmt: skip
     """A run whose speed changes: each method's order tracking in its report entry
     (``transient``), and the figures (``studies.transient.FIGURES``) of the first
     method that has them. Returns the files written."""
@@ -298,7 +305,7 @@ def _transient_outputs(
         entries[solution.method]["transient"] = result.to_dict()
         if drawn:
             continue
-        for name, figure in transient.figures(case, solution, result).items():
+        for name, figure in transient.figures(case, solution, result, steady).items():
             io.save_figure(figure, staged.path(f"{name}.png"))
             drawn.append(f"{name}.png")
         entries[solution.method]["transient"]["figures"] = list(drawn)

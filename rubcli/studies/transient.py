@@ -7,7 +7,9 @@ Speeds are drawn in rpm for a [physical] case.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -18,6 +20,7 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
     from rubcli.case import Case
+    from rubcli.plotting.transient import SteadyStates
     from rubcli.solution import Solution
 
 FIGURES = ("bode", "polar", "cascade", "orbits")
@@ -61,8 +64,11 @@ def analyse(case: Case, solution: Solution) -> Transient | str:
     return Transient(solution.method, revolutions, events, summary, cascade, rpm)
 
 
-def figures(case: Case, solution: Solution, transient: Transient) -> dict[str, Figure]:
-    """The transient figures by name (``FIGURES``; cascade.png only when a window fits)."""
+def figures(
+    case: Case, solution: Solution, transient: Transient, steady: SteadyStates | None = None
+) -> dict[str, Figure]:
+    """The transient figures by name (``FIGURES``; cascade.png only when a window fits);
+    ``steady``: a sweep's steady states under the Bode plot (``load_steady``)."""
     from rubcli.plotting import transient as plots
     from rubcli.plotting.run import parameters_title
 
@@ -71,7 +77,9 @@ def figures(case: Case, solution: Solution, transient: Transient) -> dict[str, F
     speed_text = case.problem.speed.text() if case.problem.speed is not None else None
     title = f"{parameters_title(case.name, case.params, speed=speed_text)} ({solution.method})"
     out = {
-        "bode": plots.bode_figure(transient.revolutions, transient.events, title=title, **units),
+        "bode": plots.bode_figure(
+            transient.revolutions, transient.events, title=title, steady=steady, **units
+        ),
         "polar": plots.polar_figure(transient.revolutions, title=title, **units),
     }
     if transient.cascade is not None:
@@ -85,3 +93,48 @@ def figures(case: Case, solution: Solution, transient: Transient) -> dict[str, F
         title=title, **units,
     )  # fmt: skip
     return out
+
+
+def load_steady(path: Path, case: Case) -> SteadyStates | list[str]:
+    """The steady states of a ``rubcli sweep`` over eta of the same machine (``--overlay``),
+    or the problems that keep it from being drawn under this run's Bode plot."""
+    import json
+
+    from rubcli.plotting.transient import SteadyStates
+
+    try:
+        import xarray as xr
+
+        ds = xr.open_dataset(path, engine="h5netcdf")
+    except FileNotFoundError:
+        return [f"{path}: --overlay: file not found"]
+    except Exception as exc:  # any unreadable file is bad input, not a crash
+        return [f"{path}: --overlay: not a readable NetCDF file ({type(exc).__name__}: {exc})"]
+    with ds:
+        missing = [n for n in ("eta", "z_max", "spectrum", "direction") if n not in ds.variables]
+        if missing:
+            return [f"{path}: --overlay: not a rubcli sweep over eta: no {', '.join(missing)}"]
+        extra = [d for d in ds["z_max"].dims if d not in ("direction", "eta")]
+        if extra:
+            return [f"{path}: --overlay: the sweep also varies {', '.join(map(str, extra))}: "
+                    "only a sweep over eta alone is a branch under the Bode plot"]  # fmt: skip
+        try:
+            held = json.loads(ds.attrs.get("plan", "{}")).get("params", {})
+        except ValueError:
+            held = {}
+        ours = case.params.as_dict()
+        differ = [f"{k} = {v:g} (this case: {ours[k]:g})" for k, v in held.items()
+                  if k in ours and k not in ("eta", "phi0") and not math.isclose(
+                      v, ours[k], rel_tol=1e-12, abs_tol=1e-15)]  # fmt: skip
+        if differ:
+            return [f"{path}: --overlay: another machine: {', '.join(differ)}"]
+        one_x = ds["spectrum"].sel(order=1.0, method="nearest")
+        if not math.isclose(float(one_x["order"]), 1.0, abs_tol=1e-9):
+            return [f"{path}: --overlay: the sweep's spectrum has no order 1 line"]
+        directions = [str(d) for d in ds["direction"].values]
+        return SteadyStates(
+            eta=np.asarray(ds["eta"].values, dtype=float),
+            forward_1x={d: np.asarray(one_x.sel(direction=d).values, float) for d in directions},
+            z_max={d: np.asarray(ds["z_max"].sel(direction=d).values, float) for d in directions},
+            source=Path(path).name,
+        )
