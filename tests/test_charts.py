@@ -187,7 +187,7 @@ def test_chart_with_a_sweep_beside_it(quick_map_sweep, tmp_path):
 def test_chart_refuses_an_overlay_of_another_machine_or_plane(quick_map_sweep, tmp_path):
     runner = CliRunner()
     for case, overlay, message in [
-        ("paper/fig3-chart.toml", quick_map_sweep, "another machine: K = 10 (the case: 17.6)"),
+        ("paper/fig3-chart.toml", quick_map_sweep, "another machine: K = 10 (this case: 17.6)"),
         ("examples/run-up-chart.toml", quick_map_sweep, "not a sweep over (eta, e): no e"),
         ("examples/mu-eta-map.toml", tmp_path / "none.nc", "file not found"),
     ]:  # fmt: skip

@@ -75,16 +75,11 @@ def load_sweep_map(path: Path, table: ChartSection, params: ModelParams) -> Swee
     """The sweep.nc at ``path`` as a SweepMap over the chart's plane, or its problems: it
     must sweep the chart's two parameters (any order) with the chart's other parameters
     held at the case's values. Of a run-up and run-down, the run-up is shown."""
-    import json
+    from rubcli.studies.sweep import open_overlay, other_machine
 
-    try:
-        import xarray as xr
-
-        ds = xr.open_dataset(path, engine="h5netcdf")
-    except FileNotFoundError:
-        return [f"{path}: --overlay: file not found"]
-    except Exception as exc:  # any unreadable file is bad input, not a crash
-        return [f"{path}: --overlay: not a readable NetCDF file ({type(exc).__name__}: {exc})"]
+    ds = open_overlay(path)
+    if isinstance(ds, list):
+        return ds
     with ds:
         needed = ("contact_fraction", "stick_fraction", "whirl_order", "status",
                   "response_class", "response_period")  # fmt: skip
@@ -92,14 +87,7 @@ def load_sweep_map(path: Path, table: ChartSection, params: ModelParams) -> Swee
         if missing:
             return [f"{path}: --overlay: not a sweep over ({table.x}, {table.y}): "
                     f"no {', '.join(missing)}"]  # fmt: skip
-        try:
-            held = json.loads(ds.attrs.get("plan", "{}")).get("params", {})
-        except ValueError:
-            held = {}
-        ours = params.as_dict()
-        differ = [f"{k} = {v:g} (the case: {ours[k]:g})" for k, v in held.items()
-                  if k in ours and k not in (table.x, table.y) and not math.isclose(
-                      v, ours[k], rel_tol=1e-12, abs_tol=1e-15)]  # fmt: skip
+        differ = other_machine(ds, params, (table.x, table.y))
         if differ:
             return [f"{path}: --overlay: another machine: {', '.join(differ)}"]
         extra = [d for d in ds["contact_fraction"].dims if d not in ("direction", table.x, table.y)]

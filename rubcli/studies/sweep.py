@@ -19,6 +19,7 @@ if TYPE_CHECKING:  # (the engine, xarray and Dask load only when a sweep runs)
     from rubcli.analysis.sweep import SweepPlan
     from rubcli.analysis.sweep.engine import RunStats
     from rubcli.case import Case
+    from rubcli.model import ModelParams
 
 
 def store_dir_for(target: Path, digest: str) -> Path:
@@ -212,3 +213,32 @@ def local_cluster(workers: int | None) -> tuple[Any, Any]:
         dashboard_address=None,
     )  # fmt: skip
     return Client(cluster, set_as_default=False), cluster
+
+
+def open_overlay(path: Path) -> xr.Dataset | list[str]:
+    """A sweep.nc given to ``--overlay`` (``rubcli chart``, ``rubcli run``), opened, or why
+    it cannot be read (bad input, never a crash)."""
+    try:
+        import xarray as xr
+
+        return xr.open_dataset(path, engine="h5netcdf")
+    except FileNotFoundError:
+        return [f"{path}: --overlay: file not found"]
+    except Exception as exc:  # any unreadable file is bad input, not a crash
+        return [f"{path}: --overlay: not a readable NetCDF file ({type(exc).__name__}: {exc})"]
+
+
+def other_machine(ds: xr.Dataset, params: ModelParams, free: tuple[str, ...]) -> list[str]:
+    """The parameters, other than ``free``, that the sweep held at other values than
+    ``params`` (``"e = 0.3 (this case: 0.2)"``): empty for the same machine."""
+    import json
+    import math
+
+    try:
+        held = json.loads(ds.attrs.get("plan", "{}")).get("params", {})
+    except ValueError:
+        held = {}
+    ours = params.as_dict()
+    return [f"{k} = {v:g} (this case: {ours[k]:g})" for k, v in held.items()
+            if k in ours and k not in free and not math.isclose(
+                v, ours[k], rel_tol=1e-12, abs_tol=1e-15)]  # fmt: skip

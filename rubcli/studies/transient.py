@@ -98,18 +98,12 @@ def figures(
 def load_steady(path: Path, case: Case) -> SteadyStates | list[str]:
     """The steady states of a ``rubcli sweep`` over eta of the same machine (``--overlay``),
     or the problems that keep it from being drawn under this run's Bode plot."""
-    import json
-
     from rubcli.plotting.transient import SteadyStates
+    from rubcli.studies.sweep import open_overlay, other_machine
 
-    try:
-        import xarray as xr
-
-        ds = xr.open_dataset(path, engine="h5netcdf")
-    except FileNotFoundError:
-        return [f"{path}: --overlay: file not found"]
-    except Exception as exc:  # any unreadable file is bad input, not a crash
-        return [f"{path}: --overlay: not a readable NetCDF file ({type(exc).__name__}: {exc})"]
+    ds = open_overlay(path)
+    if isinstance(ds, list):
+        return ds
     with ds:
         missing = [n for n in ("eta", "z_max", "spectrum", "direction") if n not in ds.variables]
         if missing:
@@ -118,14 +112,7 @@ def load_steady(path: Path, case: Case) -> SteadyStates | list[str]:
         if extra:
             return [f"{path}: --overlay: the sweep also varies {', '.join(map(str, extra))}: "
                     "only a sweep over eta alone is a branch under the Bode plot"]  # fmt: skip
-        try:
-            held = json.loads(ds.attrs.get("plan", "{}")).get("params", {})
-        except ValueError:
-            held = {}
-        ours = case.params.as_dict()
-        differ = [f"{k} = {v:g} (this case: {ours[k]:g})" for k, v in held.items()
-                  if k in ours and k not in ("eta", "phi0") and not math.isclose(
-                      v, ours[k], rel_tol=1e-12, abs_tol=1e-15)]  # fmt: skip
+        differ = other_machine(ds, case.params, ("eta", "phi0"))
         if differ:
             return [f"{path}: --overlay: another machine: {', '.join(differ)}"]
         one_x = ds["spectrum"].sel(order=1.0, method="nearest")
