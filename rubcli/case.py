@@ -987,13 +987,26 @@ class CaseFile(_Section):
                 "time.periods: a speed that changes has no fixed period; a [speed] run spans "
                 "its profile, or give time.end",
             )
-        for other in ("sweep", "orbits", "ensemble", "chart", "forces_map"):
+        for other in ("sweep", "orbits", "ensemble", "chart", "forces_map", "analysis"):
             if getattr(self, other) is not None:
                 raise PydanticCustomError(
                     "speed_table",
                     f"[{other}]: needs a constant speed, and [speed] makes it change; run it "
                     "from a case without [speed]",
                 )
+        # orbit.png, time.png, energy.png and spectrum.png count periods of one speed (the
+        # keyphasor, the last periods, the spectrum's orders, the balance's power terms):
+        # a run whose speed changes draws bode, polar, cascade and orbits.png instead
+        if "plots" not in self.output.model_fields_set:
+            output = self.output.model_copy(update={"plots": []})
+            object.__setattr__(self, "output", output)
+        elif self.output.plots:
+            raise PydanticCustomError(
+                "speed_plots",
+                f"output.plots: {', '.join(self.output.plots)} count periods of a constant "
+                "speed; with [speed] a run draws bode.png, polar.png, cascade.png and "
+                "orbits.png (give plots = [] or leave it out)",
+            )
         if "methods" not in self.solver.model_fields_set:
             solver = self.solver.model_copy(update={"methods": ["dop853-jit"]})
             object.__setattr__(self, "solver", solver)

@@ -211,6 +211,8 @@ def test_methods_without_the_feature_refuse_it_with_the_reason():
         ({"speed": 'profile = "driven"\n'}, "not available yet"),
         ({"solver": 'methods = ["analytic"]\n'}, "solver.methods: analytic does not run"),
         ({"time": "periods = 10\nsamples_per_period = 20\n"}, "time.periods: a speed that"),
+        ({"output": 'plots = ["orbit"]\n'}, "output.plots: orbit count periods of a constant"),
+        ({"analysis": "response = true\n"}, "\\[analysis\\]: needs a constant speed"),
     ],
 )  # fmt: skip
 def test_a_bad_speed_table_is_refused_naming_the_field(change, message):

@@ -247,7 +247,8 @@ def write_outputs(
     )
     failures = {n: e["message"] for n, e in entries.items() if e["status"] == ERROR}
     transient = case.settings.analysis.transient_periods if case.settings.analysis else None
-    spectra = _spectra(case, solutions, entries, transient)
+    # (a run whose speed changes has no spectrum in orders of one speed: cascade.png)
+    spectra = _spectra(case, solutions, entries, transient) if speed is None else []
     for plot in output.plots:
         if plot == "energy":
             figure = _energy_figure(solutions, title, case.scale, balances)
