@@ -267,6 +267,8 @@ def test_compare_measures_error_against_run_time_on_a_ramp(tmp_path):
     rows = report["work_precision"]["rows"]
     errors = [r["error_max"] for r in rows if r["method"] == "dop853-jit"]
     assert len(errors) >= 3 and errors == sorted(errors, reverse=True) and errors[-1] < 1e-7
+    # no orbits.png or spectrum.png: their keyphasor and orders count periods of one speed
+    assert not (out / "orbits.png").exists() and not (out / "spectrum.png").exists()
 
 
 def test_run_overlays_a_sweep_of_the_same_machine_under_the_bode_plot(tmp_path):

@@ -184,9 +184,10 @@ def steady_spectrum(
     """The full spectrum of a successful Solution over its steady span, or None.
 
     The steady span follows ``default_transient``; None for a failed run, a record of
-    less than two forcing periods or a non-finite one (nothing trustworthy to analyse).
+    less than two forcing periods or a non-finite one (nothing trustworthy to analyse), and
+    for a speed that changes (its orders have no one speed; ``order_tracking.order_cascade``).
     """
-    if not solution.success or solution.t.size < 8:
+    if not solution.success or solution.t.size < 8 or solution.problem.speed is not None:
         return None
     period = solution.problem.params.period
     recorded = float(solution.t[-1] - solution.t[0]) / period

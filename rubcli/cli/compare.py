@@ -17,7 +17,8 @@ What it does, in order (docs/compare.md):
    the largest difference between the methods. Writes ``orbits.png`` (one panel per mu:
    transient faded, the last periods bold, keyphasor dots), ``spectrum.png`` (the full
    spectrum of x + i y over the steady span, per mu; its dominant line in report.json)
-   and, with a mu list, ``sweep.csv``. The synchronous full annular rub of each mu is
+   (both at a constant speed only: with ``[speed]`` their keyphasor and orders have no
+   one period) and, with a mu list, ``sweep.csv``. The synchronous full annular rub of each mu is
    reported with its stability (``rubcli.analysis.synchronous``).
 4. **Response** (only with ``[analysis] response = true``): the class of each method's
    steady response from the stroboscopic section after ``transient_periods``, backed by

@@ -324,7 +324,9 @@ def expected_files(case: Case, cfg: CompareSection) -> tuple[str, ...]:
     """The files ``rubcli compare`` writes for ``case`` (``poincare.png`` with responses)."""
     names = ["work_precision.csv", "work_precision.png", "error_growth.png"]
     names = names if cfg.work_precision else []
-    names += ["orbits.png", "spectrum.png"] + (["sweep.csv"] if cfg.mu is not None else [])
+    if case.problem.speed is None:  # both count periods of one speed
+        names += ["orbits.png", "spectrum.png"]
+    names += ["sweep.csv"] if cfg.mu is not None else []
     if response_settings(case.settings.analysis) is not None:
         names.append("poincare.png")
     return (*names, "report.md", io.REPORT_NAME)
@@ -353,7 +355,8 @@ class CompareResult:
         from rubcli.plotting.spectrum import spectrum_figure
 
         case, wp, panels, analysis = self.case, self.wp, self.panels, self.case.settings.analysis
-        title = parameters_title(case.name, case.params)
+        speed = case.problem.speed.text() if case.problem.speed is not None else None
+        title = parameters_title(case.name, case.params, speed=speed)
         files: list[str] = []
         with io.staged_output_dir(directory, plan) as staged:
             if wp is not None:
@@ -370,14 +373,16 @@ class CompareResult:
                  "transient_periods": steady_transient(analysis, p.problem.periods)}
                 for p in panels
             ]  # fmt: skip
-            sweep_title = parameters_title(case.name, case.params, vary_mu=len(panels) > 1)
-            io.save_figure(
-                plots.orbits_figure(orbit_panels, sweep_title), staged.path("orbits.png")
-            )
-            files.append("orbits.png")
-            spectra = spectrum_figure(_spectrum_panels(panels), sweep_title, scale=case.scale)
-            io.save_figure(spectra, staged.path("spectrum.png"))
-            files.append("spectrum.png")
+            sweep_title = parameters_title(case.name, case.params, vary_mu=len(panels) > 1,
+                                           speed=speed)  # fmt: skip
+            if speed is None:  # the keyphasor and the orders count periods of one speed
+                io.save_figure(
+                    plots.orbits_figure(orbit_panels, sweep_title), staged.path("orbits.png")
+                )
+                spectra = spectrum_figure(_spectrum_panels(panels), sweep_title,
+                                          scale=case.scale)  # fmt: skip
+                io.save_figure(spectra, staged.path("spectrum.png"))
+                files += ["orbits.png", "spectrum.png"]
             if self.cfg.mu is not None:
                 write_sweep_csv(staged.path("sweep.csv"), panels)
                 files.append("sweep.csv")

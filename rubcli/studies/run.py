@@ -247,8 +247,7 @@ def write_outputs(
     )
     failures = {n: e["message"] for n, e in entries.items() if e["status"] == ERROR}
     transient = case.settings.analysis.transient_periods if case.settings.analysis else None
-    # (a run whose speed changes has no spectrum in orders of one speed: cascade.png)
-    spectra = _spectra(case, solutions, entries, transient) if speed is None else []
+    spectra = _spectra(case, solutions, entries, transient)
     for plot in output.plots:
         if plot == "energy":
             figure = _energy_figure(solutions, title, case.scale, balances)
