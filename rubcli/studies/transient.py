@@ -105,9 +105,12 @@ def load_steady(path: Path, case: Case) -> SteadyStates | list[str]:
     if isinstance(ds, list):
         return ds
     with ds:
-        missing = [n for n in ("eta", "z_max", "spectrum", "direction") if n not in ds.variables]
+        missing = [n for n in ("eta", "z_max", "direction") if n not in ds.variables]
         if missing:
             return [f"{path}: --overlay: not a rubcli sweep over eta: no {', '.join(missing)}"]
+        if "spectrum" not in ds.variables:
+            return [f"{path}: --overlay: the sweep has no spectrum, so no 1X to draw: run it "
+                    "with [sweep] spectrum = true"]  # fmt: skip
         extra = [d for d in ds["z_max"].dims if d not in ("direction", "eta")]
         if extra:
             return [f"{path}: --overlay: the sweep also varies {', '.join(map(str, extra))}: "
