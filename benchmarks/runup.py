@@ -1,0 +1,95 @@
+"""A run-up through resonance with rub: error against run time of every method that runs a
+speed that changes.
+
+Run from the repository root:
+
+    python benchmarks/runup.py      # about 11 minutes on 2 cores (radau's ladder is 5 of them)
+
+Case: the run-up machine of cases/runup (nu = 0.05, e = 0.3, K = 10, mu = 0.02, Rp = 5)
+ramped from eta = 0.5 to 4 at the rate that makes 1,000 revolutions (d eta / d tau =
+1.253e-3), from rest: free whirl, contact near eta = 0.9, the synchronous rub through the
+critical speed, the jump down past the steady fold. Sampled 16 times per revolution at
+the highest speed.
+
+Each method at rtol = 1e-6 and 1e-9 (atol = rtol / 100), the best of 3 timed runs after a
+warm-up; the error is the largest distance of the sampled positions from a reference
+(dop853-jit at rtol = 1e-13), whose own error is estimated by its distance from lsoda at
+rtol = 1e-12 (that distance bounds the error of the less accurate of the two). Writes
+benchmarks/runup.md. heyoka (a time-dependent right-hand side) is
+not measured here: it is not installed beside rubcli.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from machine import describe
+
+from rubcli import model
+from rubcli.problem import Problem
+from rubcli.solvers import solve
+from rubcli.speed import SpeedProfile
+
+PARAMS = model.ModelParams(nu=0.05, eta=0.5, e=0.3, K=10.0, mu=0.02, Rp=5.0)
+START, END, REVOLUTIONS = 0.5, 4.0, 1000
+METHODS = ("dop853-jit", "dop853", "rk45", "radau", "lsoda")
+TOLERANCES = (1e-6, 1e-9)
+REPEATS = 3
+
+
+def problem() -> Problem:
+    span = REVOLUTIONS * 2.0 * math.pi / (0.5 * (START + END))
+    profile = SpeedProfile.ramp(START, END, (END - START) / span)
+    n = int(math.ceil(span / (2.0 * math.pi / (16 * END)))) + 1
+    return Problem(PARAMS, (0.0, 0.0, 0.0, 0.0), np.linspace(0.0, span, n), speed=profile)
+
+
+def main() -> None:
+    p = problem()
+    reference = solve(p, "dop853-jit", rtol=1e-13, atol=1e-15)
+    check = solve(p, "lsoda", rtol=1e-12, atol=1e-14)
+    ref_error = float(np.max(np.hypot(check.x - reference.x, check.y - reference.y)))
+    rows = []
+    for method in METHODS:
+        for rtol in TOLERANCES:
+            options = {"rtol": rtol, "atol": rtol / 100}
+            solve(p, method, **options)  # warm-up: compilation or cache load
+            runs = [solve(p, method, **options) for _ in range(REPEATS)]
+            best = min(r.wall_time_s for r in runs)
+            sol = runs[0]
+            error = float(np.max(np.hypot(sol.x - reference.x, sol.y - reference.y)))
+            rows.append((method, rtol, best, error, sol.stats["nsteps"], len(sol.events)))
+            print(f"{method:<11} rtol {rtol:g}: {best * 1e3:9.2f} ms, error {error:.2g}")
+    fastest = {rtol: min(r[2] for r in rows if r[1] == rtol and r[0] == "dop853-jit")
+               for rtol in TOLERANCES}  # fmt: skip
+    lines = [
+        "# Run-up through resonance with rub: error against run time",
+        "",
+        "Command: `python benchmarks/runup.py` (the script's docstring says what it runs).",
+        f"Machine: {describe()}.",
+        "",
+        f"{REVOLUTIONS} revolutions, eta {START} to {END}, {p.t_eval.size} samples; reference "
+        f"dop853-jit at rtol 1e-13 ({len(reference.events)} events), its distance from lsoda "
+        f"at rtol 1e-12: {ref_error:.2g} clearances.",
+        "",
+        "| method | rtol | wall ms (best of 3) | x dop853-jit | max position error | steps "
+        "| events |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for method, rtol, best, error, steps, events in rows:
+        ratio = best / fastest[rtol]
+        lines.append(f"| `{method}` | {rtol:g} | {best * 1e3:.2f} | {ratio:.1f} | {error:.2g} "
+                     f"| {steps} | {events} |")  # fmt: skip
+    out = Path(__file__).with_name("runup.md")
+    out.write_text("\n".join(lines) + "\n")
+    print(f"wrote {out}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    started = time.perf_counter()
+    main()
+    print(f"{time.perf_counter() - started:.0f} s", file=sys.stderr)
