@@ -24,7 +24,7 @@ import os
 import re
 import stat
 import tomllib
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal, get_args
 
@@ -40,6 +40,7 @@ from pydantic import (
 from pydantic_core import PydanticCustomError
 
 from rubcli import model, units
+from rubcli.drive import Drive
 from rubcli.model import ModelParams
 from rubcli.problem import Problem, resolution_problem
 from rubcli.solvers import registry
@@ -204,7 +205,7 @@ class SpeedSection(_Section):
     model_config = ConfigDict(populate_by_name=True)
 
     profile: SpeedProfileName
-    start: float | None = Field(default=None, alias="from", gt=0)  # ramp
+    start: float | None = Field(default=None, alias="from", gt=0)  # ramp; driven: at tau 0
     to: float | None = Field(default=None, gt=0)  # ramp
     rate: float | None = None  # ramp: signed, its sign that of to - from
     tau: list[float] | None = Field(default=None, min_length=2)  # table, [model]
@@ -212,21 +213,31 @@ class SpeedSection(_Section):
     t: list[float] | None = Field(default=None, min_length=2)  # table, [physical]: s
     speed: list[float] | None = Field(default=None, min_length=2)  # table, [physical]
     unit: SpeedUnit | None = None  # [physical] only
+    # driven: the polar moment about the geometric centre (j, or kg m^2 with [physical]),
+    # the motor (linear: stall torque and no-load speed; or a table of speed and torque;
+    # torques nondimensional, or N m) and the bearing drag (torque per speed; N m s)
+    inertia: float | None = Field(default=None, gt=0)
+    stall_torque: float | None = Field(default=None, gt=0)
+    no_load_speed: float | None = Field(default=None, gt=0)
+    motor_speed: list[Annotated[float, Field(ge=0)]] | None = Field(default=None, min_length=2)
+    motor_torque: list[float] | None = Field(default=None, min_length=2)
+    drag: float = Field(default=0.0, ge=0)
     # speeds (as the profile's) at which orbits.png draws a revolution (default: picked)
     snapshots: list[Annotated[float, Field(gt=0)]] | None = Field(default=None, min_length=1)
 
     @model_validator(mode="after")
     def _complete(self) -> SpeedSection:
-        if self.profile == "driven":
-            raise PydanticCustomError(
-                "speed_profile",
-                "profile = 'driven' (the spin as a state, driven by a motor) is not "
-                "available yet; give 'ramp' or 'table'",
-            )
         ramp = {"from": self.start, "to": self.to, "rate": self.rate}
         table = {"tau": self.tau, "eta": self.eta, "t": self.t, "speed": self.speed}
+        drive = {"inertia": self.inertia, "stall_torque": self.stall_torque,
+                 "no_load_speed": self.no_load_speed, "motor_speed": self.motor_speed,
+                 "motor_torque": self.motor_torque}  # fmt: skip
+        if self.drag and self.profile != "driven":
+            drive["drag"] = self.drag
+        if self.profile == "driven":
+            return self._complete_driven(ramp, table, drive)
         mine, other = (ramp, table) if self.profile == "ramp" else (table, ramp)
-        extra = [k for k, v in other.items() if v is not None]
+        extra = [k for k, v in {**other, **drive}.items() if v is not None]
         if extra:
             raise PydanticCustomError(
                 "speed_keys",
@@ -249,6 +260,59 @@ class SpeedSection(_Section):
                 )
         return self
 
+    def _complete_driven(self, ramp: dict, table: dict, drive: dict) -> SpeedSection:
+        extra = [k for k, v in {**ramp, **table}.items() if v is not None and k != "from"]
+        if extra:
+            raise PydanticCustomError(
+                "speed_keys", f"{', '.join(extra)} do not belong to profile = 'driven'"
+            )
+        missing = [k for k in ("start", "inertia") if getattr(self, k) is None]
+        linear = self.stall_torque is not None or self.no_load_speed is not None
+        tabled = self.motor_speed is not None or self.motor_torque is not None
+        if linear and tabled:
+            raise PydanticCustomError(
+                "speed_keys",
+                "profile = 'driven': give the motor as stall_torque and no_load_speed or as "
+                "motor_speed and motor_torque, not both",
+            )
+        pair = ("stall_torque", "no_load_speed") if not tabled else ("motor_speed", "motor_torque")
+        missing += [k for k in pair if getattr(self, k) is None]
+        if missing:
+            raise PydanticCustomError(
+                "speed_keys", f"profile = 'driven' needs {', '.join(missing)}"
+            )
+        if tabled and len(self.motor_speed) != len(self.motor_torque):
+            raise PydanticCustomError(
+                "speed_keys",
+                f"motor_speed has {len(self.motor_speed)} values and motor_torque "
+                f"{len(self.motor_torque)}: give one torque per speed",
+            )
+        return self
+
+    @property
+    def driven(self) -> bool:
+        return self.profile == "driven"
+
+    def drive_of(self, scale: units.PhysicalScale | None) -> Drive:
+        """The nondimensional drive (ValueError naming the problem). With [physical]:
+        j = J omega^2 / (k_r gamma^2), torques over k_r gamma^2, speeds in ``unit``."""
+        if scale is None:
+            if self.unit is not None:
+                raise ValueError("unit belongs to a [physical] case")
+            speed_to_eta, torque_unit, j, drag = 1.0, 1.0, self.inertia, self.drag
+        else:
+            speed_to_eta = units.speed_unit(self.unit or "rpm") / scale.omega
+            torque_unit = scale.k_r * scale.clearance**2
+            j = self.inertia * scale.omega**2 / torque_unit
+            drag = self.drag * scale.omega / torque_unit
+        if self.stall_torque is not None:
+            motor = {"stall_torque": self.stall_torque / torque_unit,
+                     "no_load_speed": self.no_load_speed * speed_to_eta}  # fmt: skip
+        else:
+            motor = {"table_speed": tuple(v * speed_to_eta for v in self.motor_speed),
+                     "table_torque": tuple(v / torque_unit for v in self.motor_torque)}  # fmt: skip
+        return Drive(inertia=j, start=self.start * speed_to_eta, drag=drag, **motor)
+
     def snapshot_etas(self, scale: units.PhysicalScale | None) -> list[float] | None:
         """``snapshots`` as speed ratios."""
         if self.snapshots is None or scale is None:
@@ -258,6 +322,7 @@ class SpeedSection(_Section):
 
     def profile_of(self, scale: units.PhysicalScale | None) -> SpeedProfile:
         """The nondimensional profile (ValueError naming the problem)."""
+        assert not self.driven
         if scale is None:
             if self.unit is not None or self.t is not None:
                 raise ValueError("unit and t belong to a [physical] case; use tau and eta")
@@ -1007,11 +1072,20 @@ class CaseFile(_Section):
                 "speed; with [speed] a run draws bode.png, polar.png, cascade.png and "
                 "orbits.png (give plots = [] or leave it out)",
             )
+        driven = self.speed.driven
+        if driven and self.time.end is None:
+            raise PydanticCustomError(
+                "speed_time",
+                "time.end: missing; a driven rotor's run has no profile to span (give tau, "
+                "or seconds with [physical])",
+            )
         if "methods" not in self.solver.model_fields_set:
-            solver = self.solver.model_copy(update={"methods": ["dop853-jit"]})
+            method = "dop853" if driven else "dop853-jit"
+            solver = self.solver.model_copy(update={"methods": [method]})
             object.__setattr__(self, "solver", solver)
+        feature = registry.DRIVEN if driven else registry.SPEED_PROFILE
         for method in self.solver.methods:
-            why = registry.unsupported(method, registry.SPEED_PROFILE)
+            why = registry.unsupported(method, feature)
             if why:
                 raise PydanticCustomError("speed_method", f"solver.methods: {why}")
         return self
@@ -1177,6 +1251,7 @@ class Case:
                 "n_samples": int(p.t_eval.size),
                 "period": p.params.period,
                 "speed": p.speed.describe() if p.speed is not None else None,
+                "drive": asdict(p.drive) if p.drive is not None else None,
             },
             "scale": self.scale.as_dict() if self.scale is not None else None,
         }
@@ -1284,6 +1359,8 @@ def _assemble_speed_case(
     the profile's last knot) sampled at ``samples_per_period`` per revolution at its
     highest speed."""
     assert settings.speed is not None
+    if settings.speed.driven:
+        return _assemble_driven_case(settings, values, initial, scale, path, source)
     try:
         profile = settings.speed.profile_of(scale)
     except (ValueError, ArithmeticError) as exc:
@@ -1303,7 +1380,56 @@ def _assemble_speed_case(
     if why:
         where = "model.K" if scale is None else f"physical: converts to K = {params.K!r}"
         raise CaseError([f"{source}: {where}: {why}"])
-    step = 2.0 * math.pi / (max(profile.eta) * settings.time.samples_per_period)
+    t_eval = _speed_samples(settings, max(profile.eta), t_end, source)
+    problem = Problem(
+        params=params, initial=initial, t_eval=t_eval, name=settings.case.name, speed=profile
+    )
+    return Case(settings=settings, problem=problem, scale=scale, path=path)
+
+
+def _assemble_driven_case(
+    settings: CaseFile,
+    values: dict[str, Any],
+    initial: tuple[float, float, float, float],
+    scale: units.PhysicalScale | None,
+    path: Path | None,
+    source: str,
+) -> Case:
+    """``assemble_case`` for a driven rotor: the drive, the span ``time.end`` sampled at
+    ``samples_per_period`` per revolution at the highest speed the motor drives to (its
+    no-load speed, the table's last speed, or the start if higher)."""
+    try:
+        drive = settings.speed.drive_of(scale)
+    except (ValueError, ArithmeticError) as exc:
+        raise CaseError([f"{source}: speed: {exc}"]) from None
+    why = model.parameter_problem("eta", drive.start)
+    if why:
+        raise CaseError([f"{source}: speed.start: converts to eta = {drive.start!r}: {why}"])
+    params = ModelParams(**{**values, "eta": drive.start})
+    try:
+        drive.check(params.e)
+    except ValueError as exc:
+        raise CaseError([f"{source}: speed.inertia: {exc}"]) from None
+    t_end = settings.time.end * (scale.omega if scale is not None else 1.0)
+    if not (0.0 < t_end <= model.MAX_MAGNITUDE):
+        why = f"outside (0, {model.MAX_MAGNITUDE:g}] (the model's domain, docs/cases.md)"
+        raise CaseError([f"{source}: time.end: the run ends at tau = {t_end!r}, {why}"])
+    why = resolution_problem(params, (0.0, t_end))
+    if why:
+        where = "model.K" if scale is None else f"physical: converts to K = {params.K!r}"
+        raise CaseError([f"{source}: {where}: {why}"])
+    top = drive.no_load_speed if drive.no_load_speed is not None else drive.table_speed[-1]
+    t_eval = _speed_samples(settings, max(top, drive.start), t_end, source)
+    problem = Problem(
+        params=params, initial=initial, t_eval=t_eval, name=settings.case.name, drive=drive
+    )
+    return Case(settings=settings, problem=problem, scale=scale, path=path)
+
+
+def _speed_samples(settings: CaseFile, top: float, t_end: float, source: str) -> np.ndarray:
+    """The sample times of a run whose speed changes: ``samples_per_period`` per
+    revolution at the speed ``top``, over tau 0 .. t_end (CaseError past the limits)."""
+    step = 2.0 * math.pi / (top * settings.time.samples_per_period)
     n = int(math.ceil(t_end / step)) + 1
     need = n * len(settings.solver.methods) * RUN_BYTES_PER_SAMPLE
     if n > MAX_OUTPUT_SAMPLES or need > MAX_CASE_MEMORY_BYTES:
@@ -1315,14 +1441,7 @@ def _assemble_speed_case(
                 f"{_gib(MAX_CASE_MEMORY_BYTES)} for all methods"
             ]
         )
-    problem = Problem(
-        params=params,
-        initial=initial,
-        t_eval=np.linspace(0.0, t_end, n),
-        name=settings.case.name,
-        speed=profile,
-    )
-    return Case(settings=settings, problem=problem, scale=scale, path=path)
+    return np.linspace(0.0, t_end, n)
 
 
 def assemble_case(

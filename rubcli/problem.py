@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from rubcli.drive import Drive
 from rubcli.model import MAX_MAGNITUDE, FloatOrArray, ModelParams, real_number
 from rubcli.speed import SpeedProfile
 
@@ -36,6 +37,8 @@ class Problem:
     name: str = "problem"
     # a speed that changes in time (None: the constant params.eta)
     speed: SpeedProfile | None = None
+    # a driven rotor: the speed is a state, its start params.eta (rubcli.drive)
+    drive: Drive | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.params, ModelParams):
@@ -46,6 +49,17 @@ class Problem:
             raise TypeError(f"Problem: name must be a str, got {_kind(self.name)}")
         if self.speed is not None and not isinstance(self.speed, SpeedProfile):
             raise TypeError(f"Problem: speed must be a SpeedProfile, got {_kind(self.speed)}")
+        if self.drive is not None:
+            if not isinstance(self.drive, Drive):
+                raise TypeError(f"Problem: drive must be a Drive, got {_kind(self.drive)}")
+            if self.speed is not None:
+                raise ValueError("Problem: a driven rotor has no prescribed speed profile")
+            if self.params.eta != self.drive.start:
+                raise ValueError(
+                    f"Problem: params.eta = {self.params.eta!r} must be the drive's start "
+                    f"speed {self.drive.start!r}"
+                )
+            self.drive.check(self.params.e)
         problem = resolution_problem(self.params, self.t_eval)
         if problem:
             raise ValueError(f"Problem: params.K = {self.params.K!r}: {problem}")
@@ -89,11 +103,25 @@ class Problem:
         return cls(params=params, initial=initial, t_eval=t_eval, name=name)
 
     @property
+    def changes_speed(self) -> bool:
+        """Whether the speed changes in time: a profile or a driven rotor."""
+        return self.speed is not None or self.drive is not None
+
+    def speed_text(self) -> str | None:
+        """The profile or the drive in a few words (None at a constant speed)."""
+        if self.drive is not None:
+            return self.drive.text()
+        return self.speed.text() if self.speed is not None else None
+
+    @property
     def t_span(self) -> tuple[float, float]:
         return float(self.t_eval[0]), float(self.t_eval[-1])
 
     def speed_at(self, tau: FloatOrArray) -> FloatOrArray:
-        """The speed ratio at tau (params.eta when the speed is constant)."""
+        """The speed ratio at tau (params.eta when the speed is constant; a driven
+        rotor's speed is known from its solution only, ``Solution.speed``)."""
+        if self.drive is not None:
+            raise ValueError("Problem.speed_at: a driven rotor's speed is a state of its run")
         if self.speed is None:
             return self.params.eta if np.ndim(tau) == 0 else np.full(np.shape(tau), self.params.eta)
         return self.speed.speed(tau)
@@ -109,7 +137,7 @@ class Problem:
     @property
     def periods(self) -> float:
         """The span in forcing periods (with a speed that changes: revolutions of the
-        unbalance)."""
+        unbalance; a driven rotor's counted at its start speed)."""
         t0, t1 = self.t_span
         if self.speed is not None:
             return (self.speed.phase(t1, 0.0) - self.speed.phase(t0, 0.0)) / (2.0 * math.pi)

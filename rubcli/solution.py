@@ -185,6 +185,8 @@ class Solution:
     status: str = SUCCESS
     message: str = ""
     wall_time_s: float = 0.0
+    # a driven rotor's own states at the samples, shape (n, 2): phase p and speed w
+    drive_states: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.events = Events.from_records(self.events)
@@ -246,12 +248,17 @@ class Solution:
 
     @property
     def speed(self) -> np.ndarray:
-        """The speed ratio eta at each sample (constant unless ``problem.speed``)."""
+        """The speed ratio eta at each sample (constant unless ``problem.speed``; a
+        driven rotor's from its states)."""
+        if self.drive_states is not None:
+            return self.drive_states[:, 1]
         return np.asarray(self.problem.speed_at(self.t), dtype=float)
 
     @property
     def phase(self) -> np.ndarray:
         """The unbalance phase at each sample: phi0 + the integral of the speed (rad)."""
+        if self.drive_states is not None:
+            return self.drive_states[:, 0]
         p, speed = self.problem.params, self.problem.speed
         if speed is None:
             return p.eta * self.t + p.phi0
@@ -260,7 +267,7 @@ class Solution:
     @property
     def slip_velocity(self) -> np.ndarray:
         p = self.problem.params
-        eta = p.eta if self.problem.speed is None else self.speed
+        eta = p.eta if self.problem.speed is None and self.drive_states is None else self.speed
         return model.slip_velocity(self.x, self.y, self.vx, self.vy, p.Rp, eta)
 
     @property
@@ -271,7 +278,12 @@ class Solution:
     @property
     def friction_force(self) -> np.ndarray:
         """Signed tangential force (positive opposes positive slip): mu_c K (z - 1) when
-        slipping, the rolling friction in stick, 0 in free flight (model.tangential_force)."""
+        slipping, the rolling friction in stick, 0 in free flight (model.tangential_force;
+        a driven rotor's from its own equations, ``rubcli.drive``)."""
+        if self.problem.drive is not None:
+            from rubcli.solvers.driven import rub_force
+
+            return rub_force(self)
         if self.problem.speed is None:
             return model.tangential_force(
                 self.t, self.x, self.y, self.vx, self.vy, self.problem.params, self.regimes

@@ -208,7 +208,7 @@ def test_methods_without_the_feature_refuse_it_with_the_reason():
         ({"speed": 'profile = "table"\ntau = [0.0, 5.0, 4.0]\neta = [1.0, 2.0, 3.0]\n'},
          "tau must increase"),
         ({"speed": 'profile = "ramp"\nfrom = 1.0\nto = 2.0\n'}, "needs rate"),
-        ({"speed": 'profile = "driven"\n'}, "not available yet"),
+        ({"speed": 'profile = "driven"\n'}, "profile = 'driven' needs start, inertia"),
         ({"solver": 'methods = ["analytic"]\n'}, "solver.methods: analytic does not run"),
         ({"time": "periods = 10\nsamples_per_period = 20\n"}, "time.periods: a speed that"),
         ({"output": 'plots = ["orbit"]\n'}, "output.plots: orbit count periods of a constant"),

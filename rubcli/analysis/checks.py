@@ -58,6 +58,8 @@ def penetration_bound(problem: Problem) -> float | None:
         return None
     if problem.speed is not None:  # at the profile's highest speed (e eta^2 grows with it)
         p = replace(p, eta=max(problem.speed.eta))
+    if problem.drive is not None:  # a driven rotor's speed is bounded by its run only
+        return None
     x, y, vx, vy = problem.initial
     z0 = math.hypot(x, y)
     energy = 0.5 * (vx * vx + vy * vy) + 0.5 * z0 * z0 + 0.5 * p.K * max(0.0, z0 - 1.0) ** 2
@@ -121,6 +123,10 @@ def method_summary(solution: Solution, balance: Any = None) -> dict[str, Any]:
     with np.errstate(all="ignore"):
         if not finite or solution.problem.speed is not None:
             energy = None  # the balance's power terms assume a constant speed
+        elif solution.problem.drive is not None:
+            from rubcli.analysis.drive_energy import drive_energy_summary
+
+            energy = drive_energy_summary(solution)
         elif balance is not None:
             energy = balance.summary()
         else:
@@ -142,7 +148,7 @@ def method_summary(solution: Solution, balance: Any = None) -> dict[str, Any]:
         "time_in_regime": time_in_regimes(solution),
         "energy_residual": None if energy is None else energy["energy_residual"],
         "energy": energy
-        if solution.problem.speed is None
+        if solution.problem.speed is None or energy is None and not finite
         else {
             "note": "not computed for a speed that changes: the balance's power terms "
             "assume a constant speed"

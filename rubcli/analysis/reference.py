@@ -168,7 +168,7 @@ def _roundoff(states: np.ndarray, params: model.ModelParams, t_end: float) -> fl
 def exact_reference(problem: Problem) -> Reference | None:
     """The exact reference of the problem if it has one (free flight, synchronous rub; at a
     constant speed only)."""
-    if problem.speed is not None:
+    if problem.changes_speed:
         return None
     params = problem.params
     t = problem.t_eval

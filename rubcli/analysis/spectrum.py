@@ -187,7 +187,7 @@ def steady_spectrum(
     less than two forcing periods or a non-finite one (nothing trustworthy to analyse), and
     for a speed that changes (its orders have no one speed; ``order_tracking.order_cascade``).
     """
-    if not solution.success or solution.t.size < 8 or solution.problem.speed is not None:
+    if not solution.success or solution.t.size < 8 or solution.problem.changes_speed:
         return None
     period = solution.problem.params.period
     recorded = float(solution.t[-1] - solution.t[0]) / period

@@ -200,7 +200,9 @@ def _run(
     steady: SteadyStates | None = None,
 ) -> dict[str, Any]:
     problem = case.problem
-    if problem.speed is None:
+    if problem.drive is not None:
+        span = f"{problem.drive.text()}, tau 0 .. {problem.t_span[1]:.6g}"
+    elif problem.speed is None:
         span = f"{problem.periods:g} periods (tau 0 .. {problem.t_span[1]:.6g})"
     else:
         turns = problem.speed.phase(problem.t_span[1], 0.0) - problem.speed.phase(0.0, 0.0)
@@ -251,7 +253,7 @@ def _steady_or_exit(case: Case, case_file: Path, overlay: Path | None) -> Steady
     """The steady states of ``--overlay`` (None without it); exit 2 naming the problem."""
     if overlay is None:
         return None
-    if case.problem.speed is None:
+    if not case.problem.changes_speed:
         console.error(f"{case_file}: --overlay draws under a run-up's Bode plot: the case "
                       "has no [speed]")  # fmt: skip
         raise typer.Exit(EXIT_INVALID)

@@ -34,6 +34,8 @@ def load_or_exit(path: Path) -> Case:
 def _time_line(problem: Problem) -> str:
     """The span and the samples (for a changing speed, the profile and its revolutions)."""
     end, n = problem.t_span[1], problem.t_eval.size
+    if problem.drive is not None:
+        return f"speed     {problem.drive.text()}: tau 0 .. {end:.6g}, {n} samples"
     if problem.speed is None:
         return f"time      {problem.periods:g} periods = tau 0 .. {end:.6g}, {n} samples"
     turns = (problem.speed.phase(end, 0.0) - problem.speed.phase(0.0, 0.0)) / (2.0 * math.pi)

@@ -47,6 +47,9 @@ CSV_COLUMNS = (
 # (rad, the exact integral of the speed), and with [physical] the speed in rpm.
 CSV_SPEED_COLUMNS = ("eta", "phase")
 CSV_SPEED_PHYSICAL_COLUMNS = ("speed_rpm",)
+# a driven rotor: the motor's torque less drag and the rub's torque on the spin
+CSV_DRIVE_COLUMNS = ("motor_torque", "rub_torque")
+CSV_DRIVE_PHYSICAL_COLUMNS = ("motor_torque_Nm", "rub_torque_Nm")
 
 CSV_PHYSICAL_COLUMNS = (
     "t_s",
@@ -100,11 +103,19 @@ def solution_columns(
                 "friction_force_N": units.newtons(solution.friction_force, scale),
             }
         )
-    if solution.problem.speed is not None:
+    if solution.problem.changes_speed:
         eta = solution.speed
         columns.update({"eta": eta, "phase": solution.phase})
         if scale is not None:
             columns["speed_rpm"] = units.rpm(eta, scale)
+    drive = solution.problem.drive
+    if drive is not None:
+        torques = {"motor_torque": drive.motor_torque(eta) - drive.drag * eta,
+                   "rub_torque": -solution.problem.params.Rp * solution.friction_force}  # fmt: skip
+        columns.update(torques)
+        if scale is not None:  # the torque unit k_r gamma^2 (N m)
+            unit = scale.k_r * scale.clearance**2
+            columns.update({f"{name}_Nm": value * unit for name, value in torques.items()})
     return columns
 
 
@@ -149,13 +160,22 @@ def solution_blocks(
 
 
 def solution_header(
-    scale: units.PhysicalScale | None = None, speed: bool = False
+    scale: units.PhysicalScale | None = None, speed: bool = False, drive: bool = False
 ) -> tuple[str, ...]:
-    """The CSV header of a solution (``speed``: its speed changes, ``Problem.speed``)."""
+    """The CSV header of a solution (``speed``: its speed changes, ``Problem.changes_speed``;
+    ``drive``: a driven rotor's torques)."""
     header = CSV_COLUMNS + (CSV_PHYSICAL_COLUMNS if scale is not None else ())
     if speed:
         header += CSV_SPEED_COLUMNS + (CSV_SPEED_PHYSICAL_COLUMNS if scale is not None else ())
+    if drive:
+        header += CSV_DRIVE_COLUMNS + (CSV_DRIVE_PHYSICAL_COLUMNS if scale is not None else ())
     return header
+
+
+def _extra_columns(solution: Solution) -> tuple[bool, bool]:
+    """(speed, drive) flags of ``solution_header`` for ``solution``."""
+    problem = solution.problem
+    return problem.changes_speed, problem.drive is not None
 
 
 def write_solution_csv(
@@ -172,7 +192,7 @@ def write_solution_csv(
     made them, for other threads to help format."""
     if blocks is None:
         blocks = solution_blocks(solution, scale)
-    header = solution_header(scale, solution.problem.speed is not None)
+    header = solution_header(scale, *_extra_columns(solution))
     return write_csv(path, header, blocks, on_rows=on_rows)
 
 
@@ -180,7 +200,7 @@ def shared_solution_blocks(
     solution: Solution, scale: units.PhysicalScale | None = None
 ) -> SharedBlocks:
     """A solution's CSV blocks, to be formatted by any thread (``SharedBlocks``)."""
-    width = len(solution_header(scale, solution.problem.speed is not None))
+    width = len(solution_header(scale, *_extra_columns(solution)))
     return SharedBlocks(solution_blocks(solution, scale), width)
 
 

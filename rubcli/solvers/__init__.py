@@ -12,11 +12,13 @@ from __future__ import annotations
 import importlib
 import time
 from collections.abc import Callable
+from functools import partial
 from typing import TYPE_CHECKING, Any
 
 from rubcli.problem import Problem
 from rubcli.solution import Solution
 from rubcli.solvers.registry import (  # noqa: F401
+    DRIVEN,
     FAMILY_MODULES,
     SPECS,
     SPEED_PROFILE,
@@ -86,11 +88,15 @@ def solve(problem: Problem, method: str, *, watch: Watch | None = None, **option
     if method not in SPECS:
         raise ValueError(f"solve(): unknown method {method!r}; choose from {', '.join(SPECS)}")
     typed = method_options(method, options)
-    if problem.speed is not None:
-        refused = unsupported(method, SPEED_PROFILE)
+    for given, feature in ((problem.speed, SPEED_PROFILE), (problem.drive, DRIVEN)):
+        refused = unsupported(method, feature) if given is not None else None
         if refused:
             raise ValueError(f"solve(): {refused}")
     methods = _methods(SPECS[method].family)
+    if problem.drive is not None:
+        from rubcli.solvers.driven import solve_driven
+
+        methods = {method: partial(solve_driven, name=method)}
     start = time.perf_counter()
     if watch is None:
         solution = methods[method](problem, typed)

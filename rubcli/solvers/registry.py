@@ -114,21 +114,28 @@ FAMILY_MODULES = {
 # Features of a machine or a run that not every method supports, with why a method
 # without it refuses: the case validation and ``solve`` derive their refusals from here.
 SPEED_PROFILE = "speed profile"
+DRIVEN = "driven rotor"
 FEATURES = {
     SPEED_PROFILE: "a speed that changes in time ([speed])",
+    DRIVEN: "a driven rotor (the speed a state, [speed] profile = 'driven')",
 }
 # why the methods without a feature lack it (named in the refusal)
 LACKS = {
     ("analytic", SPEED_PROFILE): "its closed forms assume a constant speed",
     ("analytic-polar", SPEED_PROFILE): "its closed forms assume a constant speed",
     ("taylor", SPEED_PROFILE): "its series recurrences assume a constant speed",
+    ("analytic", DRIVEN): "its closed forms assume a constant speed",
+    ("analytic-polar", DRIVEN): "its closed forms assume a constant speed",
+    ("taylor", DRIVEN): "its series recurrences assume a constant speed",
+    ("dop853-jit", DRIVEN): "its compiled loop carries the four rotor states only",
 }
 
 
 def _scipy(name: str, order: int, implicit: bool, summary: str) -> MethodSpec:
     return MethodSpec(
         name=name, family="scipy", knob=RTOL, options=ToleranceOptions, order=order,
-        implicit=implicit, adaptive=None, summary=summary, features=frozenset({SPEED_PROFILE}),
+        implicit=implicit, adaptive=None, summary=summary,
+        features=frozenset({SPEED_PROFILE, DRIVEN}),
     )  # fmt: skip
 
 

@@ -241,10 +241,7 @@ def write_outputs(
             name = f"{solution.method}.csv"
             entries[solution.method]["files"] = [name]
             files.append(name)
-    speed = case.problem.speed
-    title = plots.parameters_title(
-        case.name, case.params, speed=speed.text() if speed is not None else None
-    )
+    title = plots.parameters_title(case.name, case.params, speed=case.problem.speed_text())
     failures = {n: e["message"] for n, e in entries.items() if e["status"] == ERROR}
     transient = case.settings.analysis.transient_periods if case.settings.analysis else None
     spectra = _spectra(case, solutions, entries, transient)
@@ -263,7 +260,7 @@ def write_outputs(
                                        transient_periods=transient)  # fmt: skip
         io.save_figure(figure, staged.path(f"{plot}.png"))
         files.append(f"{plot}.png")
-    if speed is not None:
+    if case.problem.changes_speed:
         files += _transient_outputs(case, solutions, entries, staged, steady)
     response = None
     settings = response_settings(case.settings.analysis)
@@ -363,10 +360,12 @@ def expected_files(case: Case) -> tuple[str, ...]:
     output = case.settings.output
     names = [f"{m}.csv" for m in case.methods] if output.csv else []
     names += [f"{plot}.png" for plot in output.plots]
-    if case.problem.speed is not None:
-        from rubcli.studies.transient import FIGURES
+    if case.problem.changes_speed:
+        from rubcli.studies.transient import DRIVE_FIGURES, FIGURES
 
         names += [f"{name}.png" for name in FIGURES]
+        if case.problem.drive is not None:
+            names += [f"{name}.png" for name in DRIVE_FIGURES]
     if response_settings(case.settings.analysis) is not None:
         names.append("poincare.png")
     return (*names, io.REPORT_NAME)

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rubcli.analysis import order_tracking as ot
+from rubcli.analysis.drive_torques import DriveTorques, drive_summary, revolution_means
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -24,6 +25,7 @@ if TYPE_CHECKING:
     from rubcli.solution import Solution
 
 FIGURES = ("bode", "polar", "cascade", "orbits")
+DRIVE_FIGURES = ("drive",)  # a driven rotor's, besides
 
 
 @dataclass(frozen=True)
@@ -36,10 +38,15 @@ class Transient:
     summary: ot.TransientSummary
     cascade: ot.OrderCascade | None  # None: too few revolutions for one window
     rpm_per_eta: float | None  # a [physical] case: rpm of eta = 1
+    torques: DriveTorques | None = None  # a driven rotor's
+    drive: dict[str, Any] | None = None  # a driven rotor's summary (``drive_summary``)
 
     def to_dict(self) -> dict[str, Any]:
-        """report.json's ``transient`` entry."""
-        return self.summary.to_dict(self.rpm_per_eta)
+        """report.json's ``transient`` entry (a driven rotor's with its ``drive``)."""
+        out = self.summary.to_dict(self.rpm_per_eta)
+        if self.drive is not None:
+            out["drive"] = self.drive
+        return out
 
 
 def analyse(case: Case, solution: Solution) -> Transient | str:
@@ -61,7 +68,11 @@ def analyse(case: Case, solution: Solution) -> Transient | str:
     except ValueError:
         cascade = None
     rpm = ot.rpm_per_eta(case.scale.omega) if case.scale is not None else None
-    return Transient(solution.method, revolutions, events, summary, cascade, rpm)
+    torques = drive = None
+    if case.problem.drive is not None:
+        torques = revolution_means(solution)
+        drive = drive_summary(solution, torques)
+    return Transient(solution.method, revolutions, events, summary, cascade, rpm, torques, drive)
 
 
 def figures(
@@ -74,7 +85,7 @@ def figures(
 
     units = {"speed_unit": "rpm" if transient.rpm_per_eta else "eta",
              "rpm_per_eta": transient.rpm_per_eta}  # fmt: skip
-    speed_text = case.problem.speed.text() if case.problem.speed is not None else None
+    speed_text = case.problem.speed_text()
     title = f"{parameters_title(case.name, case.params, speed=speed_text)} ({solution.method})"
     out = {
         "bode": plots.bode_figure(
@@ -92,7 +103,26 @@ def figures(
         solution.t, solution.x, solution.y, transient.revolutions, speeds=snapshots,
         title=title, **units,
     )  # fmt: skip
+    if transient.torques is not None:
+        out["drive"] = _drive_figure(case, transient, title)
     return out
+
+
+def _drive_figure(case: Case, transient: Transient, title: str) -> Figure:
+    """drive.png, in seconds and N m for a [physical] case."""
+    from rubcli.plotting.drive import drive_figure
+    from rubcli.plotting.transient import speed_axis
+
+    scale = case.scale
+    speed = speed_axis("rpm" if transient.rpm_per_eta else "eta", transient.rpm_per_eta)
+    units = {}
+    if scale is not None:
+        units = {"time_factor": 1.0 / scale.omega, "time_label": "time t (s)",
+                 "torque_factor": scale.k_r * scale.clearance**2,
+                 "torque_label": "torque (N m)"}  # fmt: skip
+    drive = case.problem.drive
+    return drive_figure(transient.torques, speed=speed, free_speed=drive.free_speed(),
+                        title=title, **units)  # fmt: skip
 
 
 def load_steady(path: Path, case: Case) -> SteadyStates | list[str]:

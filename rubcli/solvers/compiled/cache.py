@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from numba.core.dispatcher import Dispatcher
 
-from rubcli import model
+from rubcli import drive, model
 from rubcli.model import (
     cartesian_entries,
     entry_regime_value,
@@ -49,6 +49,7 @@ CORE_FILES = (
     Path(model.__file__),
     Path(events.__file__),
     Path(control.__file__),
+    Path(drive.__file__),
     ENERGY_KERNEL,
     *sorted(Path(__file__).parent.glob("*.py")),
 )
@@ -190,6 +191,7 @@ def _dispatchers() -> list:
         contact,
         dop853,
         dop853_loop,
+        drive,
         linalg,
         piecewise,
         piecewise_loop,
@@ -202,7 +204,7 @@ def _dispatchers() -> list:
 
     modules = (
         linalg, propagators, precheck, contact, rhs, dop853, roots, dop853_loop, taylor,
-        piecewise, piecewise_loop, energy_kernel,
+        piecewise, piecewise_loop, drive, energy_kernel,
     )  # fmt: skip
     found = [_probe]
     for module in modules:

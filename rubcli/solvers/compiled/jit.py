@@ -13,7 +13,7 @@ import numba
 import numpy as np
 from numba.extending import register_jitable
 
-from rubcli import model
+from rubcli import drive, model
 from rubcli.solvers import control, events
 
 # The model's compilable cores, registered so that compiled code calls the same functions.
@@ -47,6 +47,11 @@ COMPILABLE_CORES = (
     events.spin_at,
     events.linspace_into,
     events.run_time,
+    drive.motor_torque_value,
+    drive.shaft_torque_value,
+    drive.stick_torque_value,
+    drive.driven_rhs_entries,
+    drive.rolling_projection,
 )
 
 

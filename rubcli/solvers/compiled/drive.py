@@ -1,0 +1,59 @@
+"""The driven rotor's right-hand side compiled (``rubcli.drive``): one state, or the
+columns of a step's scan grid with the rub's tangential force beside (the events)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rubcli.drive import D_INERTIA, driven_rhs_entries, rolling_projection, shaft_torque_value
+from rubcli.model import P_ECC, P_K, P_MU, P_NU, P_RP, STICK
+from rubcli.solvers.compiled.jit import jit
+
+
+@jit
+def _driven_into(s, pars, drive, table_speed, table_torque, regime, out):
+    """The six derivatives into ``out``; returns the rub's tangential force T. In stick
+    the velocities are first projected onto the rolling constraint (as the stick samples
+    are reported), so that drift in v_r is not fed back."""
+    nu, K, mu, Rp, e = pars[P_NU], pars[P_K], pars[P_MU], pars[P_RP], pars[P_ECC]
+    j = drive[D_INERTIA]
+    x, y, vx, vy, p, w = s[0], s[1], s[2], s[3], s[4], s[5]
+    if regime == STICK:
+        vx, vy, w = rolling_projection(x, y, vx, vy, p, w, e, Rp, j)
+    Q0 = shaft_torque_value(w, drive, table_speed, table_torque)
+    dx, dy, ax, ay, dp, dw, T = driven_rhs_entries(x, y, vx, vy, p, w, nu, K, mu, Rp, e, j, Q0,
+                                                   regime)  # fmt: skip
+    out[0], out[1], out[2], out[3], out[4], out[5] = dx, dy, ax, ay, dp, dw
+    return T
+
+
+@jit
+def driven_rhs(
+    s: np.ndarray, pars: np.ndarray, drive: np.ndarray, table_speed: np.ndarray,
+    table_torque: np.ndarray, regime: int,
+) -> np.ndarray:  # fmt: skip
+    """The driven rotor's six derivatives at one state (``pars`` = params_vector)."""
+    out = np.empty(6)
+    _driven_into(s, pars, drive, table_speed, table_torque, regime, out)
+    return out
+
+
+@jit
+def driven_columns(
+    S: np.ndarray, pars: np.ndarray, drive: np.ndarray, table_speed: np.ndarray,
+    table_torque: np.ndarray, regime: int,
+) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """For the states in the columns of S (6, n): their derivatives and the rub's
+    tangential force T (positive opposing positive slip; 0 in free flight)."""
+    n = S.shape[1]
+    dS = np.empty((6, n))
+    T = np.empty(n)
+    row = np.empty(6)
+    out = np.empty(6)
+    for k in range(n):
+        for i in range(6):
+            row[i] = S[i, k]
+        T[k] = _driven_into(row, pars, drive, table_speed, table_torque, regime, out)
+        for i in range(6):
+            dS[i, k] = out[i]
+    return dS, T

@@ -1,0 +1,325 @@
+"""The driven rotor (``rubcli.drive``) integrated by scipy's methods, in the driver's
+event loop.
+
+The state has six entries, ``(x, y, vx, vy, p, w)``. A run is the driver's
+(``driver.integrate``: budgets, storms, progress, failures) with the drive's two states
+carried beside the rotor's (``DrivenRun``) and the drive's rules at an event
+(``switch``): contact entry takes the sign of v_r, a slip reversal Filippov's rule with
+the stick friction of the coupled system (``drive.stick_torque_value``), a stick exit the
+side the needed friction points to. Stick begins and ends with the velocities projected
+onto the rolling constraint along the kinetic energy's metric
+(``drive.rolling_projection``), the rotor's and the drive's together.
+
+``DrivenStepper`` is one accepted scipy step per ``advance``: the regime's right-hand
+side (compiled, ``compiled.drive``), the step's dense output scanned at
+``SCAN_POINTS`` sub-intervals for the regime's events, the first located by Brent's
+method. The event functions, each an event where it rises through 0:
+
+- free flight: ``z^2 - 1`` (contact entry); a maximum of ``z^2 - 1`` between two scan
+  points is found from its rate ``2 (x vx + y vy)``, so a graze inside a scan interval is
+  not missed;
+- slip of sign ``s``: ``1 - z^2`` (exit) and ``-s v_r`` (reversal);
+- stick: ``1 - z^2`` and, on each side ``s``, ``s T - mu K (z - 1) (1 + margin)`` (the
+  needed friction leaving the friction cone).
+
+Implicit methods build their Jacobian by finite differences.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.optimize import brentq
+
+from rubcli import model
+from rubcli.drive import D_INERTIA, rolling_projection, shaft_torque_value, stick_torque_value
+from rubcli.problem import Problem
+from rubcli.solution import KIND_NAMES, Solution, SwitchEvent
+from rubcli.solvers import compiled as kernels
+from rubcli.solvers import driver
+from rubcli.solvers.compiled.drive import driven_columns, driven_rhs
+from rubcli.solvers.events import (
+    ENTRY,
+    EXIT,
+    NO_EVENT,
+    REVERSAL,
+    STICK_ENTRY,
+    STICK_EXIT,
+)
+from rubcli.solvers.registry import SPECS, ToleranceOptions
+from rubcli.solvers.scipy_ivp import SCIPY_CLASSES
+from rubcli.solvers.shared import SCAN_POINTS
+
+
+class DrivenRun(driver.Run):
+    """A driver run whose state is the driven rotor's six entries (module docstring)."""
+
+    def __init__(self, problem: Problem, method: str, **budget) -> None:
+        super().__init__(problem, method, **budget)
+        drive = problem.drive
+        self.pars = np.array(model.params_vector(self.params))
+        self.drive = drive.record()
+        self.table = drive.table()
+        self.state = np.array([*problem.initial, self.params.phi0, drive.start])
+        self.states = np.empty((self.t_eval.size, 6))
+        self.regime = regime_of(self.state, self)
+        self.states[0], self.regimes[0] = self.state, self.regime
+        self.last_kind = NO_EVENT
+        if abs(math.hypot(self.state[0], self.state[1]) - 1.0) <= 1e-14:
+            self.last_kind = ENTRY if self.regime != model.FREE else EXIT
+
+    def stick_friction(self, s: np.ndarray) -> float:
+        """The friction T that holds v_r = 0 at the state ``s`` (``stick_torque_value``)."""
+        p = self.params
+        x, y, vx, vy, phase, w = s
+        j = self.drive[D_INERTIA]
+        Q0 = shaft_torque_value(w, self.drive, *self.table)
+        return stick_torque_value(x, y, vx, vy, phase, w, p.nu, p.K, p.e, p.Rp, j, Q0)[0]
+
+    def switch(self, tau: float, kind: int, state: np.ndarray) -> bool:
+        """Apply and record the event ``kind`` at ``tau`` (the drive's rules, module
+        docstring); False (and the run failed) on a switch storm."""
+        state = np.array(state, dtype=float)
+        before = self.regime
+        p = self.params
+        if kind == EXIT:
+            new = model.FREE
+        elif kind == ENTRY:
+            new = model.entry_regime_value(*state[:4], p.mu, p.Rp * state[5])
+        elif kind == STICK_EXIT:
+            new = model.SLIP_POSITIVE if self.stick_friction(state) > 0.0 else model.SLIP_NEGATIVE
+        else:
+            new = zero_slip_regime(state, self)
+        recorded = STICK_ENTRY if new == model.STICK else kind
+        if (before == model.STICK or new == model.STICK) and model.FREE not in (before, new):
+            state = project(state, self)
+        self.state, self.regime, self.last_kind, self.tau = state, new, recorded, tau
+        event = SwitchEvent(tau, KIND_NAMES[recorded], tuple(state[:4]), before, new)
+        return self.record(event)
+
+    def solution(self, settings: dict) -> Solution:
+        solution = super().solution(settings)
+        k = solution.t.size
+        solution.states = np.ascontiguousarray(self.states[:k, :4])
+        solution.drive_states = np.ascontiguousarray(self.states[:k, 4:])
+        return solution
+
+
+def slip_velocity(S: np.ndarray, Rp: float) -> np.ndarray:
+    """v_r = Rp w + (x vy - y vx) / z of states (6,) or (6, n)."""
+    x, y, vx, vy, _, w = S
+    return Rp * w + (x * vy - y * vx) / np.hypot(x, y)
+
+
+def zero_slip_regime(s: np.ndarray, run: DrivenRun) -> int:
+    """Filippov's rule at v_r = 0 with the coupled system's stick friction."""
+    p = run.params
+    needed = run.stick_friction(s)
+    limit = p.mu * p.K * (math.hypot(s[0], s[1]) - 1.0)
+    if needed > limit:
+        return model.SLIP_POSITIVE
+    if needed < -limit:
+        return model.SLIP_NEGATIVE
+    return model.STICK
+
+
+def regime_of(s: np.ndarray, run: DrivenRun) -> int:
+    """The regime a driven state is in (``model.regime_of_state`` with the spin a state)."""
+    p = run.params
+    if math.hypot(s[0], s[1]) <= 1.0:
+        return model.FREE
+    if p.mu == 0.0:
+        return model.SLIP_POSITIVE
+    v_r = float(slip_velocity(s, p.Rp))
+    if abs(v_r) <= 1e-12 * (1.0 + abs(p.Rp * s[5])):
+        return zero_slip_regime(s, run)
+    return model.SLIP_POSITIVE if v_r >= 0.0 else model.SLIP_NEGATIVE
+
+
+def project(s: np.ndarray, run: DrivenRun) -> np.ndarray:
+    """The state with v_r = 0 exactly (``drive.rolling_projection``)."""
+    p = run.params
+    out = np.array(s, dtype=float)
+    out[2], out[3], out[5] = rolling_projection(*s, p.e, p.Rp, run.drive[D_INERTIA])
+    return out
+
+
+class DrivenStepper:
+    """One of scipy's ``OdeSolver`` classes on the driven rotor (module docstring)."""
+
+    def __init__(self, run: DrivenRun, name: str, rtol: float, atol: float):
+        from scipy import integrate
+
+        self.name, self.rtol, self.atol = name, rtol, atol
+        self.cls = getattr(integrate, SCIPY_CLASSES[name])
+        kernels.ensure_fresh()
+        self.solver = None
+        run.stats.update(nfev=0, njev=0, nlu=0, n_segments=0)
+        self.settings = {
+            "rtol": rtol,
+            "atol": atol,
+            "max_steps": run.max_steps,
+            "max_wall_time_s": run.max_wall_time_s,
+            "compiled": True,
+        }
+
+    def _start_segment(self, run: DrivenRun) -> None:
+        pars, drive, (ts, tt), regime = run.pars, run.drive, run.table, run.regime
+
+        def fun(t: float, s: np.ndarray) -> np.ndarray:
+            return driven_rhs(s, pars, drive, ts, tt, regime)
+
+        self.columns = lambda S: driven_columns(np.ascontiguousarray(S), pars, drive, ts, tt,
+                                                regime)  # fmt: skip
+        self.solver = self.cls(fun, run.tau, run.state, run.t_end, rtol=self.rtol, atol=self.atol)
+        run.stats["n_segments"] += 1
+
+    def _end_segment(self, run: DrivenRun) -> None:
+        solver, self.solver = self.solver, None
+        run.stats["nfev"] += int(solver.nfev)
+        run.stats["njev"] += int(getattr(solver, "njev", 0) or 0)
+        run.stats["nlu"] += int(getattr(solver, "nlu", 0) or 0)
+
+    def advance(self, run: DrivenRun) -> None:
+        if self.solver is None:
+            self._start_segment(run)
+        solver = self.solver
+        msg = solver.step()
+        run.stats["nsteps"] += 1
+        if solver.status == "failed":
+            self._end_segment(run)
+            run.fail(f"{self.name} failed at tau = {solver.t:.6g}: {msg}")
+            return
+        if not np.all(np.isfinite(solver.y)):
+            self._end_segment(run)
+            run.fail(f"non-finite state at tau = {solver.t:.6g}")
+            return
+        dense = solver.dense_output()
+        event = self._earliest_event(run, dense, solver.t_old, solver.t)
+        run.last_kind = NO_EVENT
+        t_stop = event[0] if event else solver.t
+        while run.k < run.t_eval.size and run.t_eval[run.k] <= t_stop:
+            sample = dense(run.t_eval[run.k])
+            if run.regime == model.STICK:
+                sample = project(sample, run)
+            run.states[run.k], run.regimes[run.k] = sample, run.regime
+            run.k += 1
+        if event is None:
+            run.tau, run.state = solver.t, solver.y
+            if solver.status == "finished":
+                self._end_segment(run)
+            return
+        self._end_segment(run)
+        run.switch(event[0], event[1], dense(event[0]))
+
+    def _functions(self, run: DrivenRun):
+        """The regime's event functions h(S) of states (6, n): ``(kind, h)``."""
+        p, regime = run.params, run.regime
+
+        def surface(S):
+            return S[0] ** 2 + S[1] ** 2 - 1.0
+
+        if regime == model.FREE:
+            return [(ENTRY, surface)]
+        out = [(EXIT, lambda S: -surface(S))]
+        if p.mu == 0.0:
+            return out
+        if regime == model.STICK:
+            margin = 1.0 + model.STICK_EXIT_MARGIN
+
+            def side(sign):
+                def h(S):
+                    T = self.columns(np.atleast_2d(S.T).T)[1]
+                    limit = p.mu * p.K * (np.hypot(S[0], S[1]) - 1.0)
+                    out = sign * T - limit * margin
+                    return out if np.ndim(S) > 1 else float(out[0])
+
+                return h
+
+            return out + [(STICK_EXIT, side(1.0)), (STICK_EXIT, side(-1.0))]
+        sign = model.friction_sign(regime)
+        return out + [(REVERSAL, lambda S: -sign * slip_velocity(S, p.Rp))]
+
+    def _earliest_event(self, run: DrivenRun, dense, t0: float, t1: float):
+        """The earliest event in (t0, t1] on the step's dense output: (tau, kind) or None."""
+        grid = np.linspace(t0, t1, SCAN_POINTS + 1)
+        S = dense(grid)
+        tol = 4.0 * np.finfo(float).eps * max(1.0, abs(t1))
+        best = None
+        for kind, h in self._functions(run):
+            values, ends = h(S), grid
+            if kind == ENTRY:
+                values, ends = _with_grazes(dense, grid, S, values)
+            for i in range(SCAN_POINTS):
+                if values[i] < 0.0 <= values[i + 1]:
+                    a, b = ends[i], ends[i + 1]
+                    root = b if values[i + 1] == 0.0 else _root(h, dense, a, b, tol)
+                    if best is None or root < best[0]:
+                        best = (root, kind)
+                    break
+        return best
+
+
+def _with_grazes(dense, grid, S, values):
+    """The contact function ``values`` on ``grid`` (states ``S``), with a graze put in:
+    in the first scan interval where the function stays below 0 at both ends but its
+    rate ``2 (x vx + y vy)`` falls through 0 to a maximum at or above 0, the interval's
+    end moves to that maximum. Returns (values, grid), copies where changed."""
+    rate = S[0] * S[2] + S[1] * S[3]
+    for i in range(grid.size - 1):
+        if values[i] < 0.0 and values[i + 1] < 0.0 and rate[i] > 0.0 > rate[i + 1]:
+
+            def r(t):
+                s = dense(t)
+                return s[0] * s[2] + s[1] * s[3]
+
+            peak = brentq(r, grid[i], grid[i + 1], xtol=1e-15, rtol=4 * np.finfo(float).eps)
+            s = dense(peak)
+            top = s[0] ** 2 + s[1] ** 2 - 1.0
+            if top >= 0.0:
+                values, grid = values.copy(), grid.copy()
+                values[i + 1], grid[i + 1] = top, peak
+                return values, grid
+    return values, grid
+
+
+def _root(h, dense, a: float, b: float, tol: float) -> float:
+    """The crossing of h in [a, b] by Brent's method, and the end of its bracket where h
+    has risen through 0 (so the event's state lies on its far side)."""
+
+    def f(t: float) -> float:
+        return float(h(dense(t)))
+
+    root = brentq(f, a, b, xtol=tol, rtol=4 * np.finfo(float).eps, maxiter=200)
+    if f(root) < 0.0:
+        root = min(b, root + tol)
+    return root
+
+
+def rub_force(solution: Solution) -> np.ndarray:
+    """The rub's tangential force at a driven run's samples (positive opposing positive
+    slip; the stick multiplier in stick; 0 in free flight)."""
+    problem = solution.problem
+    pars = np.array(model.params_vector(problem.params))
+    drive = problem.drive.record()
+    ts, tt = problem.drive.table()
+    S = np.vstack([solution.states.T, solution.drive_states.T])
+    out = np.zeros(solution.t.size)
+    for regime in (model.SLIP_POSITIVE, model.SLIP_NEGATIVE, model.STICK):
+        on = solution.regimes == regime
+        if np.any(on):
+            out[on] = driven_columns(np.ascontiguousarray(S[:, on]), pars, drive, ts, tt, regime)[1]
+    return out
+
+
+def solve_driven(problem: Problem, options: ToleranceOptions, name: str) -> Solution:
+    """A driven rotor by the scipy method ``name`` (module docstring)."""
+    if SPECS[name].family != "scipy":
+        raise ValueError(f"{name} does not run a driven rotor")
+    o = options
+    run = DrivenRun(
+        problem, name, max_steps=o.max_steps, max_wall_time_s=o.max_wall_time_s,
+        progress=o.progress,
+    )  # fmt: skip
+    return driver.integrate(run, DrivenStepper(run, name, o.rtol, o.atol))

@@ -1,0 +1,231 @@
+"""The driven rotor (rubcli.drive, rubcli.solvers.driven): the spin a state, driven by a
+motor and braked by the rub. Checked against the Lagrangian's energy (exact, with the
+motor's work), the constant-speed solvers in the limit of a heavy rotor, the closed-form
+synchronous rub with the torque balance (the speed a weak drive is captured at), and the
+case files."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+from typer.testing import CliRunner
+
+from rubcli import model
+from rubcli.analysis.drive_energy import drive_energy, drive_energy_summary
+from rubcli.analysis.drive_torques import revolution_means, sample_torques
+from rubcli.case import CaseError, load_case, load_case_text
+from rubcli.cli.app import app
+from rubcli.drive import Drive
+from rubcli.problem import Problem
+from rubcli.solvers import solve
+
+REPO = Path(__file__).resolve().parents[1]
+
+RUN_UP = dict(nu=0.05, e=0.3, K=10.0, mu=0.02, Rp=5.0)
+CASES = REPO / "cases" / "runup"
+
+
+def constant_torque(torque: float, inertia: float, start: float) -> Drive:
+    """A motor whose torque is the same at every speed (a flat table)."""
+    return Drive(inertia=inertia, start=start, table_speed=(0.0, 100.0),
+                 table_torque=(torque, torque))  # fmt: skip
+
+
+@pytest.mark.parametrize("method", ["dop853", "rk45", "radau"])
+def test_energy_changes_by_the_motors_work_exactly(method):
+    """mu = 0, nu = 0 and a constant motor torque T: the energy of the Lagrangian changes
+    by T (p - p0), the angle being a state: no quadrature, the coupling of the rotor's
+    and the drive's equations through the unbalance (e = 0.3) checked to the tolerance,
+    over many contacts."""
+    p = model.ModelParams(nu=0.0, eta=0.8, e=0.3, K=20.0, mu=0.0, Rp=2.0)
+    drive = constant_torque(0.05, inertia=2.0, start=0.8)
+    t = np.linspace(0.0, 60.0, 3001)
+    sol = solve(Problem(p, (1.02, 0.0, 0.0, 1.2), t, drive=drive), method, rtol=1e-11,
+                atol=1e-12)  # fmt: skip
+    assert sol.success, sol.message
+    assert sol.n_contact_switches >= 6
+    energy = drive_energy(sol)
+    work = 0.05 * (sol.phase - sol.phase[0])
+    assert sol.speed[-1] > 1.5  # the motor did accelerate it
+    assert np.max(np.abs(energy - energy[0] - work)) < 1e-7 * (energy[0] + work[-1])
+
+
+def test_a_heavy_rotor_runs_as_at_constant_speed():
+    """With j = 1e12 and no motor torque the speed cannot change (the rub's torque gives
+    eta' ~ 1e-11): the driven run with friction, stick and slip is the constant-speed
+    run of the compiled DOP853 (its own code and event search), event for event."""
+    p = model.ModelParams(nu=0.02, eta=2.0, e=0.5, K=20.0, mu=0.3, Rp=1.0)
+    t = np.linspace(0.0, 80.0, 1601)
+    drive = constant_torque(0.0, inertia=1e12, start=2.0)
+    s0 = (1.05, 0.0, 0.0, -1.0)
+    driven = solve(Problem(p, s0, t, drive=drive), "dop853", rtol=1e-11, atol=1e-12)
+    fixed = solve(Problem(p, s0, t), "dop853-jit", rtol=1e-11, atol=1e-12)
+    assert driven.success and fixed.success
+    assert len(driven.events) == len(fixed.events) > 10
+    assert set(fixed.events.kinds) >= {"stick_entry", "stick_exit", "contact_exit"}
+    assert list(driven.events.kinds) == list(fixed.events.kinds)
+    np.testing.assert_allclose(driven.events.tau, fixed.events.tau, atol=1e-6)
+    np.testing.assert_allclose(driven.states, fixed.states, atol=1e-5)
+    assert np.ptp(driven.speed) < 1e-9
+
+
+def _captured_speed(params: model.ModelParams, drive: Drive) -> float:
+    """The speed at which the motor's torque balances the steady synchronous rub's
+    (closed form, notes section 5): T_m(eta) = Rp mu K (r - 1) - e eta^2 Im(A e^{-i phi0}),
+    the rub's moment and the unbalance's reaction on the spin."""
+
+    def imbalance(eta: float) -> float:
+        at = model.ModelParams(**{**params.as_dict(), "eta": eta})
+        r = model.synchronous_rub_radii(at)[-1]
+        A = model.synchronous_rub_amplitude(r, at)
+        load = at.Rp * at.mu * at.K * (r - 1.0) - at.e * eta**2 * (A * np.exp(-1j * at.phi0)).imag
+        return drive.motor_torque(eta) - load
+
+    return brentq(imbalance, 1.5, 3.0, xtol=1e-12)
+
+
+def test_a_weak_drive_is_captured_where_the_torques_balance():
+    """The Sommerfeld effect on the rub branch: the weak motor of driven-captured.toml
+    stays at the speed where its torque equals the steady synchronous rub's (closed
+    form), and its run reports it captured; twice the torque passes through to the
+    motor's no-load speed."""
+    case = load_case(CASES / "driven-captured.toml")
+    sol = solve(case.problem, "dop853", rtol=1e-10, atol=1e-12)
+    assert sol.success, sol.message
+    expected = _captured_speed(case.params, case.problem.drive)
+    assert 2.6 < expected < 2.8
+    assert sol.speed[-1] == pytest.approx(expected, abs=1e-6)
+    torques = sample_torques(sol)
+    last = sol.t > sol.t[-1] - 20.0
+    # the motor's torque (about 6.5) goes to the rub and the vibration; the inertia's
+    # share has died out to the run's tolerance
+    assert np.max(np.abs(torques["inertia"][last])) < 1e-5 * np.max(torques["motor"][last])
+    through = load_case(CASES / "driven-through.toml")
+    fast = solve(through.problem, "dop853", rtol=1e-10, atol=1e-12)
+    assert fast.speed[-1] == pytest.approx(through.problem.drive.free_speed(), rel=2e-3)
+    assert fast.contact[-200:].max() == 0
+
+
+def test_a_dry_whip_brakes_the_drive_and_rolls_in_stick():
+    case = load_case(CASES / "driven-dry-whip.toml")
+    sol = solve(case.problem, "dop853", rtol=1e-9, atol=1e-11)
+    assert sol.success, sol.message
+    stick = sol.regimes == model.STICK
+    assert stick.mean() > 0.5
+    assert np.max(np.abs(sol.slip_velocity[stick])) < 1e-9  # projected onto v_r = 0
+    assert sol.speed[-1] < 0.4 * sol.speed[0]  # braked from 3.5, the motor holding 4
+    whirl = np.diff(np.unwrap(np.angle(sol.w[-400:]))).mean() / np.diff(sol.t[-400:]).mean()
+    assert whirl < -1.0  # backward
+    means = revolution_means(sol)
+    assert means.rub[-1] < -1.0 and means.motor[-1] > 1.0
+
+
+def test_the_energy_balance_holds_with_friction_and_the_motor():
+    """With damping, friction, stick and the linear motor the report's balance closes
+    to its quadrature error (the trapezoid on the samples)."""
+    case = load_case(CASES / "driven-dry-whip.toml")
+    sol = solve(case.problem, "dop853", rtol=1e-10, atol=1e-12)
+    summary = drive_energy_summary(sol)
+    assert summary["rub_dissipation"] > 10.0 and summary["motor_work"] > 10.0
+    assert summary["energy_residual"] < max(10 * summary["energy_quadrature_error"], 1e-9)
+    assert summary["energy_residual"] < 1e-3
+
+
+@pytest.mark.parametrize("method", ["dop853-jit", "taylor", "analytic"])
+def test_methods_without_the_drive_refuse_it_naming_the_feature(method):
+    p = model.ModelParams(eta=0.5, **RUN_UP)
+    problem = Problem(p, (0.0, 0.0, 0.0, 0.0), np.linspace(0, 10, 11),
+                      drive=constant_torque(1.0, 20.0, 0.5))  # fmt: skip
+    with pytest.raises(ValueError, match=f"{method} does not run a driven rotor"):
+        solve(problem, method)
+
+
+def test_a_drive_needs_more_inertia_than_its_unbalance():
+    p = model.ModelParams(eta=0.5, **RUN_UP)
+    with pytest.raises(ValueError, match="inertia = 0.05 must exceed e\\^2"):
+        Problem(p, (0.0, 0.0, 0.0, 0.0), np.linspace(0, 1, 3), drive=constant_torque(1, 0.05, 0.5))
+
+
+DRIVEN_TABLES = {
+    "case": 'name = "drive"\n',
+    "model": "nu = 0.05\ne = 0.3\nK = 10.0\nmu = 0.02\nRp = 5.0\n",
+    "speed": 'profile = "driven"\nstart = 0.5\ninertia = 20.0\nstall_torque = 4.0\n'
+    "no_load_speed = 4.0\n",
+    "initial": "x = 0.0\ny = 0.0\n",
+    "time": "end = 50.0\nsamples_per_period = 16\n",
+}
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"speed": 'profile = "driven"\nstart = 0.5\ninertia = 20.0\n'},
+         "profile = 'driven' needs stall_torque, no_load_speed"),
+        ({"speed": 'profile = "driven"\nstart = 0.5\ninertia = 20.0\nstall_torque = 1.0\n'
+                   "no_load_speed = 2.0\nmotor_speed = [0.0, 1.0]\nmotor_torque = [1.0, 0.0]\n"},
+         "not both"),
+        ({"speed": 'profile = "driven"\nstart = 0.5\ninertia = 0.01\nstall_torque = 1.0\n'
+                   "no_load_speed = 2.0\n"}, "speed.inertia: drive: inertia = 0.01 must exceed"),
+        ({"speed": 'profile = "driven"\nstart = 0.5\ninertia = 2.0\nmotor_speed = [0.0, 1.0]\n'
+                   "motor_torque = [1.0, 0.5, 0.0]\n"}, "give one torque per speed"),
+        ({"speed": 'profile = "driven"\nstart = 0.5\ninertia = 2.0\nstall_torque = 1.0\n'
+                   "no_load_speed = 2.0\nrate = 0.1\n"}, "rate do not belong to profile"),
+        ({"time": "samples_per_period = 16\n"}, "time.end: missing; a driven rotor"),
+        ({"solver": 'methods = ["dop853-jit"]\n'}, "dop853-jit does not run a driven rotor"),
+    ],
+)  # fmt: skip
+def test_a_bad_drive_is_refused_naming_the_field(change, message):
+    tables = {**DRIVEN_TABLES, **change}
+    text = "".join(f"[{name}]\n{body}\n" for name, body in tables.items())
+    with pytest.raises(CaseError, match=message):
+        load_case_text(text, "drive.toml")
+
+
+def test_a_physical_drive_converts_once_at_the_edge():
+    """kg m^2, N m, rpm and N m s to j, torques, eta and c_b: the same machine given in
+    [model] and in [physical] is the same problem."""
+    m, k_r, gamma = 10.0, 1e6, 1e-4
+    omega = math.sqrt(k_r / m)
+    torque_unit = k_r * gamma**2
+    rpm = 60.0 / (2.0 * math.pi)
+    physical = (
+        '[case]\nname = "drive"\n[physical]\n'
+        f"m = {m}\nk_r = {k_r}\nd_r = {0.1 * 2 * omega * m}\nk_s = {10 * k_r}\n"
+        f"clearance = {gamma}\ne = {0.3 * gamma}\nRp = {5 * gamma}\nmu = 0.02\n"
+        f'[speed]\nprofile = "driven"\nstart = {0.5 * omega * rpm}\ninertia = {20 * m * gamma**2}\n'
+        f"stall_torque = {4 * torque_unit}\nno_load_speed = {4 * omega * rpm}\n"
+        f"drag = {0.1 * torque_unit / omega}\n"
+        f"[initial]\nx = 0.0\ny = 0.0\n[time]\nend = {50 / omega}\nsamples_per_period = 16\n"
+    )
+    case = load_case_text(physical, "physical.toml")
+    drive = case.problem.drive
+    assert drive.inertia == pytest.approx(20.0, rel=1e-12)
+    assert drive.stall_torque == pytest.approx(4.0, rel=1e-12)
+    assert drive.no_load_speed == pytest.approx(4.0, rel=1e-12)
+    assert drive.start == pytest.approx(0.5, rel=1e-12) == case.params.eta
+    assert drive.drag == pytest.approx(0.1, rel=1e-12)
+    assert case.problem.t_span[1] == pytest.approx(50.0, rel=1e-12)
+
+
+def test_run_on_a_driven_rotor_writes_its_products(tmp_path):
+    case = tmp_path / "drive.toml"
+    case.write_text("".join(f"[{name}]\n{body}\n" for name, body in DRIVEN_TABLES.items()))
+    out = tmp_path / "out"
+    result = CliRunner().invoke(app, ["run", str(case), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    names = {p.name for p in out.iterdir()}
+    assert {"drive.png", "bode.png", "dop853.csv", "report.json"} <= names
+    header = (out / "dop853.csv").read_text().splitlines()[0].split(",")
+    assert {"eta", "phase", "motor_torque", "rub_torque"} <= set(header)
+    entry = json.loads((out / "report.json").read_text())["methods"]["dop853"]
+    assert entry["status"] == "success"
+    assert entry["energy_residual"] < 1e-3
+    assert entry["transient"]["drive"]["start_speed"] == 0.5
+    assert set(entry["transient"]["drive"]["last_revolution_torques"]) == {
+        "motor", "rub", "vibration", "inertia"
+    }  # fmt: skip
