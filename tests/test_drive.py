@@ -136,6 +136,18 @@ def test_the_energy_balance_holds_with_friction_and_the_motor():
     assert summary["energy_residual"] < 1e-3
 
 
+def test_a_rotor_that_stops_ends_the_run_with_a_message():
+    """A motor that brakes (negative torque) stops the rotor: the run ends failed where
+    the speed reaches 0 (without unbalance w = 1 - 0.5 tau: at tau = 2), its samples up
+    to there kept."""
+    p = model.ModelParams(**{**RUN_UP, "eta": 1.0, "e": 0.0})
+    drive = constant_torque(-0.5 * 20.0, inertia=20.0, start=1.0)
+    sol = solve(Problem(p, (0.0, 0.0, 0.0, 0.0), np.linspace(0, 10, 101), drive=drive), "dop853")
+    assert not sol.success
+    assert "speed fell to 0 at tau = 2:" in sol.message
+    assert sol.t[-1] == pytest.approx(1.9) and np.all(sol.speed > 0)
+
+
 @pytest.mark.parametrize("method", ["dop853-jit", "taylor", "analytic"])
 def test_methods_without_the_drive_refuse_it_naming_the_feature(method):
     p = model.ModelParams(eta=0.5, **RUN_UP)

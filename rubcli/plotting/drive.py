@@ -21,8 +21,12 @@ TORQUE_STYLES = {  # the net first, thick and light: the motor's line lies on it
     "inertia": {"color": "0.6", "lw": 4.0, "alpha": 0.5, "label": "net: j p'' (acceleration)"},
     "motor": {"color": "tab:green", "lw": 1.6, "label": "motor less drag"},
     "rub": {"color": "tab:red", "lw": 1.5, "label": "rub (friction's moment)"},
-    "vibration": {"color": "tab:purple", "lw": 1.2, "ls": "--",
-                  "label": "unbalance reaction (vibration)"},  # fmt: skip
+    "vibration": {
+        "color": "tab:purple",
+        "lw": 1.2,
+        "ls": "--",
+        "label": "unbalance reaction (vibration)",
+    },  # fmt: skip
 }
 
 

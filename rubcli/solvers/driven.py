@@ -196,15 +196,18 @@ class DrivenStepper:
             run.fail(f"non-finite state at tau = {solver.t:.6g}")
             return
         dense = solver.dense_output()
+        if solver.y[5] <= 0.0:  # stopped: the phase no longer advances
+            stop = brentq(lambda t: dense(t)[5], solver.t_old, solver.t)
+            self._end_segment(run)
+            run.k = self._fill(run, dense, stop)
+            run.fail(
+                f"the speed fell to 0 at tau = {stop:.6g}: the rotor stopped, its load "
+                "beyond what the motor gives (a rotor turning backward is outside the model)"
+            )
+            return
         event = self._earliest_event(run, dense, solver.t_old, solver.t)
         run.last_kind = NO_EVENT
-        t_stop = event[0] if event else solver.t
-        while run.k < run.t_eval.size and run.t_eval[run.k] <= t_stop:
-            sample = dense(run.t_eval[run.k])
-            if run.regime == model.STICK:
-                sample = project(sample, run)
-            run.states[run.k], run.regimes[run.k] = sample, run.regime
-            run.k += 1
+        run.k = self._fill(run, dense, event[0] if event else solver.t)
         if event is None:
             run.tau, run.state = solver.t, solver.y
             if solver.status == "finished":
@@ -212,6 +215,19 @@ class DrivenStepper:
             return
         self._end_segment(run)
         run.switch(event[0], event[1], dense(event[0]))
+
+    @staticmethod
+    def _fill(run: DrivenRun, dense, t_stop: float) -> int:
+        """The samples up to ``t_stop`` from a step's dense output (projected onto the
+        rolling constraint in stick); returns the next sample to fill."""
+        k = run.k
+        while k < run.t_eval.size and run.t_eval[k] <= t_stop:
+            sample = dense(run.t_eval[k])
+            if run.regime == model.STICK:
+                sample = project(sample, run)
+            run.states[k], run.regimes[k] = sample, run.regime
+            k += 1
+        return k
 
     def _functions(self, run: DrivenRun):
         """The regime's event functions h(S) of states (6, n): ``(kind, h)``."""

@@ -46,8 +46,9 @@ CSV_COLUMNS = (
 
 def case_periods(case: Case) -> float:
     """The case's span in periods: ``[time] periods``, or for a speed that changes the
-    revolutions of the unbalance over the profile's span."""
-    if case.problem.speed is None:
+    revolutions of the unbalance over the profile's span (a driven rotor's counted at its
+    start speed)."""
+    if not case.problem.changes_speed:
         return case.settings.time.periods
     return case.problem.periods
 
@@ -63,6 +64,11 @@ def _problem(case: Case, periods: float, mu: float | None = None) -> Problem:
         )
         whole = dataclasses.replace(case.problem, params=params)
         return truncate_problem(whole, float(np.interp(periods, turns, t)))
+    if case.problem.drive is not None:  # periods at the start speed
+        from rubcli.analysis.reference import truncate_problem
+
+        whole = dataclasses.replace(case.problem, params=params)
+        return truncate_problem(whole, periods * params.period)
     return Problem.from_periods(
         params,
         case.problem.initial,
@@ -324,7 +330,7 @@ def expected_files(case: Case, cfg: CompareSection) -> tuple[str, ...]:
     """The files ``rubcli compare`` writes for ``case`` (``poincare.png`` with responses)."""
     names = ["work_precision.csv", "work_precision.png", "error_growth.png"]
     names = names if cfg.work_precision else []
-    if case.problem.speed is None:  # both count periods of one speed
+    if not case.problem.changes_speed:  # both count periods of one speed
         names += ["orbits.png", "spectrum.png"]
     names += ["sweep.csv"] if cfg.mu is not None else []
     if response_settings(case.settings.analysis) is not None:
@@ -355,7 +361,7 @@ class CompareResult:
         from rubcli.plotting.spectrum import spectrum_figure
 
         case, wp, panels, analysis = self.case, self.wp, self.panels, self.case.settings.analysis
-        speed = case.problem.speed.text() if case.problem.speed is not None else None
+        speed = case.problem.speed_text()
         title = parameters_title(case.name, case.params, speed=speed)
         files: list[str] = []
         with io.staged_output_dir(directory, plan) as staged:
