@@ -27,6 +27,11 @@ _OPTIONAL_TABLES = """
 # rate = 0.002                  # d eta / d tau (rpm/s with [physical]), signed
 # (with [speed]: no eta/Omega and no [time] periods; the run spans the profile;
 #  methods dop853-jit or a scipy method)
+# profile = "driven"            # or the speed a state, driven by a motor (give [time] end):
+# start = 0.5                   #   the speed at tau = 0
+# inertia = 200.0               #   j = J_p / (m gamma^2) (kg m^2 with [physical])
+# stall_torque = 20.0           #   torque over k_r gamma^2 (N m with [physical])
+# no_load_speed = 4.0
 
 # [analysis]                    # response class of each run (Poincare section, Lyapunov)
 # response = true
