@@ -16,8 +16,8 @@ from scipy.optimize import brentq
 from typer.testing import CliRunner
 
 from rubcli import model
-from rubcli.analysis.drive_energy import drive_energy, drive_energy_summary
 from rubcli.analysis.drive_torques import revolution_means, sample_torques
+from rubcli.analysis.transient_energy import drive_energy, drive_energy_summary
 from rubcli.case import CaseError, load_case, load_case_text
 from rubcli.cli.app import app
 from rubcli.drive import Drive

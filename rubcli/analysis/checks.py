@@ -121,12 +121,15 @@ def method_summary(solution: Solution, balance: Any = None) -> dict[str, Any]:
     t_end = float(solution.t[-1]) if solution.t.size else None
     finite = bool(np.all(np.isfinite(solution.states)))
     with np.errstate(all="ignore"):
-        if not finite or solution.problem.speed is not None:
-            energy = None  # the balance's power terms assume a constant speed
-        elif solution.problem.drive is not None:
-            from rubcli.analysis.drive_energy import drive_energy_summary
+        if not finite:
+            energy = None
+        elif solution.problem.changes_speed:
+            from rubcli.analysis import transient_energy
 
-            energy = drive_energy_summary(solution)
+            if solution.problem.drive is not None:
+                energy = transient_energy.drive_energy_summary(solution)
+            else:
+                energy = transient_energy.profile_energy_summary(solution)
         elif balance is not None:
             energy = balance.summary()
         else:
@@ -147,12 +150,7 @@ def method_summary(solution: Solution, balance: Any = None) -> dict[str, Any]:
         "penetration_bound": penetration_bound(solution.problem),
         "time_in_regime": time_in_regimes(solution),
         "energy_residual": None if energy is None else energy["energy_residual"],
-        "energy": energy
-        if solution.problem.speed is None or energy is None and not finite
-        else {
-            "note": "not computed for a speed that changes: the balance's power terms "
-            "assume a constant speed"
-        },
+        "energy": energy,
         "n_samples": int(solution.t.size),
         "tau_end": t_end,
         "settings": dict(solution.settings),

@@ -1,0 +1,170 @@
+"""The energy balance of a run whose speed changes: the check of its quality.
+
+**A prescribed speed** (``rubcli.speed``). The rotor's energy ``E = |v|^2 / 2 + |w|^2 / 2
++ K (z - 1)^2 / 2`` changes by the unbalance's power, now with the tangential term of a
+changing speed (``model.unbalance_value``), the damping's and the friction's on the
+translation::
+
+    d/dtau E = f_u(tau) . v - 2 nu |v|^2 - T r theta'
+
+(``analysis.energy``'s balance with ``E (cos p, sin p)`` replaced by ``f_u``; the motor
+holding the prescribed speed supplies ``T Rp eta(tau)`` of the friction's power, reported
+as ``spin_drive_work``, and the contact dissipates ``T v_r``). The powers are integrated
+piece by piece between the located events (``analysis.regimes.solution_pieces``: a
+slip reversal flips the friction), on each leg of the profile with that leg's line of
+speed, by the trapezoid rule (``profile_energy_summary``).
+
+**A driven rotor** (``rubcli.drive``), the speed a state.
+
+With the energy ``E = |v|^2 / 2 + e w t . v + j w^2 / 2 + |w|^2 / 2 + K (z - 1)^2 / 2``
+(``drive.energy_value``; ``v`` the rotor's velocity, ``w`` its speed), the equations
+give exactly::
+
+    d/dtau E = T_m(w) w - c_b w^2 - 2 nu |v|^2 - T v_r
+
+the motor's power, the bearing drag's, the damping's and the rub's (``T`` the rub's
+tangential force, positive opposing positive slip; ``v_r`` the slip velocity; zero in
+stick, where the rotor rolls). Every power is continuous in time (the rub's vanishes at
+every switch: ``z = 1`` or ``v_r = 0`` there), so the works are integrated over the
+samples by the trapezoid rule. ``energy_residual = |Delta E - (W_motor - D_drag -
+D_damp - D_rub)| / throughput`` with the throughput the sum of the works' magnitudes
+plus the largest energy stored; ``energy_quadrature_error`` estimates the rule's own
+share (the rule on every other sample against every sample, over 3, order 2): a residual
+says something about the solver only above it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rubcli import model
+from rubcli.drive import energy_value
+from rubcli.solution import Solution
+
+
+def drive_powers(solution: Solution) -> dict[str, np.ndarray]:
+    """The powers at the samples: motor, drag, damping and rub (dissipations positive)."""
+    p, drive = solution.problem.params, solution.problem.drive
+    w = solution.speed
+    rub = solution.friction_force * solution.slip_velocity
+    rub = np.where(solution.regimes == model.STICK, 0.0, rub)
+    return {
+        "motor": drive.motor_torque(w) * w,
+        "drag": drive.drag * w * w,
+        "damping": 2.0 * p.nu * (solution.vx**2 + solution.vy**2),
+        "rub": rub,
+    }
+
+
+def drive_energy(solution: Solution) -> np.ndarray:
+    """The driven rotor's energy at the samples (``drive.energy_value``)."""
+    p, drive = solution.problem.params, solution.problem.drive
+    x, y, vx, vy = solution.states.T
+    return energy_value(x, y, vx, vy, solution.phase, solution.speed, p.K, p.e, drive.inertia)
+
+
+def _trapezoid(t: np.ndarray, P: np.ndarray) -> float:
+    return float(np.sum(0.5 * (P[1:] + P[:-1]) * np.diff(t))) if t.size > 1 else 0.0
+
+
+def _coarse(t: np.ndarray, P: np.ndarray) -> float:
+    """The trapezoid rule on every other node (the last interval kept whole)."""
+    out = _trapezoid(t[::2], P[::2])
+    if (t.size - 1) % 2:
+        out += _trapezoid(t[-2:], P[-2:])
+    return out
+
+
+def profile_powers(problem, tau: np.ndarray, states: np.ndarray, regime: int):
+    """The powers of a prescribed speed at the nodes ``tau`` (states (n, 4)) of one piece
+    in ``regime``: unbalance, damping, friction on the translation, contact dissipation
+    and the spin drive's share (module docstring), each leg with its own line of speed."""
+    x, y, vx, vy = states.T
+    out = {name: np.zeros(tau.size) for name in ("unbalance", "damping", "friction", "contact",
+                                                 "spin")}  # fmt: skip
+    out["damping"] = 2.0 * problem.params.nu * (vx * vx + vy * vy)
+    legs = problem.legs()
+    starts = np.array([start for start, _ in legs])
+    leg_of = np.clip(np.searchsorted(starts, tau, side="right") - 1, 0, len(legs) - 1)
+    for i, (_, p) in enumerate(legs):
+        on = leg_of == i
+        if not np.any(on):
+            continue
+        fx, fy = model.unbalance_value(tau[on], p.eta, p.E, p.phi0, p.e, p.rate, p.tau0)
+        out["unbalance"][on] = fx * vx[on] + fy * vy[on]
+        if regime == model.FREE:
+            continue
+        T = model.tangential_force(tau[on], x[on], y[on], vx[on], vy[on], p, regime)
+        z = np.hypot(x[on], y[on])
+        whirl = (x[on] * vy[on] - y[on] * vx[on]) / z
+        spin = p.Rp * p.speed(tau[on])
+        out["friction"][on] = T * whirl
+        out["contact"][on] = T * (whirl + spin)
+        out["spin"][on] = T * spin
+    return out
+
+
+def profile_energy_summary(solution: Solution) -> dict[str, float]:
+    """A prescribed speed's balance over the run, for report.json (module docstring):
+    the keys of ``analysis.energy``'s summary."""
+    from rubcli.analysis.regimes import solution_pieces
+
+    if solution.t.size < 3:
+        return {"energy_residual": 0.0, "energy_quadrature_error": 0.0}
+    names = ("unbalance", "damping", "friction", "contact", "spin")
+    fine = dict.fromkeys(names, 0.0)
+    coarse = dict.fromkeys(names, 0.0)
+    throughput = 0.0
+    for piece in solution_pieces(solution):
+        powers = profile_powers(solution.problem, piece.tau, piece.states, piece.regime)
+        for name in names:
+            fine[name] += _trapezoid(piece.tau, powers[name])
+            coarse[name] += _coarse(piece.tau, powers[name])
+        for name in ("unbalance", "damping", "friction"):
+            throughput += _trapezoid(piece.tau, np.abs(powers[name]))
+    x, y, vx, vy = solution.states.T
+    z = np.hypot(x, y)
+    K = solution.problem.params.K
+    energy = 0.5 * (vx * vx + vy * vy + x * x + y * y) + np.where(z > 1, 0.5 * K * (z - 1) ** 2, 0)
+    throughput += float(np.max(energy))
+    change = float(energy[-1] - energy[0])
+
+    def net(works):
+        return works["unbalance"] - works["damping"] - works["friction"]
+
+    return {
+        "energy_residual": abs(change - net(fine)) / throughput,
+        "energy_quadrature_error": abs(net(fine) - net(coarse)) / 3.0 / throughput,
+        "energy_change": change,
+        "work_unbalance": fine["unbalance"],
+        "damping_dissipation": fine["damping"],
+        "friction_dissipation": fine["friction"],
+        "contact_dissipation": fine["contact"],
+        "spin_drive_work": fine["spin"],
+        "energy_throughput": throughput,
+    }
+
+
+def drive_energy_summary(solution: Solution) -> dict[str, float]:
+    """The balance's totals over the run, for report.json (module docstring)."""
+    t = solution.t
+    if t.size < 3:
+        return {"energy_residual": 0.0, "energy_quadrature_error": 0.0}
+    energy = drive_energy(solution)
+    powers = drive_powers(solution)
+    works = {name: _trapezoid(t, P) for name, P in powers.items()}
+    net = works["motor"] - works["drag"] - works["damping"] - works["rub"]
+    coarse = {name: _coarse(t, P) for name, P in powers.items()}
+    coarse_net = coarse["motor"] - coarse["drag"] - coarse["damping"] - coarse["rub"]
+    throughput = sum(_trapezoid(t, np.abs(P)) for P in powers.values()) + float(np.max(energy))
+    change = float(energy[-1] - energy[0])
+    return {
+        "energy_residual": abs(change - net) / throughput,
+        "energy_quadrature_error": abs(net - coarse_net) / 3.0 / throughput,
+        "energy_change": change,
+        "motor_work": works["motor"],
+        "drag_dissipation": works["drag"],
+        "damping_dissipation": works["damping"],
+        "rub_dissipation": works["rub"],
+        "energy_throughput": throughput,
+    }
