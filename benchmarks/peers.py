@@ -156,27 +156,40 @@ class Heyoka:
     exit located with z^2 - 1 = 0.0 exactly made the free integrator miss the next entry
     (its event function is zero at its start), on the paper's case at tol <= 1e-8. One
     integrator keeps heyoka's own cooldown, which handles the restart on the surface.
+
+    ``rate``: a speed ramping from ``params.eta`` at tau = 0 (benchmarks/runup.py), the
+    right-hand side then depending on time through the phase, the speed and the
+    unbalance's tangential term.
     """
 
-    def __init__(self, params: ModelParams, tol: float):
+    def __init__(self, params: ModelParams, tol: float, rate: float = 0.0):
         import heyoka as hy
 
         self.hy = hy
         x, y, vx, vy = hy.make_vars("x", "y", "vx", "vy")
-        nu, eta, E, phi0, K, mu, Rp = model.params_vector(params)
-        phase = eta * hy.time + phi0
+        nu, eta, E, phi0, K, mu, Rp = model.params_vector(params)[:7]  # nu .. Rp
         z = hy.sqrt(x * x + y * y)
         fac = hy.par[1] * K * (1.0 - 1.0 / z)  # par[1]: 1 in contact, 0 in free flight
         mu_c = hy.par[0]
+        if rate == 0.0:
+            phase = eta * hy.time + phi0
+            fx, fy, spin = E * hy.cos(phase), E * hy.sin(phase), Rp * eta
+        else:  # a ramp from eta at tau = 0 (benchmarks/runup.py): the time in the forcing
+            e, t = params.e, hy.time
+            phase = eta * t + 0.5 * rate * t * t + phi0
+            w = eta + rate * t
+            c, s = hy.cos(phase), hy.sin(phase)
+            fx, fy, spin = e * (w * w * c + rate * s), e * (w * w * s - rate * c), Rp * w
         system = [
             (x, vx),
             (y, vy),
-            (vx, E * hy.cos(phase) - 2.0 * nu * vx - x - fac * (x - mu_c * y)),
-            (vy, E * hy.sin(phase) - 2.0 * nu * vy - y - fac * (y + mu_c * x)),
+            (vx, fx - 2.0 * nu * vx - x - fac * (x - mu_c * y)),
+            (vy, fy - 2.0 * nu * vy - y - fac * (y + mu_c * x)),
         ]
+        self.rate = rate
         events = [hy.t_event(x * x + y * y - 1.0)]
         if mu > 0.0:
-            events.append(hy.t_event(Rp * eta + (x * vy - y * vx) / z))
+            events.append(hy.t_event(spin + (x * vy - y * vx) / z))
         self.ta = hy.taylor_adaptive(system, [0.0] * 4, tol=tol, pars=[0.0, 0.0], t_events=events)
         self.params = params
 
@@ -205,7 +218,7 @@ class Heyoka:
                 if regime != model.FREE:
                     regime = model.FREE
                 else:  # entry: slip direction by v_r
-                    v_r = model.slip_velocity(*map(float, s), p.Rp, p.eta)
+                    v_r = model.slip_velocity(*map(float, s), p.Rp, p.eta + self.rate * t)
                     regime = model.SLIP_POSITIVE if (p.mu == 0.0 or v_r >= 0.0) else -1
                 n_events += 1
             elif regime != model.FREE:  # slip reversal: no stick here, the sign flips
@@ -240,7 +253,7 @@ class HeyokaSwitched:
 
         self.hy = hy
         x, y, vx, vy = hy.make_vars("x", "y", "vx", "vy")
-        nu, eta, E, phi0, K, mu, Rp = model.params_vector(params)
+        nu, eta, E, phi0, K, mu, Rp = model.params_vector(params)[:7]  # nu .. Rp
         phase = eta * hy.time + phi0
         fx, fy = E * hy.cos(phase) - 2.0 * nu * vx - x, E * hy.sin(phase) - 2.0 * nu * vy - y
         fac = K * (1.0 - 1.0 / hy.sqrt(x * x + y * y))
@@ -308,7 +321,7 @@ def run_cyrk(rhs, params: ModelParams, initial, t_end: float, tol: float):
     from CyRK import nbsolve_ivp
 
     result = nbsolve_ivp(
-        rhs, (0.0, t_end), np.array(initial, dtype=float), args=model.params_vector(params),
+        rhs, (0.0, t_end), np.array(initial, dtype=float), args=model.params_vector(params)[:7],
         rtol=tol, atol=tol * ATOL_FACTOR, rk_method=2, max_num_steps=CYRK_MAX_STEPS,
         warnings=False,
     )  # fmt: skip

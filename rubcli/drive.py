@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rubcli.model import FREE, MAX_MAGNITUDE, STICK, friction_sign
+from rubcli.model import FREE, MAX_MAGNITUDE, STICK, FloatOrArray, friction_sign
 
 # The drive's record for the compiled cores: one float64 array, read by these names.
 DRIVE_RECORD = ("inertia", "drag", "stall_torque", "no_load_speed")
@@ -129,7 +129,7 @@ class Drive:
         """The motor table (empty for a linear motor)."""
         return np.array(self.table_speed, dtype=float), np.array(self.table_torque, dtype=float)
 
-    def motor_torque(self, w):
+    def motor_torque(self, w: FloatOrArray) -> FloatOrArray:
         """T_m at the speed ``w`` (scalars or arrays)."""
         speed, torque = self.table()
         out = motor_torque_value(np.asarray(w, dtype=float), self.record(), speed, torque)
@@ -166,19 +166,26 @@ def _finite(name: str, value: float) -> None:
 # ------------------------------------------------------------------ compilable cores
 
 
-def motor_torque_value(w, drive, table_speed, table_torque):
+def motor_torque_value(
+    w: FloatOrArray, drive: np.ndarray, table_speed: np.ndarray, table_torque: np.ndarray
+) -> FloatOrArray:
     """T_m(w) (compilable core): the table, else the linear characteristic."""
     if table_speed.shape[0]:
         return np.interp(w, table_speed, table_torque)
     return drive[D_STALL] * (1.0 - w / drive[D_NO_LOAD])
 
 
-def shaft_torque_value(w, drive, table_speed, table_torque):
+def shaft_torque_value(
+    w: FloatOrArray, drive: np.ndarray, table_speed: np.ndarray, table_torque: np.ndarray
+) -> FloatOrArray:
     """The motor's torque less the bearing drag, T_m(w) - c_b w (compilable core)."""
     return motor_torque_value(w, drive, table_speed, table_torque) - drive[D_DRAG] * w
 
 
-def stick_torque_value(x, y, vx, vy, p, w, nu, K, e, Rp, j, Q0):
+def stick_torque_value(
+    x: float, y: float, vx: float, vy: float, p: float, w: float, nu: float, K: float,
+    e: float, Rp: float, j: float, Q0: float,
+) -> tuple[float, float]:  # fmt: skip
     """In stick: ``(T, p'')``, the rolling friction (positive opposing positive slip) and
     the angular acceleration, with ``Q0`` the motor's torque less drag (compilable core).
 
@@ -206,7 +213,10 @@ def stick_torque_value(x, y, vx, vy, p, w, nu, K, e, Rp, j, Q0):
     return A + B * p_dd, p_dd
 
 
-def driven_rhs_entries(x, y, vx, vy, p, w, nu, K, mu, Rp, e, j, Q0, regime):
+def driven_rhs_entries(
+    x: float, y: float, vx: float, vy: float, p: float, w: float, nu: float, K: float,
+    mu: float, Rp: float, e: float, j: float, Q0: float, regime: int,
+) -> tuple[float, float, float, float, float, float, float]:  # fmt: skip
     """The driven rotor's right-hand side in ``regime`` (compilable core): the six
     derivatives and the rub's tangential force ``T`` (module docstring). ``Q0``: the
     motor's torque less drag at ``w``."""
@@ -233,7 +243,9 @@ def driven_rhs_entries(x, y, vx, vy, p, w, nu, K, mu, Rp, e, j, Q0, regime):
     return vx, vy, ax, ay, w, p_dd, T
 
 
-def rolling_projection(x, y, vx, vy, p, w, e, Rp, j):
+def rolling_projection(
+    x: float, y: float, vx: float, vy: float, p: float, w: float, e: float, Rp: float, j: float
+) -> tuple[float, float, float]:
     """The velocities ``(vx, vy, w)`` with ``v_r = 0`` exactly, moved along the kinetic
     energy's metric (the least change of the energy; compilable core): the constraint's
     gradient ``g = (h, Rp)`` through the inverse of the mass matrix."""
@@ -247,7 +259,10 @@ def rolling_projection(x, y, vx, vy, p, w, e, Rp, j):
     return vx - scale * ux, vy - scale * uy, w - scale * u_p
 
 
-def energy_value(x, y, vx, vy, p, w, K, e, j):
+def energy_value(
+    x: FloatOrArray, y: FloatOrArray, vx: FloatOrArray, vy: FloatOrArray, p: FloatOrArray,
+    w: FloatOrArray, K: float, e: float, j: float,
+) -> FloatOrArray:  # fmt: skip
     """The driven rotor's energy, kinetic (with the unbalance's coupling) and elastic."""
     z = np.hypot(x, y)
     kinetic = 0.5 * (vx * vx + vy * vy) + e * w * (-np.sin(p) * vx + np.cos(p) * vy)

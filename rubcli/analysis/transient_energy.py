@@ -39,6 +39,7 @@ import numpy as np
 
 from rubcli import model
 from rubcli.drive import energy_value
+from rubcli.problem import Problem
 from rubcli.solution import Solution
 
 
@@ -75,7 +76,9 @@ def _coarse(t: np.ndarray, P: np.ndarray) -> float:
     return out
 
 
-def profile_powers(problem, tau: np.ndarray, states: np.ndarray, regime: int):
+def profile_powers(
+    problem: Problem, tau: np.ndarray, states: np.ndarray, regime: int
+) -> dict[str, np.ndarray]:
     """The powers of a prescribed speed at the nodes ``tau`` (states (n, 4)) of one piece
     in ``regime``: unbalance, damping, friction on the translation, contact dissipation
     and the spin drive's share (module docstring), each leg with its own line of speed."""
@@ -129,7 +132,7 @@ def profile_energy_summary(solution: Solution) -> dict[str, float]:
     throughput += float(np.max(energy))
     change = float(energy[-1] - energy[0])
 
-    def net(works):
+    def net(works: dict[str, float]) -> float:
         return works["unbalance"] - works["damping"] - works["friction"]
 
     return {

@@ -28,6 +28,7 @@ Implicit methods build their Jacobian by finite differences.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from scipy.optimize import brentq
@@ -233,7 +234,7 @@ class DrivenStepper:
         """The regime's event functions h(S) of states (6, n): ``(kind, h)``."""
         p, regime = run.params, run.regime
 
-        def surface(S):
+        def surface(S: np.ndarray) -> np.ndarray:
             return S[0] ** 2 + S[1] ** 2 - 1.0
 
         if regime == model.FREE:
@@ -244,8 +245,8 @@ class DrivenStepper:
         if regime == model.STICK:
             margin = 1.0 + model.STICK_EXIT_MARGIN
 
-            def side(sign):
-                def h(S):
+            def side(sign: float) -> Callable[[np.ndarray], np.ndarray]:
+                def h(S: np.ndarray) -> np.ndarray:
                     T = self.columns(np.atleast_2d(S.T).T)[1]
                     limit = p.mu * p.K * (np.hypot(S[0], S[1]) - 1.0)
                     out = sign * T - limit * margin
@@ -286,7 +287,7 @@ def _with_grazes(dense, grid, S, values):
     for i in range(grid.size - 1):
         if values[i] < 0.0 and values[i + 1] < 0.0 and rate[i] > 0.0 > rate[i + 1]:
 
-            def r(t):
+            def r(t: float) -> float:
                 s = dense(t)
                 return s[0] * s[2] + s[1] * s[3]
 
