@@ -3,13 +3,13 @@ speed that changes.
 
 Run from the repository root:
 
-    python benchmarks/runup.py      # about 11 minutes on 2 cores (radau's ladder is 5 of them)
+    python benchmarks/runup.py      # about 13 minutes on 2 cores (radau's ladder is 10 of them)
 
 Case: the run-up machine of cases/runup (nu = 0.05, e = 0.3, K = 10, mu = 0.02, Rp = 5)
 ramped from eta = 0.5 to 4 at the rate that makes 1,000 revolutions (d eta / d tau =
-1.253e-3), from the steady free whirl at eta = 0.5: contact near eta = 0.9, the synchronous rub through the
-critical speed, the jump down past the steady fold. Sampled 16 times per revolution at
-the highest speed.
+1.253e-3), from the steady free whirl at eta = 0.5: contact near eta = 0.9, the
+synchronous rub through the critical speed, the jump down past the steady fold. Sampled
+16 times per revolution at the highest speed.
 
 Each method at rtol = 1e-6 and 1e-9 (atol = rtol / 100), the best of 3 timed runs after a
 warm-up; the error is the largest distance of the sampled positions from a reference

@@ -1197,6 +1197,24 @@ class Case:
     def source(self) -> str:
         return str(self.path) if self.path is not None else "<case>"
 
+    def speed_text(self) -> str | None:
+        """The profile or the drive in a few words for titles, in the case's own units
+        (rpm, N m, kg m^2 with [physical]); None at a constant speed."""
+        speed = self.settings.speed
+        if self.scale is None or speed is None:
+            return self.problem.speed_text()
+        unit = speed.unit or "rpm"
+        if speed.driven:
+            if speed.stall_torque is not None:
+                stall, free = speed.stall_torque, speed.no_load_speed
+                motor = f"motor {stall:g} N m stall, {free:g} {unit} no-load"
+            else:
+                motor = f"motor table of {len(speed.motor_speed)} points"
+            return f"driven from {speed.start:g} {unit}, J {speed.inertia:g} kg m^2, {motor}"
+        if speed.profile == "ramp":
+            return f"{speed.start:g} to {speed.to:g} {unit} at {speed.rate:g} {unit}/s"
+        return f"{unit} by table, {min(speed.speed):g} to {max(speed.speed):g}"
+
     @property
     def params(self) -> ModelParams:
         return self.problem.params

@@ -222,6 +222,9 @@ def test_a_physical_drive_converts_once_at_the_edge():
     assert drive.start == pytest.approx(0.5, rel=1e-12) == case.params.eta
     assert drive.drag == pytest.approx(0.1, rel=1e-12)
     assert case.problem.t_span[1] == pytest.approx(50.0, rel=1e-12)
+    # titles speak the case's units
+    stall, free = 4 * torque_unit, 4 * omega * rpm
+    assert f"motor {stall:g} N m stall, {free:g} rpm no-load" in case.speed_text()
 
 
 def test_run_on_a_driven_rotor_writes_its_products(tmp_path):

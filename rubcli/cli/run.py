@@ -280,9 +280,20 @@ def _transient_line(method: str, transient: dict) -> str:
         return f"{value:.0f} {unit}".strip() if rpm else f"eta {value:.4g}"
 
     end = speed("rub_end") if transient.get("rub_end_eta") is not None else "still rubbing"
-    onset = speed("rub_onset") if transient.get("rub_onset_eta") is not None else "never"
-    return (
+    if transient.get("rub_onset_eta") is None:
+        rub = "no rub"
+    else:
+        rub = f"rub from {speed('rub_onset')} to {end}, {transient['rub_transitions']} rub starts"
+    line = (
         f"{method}: peak 1X {transient['peak_1x_forward_amplitude']:.4g} clearances at "
-        f"{speed('peak_1x_forward')}; rub from {onset} to {end}, "
-        f"{transient['rub_transitions']} rub starts over {transient['revolutions']} revolutions"
+        f"{speed('peak_1x_forward')}; {rub} over {transient['revolutions']} revolutions"
     )
+    drive = transient.get("drive")
+    if drive is not None:  # a driven rotor: where its speed went
+        captured = ", captured" if drive["captured"] else ""
+        if rpm:
+            went = f"{drive['start_speed_rpm']:.0f} to {drive['final_speed_rpm']:.0f} rpm"
+        else:
+            went = f"eta {drive['start_speed']:.4g} to {drive['final_speed']:.4g}"
+        line += f"; speed {went}{captured}"
+    return line

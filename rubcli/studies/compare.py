@@ -361,7 +361,7 @@ class CompareResult:
         from rubcli.plotting.spectrum import spectrum_figure
 
         case, wp, panels, analysis = self.case, self.wp, self.panels, self.case.settings.analysis
-        speed = case.problem.speed_text()
+        speed = case.speed_text()
         title = parameters_title(case.name, case.params, speed=speed)
         files: list[str] = []
         with io.staged_output_dir(directory, plan) as staged:

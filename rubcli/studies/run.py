@@ -241,7 +241,7 @@ def write_outputs(
             name = f"{solution.method}.csv"
             entries[solution.method]["files"] = [name]
             files.append(name)
-    title = plots.parameters_title(case.name, case.params, speed=case.problem.speed_text())
+    title = plots.parameters_title(case.name, case.params, speed=case.speed_text())
     failures = {n: e["message"] for n, e in entries.items() if e["status"] == ERROR}
     transient = case.settings.analysis.transient_periods if case.settings.analysis else None
     spectra = _spectra(case, solutions, entries, transient)

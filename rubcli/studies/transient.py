@@ -45,7 +45,11 @@ class Transient:
         """report.json's ``transient`` entry (a driven rotor's with its ``drive``)."""
         out = self.summary.to_dict(self.rpm_per_eta)
         if self.drive is not None:
-            out["drive"] = self.drive
+            out["drive"] = dict(self.drive)
+            if self.rpm_per_eta:  # a [physical] case: the speeds in rpm beside
+                for key in ("start_speed", "final_speed", "max_speed", "min_speed",
+                            "motor_free_speed"):  # fmt: skip
+                    out["drive"][f"{key}_rpm"] = self.drive[key] * self.rpm_per_eta
         return out
 
 
@@ -85,7 +89,7 @@ def figures(
 
     units = {"speed_unit": "rpm" if transient.rpm_per_eta else "eta",
              "rpm_per_eta": transient.rpm_per_eta}  # fmt: skip
-    speed_text = case.problem.speed_text()
+    speed_text = case.speed_text()
     title = f"{parameters_title(case.name, case.params, speed=speed_text)} ({solution.method})"
     out = {
         "bode": plots.bode_figure(
