@@ -1391,13 +1391,7 @@ def _assemble_speed_case(
     params = ModelParams(**{**values, "eta": profile.speed(0.0)})
     end = settings.time.end
     t_end = profile.end if end is None else end * (scale.omega if scale is not None else 1.0)
-    if not (0.0 < t_end <= model.MAX_MAGNITUDE):
-        why = f"outside (0, {model.MAX_MAGNITUDE:g}] (the model's domain, docs/cases.md)"
-        raise CaseError([f"{source}: time.end: the run ends at tau = {t_end!r}, {why}"])
-    why = resolution_problem(params, (0.0, t_end))
-    if why:
-        where = "model.K" if scale is None else f"physical: converts to K = {params.K!r}"
-        raise CaseError([f"{source}: {where}: {why}"])
+    _check_span(params, t_end, scale, source)
     t_eval = _speed_samples(settings, max(profile.eta), t_end, source)
     problem = Problem(
         params=params, initial=initial, t_eval=t_eval, name=settings.case.name, speed=profile
@@ -1429,6 +1423,20 @@ def _assemble_driven_case(
     except ValueError as exc:
         raise CaseError([f"{source}: speed.inertia: {exc}"]) from None
     t_end = settings.time.end * (scale.omega if scale is not None else 1.0)
+    _check_span(params, t_end, scale, source)
+    top = drive.no_load_speed if drive.no_load_speed is not None else drive.table_speed[-1]
+    t_eval = _speed_samples(settings, max(top, drive.start), t_end, source)
+    problem = Problem(
+        params=params, initial=initial, t_eval=t_eval, name=settings.case.name, drive=drive
+    )
+    return Case(settings=settings, problem=problem, scale=scale, path=path)
+
+
+def _check_span(
+    params: ModelParams, t_end: float, scale: units.PhysicalScale | None, source: str
+) -> None:
+    """CaseError unless a run whose speed changes may end at ``t_end``: within the
+    model's domain, and the contact resolved in doubles all the way."""
     if not (0.0 < t_end <= model.MAX_MAGNITUDE):
         why = f"outside (0, {model.MAX_MAGNITUDE:g}] (the model's domain, docs/cases.md)"
         raise CaseError([f"{source}: time.end: the run ends at tau = {t_end!r}, {why}"])
@@ -1436,12 +1444,6 @@ def _assemble_driven_case(
     if why:
         where = "model.K" if scale is None else f"physical: converts to K = {params.K!r}"
         raise CaseError([f"{source}: {where}: {why}"])
-    top = drive.no_load_speed if drive.no_load_speed is not None else drive.table_speed[-1]
-    t_eval = _speed_samples(settings, max(top, drive.start), t_end, source)
-    problem = Problem(
-        params=params, initial=initial, t_eval=t_eval, name=settings.case.name, drive=drive
-    )
-    return Case(settings=settings, problem=problem, scale=scale, path=path)
 
 
 def _speed_samples(settings: CaseFile, top: float, t_end: float, source: str) -> np.ndarray:

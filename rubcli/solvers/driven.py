@@ -37,7 +37,6 @@ from rubcli import model
 from rubcli.drive import D_INERTIA, rolling_projection, shaft_torque_value, stick_torque_value
 from rubcli.problem import Problem
 from rubcli.solution import KIND_NAMES, Solution, SwitchEvent
-from rubcli.solvers import compiled as kernels
 from rubcli.solvers import driver
 from rubcli.solvers.compiled.drive import driven_columns, driven_rhs
 from rubcli.solvers.events import (
@@ -49,7 +48,7 @@ from rubcli.solvers.events import (
     STICK_EXIT,
 )
 from rubcli.solvers.registry import SPECS, ToleranceOptions
-from rubcli.solvers.scipy_ivp import SCIPY_CLASSES
+from rubcli.solvers.scipy_ivp import ScipyStepper
 from rubcli.solvers.shared import SCAN_POINTS
 
 
@@ -146,24 +145,13 @@ def project(s: np.ndarray, run: DrivenRun) -> np.ndarray:
     return out
 
 
-class DrivenStepper:
-    """One of scipy's ``OdeSolver`` classes on the driven rotor (module docstring)."""
+class DrivenStepper(ScipyStepper):
+    """One of scipy's ``OdeSolver`` classes on the driven rotor (module docstring): the
+    constant-speed stepper's step and segments, with the drive's right-hand side, events
+    and samples."""
 
     def __init__(self, run: DrivenRun, name: str, rtol: float, atol: float):
-        from scipy import integrate
-
-        self.name, self.rtol, self.atol = name, rtol, atol
-        self.cls = getattr(integrate, SCIPY_CLASSES[name])
-        kernels.ensure_fresh()
-        self.solver = None
-        run.stats.update(nfev=0, njev=0, nlu=0, n_segments=0)
-        self.settings = {
-            "rtol": rtol,
-            "atol": atol,
-            "max_steps": run.max_steps,
-            "max_wall_time_s": run.max_wall_time_s,
-            "compiled": True,
-        }
+        super().__init__(run, name, rtol, atol, compiled=True)
 
     def _start_segment(self, run: DrivenRun) -> None:
         pars, drive, (ts, tt), regime = run.pars, run.drive, run.table, run.regime
@@ -176,26 +164,10 @@ class DrivenStepper:
         self.solver = self.cls(fun, run.tau, run.state, run.t_end, rtol=self.rtol, atol=self.atol)
         run.stats["n_segments"] += 1
 
-    def _end_segment(self, run: DrivenRun) -> None:
-        solver, self.solver = self.solver, None
-        run.stats["nfev"] += int(solver.nfev)
-        run.stats["njev"] += int(getattr(solver, "njev", 0) or 0)
-        run.stats["nlu"] += int(getattr(solver, "nlu", 0) or 0)
-
     def advance(self, run: DrivenRun) -> None:
-        if self.solver is None:
-            self._start_segment(run)
+        if not self.step(run):
+            return
         solver = self.solver
-        msg = solver.step()
-        run.stats["nsteps"] += 1
-        if solver.status == "failed":
-            self._end_segment(run)
-            run.fail(f"{self.name} failed at tau = {solver.t:.6g}: {msg}")
-            return
-        if not np.all(np.isfinite(solver.y)):
-            self._end_segment(run)
-            run.fail(f"non-finite state at tau = {solver.t:.6g}")
-            return
         dense = solver.dense_output()
         if solver.y[5] <= 0.0:  # stopped: the phase no longer advances
             stop = brentq(lambda t: dense(t)[5], solver.t_old, solver.t)

@@ -104,7 +104,9 @@ class ScipyStepper:
         if self.solver is not None:
             self._end_segment(run)
 
-    def advance(self, run: driver.Run) -> None:
+    def step(self, run: driver.Run) -> bool:
+        """One accepted step of the segment's solver (started first if need be); False,
+        with the run failed, if the solver failed or left the finite numbers."""
         if self.solver is None:
             self._start_segment(run)
         solver = self.solver
@@ -113,11 +115,17 @@ class ScipyStepper:
         if solver.status == "failed":
             self._end_segment(run)
             run.fail(f"{self.name} failed at tau = {solver.t:.6g}: {msg}")
-            return
+            return False
         if not np.all(np.isfinite(solver.y)):
             self._end_segment(run)
             run.fail(f"non-finite state at tau = {solver.t:.6g}")
+            return False
+        return True
+
+    def advance(self, run: driver.Run) -> None:
+        if not self.step(run):
             return
+        solver = self.solver
         dense = solver.dense_output()
         grid = np.linspace(solver.t_old, solver.t, SCAN_POINTS + 1)
         event = earliest_event(
