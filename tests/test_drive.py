@@ -17,6 +17,7 @@ from typer.testing import CliRunner
 
 from rubcli import model
 from rubcli.analysis.drive_torques import revolution_means, sample_torques
+from rubcli.analysis.reference import truncate_problem
 from rubcli.analysis.transient_energy import drive_energy, drive_energy_summary
 from rubcli.case import CaseError, load_case, load_case_text
 from rubcli.cli.app import app
@@ -134,6 +135,18 @@ def test_the_energy_balance_holds_with_friction_and_the_motor():
     assert summary["rub_dissipation"] > 10.0 and summary["motor_work"] > 10.0
     assert summary["energy_residual"] < max(10 * summary["energy_quadrature_error"], 1e-9)
     assert summary["energy_residual"] < 1e-3
+
+
+def test_the_interpreters_drive_is_the_compiled_one():
+    """compiled=False runs the same cores through the interpreter: the same events, the
+    states to round-off (libm against CPython's math, amplified along the run)."""
+    case = load_case(CASES / "driven-dry-whip.toml")
+    problem = truncate_problem(case.problem, 20.0)
+    fast = solve(problem, "dop853", rtol=1e-10, atol=1e-12)
+    slow = solve(problem, "dop853", rtol=1e-10, atol=1e-12, compiled=False)
+    assert fast.settings["compiled"] and not slow.settings["compiled"]
+    assert list(fast.events.kinds) == list(slow.events.kinds) and len(fast.events) > 3
+    np.testing.assert_allclose(slow.states, fast.states, atol=1e-8)
 
 
 def test_a_rotor_that_stops_ends_the_run_with_a_message():

@@ -38,7 +38,7 @@ from rubcli.drive import D_INERTIA, rolling_projection, shaft_torque_value, stic
 from rubcli.problem import Problem
 from rubcli.solution import KIND_NAMES, Solution, SwitchEvent
 from rubcli.solvers import driver
-from rubcli.solvers.compiled.drive import driven_columns, driven_rhs
+from rubcli.solvers.compiled.drive import _driven_into, driven_columns, driven_rhs
 from rubcli.solvers.events import (
     ENTRY,
     EXIT,
@@ -150,17 +150,17 @@ class DrivenStepper(ScipyStepper):
     constant-speed stepper's step and segments, with the drive's right-hand side, events
     and samples."""
 
-    def __init__(self, run: DrivenRun, name: str, rtol: float, atol: float):
-        super().__init__(run, name, rtol, atol, compiled=True)
+    def __init__(self, run: DrivenRun, name: str, rtol: float, atol: float, compiled: bool):
+        super().__init__(run, name, rtol, atol, compiled)
 
     def _start_segment(self, run: DrivenRun) -> None:
         pars, drive, (ts, tt), regime = run.pars, run.drive, run.table, run.regime
+        one, columns = (driven_rhs, driven_columns) if self.compiled else PYTHON
 
         def fun(t: float, s: np.ndarray) -> np.ndarray:
-            return driven_rhs(s, pars, drive, ts, tt, regime)
+            return one(s, pars, drive, ts, tt, regime)
 
-        self.columns = lambda S: driven_columns(np.ascontiguousarray(S), pars, drive, ts, tt,
-                                                regime)  # fmt: skip
+        self.columns = lambda S: columns(np.ascontiguousarray(S), pars, drive, ts, tt, regime)
         self.solver = self.cls(fun, run.tau, run.state, run.t_end, rtol=self.rtol, atol=self.atol)
         run.stats["n_segments"] += 1
 
@@ -286,6 +286,25 @@ def _root(h, dense, a: float, b: float, tol: float) -> float:
     return root
 
 
+def _python_rhs(s, pars, drive, table_speed, table_torque, regime) -> np.ndarray:
+    """``compiled.drive.driven_rhs`` run by the interpreter (``compiled=False``)."""
+    out = np.empty(6)
+    _driven_into.py_func(s, pars, drive, table_speed, table_torque, regime, out)
+    return out
+
+
+def _python_columns(S, pars, drive, table_speed, table_torque, regime):
+    """``compiled.drive.driven_columns`` run by the interpreter."""
+    dS, T, out = np.empty_like(S), np.empty(S.shape[1]), np.empty(6)
+    for k in range(S.shape[1]):
+        T[k] = _driven_into.py_func(S[:, k], pars, drive, table_speed, table_torque, regime, out)
+        dS[:, k] = out
+    return dS, T
+
+
+PYTHON = (_python_rhs, _python_columns)  # the interpreter's right-hand side and columns
+
+
 def rub_force(solution: Solution) -> np.ndarray:
     """The rub's tangential force at a driven run's samples (positive opposing positive
     slip; the stick multiplier in stick; 0 in free flight)."""
@@ -311,4 +330,4 @@ def solve_driven(problem: Problem, options: ToleranceOptions, name: str) -> Solu
         problem, name, max_steps=o.max_steps, max_wall_time_s=o.max_wall_time_s,
         progress=o.progress,
     )  # fmt: skip
-    return driver.integrate(run, DrivenStepper(run, name, o.rtol, o.atol))
+    return driver.integrate(run, DrivenStepper(run, name, o.rtol, o.atol, o.compiled))
