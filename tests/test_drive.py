@@ -149,6 +149,24 @@ def test_the_interpreters_drive_is_the_compiled_one():
     np.testing.assert_allclose(slow.states, fast.states, atol=1e-8)
 
 
+def test_a_return_to_the_stator_right_after_leaving_it_is_found():
+    """The driven dry whip on a stiff stator (the stress suite's case) leaves the stator
+    at tau = 3.27438 and touches it again 0.004 later, inside the first scan interval of
+    DOP853's first step: that entry is found (its energy balance then closes), and
+    every method sees the same five events."""
+    from rubcli.analysis.stress import stress_cases
+
+    case = next(c for c in stress_cases() if c.name == "driven-dry-whip-stiff")
+    problem = case.problem(quick=True)
+    for method in ("dop853", "rk45", "lsoda"):
+        sol = solve(problem, method, rtol=1e-8, atol=1e-10)
+        assert list(sol.events.kinds) == ["contact_entry", "contact_exit"] * 2 + [
+            "contact_entry"
+        ], method
+        assert sol.events.tau[4] - sol.events.tau[3] < 0.005
+        assert drive_energy_summary(sol)["energy_residual"] < 1e-5, method
+
+
 def test_a_rotor_that_stops_ends_the_run_with_a_message():
     """A motor that brakes (negative torque) stops the rotor: the run ends failed where
     the speed reaches 0 (without unbalance w = 1 - 0.5 tau: at tau = 2), its samples up

@@ -18,7 +18,7 @@ from typer.testing import CliRunner
 from rubcli import model
 from rubcli.analysis import stress
 from rubcli.cli.app import app
-from rubcli.solvers import METHODS
+from rubcli.solvers import METHODS, registry
 
 STEP_BUDGET = {"max_wall_time_s": 1e6, "max_steps": 20_000}  # the quick step budget
 
@@ -43,8 +43,14 @@ def test_quick_suite_ends_cleanly_everywhere(quick_run):
     assert {(r["case"], r["method"]) for r in rows} == {
         (c.name, label) for c in cases for label, _, _ in variants
     }
+    features = {c.name: c.feature for c in cases}
     for row in rows:
         where = f"{row['case']} / {row['method']}: {row['message']}"
+        if row["status"] == stress.REFUSED:  # a method without the case's feature, named
+            method = row["method"].split(" ")[0]
+            assert features[row["case"]] is not None, where
+            assert row["message"] == registry.unsupported(method, features[row["case"]]), where
+            continue
         # within 20,000 steps every method finishes every quick case: no storm, no stall
         assert row["status"] == "success", where
         assert row["message"] == "reached the end of the time span", where
@@ -78,9 +84,12 @@ def test_quick_suite_is_accurate_or_warns(quick_run):
     analytic methods, carries a warning."""
     _, _, rows = quick_run
     for row in rows:
+        if row["status"] == stress.REFUSED:
+            continue
         where = f"{row['case']} / {row['method']}: error {row['error']} {row['warning']}"
         exact = row["reference"].startswith("exact")
-        assert exact or row["reference"] == "dop853-jit rtol=1e-12", where
+        # (a driven rotor's reference runs scipy's dop853: the compiled loop refuses it)
+        assert exact or row["reference"] in ("dop853-jit rtol=1e-12", "dop853 rtol=1e-12"), where
         expected = WRONG_BUT_SUCCESSFUL.get((row["case"], row["method"]))
         if expected is None:
             assert row["warning"] == "", where
@@ -131,7 +140,7 @@ def test_suite_covers_the_extremes_of_the_issue():
     Ks = {c.params.K for c in cases}
     assert {17.6, 1.76e3, 1.76e5, 1.75e6} <= Ks
     mus = {c.params.mu for c in cases}
-    assert min(mus) == 0.0 and max(mus) == 0.1
+    assert min(mus) == 0.0 and max(mus) >= 0.1
     assert any(c.params.nu == 0.0 for c in cases)
     assert max(c.periods for c in cases) == 10_000
     assert max(c.params.e for c in cases) >= 46.16
@@ -142,6 +151,10 @@ def test_suite_covers_the_extremes_of_the_issue():
     assert sum(c.touches for c in cases) == 2
     for c in cases:
         assert c.quick_periods < c.periods
+    # a speed that changes: a profile onto a stiff stator, a profile in stick, a drive
+    assert {c.feature for c in cases} == {None, registry.SPEED_PROFILE, registry.DRIVEN}
+    rolling = next(c for c in cases if c.name == "coast-down-rolling")
+    assert model.regime_of_state(rolling.initial, rolling.params) == model.STICK
 
 
 def test_warnings_flag_a_wrong_success():

@@ -48,15 +48,18 @@ from rubcli import model
 from rubcli.analysis.energy import energy_balance
 from rubcli.analysis.reference import EXACT_FREE_FLIGHT, exact_reference
 from rubcli.analysis.regimes import time_in_regimes
+from rubcli.drive import Drive
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solution import SUCCESS, Solution
-from rubcli.solvers.registry import SPECS, options_for
+from rubcli.solvers.registry import DRIVEN, SPECS, SPEED_PROFILE, options_for, unsupported
+from rubcli.speed import SpeedProfile
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
 
 ERROR = "error"  # status of a run whose solver raised (a bug: never expected)
+REFUSED = "refused"  # a method that does not run the case's feature (a speed that changes)
 
 # The Figure 3 machine of the paper (model notes, section 6) and its start, which lies
 # inside the stator already (z0 = 1.196).
@@ -97,12 +100,27 @@ class StressCase:
     samples_per_period: int = 100
     touches: bool = False  # a free orbit built to touch z = 1 tangentially (exact reference)
     budget: dict = field(default_factory=lambda: dict(FULL_BUDGET))
+    # a speed that changes: a profile, or a driven rotor (its periods at the start speed)
+    speed: SpeedProfile | None = None
+    drive: Drive | None = None
+
+    @property
+    def feature(self) -> str | None:
+        """The registry feature the case needs of a method (None: any method runs it)."""
+        if self.drive is not None:
+            return DRIVEN
+        return SPEED_PROFILE if self.speed is not None else None
 
     def problem(self, quick: bool) -> Problem:
         periods = self.quick_periods if quick else self.periods
-        return Problem.from_periods(
-            self.params, self.initial, periods, self.samples_per_period, name=self.name
-        )
+        if self.feature is None:
+            return Problem.from_periods(
+                self.params, self.initial, periods, self.samples_per_period, name=self.name
+            )
+        n = max(2, int(round(periods * self.samples_per_period)) + 1)
+        t_eval = np.linspace(0.0, periods * self.params.period, n)
+        return Problem(self.params, self.initial, t_eval, name=self.name, speed=self.speed,
+                       drive=self.drive)  # fmt: skip
 
 
 @dataclass
@@ -294,6 +312,7 @@ def stress_cases() -> list[StressCase]:
             touch, touch_start, 20, 1, touches=True,
         )
     )  # fmt: skip
+    cases += _changing_speed_cases()
     long = cases[0]
     cases.append(
         replace(
@@ -308,6 +327,50 @@ def stress_cases() -> list[StressCase]:
         )
     )
     return cases
+
+
+def _changing_speed_cases() -> list[StressCase]:
+    """The speed changing under a stiff stator, in stick, and driven into a dry whip."""
+    runup = ModelParams(nu=0.05, eta=0.5, e=0.3, K=1.76e4, mu=0.05, Rp=5.0)
+    roll = ModelParams(nu=0.01, eta=1.0, e=0.0, K=100.0, mu=0.5, Rp=2.0)
+    r_roll = model.rolling_whirl_radius(roll)
+    whip = ModelParams(nu=0.05, eta=3.5, e=0.3, K=1.76e3, mu=0.3, Rp=5.0)
+    return [
+        StressCase(
+            "runup-stiff",
+            "a run-up through the critical speed onto a stiff stator: eta 0.5 to 2 at "
+            "d eta / d tau = 0.01, K = 1.76e4, mu = 0.05 (the run-up machine, stiffened)",
+            runup,
+            (0.0, 0.0, 0.0, 0.0),
+            20,
+            4,
+            4000,  # the samples resolve the stiff contact for the energy balance
+            speed=SpeedProfile.ramp(0.5, 2.0, 0.01),
+        ),  # fmt: skip
+        StressCase(
+            "coast-down-rolling",
+            "rolling (stick) while the speed falls: the rolling whirl of nu = 0.01, K = 100, "
+            "mu = 0.5, Rp = 2 started at eta = 1, coasting down at -0.005 per tau",
+            roll,
+            (r_roll, 0.0, 0.0, -roll.Rp * roll.eta),
+            20,
+            2,
+            100,
+            speed=SpeedProfile.ramp(1.0, 0.5, -0.005),
+        ),  # fmt: skip
+        StressCase(
+            "driven-dry-whip-stiff",
+            "a driven rotor (j = 200, stall torque 4, no-load speed 4) knocked backward "
+            "against a stiff stator (K = 1.76e3, mu = 0.3) at eta = 3.5: the dry whip "
+            "brakes the drive, in stick and slip",
+            whip,
+            (1.0, 0.0, 0.0, -5.0),
+            20,
+            2,
+            400,
+            drive=Drive(inertia=200.0, start=3.5, stall_torque=4.0, no_load_speed=4.0),
+        ),  # fmt: skip
+    ]
 
 
 # ----------------------------------------------------------------------------- references
@@ -355,6 +418,8 @@ def stress_reference(
                 "exact free flight (touching)", problem.t_eval, states, exact=True
             )
     for method, options in REFERENCE_RUNS:
+        if case.feature is not None and unsupported(method, case.feature):
+            method = "dop853"  # the compiled loop's steps, by scipy (a driven rotor)
         solution = solve(
             problem, method, **options_for(method, {**SOLVER_OPTIONS, **budget, **options})
         )
@@ -382,25 +447,37 @@ def position_error(solution: Solution, reference: StressReference) -> float | No
 
 def measure_run(case: StressCase, solution: Solution, target_periods: float) -> StressRun:
     """A StressRun from a solution (reference error filled in later)."""
-    period = solution.problem.params.period
-    t0 = float(solution.problem.t_eval[0])
+    t0, t1 = solution.problem.t_span
     finite = bool(np.all(np.isfinite(solution.states)))
-    balance = energy_balance(solution) if finite else None
+    residual = quadrature = None
+    if finite and solution.problem.changes_speed:
+        from rubcli.analysis import transient_energy
+
+        summary = (
+            transient_energy.drive_energy_summary(solution)
+            if solution.problem.drive is not None
+            else transient_energy.profile_energy_summary(solution)
+        )
+        residual, quadrature = summary["energy_residual"], summary["energy_quadrature_error"]
+    elif finite:
+        balance = energy_balance(solution)
+        residual, quadrature = balance.relative_residual, balance.quadrature_error
     regimes = time_in_regimes(solution)
     span = sum(regimes.values())
+    done = (float(solution.t[-1]) - t0) / (t1 - t0) if solution.t.size else 0.0
     return StressRun(
         case=case.name,
         method=solution.method,
         status=solution.status,
         message=solution.message,
         wall_time_s=solution.wall_time_s,
-        periods=(float(solution.t[-1]) - t0) / period if solution.t.size else 0.0,
+        periods=done * target_periods,
         target_periods=target_periods,
         n_steps=solution.stats.get("nsteps"),
         n_events=len(solution.events),
         n_contact_switches=solution.n_contact_switches,
-        energy_residual=None if balance is None else balance.relative_residual,
-        energy_quadrature_error=None if balance is None else balance.quadrature_error,
+        energy_residual=residual,
+        energy_quadrature_error=quadrature,
         max_penetration=solution.max_penetration() if finite else None,
         nan=not finite,
         stick_fraction=regimes["stick"] / span if span > 0 else 0.0,
@@ -456,6 +533,16 @@ def run_case(
     runs: list[StressRun] = []
     solutions: dict[str, Solution] = {}
     for label, method, extra in method_variants(methods):
+        refused = unsupported(method, case.feature) if case.feature else None
+        if refused:
+            run = StressRun(
+                case=case.name, method=label, status=REFUSED, message=refused,
+                wall_time_s=0.0, periods=0.0, target_periods=problem.periods,
+            )  # fmt: skip
+            runs.append(run)
+            if on_run is not None:
+                on_run(run)
+            continue
         start = time.perf_counter()
         try:
             # a run that blows up is reported in the table, not by numpy warnings
@@ -530,5 +617,6 @@ def run_suite(
 
 
 def clean(run: StressRun) -> bool:
-    """A run that ended as a user may see it: success, or failed with a reason; no NaN."""
-    return run.status in (SUCCESS, "failed") and bool(run.message) and not run.nan
+    """A run that ended as a user may see it: success, failed with a reason, or refused
+    (a method without the case's feature) naming why; no NaN."""
+    return run.status in (SUCCESS, "failed", REFUSED) and bool(run.message) and not run.nan

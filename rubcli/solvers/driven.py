@@ -15,9 +15,10 @@ side (compiled, ``compiled.drive``), the step's dense output scanned at
 ``SCAN_POINTS`` sub-intervals for the regime's events, the first located by Brent's
 method. The event functions, each an event where it rises through 0:
 
-- free flight: ``z^2 - 1`` (contact entry); a maximum of ``z^2 - 1`` between two scan
-  points is found from its rate ``2 (x vx + y vy)``, so a graze inside a scan interval is
-  not missed;
+- free flight: ``z^2 - 1`` (contact entry); where its rate ``2 (x vx + y vy)`` changes
+  sign inside a scan interval, the turn is found (a graze between two scan points, a
+  return to the surface right after leaving it: ``_surface_turns``), so such a crossing
+  is not missed, in contact as in free flight;
 - slip of sign ``s``: ``1 - z^2`` (exit) and ``-s v_r`` (reversal);
 - stick: ``1 - z^2`` and, on each side ``s``, ``s T - mu K (z - 1) (1 + margin)`` (the
   needed friction leaving the friction cone).
@@ -238,8 +239,10 @@ class DrivenStepper(ScipyStepper):
         best = None
         for kind, h in self._functions(run):
             values, ends = h(S), grid
-            if kind == ENTRY:
-                values, ends = _with_grazes(dense, grid, S, values)
+            if kind in (ENTRY, EXIT):
+                sign = 1.0 if kind == ENTRY else -1.0
+                started = run.last_kind in (ENTRY, EXIT)
+                values, ends = _surface_turns(dense, grid, S, values, sign, started)
             for i in range(SCAN_POINTS):
                 if values[i] < 0.0 <= values[i + 1]:
                     a, b = ends[i], ends[i + 1]
@@ -250,22 +253,39 @@ class DrivenStepper(ScipyStepper):
         return best
 
 
-def _with_grazes(dense, grid, S, values):
-    """The contact function ``values`` on ``grid`` (states ``S``), with a graze put in:
-    in the first scan interval where the function stays below 0 at both ends but its
-    rate ``2 (x vx + y vy)`` falls through 0 to a maximum at or above 0, the interval's
-    end moves to that maximum. Returns (values, grid), copies where changed."""
-    rate = S[0] * S[2] + S[1] * S[3]
+def _surface_turns(dense, grid, S, values, sign, started_here: bool):
+    """The contact surface's function ``values`` (``sign (z^2 - 1)``) on ``grid`` (states
+    ``S``), with the crossings a scan interval can hide put in, where its rate ``2 sign
+    (x vx + y vy)`` changes sign inside the interval:
+
+    - a graze: both ends below 0, a maximum at or above 0 between them: the interval
+      ends at that maximum;
+    - a return right after the segment left the surface (``started_here``): the first
+      interval starts on the surface and ends at or above 0 while the function fell
+      first: the interval starts at its minimum, when that is below 0.
+
+    Returns (values, grid), copies where changed."""
+
+    def rate(t: float) -> float:
+        s = dense(t)
+        return sign * (s[0] * s[2] + s[1] * s[3])
+
+    def level(t: float) -> float:
+        s = dense(t)
+        return sign * (s[0] ** 2 + s[1] ** 2 - 1.0)
+
+    r = sign * (S[0] * S[2] + S[1] * S[3])
+    tol = 4 * np.finfo(float).eps
+    if started_here and r[0] < 0.0 < r[1] and values[1] >= 0.0:
+        low = brentq(rate, grid[0], grid[1], xtol=1e-15, rtol=tol)
+        if level(low) < 0.0:
+            values, grid = values.copy(), grid.copy()
+            values[0], grid[0] = level(low), low
+            return values, grid
     for i in range(grid.size - 1):
-        if values[i] < 0.0 and values[i + 1] < 0.0 and rate[i] > 0.0 > rate[i + 1]:
-
-            def r(t: float) -> float:
-                s = dense(t)
-                return s[0] * s[2] + s[1] * s[3]
-
-            peak = brentq(r, grid[i], grid[i + 1], xtol=1e-15, rtol=4 * np.finfo(float).eps)
-            s = dense(peak)
-            top = s[0] ** 2 + s[1] ** 2 - 1.0
+        if values[i] < 0.0 and values[i + 1] < 0.0 and r[i] > 0.0 > r[i + 1]:
+            peak = brentq(rate, grid[i], grid[i + 1], xtol=1e-15, rtol=tol)
+            top = level(peak)
             if top >= 0.0:
                 values, grid = values.copy(), grid.copy()
                 values[i + 1], grid[i + 1] = top, peak
