@@ -267,7 +267,7 @@ def test_run_on_a_driven_rotor_writes_its_products(tmp_path):
     names = {p.name for p in out.iterdir()}
     assert {"drive.png", "bode.png", "dop853.csv", "report.json"} <= names
     header = (out / "dop853.csv").read_text().splitlines()[0].split(",")
-    assert {"eta", "phase", "motor_torque", "rub_torque"} <= set(header)
+    assert {"eta", "phase", "drive_torque", "rub_torque"} <= set(header)
     entry = json.loads((out / "report.json").read_text())["methods"]["dop853"]
     assert entry["status"] == "success"
     assert entry["energy_residual"] < 1e-3

@@ -47,9 +47,9 @@ CSV_COLUMNS = (
 # (rad, the exact integral of the speed), and with [physical] the speed in rpm.
 CSV_SPEED_COLUMNS = ("eta", "phase")
 CSV_SPEED_PHYSICAL_COLUMNS = ("speed_rpm",)
-# a driven rotor: the motor's torque less drag and the rub's torque on the spin
-CSV_DRIVE_COLUMNS = ("motor_torque", "rub_torque")
-CSV_DRIVE_PHYSICAL_COLUMNS = ("motor_torque_Nm", "rub_torque_Nm")
+# a driven rotor: the motor's torque less the bearing drag, and the rub's, on the spin
+CSV_DRIVE_COLUMNS = ("drive_torque", "rub_torque")
+CSV_DRIVE_PHYSICAL_COLUMNS = ("drive_torque_Nm", "rub_torque_Nm")
 
 CSV_PHYSICAL_COLUMNS = (
     "t_s",
@@ -110,7 +110,7 @@ def solution_columns(
             columns["speed_rpm"] = units.rpm(eta, scale)
     drive = solution.problem.drive
     if drive is not None:
-        torques = {"motor_torque": drive.motor_torque(eta) - drive.drag * eta,
+        torques = {"drive_torque": drive.motor_torque(eta) - drive.drag * eta,
                    "rub_torque": -solution.problem.params.Rp * solution.friction_force}  # fmt: skip
         columns.update(torques)
         if scale is not None:  # the torque unit k_r gamma^2 (N m)
