@@ -167,6 +167,25 @@ def test_a_return_to_the_stator_right_after_leaving_it_is_found():
         assert drive_energy_summary(sol)["energy_residual"] < 1e-5, method
 
 
+@pytest.mark.parametrize("method", ["radau", "bdf", "lsoda"])
+def test_the_implicit_methods_roll_a_driven_rotor(method):
+    """A driven rotor rolling on the stator all the way (e = 0: the angle does not enter
+    the equations; in stick the velocity along the constraint does not either): the
+    implicit methods, with the drive's own difference Jacobian, follow DOP853 at rtol
+    1e-11 while the motor accelerates the rolling whirl, and hold v_r = 0."""
+    p = model.ModelParams(nu=0.01, eta=1.0, e=0.0, K=100.0, mu=0.5, Rp=2.0)
+    r = model.rolling_whirl_radius(p)
+    drive = Drive(inertia=20.0, start=1.0, stall_torque=1.0, no_load_speed=2.0)
+    problem = Problem(p, (r, 0.0, 0.0, -p.Rp), np.linspace(0, 50, 501), drive=drive)
+    ref = solve(problem, "dop853", rtol=1e-11, atol=1e-12)
+    sol = solve(problem, method, rtol=1e-10, atol=1e-12)
+    assert sol.success, sol.message
+    assert np.all(sol.regimes == model.STICK) and len(sol.events) == 0
+    assert sol.speed[-1] > 1.4  # accelerated while rolling
+    np.testing.assert_allclose(sol.states, ref.states, atol=1e-5)
+    assert np.max(np.abs(sol.slip_velocity)) < 1e-9
+
+
 def test_a_rotor_that_stops_ends_the_run_with_a_message():
     """A motor that brakes (negative torque) stops the rotor: the run ends failed where
     the speed reaches 0 (without unbalance w = 1 - 0.5 tau: at tau = 2), its samples up
