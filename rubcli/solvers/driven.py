@@ -15,15 +15,18 @@ side (compiled, ``compiled.drive``), the step's dense output scanned at
 ``SCAN_POINTS`` sub-intervals for the regime's events, the first located by Brent's
 method. The event functions, each an event where it rises through 0:
 
-- free flight: ``z^2 - 1`` (contact entry); where its rate ``2 (x vx + y vy)`` changes
-  sign inside a scan interval, the turn is found (a graze between two scan points, a
-  return to the surface right after leaving it: ``_surface_turns``), so such a crossing
-  is not missed, in contact as in free flight;
+- free flight: ``z^2 - 1`` (contact entry);
 - slip of sign ``s``: ``1 - z^2`` (exit) and ``-s v_r`` (reversal);
 - stick: ``1 - z^2`` and, on each side ``s``, ``s T - mu K (z - 1) (1 + margin)`` (the
   needed friction leaving the friction cone).
 
-Implicit methods build their Jacobian by finite differences.
+Where the rate of the contact surface's function (``2 (x vx + y vy)``) or of the slip's
+(from the accelerations) changes sign inside a scan interval, the turn is found (a graze
+between two scan points, a return to the surface right after the segment left it:
+``_turns``), so such a pair of crossings is not missed.
+
+Implicit methods get forward differences of the right-hand side
+(``DrivenStepper._jacobian``).
 """
 
 from __future__ import annotations
@@ -254,10 +257,12 @@ class DrivenStepper(ScipyStepper):
         best = None
         for kind, h in self._functions(run):
             values, ends = h(S), grid
-            if kind in (ENTRY, EXIT):
-                sign = 1.0 if kind == ENTRY else -1.0
-                started = run.last_kind in (ENTRY, EXIT)
-                values, ends = _surface_turns(dense, grid, S, values, sign, started)
+            turning = self._turning(run, kind)
+            if turning is not None:
+                rate = turning[0]
+                started = run.last_kind in turning[1]
+                values, ends = _turns(grid, values, rate(S), lambda t, h=h: h(dense(t)),
+                                      lambda t, r=rate: float(r(dense(t))), started)  # fmt: skip
             for i in range(SCAN_POINTS):
                 if values[i] < 0.0 <= values[i + 1]:
                     a, b = ends[i], ends[i + 1]
@@ -267,38 +272,50 @@ class DrivenStepper(ScipyStepper):
                     break
         return best
 
+    def _turning(self, run: DrivenRun, kind: int):
+        """For the functions that can cross twice inside one scan interval (the contact
+        surface's, the slip's): (their rate on states, the events that start a segment on
+        their surface); None for the stick margins."""
+        if kind in (ENTRY, EXIT):
+            sign = 1.0 if kind == ENTRY else -1.0
+            return (lambda S: sign * (S[0] * S[2] + S[1] * S[3])), (ENTRY, EXIT)
+        if kind == REVERSAL:
+            sign, Rp = model.friction_sign(run.regime), run.params.Rp
 
-def _surface_turns(dense, grid, S, values, sign, started_here: bool):
-    """The contact surface's function ``values`` (``sign (z^2 - 1)``) on ``grid`` (states
-    ``S``), with the crossings a scan interval can hide put in, where its rate ``2 sign
-    (x vx + y vy)`` changes sign inside the interval:
+            def rate(S: np.ndarray) -> np.ndarray:
+                S2 = np.atleast_2d(S.T).T
+                dS = self.columns(S2)[0]
+                x, y, vx, vy = S2[:4]
+                z = np.hypot(x, y)
+                whirl = (x * dS[3] - y * dS[2]) / z - (x * vy - y * vx) * (x * vx + y * vy) / z**3
+                out = -sign * (Rp * dS[5] + whirl)
+                return out if np.ndim(S) > 1 else out[0]
+
+            return rate, (REVERSAL, STICK_EXIT)
+        return None
+
+
+def _turns(grid, values, rates, level, rate, started_here: bool):
+    """An event function's ``values`` on ``grid`` with the crossings a scan interval can
+    hide put in, where its rate (``rates`` on the grid; ``level(t)`` and ``rate(t)`` at
+    one time) changes sign inside the interval:
 
     - a graze: both ends below 0, a maximum at or above 0 between them: the interval
       ends at that maximum;
-    - a return right after the segment left the surface (``started_here``): the first
-      interval starts on the surface and ends at or above 0 while the function fell
-      first: the interval starts at its minimum, when that is below 0.
+    - a return right after the segment left the function's surface (``started_here``):
+      the first interval ends at or above 0 while the function fell first: the interval
+      starts at its minimum, when that is below 0.
 
     Returns (values, grid), copies where changed."""
-
-    def rate(t: float) -> float:
-        s = dense(t)
-        return sign * (s[0] * s[2] + s[1] * s[3])
-
-    def level(t: float) -> float:
-        s = dense(t)
-        return sign * (s[0] ** 2 + s[1] ** 2 - 1.0)
-
-    r = sign * (S[0] * S[2] + S[1] * S[3])
     tol = 4 * np.finfo(float).eps
-    if started_here and r[0] < 0.0 < r[1] and values[1] >= 0.0:
+    if started_here and rates[0] < 0.0 < rates[1] and values[1] >= 0.0:
         low = brentq(rate, grid[0], grid[1], xtol=1e-15, rtol=tol)
         if level(low) < 0.0:
             values, grid = values.copy(), grid.copy()
             values[0], grid[0] = level(low), low
             return values, grid
     for i in range(grid.size - 1):
-        if values[i] < 0.0 and values[i + 1] < 0.0 and r[i] > 0.0 > r[i + 1]:
+        if values[i] < 0.0 and values[i + 1] < 0.0 and rates[i] > 0.0 > rates[i + 1]:
             peak = brentq(rate, grid[i], grid[i + 1], xtol=1e-15, rtol=tol)
             top = level(peak)
             if top >= 0.0:
