@@ -154,9 +154,6 @@ class DrivenStepper(ScipyStepper):
     constant-speed stepper's step and segments, with the drive's right-hand side, events
     and samples."""
 
-    def __init__(self, run: DrivenRun, name: str, rtol: float, atol: float, compiled: bool):
-        super().__init__(run, name, rtol, atol, compiled)
-
     def _start_segment(self, run: DrivenRun) -> None:
         pars, drive, (ts, tt), regime = run.pars, run.drive, run.table, run.regime
         one, columns = (driven_rhs, driven_columns) if self.compiled else PYTHON
