@@ -149,22 +149,41 @@ def test_the_interpreters_drive_is_the_compiled_one():
     np.testing.assert_allclose(slow.states, fast.states, atol=1e-8)
 
 
-def test_a_return_to_the_stator_right_after_leaving_it_is_found():
-    """The driven dry whip on a stiff stator (the stress suite's case) leaves the stator
-    at tau = 3.27438 and touches it again 0.004 later, inside the first scan interval of
-    DOP853's first step: that entry is found (its energy balance then closes), and
-    every method sees the same five events."""
-    from rubcli.analysis.stress import stress_cases
+FIG3 = {"nu": 0.009478, "eta": 0.7818, "e": 7.52, "Rp": 46.16}
 
-    case = next(c for c in stress_cases() if c.name == "driven-dry-whip-stiff")
-    problem = case.problem(quick=True)
-    for method in ("dop853", "rk45", "lsoda"):
-        sol = solve(problem, method, rtol=1e-8, atol=1e-10)
-        assert list(sol.events.kinds) == ["contact_entry", "contact_exit"] * 2 + [
-            "contact_entry"
-        ], method
-        assert sol.events.tau[4] - sol.events.tau[3] < 0.005
-        assert drive_energy_summary(sol)["energy_residual"] < 1e-5, method
+
+def test_a_bouncing_heavy_rotor_runs_as_at_constant_speed():
+    """The paper's start, already inside a stiff stator (K = 1.76e3, mu = 0.05): 79
+    contacts and slips in three revolutions, some 0.0025 apart, inside one scan interval
+    of a step. With j = 1e12 and no torque the driven runs are the constant-speed
+    ``dop853-jit`` run (its own compiled event search) event for event."""
+    p = model.ModelParams(**FIG3, K=1.76e3, mu=0.05)
+    t = np.linspace(0.0, 3 * p.period, 3001)
+    s0 = (0.88544, -0.8039, 0.0, 0.0)
+    fixed = solve(Problem(p, s0, t), "dop853-jit", rtol=1e-10, atol=1e-12)
+    assert len(fixed.events) == 79 and np.diff(fixed.events.tau).min() < 0.003
+    problem = Problem(p, s0, t, drive=constant_torque(0.0, inertia=1e12, start=p.eta))
+    for method in ("dop853", "rk45"):
+        sol = solve(problem, method, rtol=1e-10, atol=1e-12)
+        assert list(sol.events.kinds) == list(fixed.events.kinds), method
+        np.testing.assert_allclose(sol.events.tau, fixed.events.tau, atol=1e-6)
+        np.testing.assert_allclose(sol.states, fixed.states, atol=1e-4)
+
+
+@pytest.mark.parametrize("method", ["dop853", "rk45", "lsoda"])
+def test_a_start_on_the_clearance_moving_out_is_a_contact_at_once(method):
+    """Started exactly on the clearance, moving along it (outward, since a straight line
+    leaves the circle): the contact begins at tau = 0, as at constant speed, also when
+    the first step is so short that z^2 - 1 rounds to 0 over it (lsoda at 1e-12)."""
+    p = model.ModelParams(nu=0.05, eta=3.5, e=0.3, K=10.0, mu=0.3, Rp=5.0)
+    t = np.linspace(0.0, 10.0, 1001)
+    fixed = solve(Problem(p, (1.0, 0.0, 0.0, -5.0), t), "dop853-jit")
+    assert fixed.events.kinds[0] == "contact_entry" and fixed.events.tau[0] == 0.0
+    drive = Drive(inertia=200.0, start=3.5, stall_torque=4.0, no_load_speed=4.0)
+    sol = solve(Problem(p, (1.0, 0.0, 0.0, -5.0), t, drive=drive), method, rtol=1e-12,
+                atol=1e-14)  # fmt: skip
+    assert sol.events.kinds[0] == "contact_entry" and sol.events.tau[0] < 1e-8
+    assert sol.regimes[1] != model.FREE
 
 
 @pytest.mark.parametrize("method", ["radau", "bdf", "lsoda"])

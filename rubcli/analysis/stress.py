@@ -360,9 +360,9 @@ def _changing_speed_cases() -> list[StressCase]:
         ),  # fmt: skip
         StressCase(
             "driven-dry-whip-stiff",
-            "a driven rotor (j = 200, stall torque 4, no-load speed 4) knocked backward "
-            "against a stiff stator (K = 1.76e3, mu = 0.3) at eta = 3.5: the dry whip "
-            "brakes the drive, in stick and slip",
+            "a driven rotor (j = 200, stall torque 4, no-load speed 4) started on a stiff "
+            "stator (K = 1.76e3, mu = 0.3), moving backward along it, at eta = 3.5: the "
+            "dry whip brakes the drive, in stick and slip",
             whip,
             (1.0, 0.0, 0.0, -5.0),
             20,

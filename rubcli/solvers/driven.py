@@ -154,6 +154,11 @@ class DrivenStepper(ScipyStepper):
     constant-speed stepper's step and segments, with the drive's right-hand side, events
     and samples."""
 
+    # the segment began on the slip surface and its function has not yet left the band;
+    # the segment began on the contact surface and its function is still 0 there
+    settling = False
+    on_surface = False
+
     def _start_segment(self, run: DrivenRun) -> None:
         pars, drive, (ts, tt), regime = run.pars, run.drive, run.table, run.regime
         one, columns = (driven_rhs, driven_columns) if self.compiled else PYTHON
@@ -194,6 +199,9 @@ class DrivenStepper(ScipyStepper):
                 "beyond what the motor gives (a rotor turning backward is outside the model)"
             )
             return
+        if run.last_kind != NO_EVENT:  # a segment's first step: begun on which surface?
+            self.settling = run.last_kind in (REVERSAL, STICK_EXIT)
+            self.on_surface = run.last_kind in (ENTRY, EXIT)
         event = self._earliest_event(run, dense, solver.t_old, solver.t)
         run.last_kind = NO_EVENT
         run.k = self._fill(run, dense, event[0] if event else solver.t)
@@ -251,16 +259,38 @@ class DrivenStepper(ScipyStepper):
         grid = np.linspace(t0, t1, SCAN_POINTS + 1)
         S = dense(grid)
         tol = 4.0 * np.finfo(float).eps * max(1.0, abs(t1))
+        # the restart band: right after a stick exit or a reversal the slip's function is
+        # 0 to the solver's tolerance, not to round-off, and leaves it with zero rate: a
+        # reversal counts only after the function has once left the band on its side
+        # (``settling`` until then, over as many steps as that takes)
+        band = self.restart_band * (1.0 + abs(run.params.Rp * run.state[5]))
         best = None
         for kind, h in self._functions(run):
             values, ends = h(S), grid
             turning = self._turning(run, kind)
+            started = turning is not None and run.last_kind in turning[1]
+            if kind in (ENTRY, EXIT) and self.on_surface:
+                # still on the contact surface the segment began on (z^2 - 1 rounds to 0
+                # over a short first step): it leaves it to the event's side, an event
+                # where it leaves, or to the other side, and the search goes on
+                if np.all(values >= 0.0):
+                    if values[-1] > 0.0:
+                        return (float(grid[np.flatnonzero(values == 0.0)[-1]]), kind)
+                    continue
+                self.on_surface = False
             if turning is not None:
                 rate = turning[0]
-                started = run.last_kind in turning[1]
-                values, ends = _turns(grid, values, rate(S), lambda t, h=h: h(dense(t)),
-                                      lambda t, r=rate: float(r(dense(t))), started)  # fmt: skip
-            for i in range(SCAN_POINTS):
+                rates = rate(S)
+                values, ends = _turns(grid, values, rates, lambda t, h=h: h(dense(t)),
+                                      lambda t, r=rate: float(r(dense(t))), started,
+                                      band)  # fmt: skip
+            begin = 0
+            if kind == REVERSAL and self.settling:
+                left = np.flatnonzero(values < -band)
+                if left.size == 0:
+                    continue  # still within the band of the slip surface it began on
+                begin, self.settling = int(left[0]), False
+            for i in range(begin, SCAN_POINTS):
                 if values[i] < 0.0 <= values[i + 1]:
                     a, b = ends[i], ends[i + 1]
                     root = b if values[i + 1] == 0.0 else _root(h, dense, a, b, tol)
@@ -292,7 +322,7 @@ class DrivenStepper(ScipyStepper):
         return None
 
 
-def _turns(grid, values, rates, level, rate, started_here: bool):
+def _turns(grid, values, rates, level, rate, started_here: bool, band: float):
     """An event function's ``values`` on ``grid`` with the crossings a scan interval can
     hide put in, where its rate (``rates`` on the grid; ``level(t)`` and ``rate(t)`` at
     one time) changes sign inside the interval:
@@ -301,13 +331,13 @@ def _turns(grid, values, rates, level, rate, started_here: bool):
       ends at that maximum;
     - a return right after the segment left the function's surface (``started_here``):
       the first interval ends at or above 0 while the function fell first: the interval
-      starts at its minimum, when that is below 0.
+      starts at its minimum, when that is below the restart band (``-band``).
 
     Returns (values, grid), copies where changed."""
     tol = 4 * np.finfo(float).eps
     if started_here and rates[0] < 0.0 < rates[1] and values[1] >= 0.0:
         low = brentq(rate, grid[0], grid[1], xtol=1e-15, rtol=tol)
-        if level(low) < 0.0:
+        if level(low) < -band:
             values, grid = values.copy(), grid.copy()
             values[0], grid[0] = level(low), low
             return values, grid
