@@ -1,7 +1,7 @@
 """The energy balance of a run whose speed changes: the check of its quality.
 
 **A prescribed speed** (``rubcli.speed``). The rotor's energy ``E = |v|^2 / 2 + |w|^2 / 2
-+ K (z - 1)^2 / 2`` changes by the unbalance's power, now with the tangential term of a
++ K (z - 1)^2 / 2`` changes by the unbalance's power, with the tangential term of a
 changing speed (``model.unbalance_value``), the damping's and the friction's on the
 translation::
 
