@@ -21,7 +21,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from machine import describe
+from machine import best_of, describe
 
 from rubcli.case import load_case
 from rubcli.solvers import solve
@@ -54,9 +54,7 @@ def measure(name: str) -> list[str]:
     for method in METHODS:
         for rtol in TOLERANCES:
             options = {"rtol": rtol, "atol": rtol / 100}
-            solve(problem, method, **options)  # warm-up: compilation or cache load
-            runs = [solve(problem, method, **options) for _ in range(REPEATS)]
-            best, sol = min(r.wall_time_s for r in runs), runs[0]
+            best, sol = best_of(problem, method, REPEATS, **options)
             n = min(sol.t.size, reference.t.size)
             error = float(
                 np.max(np.hypot(sol.x[:n] - reference.x[:n], sol.y[:n] - reference.y[:n]))

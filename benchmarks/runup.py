@@ -35,7 +35,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from machine import describe
+from machine import best_of, describe
 from peers import Heyoka
 
 from rubcli import model
@@ -70,10 +70,7 @@ def main() -> None:
     for method in METHODS:
         for rtol in TOLERANCES:
             options = {"rtol": rtol, "atol": rtol / 100}
-            solve(p, method, **options)  # warm-up: compilation or cache load
-            runs = [solve(p, method, **options) for _ in range(REPEATS)]
-            best = min(r.wall_time_s for r in runs)
-            sol = runs[0]
+            best, sol = best_of(p, method, REPEATS, **options)
             error = float(np.max(np.hypot(sol.x - reference.x, sol.y - reference.y)))
             final = float(np.hypot(*(sol.states[-1, :2] - reference.states[-1, :2])))
             rows.append((method, rtol, best, error, final, sol.stats["nsteps"], len(sol.events)))
@@ -127,9 +124,7 @@ def heyoka_rows(p: Problem, reference) -> list[tuple]:
     ends = Problem(p.params, p.initial, p.t_eval[[0, -1]], speed=p.speed)  # no samples
     for tol in TOLERANCES:
         options = {"rtol": tol, "atol": tol / 100}
-        solve(ends, "dop853-jit", **options)
-        runs = [solve(ends, "dop853-jit", **options) for _ in range(REPEATS)]
-        best, sol = min(r.wall_time_s for r in runs), runs[0]
+        best, sol = best_of(ends, "dop853-jit", REPEATS, **options)
         final = float(np.hypot(*(sol.states[-1, :2] - reference.states[-1, :2])))
         rows.append(("dop853-jit, final state only", tol, best, None, final,
                      sol.stats["nsteps"], len(sol.events)))  # fmt: skip

@@ -149,6 +149,12 @@ class Drive:
                              / (net[i - 1] - net[i]))  # fmt: skip
         return float(speed[-1]) if net[-1] > 0.0 else float(speed[0])
 
+    def shaft_torque(self, w: FloatOrArray) -> FloatOrArray:
+        """The motor's torque less the bearing drag at the speed ``w``."""
+        speed, torque = self.table()
+        out = shaft_torque_value(np.asarray(w, dtype=float), self.record(), speed, torque)
+        return float(out) if np.ndim(out) == 0 else out
+
     def text(self) -> str:
         """The drive in a few words (figure titles)."""
         if self.stall_torque is not None:

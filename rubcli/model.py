@@ -573,7 +573,12 @@ def zero_slip_regime_value(
 ) -> int:  # fmt: skip
     """``regime_at_zero_slip`` from scalars: Filippov's rule (compilable core)."""
     needed = stick_friction_value(tau, x, y, vx, vy, nu, eta, E, phi0, e, rate, tau0, Rp)
-    limit = mu * K * (math.hypot(x, y) - 1.0)
+    return filippov_regime(needed, mu * K * (math.hypot(x, y) - 1.0))
+
+
+def filippov_regime(needed: float, limit: float) -> int:
+    """Filippov's rule at v_r = 0 from the friction ``needed`` to hold it and the cone's
+    ``limit`` (``regime_at_zero_slip``; compilable core)."""
     if needed > limit:
         return SLIP_POSITIVE
     if needed < -limit:

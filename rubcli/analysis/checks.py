@@ -124,12 +124,9 @@ def method_summary(solution: Solution, balance: Any = None) -> dict[str, Any]:
         if not finite:
             energy = None
         elif solution.problem.changes_speed:
-            from rubcli.analysis import transient_energy
+            from rubcli.analysis.transient_energy import speed_energy_summary
 
-            if solution.problem.drive is not None:
-                energy = transient_energy.drive_energy_summary(solution)
-            else:
-                energy = transient_energy.profile_energy_summary(solution)
+            energy = speed_energy_summary(solution)
         elif balance is not None:
             energy = balance.summary()
         else:

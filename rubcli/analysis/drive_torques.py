@@ -39,24 +39,13 @@ class DriveTorques:
 def sample_torques(solution: Solution) -> dict[str, np.ndarray]:
     """The torques on the spin at every sample: motor (less drag), rub, vibration (the
     unbalance's reaction) and inertia (``j p''``, their sum)."""
-    from rubcli.solvers.compiled.drive import driven_columns
+    from rubcli.solvers.driven import sample_derivatives
 
     problem = solution.problem
-    drive, p = problem.drive, problem.params
-    w = solution.speed
-    motor = drive.motor_torque(w) - drive.drag * w
-    pars = np.array(model.params_vector(p))
-    record, (ts, tt) = drive.record(), drive.table()
-    S = np.vstack([solution.states.T, solution.drive_states.T])
-    p_dd = np.empty(solution.t.size)
-    rub_force = np.zeros(solution.t.size)
-    for regime in (model.FREE, model.SLIP_POSITIVE, model.SLIP_NEGATIVE, model.STICK):
-        on = solution.regimes == regime
-        if np.any(on):
-            dS, T = driven_columns(np.ascontiguousarray(S[:, on]), pars, record, ts, tt, regime)
-            p_dd[on], rub_force[on] = dS[5], T
-    inertia = drive.inertia * p_dd
-    rub = -p.Rp * rub_force
+    motor = problem.drive.shaft_torque(solution.speed)
+    dS, rub_force = sample_derivatives(solution)
+    inertia = problem.drive.inertia * dS[5]
+    rub = -problem.params.Rp * rub_force
     return {"motor": motor, "rub": rub, "vibration": inertia - motor - rub, "inertia": inertia}
 
 

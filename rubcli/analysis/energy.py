@@ -203,15 +203,24 @@ def powers(
 
     Columns: unbalance P_in, damping 2 nu |v|^2, friction on the translation -T r theta',
     contact dissipation T v_r, spin drive T Rp eta, |P_in|, |T r theta'|. ``phase``:
-    (cos, sin) of ``eta tau + phi0`` if already known.
+    (cos, sin) of ``eta tau + phi0`` if already known. On a leg of a speed profile
+    (``params.rate``) the unbalance carries its tangential term (``model.unbalance_value``)
+    and the spin is the leg's ``eta(tau)``.
     """
     S = np.atleast_2d(np.asarray(states, dtype=float))
     tau = np.asarray(tau, dtype=float)
     x, y, vx, vy = S.T
-    if phase is None:
-        angle = params.eta * tau + params.phi0
-        phase = (np.cos(angle), np.sin(angle))
-    p_in = params.E * (phase[0] * vx + phase[1] * vy)
+    eta = params.eta
+    if params.rate != 0.0:
+        p = params
+        fx, fy = model.unbalance_value(tau, p.eta, p.E, p.phi0, p.e, p.rate, p.tau0)
+        p_in = fx * vx + fy * vy
+        eta = p.speed(tau)
+    else:
+        if phase is None:
+            angle = params.eta * tau + params.phi0
+            phase = (np.cos(angle), np.sin(angle))
+        p_in = params.E * (phase[0] * vx + phase[1] * vy)
     p_damp = 2.0 * params.nu * (vx * vx + vy * vy)
     out = np.zeros((S.shape[0], 7))
     out[:, _IN], out[:, _DAMP], out[:, _ABS_IN] = p_in, p_damp, np.abs(p_in)
@@ -219,10 +228,10 @@ def powers(
         T = model.tangential_force(tau, x, y, vx, vy, params, regime)
         z = np.hypot(x, y)
         whirl = (x * vy - y * vx) / z  # r theta'
-        v_r = model.slip_velocity(x, y, vx, vy, params.Rp, params.eta)
+        v_r = model.slip_velocity(x, y, vx, vy, params.Rp, eta)
         out[:, _FRIC] = -T * whirl
         out[:, _SLIP] = T * v_r
-        out[:, _SPIN] = T * params.Rp * params.eta
+        out[:, _SPIN] = T * params.Rp * eta
         out[:, _ABS_FRIC] = np.abs(T * whirl)
     return out
 

@@ -451,13 +451,9 @@ def measure_run(case: StressCase, solution: Solution, target_periods: float) -> 
     finite = bool(np.all(np.isfinite(solution.states)))
     residual = quadrature = None
     if finite and solution.problem.changes_speed:
-        from rubcli.analysis import transient_energy
+        from rubcli.analysis.transient_energy import speed_energy_summary
 
-        summary = (
-            transient_energy.drive_energy_summary(solution)
-            if solution.problem.drive is not None
-            else transient_energy.profile_energy_summary(solution)
-        )
+        summary = speed_energy_summary(solution)
         residual, quadrature = summary["energy_residual"], summary["energy_quadrature_error"]
     elif finite:
         balance = energy_balance(solution)

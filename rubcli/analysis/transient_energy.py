@@ -78,74 +78,61 @@ def _coarse(t: np.ndarray, P: np.ndarray) -> float:
 
 def profile_powers(
     problem: Problem, tau: np.ndarray, states: np.ndarray, regime: int
-) -> dict[str, np.ndarray]:
-    """The powers of a prescribed speed at the nodes ``tau`` (states (n, 4)) of one piece
-    in ``regime``: unbalance, damping, friction on the translation, contact dissipation
-    and the spin drive's share (module docstring), each leg with its own line of speed."""
-    x, y, vx, vy = states.T
-    out = {name: np.zeros(tau.size) for name in ("unbalance", "damping", "friction", "contact",
-                                                 "spin")}  # fmt: skip
-    out["damping"] = 2.0 * problem.params.nu * (vx * vx + vy * vy)
+) -> np.ndarray:
+    """``analysis.energy.powers`` at the nodes ``tau`` (states (n, 4)) of one piece in
+    ``regime``, each node on its leg of the profile: array (n, 7)."""
+    from rubcli.analysis.energy import powers
+
     legs = problem.legs()
     starts = np.array([start for start, _ in legs])
     leg_of = np.clip(np.searchsorted(starts, tau, side="right") - 1, 0, len(legs) - 1)
-    for i, (_, p) in enumerate(legs):
+    out = np.empty((tau.size, 7))
+    for i, (_, params) in enumerate(legs):
         on = leg_of == i
-        if not np.any(on):
-            continue
-        fx, fy = model.unbalance_value(tau[on], p.eta, p.E, p.phi0, p.e, p.rate, p.tau0)
-        out["unbalance"][on] = fx * vx[on] + fy * vy[on]
-        if regime == model.FREE:
-            continue
-        T = model.tangential_force(tau[on], x[on], y[on], vx[on], vy[on], p, regime)
-        z = np.hypot(x[on], y[on])
-        whirl = (x[on] * vy[on] - y[on] * vx[on]) / z
-        spin = p.Rp * p.speed(tau[on])
-        out["friction"][on] = T * whirl
-        out["contact"][on] = T * (whirl + spin)
-        out["spin"][on] = T * spin
+        if np.any(on):
+            out[on] = powers(tau[on], states[on], params, regime)
     return out
 
 
 def profile_energy_summary(solution: Solution) -> dict[str, float]:
     """A prescribed speed's balance over the run, for report.json (module docstring):
     the keys of ``analysis.energy``'s summary."""
+    from rubcli.analysis.energy import mechanical_energy
     from rubcli.analysis.regimes import solution_pieces
 
     if solution.t.size < 3:
         return {"energy_residual": 0.0, "energy_quadrature_error": 0.0}
-    names = ("unbalance", "damping", "friction", "contact", "spin")
-    fine = dict.fromkeys(names, 0.0)
-    coarse = dict.fromkeys(names, 0.0)
-    throughput = 0.0
+    fine, coarse = np.zeros(7), np.zeros(7)
     for piece in solution_pieces(solution):
-        powers = profile_powers(solution.problem, piece.tau, piece.states, piece.regime)
-        for name in names:
-            fine[name] += _trapezoid(piece.tau, powers[name])
-            coarse[name] += _coarse(piece.tau, powers[name])
-        for name in ("unbalance", "damping", "friction"):
-            throughput += _trapezoid(piece.tau, np.abs(powers[name]))
-    x, y, vx, vy = solution.states.T
-    z = np.hypot(x, y)
-    K = solution.problem.params.K
-    energy = 0.5 * (vx * vx + vy * vy + x * x + y * y) + np.where(z > 1, 0.5 * K * (z - 1) ** 2, 0)
-    throughput += float(np.max(energy))
+        P = profile_powers(solution.problem, piece.tau, piece.states, piece.regime)
+        fine += [_trapezoid(piece.tau, P[:, i]) for i in range(7)]
+        coarse += [_coarse(piece.tau, P[:, i]) for i in range(7)]
+    # columns: unbalance, damping, -friction on the translation, contact, spin, |in|, |fric|
+    energy = sum(mechanical_energy(solution.states, solution.problem.params, solution.regimes))
+    throughput = fine[5] + fine[1] + fine[6] + float(np.max(energy))
     change = float(energy[-1] - energy[0])
 
-    def net(works: dict[str, float]) -> float:
-        return works["unbalance"] - works["damping"] - works["friction"]
+    def net(works: np.ndarray) -> float:
+        return works[0] - works[1] + works[2]
 
     return {
         "energy_residual": abs(change - net(fine)) / throughput,
         "energy_quadrature_error": abs(net(fine) - net(coarse)) / 3.0 / throughput,
         "energy_change": change,
-        "work_unbalance": fine["unbalance"],
-        "damping_dissipation": fine["damping"],
-        "friction_dissipation": fine["friction"],
-        "contact_dissipation": fine["contact"],
-        "spin_drive_work": fine["spin"],
+        "work_unbalance": fine[0],
+        "damping_dissipation": fine[1],
+        "friction_dissipation": -fine[2],
+        "contact_dissipation": fine[3],
+        "spin_drive_work": fine[4],
         "energy_throughput": throughput,
     }
+
+
+def speed_energy_summary(solution: Solution) -> dict[str, float]:
+    """The balance of a run whose speed changes: a driven rotor's or a profile's."""
+    if solution.problem.drive is not None:
+        return drive_energy_summary(solution)
+    return profile_energy_summary(solution)
 
 
 def drive_energy_summary(solution: Solution) -> dict[str, float]:

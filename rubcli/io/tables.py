@@ -110,7 +110,7 @@ def solution_columns(
             columns["speed_rpm"] = units.rpm(eta, scale)
     drive = solution.problem.drive
     if drive is not None:
-        torques = {"drive_torque": drive.motor_torque(eta) - drive.drag * eta,
+        torques = {"drive_torque": drive.shaft_torque(eta),
                    "rub_torque": -solution.problem.params.Rp * solution.friction_force}  # fmt: skip
         columns.update(torques)
         if scale is not None:  # the torque unit k_r gamma^2 (N m)

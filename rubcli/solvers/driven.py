@@ -50,6 +50,7 @@ from rubcli.solvers.events import (
     REVERSAL,
     STICK_ENTRY,
     STICK_EXIT,
+    initial_kind,
 )
 from rubcli.solvers.registry import SPECS, ToleranceOptions
 from rubcli.solvers.scipy_ivp import ScipyStepper
@@ -69,9 +70,8 @@ class DrivenRun(driver.Run):
         self.states = np.empty((self.t_eval.size, 6))
         self.regime = regime_of(self.state, self)
         self.states[0], self.regimes[0] = self.state, self.regime
-        self.last_kind = NO_EVENT
-        if abs(math.hypot(self.state[0], self.state[1]) - 1.0) <= 1e-14:
-            self.last_kind = ENTRY if self.regime != model.FREE else EXIT
+        # (at tau = 0 the leg's spin is the drive's start: the constant-speed rule holds)
+        self.last_kind = initial_kind(self.state[:4], self.regime, self.params, self.tau)
 
     def stick_friction(self, s: np.ndarray) -> float:
         """The friction T that holds v_r = 0 at the state ``s`` (``stick_torque_value``)."""
@@ -111,21 +111,16 @@ class DrivenRun(driver.Run):
 
 
 def slip_velocity(S: np.ndarray, Rp: float) -> np.ndarray:
-    """v_r = Rp w + (x vy - y vx) / z of states (6,) or (6, n)."""
+    """v_r of states (6,) or (6, n): ``model.slip_velocity`` with the spin a state."""
     x, y, vx, vy, _, w = S
-    return Rp * w + (x * vy - y * vx) / np.hypot(x, y)
+    return model.slip_velocity(x, y, vx, vy, Rp, w)
 
 
 def zero_slip_regime(s: np.ndarray, run: DrivenRun) -> int:
     """Filippov's rule at v_r = 0 with the coupled system's stick friction."""
     p = run.params
-    needed = run.stick_friction(s)
     limit = p.mu * p.K * (math.hypot(s[0], s[1]) - 1.0)
-    if needed > limit:
-        return model.SLIP_POSITIVE
-    if needed < -limit:
-        return model.SLIP_NEGATIVE
-    return model.STICK
+    return model.filippov_regime(run.stick_friction(s), limit)
 
 
 def regime_of(s: np.ndarray, run: DrivenRun) -> int:
@@ -205,13 +200,7 @@ class DrivenStepper(ScipyStepper):
         event = self._earliest_event(run, dense, solver.t_old, solver.t)
         run.last_kind = NO_EVENT
         run.k = self._fill(run, dense, event[0] if event else solver.t)
-        if event is None:
-            run.tau, run.state = solver.t, solver.y
-            if solver.status == "finished":
-                self._end_segment(run)
-            return
-        self._end_segment(run)
-        run.switch(event[0], event[1], dense(event[0]))
+        self.finish(run, dense, event)
 
     @staticmethod
     def _fill(run: DrivenRun, dense, t_stop: float) -> int:
@@ -384,20 +373,27 @@ def _python_columns(S, pars, drive, table_speed, table_torque, regime):
 PYTHON = (_python_rhs, _python_columns)  # the interpreter's right-hand side and columns
 
 
-def rub_force(solution: Solution) -> np.ndarray:
-    """The rub's tangential force at a driven run's samples (positive opposing positive
-    slip; the stick multiplier in stick; 0 in free flight)."""
+def sample_derivatives(solution: Solution) -> tuple[np.ndarray, np.ndarray]:
+    """A driven run's equations at its samples, each in its regime: the derivatives of
+    the six states (6, n) and the rub's tangential force (n,) (positive opposing
+    positive slip; the stick multiplier in stick; 0 in free flight)."""
     problem = solution.problem
     pars = np.array(model.params_vector(problem.params))
     drive = problem.drive.record()
     ts, tt = problem.drive.table()
     S = np.vstack([solution.states.T, solution.drive_states.T])
-    out = np.zeros(solution.t.size)
-    for regime in (model.SLIP_POSITIVE, model.SLIP_NEGATIVE, model.STICK):
+    dS, T = np.empty_like(S), np.zeros(solution.t.size)
+    for regime in (model.FREE, model.SLIP_POSITIVE, model.SLIP_NEGATIVE, model.STICK):
         on = solution.regimes == regime
         if np.any(on):
-            out[on] = driven_columns(np.ascontiguousarray(S[:, on]), pars, drive, ts, tt, regime)[1]
-    return out
+            dS[:, on], T[on] = driven_columns(np.ascontiguousarray(S[:, on]), pars, drive, ts,
+                                              tt, regime)  # fmt: skip
+    return dS, T
+
+
+def rub_force(solution: Solution) -> np.ndarray:
+    """The rub's tangential force at a driven run's samples (``sample_derivatives``)."""
+    return sample_derivatives(solution)[1]
 
 
 def solve_driven(problem: Problem, options: ToleranceOptions, name: str) -> Solution:

@@ -137,6 +137,12 @@ class ScipyStepper:
         run.k = fill_samples(
             dense, run.t_eval, run.k, t_stop, run.regime, run.params, run.states, run.regimes
         )
+        self.finish(run, dense, event)
+
+    def finish(self, run: driver.Run, dense, event: tuple[float, int] | None) -> None:
+        """End the step (its samples filled): the run moves to its end, or to the event
+        located in it, which is applied and ends the segment."""
+        solver = self.solver
         if event is None:
             run.tau, run.state = solver.t, solver.y
             if solver.status == "finished":

@@ -35,6 +35,7 @@ COMPILABLE_CORES = (
     model.polar_jacobian_arrays,
     model.slip_velocity_value,
     model.entry_regime_value,
+    model.filippov_regime,
     model.zero_slip_regime_value,
     model.free_steady_value,
     model.damped_basis,
