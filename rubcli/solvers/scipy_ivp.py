@@ -30,6 +30,7 @@ output is caught).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import partial
 
 import numpy as np
@@ -139,7 +140,9 @@ class ScipyStepper:
         )
         self.finish(run, dense, event)
 
-    def finish(self, run: driver.Run, dense, event: tuple[float, int] | None) -> None:
+    def finish(
+        self, run: driver.Run, dense: Callable[[float], np.ndarray], event: tuple[float, int] | None
+    ) -> None:
         """End the step (its samples filled): the run moves to its end, or to the event
         located in it, which is applied and ends the segment."""
         solver = self.solver
