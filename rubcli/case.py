@@ -1080,8 +1080,7 @@ class CaseFile(_Section):
                 "or seconds with [physical])",
             )
         if "methods" not in self.solver.model_fields_set:
-            method = "dop853" if driven else "dop853-jit"
-            solver = self.solver.model_copy(update={"methods": [method]})
+            solver = self.solver.model_copy(update={"methods": ["dop853-jit"]})
             object.__setattr__(self, "solver", solver)
         feature = registry.DRIVEN if driven else registry.SPEED_PROFILE
         for method in self.solver.methods:

@@ -78,7 +78,7 @@ def test_case_runs(path, tmp_path):
     problem = case.problem if os.environ.get("RUBCLI_FULL_CASES") or speed else None
     if problem is None:
         problem = case.with_overrides(periods=float(SHORT.get(label, SMOKE_PERIODS))).problem
-    # (a driven rotor: scipy's DOP853, the one family that runs it, far tighter)
+    # (a driven rotor: scipy's DOP853 far tighter, its steps not the compiled loop's)
     tight = "dop853" if problem.drive is not None else "dop853-jit"
     ref = solvers.solve(problem, tight, rtol=1e-12, atol=1e-13)
     assert ref.success, ref.message

@@ -56,7 +56,8 @@ def test_energy_changes_by_the_motors_work_exactly(method):
     assert np.max(np.abs(energy - energy[0] - work)) < 1e-7 * (energy[0] + work[-1])
 
 
-def test_a_heavy_rotor_runs_as_at_constant_speed():
+@pytest.mark.parametrize("method", ["dop853", "dop853-jit"])
+def test_a_heavy_rotor_runs_as_at_constant_speed(method):
     """With j = 1e12 and no motor torque the speed cannot change (the rub's torque gives
     eta' ~ 1e-11): the driven run with friction, stick and slip is the constant-speed
     run of the compiled DOP853 (its own code and event search), event for event."""
@@ -64,7 +65,7 @@ def test_a_heavy_rotor_runs_as_at_constant_speed():
     t = np.linspace(0.0, 80.0, 1601)
     drive = constant_torque(0.0, inertia=1e12, start=2.0)
     s0 = (1.05, 0.0, 0.0, -1.0)
-    driven = solve(Problem(p, s0, t, drive=drive), "dop853", rtol=1e-11, atol=1e-12)
+    driven = solve(Problem(p, s0, t, drive=drive), method, rtol=1e-11, atol=1e-12)
     fixed = solve(Problem(p, s0, t), "dop853-jit", rtol=1e-11, atol=1e-12)
     assert driven.success and fixed.success
     assert len(driven.events) == len(fixed.events) > 10
@@ -163,14 +164,14 @@ def test_a_bouncing_heavy_rotor_runs_as_at_constant_speed():
     fixed = solve(Problem(p, s0, t), "dop853-jit", rtol=1e-10, atol=1e-12)
     assert len(fixed.events) == 79 and np.diff(fixed.events.tau).min() < 0.003
     problem = Problem(p, s0, t, drive=constant_torque(0.0, inertia=1e12, start=p.eta))
-    for method in ("dop853", "rk45"):
+    for method in ("dop853", "rk45", "dop853-jit"):
         sol = solve(problem, method, rtol=1e-10, atol=1e-12)
         assert list(sol.events.kinds) == list(fixed.events.kinds), method
         np.testing.assert_allclose(sol.events.tau, fixed.events.tau, atol=1e-6)
         np.testing.assert_allclose(sol.states, fixed.states, atol=1e-4)
 
 
-@pytest.mark.parametrize("method", ["dop853", "rk45", "lsoda"])
+@pytest.mark.parametrize("method", ["dop853", "rk45", "lsoda", "dop853-jit"])
 def test_a_start_on_the_clearance_moving_out_is_a_contact_at_once(method):
     """Started exactly on the clearance, moving along it (outward, since a straight line
     leaves the circle): the contact begins at tau = 0, as at constant speed, also when
@@ -207,34 +208,63 @@ def test_the_implicit_methods_roll_a_driven_rotor(method):
 
 def test_the_methods_agree_on_a_driven_stick_slip():
     """The rolling whirl with a little unbalance sticks and slips twice a period while a
-    weak motor holds the speed: three scipy methods see the same 56 stick entries and
-    exits, end at the same speed, and close the energy balance."""
+    weak motor holds the speed: three scipy methods and the compiled DOP853 see the same
+    56 stick entries and exits, end at the same speed, and close the energy balance."""
     p = model.ModelParams(nu=0.01, eta=1.0, e=0.05, K=100.0, mu=0.02, Rp=2.0)
     r = model.rolling_whirl_radius(p)
     drive = Drive(inertia=5.0, start=1.0, stall_torque=0.2, no_load_speed=1.5)
     problem = Problem(p, (r, 0.0, 0.0, -p.Rp), np.linspace(0, 60, 1201), drive=drive)
-    runs = [solve(problem, m, rtol=1e-10, atol=1e-12) for m in ("dop853", "rk45", "lsoda")]
+    methods = ("dop853", "rk45", "lsoda", "dop853-jit")
+    runs = [solve(problem, m, rtol=1e-10, atol=1e-12) for m in methods]
     for sol in runs:
         assert sol.success, sol.message
         assert list(sol.events.kinds) == ["stick_exit", "stick_entry"] * 28, sol.method
         assert sol.speed[-1] == pytest.approx(runs[0].speed[-1], abs=1e-6)
         assert drive_energy_summary(sol)["energy_residual"] < 1e-6
     np.testing.assert_allclose(runs[1].events.tau, runs[0].events.tau, atol=1e-6)
+    np.testing.assert_allclose(runs[3].events.tau, runs[0].events.tau, atol=1e-9)
 
 
-def test_a_rotor_that_stops_ends_the_run_with_a_message():
+@pytest.mark.parametrize("method", ["dop853", "dop853-jit"])
+def test_a_rotor_that_stops_ends_the_run_with_a_message(method):
     """A motor that brakes (negative torque) stops the rotor: the run ends failed where
     the speed reaches 0 (without unbalance w = 1 - 0.5 tau: at tau = 2), its samples up
     to there kept."""
     p = model.ModelParams(**{**RUN_UP, "eta": 1.0, "e": 0.0})
     drive = constant_torque(-0.5 * 20.0, inertia=20.0, start=1.0)
-    sol = solve(Problem(p, (0.0, 0.0, 0.0, 0.0), np.linspace(0, 10, 101), drive=drive), "dop853")
+    sol = solve(Problem(p, (0.0, 0.0, 0.0, 0.0), np.linspace(0, 10, 101), drive=drive), method)
     assert not sol.success
     assert "speed fell to 0 at tau = 2:" in sol.message
     assert sol.t[-1] == pytest.approx(1.9) and np.all(sol.speed > 0)
 
 
-@pytest.mark.parametrize("method", ["dop853-jit", "taylor", "analytic"])
+@pytest.mark.parametrize(
+    "case", ["driven-dry-whip", "driven-captured", "driven-through", "driven-physical"]
+)
+def test_the_compiled_loop_takes_dop853s_steps_on_a_driven_rotor(case):
+    """``dop853-jit`` on a driven rotor is scipy's DOP853 step for step: the same number
+    of steps and the same events, located by the same Python event search on the steps
+    its pre-check hands back, the states to round-off amplified along the run; most
+    steps stay in the kernel. With ``compiled=False`` it is scipy's ``dop853`` itself
+    (the interpreter's right-hand side)."""
+    problem = load_case(CASES / f"{case}.toml").problem
+    scipy = solve(problem, "dop853", rtol=1e-9, atol=1e-12)
+    jit = solve(problem, "dop853-jit", rtol=1e-9, atol=1e-12)
+    assert jit.success and jit.method == "dop853-jit"
+    assert jit.stats["nsteps"] == scipy.stats["nsteps"]
+    assert list(jit.events.kinds) == list(scipy.events.kinds)
+    np.testing.assert_allclose(jit.events.tau, scipy.events.tau, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(jit.states, scipy.states, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(jit.drive_states, scipy.drive_states, rtol=1e-8)
+    assert jit.stats["python_steps"] < 0.2 * jit.stats["nsteps"]
+    short = truncate_problem(problem, 10.0)
+    slow = solve(short, "dop853-jit", rtol=1e-9, atol=1e-12, compiled=False)
+    interpreted = solve(short, "dop853", rtol=1e-9, atol=1e-12, compiled=False)
+    assert slow.method == "dop853-jit" and not slow.settings["compiled"]
+    np.testing.assert_array_equal(slow.states, interpreted.states)
+
+
+@pytest.mark.parametrize("method", ["taylor", "analytic"])
 def test_methods_without_the_drive_refuse_it_naming_the_feature(method):
     p = model.ModelParams(eta=0.5, **RUN_UP)
     problem = Problem(p, (0.0, 0.0, 0.0, 0.0), np.linspace(0, 10, 11),
@@ -274,7 +304,7 @@ DRIVEN_TABLES = {
         ({"speed": 'profile = "driven"\nstart = 0.5\ninertia = 2.0\nstall_torque = 1.0\n'
                    "no_load_speed = 2.0\nrate = 0.1\n"}, "rate do not belong to profile"),
         ({"time": "samples_per_period = 16\n"}, "time.end: missing; a driven rotor"),
-        ({"solver": 'methods = ["dop853-jit"]\n'}, "dop853-jit does not run a driven rotor"),
+        ({"solver": 'methods = ["taylor"]\n'}, "taylor does not run a driven rotor"),
     ],
 )  # fmt: skip
 def test_a_bad_drive_is_refused_naming_the_field(change, message):
@@ -320,10 +350,10 @@ def test_run_on_a_driven_rotor_writes_its_products(tmp_path):
     result = CliRunner().invoke(app, ["run", str(case), "--out", str(out)])
     assert result.exit_code == 0, result.output
     names = {p.name for p in out.iterdir()}
-    assert {"drive.png", "bode.png", "dop853.csv", "report.json"} <= names
-    header = (out / "dop853.csv").read_text().splitlines()[0].split(",")
+    assert {"drive.png", "bode.png", "dop853-jit.csv", "report.json"} <= names
+    header = (out / "dop853-jit.csv").read_text().splitlines()[0].split(",")
     assert {"eta", "phase", "drive_torque", "rub_torque"} <= set(header)
-    entry = json.loads((out / "report.json").read_text())["methods"]["dop853"]
+    entry = json.loads((out / "report.json").read_text())["methods"]["dop853-jit"]
     assert entry["status"] == "success"
     assert entry["energy_residual"] < 1e-3
     assert entry["transient"]["drive"]["start_speed"] == 0.5

@@ -88,8 +88,7 @@ def test_quick_suite_is_accurate_or_warns(quick_run):
             continue
         where = f"{row['case']} / {row['method']}: error {row['error']} {row['warning']}"
         exact = row["reference"].startswith("exact")
-        # (a driven rotor's reference runs scipy's dop853: the compiled loop refuses it)
-        assert exact or row["reference"] in ("dop853-jit rtol=1e-12", "dop853 rtol=1e-12"), where
+        assert exact or row["reference"] == "dop853-jit rtol=1e-12", where
         expected = WRONG_BUT_SUCCESSFUL.get((row["case"], row["method"]))
         if expected is None:
             assert row["warning"] == "", where

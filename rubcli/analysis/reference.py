@@ -57,7 +57,6 @@ NUMERICAL = "numerical"
 
 REFERENCE_METHOD = "dop853-jit"  # scipy's DOP853 step for step, compiled
 REFERENCE_OPTIONS = {"rtol": 1e-12, "atol": 1e-12}
-DRIVEN_REFERENCE_METHOD = "dop853"  # a driven rotor's (its family is scipy's)
 CHECK_METHOD = "lsoda"
 CHECK_OPTIONS = {"rtol": 1e-12, "atol": 1e-12}
 THRESHOLD = 1e-6  # predictability horizon: trusted while the two references differ less
@@ -304,8 +303,6 @@ def reference_solution(
     if exact is not None:
         exact.threshold = threshold
         return exact
-    if problem.drive is not None:  # scipy's DOP853: the compiled loop runs no drive
-        numerical_options.setdefault("method", DRIVEN_REFERENCE_METHOD)
     return numerical_reference(problem, threshold=threshold, progress=progress, **numerical_options)
 
 

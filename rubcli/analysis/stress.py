@@ -418,8 +418,6 @@ def stress_reference(
                 "exact free flight (touching)", problem.t_eval, states, exact=True
             )
     for method, options in REFERENCE_RUNS:
-        if case.feature is not None and unsupported(method, case.feature):
-            method = "dop853"  # the compiled loop's steps, by scipy (a driven rotor)
         solution = solve(
             problem, method, **options_for(method, {**SOLVER_OPTIONS, **budget, **options})
         )

@@ -40,23 +40,15 @@ from rubcli.solvers.events import (
     start_flags,
 )
 from rubcli.solvers.registry import CompiledOptions, ToleranceOptions
-from rubcli.solvers.shared import RESTART_BAND_FLOOR, SCAN_POINTS, locate_in_python
+from rubcli.solvers.shared import (
+    RESTART_BAND_FLOOR,
+    SCAN_POINTS,
+    Dop853Dense,
+    locate_in_python,
+)
 
 CHUNK_STEPS = 2000  # committed steps per kernel call: budget and progress checks between
 EVENT_BUFFER = 256  # events the kernel may apply before it returns to flush them
-
-
-class Dop853Dense:
-    """The dense output of one step (scipy's ``Dop853DenseOutput``), from the kernel's F."""
-
-    def __init__(self, t_old: float, t_new: float, y_old: np.ndarray, F: np.ndarray):
-        self.t_old, self.h = t_old, t_new - t_old
-        self.y_old, self.F = y_old.copy(), F.copy()
-
-    def __call__(self, t):
-        if isinstance(t, np.ndarray) and t.ndim == 1:
-            return kernels.dop853_dense(t.astype(float), self.t_old, self.h, self.y_old, self.F)
-        return kernels.dop853_dense_point(float(t), self.t_old, self.h, self.y_old, self.F)
 
 
 class Dop853Stepper:

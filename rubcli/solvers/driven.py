@@ -27,6 +27,10 @@ between two scan points, a return to the surface right after the segment left it
 
 Implicit methods get forward differences of the right-hand side
 (``DrivenStepper._jacobian``).
+
+``dop853-jit`` (``DrivenJitStepper``) takes scipy's DOP853 steps in a compiled loop
+(``compiled.driven_loop``) and hands the steps that may hold an event to this event
+search.
 """
 
 from __future__ import annotations
@@ -41,8 +45,10 @@ from rubcli import model
 from rubcli.drive import D_INERTIA, rolling_projection, shaft_torque_value, stick_torque_value
 from rubcli.problem import Problem
 from rubcli.solution import KIND_NAMES, Solution, SwitchEvent
+from rubcli.solvers import compiled as kernels
 from rubcli.solvers import driver
 from rubcli.solvers.compiled.drive import _driven_into, driven_columns, driven_rhs
+from rubcli.solvers.compiled.driven_loop import advance_driven, driven_initial_step
 from rubcli.solvers.events import (
     ENTRY,
     EXIT,
@@ -52,9 +58,11 @@ from rubcli.solvers.events import (
     STICK_EXIT,
     initial_kind,
 )
-from rubcli.solvers.registry import SPECS, ToleranceOptions
+from rubcli.solvers.registry import DRIVEN, SPECS, ToleranceOptions
 from rubcli.solvers.scipy_ivp import ScipyStepper
-from rubcli.solvers.shared import SCAN_POINTS
+from rubcli.solvers.shared import SCAN_POINTS, Dop853Dense
+
+CHUNK_STEPS = 2000  # committed steps per kernel call: budget and progress checks between
 
 
 class DrivenRun(driver.Run):
@@ -181,12 +189,15 @@ class DrivenStepper(ScipyStepper):
         return (dS[:, 1:] - dS[:, :1]) / step
 
     def advance(self, run: DrivenRun) -> None:
-        if not self.step(run):
-            return
-        solver = self.solver
-        dense = solver.dense_output()
-        if solver.y[5] <= 0.0:  # stopped: the phase no longer advances
-            stop = brentq(lambda t: dense(t)[5], solver.t_old, solver.t)
+        if self.step(run):
+            solver = self.solver
+            self.close_step(run, solver.dense_output(), solver.t_old, solver.t, solver.y[5])
+
+    def close_step(self, run: DrivenRun, dense, t_old: float, t_new: float, w: float) -> None:
+        """An accepted step from t_old to t_new, ending at the speed ``w``: a stop of the
+        rotor, or its earliest event, its samples, and the run moved on (``finish``)."""
+        if w <= 0.0:  # stopped: the phase no longer advances
+            stop = brentq(lambda t: dense(t)[5], t_old, t_new)
             self._end_segment(run)
             run.k = self._fill(run, dense, stop)
             run.fail(
@@ -197,9 +208,9 @@ class DrivenStepper(ScipyStepper):
         if run.last_kind != NO_EVENT:  # a segment's first step: begun on which surface?
             self.settling = run.last_kind in (REVERSAL, STICK_EXIT)
             self.on_surface = run.last_kind in (ENTRY, EXIT)
-        event = self._earliest_event(run, dense, solver.t_old, solver.t)
+        event = self._earliest_event(run, dense, t_old, t_new)
         run.last_kind = NO_EVENT
-        run.k = self._fill(run, dense, event[0] if event else solver.t)
+        run.k = self._fill(run, dense, event[0] if event else t_new)
         self.finish(run, dense, event)
 
     @staticmethod
@@ -396,13 +407,90 @@ def rub_force(solution: Solution) -> np.ndarray:
     return sample_derivatives(solution)[1]
 
 
+class DrivenJitStepper(DrivenStepper):
+    """``dop853-jit`` on the driven rotor: scipy's DOP853 step for step, compiled
+    (``compiled.driven_loop.advance_driven``). The kernel commits the steps in which no
+    event can lie, with their samples; a step that may hold one, a segment's first step,
+    a step still on the surface its segment began on and a step that ends at a speed
+    of 0 or below come back pending, and ``close_step`` (the Python event search above,
+    the definition of the drive's events) takes them. So both steppers find the same
+    events, and the compiled one spends Python only on the steps around them."""
+
+    def __init__(self, run: DrivenRun, rtol: float, atol: float) -> None:
+        super().__init__(run, "dop853", rtol, atol, compiled=True)
+        self.name = "dop853-jit"
+        # scipy raises a too small rtol to 100 eps (with a warning); so do we, silently
+        self.rtol = max(rtol, 100 * np.finfo(float).eps)
+        self.ctx = (run.pars, run.drive, *run.table)
+        self.f, self.y_new, self.f_new = np.empty(6), np.empty(6), np.empty(6)
+        self.F = np.empty((7, 6))
+        self.h_abs, self.t_new = 0.0, 0.0
+        self.in_segment = False  # a segment is to start (f and the initial step)
+        run.stats.update(python_steps=0)
+        self.settings.update(rtol=self.rtol, compiled_events=False)
+
+    def _start_segment(self, run: DrivenRun) -> None:
+        """As scipy starts a solver: f and the initial step."""
+        run.state = np.ascontiguousarray(run.state, dtype=float)
+        regime = run.regime
+        self.f[:] = driven_rhs(run.state, *self.ctx, regime)
+        self.columns = lambda S: driven_columns(np.ascontiguousarray(S), *self.ctx, regime)
+        self.h_abs = driven_initial_step(run.tau, run.state, self.f, run.t_end, self.ctx,
+                                         regime, self.rtol, self.atol)  # fmt: skip
+        run.stats["nfev"] += 2
+        run.stats["n_segments"] += 1
+        self.in_segment = True
+
+    def _end_segment(self, run: DrivenRun) -> None:
+        self.in_segment = False
+
+    def advance(self, run: DrivenRun) -> None:
+        if not self.in_segment:
+            self._start_segment(run)
+        hand_first = run.last_kind != NO_EVENT or self.settling or self.on_surface
+        chunk = max(1, min(CHUNK_STEPS, run.steps_left))
+        tau, self.t_new, self.h_abs, run.k, steps, nfev, reason = advance_driven(
+            run.tau, run.state, self.f, self.h_abs, run.t_end, self.ctx, run.regime,
+            self.rtol, self.atol, run.t_eval, run.states, run.regimes, run.k, chunk,
+            hand_first, self.y_new, self.f_new, self.F,
+        )  # fmt: skip
+        run.tau = tau  # the kernel moved the state in place
+        run.stats["nsteps"] += steps
+        run.stats["nfev"] += nfev
+        if reason == kernels.STOP_SMALL_STEP:
+            run.fail(
+                f"dop853-jit failed at tau = {tau:.6g}: "
+                "required step size is less than spacing between numbers"
+            )
+        elif reason == kernels.STOP_PYTHON:
+            run.fail(f"non-finite state at tau = {self.t_new:.6g}")
+        elif reason == kernels.STOP_EVENT:
+            run.stats["nsteps"] += 1
+            run.stats["python_steps"] += 1
+            dense = Dop853Dense(tau, self.t_new, run.state, self.F)
+            self.close_step(run, dense, tau, self.t_new, self.y_new[5])
+
+    def finish(self, run: DrivenRun, dense, event: tuple[float, int] | None) -> None:
+        if event is None:
+            run.tau = self.t_new
+            run.state[:], self.f[:] = self.y_new, self.f_new
+            return
+        self._end_segment(run)
+        run.switch(event[0], event[1], dense(event[0]))
+
+
 def solve_driven(problem: Problem, options: ToleranceOptions, name: str) -> Solution:
-    """A driven rotor by the scipy method ``name`` (module docstring)."""
-    if SPECS[name].family != "scipy":
+    """A driven rotor by the method ``name``: a scipy method, or ``dop853-jit``
+    (module docstring); ``dop853-jit`` with ``compiled=False`` (or its kernels
+    unusable) is scipy's ``dop853`` under its name, as at a constant speed."""
+    if DRIVEN not in SPECS[name].features:
         raise ValueError(f"{name} does not run a driven rotor")
     o = options
     run = DrivenRun(
         problem, name, max_steps=o.max_steps, max_wall_time_s=o.max_wall_time_s,
         progress=o.progress,
     )  # fmt: skip
-    return driver.integrate(run, DrivenStepper(run, name, o.rtol, o.atol, o.compiled))
+    if name == "dop853-jit" and o.compiled and kernels.ensure_fresh():
+        return driver.integrate(run, DrivenJitStepper(run, o.rtol, o.atol))
+    scipy_name = "dop853" if name == "dop853-jit" else name
+    return driver.integrate(run, DrivenStepper(run, scipy_name, o.rtol, o.atol, o.compiled))

@@ -127,7 +127,6 @@ LACKS = {
     ("analytic", DRIVEN): "its closed forms assume a constant speed",
     ("analytic-polar", DRIVEN): "its closed forms assume a constant speed",
     ("taylor", DRIVEN): "its series recurrences assume a constant speed",
-    ("dop853-jit", DRIVEN): "its compiled loop carries the four rotor states only",
 }
 
 
@@ -190,7 +189,7 @@ SPECS: dict[str, MethodSpec] = {
             implicit=False,
             adaptive=None,
             summary="scipy's DOP853, step for step, with the step loop compiled (numba)",
-            features=frozenset({SPEED_PROFILE}),
+            features=frozenset({SPEED_PROFILE, DRIVEN}),
         ),
         MethodSpec(
             name="taylor",

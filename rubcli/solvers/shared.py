@@ -1,7 +1,8 @@
 """What the method families share: the regime's right-hand side for Python code, the
-samples of a step's dense output, and the Python event search of a compiled loop's
-pending step. The families (``analytic``, ``scipy_ivp``, ``dop853_jit``, ``taylor``)
-import these from here, never from each other."""
+samples of a step's dense output, the Python event search of a compiled loop's pending
+step, and a compiled DOP853 step's dense output. The families (``analytic``,
+``scipy_ivp``, ``dop853_jit``, ``taylor``, ``driven``) import these from here, never from
+each other."""
 
 from __future__ import annotations
 
@@ -108,3 +109,17 @@ def locate_in_python(
         dense, run.t_eval, run.k, t_stop, run.regime, run.params, run.states, run.regimes
     )
     return event
+
+
+class Dop853Dense:
+    """The dense output of one step (scipy's ``Dop853DenseOutput``), from a compiled
+    loop's F (four states or the driven rotor's six)."""
+
+    def __init__(self, t_old: float, t_new: float, y_old: np.ndarray, F: np.ndarray):
+        self.t_old, self.h = t_old, t_new - t_old
+        self.y_old, self.F = y_old.copy(), F.copy()
+
+    def __call__(self, t):
+        if isinstance(t, np.ndarray) and t.ndim == 1:
+            return kernels.dop853_dense(t.astype(float), self.t_old, self.h, self.y_old, self.F)
+        return kernels.dop853_dense_point(float(t), self.t_old, self.h, self.y_old, self.F)

@@ -14,12 +14,15 @@
 - ``piecewise_loop.py``: the analytic methods' compiled loop (fixed steps): every
   regime, events located by ``events.event_search`` and applied in the loop;
 - ``rhs.py``: the regime-locked right-hand side for scipy and the compiled DOP853;
-- ``dop853.py``: scipy's DOP853 step, error norm, dense output and initial step;
+- ``dop853.py``: scipy's DOP853 step, error norm, dense output and initial step, built
+  per right-hand side (``dop853_step``: the rotor's four states, the driven rotor's six);
 - ``roots.py``: the event pre-check and the event search (``events.event_search``) on a
   DOP853 step's dense output, and the application of an event;
 - ``dop853_loop.py``: the compiled DOP853 loop (``dop853-jit``);
+- ``drive.py`` and ``driven_loop.py``: the driven rotor's right-hand side, and its
+  DOP853 loop with the pre-check of its events (``dop853-jit`` on a driven rotor);
 - ``taylor.py``: the ``taylor`` method's series, step size, event pre-check, the event
-  search (``events.event_search``) on the step polynomial, and its loop (about 770
+  search (``events.event_search``) on the step polynomial, and its loop (about 1,080
   lines, over the usual 500: the series are written out once per regime, free, slip and
   stick, as straight-line recurrences, which is where its speed comes from, and the
   pre-checks bound those series; split, each part would import the other's internals);

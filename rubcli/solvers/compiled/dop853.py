@@ -3,7 +3,9 @@
 Each function is scipy.integrate.DOP853's algorithm with scipy's coefficients (vendored
 in ``dop853_coefficients.py``): the same stages, the 5th/3rd-order error blend, the
 7th-order dense output and Hairer's initial step, so that for the same rtol/atol the
-compiled loop takes scipy's steps.
+compiled loops take scipy's steps. The steps are built per right-hand side
+(``dop853_step``): the rotor's four states (``rhs._rhs_into``, ``dop853-jit``) and the
+driven rotor's six (``drive._driven_step_rhs``).
 """
 
 from __future__ import annotations
@@ -45,102 +47,146 @@ def _rms_norm(v):
     return math.sqrt(total / v.shape[0])
 
 
-@jit
-def dop853_initial_step(
-    t0: float, y0: np.ndarray, f0: np.ndarray, t_bound: float, pars: np.ndarray, regime: int,
-    rtol: float, atol: float,
-) -> float:  # fmt: skip
-    """scipy's ``select_initial_step`` (Hairer, Norsett, Wanner II.4) for DOP853 (order 7)."""
-    interval = abs(t_bound - t0)
-    if interval == 0.0:
-        return 0.0
-    scaled = np.empty(4)
-    for i in range(4):
-        scaled[i] = y0[i] / (atol + abs(y0[i]) * rtol)
-    d0 = _rms_norm(scaled)
-    for i in range(4):
-        scaled[i] = f0[i] / (atol + abs(y0[i]) * rtol)
-    d1 = _rms_norm(scaled)
-    h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
-    h0 = min(h0, interval)
-    y1 = np.empty(4)
-    for i in range(4):
-        y1[i] = y0[i] + h0 * f0[i]
-    f1 = np.empty(4)
-    _rhs_into(t0 + h0, y1, pars, regime, f1)
-    for i in range(4):
-        scaled[i] = (f1[i] - f0[i]) / (atol + abs(y0[i]) * rtol)
-    d2 = _rms_norm(scaled) / h0
-    if d1 <= 1e-15 and d2 <= 1e-15:
-        h1 = max(1e-6, h0 * 1e-3)
-    else:
-        h1 = (0.01 / max(d1, d2)) ** (1.0 / 8.0)
-    return min(100.0 * h0, h1, interval)
+def dop853_step(rhs_into, n_states):
+    """scipy's DOP853 on the right-hand side ``rhs_into(t, y, ctx, regime, out)`` of
+    ``n_states`` states, compiled: ``(initial_step, accepted_step, dense_coefficients)``.
 
+    The right-hand side is a closure constant (as in ``events.event_search``), so the
+    three functions are compiled once per right-hand side and stay cachable; the state
+    count is a compile-time constant, so the four-state loops compile as when it was
+    written out."""
+    N = n_states
 
-@jit
-def _dop853_try(t, y, h, pars, regime, Kst, y_new, tmp):
-    """One DOP853 step of length h from (t, y) with Kst[0] = f(t, y): y_new, Kst[1:13]."""
-    for s in range(1, DOP_STAGES):
-        for i in range(4):
+    def initial_step(t0, y0, f0, t_bound, ctx, regime, rtol, atol):
+        """scipy's ``select_initial_step`` (Hairer, Norsett, Wanner II.4), order 7."""
+        interval = abs(t_bound - t0)
+        if interval == 0.0:
+            return 0.0
+        scaled = np.empty(N)
+        for i in range(N):
+            scaled[i] = y0[i] / (atol + abs(y0[i]) * rtol)
+        d0 = _rms_norm(scaled)
+        for i in range(N):
+            scaled[i] = f0[i] / (atol + abs(y0[i]) * rtol)
+        d1 = _rms_norm(scaled)
+        h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
+        h0 = min(h0, interval)
+        y1 = np.empty(N)
+        for i in range(N):
+            y1[i] = y0[i] + h0 * f0[i]
+        f1 = np.empty(N)
+        rhs_into(t0 + h0, y1, ctx, regime, f1)
+        for i in range(N):
+            scaled[i] = (f1[i] - f0[i]) / (atol + abs(y0[i]) * rtol)
+        d2 = _rms_norm(scaled) / h0
+        if d1 <= 1e-15 and d2 <= 1e-15:
+            h1 = max(1e-6, h0 * 1e-3)
+        else:
+            h1 = (0.01 / max(d1, d2)) ** (1.0 / 8.0)
+        return min(100.0 * h0, h1, interval)
+
+    def attempt(t, y, h, ctx, regime, Kst, y_new, tmp):
+        """One step of length h from (t, y) with Kst[0] = f(t, y): y_new, Kst[1:13]."""
+        for s in range(1, DOP_STAGES):
+            for i in range(N):
+                acc = 0.0
+                for j in range(s):
+                    acc += DOP_A[s, j] * Kst[j, i]
+                tmp[i] = y[i] + h * acc
+            rhs_into(t + DOP_C[s] * h, tmp, ctx, regime, Kst[s])
+        for i in range(N):
             acc = 0.0
-            for j in range(s):
-                acc += DOP_A[s, j] * Kst[j, i]
-            tmp[i] = y[i] + h * acc
-        _rhs_into(t + DOP_C[s] * h, tmp, pars, regime, Kst[s])
-    for i in range(4):
-        acc = 0.0
-        for j in range(DOP_STAGES):
-            acc += DOP_B[j] * Kst[j, i]
-        y_new[i] = y[i] + h * acc
-    _rhs_into(t + h, y_new, pars, regime, Kst[DOP_STAGES])
+            for j in range(DOP_STAGES):
+                acc += DOP_B[j] * Kst[j, i]
+            y_new[i] = y[i] + h * acc
+        rhs_into(t + h, y_new, ctx, regime, Kst[DOP_STAGES])
+
+    def error_norm(Kst, h, y, y_new, rtol, atol):
+        """scipy's DOP853._estimate_error_norm (the 5th/3rd-order blend)."""
+        e5 = 0.0
+        e3 = 0.0
+        for i in range(N):
+            scale = atol + max(abs(y[i]), abs(y_new[i])) * rtol
+            a5 = 0.0
+            a3 = 0.0
+            for j in range(DOP_STAGES + 1):
+                a5 += DOP_E5[j] * Kst[j, i]
+                a3 += DOP_E3[j] * Kst[j, i]
+            e5 += (a5 / scale) ** 2
+            e3 += (a3 / scale) ** 2
+        if e5 == 0.0 and e3 == 0.0:
+            return 0.0
+        return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * N)
+
+    def accepted_step(tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, Kst, y_new, tmp):
+        """scipy's step loop from (tau, y), f = f(tau, y), proposed |h| ``h_abs``: tries
+        and rejects until a step is accepted. Returns ``(t_new, h, h_abs, nfev)``: the
+        accepted step to t_new, of length h, in y_new with the stages in Kst, and the
+        next proposal; h = 0 if the step fell below scipy's minimum (10 ulp of tau)."""
+        min_step = 10.0 * abs(np.nextafter(tau, np.inf) - tau)
+        h_abs = max(h_abs, min_step)
+        rejected = False
+        nfev = 0
+        while True:
+            if h_abs < min_step:
+                return tau, 0.0, h_abs, nfev
+            t_new = min(tau + h_abs, t_end)
+            h = t_new - tau
+            h_abs = abs(h)
+            for i in range(N):
+                Kst[0, i] = f[i]
+            attempt(tau, y, h, ctx, regime, Kst, y_new, tmp)
+            nfev += DOP_STAGES
+            error = error_norm(Kst, h, y, y_new, rtol, atol)
+            if error < 1.0:
+                if error == 0.0:
+                    factor = DOP_MAX_FACTOR
+                else:
+                    factor = min(DOP_MAX_FACTOR, DOP_SAFETY * error**DOP_ERROR_EXPONENT)
+                if rejected:
+                    factor = min(1.0, factor)
+                return t_new, h, h_abs * factor, nfev
+            if not math.isfinite(error):
+                h_abs *= DOP_MIN_FACTOR
+            else:
+                h_abs *= max(DOP_MIN_FACTOR, DOP_SAFETY * error**DOP_ERROR_EXPONENT)
+            rejected = True
+
+    def dense_coefficients(t_old, h, y_old, y_new, ctx, regime, Kst, F, tmp):
+        """The 7th-order dense output of an accepted step (scipy's Dop853DenseOutput F);
+        returns the evaluations of the right-hand side it took."""
+        for s in range(DOP_STAGES + 1, Kst.shape[0]):
+            for i in range(N):
+                acc = 0.0
+                for j in range(s):
+                    acc += DOP_A[s, j] * Kst[j, i]
+                tmp[i] = y_old[i] + h * acc
+            rhs_into(t_old + DOP_C[s] * h, tmp, ctx, regime, Kst[s])
+        for i in range(N):
+            delta = y_new[i] - y_old[i]
+            F[0, i] = delta
+            F[1, i] = h * Kst[0, i] - delta
+            F[2, i] = 2.0 * delta - h * (Kst[DOP_STAGES, i] + Kst[0, i])
+            for r in range(4):
+                acc = 0.0
+                for j in range(Kst.shape[0]):
+                    acc += DOP_D[r, j] * Kst[j, i]
+                F[3 + r, i] = h * acc
+        return Kst.shape[0] - DOP_STAGES - 1
+
+    attempt = jit(attempt)
+    error_norm = jit(error_norm)
+    return jit(initial_step), jit(accepted_step), jit(dense_coefficients)
 
 
-@jit
-def _dop853_error_norm(Kst, h, y, y_new, rtol, atol):
-    """scipy's DOP853._estimate_error_norm (the 5th/3rd-order blend)."""
-    e5 = 0.0
-    e3 = 0.0
-    for i in range(4):
-        scale = atol + max(abs(y[i]), abs(y_new[i])) * rtol
-        a5 = 0.0
-        a3 = 0.0
-        for j in range(DOP_STAGES + 1):
-            a5 += DOP_E5[j] * Kst[j, i]
-            a3 += DOP_E3[j] * Kst[j, i]
-        e5 += (a5 / scale) ** 2
-        e3 += (a3 / scale) ** 2
-    if e5 == 0.0 and e3 == 0.0:
-        return 0.0
-    return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * 4.0)
-
-
-@jit
-def _dop853_dense_coefficients(t_old, h, y_old, y_new, pars, regime, Kst, F, tmp):
-    """The 7th-order dense output of an accepted step (scipy's Dop853DenseOutput F)."""
-    for s in range(DOP_STAGES + 1, Kst.shape[0]):
-        for i in range(4):
-            acc = 0.0
-            for j in range(s):
-                acc += DOP_A[s, j] * Kst[j, i]
-            tmp[i] = y_old[i] + h * acc
-        _rhs_into(t_old + DOP_C[s] * h, tmp, pars, regime, Kst[s])
-    for i in range(4):
-        delta = y_new[i] - y_old[i]
-        F[0, i] = delta
-        F[1, i] = h * Kst[0, i] - delta
-        F[2, i] = 2.0 * delta - h * (Kst[DOP_STAGES, i] + Kst[0, i])
-        for r in range(4):
-            acc = 0.0
-            for j in range(Kst.shape[0]):
-                acc += DOP_D[r, j] * Kst[j, i]
-            F[3 + r, i] = h * acc
+# the rotor's four states (``dop853-jit``; ctx = the parameter record)
+dop853_initial_step, _dop853_accepted_step, _dop853_dense_coefficients = dop853_step(_rhs_into, 4)
 
 
 @jit
 def _dop853_dense_at(t, t_old, h, y_old, F, out):
     x = (t - t_old) / h
-    for i in range(4):
+    for i in range(y_old.shape[0]):
         acc = 0.0
         for n in range(F.shape[0]):
             acc += F[F.shape[0] - 1 - n, i]
@@ -152,8 +198,8 @@ def _dop853_dense_at(t, t_old, h, y_old, F, out):
 def dop853_dense_point(
     t: float, t_old: float, h: float, y_old: np.ndarray, F: np.ndarray
 ) -> np.ndarray:
-    """The dense output at one time t: the state (4,)."""
-    out = np.empty(4)
+    """The dense output at one time t: the state (4,) or (6,), as y_old."""
+    out = np.empty(y_old.shape[0])
     _dop853_dense_at(t, t_old, h, y_old, F, out)
     return out
 
@@ -162,11 +208,13 @@ def dop853_dense_point(
 def dop853_dense(
     t: np.ndarray, t_old: float, h: float, y_old: np.ndarray, F: np.ndarray
 ) -> np.ndarray:
-    """The dense output at the times t (n,): states (4, n), as scipy's Dop853DenseOutput."""
-    out = np.empty((4, t.shape[0]))
-    row = np.empty(4)
+    """The dense output at the times t (n,): states (4 or 6, n), as scipy's
+    Dop853DenseOutput."""
+    m = y_old.shape[0]
+    out = np.empty((m, t.shape[0]))
+    row = np.empty(m)
     for k in range(t.shape[0]):
         _dop853_dense_at(t[k], t_old, h, y_old, F, row)
-        for i in range(4):
+        for i in range(m):
             out[i, k] = row[i]
     return out

@@ -11,16 +11,11 @@ from rubcli.model import (
 )
 from rubcli.solvers.compiled.dop853 import (
     DOP_A,
-    DOP_ERROR_EXPONENT,
-    DOP_MAX_FACTOR,
-    DOP_MIN_FACTOR,
-    DOP_SAFETY,
     DOP_SCAN_POINTS,
     DOP_STAGES,
+    _dop853_accepted_step,
     _dop853_dense_at,
     _dop853_dense_coefficients,
-    _dop853_error_norm,
-    _dop853_try,
     dop853_initial_step,
 )
 from rubcli.solvers.compiled.jit import (
@@ -98,41 +93,15 @@ def advance_dop853(
             return tau, tau, h_abs, k, steps, nfev, STOP_END, regime, n_events, at_event
         if steps >= max_steps:
             return tau, tau, h_abs, k, steps, nfev, STOP_LIMIT, regime, n_events, at_event
-        min_step = 10.0 * abs(np.nextafter(tau, np.inf) - tau)
-        h_abs = max(h_abs, min_step)
-        rejected = False
-        while True:
-            if h_abs < min_step:
-                return (
-                    tau, tau, h_abs, k, steps, nfev, STOP_SMALL_STEP, regime, n_events,
-                    at_event,
-                )  # fmt: skip
-            t_new = min(tau + h_abs, t_end)
-            h = t_new - tau
-            h_abs = abs(h)
-            for i in range(4):
-                Kst[0, i] = f[i]
-            _dop853_try(tau, y, h, pars, regime, Kst, y_new, tmp)
-            nfev += DOP_STAGES
-            error = _dop853_error_norm(Kst, h, y, y_new, rtol, atol)
-            if error < 1.0:
-                if error == 0.0:
-                    factor = DOP_MAX_FACTOR
-                else:
-                    factor = min(DOP_MAX_FACTOR, DOP_SAFETY * error**DOP_ERROR_EXPONENT)
-                if rejected:
-                    factor = min(1.0, factor)
-                h_abs *= factor
-                break
-            if not math.isfinite(error):
-                h_abs *= DOP_MIN_FACTOR
-            else:
-                h_abs *= max(DOP_MIN_FACTOR, DOP_SAFETY * error**DOP_ERROR_EXPONENT)
-            rejected = True
+        t_new, h, h_abs, spent = _dop853_accepted_step(
+            tau, y, f, h_abs, t_end, pars, regime, rtol, atol, Kst, y_new, tmp
+        )
+        nfev += spent
+        if h == 0.0:
+            return tau, tau, h_abs, k, steps, nfev, STOP_SMALL_STEP, regime, n_events, at_event
         for i in range(4):
             f_new[i] = Kst[DOP_STAGES, i]
-        _dop853_dense_coefficients(tau, h, y, y_new, pars, regime, Kst, F, tmp)
-        nfev += Kst.shape[0] - DOP_STAGES - 1
+        nfev += _dop853_dense_coefficients(tau, h, y, y_new, pars, regime, Kst, F, tmp)
         finite = True
         for i in range(4):
             finite = finite and math.isfinite(y_new[i])

@@ -1,0 +1,209 @@
+"""The driven rotor's compiled DOP853 loop (``dop853-jit`` on ``[speed] profile =
+"driven"``): scipy's DOP853 step on the six states, a conservative pre-check of the
+drive's events on each step's scan grid, and the samples of the steps without one.
+
+A step that may hold an event goes back to Python (``solvers.driven``), whose event
+search is the definition of the drive's events; so the kernel decides only which steps
+surely hold none, and writes the drive's event rules nowhere.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rubcli.drive import D_INERTIA, rolling_projection
+from rubcli.model import (
+    P_ECC,
+    P_K,
+    P_MU,
+    P_RP,
+    STICK_EXIT_MARGIN,
+    slip_velocity_rate,
+    slip_velocity_value,
+)
+from rubcli.solvers.compiled.dop853 import (
+    DOP_A,
+    DOP_SCAN_POINTS,
+    DOP_STAGES,
+    _dop853_dense_at,
+    dop853_step,
+)
+from rubcli.solvers.compiled.drive import _driven_into
+from rubcli.solvers.compiled.jit import (
+    STOP_END,
+    STOP_EVENT,
+    STOP_LIMIT,
+    STOP_PYTHON,
+    STOP_SMALL_STEP,
+    jit,
+)
+from rubcli.solvers.compiled.precheck import EVENT_MARGIN, _may_cross, _surface_may_cross
+from rubcli.solvers.compiled.roots import FREE_REGIME, STICK_REGIME
+from rubcli.solvers.events import run_time
+
+N_STATES = 6  # x, y, vx, vy, the phase p and the speed w
+
+
+@jit
+def _driven_stage(t, y, ctx, regime, out):
+    """``_driven_into`` as a DOP853 stage; ctx = (pars, drive, table_speed, table_torque)."""
+    _driven_into(y, ctx[0], ctx[1], ctx[2], ctx[3], regime, out)
+
+
+driven_initial_step, _driven_accepted_step, _driven_dense_coefficients = dop853_step(
+    _driven_stage, N_STATES
+)
+
+
+@jit
+def _slip_may_reverse(grid, S, ctx, regime, n, hv, hd, row, out):
+    """The pre-check of the slip reversal, h = -sign v_r with v_r = Rp w + r theta' (the
+    spin a state), and its rate from the accelerations (``DrivenStepper._turning``)."""
+    Rp = ctx[0][P_RP]
+    sign = float(regime)
+    value_scale = 0.0
+    rate_scale = 0.0
+    for i in range(n + 1):
+        for m in range(N_STATES):
+            row[m] = S[i, m]
+        _driven_into(row, ctx[0], ctx[1], ctx[2], ctx[3], regime, out)
+        x, y, vx, vy, w = row[0], row[1], row[2], row[3], row[5]
+        hv[i] = -sign * slip_velocity_value(x, y, vx, vy, Rp * w)
+        hd[i] = -sign * (slip_velocity_rate(x, y, vx, vy, out[2], out[3]) + Rp * out[5])
+        value_scale = max(value_scale, abs(Rp * w))
+        rate_scale = max(rate_scale, abs(hd[i]))
+    margin_v = EVENT_MARGIN * (1.0 + value_scale)
+    margin_d = EVENT_MARGIN * (1.0 + rate_scale)
+    return _may_cross(grid, hv, hd, n, margin_v, margin_d, run_time(False), run_time(True))
+
+
+@jit
+def _stick_margin(t, t_old, h, y_old, F, ctx, sign, row, out):
+    """The side ``sign`` of the friction cone in stick at t on the step's dense output:
+    sign T - mu K (z - 1) (1 + margin), T the coupled system's stick friction."""
+    pars = ctx[0]
+    _dop853_dense_at(t, t_old, h, y_old, F, row)
+    T = _driven_into(row, pars, ctx[1], ctx[2], ctx[3], STICK_REGIME, out)
+    limit = pars[P_MU] * pars[P_K] * (math.hypot(row[0], row[1]) - 1.0)
+    return sign * T - limit * (1.0 + STICK_EXIT_MARGIN)
+
+
+@jit
+def _stick_may_exit(grid, t_old, h, y_old, F, ctx, n, hv, hd, row, out):
+    """The pre-check of a stick exit on each side, the rate by central differences."""
+    d = 1e-6 * max(1.0, grid[n] - grid[0])
+    for sign in (1.0, -1.0):
+        value_scale = 0.0
+        rate_scale = 0.0
+        for i in range(n + 1):
+            hv[i] = _stick_margin(grid[i], t_old, h, y_old, F, ctx, sign, row, out)
+            up = _stick_margin(grid[i] + d, t_old, h, y_old, F, ctx, sign, row, out)
+            down = _stick_margin(grid[i] - d, t_old, h, y_old, F, ctx, sign, row, out)
+            hd[i] = (up - down) / (2.0 * d)
+            value_scale = max(value_scale, abs(hv[i]))
+            rate_scale = max(rate_scale, abs(hd[i]))
+        margin_v = EVENT_MARGIN * (1.0 + value_scale)
+        margin_d = EVENT_MARGIN * (1.0 + rate_scale)
+        if _may_cross(grid, hv, hd, n, margin_v, margin_d, run_time(False), run_time(True)):
+            return True
+    return False
+
+
+@jit
+def _driven_may_have_event(t_old, h, y_old, F, ctx, regime, grid, S, hv, hd, row, out):
+    """False only if ``DrivenStepper._earliest_event`` surely finds no event in the
+    step: contact entry in free flight; contact exit, and the slip reversal or the stick
+    exit, in contact. For a segment that has left the surface it began on (the caller
+    hands the others to Python); ``grid`` is ``np.linspace`` of the step, as Python's."""
+    n = DOP_SCAN_POINTS
+    step = h / n
+    for k in range(n):
+        grid[k] = k * step + t_old
+    grid[n] = t_old + h
+    for k in range(n + 1):
+        _dop853_dense_at(grid[k], t_old, h, y_old, F, row)
+        for i in range(N_STATES):
+            S[k, i] = row[i]
+    direction = 1.0 if regime == FREE_REGIME else -1.0
+    if _surface_may_cross(grid, S, n, direction, 1.0, hv, hd, run_time(False)):
+        return True
+    if regime == FREE_REGIME or ctx[0][P_MU] == 0.0:
+        return False
+    if regime == STICK_REGIME:
+        return _stick_may_exit(grid, t_old, h, y_old, F, ctx, n, hv, hd, row, out)
+    return _slip_may_reverse(grid, S, ctx, regime, n, hv, hd, row, out)
+
+
+@jit
+def advance_driven(
+    tau: float, y: np.ndarray, f: np.ndarray, h_abs: float, t_end: float,
+    ctx: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], regime: int, rtol: float,
+    atol: float, t_eval: np.ndarray, out_states: np.ndarray, out_regimes: np.ndarray, k: int,
+    max_steps: int, hand_first: bool, y_new: np.ndarray, f_new: np.ndarray, F: np.ndarray,
+) -> tuple[float, float, float, int, int, int, int]:  # fmt: skip
+    """Adaptive DOP853 steps of the driven rotor in one regime, up to the first step that
+    may hold an event.
+
+    Each step is scipy's DOP853 step. A step in which no event can lie (the pre-check)
+    and after which the speed is still positive is committed: ``y`` and ``f`` move on
+    and the samples ``t_eval[k:]`` it covers go to ``out_states`` and ``out_regimes``
+    (in stick projected onto the rolling constraint, as Python reports them). Any other
+    step, and the first with ``hand_first`` (a segment's first step, or one still on the
+    surface it began on), is returned pending, with ``y_new``, ``f_new`` and the dense
+    coefficients ``F`` filled. Returns ``(tau, t_new, h_abs, k, steps, nfev, reason)``:
+    reason END, LIMIT (``max_steps`` steps committed), EVENT (a pending step from
+    ``tau`` to ``t_new``), PYTHON (a non-finite state) or SMALL_STEP.
+    """
+    Kst = np.empty((DOP_A.shape[0], N_STATES))
+    tmp = np.empty(N_STATES)
+    row = np.empty(N_STATES)
+    out = np.empty(N_STATES)
+    n = DOP_SCAN_POINTS
+    grid = np.empty(n + 1)
+    S = np.empty((n + 1, N_STATES))
+    hv = np.empty(n + 1)
+    hd = np.empty(n + 1)
+    pars, drive = ctx[0], ctx[1]
+    e, Rp, j = pars[P_ECC], pars[P_RP], drive[D_INERTIA]
+    steps = 0
+    nfev = 0
+    while True:
+        if tau >= t_end:
+            return tau, tau, h_abs, k, steps, nfev, STOP_END
+        if steps >= max_steps:
+            return tau, tau, h_abs, k, steps, nfev, STOP_LIMIT
+        t_new, h, h_abs, spent = _driven_accepted_step(
+            tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, Kst, y_new, tmp
+        )
+        nfev += spent
+        if h == 0.0:
+            return tau, tau, h_abs, k, steps, nfev, STOP_SMALL_STEP
+        for i in range(N_STATES):
+            f_new[i] = Kst[DOP_STAGES, i]
+        nfev += _driven_dense_coefficients(tau, h, y, y_new, ctx, regime, Kst, F, tmp)
+        for i in range(N_STATES):
+            if not math.isfinite(y_new[i]):
+                return tau, t_new, h_abs, k, steps, nfev, STOP_PYTHON
+        if (
+            hand_first
+            or y_new[5] <= 0.0
+            or _driven_may_have_event(tau, h, y, F, ctx, regime, grid, S, hv, hd, row, out)
+        ):
+            return tau, t_new, h_abs, k, steps, nfev, STOP_EVENT
+        while k < t_eval.shape[0] and t_eval[k] <= t_new:
+            _dop853_dense_at(t_eval[k], tau, h, y, F, row)
+            if regime == STICK_REGIME:
+                row[2], row[3], row[5] = rolling_projection(
+                    row[0], row[1], row[2], row[3], row[4], row[5], e, Rp, j
+                )
+            for i in range(N_STATES):
+                out_states[k, i] = row[i]
+            out_regimes[k] = regime
+            k += 1
+        steps += 1
+        for i in range(N_STATES):
+            y[i] = y_new[i]
+            f[i] = f_new[i]
+        tau = t_new
