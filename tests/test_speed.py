@@ -90,7 +90,33 @@ def _free_ramp_reference(p: model.ModelParams, prof: SpeedProfile, t: np.ndarray
     return np.vstack(out)
 
 
-@pytest.mark.parametrize("method", ["dop853-jit", "rk45", "radau"])
+def test_the_taylor_series_of_the_unbalance_force_on_a_ramp():
+    """``taylor``'s series of the force on a leg, e (w^2 - i rate) exp(i p) with w and p
+    a line and a parabola (compiled.taylor._profile_forcing), summed at offsets s from
+    the step's start, is the force itself (model.unbalance_value) up to its truncation
+    term, which falls as s^N (observed order N = 8), and to round-off with 20 terms."""
+    from rubcli.solvers.compiled import taylor as kernels
+
+    p = model.ModelParams(nu=0.05, eta=1.3, e=0.25, K=10.0, phi0=0.4)
+    pars = np.array(model.params_vector(p))
+    pars[model.P_RATE], pars[model.P_TAU0] = 0.07, 2.0
+    t0 = 5.3
+
+    def error(order: int, s_: float) -> float:
+        W = np.zeros((kernels.WORK_ROWS, kernels.WORK_COLS))
+        kernels._profile_forcing(t0, pars, order, W)
+        powers = s_ ** np.arange(order)
+        fx, fy = W[kernels.FORCE_X, :order] @ powers, W[kernels.FORCE_Y, :order] @ powers
+        exact = model.unbalance_value(t0 + s_, p.eta, p.E, p.phi0, p.e, 0.07, 2.0)
+        return math.hypot(fx - exact[0], fy - exact[1])
+
+    errors = [error(8, s_) for s_ in (0.4, 0.2, 0.1)]
+    orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    assert np.all(np.abs(orders - 8.0) < 0.3), (errors, orders)
+    assert error(20, 0.4) < 2e-15 and error(20, 0.05) < 2e-15  # the force is ~0.6
+
+
+@pytest.mark.parametrize("method", ["dop853-jit", "taylor", "rk45", "radau"])
 def test_a_linear_ramp_without_contact_against_an_independent_integration(method):
     p = model.ModelParams(nu=0.05, eta=0.3, e=0.05, K=10.0, phi0=0.2)
     prof = SpeedProfile.ramp(0.3, 1.6, 0.02)  # through the critical speed, then held
@@ -175,9 +201,18 @@ def test_the_compiled_and_the_python_event_code_agree_on_a_ramp_with_rubbing():
         assert list(other.events.kind_code) == list(a.events.kind_code)
         assert np.allclose(other.events.tau, a.events.tau, atol=1e-7)
         assert np.max(np.abs(other.states - a.states)) < 1e-5
+    # taylor, its events compiled and in Python, against DOP853 at rtol 1e-13 (whose
+    # own distance from taylor at 1e-14 is 3e-7; dop853-jit at 1e-10 is 2e-5 off it)
+    tight = solve(problem, "dop853-jit", rtol=1e-13, atol=1e-14)
+    for events in (True, False):
+        sol = solve(problem, "taylor", rtol=1e-10, atol=1e-12, compiled_events=events)
+        assert list(sol.events.kind_code) == list(tight.events.kind_code)
+        assert np.allclose(sol.events.tau, tight.events.tau, atol=1e-6)
+        assert np.max(np.abs(sol.states - tight.states)) < 1e-5
 
 
-def test_stick_on_a_ramp_holds_the_rolling_constraint():
+@pytest.mark.parametrize("method", ["dop853-jit", "taylor"])
+def test_stick_on_a_ramp_holds_the_rolling_constraint(method):
     """A rotor rolling on the stator (e = 0, the rolling whirl's start) while the speed
     ramps: in stick v_r = Rp eta(tau) + r theta' stays 0 at every sample."""
     p = model.ModelParams(nu=0.02, eta=1.0, e=0.0, K=10.0, mu=0.5, Rp=2.0)
@@ -185,16 +220,36 @@ def test_stick_on_a_ramp_holds_the_rolling_constraint():
     s0 = (r, 0.0, 0.0, -p.Rp * p.eta)  # rolling backward at r theta' = -Rp eta
     prof = SpeedProfile.ramp(1.0, 1.2, 0.002)
     t = np.linspace(0.0, 150.0, 1501)
-    sol = solve(Problem(p, s0, t, speed=prof), "dop853-jit", rtol=1e-10, atol=1e-12)
+    sol = solve(Problem(p, s0, t, speed=prof), method, rtol=1e-10, atol=1e-12)
     stick = sol.regimes == model.STICK
     assert sol.success and stick.mean() > 0.9
     assert np.max(np.abs(sol.slip_velocity[stick])) < 1e-9
 
 
+def test_taylor_sticks_and_slips_on_a_ramp_as_dop853_does():
+    """The rolling whirl with a little unbalance sticks and slips twice a turn while the
+    speed ramps (the rolling law with Rp eta' in the friction, the force with its eta'
+    term): ``taylor``'s series, with its events compiled or in Python, find DOP853's 66
+    stick entries and exits at rtol 1e-12, to the tolerance."""
+    p = model.ModelParams(nu=0.01, eta=1.0, e=0.05, K=100.0, mu=0.02, Rp=2.0)
+    r = model.rolling_whirl_radius(p)
+    problem = Problem(p, (r, 0.0, 0.0, -p.Rp), np.linspace(0.0, 60.0, 1201),
+                      speed=SpeedProfile.ramp(1.0, 1.3, 0.005))  # fmt: skip
+    ref = solve(problem, "dop853-jit", rtol=1e-12, atol=1e-13)
+    assert list(ref.events.kinds) == ["stick_exit", "stick_entry"] * 33
+    for events in (True, False):
+        sol = solve(problem, "taylor", rtol=1e-10, atol=1e-12, compiled_events=events)
+        assert list(sol.events.kinds) == list(ref.events.kinds)
+        np.testing.assert_allclose(sol.events.tau, ref.events.tau, atol=1e-8)
+        np.testing.assert_allclose(sol.states, ref.states, atol=1e-8)
+        stick = sol.regimes == model.STICK
+        assert np.max(np.abs(sol.slip_velocity[stick])) < 1e-12
+
+
 def test_methods_without_the_feature_refuse_it_with_the_reason():
     problem = Problem(RUN_UP, (0.0, 0.0, 0.0, 0.0), np.linspace(0, 10, 11),
                       speed=SpeedProfile.ramp(0.5, 1.0, 0.05))  # fmt: skip
-    for method, why in (("analytic", "closed forms"), ("taylor", "series")):
+    for method, why in (("analytic", "closed forms"), ("analytic-polar", "closed forms")):
         with pytest.raises(ValueError, match=f"{method} does not run a speed .*{why}"):
             solve(problem, method)
 

@@ -30,6 +30,11 @@ START = (0.88544, -0.8039, 0.0, 0.0)
 ROLLING = {"nu": 0.01, "eta": 1.0, "e": 0.0, "K": 100.0, "mu": 0.3, "Rp": 2.0}
 
 
+def _spin(pars: np.ndarray) -> float:
+    """Rp eta, the surface speed the pre-checks take (at a constant speed)."""
+    return float(pars[model.P_RP] * pars[model.P_ETA])
+
+
 def fig3_problem(mu: float, periods: float, samples: int = 50, **overrides) -> Problem:
     params = ModelParams(**{**FIG3, **overrides}, mu=mu)
     return Problem.from_periods(params, START, periods, samples)
@@ -309,7 +314,7 @@ def test_precheck_flags_a_shallow_crossing_and_clears_a_clear_step():
         t0 = touch - h / 2
         s0 = model.free_flight(t0, 0.0, np.array(start) * scale, p)
         tk.taylor_coefficients(t0, s0, pars, model.FREE, order, C, W)
-        flags.append(bool(tk._may_have_event(C, order, h, model.FREE, pars, W, 1e-14)))
+        flags.append(bool(tk._may_have_event(C, order, h, model.FREE, pars, W, 1e-14, _spin(pars))))
     assert flags == [True, False]
 
 
@@ -351,7 +356,7 @@ def _scan_step(pars, regime, s0, rtol, starts, band, n=64):
     t0 = 0.3
     tk.taylor_coefficients(t0, np.asarray(s0, dtype=float), pars, regime, order, C, W)
     h, eps = tk.step_size(C, order, rtol, rtol * 1e-2)
-    scan = tk.step_events(C, order, h, regime, pars, W, eps, starts, band)
+    scan = tk.step_events(C, order, h, regime, pars, W, eps, starts, band, _spin(pars))
     grid = np.linspace(t0, t0 + h, n + 1)
     buffers = np.empty(n + 1), np.empty(n + 1), np.empty(4), np.empty(4)
     t_ev, kind = tk.locate(t0, C, order, pars, regime, grid, n, *buffers, starts, band)
@@ -415,7 +420,7 @@ def test_slip_bound_clears_only_steps_without_a_reversal():
         S = tk.dense(np.linspace(0.0, h, 401), 0.0, C, order)
         v_r = model.slip_velocity(S[0], S[1], S[2], S[3], p.Rp, p.eta)
         keeps_sign = bool(np.all(regime * v_r > 0.0))
-        if tk._slip_clear(C, order, h, regime, pars):
+        if tk._slip_clear(C, order, h, regime, pars, _spin(pars)):
             assert keeps_sign, whirl
             cleared += 1
         elif not keeps_sign:
@@ -464,9 +469,11 @@ def test_step_clear_clears_only_what_step_events_clears():
         pars, order, steps = _walk_steps(p, regime, s0, rtol, 150)
         for starts in ((False, False, True), (True, False, True), (False, True, True)):
             for _, C, W, h, eps in steps:
-                clear = tk.step_clear(C, order, h, regime, pars, W, starts)
+                spin = _spin(pars)
+                clear = tk.step_clear(C, order, h, regime, pars, W, starts, spin)
                 if clear:
-                    assert tk.step_events(C, order, h, regime, pars, W, eps, starts, 1e-12) == 0
+                    scan = tk.step_events(C, order, h, regime, pars, W, eps, starts, 1e-12, spin)
+                    assert scan == tk.SCAN_NONE
                 cleared.setdefault((regime, starts), []).append(clear)
     for (regime, starts), flags in cleared.items():
         if regime == model.STICK or starts[0] or starts[1]:

@@ -123,10 +123,9 @@ FEATURES = {
 LACKS = {
     ("analytic", SPEED_PROFILE): "its closed forms assume a constant speed",
     ("analytic-polar", SPEED_PROFILE): "its closed forms assume a constant speed",
-    ("taylor", SPEED_PROFILE): "its series recurrences assume a constant speed",
     ("analytic", DRIVEN): "its closed forms assume a constant speed",
     ("analytic-polar", DRIVEN): "its closed forms assume a constant speed",
-    ("taylor", DRIVEN): "its series recurrences assume a constant speed",
+    ("taylor", DRIVEN): "its series recurrences take the speed as a known function of time",
 }
 
 
@@ -202,6 +201,7 @@ SPECS: dict[str, MethodSpec] = {
             summary="adaptive Taylor series of the rub equations (automatic-differentiation "
             "recurrences, compiled), events on each step's polynomial; order N = "
             "ceil(-0.5 ln rtol) + 6: 13 at 1e-6, 18 at 1e-10",
+            features=frozenset({SPEED_PROFILE}),
         ),
     )  # fmt: skip
 }

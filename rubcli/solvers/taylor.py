@@ -106,6 +106,11 @@ class TaylorStepper:
             "compiled_events": compiled_events,
         }
 
+    def new_leg(self, run: driver.Run) -> None:
+        """A new leg of the speed profile: its parameters (each step's series starts from
+        its own state, so nothing else carries over)."""
+        self.pars = np.array(model.params_vector(run.params))
+
     def advance(self, run: driver.Run) -> None:
         stats = run.stats
         starts = start_flags(run.last_kind if self.at_event else NO_EVENT)

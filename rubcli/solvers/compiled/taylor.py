@@ -90,12 +90,15 @@ import numpy as np
 from rubcli.model import (
     N_PARAMS,
     P_E,
+    P_ECC,
     P_ETA,
     P_K,
     P_MU,
     P_NU,
     P_PHI0,
+    P_RATE,
     P_RP,
+    P_TAU0,
     rhs_entries,
     rolling_velocity,
     slip_velocity_rate,
@@ -120,6 +123,7 @@ from rubcli.solvers.events import (
     event_search,
     linspace_into,
     run_time,
+    spin_at,
     start_flags,
     stick_margin,
 )
@@ -128,7 +132,9 @@ MAX_ORDER = 30
 MIN_ORDER = 4
 ORDER_FACTOR = 0.5  # N = ceil(-0.5 ln(rtol)) + 6 (Jorba & Zou's rule: 0.5 and + 1)
 ORDER_OFFSET = 6
-WORK_ROWS = 27
+WORK_ROWS = 31
+# rows of the work space holding a speed profile's unbalance force (x, y) and exp(i p)
+FORCE_X, FORCE_Y, PHASE_C, PHASE_S = 27, 28, 29, 30
 WORK_COLS = 2 * MAX_ORDER + 1  # the surface's polynomial has degree 2N
 STEP_SAFETY_EXPONENT = 0.7  # h *= exp(-0.7 / (N - 1)) (heyoka)
 PRECHECK_MARGIN = 1e-9  # relative margin of the series bound (plus the state tolerance)
@@ -190,6 +196,39 @@ def _forcing(eta, phi0, t0):
 
 
 @jit
+def _profile_forcing(t0, pars, order, W):
+    """On a leg of a speed profile (rate = eta' != 0): the unbalance force's series
+    f = fx + i fy = e (w^2 - i rate) exp(i p) (``model.unbalance_value``) into
+    W[FORCE_X], W[FORCE_Y], orders 0..order-1. With w = w0 + rate s the speed and
+    c = exp(i p), c' = i w c: (k + 1) c_{k+1} = i (w0 c_k + rate c_{k-1}), and
+    f_k = e ((w0^2 - i rate) c_k + 2 w0 rate c_{k-1} + rate^2 c_{k-2})."""
+    eta, rate, e = pars[P_ETA], pars[P_RATE], pars[P_ECC]
+    d = t0 - pars[P_TAU0]
+    w0 = eta + rate * d
+    phase = eta * t0 + pars[P_PHI0] + 0.5 * rate * d * d
+    cr, ci, fx, fy = W[PHASE_C], W[PHASE_S], W[FORCE_X], W[FORCE_Y]
+    cr[0], ci[0] = math.cos(phase), math.sin(phase)
+    for k in range(order - 1):
+        ar, ai = w0 * cr[k], w0 * ci[k]
+        if k >= 1:
+            ar += rate * cr[k - 1]
+            ai += rate * ci[k - 1]
+        inv = RECIPROCALS[k + 1]
+        cr[k + 1], ci[k + 1] = -ai * inv, ar * inv
+    w2, cross, r2 = w0 * w0, 2.0 * w0 * rate, rate * rate
+    for k in range(order):
+        gx = w2 * cr[k] + rate * ci[k]
+        gy = w2 * ci[k] - rate * cr[k]
+        if k >= 1:
+            gx += cross * cr[k - 1]
+            gy += cross * ci[k - 1]
+        if k >= 2:
+            gx += r2 * cr[k - 2]
+            gy += r2 * ci[k - 2]
+        fx[k], fy[k] = e * gx, e * gy
+
+
+@jit
 def taylor_coefficients(
     t0: float, s: np.ndarray, pars: np.ndarray, regime: int, order: int, C: np.ndarray,
     W: np.ndarray,
@@ -198,13 +237,16 @@ def taylor_coefficients(
     of the regime-locked solution through ``s`` at ``t0``; ``W`` (WORK_ROWS,
     WORK_COLS) is work space, left holding the series of q = z^2 (row 0) up to
     ``order`` in every regime, of P = w / z (rows 4, 5) in slip (to ``order`` with
-    friction, ``order - 1`` without) and of u = 1 / z (row 2) in stick. (The step
-    loop, ``advance_taylor``, calls the free and slip series itself: see there.)"""
+    friction, ``order - 1`` without) and of u = 1 / z (row 2) in stick, and on a leg of
+    a speed profile the unbalance force's (``_profile_forcing``). (The step loop,
+    ``advance_taylor``, calls the free and slip series itself: see there.)"""
     for i in range(4):
         C[i, 0] = s[i]
     fr, fi = _forcing(pars[P_ETA], pars[P_PHI0], t0)
+    if pars[P_RATE] != 0.0:
+        _profile_forcing(t0, pars, order, W)
     if regime == STICK_REGIME:
-        _stick_coefficients(fr, fi, pars, order, C, W)
+        _stick_coefficients(t0, fr, fi, pars, order, C, W)
         _inverse_radius_terms(C[0], C[1], W[0], W[2], order)
         return
     if regime == FREE_REGIME:
@@ -222,12 +264,18 @@ def taylor_coefficients(
 def _free_coefficients(fr, fi, pars, order, C, W):
     """``taylor_coefficients`` in free flight, with the series of q = x^2 + y^2 (W[0],
     for the pre-check)."""
-    nu2, eta, E = 2.0 * pars[P_NU], pars[P_ETA], pars[P_E]
+    nu2, eta = 2.0 * pars[P_NU], pars[P_ETA]
+    # on a leg of a speed profile the force's series is W's (_profile_forcing), read into
+    # (fr, fi) with E = 1; at a constant speed E (fr, fi) is the rotating forcing
+    profile = pars[P_RATE] != 0.0
+    E = 1.0 if profile else pars[P_E]
     M = MAX_ORDER
     x0, y0 = C[0, 0], C[1, 0]
     W[23, M], W[24, M] = x0, y0
     W[0, 0] = x0 * x0 + y0 * y0
     for k in range(order):
+        if profile:
+            fr, fi = W[FORCE_X, k], W[FORCE_Y, k]
         ax = E * fr - nu2 * C[2, k] - C[0, k]
         ay = E * fi - nu2 * C[3, k] - C[1, k]
         inv = RECIPROCALS[k + 1]
@@ -260,7 +308,9 @@ def _slip_coefficients(fr, fi, pars, sign, order, C, W):
     need P up to order N - 1; z_N and P_N are for the slip pre-check alone, so without
     friction they are left out (the top order is the costliest: 6-7 % of the series at
     N = 13 and 18)."""
-    nu2, eta, E, K = 2.0 * pars[P_NU], pars[P_ETA], pars[P_E], pars[P_K]
+    nu2, eta, K = 2.0 * pars[P_NU], pars[P_ETA], pars[P_K]
+    profile = pars[P_RATE] != 0.0  # the force's series is W's, as in _free_coefficients
+    E = 1.0 if profile else pars[P_E]
     mu_c = pars[P_MU] * sign
     M = MAX_ORDER
     x0, y0 = C[0, 0], C[1, 0]
@@ -276,6 +326,8 @@ def _slip_coefficients(fr, fi, pars, sign, order, C, W):
     W[26, M], W[22, M] = p0x, p0y
     gx, gy = x0 - p0x, y0 - p0y  # w - P, order 0
     for k in range(order):
+        if profile:
+            fr, fi = W[FORCE_X, k], W[FORCE_Y, k]
         ax = E * fr - nu2 * C[2, k] - C[0, k] - K * (gx - mu_c * gy)
         ay = E * fi - nu2 * C[3, k] - C[1, k] - K * (gy + mu_c * gx)
         inv = RECIPROCALS[k + 1]
@@ -329,27 +381,40 @@ def _slip_coefficients(fr, fi, pars, sign, order, C, W):
 
 
 @jit
-def _stick_coefficients(fr, fi, pars, order, C, W):
+def _stick_coefficients(t0, fr, fi, pars, order, C, W):
     """``taylor_coefficients`` in stick: the rolling law of ``model.rhs_entries`` (the
     velocity projected onto r theta' = -Rp eta, the needed friction T on it, the normal
-    force K (z - 1) / z and the tangential force T / z), term by term."""
+    force K (z - 1) / z and the tangential force T / z), term by term. On a leg of a
+    speed profile the force is W's series (``_profile_forcing``), the surface speed
+    Rp eta(t0 + s) a line, and T holds r theta' = -Rp eta with its rate (+ Rp rate,
+    ``model.stick_friction_value``)."""
     nu, eta, E, K, Rp = pars[P_NU], pars[P_ETA], pars[P_E], pars[P_K], pars[P_RP]
+    rate = pars[P_RATE]
+    profile = rate != 0.0
+    scale = 1.0 if profile else E  # the force is scale (fc, fs)
     x, y, vx, vy = C[0], C[1], C[2], C[3]
     q, u, fac, fc, fs = W[0], W[2], W[3], W[4], W[5]
     d, rad, a1, a2, vxp, vyp = W[8], W[9], W[10], W[11], W[12], W[13]
     sr1, sinrel, d2, rdot, w2, rtd, thd, T, tf = (
         W[14], W[15], W[16], W[17], W[18], W[19], W[20], W[21], W[22]
     )  # fmt: skip
-    spin = Rp * eta
+    spin = spin_at(t0, pars)
+    spin_rate = Rp * rate
     for k in range(order):
-        fc[k], fs[k] = fr, fi
-        fr, fi = -fi * eta / (k + 1), fr * eta / (k + 1)
+        if profile:
+            fc[k], fs[k] = W[FORCE_X, k], W[FORCE_Y, k]
+        else:
+            fc[k], fs[k] = fr, fi
+            fr, fi = -fi * eta / (k + 1), fr * eta / (k + 1)
         _inverse_radius_terms(x, y, q, u, k)
         fac[k] = K * ((1.0 if k == 0 else 0.0) - u[k])
         d[k] = _cauchy(x, vx, k) + _cauchy(y, vy, k)
         rad[k] = _cauchy(d, u, k)
         a1[k] = _cauchy(rad, x, k) + spin * y[k]
         a2[k] = _cauchy(rad, y, k) - spin * x[k]
+        if profile and k >= 1:
+            a1[k] += spin_rate * y[k - 1]
+            a2[k] -= spin_rate * x[k - 1]
         vxp[k] = _cauchy(a1, u, k)
         vyp[k] = _cauchy(a2, u, k)
         sr1[k] = _cauchy(fs, x, k) - _cauchy(fc, y, k)
@@ -359,10 +424,12 @@ def _stick_coefficients(fr, fi, pars, order, C, W):
         w2[k] = _cauchy(x, vyp, k) - _cauchy(y, vxp, k)
         rtd[k] = _cauchy(w2, u, k)
         thd[k] = _cauchy(rtd, u, k)
-        T[k] = E * sinrel[k] - _cauchy(rdot, thd, k) - 2.0 * nu * rtd[k]
+        T[k] = scale * sinrel[k] - _cauchy(rdot, thd, k) - 2.0 * nu * rtd[k]
+        if k == 0:
+            T[0] += spin_rate
         tf[k] = _cauchy(T, u, k)
-        ax = E * fc[k] - 2.0 * nu * vxp[k] - x[k] - _cauchy(fac, x, k) + _cauchy(tf, y, k)
-        ay = E * fs[k] - 2.0 * nu * vyp[k] - y[k] - _cauchy(fac, y, k) - _cauchy(tf, x, k)
+        ax = scale * fc[k] - 2.0 * nu * vxp[k] - x[k] - _cauchy(fac, x, k) + _cauchy(tf, y, k)
+        ay = scale * fs[k] - 2.0 * nu * vyp[k] - y[k] - _cauchy(fac, y, k) - _cauchy(tf, x, k)
         C[0, k + 1] = vxp[k] / (k + 1)
         C[1, k + 1] = vyp[k] / (k + 1)
         C[2, k + 1] = ax / (k + 1)
@@ -591,9 +658,10 @@ def _surface_clear_quick(C, order, h, regime, W):
 
 
 @jit
-def _may_have_event(C, order, h, regime, pars, W, eps):
+def _may_have_event(C, order, h, regime, pars, W, eps, spin):
     """False if no event function of the regime can reach zero in [t0, t0 + h]: the
-    surface's series (and the slip's) stays below zero by a margin (``_stays_below``)."""
+    surface's series (and the slip's) stays below zero by a margin (``_stays_below``);
+    ``spin`` is Rp eta at t0 (a line on a leg of a speed profile)."""
     if _surface_may_cross(C, order, h, regime, W):
         return True
     if regime == FREE_REGIME or pars[P_MU] == 0.0:
@@ -607,8 +675,8 @@ def _may_have_event(C, order, h, regime, pars, W, eps):
     sign = float(regime)
     for k in range(order + 1):
         H[k] = -sign * (_cauchy(px, vy, k) - _cauchy(py, vx, k))
-    spin = pars[P_RP] * pars[P_ETA]
     H[0] -= sign * spin
+    H[1] -= sign * pars[P_RP] * pars[P_RATE]
     scale = 1.0 + abs(spin) + abs(H[0])
     margin = PRECHECK_MARGIN * scale + 100.0 * eps * scale
     return not _stays_below(H, order, h, margin)
@@ -641,9 +709,10 @@ def _surface_start_may_cross(C, order, h, regime, W, level):
 
 
 @jit_inline
-def _slip_clear(C, order, h, regime, pars):
+def _slip_clear(C, order, h, regime, pars, spin):
     """True if the slip velocity of the state polynomials (what ``locate`` evaluates:
-    v_r = Rp eta + (x vy - y vx) / hypot(x, y)) surely keeps its sign on [0, h]: with
+    v_r = Rp eta + (x vy - y vx) / hypot(x, y), Rp eta = ``spin`` at the step's start
+    and moving by |Rp eta'| h at most over it) surely keeps its sign on [0, h]: with
     D_a = sum_{k>=1} |a_k| h^k the spread of each polynomial, P = x vy - y vx moves by
     at most dP = |x_0| D_vy + |vy_0| D_x + D_x D_vy + (the same for y vx), z by at most
     dz = hypot(D_x, D_y), so P / z by at most dP / (z_0 - dz) + |P_0| dz / (z_0 (z_0 -
@@ -666,7 +735,7 @@ def _slip_clear(C, order, h, regime, pars):
     whirl = x * vy - y * vx
     dp = abs(x) * d3 + abs(vy) * d0 + d0 * d3 + abs(y) * d2 + abs(vx) * d1 + d1 * d2
     spread = dp / (z - dz) + abs(whirl) * dz / (z * (z - dz))
-    spin = pars[P_RP] * pars[P_ETA]
+    spread += abs(pars[P_RP] * pars[P_RATE]) * h
     v_r = spin + whirl / z
     scale = 1.0 + abs(spin) + abs(v_r) + spread
     return float(regime) * v_r - spread > PRECHECK_MARGIN * scale
@@ -681,6 +750,7 @@ def step_clear(
     pars: np.ndarray,
     W: np.ndarray,
     starts: tuple[bool, bool, bool],
+    spin: float,
 ) -> bool:
     """True where ``step_events`` would return SCAN_NONE by its O(N) tests alone (a step
     that does not start on an event surface, the slip cleared by ``_slip_clear``, the
@@ -690,7 +760,7 @@ def step_clear(
     step."""
     clear = not (regime == STICK_REGIME or starts[0] or starts[1])
     if clear and regime != FREE_REGIME and pars[P_MU] > 0.0:
-        clear = _slip_clear(C, order, h, regime, pars)
+        clear = _slip_clear(C, order, h, regime, pars, spin)
     if clear:
         clear = _surface_clear_quick(C, order, h, regime, W)
     return clear
@@ -707,16 +777,18 @@ def step_events(
     eps: float,
     starts: tuple[bool, bool, bool],
     band: float,
+    spin: float,
 ) -> int:
     """Which event functions ``locate`` must scan on a step: SCAN_NONE (none can reach
     its level: the step is clear), SCAN_SURFACE (the slip reversal surely cannot occur)
     or SCAN_ALL. Stick steps and steps that start on the slip surface are always
     scanned; a step that starts on the contact surface by ``_surface_start_may_cross``;
-    every other by ``_may_have_event``, its slip part first by the O(N) ``_slip_clear``."""
+    every other by ``_may_have_event``, its slip part first by the O(N) ``_slip_clear``.
+    ``spin`` is Rp eta at the step's start."""
     if regime == STICK_REGIME or starts[1]:
         return SCAN_ALL
     slip = regime != FREE_REGIME and pars[P_MU] > 0.0
-    slip_clear = (not slip) or _slip_clear(C, order, h, regime, pars)
+    slip_clear = (not slip) or _slip_clear(C, order, h, regime, pars, spin)
     if starts[0]:
         surface = _surface_start_may_cross(C, order, h, regime, W, SURFACE_BAND * band)
         if slip_clear:
@@ -724,13 +796,17 @@ def step_events(
         return SCAN_ALL
     if slip_clear:
         return SCAN_SURFACE if _surface_may_cross(C, order, h, regime, W) else SCAN_NONE
-    return SCAN_ALL if _may_have_event(C, order, h, regime, pars, W, eps) else SCAN_NONE
+    return SCAN_ALL if _may_have_event(C, order, h, regime, pars, W, eps, spin) else SCAN_NONE
 
 
 @jit
-def scan_points(h: float, regime: int, pars: np.ndarray, s: np.ndarray) -> int:
-    """Intervals of the event scan of a step of length h (module docstring)."""
+def scan_points(h: float, regime: int, pars: np.ndarray, s: np.ndarray, t0: float) -> int:
+    """Intervals of the event scan of a step of length h from t0 (module docstring; on
+    a leg of a speed profile eta is its larger end's)."""
     eta = pars[P_ETA]
+    if pars[P_RATE] != 0.0:
+        d = t0 - pars[P_TAU0]
+        eta = max(abs(eta + pars[P_RATE] * d), abs(eta + pars[P_RATE] * (d + h)))
     omega = 1.0 + abs(eta)
     if regime != FREE_REGIME:
         r2 = s[0] * s[0] + s[1] * s[1]
@@ -788,6 +864,7 @@ def _taylor_ev(t, deriv, ctx, row, drow):
         vx, vy, ax, ay = rhs_entries(
             t, v0, v1, v2, v3, ctx[p + P_NU], ctx[p + P_ETA], ctx[p + P_E], ctx[p + P_PHI0],
             ctx[p + P_K], ctx[p + P_MU], ctx[p + P_RP], int(ctx[CTX_REGIME]),
+            ctx[p + P_ECC], ctx[p + P_RATE], ctx[p + P_TAU0],
         )  # fmt: skip
         drow[0], drow[1], drow[2], drow[3] = vx, vy, ax, ay
 
@@ -802,7 +879,6 @@ def _taylor_fill(ctx, fn, sign, grid, n, pars, d, row, drow, hv, hd):
     t0 = ctx[CTX_T0]
     p = CTX_PARS
     regime = int(ctx[CTX_REGIME])
-    spin = pars[P_RP] * pars[P_ETA]
     for i in range(n + 1):
         t = grid[i]
         if fn == FN_STICK:
@@ -829,10 +905,11 @@ def _taylor_fill(ctx, fn, sign, grid, n, pars, d, row, drow, hv, hd):
         else:  # FN_SLIP (FN_GIVEN is no taylor segment's)
             _, _, ax, ay = rhs_entries(
                 t, x, y, vx, vy, ctx[p + P_NU], ctx[p + P_ETA], ctx[p + P_E], ctx[p + P_PHI0],
-                ctx[p + P_K], ctx[p + P_MU], ctx[p + P_RP], regime,
+                ctx[p + P_K], ctx[p + P_MU], ctx[p + P_RP], regime, ctx[p + P_ECC],
+                ctx[p + P_RATE], ctx[p + P_TAU0],
             )  # fmt: skip
-            hv[i] = -sign * slip_velocity_value(x, y, vx, vy, spin)
-            hd[i] = -sign * slip_velocity_rate(x, y, vx, vy, ax, ay)
+            hv[i] = -sign * slip_velocity_value(x, y, vx, vy, spin_at(t, pars))
+            hd[i] = -sign * (slip_velocity_rate(x, y, vx, vy, ax, ay) + pars[P_RP] * pars[P_RATE])
 
 
 _locate_polynomial, _ = event_search(
@@ -939,6 +1016,8 @@ def advance_taylor(
             for i in range(4):
                 C[i, 0] = y[i]
             fr, fi = _forcing(pars[P_ETA], pars[P_PHI0], tau)
+            if pars[P_RATE] != 0.0:
+                _profile_forcing(tau, pars, order, W)
             if regime == FREE_REGIME:
                 _free_coefficients(fr, fi, pars, order, C, W)
             else:
@@ -958,10 +1037,11 @@ def advance_taylor(
         kind = -1
         t_stop = t_new
         scan = SCAN_NONE
-        if not step_clear(C, order, h, regime, pars, W, starts):
-            scan = step_events(C, order, h, regime, pars, W, eps, starts, band)
+        spin = spin_at(tau, pars)
+        if not step_clear(C, order, h, regime, pars, W, starts, spin):
+            scan = step_events(C, order, h, regime, pars, W, eps, starts, band, spin)
         if scan != SCAN_NONE:
-            n = scan_points(h, regime, pars, y)
+            n = scan_points(h, regime, pars, y, tau)
             info[0] = n
             if not compiled_events:
                 return tau, t_new, k, steps, STOP_EVENT, regime, n_events, at_event
@@ -977,7 +1057,7 @@ def advance_taylor(
             dense_at(t_eval[k], tau, C, order, row)
             if regime == STICK_REGIME:
                 row[2], row[3] = rolling_velocity(
-                    row[0], row[1], row[2], row[3], pars[P_RP] * pars[P_ETA]
+                    row[0], row[1], row[2], row[3], spin_at(t_eval[k], pars)
                 )
             for i in range(4):
                 out_states[k, i] = row[i]
