@@ -62,6 +62,7 @@ from rubcli.solvers.registry import DRIVEN, SPECS, ToleranceOptions
 from rubcli.solvers.scipy_ivp import ScipyStepper
 from rubcli.solvers.shared import SCAN_POINTS, Dop853Dense
 
+Dense = Callable[[float], np.ndarray]  # a step's dense output (of one time, or of times)
 CHUNK_STEPS = 2000  # committed steps per kernel call: budget and progress checks between
 
 
@@ -193,7 +194,9 @@ class DrivenStepper(ScipyStepper):
             solver = self.solver
             self.close_step(run, solver.dense_output(), solver.t_old, solver.t, solver.y[5])
 
-    def close_step(self, run: DrivenRun, dense, t_old: float, t_new: float, w: float) -> None:
+    def close_step(
+        self, run: DrivenRun, dense: Dense, t_old: float, t_new: float, w: float
+    ) -> None:
         """An accepted step from t_old to t_new, ending at the speed ``w``: a stop of the
         rotor, or its earliest event, its samples, and the run moved on (``finish``)."""
         if w <= 0.0:  # stopped: the phase no longer advances
@@ -470,7 +473,7 @@ class DrivenJitStepper(DrivenStepper):
             dense = Dop853Dense(tau, self.t_new, run.state, self.F)
             self.close_step(run, dense, tau, self.t_new, self.y_new[5])
 
-    def finish(self, run: DrivenRun, dense, event: tuple[float, int] | None) -> None:
+    def finish(self, run: DrivenRun, dense: Dense, event: tuple[float, int] | None) -> None:
         if event is None:
             run.tau = self.t_new
             run.state[:], self.f[:] = self.y_new, self.f_new

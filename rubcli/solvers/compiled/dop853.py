@@ -11,6 +11,8 @@ driven rotor's six (``drive._driven_step_rhs``).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -47,7 +49,9 @@ def _rms_norm(v):
     return math.sqrt(total / v.shape[0])
 
 
-def dop853_step(rhs_into, n_states):
+def dop853_step(
+    rhs_into: Callable[..., None], n_states: int
+) -> tuple[Callable[..., float], Callable[..., tuple], Callable[..., int]]:
     """scipy's DOP853 on the right-hand side ``rhs_into(t, y, ctx, regime, out)`` of
     ``n_states`` states, compiled: ``(initial_step, accepted_step, dense_coefficients)``.
 
@@ -57,7 +61,10 @@ def dop853_step(rhs_into, n_states):
     written out."""
     N = n_states
 
-    def initial_step(t0, y0, f0, t_bound, ctx, regime, rtol, atol):
+    def initial_step(
+        t0: float, y0: np.ndarray, f0: np.ndarray, t_bound: float, ctx: Any, regime: int,
+        rtol: float, atol: float,
+    ) -> float:  # fmt: skip
         """scipy's ``select_initial_step`` (Hairer, Norsett, Wanner II.4), order 7."""
         interval = abs(t_bound - t0)
         if interval == 0.0:
@@ -85,7 +92,10 @@ def dop853_step(rhs_into, n_states):
             h1 = (0.01 / max(d1, d2)) ** (1.0 / 8.0)
         return min(100.0 * h0, h1, interval)
 
-    def attempt(t, y, h, ctx, regime, Kst, y_new, tmp):
+    def attempt(
+        t: float, y: np.ndarray, h: float, ctx: Any, regime: int, Kst: np.ndarray,
+        y_new: np.ndarray, tmp: np.ndarray,
+    ) -> None:  # fmt: skip
         """One step of length h from (t, y) with Kst[0] = f(t, y): y_new, Kst[1:13]."""
         for s in range(1, DOP_STAGES):
             for i in range(N):
@@ -101,7 +111,9 @@ def dop853_step(rhs_into, n_states):
             y_new[i] = y[i] + h * acc
         rhs_into(t + h, y_new, ctx, regime, Kst[DOP_STAGES])
 
-    def error_norm(Kst, h, y, y_new, rtol, atol):
+    def error_norm(
+        Kst: np.ndarray, h: float, y: np.ndarray, y_new: np.ndarray, rtol: float, atol: float
+    ) -> float:
         """scipy's DOP853._estimate_error_norm (the 5th/3rd-order blend)."""
         e5 = 0.0
         e3 = 0.0
@@ -118,7 +130,11 @@ def dop853_step(rhs_into, n_states):
             return 0.0
         return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * N)
 
-    def accepted_step(tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, Kst, y_new, tmp):
+    def accepted_step(
+        tau: float, y: np.ndarray, f: np.ndarray, h_abs: float, t_end: float, ctx: Any,
+        regime: int, rtol: float, atol: float, Kst: np.ndarray, y_new: np.ndarray,
+        tmp: np.ndarray,
+    ) -> tuple[float, float, float, int]:  # fmt: skip
         """scipy's step loop from (tau, y), f = f(tau, y), proposed |h| ``h_abs``: tries
         and rejects until a step is accepted. Returns ``(t_new, h, h_abs, nfev)``: the
         accepted step to t_new, of length h, in y_new with the stages in Kst, and the
@@ -152,7 +168,10 @@ def dop853_step(rhs_into, n_states):
                 h_abs *= max(DOP_MIN_FACTOR, DOP_SAFETY * error**DOP_ERROR_EXPONENT)
             rejected = True
 
-    def dense_coefficients(t_old, h, y_old, y_new, ctx, regime, Kst, F, tmp):
+    def dense_coefficients(
+        t_old: float, h: float, y_old: np.ndarray, y_new: np.ndarray, ctx: Any, regime: int,
+        Kst: np.ndarray, F: np.ndarray, tmp: np.ndarray,
+    ) -> int:  # fmt: skip
         """The 7th-order dense output of an accepted step (scipy's Dop853DenseOutput F);
         returns the evaluations of the right-hand side it took."""
         for s in range(DOP_STAGES + 1, Kst.shape[0]):
