@@ -616,10 +616,16 @@ def staged_output_dir(
     if plan is None:
         plan = open_output_dir(target, force=force)
     try:
-        staged = StagedOutput(target, plan)
+        staged = None
         try:
+            # the staging dir is made with termination signals held, so that a signal
+            # arriving as it is made finds it known here, and removed
+            with signals.deferred():
+                staged = StagedOutput(target, plan)
             yield staged
         except BaseException as exc:
+            if staged is None:
+                raise
             if is_write_failure(exc):
                 error = _write_error(Path(target), exc)
                 _release_quietly(exc)
