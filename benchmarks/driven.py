@@ -7,7 +7,8 @@ Run from the repository root:
 Cases: the shipped driven rotors `cases/runup/driven-captured.toml` (a run-up captured
 on the rub branch, 165 revolutions, one contact entry and permanent slip) and
 `cases/runup/driven-dry-whip.toml` (a dry whip braking the drive: 75 revolutions of
-stick and slip). Each method that runs a driven rotor (scipy's and ``dop853-jit``) at
+stick and slip). Each method that runs a driven rotor (scipy's, ``dop853-jit`` and
+``taylor``) at
 rtol = 1e-6 and 1e-9 (atol = rtol / 100), the best of 3 timed runs after a warm-up.
 The error is the largest distance of the sampled positions from a reference (dop853 at
 rtol = 1e-12), beside the error of the final speed; the reference's own error is
@@ -28,7 +29,7 @@ from rubcli.solvers import solve
 
 ROOT = Path(__file__).resolve().parents[1]
 CASES = ("driven-captured", "driven-dry-whip")
-METHODS = ("dop853-jit", "dop853", "rk45", "radau", "bdf", "lsoda")
+METHODS = ("dop853-jit", "taylor", "dop853", "rk45", "radau", "bdf", "lsoda")
 TOLERANCES = (1e-6, 1e-9)
 REPEATS = 3
 

@@ -37,14 +37,26 @@ def constant_torque(torque: float, inertia: float, start: float) -> Drive:
                  table_torque=(torque, torque))  # fmt: skip
 
 
-@pytest.mark.parametrize("method", ["dop853", "rk45", "radau"])
+def linear_constant_torque(torque: float, inertia: float, start: float) -> Drive:
+    """A constant torque as a linear motor (for ``taylor``, which refuses a table): its
+    no-load speed so far that the torque changes by 1e-100 of itself per unit speed."""
+    return Drive(inertia=inertia, start=start, stall_torque=torque, no_load_speed=1e100)
+
+
+def idle_motor(inertia: float, start: float) -> Drive:
+    """A linear motor whose torque is 0 at the start speed."""
+    return Drive(inertia=inertia, start=start, stall_torque=1.0, no_load_speed=start)
+
+
+@pytest.mark.parametrize("method", ["dop853", "rk45", "radau", "taylor"])
 def test_energy_changes_by_the_motors_work_exactly(method):
     """mu = 0, nu = 0 and a constant motor torque T: the energy of the Lagrangian changes
     by T (p - p0), the angle being a state: no quadrature, the coupling of the rotor's
     and the drive's equations through the unbalance (e = 0.3) checked to the tolerance,
     over many contacts."""
     p = model.ModelParams(nu=0.0, eta=0.8, e=0.3, K=20.0, mu=0.0, Rp=2.0)
-    drive = constant_torque(0.05, inertia=2.0, start=0.8)
+    motor = linear_constant_torque if method == "taylor" else constant_torque
+    drive = motor(0.05, inertia=2.0, start=0.8)
     t = np.linspace(0.0, 60.0, 3001)
     sol = solve(Problem(p, (1.02, 0.0, 0.0, 1.2), t, drive=drive), method, rtol=1e-11,
                 atol=1e-12)  # fmt: skip
@@ -56,14 +68,14 @@ def test_energy_changes_by_the_motors_work_exactly(method):
     assert np.max(np.abs(energy - energy[0] - work)) < 1e-7 * (energy[0] + work[-1])
 
 
-@pytest.mark.parametrize("method", ["dop853", "dop853-jit"])
+@pytest.mark.parametrize("method", ["dop853", "dop853-jit", "taylor"])
 def test_a_heavy_rotor_runs_as_at_constant_speed(method):
     """With j = 1e12 and no motor torque the speed cannot change (the rub's torque gives
     eta' ~ 1e-11): the driven run with friction, stick and slip is the constant-speed
     run of the compiled DOP853 (its own code and event search), event for event."""
     p = model.ModelParams(nu=0.02, eta=2.0, e=0.5, K=20.0, mu=0.3, Rp=1.0)
     t = np.linspace(0.0, 80.0, 1601)
-    drive = constant_torque(0.0, inertia=1e12, start=2.0)
+    drive = idle_motor(inertia=1e12, start=2.0)
     s0 = (1.05, 0.0, 0.0, -1.0)
     driven = solve(Problem(p, s0, t, drive=drive), method, rtol=1e-11, atol=1e-12)
     fixed = solve(Problem(p, s0, t), "dop853-jit", rtol=1e-11, atol=1e-12)
@@ -163,15 +175,15 @@ def test_a_bouncing_heavy_rotor_runs_as_at_constant_speed():
     s0 = (0.88544, -0.8039, 0.0, 0.0)
     fixed = solve(Problem(p, s0, t), "dop853-jit", rtol=1e-10, atol=1e-12)
     assert len(fixed.events) == 79 and np.diff(fixed.events.tau).min() < 0.003
-    problem = Problem(p, s0, t, drive=constant_torque(0.0, inertia=1e12, start=p.eta))
-    for method in ("dop853", "rk45", "dop853-jit"):
+    problem = Problem(p, s0, t, drive=idle_motor(inertia=1e12, start=p.eta))
+    for method in ("dop853", "rk45", "dop853-jit", "taylor"):
         sol = solve(problem, method, rtol=1e-10, atol=1e-12)
         assert list(sol.events.kinds) == list(fixed.events.kinds), method
         np.testing.assert_allclose(sol.events.tau, fixed.events.tau, atol=1e-6)
         np.testing.assert_allclose(sol.states, fixed.states, atol=1e-4)
 
 
-@pytest.mark.parametrize("method", ["dop853", "rk45", "lsoda", "dop853-jit"])
+@pytest.mark.parametrize("method", ["dop853", "rk45", "lsoda", "dop853-jit", "taylor"])
 def test_a_start_on_the_clearance_moving_out_is_a_contact_at_once(method):
     """Started exactly on the clearance, moving along it (outward, since a straight line
     leaves the circle): the contact begins at tau = 0, as at constant speed, also when
@@ -208,13 +220,14 @@ def test_the_implicit_methods_roll_a_driven_rotor(method):
 
 def test_the_methods_agree_on_a_driven_stick_slip():
     """The rolling whirl with a little unbalance sticks and slips twice a period while a
-    weak motor holds the speed: three scipy methods and the compiled DOP853 see the same
-    56 stick entries and exits, end at the same speed, and close the energy balance."""
+    weak motor holds the speed: three scipy methods, the compiled DOP853 and
+    taylor see the same 56 stick entries and exits, end at the same speed, and close the
+    energy balance."""
     p = model.ModelParams(nu=0.01, eta=1.0, e=0.05, K=100.0, mu=0.02, Rp=2.0)
     r = model.rolling_whirl_radius(p)
     drive = Drive(inertia=5.0, start=1.0, stall_torque=0.2, no_load_speed=1.5)
     problem = Problem(p, (r, 0.0, 0.0, -p.Rp), np.linspace(0, 60, 1201), drive=drive)
-    methods = ("dop853", "rk45", "lsoda", "dop853-jit")
+    methods = ("dop853", "rk45", "lsoda", "dop853-jit", "taylor")
     runs = [solve(problem, m, rtol=1e-10, atol=1e-12) for m in methods]
     for sol in runs:
         assert sol.success, sol.message
@@ -223,6 +236,7 @@ def test_the_methods_agree_on_a_driven_stick_slip():
         assert drive_energy_summary(sol)["energy_residual"] < 1e-6
     np.testing.assert_allclose(runs[1].events.tau, runs[0].events.tau, atol=1e-6)
     np.testing.assert_allclose(runs[3].events.tau, runs[0].events.tau, atol=1e-9)
+    np.testing.assert_allclose(runs[4].events.tau, runs[0].events.tau, atol=1e-6)
 
 
 @pytest.mark.parametrize("method", ["dop853", "dop853-jit"])
@@ -264,7 +278,38 @@ def test_the_compiled_loop_takes_dop853s_steps_on_a_driven_rotor(case):
     np.testing.assert_array_equal(slow.states, interpreted.states)
 
 
-@pytest.mark.parametrize("method", ["taylor", "analytic"])
+@pytest.mark.parametrize(
+    "case", ["driven-dry-whip", "driven-captured", "driven-through", "driven-physical"]
+)
+def test_taylor_on_a_driven_rotor_against_a_tight_reference(case):
+    """``taylor``'s series of the six states (compiled.driven_taylor): on every shipped
+    driven rotor the events of DOP853 at rtol 1e-13, the states within 1e-6 and the
+    final speed within 1e-8 at rtol 1e-10, and its error falling with the tolerance."""
+    problem = load_case(CASES / f"{case}.toml").problem
+    ref = solve(problem, "dop853-jit", rtol=1e-13, atol=1e-15)
+    errors = []
+    for rtol in (1e-7, 1e-10):
+        sol = solve(problem, "taylor", rtol=rtol, atol=rtol / 100)
+        assert sol.success and sol.method == "taylor"
+        assert list(sol.events.kinds) == list(ref.events.kinds)
+        errors.append(np.max(np.hypot(sol.x - ref.x, sol.y - ref.y)))
+    assert errors[1] < 1e-6 and errors[1] < errors[0]
+    np.testing.assert_allclose(sol.events.tau, ref.events.tau, rtol=0, atol=1e-6)
+    assert sol.speed[-1] == pytest.approx(ref.speed[-1], abs=1e-8)
+    stick = sol.regimes == model.STICK
+    if np.any(stick):
+        assert np.max(np.abs(sol.slip_velocity[stick])) < 1e-9
+
+
+def test_taylor_refuses_a_motor_table_naming_why():
+    p = model.ModelParams(eta=0.5, **RUN_UP)
+    problem = Problem(p, (0.0, 0.0, 0.0, 0.0), np.linspace(0, 10, 11),
+                      drive=constant_torque(1.0, 20.0, 0.5))  # fmt: skip
+    with pytest.raises(ValueError, match="taylor does not run a driven rotor's motor given as"):
+        solve(problem, "taylor")
+
+
+@pytest.mark.parametrize("method", ["analytic", "analytic-polar"])
 def test_methods_without_the_drive_refuse_it_naming_the_feature(method):
     p = model.ModelParams(eta=0.5, **RUN_UP)
     problem = Problem(p, (0.0, 0.0, 0.0, 0.0), np.linspace(0, 10, 11),
@@ -304,7 +349,10 @@ DRIVEN_TABLES = {
         ({"speed": 'profile = "driven"\nstart = 0.5\ninertia = 2.0\nstall_torque = 1.0\n'
                    "no_load_speed = 2.0\nrate = 0.1\n"}, "rate do not belong to profile"),
         ({"time": "samples_per_period = 16\n"}, "time.end: missing; a driven rotor"),
-        ({"solver": 'methods = ["taylor"]\n'}, "taylor does not run a driven rotor"),
+        ({"solver": 'methods = ["analytic"]\n'}, "analytic does not run a driven rotor"),
+        ({"speed": 'profile = "driven"\nstart = 0.5\ninertia = 2.0\nmotor_speed = [0.0, 1.0]\n'
+                   "motor_torque = [1.0, 0.5]\n", "solver": 'methods = ["taylor"]\n'},
+         "solver.methods: taylor does not run a driven rotor's motor given as a table"),
     ],
 )  # fmt: skip
 def test_a_bad_drive_is_refused_naming_the_field(change, message):

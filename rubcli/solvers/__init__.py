@@ -20,6 +20,7 @@ from rubcli.solution import Solution
 from rubcli.solvers.registry import (  # noqa: F401
     DRIVEN,
     FAMILY_MODULES,
+    MOTOR_TABLE,
     SPECS,
     SPEED_PROFILE,
     Options,
@@ -88,8 +89,13 @@ def solve(problem: Problem, method: str, *, watch: Watch | None = None, **option
     if method not in SPECS:
         raise ValueError(f"solve(): unknown method {method!r}; choose from {', '.join(SPECS)}")
     typed = method_options(method, options)
-    for given, feature in ((problem.speed, SPEED_PROFILE), (problem.drive, DRIVEN)):
-        refused = unsupported(method, feature) if given is not None else None
+    table = problem.drive is not None and problem.drive.stall_torque is None
+    for given, feature in (
+        (problem.speed is not None, SPEED_PROFILE),
+        (problem.drive is not None, DRIVEN),
+        (table, MOTOR_TABLE),
+    ):
+        refused = unsupported(method, feature) if given else None
         if refused:
             raise ValueError(f"solve(): {refused}")
     methods = _methods(SPECS[method].family)

@@ -20,16 +20,19 @@ method. The event functions, each an event where it rises through 0:
 - stick: ``1 - z^2`` and, on each side ``s``, ``s T - mu K (z - 1) (1 + margin)`` (the
   needed friction leaving the friction cone).
 
-Where the rate of the contact surface's function (``2 (x vx + y vy)``) or of the slip's
-(from the accelerations) changes sign inside a scan interval, the turn is found (a graze
-between two scan points, a return to the surface right after the segment left it:
-``_turns``), so such a pair of crossings is not missed.
+Where the rate of the contact surface's function (``2 (x vx + y vy)``), of the slip's
+(from the accelerations) or of a stick margin (a central difference along the flow)
+changes sign inside a scan interval, the turn is found (a graze between two scan points,
+a return to the surface right after the segment left it: ``_turns``; a dip below the
+restart band and back inside the first interval of a segment begun on the contact
+surface: ``_dipped``), so such a pair of crossings is not missed.
 
 Implicit methods get forward differences of the right-hand side
 (``DrivenStepper._jacobian``).
 
 ``dop853-jit`` (``DrivenJitStepper``) takes scipy's DOP853 steps in a compiled loop
-(``compiled.driven_loop``) and hands the steps that may hold an event to this event
+(``compiled.driven_loop``), ``taylor`` (``DrivenTaylorStepper``) Taylor steps
+(``compiled.driven_taylor``); both hand the steps that may hold an event to this event
 search.
 """
 
@@ -49,6 +52,8 @@ from rubcli.solvers import compiled as kernels
 from rubcli.solvers import driver
 from rubcli.solvers.compiled.drive import _driven_into, driven_columns, driven_rhs
 from rubcli.solvers.compiled.driven_loop import advance_driven, driven_initial_step
+from rubcli.solvers.compiled.driven_taylor import advance_driven_taylor, driven_polynomial
+from rubcli.solvers.compiled.taylor import MAX_ORDER, taylor_order
 from rubcli.solvers.events import (
     ENTRY,
     EXIT,
@@ -162,6 +167,7 @@ class DrivenStepper(ScipyStepper):
     # the segment began on the contact surface and its function is still 0 there
     settling = False
     on_surface = False
+    intervals = SCAN_POINTS  # scan intervals of the step's dense output
 
     def _start_segment(self, run: DrivenRun) -> None:
         pars, drive, (ts, tt), regime = run.pars, run.drive, run.table, run.regime
@@ -259,7 +265,7 @@ class DrivenStepper(ScipyStepper):
 
     def _earliest_event(self, run: DrivenRun, dense, t0: float, t1: float):
         """The earliest event in (t0, t1] on the step's dense output: (tau, kind) or None."""
-        grid = np.linspace(t0, t1, SCAN_POINTS + 1)
+        grid = np.linspace(t0, t1, self.intervals + 1)
         S = dense(grid)
         tol = 4.0 * np.finfo(float).eps * max(1.0, abs(t1))
         # the restart band: right after a stick exit or a reversal the slip's function is
@@ -270,15 +276,18 @@ class DrivenStepper(ScipyStepper):
         best = None
         for kind, h in self._functions(run):
             values, ends = h(S), grid
-            turning = self._turning(run, kind)
+            turning = self._turning(run, kind, h)
             started = turning is not None and run.last_kind in turning[1]
             if kind in (ENTRY, EXIT) and self.on_surface:
                 # still on the contact surface the segment began on (z^2 - 1 rounds to 0
                 # over a short first step): it leaves it to the event's side, an event
-                # where it leaves, or to the other side, and the search goes on
-                if np.all(values >= 0.0):
+                # where it leaves, or to the other side, and the search goes on; unless
+                # it dipped below the restart band and came back inside the first scan
+                # interval (a long step: the return is found from where it turned)
+                if np.all(values >= 0.0) and not _dipped(grid, S, dense, h, turning[0], band):
                     if values[-1] > 0.0:
-                        return (float(grid[np.flatnonzero(values == 0.0)[-1]]), kind)
+                        zeros = np.flatnonzero(values == 0.0)
+                        return (float(grid[zeros[-1]] if zeros.size else grid[0]), kind)
                     continue
                 self.on_surface = False
             if turning is not None:
@@ -293,7 +302,7 @@ class DrivenStepper(ScipyStepper):
                 if left.size == 0:
                     continue  # still within the band of the slip surface it began on
                 begin, self.settling = int(left[0]), False
-            for i in range(begin, SCAN_POINTS):
+            for i in range(begin, self.intervals):
                 if values[i] < 0.0 <= values[i + 1]:
                     a, b = ends[i], ends[i + 1]
                     root = b if values[i + 1] == 0.0 else _root(h, dense, a, b, tol)
@@ -302,10 +311,12 @@ class DrivenStepper(ScipyStepper):
                     break
         return best
 
-    def _turning(self, run: DrivenRun, kind: int):
-        """For the functions that can cross twice inside one scan interval (the contact
-        surface's, the slip's): (their rate on states, the events that start a segment on
-        their surface); None for the stick margins."""
+    def _turning(self, run: DrivenRun, kind: int, h: Callable[[np.ndarray], np.ndarray]):
+        """For each event function ``h`` of the regime, which can cross twice inside one
+        scan interval: (its rate on states, the events that start a segment on its
+        surface). The stick margins' rate is a central difference along the flow (a
+        short excursion out of the friction cone inside one interval of a long step is
+        found from where the margin turns)."""
         if kind in (ENTRY, EXIT):
             sign = 1.0 if kind == ENTRY else -1.0
             return (lambda S: sign * (S[0] * S[2] + S[1] * S[3])), (ENTRY, EXIT)
@@ -322,7 +333,27 @@ class DrivenStepper(ScipyStepper):
                 return out if np.ndim(S) > 1 else out[0]
 
             return rate, (REVERSAL, STICK_EXIT)
-        return None
+
+        def flow_rate(S: np.ndarray) -> np.ndarray:
+            S2 = np.atleast_2d(S.T).T
+            dS = self.columns(S2)[0]
+            d = 1e-6
+            out = (h(S2 + d * dS) - h(S2 - d * dS)) / (2.0 * d)
+            return out if np.ndim(S) > 1 else out[0]
+
+        return flow_rate, ()
+
+
+def _dipped(grid, S, dense, h, rate, band: float) -> bool:
+    """Whether the event function ``h`` (rate ``rate``), on its surface at grid[0], falls
+    below the restart band (``-band``) before turning back inside the first scan
+    interval."""
+    rates = rate(S[:, :2])
+    if not rates[0] < 0.0 < rates[1]:
+        return False
+    low = brentq(lambda t: float(rate(dense(t))), grid[0], grid[1], xtol=1e-15,
+                 rtol=4 * np.finfo(float).eps)  # fmt: skip
+    return float(h(dense(low))) < -band
 
 
 def _turns(grid, values, rates, level, rate, started_here: bool, band: float):
@@ -482,6 +513,75 @@ class DrivenJitStepper(DrivenStepper):
         run.switch(event[0], event[1], dense(event[0]))
 
 
+class PolynomialDense:
+    """A Taylor step's polynomial as a dense output: the state (6,) at a time, (6, n) at
+    times (``compiled.driven_taylor.driven_polynomial``, the kernel's operations)."""
+
+    def __init__(self, t0: float, C: np.ndarray, order: int) -> None:
+        self.t0, self.C, self.order = t0, C.copy(), order
+
+    def __call__(self, t: float | np.ndarray) -> np.ndarray:
+        times = np.atleast_1d(np.asarray(t, dtype=float))
+        out = driven_polynomial(times, self.t0, self.C, self.order)
+        return out[:, 0] if np.ndim(t) == 0 else out
+
+
+class DrivenTaylorStepper(DrivenJitStepper):
+    """``taylor`` on the driven rotor: the six states' Taylor series
+    (``compiled.driven_taylor``) in a compiled loop, with the same hand-over to the
+    Python event search as ``DrivenJitStepper`` (the scan grid of the step's own
+    intervals, ``taylor``'s rule)."""
+
+    def __init__(self, run: DrivenRun, rtol: float, atol: float) -> None:
+        super().__init__(run, rtol, atol)
+        self.name = "taylor"
+        self.order = taylor_order(self.rtol)
+        self.C = np.zeros((6, MAX_ORDER + 1))
+        self.info = np.zeros(1, dtype=np.int64)
+        run.stats.update(order=self.order)
+        self.settings.update(order=self.order)
+
+    def _start_segment(self, run: DrivenRun) -> None:
+        run.state = np.ascontiguousarray(run.state, dtype=float)
+        regime = run.regime
+        self.columns = lambda S: driven_columns(np.ascontiguousarray(S), *self.ctx, regime)
+        run.stats["n_segments"] += 1
+        self.in_segment = True
+
+    def advance(self, run: DrivenRun) -> None:
+        if not self.in_segment:
+            self._start_segment(run)
+        hand_first = run.last_kind != NO_EVENT or self.settling or self.on_surface
+        chunk = max(1, min(CHUNK_STEPS, run.steps_left))
+        tau, self.t_new, run.k, steps, reason = advance_driven_taylor(
+            run.tau, run.state, run.t_end, self.ctx, run.regime, self.order, self.rtol,
+            self.atol, run.t_eval, run.states, run.regimes, run.k, chunk, hand_first, self.C,
+            self.info,
+        )  # fmt: skip
+        run.tau = tau  # the kernel moved the state in place
+        run.stats["nsteps"] += steps
+        if reason == kernels.STOP_SMALL_STEP:
+            run.fail(f"taylor failed at tau = {tau:.6g}: the step fell below 10 ulp of tau")
+        elif reason == kernels.STOP_PYTHON:
+            run.fail(f"non-finite state at tau = {self.t_new:.6g}")
+        elif reason == kernels.STOP_EVENT:
+            run.stats["nsteps"] += 1
+            run.stats["python_steps"] += 1
+            dense = PolynomialDense(tau, self.C, self.order)
+            self.y_new = dense(self.t_new)
+            self.intervals = int(self.info[0])
+            self.close_step(run, dense, tau, self.t_new, self.y_new[5])
+        run.stats["nfev"] = run.stats["nsteps"]  # one series expansion per step
+
+    def finish(self, run: DrivenRun, dense: Dense, event: tuple[float, int] | None) -> None:
+        if event is None:
+            run.tau = self.t_new
+            run.state[:] = self.y_new
+            return
+        self._end_segment(run)
+        run.switch(event[0], event[1], dense(event[0]))
+
+
 def solve_driven(problem: Problem, options: ToleranceOptions, name: str) -> Solution:
     """A driven rotor by the method ``name``: a scipy method, or ``dop853-jit``
     (module docstring); ``dop853-jit`` with ``compiled=False`` (or its kernels
@@ -493,6 +593,9 @@ def solve_driven(problem: Problem, options: ToleranceOptions, name: str) -> Solu
         problem, name, max_steps=o.max_steps, max_wall_time_s=o.max_wall_time_s,
         progress=o.progress,
     )  # fmt: skip
+    if name == "taylor":  # no pure-Python path (as at a constant speed)
+        kernels.ensure_fresh()
+        return driver.integrate(run, DrivenTaylorStepper(run, o.rtol, o.atol))
     if name == "dop853-jit" and o.compiled and kernels.ensure_fresh():
         return driver.integrate(run, DrivenJitStepper(run, o.rtol, o.atol))
     scipy_name = "dop853" if name == "dop853-jit" else name

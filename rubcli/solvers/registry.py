@@ -115,9 +115,11 @@ FAMILY_MODULES = {
 # without it refuses: the case validation and ``solve`` derive their refusals from here.
 SPEED_PROFILE = "speed profile"
 DRIVEN = "driven rotor"
+MOTOR_TABLE = "motor table"
 FEATURES = {
     SPEED_PROFILE: "a speed that changes in time ([speed])",
     DRIVEN: "a driven rotor (the speed a state, [speed] profile = 'driven')",
+    MOTOR_TABLE: "a driven rotor's motor given as a table ([speed] motor_speed, motor_torque)",
 }
 # why the methods without a feature lack it (named in the refusal)
 LACKS = {
@@ -125,7 +127,10 @@ LACKS = {
     ("analytic-polar", SPEED_PROFILE): "its closed forms assume a constant speed",
     ("analytic", DRIVEN): "its closed forms assume a constant speed",
     ("analytic-polar", DRIVEN): "its closed forms assume a constant speed",
-    ("taylor", DRIVEN): "its series recurrences take the speed as a known function of time",
+    ("analytic", MOTOR_TABLE): "its closed forms assume a constant speed",
+    ("analytic-polar", MOTOR_TABLE): "its closed forms assume a constant speed",
+    ("taylor", MOTOR_TABLE): "its series take the motor's torque as one line in the speed "
+    "(a table's corners would fall inside its steps); give stall_torque and no_load_speed",
 }
 
 
@@ -133,7 +138,7 @@ def _scipy(name: str, order: int, implicit: bool, summary: str) -> MethodSpec:
     return MethodSpec(
         name=name, family="scipy", knob=RTOL, options=ToleranceOptions, order=order,
         implicit=implicit, adaptive=None, summary=summary,
-        features=frozenset({SPEED_PROFILE, DRIVEN}),
+        features=frozenset({SPEED_PROFILE, DRIVEN, MOTOR_TABLE}),
     )  # fmt: skip
 
 
@@ -188,7 +193,7 @@ SPECS: dict[str, MethodSpec] = {
             implicit=False,
             adaptive=None,
             summary="scipy's DOP853, step for step, with the step loop compiled (numba)",
-            features=frozenset({SPEED_PROFILE, DRIVEN}),
+            features=frozenset({SPEED_PROFILE, DRIVEN, MOTOR_TABLE}),
         ),
         MethodSpec(
             name="taylor",
@@ -201,7 +206,7 @@ SPECS: dict[str, MethodSpec] = {
             summary="adaptive Taylor series of the rub equations (automatic-differentiation "
             "recurrences, compiled), events on each step's polynomial; order N = "
             "ceil(-0.5 ln rtol) + 6: 13 at 1e-6, 18 at 1e-10",
-            features=frozenset({SPEED_PROFILE}),
+            features=frozenset({SPEED_PROFILE, DRIVEN}),
         ),
     )  # fmt: skip
 }

@@ -19,8 +19,9 @@
 - ``roots.py``: the event pre-check and the event search (``events.event_search``) on a
   DOP853 step's dense output, and the application of an event;
 - ``dop853_loop.py``: the compiled DOP853 loop (``dop853-jit``);
-- ``drive.py`` and ``driven_loop.py``: the driven rotor's right-hand side, and its
-  DOP853 loop with the pre-check of its events (``dop853-jit`` on a driven rotor);
+- ``drive.py``, ``driven_loop.py`` and ``driven_taylor.py``: the driven rotor's
+  right-hand side, the pre-check of its events, its DOP853 loop (``dop853-jit``) and
+  its Taylor series and loop (``taylor``);
 - ``taylor.py``: the ``taylor`` method's series, step size, event pre-check, the event
   search (``events.event_search``) on the step polynomial, and its loop (about 1,080
   lines, over the usual 500: the series are written out once per regime, free, slip and

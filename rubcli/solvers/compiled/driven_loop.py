@@ -10,6 +10,8 @@ surely hold none, and writes the drive's event rules nowhere.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -41,7 +43,7 @@ from rubcli.solvers.compiled.jit import (
 )
 from rubcli.solvers.compiled.precheck import EVENT_MARGIN, _may_cross, _surface_may_cross
 from rubcli.solvers.compiled.roots import FREE_REGIME, STICK_REGIME
-from rubcli.solvers.events import run_time
+from rubcli.solvers.events import linspace_into, run_time
 
 N_STATES = 6  # x, y, vx, vy, the phase p and the speed w
 
@@ -79,61 +81,80 @@ def _slip_may_reverse(grid, S, ctx, regime, n, hv, hd, row, out):
     return _may_cross(grid, hv, hd, n, margin_v, margin_d, run_time(False), run_time(True))
 
 
-@jit
-def _stick_margin(t, t_old, h, y_old, F, ctx, sign, row, out):
-    """The side ``sign`` of the friction cone in stick at t on the step's dense output:
-    sign T - mu K (z - 1) (1 + margin), T the coupled system's stick friction."""
-    pars = ctx[0]
-    _dop853_dense_at(t, t_old, h, y_old, F, row)
-    T = _driven_into(row, pars, ctx[1], ctx[2], ctx[3], STICK_REGIME, out)
-    limit = pars[P_MU] * pars[P_K] * (math.hypot(row[0], row[1]) - 1.0)
-    return sign * T - limit * (1.0 + STICK_EXIT_MARGIN)
+def driven_precheck(dense_at: Callable[..., None]) -> Callable[..., bool]:
+    """The drive's event pre-check on a step's dense output ``dense_at(t, dense, row)``
+    (``dense`` whatever it needs: a DOP853 step's coefficients, a Taylor polynomial),
+    compiled with it as a closure constant (as ``events.event_search``):
+    ``may_have_event(dense, ctx, regime, grid, n, S, hv, hd, row, out)``.
 
+    False only if ``DrivenStepper._earliest_event`` surely finds no event on the scan
+    grid ``grid[:n + 1]`` (``np.linspace`` of the step, as Python's): contact entry in
+    free flight; contact exit, and the slip reversal or the stick exit, in contact. For a
+    segment that has left the surface it began on (the caller hands the others to
+    Python)."""
 
-@jit
-def _stick_may_exit(grid, t_old, h, y_old, F, ctx, n, hv, hd, row, out):
-    """The pre-check of a stick exit on each side, the rate by central differences."""
-    d = 1e-6 * max(1.0, grid[n] - grid[0])
-    for sign in (1.0, -1.0):
-        value_scale = 0.0
-        rate_scale = 0.0
-        for i in range(n + 1):
-            hv[i] = _stick_margin(grid[i], t_old, h, y_old, F, ctx, sign, row, out)
-            up = _stick_margin(grid[i] + d, t_old, h, y_old, F, ctx, sign, row, out)
-            down = _stick_margin(grid[i] - d, t_old, h, y_old, F, ctx, sign, row, out)
-            hd[i] = (up - down) / (2.0 * d)
-            value_scale = max(value_scale, abs(hv[i]))
-            rate_scale = max(rate_scale, abs(hd[i]))
-        margin_v = EVENT_MARGIN * (1.0 + value_scale)
-        margin_d = EVENT_MARGIN * (1.0 + rate_scale)
-        if _may_cross(grid, hv, hd, n, margin_v, margin_d, run_time(False), run_time(True)):
-            return True
-    return False
+    def stick_margin(
+        t: float, dense: Any, ctx: Any, sign: float, row: np.ndarray, out: np.ndarray
+    ) -> float:
+        """The side ``sign`` of the friction cone in stick at t: sign T - mu K (z - 1)
+        (1 + margin), T the coupled system's stick friction."""
+        pars = ctx[0]
+        dense_at(t, dense, row)
+        T = _driven_into(row, pars, ctx[1], ctx[2], ctx[3], STICK_REGIME, out)
+        limit = pars[P_MU] * pars[P_K] * (math.hypot(row[0], row[1]) - 1.0)
+        return sign * T - limit * (1.0 + STICK_EXIT_MARGIN)
 
-
-@jit
-def _driven_may_have_event(t_old, h, y_old, F, ctx, regime, grid, S, hv, hd, row, out):
-    """False only if ``DrivenStepper._earliest_event`` surely finds no event in the
-    step: contact entry in free flight; contact exit, and the slip reversal or the stick
-    exit, in contact. For a segment that has left the surface it began on (the caller
-    hands the others to Python); ``grid`` is ``np.linspace`` of the step, as Python's."""
-    n = DOP_SCAN_POINTS
-    step = h / n
-    for k in range(n):
-        grid[k] = k * step + t_old
-    grid[n] = t_old + h
-    for k in range(n + 1):
-        _dop853_dense_at(grid[k], t_old, h, y_old, F, row)
-        for i in range(N_STATES):
-            S[k, i] = row[i]
-    direction = 1.0 if regime == FREE_REGIME else -1.0
-    if _surface_may_cross(grid, S, n, direction, 1.0, hv, hd, run_time(False)):
-        return True
-    if regime == FREE_REGIME or ctx[0][P_MU] == 0.0:
+    def stick_may_exit(
+        grid: np.ndarray, dense: Any, ctx: Any, n: int, hv: np.ndarray, hd: np.ndarray,
+        row: np.ndarray, out: np.ndarray,
+    ) -> bool:  # fmt: skip
+        """The pre-check of a stick exit on each side, the rate by central differences."""
+        d = 1e-6 * max(1.0, grid[n] - grid[0])
+        for sign in (1.0, -1.0):
+            value_scale = 0.0
+            rate_scale = 0.0
+            for i in range(n + 1):
+                hv[i] = stick_margin(grid[i], dense, ctx, sign, row, out)
+                up = stick_margin(grid[i] + d, dense, ctx, sign, row, out)
+                down = stick_margin(grid[i] - d, dense, ctx, sign, row, out)
+                hd[i] = (up - down) / (2.0 * d)
+                value_scale = max(value_scale, abs(hv[i]))
+                rate_scale = max(rate_scale, abs(hd[i]))
+            margin_v = EVENT_MARGIN * (1.0 + value_scale)
+            margin_d = EVENT_MARGIN * (1.0 + rate_scale)
+            if _may_cross(grid, hv, hd, n, margin_v, margin_d, run_time(False), run_time(True)):
+                return True
         return False
-    if regime == STICK_REGIME:
-        return _stick_may_exit(grid, t_old, h, y_old, F, ctx, n, hv, hd, row, out)
-    return _slip_may_reverse(grid, S, ctx, regime, n, hv, hd, row, out)
+
+    def may_have_event(
+        dense: Any, ctx: Any, regime: int, grid: np.ndarray, n: int, S: np.ndarray,
+        hv: np.ndarray, hd: np.ndarray, row: np.ndarray, out: np.ndarray,
+    ) -> bool:  # fmt: skip
+        for k in range(n + 1):
+            dense_at(grid[k], dense, row)
+            for i in range(N_STATES):
+                S[k, i] = row[i]
+        direction = 1.0 if regime == FREE_REGIME else -1.0
+        if _surface_may_cross(grid, S, n, direction, 1.0, hv, hd, run_time(False)):
+            return True
+        if regime == FREE_REGIME or ctx[0][P_MU] == 0.0:
+            return False
+        if regime == STICK_REGIME:
+            return stick_may_exit(grid, dense, ctx, n, hv, hd, row, out)
+        return _slip_may_reverse(grid, S, ctx, regime, n, hv, hd, row, out)
+
+    stick_margin = jit(stick_margin)
+    stick_may_exit = jit(stick_may_exit)
+    return jit(may_have_event)
+
+
+@jit
+def _dop853_dense(t: float, dense: Any, row: np.ndarray) -> None:
+    """A DOP853 step's dense output, dense = (t_old, h, y_old, F)."""
+    _dop853_dense_at(t, dense[0], dense[1], dense[2], dense[3], row)
+
+
+_dop853_may_have_event = driven_precheck(_dop853_dense)
 
 
 @jit
@@ -186,11 +207,11 @@ def advance_driven(
         for i in range(N_STATES):
             if not math.isfinite(y_new[i]):
                 return tau, t_new, h_abs, k, steps, nfev, STOP_PYTHON
-        if (
-            hand_first
-            or y_new[5] <= 0.0
-            or _driven_may_have_event(tau, h, y, F, ctx, regime, grid, S, hv, hd, row, out)
-        ):
+        if hand_first or y_new[5] <= 0.0:
+            return tau, t_new, h_abs, k, steps, nfev, STOP_EVENT
+        linspace_into(grid, tau, t_new, n)
+        dense = (tau, h, y, F)
+        if _dop853_may_have_event(dense, ctx, regime, grid, n, S, hv, hd, row, out):
             return tau, t_new, h_abs, k, steps, nfev, STOP_EVENT
         while k < t_eval.shape[0] and t_eval[k] <= t_new:
             _dop853_dense_at(t_eval[k], tau, h, y, F, row)

@@ -1,0 +1,303 @@
+"""``taylor`` on the driven rotor (``rubcli.drive``): the six states' Taylor series, the
+step, and the step loop with the drive's event pre-check.
+
+The series follow ``drive.driven_rhs_entries`` (and, in stick, ``rolling_projection``
+and ``stick_torque_value``) operation by operation, each operation by its recurrence
+(Moore 1966; Jorba & Zou 2005): products by Cauchy sums, quotients by the division rule
+(``_divide``: ``b_0 c_k = a_k - sum_{j>=1} b_j c_{k-j}``), ``z = sqrt(q)`` by
+``2 z_0 z_k = q_k - sum_{j=1}^{k-1} z_j z_{k-j}``, and ``(cos p, sin p)`` with
+``p' = w`` by ``k c_k = -sum_j s_j w_{k-1-j}``, ``k s_k = sum_j c_j w_{k-1-j}``. The
+motor's torque is the linear characteristic, a line in the speed (a table's corners
+would fall inside steps: refused, ``registry.MOTOR_TABLE``).
+
+The order, the step (the last two terms below the state tolerance; the phase, which
+grows without bound, is left out of the state's scale) and the scan grid (eight
+intervals a period of the fastest frequency, the spin's from the larger end speed) are
+``taylor``'s rules. A step that may hold an event (``driven_loop.driven_precheck`` on the
+step's polynomial), a segment's first step and a step after which the speed is 0 or
+below go back to the Python event search (``solvers.driven``), as for ``dop853-jit``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from rubcli.drive import D_DRAG, D_INERTIA, D_NO_LOAD, D_STALL, rolling_projection
+from rubcli.model import FREE, P_ECC, P_K, P_MU, P_NU, P_RP, STICK, friction_sign
+from rubcli.solvers.compiled.driven_loop import N_STATES, driven_precheck
+from rubcli.solvers.compiled.jit import (
+    STOP_END,
+    STOP_EVENT,
+    STOP_LIMIT,
+    STOP_PYTHON,
+    STOP_SMALL_STEP,
+    jit,
+)
+from rubcli.solvers.compiled.taylor import (
+    MAX_ORDER,
+    MAX_SCAN,
+    MIN_SCAN,
+    RECIPROCALS,
+    SCAN_PER_PERIOD,
+    STEP_SAFETY_EXPONENT,
+    _cauchy,
+)
+from rubcli.solvers.events import linspace_into
+
+SERIES_ROWS = 40  # work rows of the series (the stick's intermediate quantities)
+
+
+@jit
+def _divide(out, a, b, k):
+    """Order k of out = a / b (orders below k filled)."""
+    acc = a[k]
+    for j in range(1, k + 1):
+        acc -= b[j] * out[k - j]
+    out[k] = acc / b[0]
+
+
+@jit
+def _root(out, q, k):
+    """Order k of out = sqrt(q) (orders below k filled)."""
+    if k == 0:
+        out[0] = math.sqrt(q[0])
+        return
+    acc = q[k]
+    for j in range(1, k):
+        acc -= out[j] * out[k - j]
+    out[k] = acc / (2.0 * out[0])
+
+
+@jit
+def _phase_terms(c, s, dp, k):
+    """Order k of (cos p, sin p) with p' = dp (orders below k of all three filled)."""
+    if k == 0:
+        return
+    cc = 0.0
+    ss = 0.0
+    for j in range(k):
+        cc += s[j] * dp[k - 1 - j]
+        ss += c[j] * dp[k - 1 - j]
+    c[k] = -cc * RECIPROCALS[k]
+    s[k] = ss * RECIPROCALS[k]
+
+
+@jit
+def driven_series(
+    s0: np.ndarray, pars: np.ndarray, drive: np.ndarray, regime: int, order: int,
+    C: np.ndarray, R: np.ndarray,
+) -> None:  # fmt: skip
+    """The Taylor coefficients C[:, 0..order] (rows x, y, vx, vy, p, w) of the driven
+    rotor's regime-locked solution through ``s0``; ``R`` (SERIES_ROWS, MAX_ORDER + 1)
+    is work space (module docstring)."""
+    nu, K, Rp, e = pars[P_NU], pars[P_K], pars[P_RP], pars[P_ECC]
+    j = drive[D_INERTIA]
+    je = j - e * e
+    stall = drive[D_STALL]
+    slope = -(stall / drive[D_NO_LOAD] + drive[D_DRAG])  # Q0 = stall + slope w
+    mu_c = pars[P_MU] * friction_sign(regime) if regime != FREE and regime != STICK else 0.0
+    x, y, vx, vy, p, w = C[0], C[1], C[2], C[3], C[4], C[5]
+    for i in range(N_STATES):
+        C[i, 0] = s0[i]
+    c, sn, fx, fy, q, z, nx, ny = R[0], R[1], R[2], R[3], R[4], R[5], R[6], R[7]
+    normal, T, pdd, w2 = R[8], R[9], R[10], R[11]
+    c[0], sn[0] = math.cos(p[0]), math.sin(p[0])
+    stick = regime == STICK
+    contact = regime != FREE
+    # stick: the velocities projected onto the rolling constraint (rolling_projection)
+    ht, hr, up, ux, uy, vr, den, scale = R[12], R[13], R[14], R[15], R[16], R[17], R[18], R[19]
+    vxd, vyd, wd = R[20], R[21], R[22]
+    zd, rt, thd, A, B, num, dd = R[23], R[24], R[25], R[26], R[27], R[28], R[29]
+    f0x, f0y = R[30], R[31]  # the force without the rolling friction (stick_torque_value)
+    for k in range(order):
+        one = 1.0 if k == 0 else 0.0
+        if contact:
+            acc = 0.0
+            for m in range(k + 1):
+                acc += x[m] * x[k - m] + y[m] * y[k - m]
+            q[k] = acc
+            _root(z, q, k)
+            _divide(nx, x, z, k)
+            _divide(ny, y, z, k)
+            normal[k] = K * (z[k] - one)
+        if stick:
+            _phase_terms(c, sn, wd, k)
+            # h = (-ny, nx): t . h and r . h of the unbalance's directions
+            ht[k] = _cauchy(ny, sn, k) + _cauchy(nx, c, k)
+            hr[k] = -_cauchy(ny, c, k) + _cauchy(nx, sn, k)
+            up[k] = (Rp * one - e * ht[k]) / je
+            ux[k] = -ny[k] + e * _cauchy(up, sn, k)
+            uy[k] = nx[k] - e * _cauchy(up, c, k)
+            vr[k] = Rp * w[k] - _cauchy(ny, vx, k) + _cauchy(nx, vy, k)
+            den[k] = -_cauchy(ny, ux, k) + _cauchy(nx, uy, k) + Rp * up[k]
+            _divide(scale, vr, den, k)
+            vxd[k] = vx[k] - _cauchy(scale, ux, k)
+            vyd[k] = vy[k] - _cauchy(scale, uy, k)
+            wd[k] = w[k] - _cauchy(scale, up, k)
+            # stick_torque_value on the projected state
+            f0x[k] = -x[k] - 2.0 * nu * vxd[k] - _cauchy(normal, nx, k)
+            f0y[k] = -y[k] - 2.0 * nu * vyd[k] - _cauchy(normal, ny, k)
+            zd[k] = _cauchy(nx, vxd, k) + _cauchy(ny, vyd, k)
+            rt[k] = _cauchy(nx, vyd, k) - _cauchy(ny, vxd, k)
+            _divide(thd, rt, z, k)
+            w2[k] = _cauchy(wd, wd, k)
+            A[k] = (
+                -_cauchy(ny, f0x, k) + _cauchy(nx, f0y, k) + e * _cauchy(w2, hr, k)
+                - _cauchy(thd, zd, k)
+            )  # fmt: skip
+            B[k] = Rp * one - e * ht[k]
+            tf = -_cauchy(sn, f0x, k) + _cauchy(c, f0y, k)
+            num[k] = stall * one + slope * wd[k] - e * tf - _cauchy(B, A, k)
+            dd[k] = je * one + _cauchy(B, B, k)
+            _divide(pdd, num, dd, k)
+            T[k] = A[k] + _cauchy(B, pdd, k)
+            # the rolling friction T along -theta-hat: fx += T y / z, fy -= T x / z
+            fx[k] = f0x[k] + _cauchy(T, ny, k)
+            fy[k] = f0y[k] - _cauchy(T, nx, k)
+            dx, dy, dp = vxd[k], vyd[k], wd[k]
+        else:
+            _phase_terms(c, sn, w, k)
+            fx[k] = -x[k] - 2.0 * nu * vx[k]
+            fy[k] = -y[k] - 2.0 * nu * vy[k]
+            if contact:
+                T[k] = mu_c * normal[k]
+                fx[k] -= _cauchy(normal, nx, k) - _cauchy(T, ny, k)
+                fy[k] -= _cauchy(normal, ny, k) + _cauchy(T, nx, k)
+            else:
+                T[k] = 0.0
+            tf = -_cauchy(sn, fx, k) + _cauchy(c, fy, k)
+            pdd[k] = (stall * one + slope * w[k] - Rp * T[k] - e * tf) / je
+            w2[k] = _cauchy(w, w, k)
+            dx, dy, dp = vx[k], vy[k], w[k]
+        ax = fx[k] + e * _cauchy(w2, c, k) + e * _cauchy(pdd, sn, k)
+        ay = fy[k] + e * _cauchy(w2, sn, k) - e * _cauchy(pdd, c, k)
+        inv = RECIPROCALS[k + 1]
+        C[0, k + 1] = dx * inv
+        C[1, k + 1] = dy * inv
+        C[2, k + 1] = ax * inv
+        C[3, k + 1] = ay * inv
+        C[4, k + 1] = dp * inv
+        C[5, k + 1] = pdd[k] * inv
+
+
+@jit
+def driven_step_size(C: np.ndarray, order: int, rtol: float, atol: float) -> float:
+    """``taylor.step_size`` for the six states: the last two terms below the state
+    tolerance max(atol, rtol |s_0|), the phase left out of |s_0| (it grows without
+    bound)."""
+    scale = 0.0
+    for i in (0, 1, 2, 3, 5):
+        scale = max(scale, abs(C[i, 0]))
+    eps = max(atol, rtol * scale)
+    h = math.inf
+    for k in (order - 1, order):
+        norm = 0.0
+        for i in range(N_STATES):
+            norm = max(norm, abs(C[i, k]))
+        if norm > 0.0:
+            h = min(h, (eps / norm) ** RECIPROCALS[k])
+    return h * math.exp(-STEP_SAFETY_EXPONENT * RECIPROCALS[order - 1])
+
+
+@jit
+def _polynomial(t: float, dense: Any, row: np.ndarray) -> None:
+    """The step's polynomial at t (Horner), dense = (t0, C, order)."""
+    t0, C, order = dense
+    dt = t - t0
+    for i in range(N_STATES):
+        v = C[i, order]
+        for k in range(order - 1, -1, -1):
+            v = v * dt + C[i, k]
+        row[i] = v
+
+
+_polynomial_may_have_event = driven_precheck(_polynomial)
+
+
+@jit
+def driven_polynomial(t: np.ndarray, t0: float, C: np.ndarray, order: int) -> np.ndarray:
+    """The step's polynomial at the times t (n,): states (6, n) (``_polynomial``)."""
+    out = np.empty((N_STATES, t.shape[0]))
+    row = np.empty(N_STATES)
+    for m in range(t.shape[0]):
+        _polynomial(t[m], (t0, C, order), row)
+        for i in range(N_STATES):
+            out[i, m] = row[i]
+    return out
+
+
+@jit
+def _scan_points(h, regime, pars, s, s_end):
+    """Intervals of the event scan (``taylor.scan_points``, the spin the larger end's)."""
+    omega = 1.0 + max(abs(s[5]), abs(s_end[5]))
+    if regime != FREE:
+        r2 = s[0] * s[0] + s[1] * s[1]
+        theta_dot = abs(s[0] * s[3] - s[1] * s[2]) / r2 if r2 > 0.0 else 0.0
+        omega += math.sqrt(1.0 + pars[P_K]) + theta_dot
+    n = int(math.ceil(SCAN_PER_PERIOD * h * omega / (2.0 * math.pi)))
+    return min(MAX_SCAN, max(MIN_SCAN, n))
+
+
+@jit
+def advance_driven_taylor(
+    tau: float, y: np.ndarray, t_end: float,
+    ctx: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], regime: int, order: int,
+    rtol: float, atol: float, t_eval: np.ndarray, out_states: np.ndarray,
+    out_regimes: np.ndarray, k: int, max_steps: int, hand_first: bool, C: np.ndarray,
+    info: np.ndarray,
+) -> tuple[float, float, int, int, int]:  # fmt: skip
+    """Taylor steps of the driven rotor in one regime, up to the first step that may
+    hold an event (``driven_loop.advance_driven``'s rules). A pending step (reason
+    EVENT) leaves its coefficients in ``C`` and its scan intervals in ``info[0]``.
+    Returns ``(tau, t_new, k, steps, reason)``."""
+    pars, drive = ctx[0], ctx[1]
+    e, Rp, j = pars[P_ECC], pars[P_RP], drive[D_INERTIA]
+    R = np.zeros((SERIES_ROWS, MAX_ORDER + 1))
+    row = np.empty(N_STATES)
+    out = np.empty(N_STATES)
+    y_new = np.empty(N_STATES)
+    grid = np.empty(MAX_SCAN + 1)
+    S = np.empty((MAX_SCAN + 1, N_STATES))
+    hv = np.empty(MAX_SCAN + 1)
+    hd = np.empty(MAX_SCAN + 1)
+    steps = 0
+    while True:
+        if tau >= t_end:
+            return tau, tau, k, steps, STOP_END
+        if steps >= max_steps:
+            return tau, tau, k, steps, STOP_LIMIT
+        driven_series(y, pars, drive, regime, order, C, R)
+        h = driven_step_size(C, order, rtol, atol)
+        t_new = min(tau + h, t_end)
+        h = t_new - tau
+        if not (h >= 10.0 * abs(np.nextafter(tau, np.inf) - tau)):
+            return tau, t_new, k, steps, STOP_SMALL_STEP if math.isfinite(h) else STOP_PYTHON
+        dense = (tau, C, order)
+        _polynomial(t_new, dense, y_new)
+        for i in range(N_STATES):
+            if not math.isfinite(y_new[i]):
+                return tau, t_new, k, steps, STOP_PYTHON
+        n = _scan_points(h, regime, pars, y, y_new)
+        info[0] = n
+        if hand_first or y_new[5] <= 0.0:
+            return tau, t_new, k, steps, STOP_EVENT
+        linspace_into(grid, tau, t_new, n)
+        if _polynomial_may_have_event(dense, ctx, regime, grid, n, S, hv, hd, row, out):
+            return tau, t_new, k, steps, STOP_EVENT
+        while k < t_eval.shape[0] and t_eval[k] <= t_new:
+            _polynomial(t_eval[k], dense, row)
+            if regime == STICK:
+                row[2], row[3], row[5] = rolling_projection(
+                    row[0], row[1], row[2], row[3], row[4], row[5], e, Rp, j
+                )
+            for i in range(N_STATES):
+                out_states[k, i] = row[i]
+            out_regimes[k] = regime
+            k += 1
+        steps += 1
+        for i in range(N_STATES):
+            y[i] = y_new[i]
+        tau = t_new
