@@ -8,8 +8,8 @@ Cases: the shipped driven rotors `cases/runup/driven-captured.toml` (a run-up ca
 on the rub branch, 165 revolutions, one contact entry and permanent slip) and
 `cases/runup/driven-dry-whip.toml` (a dry whip braking the drive: 75 revolutions of
 stick and slip). Each method that runs a driven rotor (scipy's, ``dop853-jit`` and
-``taylor``) at
-rtol = 1e-6 and 1e-9 (atol = rtol / 100), the best of 3 timed runs after a warm-up.
+``taylor``) at rtol = 1e-6 and 1e-9 (atol = rtol / 100), the best of 3 timed runs after
+a warm-up.
 The error is the largest distance of the sampled positions from a reference (dop853 at
 rtol = 1e-12), beside the error of the final speed; the reference's own error is
 estimated by its distance from lsoda at rtol = 1e-12. Writes benchmarks/driven.md.

@@ -1082,14 +1082,11 @@ class CaseFile(_Section):
         if "methods" not in self.solver.model_fields_set:
             solver = self.solver.model_copy(update={"methods": ["dop853-jit"]})
             object.__setattr__(self, "solver", solver)
-        features = [registry.DRIVEN if driven else registry.SPEED_PROFILE]
-        if driven and self.speed.motor_speed is not None:
-            features.append(registry.MOTOR_TABLE)
+        feature = registry.DRIVEN if driven else registry.SPEED_PROFILE
         for method in self.solver.methods:
-            for feature in features:
-                why = registry.unsupported(method, feature)
-                if why:
-                    raise PydanticCustomError("speed_method", f"solver.methods: {why}")
+            why = registry.unsupported(method, feature)
+            if why:
+                raise PydanticCustomError("speed_method", f"solver.methods: {why}")
         return self
 
     @model_validator(mode="after")

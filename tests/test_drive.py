@@ -37,12 +37,6 @@ def constant_torque(torque: float, inertia: float, start: float) -> Drive:
                  table_torque=(torque, torque))  # fmt: skip
 
 
-def linear_constant_torque(torque: float, inertia: float, start: float) -> Drive:
-    """A constant torque as a linear motor (for ``taylor``, which refuses a table): its
-    no-load speed so far that the torque changes by 1e-100 of itself per unit speed."""
-    return Drive(inertia=inertia, start=start, stall_torque=torque, no_load_speed=1e100)
-
-
 def idle_motor(inertia: float, start: float) -> Drive:
     """A linear motor whose torque is 0 at the start speed."""
     return Drive(inertia=inertia, start=start, stall_torque=1.0, no_load_speed=start)
@@ -55,8 +49,7 @@ def test_energy_changes_by_the_motors_work_exactly(method):
     and the drive's equations through the unbalance (e = 0.3) checked to the tolerance,
     over many contacts."""
     p = model.ModelParams(nu=0.0, eta=0.8, e=0.3, K=20.0, mu=0.0, Rp=2.0)
-    motor = linear_constant_torque if method == "taylor" else constant_torque
-    drive = motor(0.05, inertia=2.0, start=0.8)
+    drive = constant_torque(0.05, inertia=2.0, start=0.8)
     t = np.linspace(0.0, 60.0, 3001)
     sol = solve(Problem(p, (1.02, 0.0, 0.0, 1.2), t, drive=drive), method, rtol=1e-11,
                 atol=1e-12)  # fmt: skip
@@ -239,7 +232,7 @@ def test_the_methods_agree_on_a_driven_stick_slip():
     np.testing.assert_allclose(runs[4].events.tau, runs[0].events.tau, atol=1e-6)
 
 
-@pytest.mark.parametrize("method", ["dop853", "dop853-jit"])
+@pytest.mark.parametrize("method", ["dop853", "dop853-jit", "taylor"])
 def test_a_rotor_that_stops_ends_the_run_with_a_message(method):
     """A motor that brakes (negative torque) stops the rotor: the run ends failed where
     the speed reaches 0 (without unbalance w = 1 - 0.5 tau: at tau = 2), its samples up
@@ -301,12 +294,22 @@ def test_taylor_on_a_driven_rotor_against_a_tight_reference(case):
         assert np.max(np.abs(sol.slip_velocity[stick])) < 1e-9
 
 
-def test_taylor_refuses_a_motor_table_naming_why():
+def test_taylor_steps_end_at_the_corners_of_a_motor_table():
+    """A run-up captured on the rub at eta 2.83 by a motor table whose speed crosses two
+    of its corners on the way: ``taylor`` ends a step where the speed reaches a corner
+    (its series carry one line of the table), and finds DOP853's contact at rtol 1e-13,
+    its states within 1e-8 and its final speed within 1e-10 at rtol 1e-10."""
     p = model.ModelParams(eta=0.5, **RUN_UP)
-    problem = Problem(p, (0.0, 0.0, 0.0, 0.0), np.linspace(0, 10, 11),
-                      drive=constant_torque(1.0, 20.0, 0.5))  # fmt: skip
-    with pytest.raises(ValueError, match="taylor does not run a driven rotor's motor given as"):
-        solve(problem, "taylor")
+    drive = Drive(inertia=200.0, start=0.5, table_speed=(0.0, 1.0, 2.0, 3.0, 3.5, 4.0),
+                  table_torque=(20.0, 18.0, 13.0, 9.0, 4.0, 0.0))  # fmt: skip
+    problem = Problem(p, (0.0, 0.0, 0.0, 0.0), np.linspace(0.0, 400.0, 8001), drive=drive)
+    ref = solve(problem, "dop853-jit", rtol=1e-13, atol=1e-15)
+    sol = solve(problem, "taylor", rtol=1e-10, atol=1e-12)
+    assert sol.success and 2.8 < ref.speed[-1] < 2.9 and len(ref.events) > 0
+    assert list(sol.events.kinds) == list(ref.events.kinds)
+    np.testing.assert_allclose(sol.events.tau, ref.events.tau, rtol=0, atol=1e-8)
+    assert np.max(np.hypot(sol.x - ref.x, sol.y - ref.y)) < 1e-8
+    assert sol.speed[-1] == pytest.approx(ref.speed[-1], abs=1e-10)
 
 
 @pytest.mark.parametrize("method", ["analytic", "analytic-polar"])
@@ -350,9 +353,6 @@ DRIVEN_TABLES = {
                    "no_load_speed = 2.0\nrate = 0.1\n"}, "rate do not belong to profile"),
         ({"time": "samples_per_period = 16\n"}, "time.end: missing; a driven rotor"),
         ({"solver": 'methods = ["analytic"]\n'}, "analytic does not run a driven rotor"),
-        ({"speed": 'profile = "driven"\nstart = 0.5\ninertia = 2.0\nmotor_speed = [0.0, 1.0]\n'
-                   "motor_torque = [1.0, 0.5]\n", "solver": 'methods = ["taylor"]\n'},
-         "solver.methods: taylor does not run a driven rotor's motor given as a table"),
     ],
 )  # fmt: skip
 def test_a_bad_drive_is_refused_naming_the_field(change, message):

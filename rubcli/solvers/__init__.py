@@ -20,7 +20,6 @@ from rubcli.solution import Solution
 from rubcli.solvers.registry import (  # noqa: F401
     DRIVEN,
     FAMILY_MODULES,
-    MOTOR_TABLE,
     SPECS,
     SPEED_PROFILE,
     Options,
@@ -89,13 +88,8 @@ def solve(problem: Problem, method: str, *, watch: Watch | None = None, **option
     if method not in SPECS:
         raise ValueError(f"solve(): unknown method {method!r}; choose from {', '.join(SPECS)}")
     typed = method_options(method, options)
-    table = problem.drive is not None and problem.drive.stall_torque is None
-    for given, feature in (
-        (problem.speed is not None, SPEED_PROFILE),
-        (problem.drive is not None, DRIVEN),
-        (table, MOTOR_TABLE),
-    ):
-        refused = unsupported(method, feature) if given else None
+    for given, feature in ((problem.speed, SPEED_PROFILE), (problem.drive, DRIVEN)):
+        refused = unsupported(method, feature) if given is not None else None
         if refused:
             raise ValueError(f"solve(): {refused}")
     methods = _methods(SPECS[method].family)

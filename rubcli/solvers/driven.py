@@ -208,7 +208,10 @@ class DrivenStepper(ScipyStepper):
         if w <= 0.0:  # stopped: the phase no longer advances
             stop = brentq(lambda t: dense(t)[5], t_old, t_new)
             self._end_segment(run)
-            run.k = self._fill(run, dense, stop)
+            k = self._fill(run, dense, stop)
+            while k > 1 and run.states[k - 1, 5] <= 0.0:  # the samples keep speeds above 0
+                k -= 1
+            run.k = k
             run.fail(
                 f"the speed fell to 0 at tau = {stop:.6g}: the rotor stopped, its load "
                 "beyond what the motor gives (a rotor turning backward is outside the model)"

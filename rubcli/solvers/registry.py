@@ -115,11 +115,9 @@ FAMILY_MODULES = {
 # without it refuses: the case validation and ``solve`` derive their refusals from here.
 SPEED_PROFILE = "speed profile"
 DRIVEN = "driven rotor"
-MOTOR_TABLE = "motor table"
 FEATURES = {
     SPEED_PROFILE: "a speed that changes in time ([speed])",
     DRIVEN: "a driven rotor (the speed a state, [speed] profile = 'driven')",
-    MOTOR_TABLE: "a driven rotor's motor given as a table ([speed] motor_speed, motor_torque)",
 }
 # why the methods without a feature lack it (named in the refusal)
 LACKS = {
@@ -127,10 +125,6 @@ LACKS = {
     ("analytic-polar", SPEED_PROFILE): "its closed forms assume a constant speed",
     ("analytic", DRIVEN): "its closed forms assume a constant speed",
     ("analytic-polar", DRIVEN): "its closed forms assume a constant speed",
-    ("analytic", MOTOR_TABLE): "its closed forms assume a constant speed",
-    ("analytic-polar", MOTOR_TABLE): "its closed forms assume a constant speed",
-    ("taylor", MOTOR_TABLE): "its series take the motor's torque as one line in the speed "
-    "(a table's corners would fall inside its steps); give stall_torque and no_load_speed",
 }
 
 
@@ -138,7 +132,7 @@ def _scipy(name: str, order: int, implicit: bool, summary: str) -> MethodSpec:
     return MethodSpec(
         name=name, family="scipy", knob=RTOL, options=ToleranceOptions, order=order,
         implicit=implicit, adaptive=None, summary=summary,
-        features=frozenset({SPEED_PROFILE, DRIVEN, MOTOR_TABLE}),
+        features=frozenset({SPEED_PROFILE, DRIVEN}),
     )  # fmt: skip
 
 
@@ -193,7 +187,7 @@ SPECS: dict[str, MethodSpec] = {
             implicit=False,
             adaptive=None,
             summary="scipy's DOP853, step for step, with the step loop compiled (numba)",
-            features=frozenset({SPEED_PROFILE, DRIVEN, MOTOR_TABLE}),
+            features=frozenset({SPEED_PROFILE, DRIVEN}),
         ),
         MethodSpec(
             name="taylor",

@@ -7,8 +7,9 @@ and ``stick_torque_value``) operation by operation, each operation by its recurr
 (``_divide``: ``b_0 c_k = a_k - sum_{j>=1} b_j c_{k-j}``), ``z = sqrt(q)`` by
 ``2 z_0 z_k = q_k - sum_{j=1}^{k-1} z_j z_{k-j}``, and ``(cos p, sin p)`` with
 ``p' = w`` by ``k c_k = -sum_j s_j w_{k-1-j}``, ``k s_k = sum_j c_j w_{k-1-j}``. The
-motor's torque is the linear characteristic, a line in the speed (a table's corners
-would fall inside steps: refused, ``registry.MOTOR_TABLE``).
+motor's torque is a line in the speed (``motor_line``): the linear characteristic, or
+the piece of a table the speed is in; a step ends where the speed reaches the piece's
+end, so that no series carries a table's corner.
 
 The order, the step (the last two terms below the state tolerance; the phase, which
 grows without bound, is left out of the state's scale) and the scan grid (eight
@@ -27,6 +28,7 @@ import numpy as np
 
 from rubcli.drive import D_DRAG, D_INERTIA, D_NO_LOAD, D_STALL, rolling_projection
 from rubcli.model import FREE, P_ECC, P_K, P_MU, P_NU, P_RP, STICK, friction_sign
+from rubcli.solvers.compiled.drive import _driven_into
 from rubcli.solvers.compiled.driven_loop import N_STATES, driven_precheck
 from rubcli.solvers.compiled.jit import (
     STOP_END,
@@ -48,6 +50,7 @@ from rubcli.solvers.compiled.taylor import (
 from rubcli.solvers.events import linspace_into
 
 SERIES_ROWS = 40  # work rows of the series (the stick's intermediate quantities)
+TABLE_GRID = 32  # points a step's speed is checked at against the motor table's corners
 
 
 @jit
@@ -88,16 +91,15 @@ def _phase_terms(c, s, dp, k):
 @jit
 def driven_series(
     s0: np.ndarray, pars: np.ndarray, drive: np.ndarray, regime: int, order: int,
-    C: np.ndarray, R: np.ndarray,
+    C: np.ndarray, R: np.ndarray, torque: float, slope: float,
 ) -> None:  # fmt: skip
     """The Taylor coefficients C[:, 0..order] (rows x, y, vx, vy, p, w) of the driven
-    rotor's regime-locked solution through ``s0``; ``R`` (SERIES_ROWS, MAX_ORDER + 1)
-    is work space (module docstring)."""
+    rotor's regime-locked solution through ``s0``, the motor's torque less drag the line
+    ``torque + slope w`` (``motor_line``); ``R`` (SERIES_ROWS, MAX_ORDER + 1) is work
+    space (module docstring)."""
     nu, K, Rp, e = pars[P_NU], pars[P_K], pars[P_RP], pars[P_ECC]
     j = drive[D_INERTIA]
     je = j - e * e
-    stall = drive[D_STALL]
-    slope = -(stall / drive[D_NO_LOAD] + drive[D_DRAG])  # Q0 = stall + slope w
     mu_c = pars[P_MU] * friction_sign(regime) if regime != FREE and regime != STICK else 0.0
     x, y, vx, vy, p, w = C[0], C[1], C[2], C[3], C[4], C[5]
     for i in range(N_STATES):
@@ -150,7 +152,7 @@ def driven_series(
             )  # fmt: skip
             B[k] = Rp * one - e * ht[k]
             tf = -_cauchy(sn, f0x, k) + _cauchy(c, f0y, k)
-            num[k] = stall * one + slope * wd[k] - e * tf - _cauchy(B, A, k)
+            num[k] = torque * one + slope * wd[k] - e * tf - _cauchy(B, A, k)
             dd[k] = je * one + _cauchy(B, B, k)
             _divide(pdd, num, dd, k)
             T[k] = A[k] + _cauchy(B, pdd, k)
@@ -169,7 +171,7 @@ def driven_series(
             else:
                 T[k] = 0.0
             tf = -_cauchy(sn, fx, k) + _cauchy(c, fy, k)
-            pdd[k] = (stall * one + slope * w[k] - Rp * T[k] - e * tf) / je
+            pdd[k] = (torque * one + slope * w[k] - Rp * T[k] - e * tf) / je
             w2[k] = _cauchy(w, w, k)
             dx, dy, dp = vx[k], vy[k], w[k]
         ax = fx[k] + e * _cauchy(w2, c, k) + e * _cauchy(pdd, sn, k)
@@ -181,6 +183,64 @@ def driven_series(
         C[3, k + 1] = ay * inv
         C[4, k + 1] = dp * inv
         C[5, k + 1] = pdd[k] * inv
+
+
+@jit
+def motor_line(
+    w: float, rising: bool, drive: np.ndarray, table_speed: np.ndarray, table_torque: np.ndarray
+) -> tuple[float, float, float, float]:
+    """The motor's torque less drag near the speed w as a line, ``torque + slope w``, and
+    the speeds ``(low, high)`` between which it holds: the linear characteristic
+    everywhere; a table's piece that the speed is in, or enters (``rising``: upward)
+    from one of its corners, its end values held outside it (``np.interp``)."""
+    drag = drive[D_DRAG]
+    n = table_speed.shape[0]
+    if n == 0:
+        stall = drive[D_STALL]
+        return stall, -(stall / drive[D_NO_LOAD] + drag), -math.inf, math.inf
+    if w < table_speed[0] or (w == table_speed[0] and not rising):
+        return table_torque[0], -drag, -math.inf, table_speed[0]
+    if w > table_speed[n - 1] or (w == table_speed[n - 1] and rising):
+        return table_torque[n - 1], -drag, table_speed[n - 1], math.inf
+    i = 0
+    while i < n - 2 and (w > table_speed[i + 1] or (w == table_speed[i + 1] and rising)):
+        i += 1
+    low, high = table_speed[i], table_speed[i + 1]
+    slope = (table_torque[i + 1] - table_torque[i]) / (high - low)
+    return table_torque[i] - slope * low, slope - drag, low, high
+
+
+@jit
+def _speed_at(C, order, s):
+    """The speed's polynomial (row 5) at s from the step's start (Horner)."""
+    v = C[5, order]
+    for k in range(order - 1, -1, -1):
+        v = v * s + C[5, k]
+    return v
+
+
+@jit
+def _leaves_at(C, order, h, low, high, grid_points):
+    """The first s in (0, h] where the speed's polynomial leaves [low, high] (on a grid
+    of ``grid_points`` intervals, then by bisection to round-off), or h if it stays."""
+    previous = 0.0
+    for m in range(1, grid_points + 1):
+        s = h * m / grid_points
+        w = _speed_at(C, order, s)
+        if w < low or w > high:
+            a, b = previous, s
+            for _ in range(200):
+                mid = 0.5 * (a + b)
+                if mid <= a or mid >= b:
+                    break
+                wm = _speed_at(C, order, mid)
+                if wm < low or wm > high:
+                    b = mid
+                else:
+                    a = mid
+            return b
+        previous = s
+    return h
 
 
 @jit
@@ -253,8 +313,9 @@ def advance_driven_taylor(
     hold an event (``driven_loop.advance_driven``'s rules). A pending step (reason
     EVENT) leaves its coefficients in ``C`` and its scan intervals in ``info[0]``.
     Returns ``(tau, t_new, k, steps, reason)``."""
-    pars, drive = ctx[0], ctx[1]
+    pars, drive, table_speed, table_torque = ctx[0], ctx[1], ctx[2], ctx[3]
     e, Rp, j = pars[P_ECC], pars[P_RP], drive[D_INERTIA]
+    tabled = table_speed.shape[0] > 0
     R = np.zeros((SERIES_ROWS, MAX_ORDER + 1))
     row = np.empty(N_STATES)
     out = np.empty(N_STATES)
@@ -269,10 +330,20 @@ def advance_driven_taylor(
             return tau, tau, k, steps, STOP_END
         if steps >= max_steps:
             return tau, tau, k, steps, STOP_LIMIT
-        driven_series(y, pars, drive, regime, order, C, R)
+        rising = True
+        if tabled:  # which piece of the table: the one the speed moves into
+            _driven_into(y, pars, drive, table_speed, table_torque, regime, out)
+            rising = out[5] >= 0.0
+        torque, slope, low, high = motor_line(y[5], rising, drive, table_speed, table_torque)
+        driven_series(y, pars, drive, regime, order, C, R, torque, slope)
         h = driven_step_size(C, order, rtol, atol)
         t_new = min(tau + h, t_end)
         h = t_new - tau
+        if tabled:  # the step ends where the speed reaches a corner of the table
+            cut = _leaves_at(C, order, h, low, high, TABLE_GRID)
+            if cut < h:
+                h = cut
+                t_new = tau + h
         if not (h >= 10.0 * abs(np.nextafter(tau, np.inf) - tau)):
             return tau, t_new, k, steps, STOP_SMALL_STEP if math.isfinite(h) else STOP_PYTHON
         dense = (tau, C, order)
