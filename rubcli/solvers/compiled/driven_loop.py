@@ -81,11 +81,16 @@ def _slip_may_reverse(grid, S, ctx, regime, n, hv, hd, row, out):
     return _may_cross(grid, hv, hd, n, margin_v, margin_d, run_time(False), run_time(True))
 
 
-def driven_precheck(dense_at: Callable[..., None]) -> Callable[..., bool]:
-    """The drive's event pre-check on a step's dense output ``dense_at(t, dense, row)``
+def driven_step_parts(
+    dense_at: Callable[..., None],
+) -> tuple[Callable[..., bool], Callable[..., int]]:
+    """What a driven loop does with a step's dense output ``dense_at(t, dense, row)``
     (``dense`` whatever it needs: a DOP853 step's coefficients, a Taylor polynomial),
-    compiled with it as a closure constant (as ``events.event_search``):
-    ``may_have_event(dense, ctx, regime, grid, n, S, hv, hd, row, out)``.
+    compiled with it as a closure constant (as ``events.event_search``): the event
+    pre-check ``may_have_event(dense, ctx, regime, grid, n, S, hv, hd, row, out)`` and
+    the samples of a committed step ``fill(dense, t_new, ctx, regime, t_eval,
+    out_states, out_regimes, k, row)`` (projected onto the rolling constraint in stick,
+    as Python reports them; returns the next sample to fill).
 
     False only if ``DrivenStepper._earliest_event`` surely finds no event on the scan
     grid ``grid[:n + 1]`` (``np.linspace`` of the step, as Python's): contact entry in
@@ -143,9 +148,26 @@ def driven_precheck(dense_at: Callable[..., None]) -> Callable[..., bool]:
             return stick_may_exit(grid, dense, ctx, n, hv, hd, row, out)
         return _slip_may_reverse(grid, S, ctx, regime, n, hv, hd, row, out)
 
+    def fill(
+        dense: Any, t_new: float, ctx: Any, regime: int, t_eval: np.ndarray,
+        out_states: np.ndarray, out_regimes: np.ndarray, k: int, row: np.ndarray,
+    ) -> int:  # fmt: skip
+        e, Rp, j = ctx[0][P_ECC], ctx[0][P_RP], ctx[1][D_INERTIA]
+        while k < t_eval.shape[0] and t_eval[k] <= t_new:
+            dense_at(t_eval[k], dense, row)
+            if regime == STICK_REGIME:
+                row[2], row[3], row[5] = rolling_projection(
+                    row[0], row[1], row[2], row[3], row[4], row[5], e, Rp, j
+                )
+            for i in range(N_STATES):
+                out_states[k, i] = row[i]
+            out_regimes[k] = regime
+            k += 1
+        return k
+
     stick_margin = jit(stick_margin)
     stick_may_exit = jit(stick_may_exit)
-    return jit(may_have_event)
+    return jit(may_have_event), jit(fill)
 
 
 @jit
@@ -154,7 +176,7 @@ def _dop853_dense(t: float, dense: Any, row: np.ndarray) -> None:
     _dop853_dense_at(t, dense[0], dense[1], dense[2], dense[3], row)
 
 
-_dop853_may_have_event = driven_precheck(_dop853_dense)
+_dop853_may_have_event, _dop853_fill = driven_step_parts(_dop853_dense)
 
 
 @jit
@@ -186,8 +208,6 @@ def advance_driven(
     S = np.empty((n + 1, N_STATES))
     hv = np.empty(n + 1)
     hd = np.empty(n + 1)
-    pars, drive = ctx[0], ctx[1]
-    e, Rp, j = pars[P_ECC], pars[P_RP], drive[D_INERTIA]
     steps = 0
     nfev = 0
     while True:
@@ -213,16 +233,7 @@ def advance_driven(
         dense = (tau, h, y, F)
         if _dop853_may_have_event(dense, ctx, regime, grid, n, S, hv, hd, row, out):
             return tau, t_new, h_abs, k, steps, nfev, STOP_EVENT
-        while k < t_eval.shape[0] and t_eval[k] <= t_new:
-            _dop853_dense_at(t_eval[k], tau, h, y, F, row)
-            if regime == STICK_REGIME:
-                row[2], row[3], row[5] = rolling_projection(
-                    row[0], row[1], row[2], row[3], row[4], row[5], e, Rp, j
-                )
-            for i in range(N_STATES):
-                out_states[k, i] = row[i]
-            out_regimes[k] = regime
-            k += 1
+        k = _dop853_fill(dense, t_new, ctx, regime, t_eval, out_states, out_regimes, k, row)
         steps += 1
         for i in range(N_STATES):
             y[i] = y_new[i]

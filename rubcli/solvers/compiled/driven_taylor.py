@@ -14,7 +14,7 @@ end, so that no series carries a table's corner.
 The order, the step (the last two terms below the state tolerance; the phase, which
 grows without bound, is left out of the state's scale) and the scan grid (eight
 intervals a period of the fastest frequency, the spin's from the larger end speed) are
-``taylor``'s rules. A step that may hold an event (``driven_loop.driven_precheck`` on the
+``taylor``'s rules. A step that may hold an event (``driven_loop.driven_step_parts`` on the
 step's polynomial), a segment's first step and a step after which the speed is 0 or
 below go back to the Python event search (``solvers.driven``), as for ``dop853-jit``.
 """
@@ -26,10 +26,10 @@ from typing import Any
 
 import numpy as np
 
-from rubcli.drive import D_DRAG, D_INERTIA, D_NO_LOAD, D_STALL, rolling_projection
+from rubcli.drive import D_DRAG, D_INERTIA, D_NO_LOAD, D_STALL
 from rubcli.model import FREE, P_ECC, P_K, P_MU, P_NU, P_RP, STICK, friction_sign
 from rubcli.solvers.compiled.drive import _driven_into
-from rubcli.solvers.compiled.driven_loop import N_STATES, driven_precheck
+from rubcli.solvers.compiled.driven_loop import N_STATES, driven_step_parts
 from rubcli.solvers.compiled.jit import (
     STOP_END,
     STOP_EVENT,
@@ -41,11 +41,10 @@ from rubcli.solvers.compiled.jit import (
 from rubcli.solvers.compiled.taylor import (
     MAX_ORDER,
     MAX_SCAN,
-    MIN_SCAN,
     RECIPROCALS,
-    SCAN_PER_PERIOD,
     STEP_SAFETY_EXPONENT,
     _cauchy,
+    scan_intervals,
 )
 from rubcli.solvers.events import linspace_into
 
@@ -274,7 +273,7 @@ def _polynomial(t: float, dense: Any, row: np.ndarray) -> None:
         row[i] = v
 
 
-_polynomial_may_have_event = driven_precheck(_polynomial)
+_polynomial_may_have_event, _polynomial_fill = driven_step_parts(_polynomial)
 
 
 @jit
@@ -290,18 +289,6 @@ def driven_polynomial(t: np.ndarray, t0: float, C: np.ndarray, order: int) -> np
 
 
 @jit
-def _scan_points(h, regime, pars, s, s_end):
-    """Intervals of the event scan (``taylor.scan_points``, the spin the larger end's)."""
-    omega = 1.0 + max(abs(s[5]), abs(s_end[5]))
-    if regime != FREE:
-        r2 = s[0] * s[0] + s[1] * s[1]
-        theta_dot = abs(s[0] * s[3] - s[1] * s[2]) / r2 if r2 > 0.0 else 0.0
-        omega += math.sqrt(1.0 + pars[P_K]) + theta_dot
-    n = int(math.ceil(SCAN_PER_PERIOD * h * omega / (2.0 * math.pi)))
-    return min(MAX_SCAN, max(MIN_SCAN, n))
-
-
-@jit
 def advance_driven_taylor(
     tau: float, y: np.ndarray, t_end: float,
     ctx: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], regime: int, order: int,
@@ -314,7 +301,6 @@ def advance_driven_taylor(
     EVENT) leaves its coefficients in ``C`` and its scan intervals in ``info[0]``.
     Returns ``(tau, t_new, k, steps, reason)``."""
     pars, drive, table_speed, table_torque = ctx[0], ctx[1], ctx[2], ctx[3]
-    e, Rp, j = pars[P_ECC], pars[P_RP], drive[D_INERTIA]
     tabled = table_speed.shape[0] > 0
     R = np.zeros((SERIES_ROWS, MAX_ORDER + 1))
     row = np.empty(N_STATES)
@@ -351,23 +337,14 @@ def advance_driven_taylor(
         for i in range(N_STATES):
             if not math.isfinite(y_new[i]):
                 return tau, t_new, k, steps, STOP_PYTHON
-        n = _scan_points(h, regime, pars, y, y_new)
+        n = scan_intervals(h, regime, pars, y, max(abs(y[5]), abs(y_new[5])))
         info[0] = n
         if hand_first or y_new[5] <= 0.0:
             return tau, t_new, k, steps, STOP_EVENT
         linspace_into(grid, tau, t_new, n)
         if _polynomial_may_have_event(dense, ctx, regime, grid, n, S, hv, hd, row, out):
             return tau, t_new, k, steps, STOP_EVENT
-        while k < t_eval.shape[0] and t_eval[k] <= t_new:
-            _polynomial(t_eval[k], dense, row)
-            if regime == STICK:
-                row[2], row[3], row[5] = rolling_projection(
-                    row[0], row[1], row[2], row[3], row[4], row[5], e, Rp, j
-                )
-            for i in range(N_STATES):
-                out_states[k, i] = row[i]
-            out_regimes[k] = regime
-            k += 1
+        k = _polynomial_fill(dense, t_new, ctx, regime, t_eval, out_states, out_regimes, k, row)
         steps += 1
         for i in range(N_STATES):
             y[i] = y_new[i]

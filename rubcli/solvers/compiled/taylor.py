@@ -807,6 +807,13 @@ def scan_points(h: float, regime: int, pars: np.ndarray, s: np.ndarray, t0: floa
     if pars[P_RATE] != 0.0:
         d = t0 - pars[P_TAU0]
         eta = max(abs(eta + pars[P_RATE] * d), abs(eta + pars[P_RATE] * (d + h)))
+    return scan_intervals(h, regime, pars, s, eta)
+
+
+@jit
+def scan_intervals(h: float, regime: int, pars: np.ndarray, s: np.ndarray, eta: float) -> int:
+    """``max(4, ceil(8 h omega / 2 pi))`` (at most MAX_SCAN), omega the fastest frequency's
+    bound from the speed ``eta`` (its largest magnitude over the step) and the state s."""
     omega = 1.0 + abs(eta)
     if regime != FREE_REGIME:
         r2 = s[0] * s[0] + s[1] * s[1]
