@@ -44,6 +44,7 @@ from rubcli.solvers.shared import (
     RESTART_BAND_FLOOR,
     SCAN_POINTS,
     Dop853Dense,
+    kernel_failure,
     locate_in_python,
 )
 
@@ -123,13 +124,9 @@ class Dop853Stepper:
         events = (self.ev_tau, self.ev_kind, self.ev_state, self.ev_regimes)
         if not driver.record_kernel_events(run, n_ev, *events):
             return
-        if reason == kernels.STOP_SMALL_STEP:
-            run.fail(
-                f"dop853-jit failed at tau = {tau:.6g}: "
-                "required step size is less than spacing between numbers"
-            )
-        elif reason == kernels.STOP_PYTHON:
-            run.fail(f"non-finite state at tau = {t_new:.6g}")
+        failure = kernel_failure(reason, "dop853-jit", tau, t_new)
+        if failure:
+            run.fail(failure)
         elif reason == kernels.STOP_FULL:
             self.new_segment = True
         elif reason == kernels.STOP_EVENT:

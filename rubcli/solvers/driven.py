@@ -65,7 +65,7 @@ from rubcli.solvers.events import (
 )
 from rubcli.solvers.registry import DRIVEN, SPECS, ToleranceOptions
 from rubcli.solvers.scipy_ivp import ScipyStepper
-from rubcli.solvers.shared import SCAN_POINTS, Dop853Dense
+from rubcli.solvers.shared import SCAN_POINTS, Dop853Dense, kernel_failure
 
 Dense = Callable[[float], np.ndarray]  # a step's dense output (of one time, or of times)
 CHUNK_STEPS = 2000  # committed steps per kernel call: budget and progress checks between
@@ -444,37 +444,32 @@ def rub_force(solution: Solution) -> np.ndarray:
     return sample_derivatives(solution)[1]
 
 
-class DrivenJitStepper(DrivenStepper):
-    """``dop853-jit`` on the driven rotor: scipy's DOP853 step for step, compiled
-    (``compiled.driven_loop.advance_driven``). The kernel commits the steps in which no
-    event can lie, with their samples; a step that may hold one, a segment's first step,
-    a step still on the surface its segment began on and a step that ends at a speed
-    of 0 or below come back pending, and ``close_step`` (the Python event search above,
-    the definition of the drive's events) takes them. So both steppers find the same
-    events, and the compiled one spends Python only on the steps around them."""
+class CompiledDrivenStepper(DrivenStepper):
+    """A compiled loop on the driven rotor (``dop853-jit``, ``taylor``). The kernel
+    commits the steps in which no event can lie, with their samples; a step that may
+    hold one, a segment's first step, a step still on the surface its segment began on
+    and a step that ends at a speed of 0 or below come back pending, and ``close_step``
+    (the Python event search above, the definition of the drive's events) takes them.
+    So the compiled steppers find the scipy steppers' events, and spend Python only on
+    the steps around them. A subclass runs its kernel (``_run_kernel``) and gives a
+    pending step's dense output (``_pending``)."""
 
-    def __init__(self, run: DrivenRun, rtol: float, atol: float) -> None:
+    def __init__(self, run: DrivenRun, name: str, rtol: float, atol: float) -> None:
         super().__init__(run, "dop853", rtol, atol, compiled=True)
-        self.name = "dop853-jit"
+        self.name = name
         # scipy raises a too small rtol to 100 eps (with a warning); so do we, silently
         self.rtol = max(rtol, 100 * np.finfo(float).eps)
         self.ctx = (run.pars, run.drive, *run.table)
-        self.f, self.y_new, self.f_new = np.empty(6), np.empty(6), np.empty(6)
-        self.F = np.empty((7, 6))
-        self.h_abs, self.t_new = 0.0, 0.0
-        self.in_segment = False  # a segment is to start (f and the initial step)
+        self.y_new = np.empty(6)
+        self.t_new = 0.0
+        self.in_segment = False  # a segment is to start
         run.stats.update(python_steps=0)
         self.settings.update(rtol=self.rtol, compiled_events=False)
 
     def _start_segment(self, run: DrivenRun) -> None:
-        """As scipy starts a solver: f and the initial step."""
         run.state = np.ascontiguousarray(run.state, dtype=float)
         regime = run.regime
-        self.f[:] = driven_rhs(run.state, *self.ctx, regime)
         self.columns = lambda S: driven_columns(np.ascontiguousarray(S), *self.ctx, regime)
-        self.h_abs = driven_initial_step(run.tau, run.state, self.f, run.t_end, self.ctx,
-                                         regime, self.rtol, self.atol)  # fmt: skip
-        run.stats["nfev"] += 2
         run.stats["n_segments"] += 1
         self.in_segment = True
 
@@ -486,34 +481,60 @@ class DrivenJitStepper(DrivenStepper):
             self._start_segment(run)
         hand_first = run.last_kind != NO_EVENT or self.settling or self.on_surface
         chunk = max(1, min(CHUNK_STEPS, run.steps_left))
-        tau, self.t_new, self.h_abs, run.k, steps, nfev, reason = advance_driven(
-            run.tau, run.state, self.f, self.h_abs, run.t_end, self.ctx, run.regime,
-            self.rtol, self.atol, run.t_eval, run.states, run.regimes, run.k, chunk,
-            hand_first, self.y_new, self.f_new, self.F,
-        )  # fmt: skip
+        tau, reason = self._run_kernel(run, hand_first, chunk)
         run.tau = tau  # the kernel moved the state in place
-        run.stats["nsteps"] += steps
-        run.stats["nfev"] += nfev
-        if reason == kernels.STOP_SMALL_STEP:
-            run.fail(
-                f"dop853-jit failed at tau = {tau:.6g}: "
-                "required step size is less than spacing between numbers"
-            )
-        elif reason == kernels.STOP_PYTHON:
-            run.fail(f"non-finite state at tau = {self.t_new:.6g}")
+        failure = kernel_failure(reason, self.name, tau, self.t_new)
+        if failure:
+            run.fail(failure)
         elif reason == kernels.STOP_EVENT:
             run.stats["nsteps"] += 1
             run.stats["python_steps"] += 1
-            dense = Dop853Dense(tau, self.t_new, run.state, self.F)
+            dense = self._pending(run, tau)
             self.close_step(run, dense, tau, self.t_new, self.y_new[5])
 
     def finish(self, run: DrivenRun, dense: Dense, event: tuple[float, int] | None) -> None:
         if event is None:
             run.tau = self.t_new
-            run.state[:], self.f[:] = self.y_new, self.f_new
+            run.state[:] = self.y_new
             return
         self._end_segment(run)
         run.switch(event[0], event[1], dense(event[0]))
+
+
+class DrivenJitStepper(CompiledDrivenStepper):
+    """``dop853-jit`` on the driven rotor: scipy's DOP853 step for step, compiled
+    (``compiled.driven_loop.advance_driven``)."""
+
+    def __init__(self, run: DrivenRun, rtol: float, atol: float) -> None:
+        super().__init__(run, "dop853-jit", rtol, atol)
+        self.f, self.f_new, self.F = np.empty(6), np.empty(6), np.empty((7, 6))
+        self.h_abs = 0.0
+
+    def _start_segment(self, run: DrivenRun) -> None:
+        """As scipy starts a solver: f and the initial step."""
+        super()._start_segment(run)
+        self.f[:] = driven_rhs(run.state, *self.ctx, run.regime)
+        self.h_abs = driven_initial_step(run.tau, run.state, self.f, run.t_end, self.ctx,
+                                         run.regime, self.rtol, self.atol)  # fmt: skip
+        run.stats["nfev"] += 2
+
+    def _run_kernel(self, run: DrivenRun, hand_first: bool, chunk: int) -> tuple[float, int]:
+        tau, self.t_new, self.h_abs, run.k, steps, nfev, reason = advance_driven(
+            run.tau, run.state, self.f, self.h_abs, run.t_end, self.ctx, run.regime,
+            self.rtol, self.atol, run.t_eval, run.states, run.regimes, run.k, chunk,
+            hand_first, self.y_new, self.f_new, self.F,
+        )  # fmt: skip
+        run.stats["nsteps"] += steps
+        run.stats["nfev"] += nfev
+        return tau, reason
+
+    def _pending(self, run: DrivenRun, tau: float) -> Dense:
+        return Dop853Dense(tau, self.t_new, run.state, self.F)
+
+    def finish(self, run: DrivenRun, dense: Dense, event: tuple[float, int] | None) -> None:
+        if event is None:
+            self.f[:] = self.f_new
+        super().finish(run, dense, event)
 
 
 class PolynomialDense:
@@ -529,60 +550,35 @@ class PolynomialDense:
         return out[:, 0] if np.ndim(t) == 0 else out
 
 
-class DrivenTaylorStepper(DrivenJitStepper):
+class DrivenTaylorStepper(CompiledDrivenStepper):
     """``taylor`` on the driven rotor: the six states' Taylor series
-    (``compiled.driven_taylor``) in a compiled loop, with the same hand-over to the
-    Python event search as ``DrivenJitStepper`` (the scan grid of the step's own
-    intervals, ``taylor``'s rule)."""
+    (``compiled.driven_taylor``), a pending step scanned on its own intervals
+    (``taylor``'s rule)."""
 
     def __init__(self, run: DrivenRun, rtol: float, atol: float) -> None:
-        super().__init__(run, rtol, atol)
-        self.name = "taylor"
+        super().__init__(run, "taylor", rtol, atol)
         self.order = taylor_order(self.rtol)
         self.C = np.zeros((6, MAX_ORDER + 1))
         self.info = np.zeros(1, dtype=np.int64)
         run.stats.update(order=self.order)
         self.settings.update(order=self.order)
 
-    def _start_segment(self, run: DrivenRun) -> None:
-        run.state = np.ascontiguousarray(run.state, dtype=float)
-        regime = run.regime
-        self.columns = lambda S: driven_columns(np.ascontiguousarray(S), *self.ctx, regime)
-        run.stats["n_segments"] += 1
-        self.in_segment = True
-
-    def advance(self, run: DrivenRun) -> None:
-        if not self.in_segment:
-            self._start_segment(run)
-        hand_first = run.last_kind != NO_EVENT or self.settling or self.on_surface
-        chunk = max(1, min(CHUNK_STEPS, run.steps_left))
+    def _run_kernel(self, run: DrivenRun, hand_first: bool, chunk: int) -> tuple[float, int]:
         tau, self.t_new, run.k, steps, reason = advance_driven_taylor(
             run.tau, run.state, run.t_end, self.ctx, run.regime, self.order, self.rtol,
             self.atol, run.t_eval, run.states, run.regimes, run.k, chunk, hand_first, self.C,
             self.info,
         )  # fmt: skip
-        run.tau = tau  # the kernel moved the state in place
         run.stats["nsteps"] += steps
-        if reason == kernels.STOP_SMALL_STEP:
-            run.fail(f"taylor failed at tau = {tau:.6g}: the step fell below 10 ulp of tau")
-        elif reason == kernels.STOP_PYTHON:
-            run.fail(f"non-finite state at tau = {self.t_new:.6g}")
-        elif reason == kernels.STOP_EVENT:
-            run.stats["nsteps"] += 1
-            run.stats["python_steps"] += 1
-            dense = PolynomialDense(tau, self.C, self.order)
-            self.y_new = dense(self.t_new)
-            self.intervals = int(self.info[0])
-            self.close_step(run, dense, tau, self.t_new, self.y_new[5])
         run.stats["nfev"] = run.stats["nsteps"]  # one series expansion per step
+        return tau, reason
 
-    def finish(self, run: DrivenRun, dense: Dense, event: tuple[float, int] | None) -> None:
-        if event is None:
-            run.tau = self.t_new
-            run.state[:] = self.y_new
-            return
-        self._end_segment(run)
-        run.switch(event[0], event[1], dense(event[0]))
+    def _pending(self, run: DrivenRun, tau: float) -> Dense:
+        run.stats["nfev"] += 1
+        dense = PolynomialDense(tau, self.C, self.order)
+        self.y_new = dense(self.t_new)
+        self.intervals = int(self.info[0])
+        return dense
 
 
 def solve_driven(problem: Problem, options: ToleranceOptions, name: str) -> Solution:

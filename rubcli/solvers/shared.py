@@ -111,6 +111,24 @@ def locate_in_python(
     return event
 
 
+# why a compiled loop's step fell below its minimum, as each method words it (scipy's
+# DOP853 message for dop853-jit)
+SMALL_STEP_WHY = {
+    "dop853-jit": "required step size is less than spacing between numbers",
+    "taylor": "the step fell below 10 ulp of tau",
+}
+
+
+def kernel_failure(reason: int, method: str, tau: float, t_new: float) -> str | None:
+    """The run's failure message for a compiled loop's stop ``reason`` (a step below the
+    minimum at ``tau``, a non-finite state at ``t_new``), or None if it is no failure."""
+    if reason == kernels.STOP_SMALL_STEP:
+        return f"{method} failed at tau = {tau:.6g}: {SMALL_STEP_WHY[method]}"
+    if reason == kernels.STOP_PYTHON:
+        return f"non-finite state at tau = {t_new:.6g}"
+    return None
+
+
 class Dop853Dense:
     """The dense output of one step (scipy's ``Dop853DenseOutput``), from a compiled
     loop's F (four states or the driven rotor's six)."""

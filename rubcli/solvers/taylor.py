@@ -37,7 +37,7 @@ from rubcli.solvers import driver, register
 from rubcli.solvers.compiled import taylor as taylor_kernels
 from rubcli.solvers.events import NO_EVENT, start_flags
 from rubcli.solvers.registry import CompiledOptions
-from rubcli.solvers.shared import RESTART_BAND_FLOOR, locate_in_python
+from rubcli.solvers.shared import RESTART_BAND_FLOOR, kernel_failure, locate_in_python
 
 # steps per kernel call, with budget and progress checks between: 20,000 steps are 5-20
 # ms (0.25-1 us a step); a call costs ~20 us of dispatch (2,000 cost 1.3 % at mu = 0.03)
@@ -131,10 +131,9 @@ class TaylorStepper:
             run, n_ev, self.ev_tau, self.ev_kind, self.ev_state, self.ev_regimes
         ):
             return
-        if reason == kernels.STOP_SMALL_STEP:
-            run.fail(f"taylor failed at tau = {tau:.6g}: the step fell below 10 ulp of tau")
-        elif reason == kernels.STOP_PYTHON:
-            run.fail(f"non-finite state at tau = {t_new:.6g}")
+        failure = kernel_failure(reason, "taylor", tau, t_new)
+        if failure:
+            run.fail(failure)
         elif reason == kernels.STOP_EVENT:
             self._python_event_step(run, t_new)
 
