@@ -188,6 +188,31 @@ def shaft_torque_value(
     return motor_torque_value(w, drive, table_speed, table_torque) - drive[D_DRAG] * w
 
 
+def motor_line(
+    w: float, rising: bool, drive: np.ndarray, table_speed: np.ndarray, table_torque: np.ndarray
+) -> tuple[float, float, float, float]:
+    """The motor's torque less drag near the speed w as a line, ``torque + slope w``, and
+    the speeds ``(low, high)`` between which it holds: the linear characteristic
+    everywhere; a table's piece that the speed is in, or enters (``rising``: upward)
+    from one of its corners, its end values held outside it (``np.interp``; compilable
+    core: the Taylor series of a driven rotor carry one such line a step)."""
+    drag = drive[D_DRAG]
+    n = table_speed.shape[0]
+    if n == 0:
+        stall = drive[D_STALL]
+        return stall, -(stall / drive[D_NO_LOAD] + drag), -math.inf, math.inf
+    if w < table_speed[0] or (w == table_speed[0] and not rising):
+        return table_torque[0], -drag, -math.inf, table_speed[0]
+    if w > table_speed[n - 1] or (w == table_speed[n - 1] and rising):
+        return table_torque[n - 1], -drag, table_speed[n - 1], math.inf
+    i = 0
+    while i < n - 2 and (w > table_speed[i + 1] or (w == table_speed[i + 1] and rising)):
+        i += 1
+    low, high = table_speed[i], table_speed[i + 1]
+    slope = (table_torque[i + 1] - table_torque[i]) / (high - low)
+    return table_torque[i] - slope * low, slope - drag, low, high
+
+
 def stick_torque_value(
     x: float, y: float, vx: float, vy: float, p: float, w: float, nu: float, K: float,
     e: float, Rp: float, j: float, Q0: float,

@@ -294,6 +294,31 @@ def test_taylor_on_a_driven_rotor_against_a_tight_reference(case):
         assert np.max(np.abs(sol.slip_velocity[stick])) < 1e-9
 
 
+def test_the_motor_line_is_the_table_where_it_holds():
+    """``drive.motor_line`` (the line a Taylor step carries) against the motor's torque
+    less drag (``np.interp`` of the table): equal at every speed inside the range it
+    returns, the range a piece of the table (or its held ends), and at a corner the piece
+    on the side the speed moves to."""
+    from rubcli.drive import motor_line, shaft_torque_value
+
+    drive = Drive(inertia=20.0, start=0.5, table_speed=(0.5, 1.0, 2.0, 3.5),
+                  table_torque=(20.0, 18.0, 13.0, 0.0), drag=0.3)  # fmt: skip
+    record, (ts, tt) = drive.record(), drive.table()
+    for w in (0.1, 0.5, 0.7, 1.0, 1.5, 2.0, 3.0, 3.5, 5.0):
+        for rising in (True, False):
+            torque, slope, low, high = motor_line(w, rising, record, ts, tt)
+            assert low <= w <= high
+            assert (w > low or rising or low == -np.inf) and (w < high or not rising)
+            probe = np.linspace(max(low, w - 2.0), min(high, w + 2.0), 41)
+            np.testing.assert_allclose(torque + slope * probe,
+                                       shaft_torque_value(probe, record, ts, tt),
+                                       rtol=0, atol=1e-13)  # fmt: skip
+    linear = Drive(inertia=20.0, start=0.5, stall_torque=4.0, no_load_speed=3.0, drag=0.1)
+    torque, slope, low, high = motor_line(1.7, True, linear.record(), *linear.table())
+    assert (low, high) == (-np.inf, np.inf)
+    assert torque + slope * 2.5 == pytest.approx(linear.shaft_torque(2.5), abs=1e-14)
+
+
 def test_taylor_steps_end_at_the_corners_of_a_motor_table():
     """A run-up captured on the rub at eta 2.83 by a motor table whose speed crosses two
     of its corners on the way: ``taylor`` ends a step where the speed reaches a corner

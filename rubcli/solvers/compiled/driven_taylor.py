@@ -26,9 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from rubcli.drive import D_DRAG, D_INERTIA, D_NO_LOAD, D_STALL
+from rubcli.drive import D_INERTIA, motor_line
 from rubcli.model import FREE, P_ECC, P_K, P_MU, P_NU, P_RP, STICK, friction_sign
-from rubcli.solvers.compiled.drive import _driven_into
 from rubcli.solvers.compiled.driven_loop import N_STATES, driven_step_parts
 from rubcli.solvers.compiled.jit import (
     STOP_END,
@@ -185,31 +184,6 @@ def driven_series(
 
 
 @jit
-def motor_line(
-    w: float, rising: bool, drive: np.ndarray, table_speed: np.ndarray, table_torque: np.ndarray
-) -> tuple[float, float, float, float]:
-    """The motor's torque less drag near the speed w as a line, ``torque + slope w``, and
-    the speeds ``(low, high)`` between which it holds: the linear characteristic
-    everywhere; a table's piece that the speed is in, or enters (``rising``: upward)
-    from one of its corners, its end values held outside it (``np.interp``)."""
-    drag = drive[D_DRAG]
-    n = table_speed.shape[0]
-    if n == 0:
-        stall = drive[D_STALL]
-        return stall, -(stall / drive[D_NO_LOAD] + drag), -math.inf, math.inf
-    if w < table_speed[0] or (w == table_speed[0] and not rising):
-        return table_torque[0], -drag, -math.inf, table_speed[0]
-    if w > table_speed[n - 1] or (w == table_speed[n - 1] and rising):
-        return table_torque[n - 1], -drag, table_speed[n - 1], math.inf
-    i = 0
-    while i < n - 2 and (w > table_speed[i + 1] or (w == table_speed[i + 1] and rising)):
-        i += 1
-    low, high = table_speed[i], table_speed[i + 1]
-    slope = (table_torque[i + 1] - table_torque[i]) / (high - low)
-    return table_torque[i] - slope * low, slope - drag, low, high
-
-
-@jit
 def _speed_at(C, order, s):
     """The speed's polynomial (row 5) at s from the step's start (Horner)."""
     v = C[5, order]
@@ -221,7 +195,15 @@ def _speed_at(C, order, s):
 @jit
 def _leaves_at(C, order, h, low, high, grid_points):
     """The first s in (0, h] where the speed's polynomial leaves [low, high] (on a grid
-    of ``grid_points`` intervals, then by bisection to round-off), or h if it stays."""
+    of ``grid_points`` intervals, then by bisection to round-off), or h if it stays
+    (at once where the polynomial's spread, sum_k |w_k| h^k, keeps it inside)."""
+    spread = 0.0
+    p = 1.0
+    for k in range(1, order + 1):
+        p *= h
+        spread += abs(C[5, k]) * p
+    if low < C[5, 0] - spread and C[5, 0] + spread < high:
+        return h
     previous = 0.0
     for m in range(1, grid_points + 1):
         s = h * m / grid_points
@@ -316,12 +298,11 @@ def advance_driven_taylor(
             return tau, tau, k, steps, STOP_END
         if steps >= max_steps:
             return tau, tau, k, steps, STOP_LIMIT
-        rising = True
-        if tabled:  # which piece of the table: the one the speed moves into
-            _driven_into(y, pars, drive, table_speed, table_torque, regime, out)
-            rising = out[5] >= 0.0
-        torque, slope, low, high = motor_line(y[5], rising, drive, table_speed, table_torque)
+        torque, slope, low, high = motor_line(y[5], True, drive, table_speed, table_torque)
         driven_series(y, pars, drive, regime, order, C, R, torque, slope)
+        if y[5] == low and C[5, 1] < 0.0:  # on a table's corner, slowing: the piece below
+            torque, slope, low, high = motor_line(y[5], False, drive, table_speed, table_torque)
+            driven_series(y, pars, drive, regime, order, C, R, torque, slope)
         h = driven_step_size(C, order, rtol, atol)
         t_new = min(tau + h, t_end)
         h = t_new - tau

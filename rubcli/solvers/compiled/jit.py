@@ -50,6 +50,7 @@ COMPILABLE_CORES = (
     events.run_time,
     drive.motor_torque_value,
     drive.shaft_torque_value,
+    drive.motor_line,
     drive.stick_torque_value,
     drive.driven_rhs_entries,
     drive.rolling_projection,
