@@ -5,7 +5,7 @@ in ``dop853_coefficients.py``): the same stages, the 5th/3rd-order error blend, 
 7th-order dense output and Hairer's initial step, so that for the same rtol/atol the
 compiled loops take scipy's steps. The steps are built per right-hand side
 (``dop853_step``): the rotor's four states (``rhs._rhs_into``, ``dop853-jit``) and the
-driven rotor's six (``drive._driven_step_rhs``).
+driven rotor's six (``driven_loop._driven_stage``).
 """
 
 from __future__ import annotations
@@ -92,18 +92,25 @@ def dop853_step(
             h1 = (0.01 / max(d1, d2)) ** (1.0 / 8.0)
         return min(100.0 * h0, h1, interval)
 
+    def stage(
+        s: int, t: float, y: np.ndarray, h: float, ctx: Any, regime: int, Kst: np.ndarray,
+        tmp: np.ndarray,
+    ) -> None:  # fmt: skip
+        """Stage s of the step of length h from (t, y): Kst[s] from Kst[:s]."""
+        for i in range(N):
+            acc = 0.0
+            for j in range(s):
+                acc += DOP_A[s, j] * Kst[j, i]
+            tmp[i] = y[i] + h * acc
+        rhs_into(t + DOP_C[s] * h, tmp, ctx, regime, Kst[s])
+
     def attempt(
         t: float, y: np.ndarray, h: float, ctx: Any, regime: int, Kst: np.ndarray,
         y_new: np.ndarray, tmp: np.ndarray,
     ) -> None:  # fmt: skip
         """One step of length h from (t, y) with Kst[0] = f(t, y): y_new, Kst[1:13]."""
         for s in range(1, DOP_STAGES):
-            for i in range(N):
-                acc = 0.0
-                for j in range(s):
-                    acc += DOP_A[s, j] * Kst[j, i]
-                tmp[i] = y[i] + h * acc
-            rhs_into(t + DOP_C[s] * h, tmp, ctx, regime, Kst[s])
+            stage(s, t, y, h, ctx, regime, Kst, tmp)
         for i in range(N):
             acc = 0.0
             for j in range(DOP_STAGES):
@@ -175,12 +182,7 @@ def dop853_step(
         """The 7th-order dense output of an accepted step (scipy's Dop853DenseOutput F);
         returns the evaluations of the right-hand side it took."""
         for s in range(DOP_STAGES + 1, Kst.shape[0]):
-            for i in range(N):
-                acc = 0.0
-                for j in range(s):
-                    acc += DOP_A[s, j] * Kst[j, i]
-                tmp[i] = y_old[i] + h * acc
-            rhs_into(t_old + DOP_C[s] * h, tmp, ctx, regime, Kst[s])
+            stage(s, t_old, y_old, h, ctx, regime, Kst, tmp)
         for i in range(N):
             delta = y_new[i] - y_old[i]
             F[0, i] = delta
@@ -193,6 +195,7 @@ def dop853_step(
                 F[3 + r, i] = h * acc
         return Kst.shape[0] - DOP_STAGES - 1
 
+    stage = jit(stage)
     attempt = jit(attempt)
     error_norm = jit(error_norm)
     return jit(initial_step), jit(accepted_step), jit(dense_coefficients)
