@@ -582,9 +582,12 @@ class DrivenTaylorStepper(CompiledDrivenStepper):
 
 
 def solve_driven(problem: Problem, options: ToleranceOptions, name: str) -> Solution:
-    """A driven rotor by the method ``name``: a scipy method, or ``dop853-jit``
-    (module docstring); ``dop853-jit`` with ``compiled=False`` (or its kernels
-    unusable) is scipy's ``dop853`` under its name, as at a constant speed."""
+    """A driven rotor by the method ``name``: a scipy method, ``dop853-jit`` or
+    ``taylor`` (module docstring). The compiled loops always hand a step that may hold
+    an event to the Python event search (as ``compiled_events=False`` does at a constant
+    speed, so that option changes nothing here); ``dop853-jit`` with ``compiled=False``
+    (or its kernels unusable) is scipy's ``dop853`` under its name, and ``taylor`` has no
+    pure-Python path, as at a constant speed."""
     if DRIVEN not in SPECS[name].features:
         raise ValueError(f"{name} does not run a driven rotor")
     o = options
@@ -592,7 +595,7 @@ def solve_driven(problem: Problem, options: ToleranceOptions, name: str) -> Solu
         problem, name, max_steps=o.max_steps, max_wall_time_s=o.max_wall_time_s,
         progress=o.progress,
     )  # fmt: skip
-    if name == "taylor":  # no pure-Python path (as at a constant speed)
+    if name == "taylor":
         kernels.ensure_fresh()
         return driver.integrate(run, DrivenTaylorStepper(run, o.rtol, o.atol))
     if name == "dop853-jit" and o.compiled and kernels.ensure_fresh():
