@@ -19,6 +19,7 @@ reference is ``docs/cases.md``. The method names come from the registry's data
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import re
@@ -149,31 +150,87 @@ class CaseSection(_Section):
 # ============================================================ [model] or [physical]
 
 
-class ModelSection(_Section):
-    """[model]: nondimensional parameters (notes section 1)."""
+# a vector [x, y] and a 2x2 matrix [[xx, xy], [yx, yy]] of a case file
+Pair = Annotated[list[float], Field(min_length=2, max_length=2)]
+Matrix = Annotated[list[Pair], Field(min_length=2, max_length=2)]
 
-    nu: float = Field(ge=0)  # damping ratio d_r / (2 omega m)
+
+def _general_problem(name: str, value: Pair | Matrix | None) -> None:
+    """A general machine's vector or matrix outside the model's domain (too large; a
+    support matrix without a rest position or that feeds energy in): PydanticCustomError."""
+    if value is None:
+        return
+    entries = [v for row in value for v in row] if name in ("stiffness", "damping") else value
+    for v in entries:
+        if abs(v) > model.MAX_MAGNITUDE:
+            raise PydanticCustomError(
+                "model_domain",
+                f"entries must be at most {model.MAX_MAGNITUDE:g} in size (the model's domain, "
+                "docs/cases.md)",
+            )
+    if name in ("stiffness", "damping"):
+        why = model.support_problem(name, value)
+        if why:
+            raise PydanticCustomError("support_matrix", why)
+
+
+class ModelSection(_Section):
+    """[model]: nondimensional parameters (notes section 1), and the general machine's
+    (docs/machines.md): all in the model's units (clearances, k_r clearance)."""
+
+    nu: float | None = Field(default=None, ge=0)  # damping ratio d_r / (2 omega m)
     eta: float | None = Field(default=None, gt=0)  # speed ratio Omega / omega (or [speed])
     e: float = Field(ge=0)  # unbalance eccentricity / clearance
     K: float = Field(gt=0)  # stator / rotor stiffness ratio
     mu: float = Field(default=0.0, ge=0)  # Coulomb friction coefficient
     Rp: float = Field(default=0.0, ge=0)  # rotor radius / clearance
     phi0: float = 0.0  # unbalance phase, rad
+    offset: Pair | None = None  # the stator's centre from the support's, clearances
+    load: Pair | None = None  # a static force on the rotor, units of k_r clearance
+    stiffness: Matrix | None = None  # the support stiffness matrix over k_r
+    damping: Matrix | None = None  # the support damping matrix (forces 2 D w'), or nu
 
     @field_validator("nu", "eta", "e", "K", "mu", "Rp", "phi0")
     @classmethod
     def _in_the_models_domain(cls, value: float | None, info) -> float | None:
         """The model's domain (``model.parameter_problem``), the rule a [physical] table's
         converted values are checked against too."""
-        if value is None:  # eta given by [speed]
+        if value is None:  # eta given by [speed]; nu by damping
             return value
         problem = model.parameter_problem(info.field_name, value)
         if problem:
             raise PydanticCustomError("model_domain", problem)
         return value
 
+    @field_validator("offset", "load", "stiffness", "damping")
+    @classmethod
+    def _general_in_domain(cls, value, info):
+        _general_problem(info.field_name, value)
+        return value
+
+    @model_validator(mode="after")
+    def _damping_once(self) -> ModelSection:
+        if self.nu is not None and self.damping is not None:
+            raise PydanticCustomError(
+                "damping_twice",
+                "damping: the support damping is given twice, as nu and as damping; give one "
+                "(damping = [[nu, 0], [0, nu]] is the isotropic nu)",
+            )
+        if self.nu is None and self.damping is None:
+            raise PydanticCustomError("damping_missing", "nu: missing (or give damping)")
+        return self
+
     def params(self) -> ModelParams:
-        return ModelParams(**self.model_dump())
+        return ModelParams(**machine_values(self.model_dump()))
+
+
+def machine_values(values: dict[str, Any]) -> dict[str, Any]:
+    """A [model] table's (or [physical]'s converted) values as ``ModelParams`` takes them:
+    the general machine's entries left out where not given, nu 0 with a damping matrix."""
+    out = {k: v for k, v in values.items() if v is not None or k == "eta"}
+    if out.get("damping") is not None:
+        out["nu"] = 0.0
+    return out
 
 
 class PhysicalSection(_Section):
@@ -181,7 +238,7 @@ class PhysicalSection(_Section):
 
     m: float = Field(gt=0)  # rotor mass, kg
     k_r: float = Field(gt=0)  # rotor (shaft) stiffness, N/m
-    d_r: float = Field(ge=0)  # rotor damping, N s/m
+    d_r: float | None = Field(default=None, ge=0)  # rotor damping, N s/m (or damping)
     k_s: float = Field(gt=0)  # stator stiffness, N/m
     clearance: float = Field(gt=0)  # radial clearance, m
     e: float = Field(ge=0)  # unbalance eccentricity, m
@@ -189,6 +246,27 @@ class PhysicalSection(_Section):
     Rp: float = Field(default=0.0, ge=0)  # rotor radius at the rub, m
     mu: float = Field(default=0.0, ge=0)  # Coulomb friction coefficient
     phi0: float = 0.0  # unbalance phase, rad
+    offset: Pair | None = None  # the stator's centre from the support's, m
+    load: Pair | None = None  # a static force on the rotor, N
+    stiffness: Matrix | None = None  # the support stiffness matrix, N/m (k_r the reference)
+    damping: Matrix | None = None  # the support damping matrix, N s/m (instead of d_r)
+
+    @field_validator("stiffness", "damping")
+    @classmethod
+    def _support(cls, value, info):
+        _general_problem(info.field_name, value)
+        return value
+
+    @model_validator(mode="after")
+    def _damping_once(self) -> PhysicalSection:
+        if self.d_r is not None and self.damping is not None:
+            raise PydanticCustomError(
+                "damping_twice",
+                "damping: the support damping is given twice, as d_r and as damping; give one",
+            )
+        if self.d_r is None and self.damping is None:
+            raise PydanticCustomError("damping_missing", "d_r: missing (or give damping)")
+        return self
 
 
 # =========================================================================== [speed]
@@ -1262,7 +1340,7 @@ class Case:
             "settings": self.settings.model_dump(mode="json"),
             "output_dir": str(self.output_dir),
             "nondimensional": {
-                "params": p.params.as_dict(),
+                "params": {**p.params.as_dict(), **p.params.machine_dict()},
                 "initial": dict(zip(("x", "y", "vx", "vy"), p.initial, strict=True)),
                 "t_span": list(p.t_span),
                 "n_samples": int(p.t_eval.size),
@@ -1485,8 +1563,8 @@ def assemble_case(
         # SI values can be valid one by one and still convert to nonsense (an overflow,
         # an underflow to 0): the converted values must lie in [model]'s domain.
         for name, value in values.items():
-            if value is None:  # eta from [speed]
-                continue
+            if value is None or name not in model.PARAMETER_SIGNS:  # eta from [speed]; the
+                continue  # general machine's vectors and matrices: ``_check_machine``
             why = model.parameter_problem(name, value)
             if why:
                 problems.append(f"{source}: physical: converts to {name} = {value!r}: {why}")
@@ -1494,6 +1572,7 @@ def assemble_case(
         assert settings.model is not None
         values = settings.model.model_dump()
         initial = (init.x, init.y, init.vx, init.vy)
+    values = machine_values(values)
     for name, value in zip(("x", "y", "vx", "vy"), initial, strict=True):
         why = _state_problem(value)
         if why:
@@ -1501,6 +1580,7 @@ def assemble_case(
             problems.append(f"{source}: initial.{name}: {converts}{why}")
     if problems:
         raise CaseError(problems)
+    _check_machine(settings, values, source)
     if settings.speed is not None:
         return _assemble_speed_case(settings, values, initial, scale, path, source)
     params = ModelParams(**values)
@@ -1534,6 +1614,43 @@ def assemble_case(
     return Case(settings=settings, problem=problem, scale=scale, path=path)
 
 
+# The methods a case on the general machine runs when [solver] names none: the analytic
+# methods' closed forms are the paper machine's (registry.GENERAL_MACHINE)
+GENERAL_MACHINE_METHODS = ["dop853-jit", "rk45"]
+
+
+def _check_machine(settings: CaseFile, values: dict[str, Any], source: str) -> None:
+    """The general machine's checks that need the whole machine: its converted values
+    (with [physical]), the methods that run it (the registry's ``GENERAL_MACHINE``), and
+    a driven rotor on it (not built). With no [solver] methods given, a general machine
+    runs ``GENERAL_MACHINE_METHODS``."""
+    where = "model" if settings.model is not None else "physical: converts to"
+    try:  # the machine alone: its speed (eta, perhaps from [speed]) plays no part here
+        machine = ModelParams(**{**values, "eta": 1.0})
+    except (TypeError, ValueError) as exc:
+        raise CaseError([f"{source}: {where}: {str(exc).removeprefix('ModelParams: ')}"]) from None
+    if machine.is_paper_machine:
+        return
+    if settings.speed is not None and settings.speed.driven:
+        raise CaseError(
+            [
+                f"{source}: speed.profile: a driven rotor runs on the paper's machine only (the "
+                "drive's equations have no offset, static load or anisotropic support)"
+            ]
+        )
+    if "methods" not in settings.solver.model_fields_set:
+        solver = settings.solver.model_copy(update={"methods": GENERAL_MACHINE_METHODS})
+        object.__setattr__(settings, "solver", solver)
+    lists = [("solver.methods", settings.solver.methods)]
+    if settings.compare is not None and settings.compare.methods is not None:
+        lists.append(("compare.methods", settings.compare.methods))
+    for name, methods in lists:
+        for method in methods:
+            why = registry.unsupported(method, registry.GENERAL_MACHINE)
+            if why:
+                raise CaseError([f"{source}: {name}: {why}"])
+
+
 def _sweep_resolution_problem(cfg: SweepSection, params: ModelParams) -> str | None:
     """Why the stiffest, slowest point of a sweep (largest K, smallest eta over its axes)
     cannot be resolved over its longest run, or None (``problem.resolution_problem``)."""
@@ -1543,7 +1660,7 @@ def _sweep_resolution_problem(cfg: SweepSection, params: ModelParams) -> str | N
             K = max(axis.resolved_values())
         elif axis.parameter == "eta":
             eta = min(axis.resolved_values())
-    worst = ModelParams(**{**params.as_dict(), "K": K, "eta": eta})
+    worst = dataclasses.replace(params, K=K, eta=eta)
     periods = max(cfg.transient_periods, cfg.record_periods, cfg.lyapunov_periods, 1)
     t_end = periods * worst.period
     if not t_end <= model.MAX_MAGNITUDE:

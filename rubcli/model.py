@@ -111,6 +111,16 @@ class ModelParams:
     # (its exact integral). rate = 0 is the constant speed of the paper.
     rate: float = 0.0
     tau0: float = 0.0
+    # The general machine (docs/machines.md); the defaults are the paper's machine.
+    # offset: the stator's centre from the rotor support's centre, in clearances;
+    # load: a static force on the rotor (gravity, a side load), in units of k_r clearance;
+    # stiffness: the support stiffness matrix S over k_r, ((k_xx, k_xy), (k_yx, k_yy));
+    # damping: the support damping matrix D, forces 2 D w' (None: nu I; an isotropic
+    # matrix is taken as its nu, and giving both a nonzero nu and a matrix is an error).
+    offset: tuple[float, float] = (0.0, 0.0)
+    load: tuple[float, float] = (0.0, 0.0)
+    stiffness: tuple[tuple[float, float], tuple[float, float]] = ((1.0, 0.0), (0.0, 1.0))
+    damping: tuple[tuple[float, float], tuple[float, float]] | None = None
 
     def __post_init__(self) -> None:
         for name in PARAMETER_SIGNS:
@@ -124,6 +134,27 @@ class ModelParams:
             if not (math.isfinite(value) and abs(value) <= MAX_MAGNITUDE):
                 raise ValueError(f"ModelParams: {name} must be finite (got {value!r})")
             object.__setattr__(self, name, value)
+        for name in ("offset", "load"):
+            object.__setattr__(self, name, _vector(name, getattr(self, name)))
+        object.__setattr__(self, "stiffness", _matrix("stiffness", self.stiffness))
+        why = support_problem("stiffness", self.stiffness)
+        if why:
+            raise ValueError(f"ModelParams: stiffness {why}")
+        if self.damping is not None:
+            damping = _matrix("damping", self.damping)
+            why = support_problem("damping", damping)
+            if why:
+                raise ValueError(f"ModelParams: damping {why}")
+            if self.nu != 0.0:
+                raise ValueError(
+                    "ModelParams: give the support damping as nu or as a damping matrix, "
+                    f"not both (nu = {self.nu!r} with damping = {damping!r})"
+                )
+            (dxx, dxy), (dyx, dyy) = damping
+            if dxy == 0.0 and dyx == 0.0 and dxx == dyy:  # isotropic: the paper's nu
+                object.__setattr__(self, "nu", dxx)
+                damping = None
+            object.__setattr__(self, "damping", damping)
 
     def speed(self, tau: FloatOrArray) -> FloatOrArray:
         """The speed ratio at tau: eta, or on a leg of a speed profile eta + rate (tau - tau0)."""
@@ -146,22 +177,155 @@ class ModelParams:
         return 2.0 * math.pi / self.eta
 
     def as_dict(self) -> dict[str, float]:
-        """The machine's parameters (without a speed profile's leg)."""
+        """The machine's scalar parameters (without a speed profile's leg and without the
+        general machine's vectors and matrices: ``machine_dict``)."""
         return {name: getattr(self, name) for name in PARAMETER_SIGNS}
+
+    @property
+    def damping_matrix(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """The support damping matrix D (nu I unless a matrix was given)."""
+        if self.damping is None:
+            return ((self.nu, 0.0), (0.0, self.nu))
+        return self.damping
+
+    @property
+    def is_paper_machine(self) -> bool:
+        """Whether this is the paper's machine: a concentric stator, no static load and an
+        isotropic support (S = I, D = nu I)."""
+        return (
+            self.offset == (0.0, 0.0)
+            and self.load == (0.0, 0.0)
+            and self.stiffness == ((1.0, 0.0), (0.0, 1.0))
+            and self.damping is None
+        )
+
+    def machine_dict(self) -> dict[str, list]:
+        """The general machine's entries that differ from the paper's machine, as lists
+        (what a case file's [model] holds)."""
+        out: dict[str, list] = {}
+        if self.offset != (0.0, 0.0):
+            out["offset"] = list(self.offset)
+        if self.load != (0.0, 0.0):
+            out["load"] = list(self.load)
+        if self.stiffness != ((1.0, 0.0), (0.0, 1.0)):
+            out["stiffness"] = [list(row) for row in self.stiffness]
+        if self.damping is not None:
+            out["damping"] = [list(row) for row in self.damping]
+        return out
+
+    @property
+    def static_force(self) -> tuple[float, float]:
+        """The constant force on the rotor in the model's coordinates (relative to the
+        stator's centre): the load less the support's pull towards its own centre,
+        ``g - S c``."""
+        (sxx, sxy), (syx, syy) = self.stiffness
+        cx, cy = self.offset
+        return self.load[0] - (sxx * cx + sxy * cy), self.load[1] - (syx * cx + syy * cy)
+
+    def static_position(self) -> tuple[float, float]:
+        """The rotor's rest position without contact and unbalance, in the model's
+        coordinates: the solution of ``S (d + c) = g``, less ``c``."""
+        (sxx, sxy), (syx, syy) = self.stiffness
+        gx, gy = self.static_force
+        det = sxx * syy - sxy * syx
+        return (syy * gx - sxy * gy) / det, (sxx * gy - syx * gx) / det
+
+
+def _vector(name: str, value: object) -> tuple[float, float]:
+    """``value`` as a pair of finite floats within the model's domain; TypeError or
+    ValueError naming ``ModelParams.name``."""
+    if isinstance(value, str) or not hasattr(value, "__len__") or len(value) != 2:
+        raise TypeError(f"ModelParams: {name} must be a pair [x, y] of real numbers")
+    pair = tuple(real_number("ModelParams", f"{name}[{i}]", v) for i, v in enumerate(value))
+    for i, v in enumerate(pair):
+        if not (math.isfinite(v) and abs(v) <= MAX_MAGNITUDE):
+            raise ValueError(
+                f"ModelParams: {name}[{i}] must be finite and at most {MAX_MAGNITUDE:g} in "
+                f"size (got {v!r})"
+            )
+    return pair[0] + 0.0, pair[1] + 0.0  # no -0.0: the paper's machine compares equal
+
+
+def _matrix(name: str, value: object) -> tuple[tuple[float, float], tuple[float, float]]:
+    """``value`` as a 2x2 matrix of finite floats (rows); TypeError or ValueError."""
+    if isinstance(value, str) or not hasattr(value, "__len__") or len(value) != 2:
+        raise TypeError(f"ModelParams: {name} must be a 2x2 matrix [[xx, xy], [yx, yy]]")
+    return _vector(f"{name}[0]", value[0]), _vector(f"{name}[1]", value[1])
+
+
+def support_problem(
+    name: str, matrix: tuple[tuple[float, float], tuple[float, float]]
+) -> str | None:
+    """Why a support matrix cannot be the machine's (without its value), or None.
+
+    The stiffness's symmetric part must be positive definite (else the rotor has no rest
+    position); the damping's positive semi-definite (else it feeds energy in). Their
+    antisymmetric parts are free: cross-coupled stiffness, gyroscopic damping."""
+    (a, b), (c, d) = matrix
+    off = 0.5 * (b + c)
+    det = a * d - off * off
+    if name == "stiffness" and not (a > 0.0 and d > 0.0 and det > 0.0):
+        return (
+            f"must have a positive-definite symmetric part (k_xx > 0, k_yy > 0 and "
+            f"k_xx k_yy > ((k_xy + k_yx)/2)^2; got {[list(matrix[0]), list(matrix[1])]}): "
+            "without it the rotor has no rest position"
+        )
+    if name == "damping" and not (a >= 0.0 and d >= 0.0 and det >= 0.0):
+        return (
+            f"must have a positive semi-definite symmetric part (d_xx >= 0, d_yy >= 0 and "
+            f"d_xx d_yy >= ((d_xy + d_yx)/2)^2; got {[list(matrix[0]), list(matrix[1])]}): "
+            "otherwise the support feeds energy in"
+        )
+    return None
 
 
 # The parameter record of the compiled cores: one float64 array (``params_vector``), read
 # by these names, never by position. A parameter of the machine is added here (and in
 # ``ModelParams`` and the case schema); the loops pass the record through unread.
 # e, rate and tau0 are read only where the speed changes (``unbalance_value``).
-PARAMETER_RECORD = ("nu", "eta", "E", "phi0", "K", "mu", "Rp", "e", "rate", "tau0")
-P_NU, P_ETA, P_E, P_PHI0, P_K, P_MU, P_RP, P_ECC, P_RATE, P_TAU0 = range(len(PARAMETER_RECORD))
+# The general machine enters as its departure from the paper's (``support_extra``): the
+# stiffness S - I (s_xx .. s_yy), the damping D - nu I (d_xx .. d_yy) and the constant
+# force g - S c (g_x, g_y); all 0 on the paper's machine.
+PARAMETER_RECORD = (
+    "nu", "eta", "E", "phi0", "K", "mu", "Rp", "e", "rate", "tau0",
+    "s_xx", "s_xy", "s_yx", "s_yy", "d_xx", "d_xy", "d_yx", "d_yy", "g_x", "g_y",
+)  # fmt: skip
+(
+    P_NU, P_ETA, P_E, P_PHI0, P_K, P_MU, P_RP, P_ECC, P_RATE, P_TAU0,
+    P_SXX, P_SXY, P_SYX, P_SYY, P_DXX, P_DXY, P_DYX, P_DYY, P_GX, P_GY,
+) = range(len(PARAMETER_RECORD))  # fmt: skip
 N_PARAMS = len(PARAMETER_RECORD)
 
 
 def params_vector(params: ModelParams) -> tuple[float, ...]:
     """The parameters as the cores take them, in the order of ``PARAMETER_RECORD``."""
-    return tuple(float(getattr(params, name)) for name in PARAMETER_RECORD)
+    (sxx, sxy), (syx, syy) = params.stiffness
+    (dxx, dxy), (dyx, dyy) = params.damping_matrix
+    nu = params.nu
+    extra = (sxx - 1.0, sxy, syx, syy - 1.0, dxx - nu, dxy, dyx, dyy - nu, *params.static_force)
+    scalars = tuple(float(getattr(params, name)) for name in PARAMETER_RECORD[:P_SXX])
+    return scalars + tuple(float(v) + 0.0 for v in extra)
+
+
+def support_extra(
+    x: FloatOrArray, y: FloatOrArray, vx: FloatOrArray, vy: FloatOrArray,
+    pars: np.ndarray | tuple[float, ...],
+) -> tuple[FloatOrArray, FloatOrArray]:  # fmt: skip
+    """The general machine's acceleration beyond the paper's (compilable core; scalars or
+    arrays): ``g - S c - (S - I) d - 2 (D - nu I) d'`` at the relative position ``d =
+    (x, y)`` and velocity ``d' = (vx, vy)``. Exactly 0 on the paper's machine, so that
+    adding it leaves the paper's numbers bit for bit."""
+    ax = (
+        pars[P_GX]
+        - (pars[P_SXX] * x + pars[P_SXY] * y)
+        - 2.0 * (pars[P_DXX] * vx + pars[P_DXY] * vy)
+    )
+    ay = (
+        pars[P_GY]
+        - (pars[P_SYX] * x + pars[P_SYY] * y)
+        - 2.0 * (pars[P_DYX] * vx + pars[P_DYY] * vy)
+    )
+    return ax, ay
 
 
 def friction_sign(regime: int) -> float:
@@ -394,13 +558,11 @@ def stick_friction(
     From the polar equations with (r theta')' = 0:
     ``T = E sin(eta tau + phi0 - theta) - r' theta' - 2 nu r theta'``. Positive T acts
     like friction opposing positive slip. Rolling holds while ``|T| <= mu K (z - 1)``.
-    Works on scalars and arrays.
+    Works on scalars and arrays. On the general machine the tangential part of
+    ``support_extra`` joins the applied force (``stick_friction_record``).
     """
     tau = np.asarray(tau, dtype=float)
-    p = params
-    return stick_friction_value(
-        tau, x, y, vx, vy, p.nu, p.eta, p.E, p.phi0, p.e, p.rate, p.tau0, p.Rp
-    )
+    return stick_friction_record(tau, x, y, vx, vy, params_vector(params))
 
 
 def tangential_force(
@@ -506,26 +668,103 @@ def rhs_jacobian_array(
     return jac
 
 
+def is_general_record(pars: np.ndarray | tuple[float, ...]) -> bool:
+    """Whether a record holds a general machine (any departure from the paper's machine
+    nonzero): a series or loop may then skip ``support_extra`` (compilable core)."""
+    for i in range(P_SXX, P_GY + 1):  # noqa: SIM110 (a loop numba compiles)
+        if pars[i] != 0.0:
+            return True
+    return False
+
+
+def add_support_extra(
+    x: float, y: float, vx: float, vy: float, ax: float, ay: float,
+    pars: np.ndarray | tuple[float, ...], regime: int,
+) -> tuple[float, float]:  # fmt: skip
+    """The paper machine's acceleration ``(ax, ay)`` with the general machine's
+    ``support_extra`` added (compilable core). ``(vx, vy)`` is the velocity the law was
+    evaluated at (projected in stick). In stick the rolling constraint fixes the
+    tangential acceleration: the friction takes up the extra force's tangential part, so
+    only its normal part is added."""
+    ex, ey = support_extra(x, y, vx, vy, pars)
+    if regime == STICK:
+        tangential = (ey * x - ex * y) / (x * x + y * y)
+        ex += tangential * y
+        ey -= tangential * x
+    return ax + ex, ay + ey
+
+
 def rhs_record(
     tau: float, x: float, y: float, vx: float, vy: float, pars: np.ndarray | tuple[float, ...],
     regime: int,
 ) -> tuple[float, float, float, float]:  # fmt: skip
-    """``rhs_entries`` with the parameters from a record (``params_vector``). Compilable
+    """The regime-locked right-hand side of the general machine, with the parameters from
+    a record (``params_vector``): ``rhs_entries`` plus ``support_extra``. Compilable
     core."""
-    return rhs_entries(
+    vx, vy, ax, ay = rhs_entries(
         tau, x, y, vx, vy, pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0], pars[P_K],
         pars[P_MU], pars[P_RP], regime, pars[P_ECC], pars[P_RATE], pars[P_TAU0],
     )  # fmt: skip
+    ax, ay = add_support_extra(x, y, vx, vy, ax, ay, pars, regime)
+    return vx, vy, ax, ay
 
 
 def rhs_jacobian_record(
     tau: float, x: float, y: float, vx: float, vy: float, pars: np.ndarray, regime: int
 ) -> np.ndarray:
-    """``rhs_jacobian_array`` with the parameters from a record. Compilable core."""
-    return rhs_jacobian_array(
+    """The Jacobian of ``rhs_record`` (compilable core): ``rhs_jacobian_array`` with the
+    general machine's linear terms, and in stick central differences of ``rhs_record``."""
+    if regime == STICK:
+        jac = np.zeros((4, 4))
+        s = np.array([x, y, vx, vy])
+        for j in range(4):
+            step = 1e-7 * max(1.0, abs(s[j]))
+            sp = s.copy()
+            sm = s.copy()
+            sp[j] += step
+            sm[j] -= step
+            fp = rhs_record(tau, sp[0], sp[1], sp[2], sp[3], pars, STICK)
+            fm = rhs_record(tau, sm[0], sm[1], sm[2], sm[3], pars, STICK)
+            for i in range(4):
+                jac[i, j] = (fp[i] - fm[i]) / (2 * step)
+        return jac
+    jac = rhs_jacobian_array(
         tau, x, y, vx, vy, pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0], pars[P_K],
         pars[P_MU], pars[P_RP], regime, pars[P_ECC], pars[P_RATE], pars[P_TAU0],
     )  # fmt: skip
+    jac[2, 0] -= pars[P_SXX]
+    jac[2, 1] -= pars[P_SXY]
+    jac[3, 0] -= pars[P_SYX]
+    jac[3, 1] -= pars[P_SYY]
+    jac[2, 2] -= 2.0 * pars[P_DXX]
+    jac[2, 3] -= 2.0 * pars[P_DXY]
+    jac[3, 2] -= 2.0 * pars[P_DYX]
+    jac[3, 3] -= 2.0 * pars[P_DYY]
+    return jac
+
+
+def stick_friction_record(
+    tau: FloatOrArray, x: FloatOrArray, y: FloatOrArray, vx: FloatOrArray, vy: FloatOrArray,
+    pars: np.ndarray | tuple[float, ...],
+) -> FloatOrArray:  # fmt: skip
+    """``stick_friction_value`` of the general machine, from a record (compilable core;
+    scalars or arrays): the paper's rolling force plus the tangential part of
+    ``support_extra``, which the friction must also hold."""
+    T = stick_friction_value(
+        tau, x, y, vx, vy, pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0], pars[P_ECC],
+        pars[P_RATE], pars[P_TAU0], pars[P_RP],
+    )  # fmt: skip
+    ex, ey = support_extra(x, y, vx, vy, pars)
+    return T + (ey * x - ex * y) / np.hypot(x, y)
+
+
+def zero_slip_regime_record(
+    tau: float, x: float, y: float, vx: float, vy: float, pars: np.ndarray | tuple[float, ...]
+) -> int:
+    """Filippov's rule at v_r = 0 on the general machine (``regime_at_zero_slip``;
+    compilable core)."""
+    needed = stick_friction_record(tau, x, y, vx, vy, pars)
+    return filippov_regime(needed, pars[P_MU] * pars[P_K] * (math.hypot(x, y) - 1.0))
 
 
 def _rhs_args(tau, s, params: ModelParams, regime: int):
@@ -611,11 +850,9 @@ def regime_at_zero_slip(tau: float, s: Sequence[float] | np.ndarray, params: Mod
     is taken only if v_r leaves zero in it: slip+ if T > L, slip- if T < -L; otherwise
     neither is consistent and the rotor sticks (rolls).
     """
-    p = params
-    return zero_slip_regime_value(
-        float(tau), s[0], s[1], s[2], s[3], p.nu, p.eta, p.E, p.phi0, p.K, p.mu, p.e, p.rate,
-        p.tau0, p.Rp,
-    )  # fmt: skip
+    return zero_slip_regime_record(
+        float(tau), float(s[0]), float(s[1]), float(s[2]), float(s[3]), params_vector(params)
+    )
 
 
 def project_to_rolling(

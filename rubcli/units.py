@@ -55,7 +55,7 @@ def nondimensional_values(
     *,
     m: float,
     k_r: float,
-    d_r: float,
+    d_r: float | None,
     k_s: float,
     clearance: float,
     e: float,
@@ -63,24 +63,44 @@ def nondimensional_values(
     Rp: float = 0.0,
     mu: float = 0.0,
     phi0: float = 0.0,
-) -> tuple[dict[str, float], PhysicalScale]:
+    offset: tuple[float, float] | None = None,
+    load: tuple[float, float] | None = None,
+    stiffness: tuple[tuple[float, float], tuple[float, float]] | None = None,
+    damping: tuple[tuple[float, float], tuple[float, float]] | None = None,
+) -> tuple[dict, PhysicalScale]:
     """The nondimensional parameters (by name, not yet checked against the model's domain:
     SI values valid one by one can convert to an overflow or an underflow to 0) and the
-    scale, from SI values (notes section 1).
+    scale, from SI values (notes section 1; docs/machines.md for the general machine).
 
-    ``d_r`` in N s/m, ``e`` and ``Rp`` in m, ``Omega`` in rad/s, ``phi0`` in rad.
+    ``d_r`` in N s/m, ``e`` and ``Rp`` in m, ``Omega`` in rad/s, ``phi0`` in rad; the
+    general machine's ``offset`` in m, ``load`` in N, ``stiffness`` in N/m (over k_r, the
+    reference) and ``damping`` in N s/m (over 2 omega m, as d_r; None: d_r).
     """
     scale = physical_scale(m, k_r, k_s, clearance)
+    damping_unit = 2.0 * scale.omega * m
     values = {
-        "nu": d_r / (2.0 * scale.omega * m),
+        "nu": d_r / damping_unit if d_r is not None else None,
         "eta": Omega / scale.omega if Omega is not None else None,
         "e": e / clearance,
         "K": k_s / k_r,
         "mu": mu,
         "Rp": Rp / clearance,
         "phi0": phi0,
+        "offset": _scaled(offset, clearance),
+        "load": _scaled(load, scale.force),
+        "stiffness": _scaled(stiffness, k_r),
+        "damping": _scaled(damping, damping_unit),
     }
     return values, scale
+
+
+def _scaled(value, unit: float):
+    """A vector or a 2x2 matrix (nested sequences) over ``unit``; None stays None."""
+    if value is None:
+        return None
+    if isinstance(value[0], float | int):
+        return tuple(v / unit for v in value)
+    return tuple(tuple(v / unit for v in row) for row in value)
 
 
 RAD_PER_S = {"rpm": 2.0 * math.pi / 60.0, "rad/s": 1.0}
@@ -100,7 +120,10 @@ def nondimensional_params(**si: float) -> tuple[ModelParams, PhysicalScale]:
     """``nondimensional_values`` as ``ModelParams`` (ValueError naming a parameter that
     converts outside the model's domain)."""
     values, scale = nondimensional_values(**si)
-    return ModelParams(**values), scale
+    general = {k: v for k, v in values.items() if v is not None or k == "eta"}
+    if general.get("damping") is not None:
+        general["nu"] = 0.0
+    return ModelParams(**general), scale
 
 
 def nondimensional_state(

@@ -81,8 +81,11 @@ RICHARDSON_FACTOR = 15.0  # 2^4 - 1: order-4 rule on h and 2h
 SMALL_SHIFT = 1e-4  # phase shifts below this: cos and sin by their Taylor series
 
 # Columns of the power array: unbalance, damping, friction on the translation
-# (-T r theta'), contact dissipation (T v_r), spin drive (T Rp eta), and |P_in|.
-_IN, _DAMP, _FRIC, _SLIP, _SPIN, _ABS_IN, _ABS_FRIC = range(7)
+# (-T r theta'), contact dissipation (T v_r), spin drive (T Rp eta), |P_in|, |T r theta'|,
+# and on the general machine the cross-coupled stiffness's work on the rotor
+# (-w'^T S_anti w) and its magnitude.
+_IN, _DAMP, _FRIC, _SLIP, _SPIN, _ABS_IN, _ABS_FRIC, _CROSS, _ABS_CROSS = range(9)
+N_TERMS = 9
 
 
 @dataclass(frozen=True)
@@ -107,6 +110,8 @@ class EnergyBalance:
     throughput: float
     quadrature_error: float  # relative to throughput (see module docstring)
     n_pieces: int = 0
+    # the general machine's cross-coupled stiffness's work on the rotor (None: 0)
+    cross_coupling: np.ndarray | None = None
 
     @property
     def energy(self) -> np.ndarray:
@@ -116,7 +121,8 @@ class EnergyBalance:
     @property
     def residual(self) -> np.ndarray:
         delta = self.energy - self.energy[0]
-        return delta - (self.work_unbalance - self.damping - self.friction)
+        cross = 0.0 if self.cross_coupling is None else self.cross_coupling
+        return delta - (self.work_unbalance - self.damping - self.friction + cross)
 
     @property
     def relative_residual(self) -> float:
@@ -141,8 +147,14 @@ class EnergyBalance:
             "friction_dissipation": float(self.friction[-1]),
             "contact_dissipation": float(self.contact_dissipation[-1]),
             "spin_drive_work": float(self.spin_drive[-1]),
+            **_cross_entry(0.0 if self.cross_coupling is None else self.cross_coupling[-1]),
             "energy_throughput": self.throughput,
         }
+
+
+def _cross_entry(work: float) -> dict[str, float]:
+    """The cross-coupling's work for a report, where there is any (general machine)."""
+    return {"cross_coupling_work": float(work)} if work != 0.0 else {}
 
 
 # ----------------------------------------------------------------------- pointwise terms
@@ -153,6 +165,8 @@ def mechanical_energy(
 ) -> tuple:
     """Kinetic 1/2 |v|^2, rotor spring 1/2 z^2, stator 1/2 K (z-1)^2 in contact (else 0).
 
+    On the general machine the rotor spring is the support's and the load's potential,
+    ``1/2 w^T S_sym w - g . w`` at the rotor's position ``w = d + c``.
     ``states`` has shape (n, 4) (or (4,)); ``regime`` is a code or an array of codes.
     """
     S = np.atleast_2d(np.asarray(states, dtype=float))
@@ -160,7 +174,7 @@ def mechanical_energy(
     z = np.hypot(x, y)
     in_contact = np.asarray(regime) != model.FREE
     kinetic = 0.5 * (vx * vx + vy * vy)
-    spring = 0.5 * z * z
+    spring = 0.5 * z * z if params.is_paper_machine else support_potential(x, y, params)
     stator = np.where(in_contact, 0.5 * params.K * (z - 1.0) ** 2, 0.0)
     return kinetic, spring, np.broadcast_to(stator, z.shape).astype(float)
 
@@ -180,6 +194,9 @@ def accelerations(
     phase = params.eta * tau + params.phi0
     ax = params.E * np.cos(phase) - 2.0 * params.nu * vx - x
     ay = params.E * np.sin(phase) - 2.0 * params.nu * vy - y
+    if not params.is_paper_machine:  # the stick friction below holds its tangential part
+        ex, ey = model.support_extra(x, y, vx, vy, model.params_vector(params))
+        ax, ay = ax + ex, ay + ey
     if regime == model.STICK:
         z = np.hypot(x, y)
         normal = model.normal_force(x, y, params.K)
@@ -199,7 +216,7 @@ def powers(
     regime: int,
     phase: tuple[FloatOrArray, FloatOrArray] | None = None,
 ) -> np.ndarray:
-    """Power terms at states (shape (n, 4)) in one regime: array (n, 7).
+    """Power terms at states (shape (n, 4)) in one regime: array (n, N_TERMS).
 
     Columns: unbalance P_in, damping 2 nu |v|^2, friction on the translation -T r theta',
     contact dissipation T v_r, spin drive T Rp eta, |P_in|, |T r theta'|. ``phase``:
@@ -221,8 +238,14 @@ def powers(
             angle = params.eta * tau + params.phi0
             phase = (np.cos(angle), np.sin(angle))
         p_in = params.E * (phase[0] * vx + phase[1] * vy)
-    p_damp = 2.0 * params.nu * (vx * vx + vy * vy)
-    out = np.zeros((S.shape[0], 7))
+    out = np.zeros((S.shape[0], N_TERMS))
+    if params.is_paper_machine:
+        p_damp = 2.0 * params.nu * (vx * vx + vy * vy)
+    else:  # 2 w'^T D w' (the antisymmetric part does no work), the cross-coupling's work
+        (dxx, dxy), (dyx, dyy) = params.damping_matrix
+        p_damp = 2.0 * (dxx * vx * vx + (dxy + dyx) * vx * vy + dyy * vy * vy)
+        out[:, _CROSS] = cross_coupling_power(x, y, vx, vy, params)
+        out[:, _ABS_CROSS] = np.abs(out[:, _CROSS])
     out[:, _IN], out[:, _DAMP], out[:, _ABS_IN] = p_in, p_damp, np.abs(p_in)
     if regime != model.FREE:
         T = model.tangential_force(tau, x, y, vx, vy, params, regime)
@@ -236,11 +259,33 @@ def powers(
     return out
 
 
+def support_potential(x: FloatOrArray, y: FloatOrArray, params: model.ModelParams) -> FloatOrArray:
+    """``1/2 w^T S_sym w - g . w`` at the rotor's position ``w = (x, y) + c``: the
+    general machine's support and load potential (the paper's ``1/2 z^2``)."""
+    (sxx, sxy), (syx, syy) = params.stiffness
+    wx, wy = x + params.offset[0], y + params.offset[1]
+    quadratic = sxx * wx * wx + (sxy + syx) * wx * wy + syy * wy * wy
+    return 0.5 * quadratic - (params.load[0] * wx + params.load[1] * wy)
+
+
+def cross_coupling_power(
+    x: FloatOrArray, y: FloatOrArray, vx: FloatOrArray, vy: FloatOrArray,
+    params: model.ModelParams,
+) -> FloatOrArray:  # fmt: skip
+    """The cross-coupled stiffness's power on the rotor, ``-w'^T S_anti w`` with
+    ``S_anti = q [[0, 1], [-1, 0]]``, ``q = (k_xy - k_yx) / 2``: positive in a forward
+    whirl when q > 0 (it feeds the whirl; docs/machines.md)."""
+    (_, sxy), (syx, _) = params.stiffness
+    q = 0.5 * (sxy - syx)
+    wx, wy = x + params.offset[0], y + params.offset[1]
+    return q * (vy * wx - vx * wy)
+
+
 # ---------------------------------------------------------------------------- quadrature
 
 
 def _node_powers_and_rates(tau: np.ndarray, states: np.ndarray, params, regime: int):
-    """The powers ``P`` at the nodes and their rates ``P'`` (both shape (n, 7)): central
+    """The powers ``P`` at the nodes and their rates ``P'`` (both shape (n, N_TERMS)): central
     differences of the powers along the motion, ``s +- delta (v, a)``, with the
     accelerations of the piece's regime; ``delta`` is 1e-5 of the local node spacing.
     The absolute-value columns (scales only) get no rate."""
@@ -256,7 +301,7 @@ def _node_powers_and_rates(tau: np.ndarray, states: np.ndarray, params, regime: 
     forward = powers(tau + delta[:, 0], states + delta * rate, params, regime, ahead)
     backward = powers(tau - delta[:, 0], states - delta * rate, params, regime, behind)
     dP = (forward - backward) / (2.0 * delta)
-    dP[:, [_ABS_IN, _ABS_FRIC]] = 0.0
+    dP[:, [_ABS_IN, _ABS_FRIC, _ABS_CROSS]] = 0.0
     return P, dP
 
 
@@ -272,7 +317,7 @@ def shift_rotation(a: FloatOrArray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _corrected_trapezoid(tau: np.ndarray, P: np.ndarray, dP: np.ndarray) -> np.ndarray:
-    """Integrals over each interval [tau_k, tau_k+1] (shape (n - 1, 7)) of the cubic
+    """Integrals over each interval [tau_k, tau_k+1] (shape (n - 1, N_TERMS)) of the cubic
     Hermite interpolant of each power: ``h/2 (P_k + P_k+1) + h^2/12 (P'_k - P'_k+1)``
     (for the absolute-value columns, whose rates are zero, the plain trapezoid rule)."""
     h = np.diff(tau)
@@ -280,7 +325,7 @@ def _corrected_trapezoid(tau: np.ndarray, P: np.ndarray, dP: np.ndarray) -> np.n
 
 
 def _coarse_estimate(piece: Piece, fine: np.ndarray, P: np.ndarray, dP: np.ndarray) -> np.ndarray:
-    """Estimated quadrature error of a piece's integrals (7 columns), see module docstring:
+    """Estimated quadrature error of a piece's integrals (N_TERMS columns), see module docstring:
     the rule on every other node (and the last), with the same nodal powers and rates."""
     n = piece.tau.size
     if n >= 3:
@@ -294,8 +339,10 @@ def _coarse_estimate(piece: Piece, fine: np.ndarray, P: np.ndarray, dP: np.ndarr
 
 
 def _balance_combination(integrals: np.ndarray) -> np.ndarray:
-    """W_in - D_damp - D_fric from integral columns (D_fric = -int P_fric)."""
-    return integrals[..., _IN] - integrals[..., _DAMP] + integrals[..., _FRIC]
+    """W_in - D_damp - D_fric + W_cross from integral columns (D_fric = -int P_fric)."""
+    return (
+        integrals[..., _IN] - integrals[..., _DAMP] + integrals[..., _FRIC] + integrals[..., _CROSS]
+    )
 
 
 def _kernel_inputs(solution: Solution):
@@ -307,7 +354,9 @@ def _kernel_inputs(solution: Solution):
     b = piece_bounds(solution)
     t = np.ascontiguousarray(solution.t, dtype=float)
     states = np.ascontiguousarray(solution.states, dtype=float)
-    pv = np.array([*model.params_vector(solution.problem.params), DERIVATIVE_STEP, SMALL_SHIFT])
+    params = solution.problem.params
+    pv = np.array([*model.params_vector(params), DERIVATIVE_STEP, SMALL_SHIFT, *params.offset,
+                   *params.load])  # fmt: skip
     return b, (t, states, b.regime, b.start_tau, b.start_state, b.end_tau, b.end_state,
                b.lo, b.hi, pv)  # fmt: skip
 
@@ -317,7 +366,9 @@ def _pass(solution: Solution, cum: np.ndarray, energies: np.ndarray):
 
     bounds, args = _kernel_inputs(solution)
     running, quad_sum, first, last, largest = balance_pass(*args, cum, energies)
-    throughput = float(running[_ABS_IN] + running[_DAMP] + running[_ABS_FRIC] + largest)
+    throughput = float(
+        running[_ABS_IN] + running[_DAMP] + running[_ABS_FRIC] + running[_ABS_CROSS] + largest
+    )
     quad = quad_sum / throughput if throughput > 0.0 else 0.0
     return running, float(first), float(last), throughput, float(quad), bounds.size
 
@@ -337,13 +388,15 @@ class EnergyTotals:
     throughput: float
     quadrature_error: float
     n_pieces: int = 0
+    cross_coupling: float = 0.0
 
     @property
     def relative_residual(self) -> float:
         if self.n_pieces == 0:
             return 0.0
         delta = self.energy_last - self.energy_first
-        final = abs(delta - (self.work_unbalance - self.damping - self.friction))
+        gained = self.work_unbalance - self.damping - self.friction + self.cross_coupling
+        final = abs(delta - gained)
         if self.throughput > 0.0:
             return final / self.throughput
         return 0.0 if final == 0.0 else float("inf")
@@ -361,6 +414,7 @@ class EnergyTotals:
             "friction_dissipation": self.friction,
             "contact_dissipation": self.contact_dissipation,
             "spin_drive_work": self.spin_drive,
+            **_cross_entry(self.cross_coupling),
             "energy_throughput": self.throughput,
         }
 
@@ -371,7 +425,7 @@ def energy_totals(solution: Solution) -> EnergyTotals:
     if solution.t.size == 0:
         return EnergyTotals(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     running, first, last, throughput, quad, n_pieces = _pass(
-        solution, np.zeros((0, 7)), np.zeros((0, 3))
+        solution, np.zeros((0, N_TERMS)), np.zeros((0, 3))
     )
     return EnergyTotals(
         energy_first=first,
@@ -384,6 +438,7 @@ def energy_totals(solution: Solution) -> EnergyTotals:
         throughput=throughput,
         quadrature_error=quad,
         n_pieces=n_pieces,
+        cross_coupling=float(running[_CROSS]),
     )
 
 
@@ -400,12 +455,14 @@ def energy_balance(solution: Solution) -> EnergyBalance:
         )
     bounds, args = _kernel_inputs(solution)
     nodes = bounds.n_nodes
-    cum = np.empty((nodes, 7))
+    cum = np.empty((nodes, N_TERMS))
     energies = np.empty((nodes, 3))
     from rubcli.analysis.energy_kernel import balance_pass
 
     running, quad_sum, _, _, largest = balance_pass(*args, cum, energies)
-    throughput = float(running[_ABS_IN] + running[_DAMP] + running[_ABS_FRIC] + largest)
+    throughput = float(
+        running[_ABS_IN] + running[_DAMP] + running[_ABS_FRIC] + running[_ABS_CROSS] + largest
+    )
     tau = np.empty(nodes)
     offset = 0
     t = args[0]
@@ -425,17 +482,17 @@ def energy_balance(solution: Solution) -> EnergyBalance:
 def energy_balance_numpy(solution: Solution) -> EnergyBalance:
     """``energy_balance`` computed on whole arrays with numpy, piece by piece (the Python
     path: the reference the compiled one-pass core is tested against; it holds several
-    arrays of (samples, 7) at once)."""
+    arrays of (samples, N_TERMS) at once)."""
     params = solution.problem.params
     pieces = solution_pieces(solution)
     taus, states, regimes, cumulative = [], [], [], []
-    running = np.zeros(7)
+    running = np.zeros(N_TERMS)
     quad_error = 0.0
     for piece in pieces:
         P, dP = _node_powers_and_rates(piece.tau, piece.states, params, piece.regime)
         fine = _corrected_trapezoid(piece.tau, P, dP)
         quad_error += abs(float(_balance_combination(_coarse_estimate(piece, fine, P, dP))))
-        sums = running + np.vstack((np.zeros(7), np.cumsum(fine, axis=0)))
+        sums = running + np.vstack((np.zeros(N_TERMS), np.cumsum(fine, axis=0)))
         taus.append(piece.tau)
         states.append(piece.states)
         regimes.append(np.full(piece.tau.size, piece.regime))
@@ -452,7 +509,11 @@ def energy_balance_numpy(solution: Solution) -> EnergyBalance:
     kinetic, spring, stator = mechanical_energy(S, params, np.concatenate(regimes))
     energy = kinetic + spring + stator
     throughput = float(
-        running[_ABS_IN] + running[_DAMP] + running[_ABS_FRIC] + np.max(np.abs(energy))
+        running[_ABS_IN]
+        + running[_DAMP]
+        + running[_ABS_FRIC]
+        + running[_ABS_CROSS]
+        + np.max(np.abs(energy))
     )
     return _balance(tau, kinetic, spring, stator, cum, throughput, quad_error, len(pieces))
 
@@ -473,6 +534,7 @@ def _balance(tau, kinetic, spring, stator, cum, throughput, quad_sum, n_pieces) 
         throughput=throughput,
         quadrature_error=quad_sum / throughput if throughput > 0.0 else 0.0,
         n_pieces=n_pieces,
+        cross_coupling=cum[:, _CROSS],
     )
 
 

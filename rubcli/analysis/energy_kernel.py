@@ -18,22 +18,65 @@ import numba
 import numpy as np
 
 from rubcli import model
-from rubcli.model import N_PARAMS, P_E, P_ETA, P_K, P_MU, P_NU, P_PHI0, P_RP
+from rubcli.model import (
+    N_PARAMS,
+    P_DXX,
+    P_DXY,
+    P_DYX,
+    P_DYY,
+    P_E,
+    P_ETA,
+    P_K,
+    P_MU,
+    P_NU,
+    P_PHI0,
+    P_RP,
+    P_SXX,
+    P_SXY,
+    P_SYX,
+    P_SYY,
+)
 
 jit = numba.njit(cache=True, nogil=True)  # runs beside the CSV thread (io.Background)
 # The per-node helpers are inlined in numba's IR: called, each would count references to
 # every array it is handed (atomic increments and decrements, most of a node's cost).
 jit_inline = numba.njit(cache=True, nogil=True, inline="always")
 
-_stick_friction = jit(model.stick_friction_value)
+_stick_friction = jit(model.stick_friction_record)
 _friction_sign = jit(model.friction_sign)
+_support_extra = jit(model.support_extra)
+_is_general = jit(model.is_general_record)
 
 FREE, STICK = model.FREE, model.STICK
-# Columns, as energy._IN ... energy._ABS_FRIC
-_IN, _DAMP, _FRIC, _SLIP, _SPIN, _ABS_IN, _ABS_FRIC = range(7)
-N_TERMS = 7
-# After the model's parameter record, ``pv`` carries energy.DERIVATIVE_STEP and SMALL_SHIFT
+# Columns, as energy._IN ... energy._ABS_CROSS
+_IN, _DAMP, _FRIC, _SLIP, _SPIN, _ABS_IN, _ABS_FRIC, _CROSS, _ABS_CROSS = range(9)
+N_TERMS = 9
+# After the model's parameter record, ``pv`` carries energy.DERIVATIVE_STEP and
+# SMALL_SHIFT, then the general machine's offset c and load g (its potential and the
+# cross-coupling's power are taken at the rotor's position w = d + c)
 _DERIVATIVE_STEP, _SMALL_SHIFT = N_PARAMS, N_PARAMS + 1
+_CX, _CY, _GX, _GY = N_PARAMS + 2, N_PARAMS + 3, N_PARAMS + 4, N_PARAMS + 5
+
+
+@jit_inline
+def _support_potential(x, y, pv):
+    """``energy.support_potential`` of one state from ``pv``."""
+    wx, wy = x + pv[_CX], y + pv[_CY]
+    sxx, syy = 1.0 + pv[P_SXX], 1.0 + pv[P_SYY]
+    quadratic = sxx * wx * wx + (pv[P_SXY] + pv[P_SYX]) * wx * wy + syy * wy * wy
+    return 0.5 * quadratic - (pv[_GX] * wx + pv[_GY] * wy)
+
+
+@jit_inline
+def _general_powers(x, y, vx, vy, pv, out):
+    """The general machine's damping power 2 w'^T D w' and the cross-coupling's
+    (``energy.cross_coupling_power``) into out."""
+    dxx, dyy = pv[P_NU] + pv[P_DXX], pv[P_NU] + pv[P_DYY]
+    out[_DAMP] = 2.0 * (dxx * vx * vx + (pv[P_DXY] + pv[P_DYX]) * vx * vy + dyy * vy * vy)
+    q = 0.5 * (pv[P_SXY] - pv[P_SYX])
+    cross = q * (vy * (x + pv[_CX]) - vx * (y + pv[_CY]))
+    out[_CROSS] = cross
+    out[_ABS_CROSS] = abs(cross)
 
 
 @jit_inline
@@ -55,13 +98,19 @@ def _node(k, n, p, t, states, start_tau, start_state, end_tau, end_state, lo, ou
 
 
 @jit_inline
-def _powers_at(c, s, tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu, Rp, regime, out):
-    """``energy.powers`` of one state into out[0:7], given c, s = cos, sin(eta tau + phi0)
-    and z = hypot(x, y) (used in contact only)."""
+def _powers_at(c, s, tau, x, y, vx, vy, z, pv, general, regime, out):
+    """``energy.powers`` of one state into out[0:N_TERMS], given c, s = cos, sin(eta tau +
+    phi0) and z = hypot(x, y) (used in contact only)."""
+    nu, eta, E, K, mu, Rp = pv[P_NU], pv[P_ETA], pv[P_E], pv[P_K], pv[P_MU], pv[P_RP]
     p_in = E * (c * vx + s * vy)
     out[_IN] = p_in
-    out[_DAMP] = 2.0 * nu * (vx * vx + vy * vy)
     out[_ABS_IN] = abs(p_in)
+    if general:
+        _general_powers(x, y, vx, vy, pv, out)
+    else:
+        out[_DAMP] = 2.0 * nu * (vx * vx + vy * vy)
+        out[_CROSS] = 0.0
+        out[_ABS_CROSS] = 0.0
     if regime == FREE:
         out[_FRIC] = 0.0
         out[_SLIP] = 0.0
@@ -69,7 +118,7 @@ def _powers_at(c, s, tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu, Rp, regime, 
         out[_ABS_FRIC] = 0.0
         return
     if regime == STICK:
-        T = _stick_friction(tau, x, y, vx, vy, nu, eta, E, phi0)
+        T = _stick_friction(tau, x, y, vx, vy, pv)
     else:
         T = _friction_sign(regime) * mu * K * (z - 1.0)
     whirl = (x * vy - y * vx) / z
@@ -82,23 +131,26 @@ def _powers_at(c, s, tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu, Rp, regime, 
 
 @jit_inline
 def _shifted_powers(c, s, tau, x, y, vx, vy, pv, regime, out):
-    """``energy.powers`` of one state (a node's shifted along the motion) into out[0:7],
-    given the cos and sin of its phase."""
-    nu, eta, E, phi0 = pv[P_NU], pv[P_ETA], pv[P_E], pv[P_PHI0]
-    K, mu, Rp = pv[P_K], pv[P_MU], pv[P_RP]
+    """``energy.powers`` of one state (a node's shifted along the motion) into
+    out[0:N_TERMS], given the cos and sin of its phase."""
     z = np.hypot(x, y) if regime != FREE else 0.0
-    _powers_at(c, s, tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu, Rp, regime, out)
+    _powers_at(c, s, tau, x, y, vx, vy, z, pv, _is_general(pv), regime, out)
 
 
 @jit_inline
-def _accelerations(c, s, tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu, regime):
+def _accelerations(c, s, tau, x, y, vx, vy, z, pv, general, regime):
     """``energy.accelerations`` of one state: (ax, ay), given c, s = cos, sin(eta tau +
     phi0) and z = hypot(x, y)."""
+    nu, E, K, mu = pv[P_NU], pv[P_E], pv[P_K], pv[P_MU]
     ax = E * c - 2.0 * nu * vx - x
     ay = E * s - 2.0 * nu * vy - y
+    if general:  # the stick friction below holds its tangential part
+        ex, ey = _support_extra(x, y, vx, vy, pv)
+        ax += ex
+        ay += ey
     if regime == STICK:
         normal = K * (z - 1.0) if z > 1.0 else 0.0
-        tangential = _stick_friction(tau, x, y, vx, vy, nu, eta, E, phi0)
+        tangential = _stick_friction(tau, x, y, vx, vy, pv)
         ax = ax - (normal * x - tangential * y) / z
         ay = ay - (normal * y + tangential * x) / z
     elif regime != FREE:
@@ -114,15 +166,15 @@ def _power_and_rate(node, spacing, pv, regime, P, dP, shifted):
     """Powers P at a node and their rates dP (central differences along the motion);
     returns z = hypot(x, y) at the node. The phase's cos and sin and z are computed once
     for the powers and the accelerations (the same values the two would compute)."""
-    nu, eta, E, phi0 = pv[P_NU], pv[P_ETA], pv[P_E], pv[P_PHI0]
-    K, mu, Rp = pv[P_K], pv[P_MU], pv[P_RP]
+    eta = pv[P_ETA]
+    general = _is_general(pv)
     tau, x, y, vx, vy = node[0], node[1], node[2], node[3], node[4]
-    phase = eta * tau + phi0
+    phase = eta * tau + pv[P_PHI0]
     c = np.cos(phase)
     s = np.sin(phase)
     z = np.hypot(x, y)
-    _powers_at(c, s, tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu, Rp, regime, P)
-    ax, ay = _accelerations(c, s, tau, x, y, vx, vy, z, nu, eta, E, phi0, K, mu, regime)
+    _powers_at(c, s, tau, x, y, vx, vy, z, pv, general, regime, P)
+    ax, ay = _accelerations(c, s, tau, x, y, vx, vy, z, pv, general, regime)
     delta = pv[_DERIVATIVE_STEP] * spacing
     a = eta * delta  # the phase at tau +- delta: the node's rotated by +-a (energy.shift_rotation)
     if abs(a) < pv[_SMALL_SHIFT]:
@@ -143,6 +195,7 @@ def _power_and_rate(node, spacing, pv, regime, P, dP, shifted):
         dP[i] = (dP[i] - shifted[i]) / (2.0 * delta)
     dP[_ABS_IN] = 0.0
     dP[_ABS_FRIC] = 0.0
+    dP[_ABS_CROSS] = 0.0
     return z
 
 
@@ -158,6 +211,7 @@ def _piece_pass(p, n, t, states, bounds, pv, regime, fine, coarse, cum_out, ener
     magnitude."""
     start_tau, start_state, end_tau, end_state, lo = bounds
     K = pv[P_K]
+    general = _is_general(pv)
     prev = np.empty(5)
     cur = np.empty(5)
     nxt = np.empty(5)
@@ -199,7 +253,7 @@ def _piece_pass(p, n, t, states, bounds, pv, regime, fine, coarse, cum_out, ener
                 coarse[i] = 0.5 * (P_prev[i] + P[i]) * span
         vx, vy = cur[3], cur[4]
         kinetic = 0.5 * (vx * vx + vy * vy)
-        spring = 0.5 * z * z
+        spring = _support_potential(cur[1], cur[2], pv) if general else 0.5 * z * z
         stator = 0.5 * K * (z - 1.0) ** 2 if regime != FREE else 0.0
         energy = kinetic + spring + stator
         if k == 0:
@@ -234,9 +288,9 @@ def balance_pass(
     limit of the power rates (``energy.DERIVATIVE_STEP``, ``energy.SMALL_SHIFT``).
 
     Returns ``(running, quad_sum, energy_first, energy_last, energy_max_abs)``: the
-    integrals of the 7 power columns over the whole span, the summed |W - D + F| of the
+    integrals of the N_TERMS power columns over the whole span, the summed |W - D + F| of the
     per-piece quadrature-error estimates, and the mechanical energy at the first and last
-    node and its largest magnitude. With ``cum_out`` of shape (nodes, 7) and
+    node and its largest magnitude. With ``cum_out`` of shape (nodes, N_TERMS) and
     ``energy_out`` of shape (nodes, 3) (else shape (0, ...)) the cumulative integrals and
     the kinetic, rotor-spring and stator energies at every node are written too.
     """
@@ -256,7 +310,7 @@ def balance_pass(
         divisor = 15.0 if n >= 3 else 1.0  # Richardson (order 4), or against the trapezoid
         for i in range(N_TERMS):
             coarse[i] = abs(fine[i] - coarse[i]) / divisor
-        quad_sum += abs(coarse[_IN] - coarse[_DAMP] + coarse[_FRIC])
+        quad_sum += abs(coarse[_IN] - coarse[_DAMP] + coarse[_FRIC] + coarse[_CROSS])
         if p == 0:
             energy_first = first
         energy_last = last

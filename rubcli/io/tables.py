@@ -47,6 +47,10 @@ CSV_COLUMNS = (
 # (rad, the exact integral of the speed), and with [physical] the speed in rpm.
 CSV_SPEED_COLUMNS = ("eta", "phase")
 CSV_SPEED_PHYSICAL_COLUMNS = ("speed_rpm",)
+# an offset stator: x, y are the rotor's centre relative to the stator's (the model's
+# coordinates); these are the rotor's position about its support's centre, x + c
+CSV_OFFSET_COLUMNS = ("rotor_x", "rotor_y")
+CSV_OFFSET_PHYSICAL_COLUMNS = ("rotor_x_m", "rotor_y_m")
 # a driven rotor: the motor's torque less the bearing drag, and the rub's, on the spin
 CSV_DRIVE_COLUMNS = ("drive_torque", "rub_torque")
 CSV_DRIVE_PHYSICAL_COLUMNS = ("drive_torque_Nm", "rub_torque_Nm")
@@ -103,6 +107,12 @@ def solution_columns(
                 "friction_force_N": units.newtons(solution.friction_force, scale),
             }
         )
+    cx, cy = solution.problem.params.offset
+    if cx != 0.0 or cy != 0.0:
+        columns.update({"rotor_x": solution.x + cx, "rotor_y": solution.y + cy})
+        if scale is not None:
+            columns["rotor_x_m"] = units.metres(solution.x + cx, scale)
+            columns["rotor_y_m"] = units.metres(solution.y + cy, scale)
     if solution.problem.changes_speed:
         eta = solution.speed
         columns.update({"eta": eta, "phase": solution.phase})
@@ -160,11 +170,16 @@ def solution_blocks(
 
 
 def solution_header(
-    scale: units.PhysicalScale | None = None, speed: bool = False, drive: bool = False
+    scale: units.PhysicalScale | None = None,
+    speed: bool = False,
+    drive: bool = False,
+    offset: bool = False,
 ) -> tuple[str, ...]:
     """The CSV header of a solution (``speed``: its speed changes, ``Problem.changes_speed``;
-    ``drive``: a driven rotor's torques)."""
+    ``drive``: a driven rotor's torques; ``offset``: an offset stator's rotor position)."""
     header = CSV_COLUMNS + (CSV_PHYSICAL_COLUMNS if scale is not None else ())
+    if offset:
+        header += CSV_OFFSET_COLUMNS + (CSV_OFFSET_PHYSICAL_COLUMNS if scale is not None else ())
     if speed:
         header += CSV_SPEED_COLUMNS + (CSV_SPEED_PHYSICAL_COLUMNS if scale is not None else ())
     if drive:
@@ -172,10 +187,11 @@ def solution_header(
     return header
 
 
-def _extra_columns(solution: Solution) -> tuple[bool, bool]:
-    """(speed, drive) flags of ``solution_header`` for ``solution``."""
+def _extra_columns(solution: Solution) -> tuple[bool, bool, bool]:
+    """(speed, drive, offset) flags of ``solution_header`` for ``solution``."""
     problem = solution.problem
-    return problem.changes_speed, problem.drive is not None
+    offset = problem.params.offset != (0.0, 0.0)
+    return problem.changes_speed, problem.drive is not None, offset
 
 
 def write_solution_csv(

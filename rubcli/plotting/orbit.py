@@ -97,12 +97,19 @@ def draw_orbits(
     ``radius`` sets the half-width of the axes (in the axes' unit), e.g. one shared by
     several panels; default ``display.orbit_radius``.
     """
+    # the states are relative to the stator's centre; drawn where the rotor is, about its
+    # support's centre, with the clearance circle about the stator's (its offset)
+    cx, cy = solutions[0].problem.params.offset if solutions else (0.0, 0.0)
+
+    def at(x: np.ndarray | float, y: np.ndarray | float) -> tuple:
+        return unit * (x + cx), unit * (y + cy)
+
     circle = np.linspace(0.0, 2.0 * np.pi, 721)
-    ax.plot(
-        unit * np.cos(circle), unit * np.sin(circle), label="clearance", **display.CLEARANCE_STYLE
-    )
-    if radius is None:
-        radius = unit * display.orbit_radius(solutions)
+    ax.plot(*at(np.cos(circle), np.sin(circle)), label="clearance", **display.CLEARANCE_STYLE)
+    if cx != 0.0 or cy != 0.0:
+        ax.plot(0.0, 0.0, "+", color="0.3", ms=12, mew=1.2, label="support centre", zorder=5)
+    if radius is None:  # the orbits, the clearance and the support's centre
+        radius = unit * max(display.orbit_radius(solutions), display.MARGIN * math.hypot(cx, cy))
     drawing = OrbitDrawing(radius=radius)
     good = [s for s in solutions if s.success and display.finite_length(s) >= 2]
     first = good[0] if good else None
@@ -118,10 +125,10 @@ def draw_orbits(
             drawing.failed[sol.method] = float(sol.t[n - 1])
             pts = display.period_subset(sol, float(sol.t[n - 1]))
             drawing.points += pts.shape[0]
-            ax.plot(unit * pts[:, 0], unit * pts[:, 1], color=color, ls=":", lw=1.0, alpha=0.9,
+            ax.plot(*at(pts[:, 0], pts[:, 1]), color=color, ls=":", lw=1.0, alpha=0.9,
                     label=f"{sol.method}: failed at tau = {sol.t[n - 1]:.6g}" if label_methods
                     else None)  # fmt: skip
-            ax.plot(unit * sol.x[n - 1], unit * sol.y[n - 1], "X", color=color, ms=8, mec="k")
+            ax.plot(*at(sol.x[n - 1], sol.y[n - 1]), "X", color=color, ms=8, mec="k")
             continue
         main = sol is first
         artists = drawing.artists.setdefault(sol.method, {})
@@ -141,7 +148,7 @@ def draw_orbits(
         drawing.points += faded.shape[0] + fine.shape[0]
         if main:  # the others' transients would only blur it; their distance is stated
             (artists["transient"],) = ax.plot(
-                unit * faded[:, 0], unit * faded[:, 1], color=color, lw=TRANSIENT_LINE,
+                *at(faded[:, 0], faded[:, 1]), color=color, lw=TRANSIENT_LINE,
                 alpha=transient_alpha((bold - float(sol.t[0])) / period), zorder=2,
             )  # fmt: skip
         if calm:
@@ -151,23 +158,24 @@ def draw_orbits(
                 (FAINT_FIRST_LINE, FAINT_FIRST_ALPHA) if main else (FAINT_LINE, FAINT_ALPHA)
             )
         (artists["orbit"],) = ax.plot(
-            unit * fine[:, 0], unit * fine[:, 1], color=color, lw=width, alpha=alpha,
+            *at(fine[:, 0], fine[:, 1]), color=color, lw=width, alpha=alpha,
             zorder=3 if main else 3 + index, ls=OVERLAY_DASHES[index % len(OVERLAY_DASHES)]
             if not main else "-", label=label,
         )  # fmt: skip
         if main:  # every method starts from the same state
-            ax.plot(unit * sol.x[0], unit * sol.y[0], "*", color=color, ms=11, mec="k", mew=0.6,
+            ax.plot(*at(sol.x[0], sol.y[0]), "*", color=color, ms=11, mec="k", mew=0.6,
                     zorder=6)  # fmt: skip
         dots = display.keyphasor(sol, transient_periods)
         drawing.keyphasor[sol.method] = int(dots.shape[0])
         drawing.points += dots.shape[0]
-        artists["keyphasor"] = _keyphasor(ax, unit * dots, color, main)
+        artists["keyphasor"] = _keyphasor(ax, np.column_stack(at(dots[:, 0], dots[:, 1])), color,
+                                          main)  # fmt: skip
         if not main:
             near = display.distance(first, sol, steady)
             drawing.distance_steady[sol.method] = _scaled(near, unit)
             drawing.distance_all[sol.method] = _scaled(display.distance(first, sol), unit)
-    ax.set_xlim(-radius, radius)
-    ax.set_ylim(-radius, radius)
+    ax.set_xlim(unit * cx - radius, unit * cx + radius)
+    ax.set_ylim(unit * cy - radius, unit * cy + radius)
     ax.set_aspect("equal", adjustable="box")
     ax.grid(True, alpha=0.3)
     return drawing

@@ -20,6 +20,7 @@ from rubcli.solution import Solution
 from rubcli.solvers.registry import (  # noqa: F401
     DRIVEN,
     FAMILY_MODULES,
+    GENERAL_MACHINE,
     SPECS,
     SPEED_PROFILE,
     Options,
@@ -61,6 +62,18 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module 'rubcli.solvers' has no attribute {name!r}")
 
 
+def problem_features(problem: Problem) -> list[str]:
+    """The features (``registry.FEATURES``) a problem asks of the method that solves it."""
+    found = []
+    if problem.speed is not None:
+        found.append(SPEED_PROFILE)
+    if problem.drive is not None:
+        found.append(DRIVEN)
+    if not problem.params.is_paper_machine:
+        found.append(GENERAL_MACHINE)
+    return found
+
+
 def solve(problem: Problem, method: str, *, watch: Watch | None = None, **options: Any) -> Solution:
     """Solve ``problem`` with ``method`` (a name of the registry).
 
@@ -88,10 +101,15 @@ def solve(problem: Problem, method: str, *, watch: Watch | None = None, **option
     if method not in SPECS:
         raise ValueError(f"solve(): unknown method {method!r}; choose from {', '.join(SPECS)}")
     typed = method_options(method, options)
-    for given, feature in ((problem.speed, SPEED_PROFILE), (problem.drive, DRIVEN)):
-        refused = unsupported(method, feature) if given is not None else None
+    for feature in problem_features(problem):
+        refused = unsupported(method, feature)
         if refused:
             raise ValueError(f"solve(): {refused}")
+    if problem.drive is not None and not problem.params.is_paper_machine:
+        raise ValueError(
+            "solve(): a driven rotor runs on the paper's machine only (the drive's equations, "
+            "rubcli.drive, have no offset, static load or anisotropic support)"
+        )
     methods = _methods(SPECS[method].family)
     if problem.drive is not None:
         from rubcli.solvers.driven import solve_driven

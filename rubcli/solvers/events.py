@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import numpy as np
 
 from rubcli import model
-from rubcli.model import P_E, P_ECC, P_ETA, P_K, P_MU, P_NU, P_PHI0, P_RATE, P_RP, P_TAU0
+from rubcli.model import P_ETA, P_K, P_MU, P_RATE, P_RP, P_TAU0
 from rubcli.solution import KIND_NAMES, SwitchEvent
 
 if TYPE_CHECKING:
@@ -157,29 +157,26 @@ def start_flags(last_kind: int) -> tuple[bool, bool, bool]:
 
 
 def switch_regime(
-    kind: int, tau: float, x: float, y: float, vx: float, vy: float, regime: int, nu: float,
-    eta: float, E: float, phi0: float, K: float, mu: float, Rp: float, e: float = 0.0,
-    rate: float = 0.0, tau0: float = 0.0,
+    kind: int, tau: float, x: float, y: float, vx: float, vy: float, regime: int,
+    pars: np.ndarray | tuple[float, ...],
 ) -> tuple[int, int, bool]:  # fmt: skip
     """The switch at a located event of ``kind`` (compilable core).
 
     Returns ``(new regime, kind as recorded, project)``: contact exit -> free; contact
     entry -> the sign of v_r; stick exit -> the slip the needed friction points to;
-    slip reversal -> Filippov's rule (``model.zero_slip_regime_value``), recorded as a
+    slip reversal -> Filippov's rule (``model.zero_slip_regime_record``), recorded as a
     stick entry when it ends in stick. ``project``: the state must be projected onto the
     rolling constraint (stick begins or ends in contact).
     """
     if kind == EXIT:
         new = model.FREE
     elif kind == ENTRY:
-        new = model.entry_regime_value(x, y, vx, vy, mu, Rp * (eta + rate * (tau - tau0)))
+        new = model.entry_regime_value(x, y, vx, vy, pars[P_MU], spin_at(tau, pars))
     elif kind == STICK_EXIT:
-        needed = model.stick_friction_value(tau, x, y, vx, vy, nu, eta, E, phi0, e, rate, tau0, Rp)
+        needed = model.stick_friction_record(tau, x, y, vx, vy, pars)
         new = model.SLIP_POSITIVE if needed > 0.0 else model.SLIP_NEGATIVE
     else:  # slip reversal
-        new = model.zero_slip_regime_value(
-            tau, x, y, vx, vy, nu, eta, E, phi0, K, mu, e, rate, tau0, Rp
-        )
+        new = model.zero_slip_regime_record(tau, x, y, vx, vy, pars)
     recorded = STICK_ENTRY if new == model.STICK else kind
     stick = regime == model.STICK or new == model.STICK
     return new, recorded, stick and regime != model.FREE and new != model.FREE
@@ -223,10 +220,7 @@ def stick_margin(
     """sign T - mu K (z - 1) (1 + STICK_EXIT_MARGIN): stick ends on side ``sign`` where
     this rises through 0 (the needed friction leaves the friction cone); scalars or
     arrays (compilable core)."""
-    T = model.stick_friction_value(
-        t, x, y, vx, vy, pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0], pars[P_ECC],
-        pars[P_RATE], pars[P_TAU0], pars[P_RP],
-    )  # fmt: skip
+    T = model.stick_friction_record(t, x, y, vx, vy, pars)
     limit = pars[P_MU] * pars[P_K] * (np.hypot(x, y) - 1.0)
     return sign * T - limit * (1.0 + model.STICK_EXIT_MARGIN)
 
@@ -714,7 +708,7 @@ def apply_event(
     """
     state = np.asarray(state, dtype=float)
     new_regime, recorded, project = switch_regime(
-        kind, tau, state[0], state[1], state[2], state[3], regime, *model.params_vector(params)
+        kind, tau, state[0], state[1], state[2], state[3], regime, model.params_vector(params)
     )
     if project:
         state = model.project_to_rolling(state, params, tau)

@@ -115,9 +115,12 @@ FAMILY_MODULES = {
 # without it refuses: the case validation and ``solve`` derive their refusals from here.
 SPEED_PROFILE = "speed profile"
 DRIVEN = "driven rotor"
+GENERAL_MACHINE = "general machine"
 FEATURES = {
     SPEED_PROFILE: "a speed that changes in time ([speed])",
     DRIVEN: "a driven rotor (the speed a state, [speed] profile = 'driven')",
+    GENERAL_MACHINE: "the general machine (an offset stator, a static load, anisotropic or "
+    "cross-coupled supports: [model] offset, load, stiffness, damping)",
 }
 # why the methods without a feature lack it (named in the refusal)
 LACKS = {
@@ -125,6 +128,9 @@ LACKS = {
     ("analytic-polar", SPEED_PROFILE): "its closed forms assume a constant speed",
     ("analytic", DRIVEN): "its closed forms assume a constant speed",
     ("analytic-polar", DRIVEN): "its closed forms assume a constant speed",
+    ("analytic", GENERAL_MACHINE): "its free flight is the isotropic rotor's closed form",
+    ("analytic-polar", GENERAL_MACHINE): "its polar form needs a concentric stator and an "
+    "isotropic support",
 }
 
 
@@ -132,7 +138,7 @@ def _scipy(name: str, order: int, implicit: bool, summary: str) -> MethodSpec:
     return MethodSpec(
         name=name, family="scipy", knob=RTOL, options=ToleranceOptions, order=order,
         implicit=implicit, adaptive=None, summary=summary,
-        features=frozenset({SPEED_PROFILE, DRIVEN}),
+        features=frozenset({SPEED_PROFILE, DRIVEN, GENERAL_MACHINE}),
     )  # fmt: skip
 
 
@@ -187,7 +193,7 @@ SPECS: dict[str, MethodSpec] = {
             implicit=False,
             adaptive=None,
             summary="scipy's DOP853, step for step, with the step loop compiled (numba)",
-            features=frozenset({SPEED_PROFILE, DRIVEN}),
+            features=frozenset({SPEED_PROFILE, DRIVEN, GENERAL_MACHINE}),
         ),
         MethodSpec(
             name="taylor",
@@ -200,7 +206,7 @@ SPECS: dict[str, MethodSpec] = {
             summary="adaptive Taylor series of the rub equations (automatic-differentiation "
             "recurrences, compiled), events on each step's polynomial; order N = "
             "ceil(-0.5 ln rtol) + 6: 13 at 1e-6, 18 at 1e-10",
-            features=frozenset({SPEED_PROFILE, DRIVEN}),
+            features=frozenset({SPEED_PROFILE, DRIVEN, GENERAL_MACHINE}),
         ),
     )  # fmt: skip
 }

@@ -29,6 +29,8 @@ from rubcli.model import (
     polar_rhs_entries,
     rhs_entries,
     rhs_jacobian_array,
+    rhs_jacobian_record,
+    rhs_record,
     slip_velocity_rate,
     slip_velocity_value,
     zero_slip_regime_value,
@@ -63,7 +65,7 @@ def _probe_values(x):
     """
     nu, eta, E, phi0, K, mu, Rp = x[0], x[1], x[2], x[3], x[4], x[5], x[6]
     tau, px, py, vx, vy = x[7], x[8], x[9], x[10], x[11]
-    out = np.empty(128)
+    out = np.empty(192)
     n = 0
     for regime in (0, 1, -1, 2):
         for v in rhs_entries(tau, px, py, vx, vy, nu, eta, E, phi0, K, mu, Rp, regime):
@@ -100,10 +102,21 @@ def _probe_values(x):
     out[n + 1] = entry_regime_value(px, py, vx, vy, mu, Rp * eta)
     out[n + 2] = zero_slip_regime_value(tau, px, py, vx, vy, nu, eta, E, phi0, K, mu)
     n += 3
+    # a general machine's record: every departure from the paper's machine nonzero
+    pars = np.zeros(model.N_PARAMS)
+    pars[model.P_NU], pars[model.P_ETA], pars[model.P_E], pars[model.P_PHI0] = nu, eta, E, phi0
+    pars[model.P_K], pars[model.P_MU], pars[model.P_RP] = K, mu, Rp
+    for k in range(model.P_SXX, model.N_PARAMS):
+        pars[k] = 0.01 * (k - model.P_SXX + 1) * (-1.0) ** k
+    for regime in (1, 2):
+        for v in rhs_record(tau, px, py, vx, vy, pars, regime):
+            out[n] = v
+            n += 1
+    for v in rhs_jacobian_record(tau, px, py, vx, vy, pars, 1).ravel():
+        out[n] = v
+        n += 1
     for kind in range(5):
-        new, recorded, project = switch_regime(
-            kind, tau, px, py, vx, vy, 1, nu, eta, E, phi0, K, mu, Rp
-        )
+        new, recorded, project = switch_regime(kind, tau, px, py, vx, vy, 1, pars)
         flags = start_flags(kind)
         out[n] = new
         out[n + 1] = recorded

@@ -1,4 +1,4 @@
-"""The regime-locked right-hand side (``model.rhs_entries``) compiled: for scipy's
+"""The regime-locked right-hand side (``model.rhs_record``) compiled: for scipy's
 solvers (one state, a column of states, the Jacobian) and for the compiled DOP853.
 """
 
@@ -17,6 +17,7 @@ from rubcli.model import (
     P_RATE,
     P_RP,
     P_TAU0,
+    add_support_extra,
     rhs_entries,
     rhs_jacobian_record,
 )
@@ -40,6 +41,7 @@ def _rhs_into(t, y, pars, regime, out):
         vx, vy, ax, ay = rhs_entries(
             t, y[0], y[1], y[2], y[3], nu, eta, E, phi0, K, mu, Rp, regime, e, rate, tau0
         )
+    ax, ay = add_support_extra(y[0], y[1], vx, vy, ax, ay, pars, regime)
     out[0], out[1], out[2], out[3] = vx, vy, ax, ay
 
 

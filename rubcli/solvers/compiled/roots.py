@@ -12,16 +12,9 @@ from typing import TYPE_CHECKING
 
 from rubcli import model
 from rubcli.model import (
-    P_E,
-    P_ECC,
-    P_ETA,
-    P_K,
     P_MU,
-    P_NU,
-    P_PHI0,
     P_RATE,
     P_RP,
-    P_TAU0,
     rolling_velocity,
 )
 from rubcli.solvers.compiled.dop853 import DOP_SCAN_POINTS, _dop853_dense_at
@@ -132,11 +125,7 @@ def _dop853_locate(t_old, h, y_old, F, pars, regime, grid, hv, hd, row, drow, st
 def _apply_event(kind, t, s, regime, pars):
     """``events.switch_regime`` on a kernel state: (new regime, kind as recorded); ``s``
     is projected onto the rolling constraint in place when stick begins or ends."""
-    new, recorded, project = switch_regime(
-        kind, t, s[0], s[1], s[2], s[3], regime,
-        pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0], pars[P_K], pars[P_MU], pars[P_RP],
-        pars[P_ECC], pars[P_RATE], pars[P_TAU0],
-    )  # fmt: skip
+    new, recorded, project = switch_regime(kind, t, s[0], s[1], s[2], s[3], regime, pars)
     if project:
         s[2], s[3] = rolling_velocity(s[0], s[1], s[2], s[3], spin_at(t, pars))
     return new, recorded

@@ -89,16 +89,28 @@ import numpy as np
 
 from rubcli.model import (
     N_PARAMS,
+    P_DXX,
+    P_DXY,
+    P_DYX,
+    P_DYY,
     P_E,
     P_ECC,
     P_ETA,
+    P_GX,
+    P_GY,
     P_K,
     P_MU,
     P_NU,
     P_PHI0,
     P_RATE,
     P_RP,
+    P_SXX,
+    P_SXY,
+    P_SYX,
+    P_SYY,
     P_TAU0,
+    add_support_extra,
+    is_general_record,
     rhs_entries,
     rolling_velocity,
     slip_velocity_rate,
@@ -132,9 +144,12 @@ MAX_ORDER = 30
 MIN_ORDER = 4
 ORDER_FACTOR = 0.5  # N = ceil(-0.5 ln(rtol)) + 6 (Jorba & Zou's rule: 0.5 and + 1)
 ORDER_OFFSET = 6
-WORK_ROWS = 31
+WORK_ROWS = 35
 # rows of the work space holding a speed profile's unbalance force (x, y) and exp(i p)
 FORCE_X, FORCE_Y, PHASE_C, PHASE_S = 27, 28, 29, 30
+# the general machine's force beyond the paper's (model.support_extra) in stick, and its
+# tangential part (x e_y - y e_x) and that over z, which the rolling friction takes up
+EXTRA_X, EXTRA_Y, EXTRA_CROSS, EXTRA_T = 31, 32, 33, 34
 WORK_COLS = 2 * MAX_ORDER + 1  # the surface's polynomial has degree 2N
 STEP_SAFETY_EXPONENT = 0.7  # h *= exp(-0.7 / (N - 1)) (heyoka)
 PRECHECK_MARGIN = 1e-9  # relative margin of the series bound (plus the state tolerance)
@@ -260,6 +275,18 @@ def taylor_coefficients(
 # (q, u and the contact force) share one pass over j.
 
 
+@jit
+def _extra_term(pars, k, x, y, vx, vy):
+    """Order k of the series of ``model.support_extra`` from order k of the position and
+    velocity: it is linear, and its constant force enters at order 0 only."""
+    ex = -(pars[P_SXX] * x + pars[P_SXY] * y) - 2.0 * (pars[P_DXX] * vx + pars[P_DXY] * vy)
+    ey = -(pars[P_SYX] * x + pars[P_SYY] * y) - 2.0 * (pars[P_DYX] * vx + pars[P_DYY] * vy)
+    if k == 0:
+        ex += pars[P_GX]
+        ey += pars[P_GY]
+    return ex, ey
+
+
 @jit_fused
 def _free_coefficients(fr, fi, pars, order, C, W):
     """``taylor_coefficients`` in free flight, with the series of q = x^2 + y^2 (W[0],
@@ -269,6 +296,7 @@ def _free_coefficients(fr, fi, pars, order, C, W):
     # (fr, fi) with E = 1; at a constant speed E (fr, fi) is the rotating forcing
     profile = pars[P_RATE] != 0.0
     E = 1.0 if profile else pars[P_E]
+    general = is_general_record(pars)
     M = MAX_ORDER
     x0, y0 = C[0, 0], C[1, 0]
     W[23, M], W[24, M] = x0, y0
@@ -278,6 +306,10 @@ def _free_coefficients(fr, fi, pars, order, C, W):
             fr, fi = W[FORCE_X, k], W[FORCE_Y, k]
         ax = E * fr - nu2 * C[2, k] - C[0, k]
         ay = E * fi - nu2 * C[3, k] - C[1, k]
+        if general:
+            ex, ey = _extra_term(pars, k, C[0, k], C[1, k], C[2, k], C[3, k])
+            ax += ex
+            ay += ey
         inv = RECIPROCALS[k + 1]
         rotate = eta * inv
         fr, fi = -fi * rotate, fr * rotate
@@ -325,11 +357,16 @@ def _slip_coefficients(fr, fi, pars, sign, order, C, W):
     W[4, 0], W[5, 0] = p0x, p0y
     W[26, M], W[22, M] = p0x, p0y
     gx, gy = x0 - p0x, y0 - p0y  # w - P, order 0
+    general = is_general_record(pars)
     for k in range(order):
         if profile:
             fr, fi = W[FORCE_X, k], W[FORCE_Y, k]
         ax = E * fr - nu2 * C[2, k] - C[0, k] - K * (gx - mu_c * gy)
         ay = E * fi - nu2 * C[3, k] - C[1, k] - K * (gy + mu_c * gx)
+        if general:
+            ex, ey = _extra_term(pars, k, C[0, k], C[1, k], C[2, k], C[3, k])
+            ax += ex
+            ay += ey
         inv = RECIPROCALS[k + 1]
         rotate = eta * inv
         fr, fi = -fi * rotate, fr * rotate
@@ -398,6 +435,8 @@ def _stick_coefficients(t0, fr, fi, pars, order, C, W):
     sr1, sinrel, d2, rdot, w2, rtd, thd, T, tf = (
         W[14], W[15], W[16], W[17], W[18], W[19], W[20], W[21], W[22]
     )  # fmt: skip
+    ex, ey, cross = W[EXTRA_X], W[EXTRA_Y], W[EXTRA_CROSS]
+    general = is_general_record(pars)
     spin = spin_at(t0, pars)
     spin_rate = Rp * rate
     for k in range(order):
@@ -427,9 +466,16 @@ def _stick_coefficients(t0, fr, fi, pars, order, C, W):
         T[k] = scale * sinrel[k] - _cauchy(rdot, thd, k) - 2.0 * nu * rtd[k]
         if k == 0:
             T[0] += spin_rate
+        if general:  # the friction also holds the extra force's tangential part
+            ex[k], ey[k] = _extra_term(pars, k, x[k], y[k], vxp[k], vyp[k])
+            cross[k] = _cauchy(ey, x, k) - _cauchy(ex, y, k)
+            T[k] += _cauchy(cross, u, k)
         tf[k] = _cauchy(T, u, k)
         ax = scale * fc[k] - 2.0 * nu * vxp[k] - x[k] - _cauchy(fac, x, k) + _cauchy(tf, y, k)
         ay = scale * fs[k] - 2.0 * nu * vyp[k] - y[k] - _cauchy(fac, y, k) - _cauchy(tf, x, k)
+        if general:
+            ax += ex[k]
+            ay += ey[k]
         C[0, k + 1] = vxp[k] / (k + 1)
         C[1, k + 1] = vyp[k] / (k + 1)
         C[2, k + 1] = ax / (k + 1)
@@ -868,11 +914,13 @@ def _taylor_ev(t, deriv, ctx, row, drow):
     row[0], row[1], row[2], row[3] = v0, v1, v2, v3
     if deriv:
         p = CTX_PARS
+        regime = int(ctx[CTX_REGIME])
         vx, vy, ax, ay = rhs_entries(
             t, v0, v1, v2, v3, ctx[p + P_NU], ctx[p + P_ETA], ctx[p + P_E], ctx[p + P_PHI0],
-            ctx[p + P_K], ctx[p + P_MU], ctx[p + P_RP], int(ctx[CTX_REGIME]),
+            ctx[p + P_K], ctx[p + P_MU], ctx[p + P_RP], regime,
             ctx[p + P_ECC], ctx[p + P_RATE], ctx[p + P_TAU0],
         )  # fmt: skip
+        ax, ay = add_support_extra(v0, v1, vx, vy, ax, ay, ctx[p : p + N_PARAMS], regime)
         drow[0], drow[1], drow[2], drow[3] = vx, vy, ax, ay
 
 
@@ -910,11 +958,12 @@ def _taylor_fill(ctx, fn, sign, grid, n, pars, d, row, drow, hv, hd):
             hv[i] = sign * (x**2 + y**2 - 1.0)
             hd[i] = sign * (2.0 * (x * vx + y * vy))
         else:  # FN_SLIP (FN_GIVEN is no taylor segment's)
-            _, _, ax, ay = rhs_entries(
+            vxl, vyl, ax, ay = rhs_entries(
                 t, x, y, vx, vy, ctx[p + P_NU], ctx[p + P_ETA], ctx[p + P_E], ctx[p + P_PHI0],
                 ctx[p + P_K], ctx[p + P_MU], ctx[p + P_RP], regime, ctx[p + P_ECC],
                 ctx[p + P_RATE], ctx[p + P_TAU0],
             )  # fmt: skip
+            ax, ay = add_support_extra(x, y, vxl, vyl, ax, ay, pars, regime)
             hv[i] = -sign * slip_velocity_value(x, y, vx, vy, spin_at(t, pars))
             hd[i] = -sign * (slip_velocity_rate(x, y, vx, vy, ax, ay) + pars[P_RP] * pars[P_RATE])
 

@@ -1,0 +1,278 @@
+"""The general machine (docs/machines.md): an offset stator, a static load, anisotropic
+and cross-coupled supports. Checked against exact solutions (the static equilibrium
+S w = g, the steady forced response of the 2x2 complex system, the free whirl's
+eigenvalues and the self-excitation threshold of cross-coupling), the energy balance
+with every term, the paper's machine as the default, and the methods against each
+other on rubbing cases with stick and slip."""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from rubcli import model
+from rubcli.analysis.energy import energy_balance, energy_totals, mechanical_energy
+from rubcli.case import CaseError, load_case_text
+from rubcli.cli.app import app
+from rubcli.model import ModelParams
+from rubcli.problem import Problem
+from rubcli.solvers import solve
+from rubcli.solvers.registry import GENERAL_MACHINE, SPECS
+
+GENERAL_METHODS = [name for name, spec in SPECS.items() if GENERAL_MACHINE in spec.features]
+STIFFNESS = ((1.0, 0.15), (-0.1, 1.6))  # anisotropic, cross-coupled (q = 0.125)
+DAMPING = ((0.05, 0.01), (0.0, 0.08))
+
+
+def general(**overrides) -> ModelParams:
+    values = dict(nu=0.0, eta=0.7, e=0.05, K=50.0, mu=0.1, Rp=2.0, offset=(0.1, -0.05),
+                  load=(0.0, -0.3), stiffness=STIFFNESS, damping=DAMPING)  # fmt: skip
+    return ModelParams(**{**values, **overrides})
+
+
+def forced_response(p: ModelParams, t: np.ndarray) -> np.ndarray:
+    """States (4, n) of the steady response without contact (docs/machines.md, reference
+    2): w = Re(W exp(i (eta tau + phi0))) + S^{-1} g with (S - eta^2 I + 2 i eta D) W =
+    e eta^2 (1, -i), relative to the stator's centre (d = w - c)."""
+    S, D = np.array(p.stiffness), np.array(p.damping_matrix)
+    W = np.linalg.solve(S - p.eta**2 * np.eye(2) + 2j * p.eta * D, p.E * np.array([1.0, -1.0j]))
+    rest = np.linalg.solve(S, np.array(p.load)) - np.array(p.offset)
+    turn = np.exp(1j * (p.eta * t + p.phi0))
+    w = np.real(np.outer(W, turn)) + rest[:, None]
+    v = np.real(np.outer(1j * p.eta * W, turn))
+    return np.vstack((w, v))
+
+
+def test_the_paper_machine_is_the_default_and_its_record_departs_by_nothing():
+    p = ModelParams(nu=0.05, eta=1.2, e=0.3, K=20.0, mu=0.1, Rp=2.0)
+    assert p.is_paper_machine and p.machine_dict() == {}
+    assert model.params_vector(p)[model.P_SXX :] == (0.0,) * (model.N_PARAMS - model.P_SXX)
+    # an isotropic damping matrix is the paper's nu: every method runs it
+    iso = ModelParams(nu=0.0, eta=1.2, e=0.3, K=20.0, damping=((0.05, 0.0), (0.0, 0.05)))
+    assert iso.is_paper_machine and iso.nu == 0.05
+
+
+def test_the_static_position_solves_S_w_equals_g():
+    p = general(e=0.0)
+    d = np.array(p.static_position())
+    w = d + np.array(p.offset)
+    assert np.allclose(np.array(p.stiffness) @ w, p.load, rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("method", GENERAL_METHODS)
+def test_a_rotor_at_its_static_position_stays_there(method):
+    """e = 0 and no contact: the static equilibrium is a fixed point of every method."""
+    p = general(e=0.0)
+    start = (*p.static_position(), 0.0, 0.0)
+    sol = solve(Problem(p, start, np.linspace(0.0, 30.0, 31)), method, rtol=1e-10, atol=1e-12)
+    assert sol.success and len(sol.events) == 0
+    assert np.abs(sol.states - np.array(start)).max() < 1e-10
+
+
+@pytest.mark.parametrize("method", GENERAL_METHODS)
+def test_the_forced_response_without_contact_is_the_closed_form(method):
+    """Started on the steady response of the anisotropic, cross-coupled, offset and
+    loaded rotor, every method stays on it within its tolerance (it never reaches the
+    clearance: |d| <= 0.19)."""
+    p = general()
+    t = np.linspace(0.0, 40.0, 401)
+    exact = forced_response(p, t)
+    assert np.hypot(exact[0], exact[1]).max() < 0.5
+    sol = solve(Problem(p, tuple(exact[:, 0]), t), method, rtol=1e-10, atol=1e-12)
+    assert sol.success and len(sol.events) == 0
+    assert np.abs(sol.states.T - exact).max() < 1e-7
+
+
+def test_cross_coupling_whirls_on_its_own_above_twice_the_damping():
+    """S = [[1, q], [-q, 1]], D = nu I: S w = (1 - i q) w in complex form, so the free
+    rotor's exponents solve l^2 + 2 nu l + 1 - i q = 0; the forward mode grows when
+    q > 2 nu (the classical threshold at the natural frequency). The amplitude of a
+    small whirl grows (decays) at the root's real part."""
+    nu = 0.02
+    for q in (0.03, 0.05):  # below and above 2 nu = 0.04
+        p = ModelParams(nu=nu, eta=1.0, e=0.0, K=20.0, stiffness=((1.0, q), (-q, 1.0)))
+        roots = np.roots([1.0, 2.0 * nu, 1.0 - 1j * q])
+        growth = max(roots.real)
+        lam = roots[np.argmax(roots.real)]
+        a = 1e-3  # a pure forward mode: w = a exp(lam tau)
+        start = (a, 0.0, (a * lam).real, (a * lam).imag)
+        t = np.linspace(0.0, 200.0, 201)
+        sol = solve(Problem(p, start, t), "taylor", rtol=1e-12, atol=1e-16)
+        radius = np.hypot(sol.x, sol.y)
+        assert np.allclose(radius, a * np.exp(growth * t), rtol=1e-8, atol=0)
+        assert (growth > 0) == (q > 2 * nu)
+
+
+def rubbing_cases() -> dict[str, ModelParams]:
+    """Two rubs on the general machine: a partial rub with long stick episodes (low
+    speed, a heavy unbalance) and a fast one with stick, slip reversals and contacts."""
+    base = dict(nu=0.0, K=20.0, mu=0.4, Rp=1.0, offset=(0.2, 0.1), load=(0.0, -1.5),
+                stiffness=((1.0, 0.1), (-0.1, 1.3)), damping=((0.05, 0.0), (0.01, 0.07)))  # fmt: skip
+    return {
+        "slow": ModelParams(**base, eta=0.3, e=1.0),
+        "fast": ModelParams(**base, eta=1.5, e=0.3),
+    }
+
+
+@pytest.mark.parametrize("name", ["slow", "fast"])
+def test_the_methods_agree_with_a_tight_reference_on_a_rub_with_stick(name):
+    """Every method that runs the general machine finds the events of DOP853 at 1e-13
+    (the same kinds, as many) and lies near it, closer at a tighter tolerance."""
+    p = rubbing_cases()[name]
+    problem = Problem(p, (0.0, 0.0, 0.0, 0.0), np.linspace(0.0, 60.0, 601))
+    ref = solve(problem, "dop853-jit", rtol=1e-13, atol=1e-15)
+    kinds = Counter(ev.kind for ev in ref.events)
+    assert kinds["stick_entry"] >= 3 and kinds["contact_entry"] >= 10
+    for method in GENERAL_METHODS:
+        errors = []
+        for rtol in (1e-7, 1e-10):
+            sol = solve(problem, method, rtol=rtol, atol=rtol * 1e-2)
+            assert sol.success, (method, sol.message)
+            assert Counter(ev.kind for ev in sol.events) == kinds, method
+            errors.append(np.abs(sol.states - ref.states).max())
+        assert errors[1] < 1e-5, (method, errors)
+        assert errors[1] < errors[0] or errors[0] < 1e-9, (method, errors)
+
+
+def test_the_energy_balance_closes_with_every_term_of_the_general_machine():
+    """Support potential (with the load and the offset), contact, damping matrix,
+    friction in slip and stick, and the cross-coupling's work: the residual is the
+    quadrature's, and falls at order 4 with the sample spacing."""
+    p = rubbing_cases()["fast"]
+    residuals = []
+    for samples in (400, 1600):
+        problem = Problem.from_periods(p, (0.0, 0.0, 0.0, 0.0), 15, samples)
+        sol = solve(problem, "taylor", rtol=1e-13, atol=1e-15)
+        assert {ev.kind for ev in sol.events} >= {"stick_entry", "contact_exit"}
+        balance = energy_balance(sol)
+        totals = energy_totals(sol)
+        assert totals.cross_coupling == pytest.approx(balance.cross_coupling[-1], rel=1e-12)
+        assert totals.cross_coupling != 0.0
+        residuals.append(balance.relative_residual)
+    assert residuals[1] < 1e-11
+    assert residuals[0] / residuals[1] > 4**4 / 2  # order 4, with margin
+
+
+def test_the_energy_of_an_undamped_frictionless_anisotropic_rotor_is_conserved():
+    """mu = 0, D = 0, e = 0, a symmetric anisotropic support and an offset stator: the
+    mechanical energy (kinetic, support, contact) is constant sample by sample, over
+    many contacts."""
+    p = ModelParams(nu=0.0, eta=1.0, e=0.0, K=30.0, offset=(0.3, -0.2),
+                    stiffness=((1.0, 0.2), (0.2, 2.0)))  # fmt: skip
+    problem = Problem(p, (0.0, 0.0, 1.5, 0.7), np.linspace(0.0, 50.0, 501))
+    sol = solve(problem, "taylor", rtol=1e-13, atol=1e-15)
+    assert sol.n_contact_switches >= 20
+    energy = sum(mechanical_energy(sol.states, p, sol.regimes))
+    assert np.abs(energy - energy[0]).max() < 1e-10 * energy[0]
+
+
+def test_the_analytic_methods_refuse_the_general_machine_by_name():
+    problem = Problem(general(), (0.0, 0.0, 0.0, 0.0), np.linspace(0.0, 1.0, 3))
+    for method in ("analytic", "analytic-polar"):
+        with pytest.raises(ValueError, match="does not run the general machine"):
+            solve(problem, method)
+
+
+CASE = """
+[case]
+name = "general"
+[model]
+eta = 1.5
+e = 0.3
+K = 20.0
+mu = 0.4
+Rp = 1.0
+offset = [0.2, 0.1]
+load = [0.0, -1.5]
+stiffness = [[1.0, 0.1], [-0.1, 1.3]]
+damping = [[0.05, 0.0], [0.01, 0.07]]
+[initial]
+x = 0.0
+y = 0.0
+vx = 0.0
+vy = 0.0
+[time]
+periods = 5
+samples_per_period = 50
+"""
+
+
+def test_a_case_file_describes_the_general_machine():
+    case = load_case_text(CASE)
+    p = case.params
+    assert p.offset == (0.2, 0.1) and p.load == (0.0, -1.5) and p.nu == 0.0
+    assert p.damping == ((0.05, 0.0), (0.01, 0.07))
+    assert case.methods == ["dop853-jit", "rk45"]  # the default on the general machine
+
+
+@pytest.mark.parametrize(
+    ("change", "field", "why"),
+    [
+        ("nu = 0.05\n", "damping", "given twice"),
+        ("", "stiffness", "positive-definite"),
+        ("", "solver.methods", "analytic does not run the general machine"),
+    ],
+)
+def test_bad_general_machines_are_refused_naming_the_field(change, field, why):
+    text = CASE.replace("mu = 0.4\n", "mu = 0.4\n" + change)
+    if field == "stiffness":
+        text = text.replace("[[1.0, 0.1], [-0.1, 1.3]]", "[[1.0, 2.0], [2.0, 1.3]]")
+    if field == "solver.methods":
+        text += '[solver]\nmethods = ["analytic"]\n'
+    with pytest.raises(CaseError) as info:
+        load_case_text(text)
+    assert field in str(info.value) and why in str(info.value)
+
+
+def test_the_physical_table_converts_the_general_machine_once():
+    """SI values: offset in m, load in N, stiffness in N/m over k_r, damping in N s/m over
+    2 m omega."""
+    text = """
+[case]
+name = "si"
+[physical]
+m = 10.0
+k_r = 1.0e6
+k_s = 2.0e7
+clearance = 1.0e-4
+e = 5.0e-5
+Omega = 400.0
+mu = 0.1
+offset = [2.0e-5, 0.0]
+load = [0.0, -98.1]
+stiffness = [[1.0e6, 1.0e5], [-1.0e5, 1.5e6]]
+damping = [[200.0, 0.0], [0.0, 300.0]]
+[initial]
+x = 0.0
+y = 0.0
+vx = 0.0
+vy = 0.0
+[time]
+periods = 2
+samples_per_period = 20
+"""
+    p = load_case_text(text).params
+    omega = 316.22776601683796
+    assert p.offset == pytest.approx((0.2, 0.0))
+    assert p.load == pytest.approx((0.0, -0.981))
+    assert p.stiffness == ((1.0, 0.1), (-0.1, 1.5))
+    assert p.damping[0][0] == pytest.approx(200.0 / (2 * 10.0 * omega))
+    assert p.damping[1][1] == pytest.approx(300.0 / (2 * 10.0 * omega))
+
+
+def test_run_writes_the_rotor_position_and_echoes_the_machine(tmp_path):
+    case = tmp_path / "general.toml"
+    case.write_text(CASE + f'[output]\ndir = "{tmp_path / "out"}"\n')
+    result = CliRunner().invoke(app, ["run", str(case), "--method", "dop853-jit"])
+    assert result.exit_code == 0, result.output
+    out = tmp_path / "out"
+    report = json.loads((out / "report.json").read_text())
+    params = report["case"]["nondimensional"]["params"]
+    assert params["offset"] == [0.2, 0.1] and params["stiffness"] == [[1.0, 0.1], [-0.1, 1.3]]
+    rows = np.genfromtxt(out / "dop853-jit.csv", delimiter=",", names=True)
+    assert np.allclose(rows["rotor_x"], rows["x"] + 0.2, rtol=0, atol=1e-15)
+    assert np.allclose(rows["rotor_y"], rows["y"] + 0.1, rtol=0, atol=1e-15)
