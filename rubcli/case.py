@@ -1614,16 +1614,10 @@ def assemble_case(
     return Case(settings=settings, problem=problem, scale=scale, path=path)
 
 
-# The methods a case on the general machine runs when [solver] names none: the analytic
-# methods' closed forms are the paper machine's (registry.GENERAL_MACHINE)
-GENERAL_MACHINE_METHODS = ["dop853-jit", "rk45"]
-
-
 def _check_machine(settings: CaseFile, values: dict[str, Any], source: str) -> None:
     """The general machine's checks that need the whole machine: its converted values
     (with [physical]), the methods that run it (the registry's ``GENERAL_MACHINE``), and
-    a driven rotor on it (not built). With no [solver] methods given, a general machine
-    runs ``GENERAL_MACHINE_METHODS``."""
+    a driven rotor on it (not built)."""
     where = "model" if settings.model is not None else "physical: converts to"
     try:  # the machine alone: its speed (eta, perhaps from [speed]) plays no part here
         machine = ModelParams(**{**values, "eta": 1.0})
@@ -1638,9 +1632,6 @@ def _check_machine(settings: CaseFile, values: dict[str, Any], source: str) -> N
                 "drive's equations have no offset, static load or anisotropic support)"
             ]
         )
-    if "methods" not in settings.solver.model_fields_set:
-        solver = settings.solver.model_copy(update={"methods": GENERAL_MACHINE_METHODS})
-        object.__setattr__(settings, "solver", solver)
     lists = [("solver.methods", settings.solver.methods)]
     if settings.compare is not None and settings.compare.methods is not None:
         lists.append(("compare.methods", settings.compare.methods))

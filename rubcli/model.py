@@ -472,6 +472,46 @@ def linearised_contact_arrays(
     return A, b
 
 
+def add_support_linear(A: np.ndarray, b: np.ndarray, pars: np.ndarray | tuple[float, ...]) -> None:
+    """The general machine's departures (``support_extra``: linear in the state, with a
+    constant force) added to a first-order system ``s' = A s + b`` in place (compilable
+    core; nothing changes on the paper's machine)."""
+    A[2, 0] -= pars[P_SXX]
+    A[2, 1] -= pars[P_SXY]
+    A[3, 0] -= pars[P_SYX]
+    A[3, 1] -= pars[P_SYY]
+    A[2, 2] -= 2.0 * pars[P_DXX]
+    A[2, 3] -= 2.0 * pars[P_DXY]
+    A[3, 2] -= 2.0 * pars[P_DYX]
+    A[3, 3] -= 2.0 * pars[P_DYY]
+    b[2] += pars[P_GX]
+    b[3] += pars[P_GY]
+
+
+def linearised_contact_record(
+    x0: float, y0: float, pars: np.ndarray | tuple[float, ...], mu_c: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(A, b)`` of the contact equation of the general machine linearised about (x0,
+    y0), from a record (compilable core): ``linearised_contact_arrays`` with the
+    departures of ``add_support_linear``."""
+    A, b = linearised_contact_arrays(x0, y0, pars[P_K], pars[P_NU], mu_c)
+    add_support_linear(A, b, pars)
+    return A, b
+
+
+def free_flight_system(params: ModelParams) -> tuple[np.ndarray, np.ndarray]:
+    """``(A, b)`` of the free flight of the general machine, ``s' = A s + b + q(tau)``
+    with ``q = (0, 0, E cos(eta tau + phi0), E sin(eta tau + phi0))``: linear, so its
+    solution is exact (the analytic method's free flight off the paper's machine)."""
+    A = np.zeros((4, 4))
+    A[0, 2] = A[1, 3] = 1.0
+    A[2, 0] = A[3, 1] = -1.0
+    A[2, 2] = A[3, 3] = -2.0 * params.nu
+    b = np.zeros(4)
+    add_support_linear(A, b, params_vector(params))
+    return A, b
+
+
 def linearised_contact_system(
     s0: Sequence[float] | np.ndarray, params: ModelParams, mu_c: float
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -482,9 +522,7 @@ def linearised_contact_system(
     ``I + K J`` with ``J = force_jacobian``: rows ``[F_a1, F_b1]`` and ``[F_b2, F_a2]``
     (correction 2), and ``b`` carries ``-K (f(s0) - J p0)``.
     """
-    return linearised_contact_arrays(
-        float(s0[0]), float(s0[1]), float(params.K), float(params.nu), float(mu_c)
-    )
+    return linearised_contact_record(float(s0[0]), float(s0[1]), params_vector(params), float(mu_c))
 
 
 def contact_eigenvalues(x0: float, y0: float, params: ModelParams, mu_c: float) -> np.ndarray:

@@ -109,8 +109,12 @@ class LinearisedContact:
     """
 
     def __init__(self, tau0: float, s0: np.ndarray, params: model.ModelParams, mu_c: float):
+        self._solve(tau0, s0, params, *model.linearised_contact_system(s0, params, mu_c))
+
+    def _solve(
+        self, tau0: float, s0: np.ndarray, params: model.ModelParams, A: np.ndarray, b: np.ndarray
+    ) -> None:
         self.tau0, self.params = tau0, params
-        A, b = model.linearised_contact_system(s0, params, mu_c)
         self.A, self.b = A, b
         self.s_c = np.linalg.solve(A, -b)
         forcing = np.array([0.0, 0.0, params.E, -1j * params.E])
@@ -152,6 +156,15 @@ class LinearisedContact:
         out[2] = out[2] + p.E * np.cos(phase)
         out[3] = out[3] + p.E * np.sin(phase)
         return out
+
+
+class LinearFreeFlight(LinearisedContact):
+    """The free flight of the general machine (``model.free_flight_system``): linear with
+    constant coefficients, harmonic and constant forcing, so the same closed form is
+    exact. On the paper's machine ``FreeFlight`` (eq. 7-8) is used."""
+
+    def __init__(self, tau0: float, s0: np.ndarray, params: model.ModelParams):
+        self._solve(tau0, s0, params, *model.free_flight_system(params))
 
 
 def _phi12(z: np.ndarray):
@@ -339,8 +352,10 @@ class PiecewiseStepper:
                 float(analytic_tol) if analytic_tol is not None else 0.0,
                 control.SAFETY, control.MIN_FACTOR, control.MAX_FACTOR, self.h_max, self.min_step,
             )  # fmt: skip
-        # fixed steps: the compiled loop takes every regime, its events included
-        self.use_loop = self.use_kernel and analytic_tol is None
+        # fixed steps: the compiled loop takes every regime, its events included (its
+        # free flight is the paper machine's closed form; on the general machine the free
+        # flights run in Python, LinearFreeFlight, and the slip steps in the kernel)
+        self.use_loop = self.use_kernel and analytic_tol is None and params.is_paper_machine
         self.python_next = False  # the loop handed the next step to Python
         if self.use_loop:
             self.free = np.empty(6)  # the free flight in progress (advance_piecewise's ff)
@@ -392,7 +407,8 @@ class PiecewiseStepper:
     def _free_flight(self, run: driver.Run):
         """No steps in free flight: scan the closed form chunk by chunk for the entry."""
         self.pending.clear()
-        prop = FreeFlight(run.tau, run.state, run.params)
+        flight = FreeFlight if run.params.is_paper_machine else LinearFreeFlight
+        prop = flight(run.tau, run.state, run.params)
         run.stats["n_free_segments"] += 1
         spacing = scan_spacing(prop.omega_max, FREE_SCAN_FRACTION)
         intervals = float(FREE_FIRST_CHUNK)

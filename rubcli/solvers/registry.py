@@ -128,7 +128,6 @@ LACKS = {
     ("analytic-polar", SPEED_PROFILE): "its closed forms assume a constant speed",
     ("analytic", DRIVEN): "its closed forms assume a constant speed",
     ("analytic-polar", DRIVEN): "its closed forms assume a constant speed",
-    ("analytic", GENERAL_MACHINE): "its free flight is the isotropic rotor's closed form",
     ("analytic-polar", GENERAL_MACHINE): "its polar form needs a concentric stator and an "
     "isotropic support",
 }
@@ -156,6 +155,7 @@ SPECS: dict[str, MethodSpec] = {
             summary="the paper's method: closed-form free flight, first-order Taylor "
             "linearisation of the contact force in Cartesian coordinates each step, solved "
             "exactly",
+            features=frozenset({GENERAL_MACHINE}),
         ),
         MethodSpec(
             name="analytic-polar",

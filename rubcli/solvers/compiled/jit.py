@@ -21,6 +21,8 @@ COMPILABLE_CORES = (
     model.friction_sign,
     model.force_jacobian_entries,
     model.linearised_contact_arrays,
+    model.add_support_linear,
+    model.linearised_contact_record,
     model.unbalance_value,
     model.stick_friction_value,
     model.rolling_velocity,

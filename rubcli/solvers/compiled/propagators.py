@@ -20,7 +20,7 @@ from rubcli.model import (
     P_NU,
     P_PHI0,
     cartesian_entries,
-    linearised_contact_arrays,
+    linearised_contact_record,
     polar_entries,
     polar_jacobian_arrays,
     polar_rhs_entries,
@@ -201,8 +201,8 @@ def _prepare_cartesian(tau0, s0, pars, mu_c, ws, warm):
     c of d0, ``coef[1]`` the harmonic amplitude S_hat.
     """
     lam, _, LU, coef, piv, real, M, _, _, _, _, _, x, _, _, Vinv = ws
-    nu, eta, E, phi0, K = pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0], pars[P_K]
-    A, b = linearised_contact_arrays(s0[0], s0[1], K, nu, mu_c)
+    eta, E, phi0 = pars[P_ETA], pars[P_E], pars[P_PHI0]
+    A, b = linearised_contact_record(s0[0], s0[1], pars, mu_c)
     M[:, :] = A
     for i in range(4):
         for j in range(4):
