@@ -574,7 +574,12 @@ class AnalysisSection(_Section):
 # =========================================================================== [sweep]
 # Owned by `rubcli sweep` (docs/sweeps.md). The engine is rubcli.sweep; this is its schema.
 
-SweepParameter = Literal["nu", "eta", "e", "K", "mu", "Rp", "phi0", "x", "y", "vx", "vy"]
+SweepParameter = Literal[
+    "nu", "eta", "e", "K", "mu", "Rp", "phi0", "x", "y", "vx", "vy",
+    # the general machine's (model.MACHINE_PARAMETERS)
+    "offset", "offset_x", "offset_y", "load", "load_x", "load_y", "k_xx", "k_xy", "k_yx",
+    "k_yy", "cross_coupling",
+]  # fmt: skip
 SWEEP_MODEL_PARAMETERS: tuple[str, ...] = ("nu", "eta", "e", "K", "mu", "Rp", "phi0")
 SWEEP_INITIAL_PARAMETERS: tuple[str, ...] = ("x", "y", "vx", "vy")
 SweepDirection = Literal["up", "down", "both", "independent"]
@@ -716,6 +721,8 @@ class SweepSection(_Section):
             for value in (min(values), max(values)):  # (each domain is an interval)
                 if axis.parameter in SWEEP_MODEL_PARAMETERS:
                     why = model.parameter_problem(axis.parameter, value)
+                elif axis.parameter in model.MACHINE_PARAMETERS:
+                    why = None  # against the case's machine: _sweep_machine_problem
                 else:
                     why = _state_problem(value)
                 if why:
@@ -1598,7 +1605,9 @@ def assemble_case(
         where = "model.K" if scale is None else f"physical: converts to K = {params.K!r}"
         raise CaseError([f"{source}: {where}: {why}"])
     if settings.sweep is not None:
-        why = _sweep_resolution_problem(settings.sweep, params)
+        why = _sweep_resolution_problem(settings.sweep, params) or _sweep_machine_problem(
+            settings.sweep, params
+        )
         if why:
             raise CaseError([f"{source}: sweep: {why}"])
     try:
@@ -1640,6 +1649,23 @@ def _check_machine(settings: CaseFile, values: dict[str, Any], source: str) -> N
             why = registry.unsupported(method, registry.GENERAL_MACHINE)
             if why:
                 raise CaseError([f"{source}: {name}: {why}"])
+
+
+def _sweep_machine_problem(cfg: SweepSection, params: ModelParams) -> str | None:
+    """Why a sweep over the general machine's parameters leaves the model's domain at an
+    end of an axis (each entry's domain, a positive-definite stiffness among them, is an
+    interval in that entry), or None."""
+    for axis in cfg.resolved_axes():
+        if axis.parameter not in model.MACHINE_PARAMETERS:
+            continue
+        values = axis.resolved_values()
+        for value in (min(values), max(values)):
+            try:
+                model.with_value(params, axis.parameter, value)
+            except ValueError as exc:
+                why = str(exc).removeprefix("ModelParams: ")
+                return f"{axis.parameter} = {value!r} makes a machine that is not one: {why}"
+    return None
 
 
 def _sweep_resolution_problem(cfg: SweepSection, params: ModelParams) -> str | None:

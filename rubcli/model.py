@@ -213,6 +213,15 @@ class ModelParams:
             out["damping"] = [list(row) for row in self.damping]
         return out
 
+    def machine_text(self) -> str:
+        """The general machine's entries in one line (``offset=[0.6, 0], ...``), or ''."""
+
+        def text(value: list) -> str:
+            inner = (text(v) if isinstance(v, list) else f"{v:g}" for v in value)
+            return "[" + ", ".join(inner) + "]"
+
+        return ", ".join(f"{k}={text(v)}" for k, v in self.machine_dict().items())
+
     @property
     def static_force(self) -> tuple[float, float]:
         """The constant force on the rotor in the model's coordinates (relative to the
@@ -229,6 +238,60 @@ class ModelParams:
         gx, gy = self.static_force
         det = sxx * syy - sxy * syx
         return (syy * gx - sxy * gy) / det, (sxx * gy - syx * gx) / det
+
+
+# The general machine's scalars a sweep can vary (docs/machines.md), with their meaning.
+# "offset" and "load" are magnitudes along the case's own direction (x for an offset the
+# case does not give, -y for a load: gravity); "cross_coupling" is q of the antisymmetric
+# part q [[0, 1], [-1, 0]] of the stiffness, its symmetric part kept.
+MACHINE_PARAMETERS = {
+    "offset": "stator offset (clearances)",
+    "offset_x": "stator offset c_x (clearances)",
+    "offset_y": "stator offset c_y (clearances)",
+    "load": "static load (k_r clearance)",
+    "load_x": "static load g_x (k_r clearance)",
+    "load_y": "static load g_y (k_r clearance)",
+    "k_xx": "support stiffness k_xx / k_r (-)",
+    "k_xy": "support stiffness k_xy / k_r (-)",
+    "k_yx": "support stiffness k_yx / k_r (-)",
+    "k_yy": "support stiffness k_yy / k_r (-)",
+    "cross_coupling": "cross-coupled stiffness q / k_r (-)",
+}
+
+
+def with_value(params: ModelParams, name: str, value: float) -> ModelParams:
+    """``params`` with one parameter set: a scalar of ``PARAMETER_SIGNS`` or one of the
+    general machine's ``MACHINE_PARAMETERS``; ValueError (from ``ModelParams``) where the
+    value leaves the model's domain."""
+    import dataclasses
+
+    value = float(value)
+    if name in PARAMETER_SIGNS:
+        return dataclasses.replace(params, **{name: value})
+    (sxx, sxy), (syx, syy) = params.stiffness
+    if name in ("offset", "load"):
+        vector = params.offset if name == "offset" else params.load
+        size = math.hypot(*vector)
+        unit = (vector[0] / size, vector[1] / size) if size > 0.0 else _DIRECTIONS[name]
+        return dataclasses.replace(params, **{name: (value * unit[0], value * unit[1])})
+    if name in ("offset_x", "offset_y", "load_x", "load_y"):
+        base, axis = name.split("_")
+        vector = list(getattr(params, base))
+        vector["xy".index(axis)] = value
+        return dataclasses.replace(params, **{base: tuple(vector)})
+    if name == "cross_coupling":
+        mean = 0.5 * (sxy + syx)
+        return dataclasses.replace(params, stiffness=((sxx, mean + value), (mean - value, syy)))
+    if name in ("k_xx", "k_xy", "k_yx", "k_yy"):
+        entries = {"k_xx": sxx, "k_xy": sxy, "k_yx": syx, "k_yy": syy, name: value}
+        return dataclasses.replace(
+            params,
+            stiffness=((entries["k_xx"], entries["k_xy"]), (entries["k_yx"], entries["k_yy"])),
+        )
+    raise ValueError(f"unknown parameter {name!r}")
+
+
+_DIRECTIONS = {"offset": (1.0, 0.0), "load": (0.0, -1.0)}
 
 
 def _vector(name: str, value: object) -> tuple[float, float]:
@@ -499,17 +562,26 @@ def linearised_contact_record(
     return A, b
 
 
-def free_flight_system(params: ModelParams) -> tuple[np.ndarray, np.ndarray]:
+def free_flight_record(pars: np.ndarray | tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
     """``(A, b)`` of the free flight of the general machine, ``s' = A s + b + q(tau)``
-    with ``q = (0, 0, E cos(eta tau + phi0), E sin(eta tau + phi0))``: linear, so its
-    solution is exact (the analytic method's free flight off the paper's machine)."""
+    with ``q = (0, 0, E cos(eta tau + phi0), E sin(eta tau + phi0))``, from a record
+    (compilable core): linear, so its solution is exact (the analytic method's free
+    flight off the paper's machine)."""
     A = np.zeros((4, 4))
-    A[0, 2] = A[1, 3] = 1.0
-    A[2, 0] = A[3, 1] = -1.0
-    A[2, 2] = A[3, 3] = -2.0 * params.nu
+    A[0, 2] = 1.0
+    A[1, 3] = 1.0
+    A[2, 0] = -1.0
+    A[3, 1] = -1.0
+    A[2, 2] = -2.0 * pars[P_NU]
+    A[3, 3] = -2.0 * pars[P_NU]
     b = np.zeros(4)
-    add_support_linear(A, b, params_vector(params))
+    add_support_linear(A, b, pars)
     return A, b
+
+
+def free_flight_system(params: ModelParams) -> tuple[np.ndarray, np.ndarray]:
+    """``free_flight_record`` of ``params``."""
+    return free_flight_record(params_vector(params))
 
 
 def linearised_contact_system(

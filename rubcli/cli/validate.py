@@ -54,6 +54,7 @@ def summary_lines(case: Case) -> list[str]:
         ),
         f"model     nu={p.nu:.6g} eta={p.eta:.6g} e={p.e:.6g} K={p.K:.6g} "
         f"mu={p.mu:.6g} Rp={p.Rp:.6g} phi0={p.phi0:.6g}",
+        *([f"machine   {p.machine_text()}"] if not p.is_paper_machine else []),
         "initial   x={:.6g} y={:.6g} vx={:.6g} vy={:.6g}".format(*problem.initial),
         _time_line(problem),
         f"methods   {', '.join(case.methods)}",

@@ -107,7 +107,8 @@ def draw_orbits(
     circle = np.linspace(0.0, 2.0 * np.pi, 721)
     ax.plot(*at(np.cos(circle), np.sin(circle)), label="clearance", **display.CLEARANCE_STYLE)
     if cx != 0.0 or cy != 0.0:
-        ax.plot(0.0, 0.0, "+", color="0.3", ms=12, mew=1.2, label="support centre", zorder=5)
+        ax.plot(0.0, 0.0, "P", color="white", ms=9, mec="k", mew=1.0, label="support centre",
+                zorder=7)  # fmt: skip
     if radius is None:  # the orbits, the clearance and the support's centre
         radius = unit * max(display.orbit_radius(solutions), display.MARGIN * math.hypot(cx, cy))
     drawing = OrbitDrawing(radius=radius)

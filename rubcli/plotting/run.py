@@ -59,7 +59,10 @@ def parameters_title(
     p = params
     mu = "mu: see each panel" if vary_mu else f"mu={p.mu:g}"
     eta = speed if speed is not None else f"eta={p.eta:g}"
-    return f"{name}\nnu={p.nu:g}, {eta}, e={p.e:g}, K={p.K:g}, {mu}, Rp={p.Rp:g}, phi0={p.phi0:g}"
+    nu = "" if p.damping is not None else f"nu={p.nu:g}, "
+    title = f"{name}\n{nu}{eta}, e={p.e:g}, K={p.K:g}, {mu}, Rp={p.Rp:g}, phi0={p.phi0:g}"
+    machine = p.machine_text()
+    return title + (f"\n{machine}" if machine else "")
 
 
 def orbit_figure(
@@ -217,7 +220,10 @@ def time_figure(
         if np.isfinite(lo) and np.isfinite(hi) and hi > lo:
             pad = 0.05 * (hi - lo)
             axes[k, 0].set_ylim(lo - pad, hi + pad)
-    for k, name in enumerate(("x", "y", "z")):
+    # with an offset stator the positions are the rotor's relative to the stator's centre
+    offset = bool(solutions) and solutions[0].problem.params.offset != (0.0, 0.0)
+    names = ("x rel. stator", "y rel. stator", "z") if offset else ("x", "y", "z")
+    for k, name in enumerate(names):
         axes[k, 0].set_ylabel(f"{name} / clearance" if scale is None else f"{name} (m)")
         for ax in axes[k]:
             ax.grid(True, alpha=0.3)

@@ -14,6 +14,7 @@ from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
+from rubcli import model
 from rubcli.analysis.sweep.point import RESPONSE_CLASSES
 from rubcli.plotting.cascade import DYNAMIC_RANGE_DB
 
@@ -37,6 +38,7 @@ AXIS_LABELS = {
     "y0": "start y (clearances)",
     "vx0": "start vx (clearances per unit tau)",
     "vy0": "start vy (clearances per unit tau)",
+    **model.MACHINE_PARAMETERS,
 }
 
 

@@ -352,10 +352,8 @@ class PiecewiseStepper:
                 float(analytic_tol) if analytic_tol is not None else 0.0,
                 control.SAFETY, control.MIN_FACTOR, control.MAX_FACTOR, self.h_max, self.min_step,
             )  # fmt: skip
-        # fixed steps: the compiled loop takes every regime, its events included (its
-        # free flight is the paper machine's closed form; on the general machine the free
-        # flights run in Python, LinearFreeFlight, and the slip steps in the kernel)
-        self.use_loop = self.use_kernel and analytic_tol is None and params.is_paper_machine
+        # fixed steps: the compiled loop takes every regime, its events included
+        self.use_loop = self.use_kernel and analytic_tol is None
         self.python_next = False  # the loop handed the next step to Python
         if self.use_loop:
             self.free = np.empty(6)  # the free flight in progress (advance_piecewise's ff)

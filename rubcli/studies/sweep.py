@@ -101,6 +101,7 @@ def title_of(case: Case, plan: SweepPlan) -> str:
     p = case.params
     swept = {a.parameter for a in plan.axes}
     fixed = ", ".join(f"{k}={v:g}" for k, v in p.as_dict().items() if k not in swept)
+    fixed += f", {p.machine_text()}" if not p.is_paper_machine else ""
     axes = " and ".join(a.parameter for a in plan.axes)
     if plan.recognition is not None:
         budget = plan.transient_periods + plan.record_periods

@@ -14,7 +14,6 @@ from a case.
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import json
 import math
@@ -22,13 +21,14 @@ from dataclasses import dataclass, field
 from itertools import product
 from typing import TYPE_CHECKING
 
+from rubcli import model
 from rubcli.analysis.sweep.attractors import Recognition
 from rubcli.model import ModelParams
 
 if TYPE_CHECKING:
     from collections.abc import Iterable
 
-MODEL_AXES = ("nu", "eta", "e", "K", "mu", "Rp", "phi0")
+MODEL_AXES = ("nu", "eta", "e", "K", "mu", "Rp", "phi0", *model.MACHINE_PARAMETERS)
 INITIAL_AXES = ("x", "y", "vx", "vy")
 DIRECTIONS = ("up", "down", "both", "independent")
 STATE_NAMES = ("x", "y", "vx", "vy")
@@ -160,8 +160,10 @@ class SweepPlan:
 
     def point(self, direction: str, index: tuple[int, ...]) -> Point:
         values = {a.parameter: a.values[i] for a, i in zip(self.axes, index, strict=True)}
-        model = {k: v for k, v in values.items() if k in MODEL_AXES}
-        params = dataclasses.replace(self.params, **model) if model else self.params
+        params = self.params
+        for k, v in values.items():
+            if k in MODEL_AXES:
+                params = model.with_value(params, k, v)
         start: tuple[float, float, float, float] | None = None
         if direction == "independent" or index[0] == self._first_index(direction):
             state = list(self.initial)
@@ -198,7 +200,7 @@ class SweepPlan:
         """The plan as plain data (echoed in the results and hashed for resumption)."""
         return {
             "name": self.name,
-            "params": self.params.as_dict(),
+            "params": {**self.params.as_dict(), **self.params.machine_dict()},
             "initial": list(self.initial),
             "axes": [{"parameter": a.parameter, "values": list(a.values)} for a in self.axes],
             "direction": self.direction,

@@ -23,6 +23,7 @@ COMPILABLE_CORES = (
     model.linearised_contact_arrays,
     model.add_support_linear,
     model.linearised_contact_record,
+    model.free_flight_record,
     model.unbalance_value,
     model.stick_friction_value,
     model.rolling_velocity,

@@ -31,6 +31,10 @@ from rubcli.model import (
     P_K,
     P_NU,
     P_PHI0,
+    P_SXX,
+    P_SXY,
+    P_SYX,
+    P_SYY,
     STICK,
     free_flight_value,
     free_steady_value,
@@ -98,8 +102,10 @@ def _stick_f(t, x, y, vx, vy, pars):
 
 @register_jitable
 def stick_omega_max(pars: np.ndarray | tuple[float, ...]) -> float:
-    """``analytic.StickStep.omega_max``: max(eta, 1, sqrt(1 + K))."""
-    return max(pars[P_ETA], 1.0, math.sqrt(1.0 + pars[P_K]))
+    """``analytic.StickStep.omega_max``: max(eta, 1, sqrt(1 + K + s)), s a bound on the
+    general machine's added stiffness (the sum of |S - I|'s entries; 0 on the paper's)."""
+    extra = abs(pars[P_SXX]) + abs(pars[P_SXY]) + abs(pars[P_SYX]) + abs(pars[P_SYY])
+    return max(pars[P_ETA], 1.0, math.sqrt(1.0 + pars[P_K] + extra))
 
 
 @register_jitable

@@ -3,7 +3,8 @@
 It advances ``analytic`` (Cartesian linearisation) and ``analytic-polar`` through every
 regime as ``analytic.PiecewiseStepper`` does in Python, advance for advance:
 
-- free flight: no steps; the closed form (``piecewise._free_at``) is scanned chunk by
+- free flight: no steps; the closed form (``piecewise._free_at``; on the general machine
+  the linear propagator, ``propagators.prepare_free_flight``) is scanned chunk by
   chunk for the contact entry (intervals of 1/32 of the fastest period, ``FREE_FIRST_CHUNK``
   of them in the first chunk, twice as many in each next, up to ``FREE_SCAN_CHUNK``);
 - slip: one linearised step of ``h`` (``propagators._prepare``); the conservative
@@ -32,18 +33,16 @@ import numpy as np
 
 from rubcli.model import (
     FREE,
-    P_E,
     P_ETA,
     P_K,
     P_MU,
-    P_NU,
-    P_PHI0,
     P_RP,
     STICK,
     STICK_EXIT_MARGIN,
     friction_sign,
+    is_general_record,
     rolling_velocity,
-    stick_friction_value,
+    stick_friction_record,
 )
 from rubcli.solvers.compiled.contact import (
     _clear_by_bound,
@@ -72,7 +71,12 @@ from rubcli.solvers.compiled.precheck import (
     _step_may_have_event,
     _surface_may_cross,
 )
-from rubcli.solvers.compiled.propagators import _evaluate, _prepare, _workspace
+from rubcli.solvers.compiled.propagators import (
+    _evaluate,
+    _prepare,
+    _workspace,
+    prepare_free_flight,
+)
 from rubcli.solvers.compiled.roots import apply_and_record
 from rubcli.solvers.events import NO_EVENT, event_search, linspace_into, run_time, start_flags
 
@@ -127,6 +131,8 @@ def advance_piecewise(
     spin = pars[P_RP] * pars[P_ETA]
     check_slip = pars[P_MU] > 0.0
     ws = _workspace()
+    general = is_general_record(pars)  # the free flight is then the linear propagator's
+    wf = _workspace()
     st = np.empty((4, 4))
     meta = np.empty(2)
     row = np.empty(4)
@@ -147,15 +153,26 @@ def advance_piecewise(
         if regime == FREE:
             warm = False
             if not free_active:  # a new free flight (PiecewiseStepper._free_flight)
-                _free_prepare(tau, state, pars, ff)
+                if general:  # its start, from which prepare_free_flight solves it
+                    ff[0] = tau
+                    for j in range(4):
+                        ff[1 + j] = state[j]
+                else:
+                    _free_prepare(tau, state, pars, ff)
                 ff[5] = first_chunk  # the next chunk's intervals
                 counts[C_FREE] += 1
                 counts[C_STEPS] += 1
                 free_active = True
-            omega = free_omega_max(pars)
+            if general:  # the exact linear flight (analytic.LinearFreeFlight)
+                cond, omega = prepare_free_flight(ff[0], ff[1:5], pars, wf, run_time(False))
+                if not 8.0 * cond <= cond_limit:  # Python's eig (or expm) takes it
+                    return tau, regime, last_kind, k, n_events, False, STOP_PYTHON
+            else:
+                omega = free_omega_max(pars)
             spacing = free_frac * 2.0 * math.pi / max(omega, 1e-300)
             tb = tau
             ctx = (ff, pars)
+            linear = (False, ff[0], pars, wf)
             while tb < t_end and work < max_work:
                 ta = tb
                 tb = min(t_end, tb + ff[5] * spacing)
@@ -165,15 +182,20 @@ def advance_piecewise(
                     size = n + 1
                     grid, S, dS, hv, hd = _scan_buffers(run_time(size))
                 linspace_into(grid, ta, tb, n)
-                t_ev, kind = _locate_free(
-                    ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow
-                )
+                if general:
+                    t_ev, kind = _locate_contact(
+                        linear, regime, pars, grid, n, starts, band, hv, hd, row, drow
+                    )
+                else:
+                    t_ev, kind = _locate_free(
+                        ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow
+                    )
                 work += 1
                 starts = start_flags(NO_EVENT)
                 last_kind = NO_EVENT
                 t_stop = t_ev if kind != NO_EVENT else tb
                 while k < n_out and t_eval[k] <= t_stop:
-                    _free_at(t_eval[k], ff, pars, row)
+                    _flight_at(general, t_eval[k], ff, pars, wf, row, drow)
                     for j in range(4):
                         out_states[k, j] = row[j]
                     out_regimes[k] = regime
@@ -181,13 +203,13 @@ def advance_piecewise(
                 if kind != NO_EVENT:
                     break
             if kind == NO_EVENT:  # the end, or the work limit inside the free flight
-                _free_at(tb, ff, pars, row)
+                _flight_at(general, tb, ff, pars, wf, row, drow)
                 for j in range(4):
                     state[j] = row[j]
                 tau = tb
                 continue
             free_active = False
-            _free_at(t_ev, ff, pars, row)
+            _flight_at(general, t_ev, ff, pars, wf, row, drow)
         elif regime == STICK:
             warm = False
             tb = min(t_end, tau + h)
@@ -295,6 +317,16 @@ def advance_piecewise(
 
 
 @jit
+def _flight_at(general, t, ff, pars, wf, row, drow):
+    """The free flight in progress at t, into row: the paper machine's closed form
+    (``ff``) or the general machine's linear propagator (``wf``, prepared at ff[0])."""
+    if general:
+        _evaluate(False, ff[0], t, pars, wf, row, drow)
+    else:
+        _free_at(t, ff, pars, row)
+
+
+@jit
 def _stick_may_have_event(grid, n, st, meta, pars, S, W, hv, hd, row, on_surface):
     """Whether the event search might find an event in a stick step (its states on the
     grid in ``S``): False only if it surely finds none, as ``precheck`` decides for a slip
@@ -306,19 +338,18 @@ def _stick_may_have_event(grid, n, st, meta, pars, S, W, hv, hd, row, on_surface
     """
     if _surface_may_cross(grid, S, n, -1.0, 1.0, hv, hd, on_surface):
         return True
-    nu, eta, E, phi0 = pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0]
     cone = pars[P_MU] * pars[P_K] * (1.0 + STICK_EXIT_MARGIN)
     d = 1e-6 * max(1.0, grid[n] - grid[0])
     for i in range(n + 1):
         t = grid[i]
         x, y = S[i, 0], S[i, 1]
-        W[i, 0] = stick_friction_value(t, x, y, S[i, 2], S[i, 3], nu, eta, E, phi0)
+        W[i, 0] = stick_friction_record(t, x, y, S[i, 2], S[i, 3], pars)
         W[i, 1] = cone * (math.hypot(x, y) - 1.0)
         stick_at(t + d, st, meta, row)
-        up_T = stick_friction_value(t + d, row[0], row[1], row[2], row[3], nu, eta, E, phi0)
+        up_T = stick_friction_record(t + d, row[0], row[1], row[2], row[3], pars)
         up_L = cone * (math.hypot(row[0], row[1]) - 1.0)
         stick_at(t - d, st, meta, row)
-        down_T = stick_friction_value(t - d, row[0], row[1], row[2], row[3], nu, eta, E, phi0)
+        down_T = stick_friction_record(t - d, row[0], row[1], row[2], row[3], pars)
         down_L = cone * (math.hypot(row[0], row[1]) - 1.0)
         W[i, 2] = (up_T - down_T) / (2.0 * d)
         W[i, 3] = (up_L - down_L) / (2.0 * d)

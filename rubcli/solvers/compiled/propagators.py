@@ -20,6 +20,7 @@ from rubcli.model import (
     P_NU,
     P_PHI0,
     cartesian_entries,
+    free_flight_record,
     linearised_contact_record,
     polar_entries,
     polar_jacobian_arrays,
@@ -195,14 +196,32 @@ def _evaluate_polar(dt, ws, out, dout):
 
 @jit
 def _prepare_cartesian(tau0, s0, pars, mu_c, ws, warm):
-    """LinearisedContact.__init__ at (tau0, s0): returns (cond1(V), omega_max).
+    """LinearisedContact.__init__ at (tau0, s0): returns (cond1(V), omega_max)."""
+    A, b = linearised_contact_record(s0[0], s0[1], pars, mu_c)
+    return _prepare_system(tau0, s0, pars, A, b, ws, warm)
+
+
+@jit
+def prepare_free_flight(
+    tau0: float, s0: np.ndarray, pars: np.ndarray, ws: tuple, warm: bool
+) -> tuple[float, float]:
+    """analytic.LinearFreeFlight.__init__ at (tau0, s0), the general machine's exact free
+    flight (``model.free_flight_record``): returns (cond1(V), omega_max); evaluated by
+    ``_evaluate`` (Cartesian) as a contact step is."""
+    A, b = free_flight_record(pars)
+    return _prepare_system(tau0, s0, pars, A, b, ws, warm)
+
+
+@jit
+def _prepare_system(tau0, s0, pars, A, b, ws, warm):
+    """The closed form of ``s' = A s + b + (0, 0, E cos, E sin)(eta tau + phi0)`` from
+    (tau0, s0) (``analytic.LinearisedContact._solve``): returns (cond1(V), omega_max).
 
     ``real`` holds s_c (0:4) and b (4:8); ``M`` is A; ``coef[0]`` the eigen-coefficients
     c of d0, ``coef[1]`` the harmonic amplitude S_hat.
     """
     lam, _, LU, coef, piv, real, M, _, _, _, _, _, x, _, _, Vinv = ws
     eta, E, phi0 = pars[P_ETA], pars[P_E], pars[P_PHI0]
-    A, b = linearised_contact_record(s0[0], s0[1], pars, mu_c)
     M[:, :] = A
     for i in range(4):
         for j in range(4):
