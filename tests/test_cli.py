@@ -107,7 +107,10 @@ def read_regime_names(path: Path) -> list[str]:
 # ------------------------------------------------------------------ init and validate
 
 
-@pytest.mark.parametrize("flags", [[], ["--physical"]])
+@pytest.mark.parametrize(
+    "flags",
+    [[], ["--physical"], ["--machine", "general"], ["--machine", "general", "--physical"]],
+)
 def test_init_prints_a_case_that_validates(tmp_path, flags):
     result = invoke("init", *flags)
     assert result.exit_code == 0
@@ -118,6 +121,18 @@ def test_init_prints_a_case_that_validates(tmp_path, flags):
     check = invoke("validate", path)
     assert check.exit_code == 0, check.output
     assert "valid" in check.stdout
+
+
+def test_init_general_describes_the_general_machine_and_refuses_an_unknown_one(tmp_path):
+    result = invoke("init", "--machine", "general")
+    path = tmp_path / "general.toml"
+    path.write_text(result.stdout, encoding="utf-8")
+    p = load_case(path).params
+    assert not p.is_paper_machine and {"offset", "load", "stiffness", "damping"} <= set(
+        p.machine_dict()
+    )
+    bad = invoke("init", "--machine", "rigid")
+    assert bad.exit_code == 2 and "--machine: must be paper or general" in bad.stderr
 
 
 def test_validate_shows_the_converted_physical_case(tmp_path):

@@ -110,6 +110,32 @@ def test_cross_coupling_whirls_on_its_own_above_twice_the_damping():
         assert (growth > 0) == (q > 2 * nu)
 
 
+def test_the_anisotropic_threshold_of_cross_coupling_is_the_closed_form():
+    """S = [[1, q], [-q, 1 + delta]], D = nu I: det(l^2 + 2 nu l + S) = 0 gives
+    (l^2 + 2 nu l + 1 + delta/2)^2 = delta^2/4 - q^2, and a root crosses the imaginary axis
+    at l = i omega, omega^2 = 1 + delta/2, where q_th^2 = delta^2/4 + 4 nu^2 (1 + delta/2)
+    (cases/machines/cross-coupled.toml: 0.0647). Checked on the free-flight system's
+    eigenvalues (model.free_flight_system) and by time integration on either side: an
+    e = 0 rotor started near rest grows past the clearance above q_th and decays below."""
+    nu, delta = 0.02, 0.1
+    q_th = np.sqrt(delta**2 / 4 + 4 * nu**2 * (1 + delta / 2))
+    assert q_th == pytest.approx(0.0647, abs=5e-5)
+    for q, grows in ((0.98 * q_th, False), (1.02 * q_th, True), (0.8 * q_th, False),
+                     (1.3 * q_th, True)):  # fmt: skip
+        p = ModelParams(nu=nu, eta=0.6, e=0.0, K=20.0, mu=0.1, Rp=2.0,
+                        stiffness=((1.0, q), (-q, 1.0 + delta)))  # fmt: skip
+        lam = np.linalg.eigvals(model.free_flight_system(p)[0])
+        assert (lam.real.max() > 0) == grows
+        if abs(q / q_th - 1.0) < 0.1:  # too slow to integrate: the eigenvalues decide
+            continue
+        t = np.linspace(0, 10.0 / abs(lam.real.max()), 1001)  # ten e-folds of the mode
+        sol = solve(Problem(p, (0.01, 0.0, 0.0, 0.0), t), "taylor", rtol=1e-10, atol=1e-14)
+        assert sol.success
+        assert (sol.n_contact_switches > 0) == grows
+        if not grows:
+            assert np.hypot(sol.x[-1], sol.y[-1]) < 0.01
+
+
 def rubbing_cases() -> dict[str, ModelParams]:
     """Two rubs on the general machine: a partial rub with long stick episodes (low
     speed, a heavy unbalance) and a fast one with stick, slip reversals and contacts."""

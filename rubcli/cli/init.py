@@ -172,11 +172,84 @@ plots = ["orbit", "time"]       # any of: {_PLOTS}
 {_OPTIONAL_TABLES}"""
 
 
+SAMPLE_GENERAL_CASE = f"""\
+# A rubcli case file for the general machine (TOML). Reference: docs/machines.md.
+# A horizontal rotor whose seal is misaligned, on anisotropic, cross-coupled bearings.
+
+[case]
+name = "my-machine"
+description = "Misaligned seal, gravity, anisotropic and cross-coupled bearings"
+
+[model]                         # nondimensional (docs/cases.md, docs/machines.md)
+eta = 1.1                       # speed ratio Omega / omega, > 0 (omega = sqrt(k_r / m))
+e = 0.1                         # unbalance eccentricity / clearance, >= 0
+K = 20.0                        # stator / rotor stiffness ratio k_s / k_r, > 0
+mu = 0.1                        # Coulomb friction coefficient, >= 0
+Rp = 3.0                        # rotor radius / clearance, >= 0
+# The general machine (each entry optional; leaving all out is the paper's machine):
+offset = [0.3, 0.0]             # the stator's centre from the support's, clearances
+load = [0.0, -0.5]              # static force on the rotor (gravity: -m g / (k_r clearance))
+stiffness = [[1.0, 0.02],       # support stiffness S / k_r: k_xx = 1 is the reference k_r,
+             [-0.02, 1.2]]      #   k_xy - k_yx = 2 q the cross-coupling; sym. part > 0
+damping = [[0.05, 0.0],         # support damping D (forces 2 D w'), instead of nu;
+           [0.0, 0.06]]         #   damping = [[nu, 0], [0, nu]] is the isotropic nu
+
+[initial]                       # relative to the stator's centre: the rotor's own position
+x = -0.3                        #   is x + offset_x (here: at rest on its support's centre)
+y = 0.0
+vx = 0.0
+vy = 0.0
+
+[time]
+periods = 60                    # duration in forcing periods 2 pi / eta, > 0
+samples_per_period = 100
+
+[solver]
+# any of: {_METHODS} (not analytic-polar)
+methods = ["analytic", "dop853-jit"]
+rtol = 1e-9
+atol = 1e-11
+steps_per_period = 800
+
+[output]
+csv = true                      # x, y relative to the stator; rotor_x, rotor_y the rotor's
+plots = ["orbit", "time"]       # any of: {_PLOTS}
+{_OPTIONAL_TABLES}"""
+
+# the general machine's entries of a [physical] table (docs/machines.md)
+_PHYSICAL_GENERAL = """\
+# The general machine in SI units (each entry optional; docs/machines.md):
+offset = [6.0e-5, 0.0]          # the stator's centre from the support's, m
+load = [0.0, -39.2]             # static force on the rotor, N (gravity: -m g)
+stiffness = [[4.0e5, 8.0e3],    # support stiffness, N/m (k_r is the reference: k_xx here)
+             [-8.0e3, 4.8e5]]
+# damping = [[25.3, 0.0], [0.0, 30.0]]  # support damping, N s/m, instead of d_r
+"""
+
+
 def command(
     physical: Annotated[
         bool,
         typer.Option("--physical", help="Print a sample in SI units (a \\[physical] table)."),
     ] = False,
+    machine: Annotated[
+        str,
+        typer.Option(
+            "--machine",
+            help="paper (a concentric rigid stator, isotropic support) or general (an offset "
+            "stator, a static load, anisotropic and cross-coupled supports).",
+        ),
+    ] = "paper",
 ) -> None:
     """Print a commented sample case file (redirect it: rubcli init > my.toml)."""
+    if machine not in ("paper", "general"):
+        console.error(f"--machine: must be paper or general (got {machine!r})")
+        raise typer.Exit(2)
+    if machine == "general" and physical:  # the general entries after the [physical] table's
+        last = SAMPLE_PHYSICAL_CASE.index("\n", SAMPLE_PHYSICAL_CASE.index("phi0 = ")) + 1
+        console.raw(SAMPLE_PHYSICAL_CASE[:last] + _PHYSICAL_GENERAL + SAMPLE_PHYSICAL_CASE[last:])
+        return
+    if machine == "general":
+        console.raw(SAMPLE_GENERAL_CASE)
+        return
     console.raw(SAMPLE_PHYSICAL_CASE if physical else SAMPLE_CASE)

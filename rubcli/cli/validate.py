@@ -45,6 +45,7 @@ def _time_line(problem: Problem) -> str:
 def summary_lines(case: Case) -> list[str]:
     """What a case resolves to, in a few lines (the nondimensional problem it defines)."""
     p, problem = case.params, case.problem
+    nu = "" if p.damping is not None else f"nu={p.nu:.6g} "  # (a damping matrix: machine)
     lines = [
         f"case      {case.name}"
         + (
@@ -52,8 +53,8 @@ def summary_lines(case: Case) -> list[str]:
             if case.settings.case.description
             else ""
         ),
-        f"model     nu={p.nu:.6g} eta={p.eta:.6g} e={p.e:.6g} K={p.K:.6g} "
-        f"mu={p.mu:.6g} Rp={p.Rp:.6g} phi0={p.phi0:.6g}",
+        f"model     {nu}eta={p.eta:.6g} e={p.e:.6g} K={p.K:.6g} mu={p.mu:.6g} Rp={p.Rp:.6g} "
+        f"phi0={p.phi0:.6g}",
         *([f"machine   {p.machine_text()}"] if not p.is_paper_machine else []),
         "initial   x={:.6g} y={:.6g} vx={:.6g} vy={:.6g}".format(*problem.initial),
         _time_line(problem),
