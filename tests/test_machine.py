@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 from collections import Counter
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -23,6 +24,7 @@ from rubcli.problem import Problem
 from rubcli.solvers import solve
 from rubcli.solvers.registry import GENERAL_MACHINE, RTOL, SPECS, options_for
 
+REPO = Path(__file__).resolve().parents[1]
 GENERAL_METHODS = [name for name, spec in SPECS.items() if GENERAL_MACHINE in spec.features]
 INTEGRATORS = [name for name in GENERAL_METHODS if SPECS[name].knob == RTOL]
 STIFFNESS = ((1.0, 0.15), (-0.1, 1.6))  # anisotropic, cross-coupled (q = 0.125)
@@ -324,3 +326,27 @@ def test_run_writes_the_rotor_position_and_echoes_the_machine(tmp_path):
     rows = np.genfromtxt(out / "dop853-jit.csv", delimiter=",", names=True)
     assert np.allclose(rows["rotor_x"], rows["x"] + 0.2, rtol=0, atol=1e-15)
     assert np.allclose(rows["rotor_y"], rows["y"] + 0.1, rtol=0, atol=1e-15)
+
+
+def test_orbits_shoots_and_continues_on_the_general_machine(tmp_path):
+    """`rubcli orbits` on the misaligned stator: the period-one partial rub of the run,
+    found by shooting from the end of a transient, continued in eta; its stroboscopic
+    point is the run's (to the shooting tolerance) and the synchronous rub's closed form
+    (the paper machine's) is refused as a start."""
+    base = (REPO / "cases" / "machines" / "misaligned.toml").read_text()
+    text = base.replace('dir = "out/misaligned"', f'dir = "{tmp_path / "out"}"')
+    orbits = '\n[orbits]\nparameter = "eta"\nmin = 1.09\nmax = 1.12\nstep = 0.01\n'
+    path = tmp_path / "case.toml"
+    path.write_text(text + orbits + 'start = "synchronous_rub"\n')
+    refused = CliRunner().invoke(app, ["orbits", str(path)])
+    assert refused.exit_code == 2 and "closed form on the paper's machine only" in refused.output
+    path.write_text(text + orbits + 'start = "transient"\ntransient_periods = 100\n')
+    result = CliRunner().invoke(app, ["orbits", str(path), "--quick"])
+    assert result.exit_code == 0, result.output
+    branch = np.genfromtxt(tmp_path / "out" / "orbits" / "branch.csv", delimiter=",", names=True)
+    at = np.argmin(np.abs(branch["value"] - 1.1))
+    case = load_case_text(base)
+    sol = solve(case.problem, "dop853-jit", rtol=1e-11, atol=1e-13)
+    end = sol.states[-1]  # 60 periods: the transient has decayed by exp(-0.05 * 340)
+    assert branch["value"][at] == pytest.approx(1.1, abs=1e-12)
+    assert np.hypot(branch["x"][at] - end[0], branch["y"][at] - end[1]) < 1e-6

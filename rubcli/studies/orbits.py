@@ -108,7 +108,13 @@ def check_case(case: Case) -> list[str]:
             f"{src}: orbits.min/max: the starting value {table} {o.parameter} = {value:.6g} "
             f"lies outside the window [{o.min:g}, {o.max:g}]"
         )
-    if o.start == "synchronous_rub":
+    if o.start == "synchronous_rub" and not case.params.is_paper_machine:
+        problems.append(
+            f"{src}: orbits.start: the synchronous full annular rub has a closed form on the "
+            "paper's machine only (a concentric stator, an isotropic support, no load); on "
+            'the general machine use start = "initial" or "transient"'
+        )
+    elif o.start == "synchronous_rub":
         rubs = [r for r in model.synchronous_rub_radii(case.params)]
         if not rubs or not model.synchronous_rub_is_forward(rubs[-1], case.params):
             problems.append(
@@ -307,7 +313,9 @@ def curve_report(curve: cv.Curve, distances: list[float]) -> dict[str, Any]:
 def fixed_text(case: Case, names: tuple[str, ...]) -> str:
     """The parameters held fixed, as text."""
     fixed = {k: v for k, v in case.params.as_dict().items() if k not in names}
-    return ", ".join(f"{k}={v:g}" for k, v in fixed.items())
+    text = ", ".join(f"{k}={v:g}" for k, v in fixed.items())
+    machine = case.params.machine_text()  # the general machine's, on a line of its own
+    return f"{text}\n{machine}" if machine else text
 
 
 def continue_orbits(
