@@ -167,8 +167,8 @@ def _roundoff(states: np.ndarray, params: model.ModelParams, t_end: float) -> fl
 
 def exact_reference(problem: Problem) -> Reference | None:
     """The exact reference of the problem if it has one (free flight, synchronous rub; at a
-    constant speed only)."""
-    if problem.changes_speed:
+    constant speed on the paper's machine only: their closed forms are its)."""
+    if problem.changes_speed or not problem.params.is_paper_machine:
         return None
     params = problem.params
     t = problem.t_eval

@@ -78,7 +78,11 @@ class SynchronousRub:
 
 
 def synchronous_rubs(params: ModelParams) -> list[SynchronousRub]:
-    """Every synchronous forward rub of these parameters (r > 1), with its stability."""
+    """Every synchronous forward rub of these parameters (r > 1), with its stability. The
+    closed form is the paper machine's (a concentric stator, an isotropic support, no
+    load): on the general machine there is none, and the list is empty."""
+    if not params.is_paper_machine:
+        return []
     out = []
     for r in model.synchronous_rub_radii(params):
         amplitude = model.synchronous_rub_amplitude(r, params)

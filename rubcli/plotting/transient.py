@@ -372,7 +372,8 @@ def cascade_figure(
         ax.plot(speed(grid[keep]), sign * free[keep], color="tab:red", ls="--", lw=1.1, zorder=3)
     handles.append(Line2D([], [], color="tab:red", ls="--", lw=1.1,
                           label="free whirl at the natural frequency: order +-1/eta"))  # fmt: skip
-    if params is not None and params.Rp > 0:
+    # the rolling whirl's closed form is the paper machine's (concentric, isotropic)
+    if params is not None and params.Rp > 0 and params.is_paper_machine:
         whip = dry_whip_order(params, grid)
         keep = np.abs(whip) <= limit
         if keep.any():
