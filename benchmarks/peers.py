@@ -147,6 +147,17 @@ class Row:
 # ------------------------------------------------------------------------- the peers
 
 
+def support_terms(params: ModelParams, x, y, vx, vy) -> tuple:
+    """The general machine's force beyond the paper's, ``model.support_extra``, as heyoka
+    expressions: ``g - S c - (S - I) d - 2 (D - nu I) d'``."""
+    r = model.params_vector(params)
+    ex = (r[model.P_GX] - r[model.P_SXX] * x - r[model.P_SXY] * y
+          - 2.0 * (r[model.P_DXX] * vx + r[model.P_DXY] * vy))  # fmt: skip
+    ey = (r[model.P_GY] - r[model.P_SYX] * x - r[model.P_SYY] * y
+          - 2.0 * (r[model.P_DYX] * vx + r[model.P_DYY] * vy))  # fmt: skip
+    return ex, ey
+
+
 class Heyoka:
     """heyoka driven as its users would: one integrator whose contact force is switched
     on and off by a runtime parameter (and its friction sign by another) at terminal
@@ -180,12 +191,12 @@ class Heyoka:
             w = eta + rate * t
             c, s = hy.cos(phase), hy.sin(phase)
             fx, fy, spin = e * (w * w * c + rate * s), e * (w * w * s - rate * c), Rp * w
-        system = [
-            (x, vx),
-            (y, vy),
-            (vx, fx - 2.0 * nu * vx - x - fac * (x - mu_c * y)),
-            (vy, fy - 2.0 * nu * vy - y - fac * (y + mu_c * x)),
-        ]
+        ax = fx - 2.0 * nu * vx - x - fac * (x - mu_c * y)
+        ay = fy - 2.0 * nu * vy - y - fac * (y + mu_c * x)
+        if not params.is_paper_machine:  # the paper's model stays term for term
+            ex, ey = support_terms(params, x, y, vx, vy)
+            ax, ay = ax + ex, ay + ey
+        system = [(x, vx), (y, vy), (vx, ax), (vy, ay)]
         self.rate = rate
         events = [hy.t_event(x * x + y * y - 1.0)]
         if mu > 0.0:
@@ -256,6 +267,9 @@ class HeyokaSwitched:
         nu, eta, E, phi0, K, mu, Rp = model.params_vector(params)[:7]  # nu .. Rp
         phase = eta * hy.time + phi0
         fx, fy = E * hy.cos(phase) - 2.0 * nu * vx - x, E * hy.sin(phase) - 2.0 * nu * vy - y
+        if not params.is_paper_machine:
+            ex, ey = support_terms(params, x, y, vx, vy)
+            fx, fy = fx + ex, fy + ey
         fac = K * (1.0 - 1.0 / hy.sqrt(x * x + y * y))
         free = [(x, vx), (y, vy), (vx, fx), (vy, fy)]
         contact = [(x, vx), (y, vy), (vx, fx - fac * (x - mu * y)), (vy, fy - fac * (y + mu * x))]

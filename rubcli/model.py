@@ -27,7 +27,7 @@ from __future__ import annotations
 import cmath
 import math
 import numbers
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -263,28 +263,26 @@ def with_value(params: ModelParams, name: str, value: float) -> ModelParams:
     """``params`` with one parameter set: a scalar of ``PARAMETER_SIGNS`` or one of the
     general machine's ``MACHINE_PARAMETERS``; ValueError (from ``ModelParams``) where the
     value leaves the model's domain."""
-    import dataclasses
-
     value = float(value)
     if name in PARAMETER_SIGNS:
-        return dataclasses.replace(params, **{name: value})
+        return replace(params, **{name: value})
     (sxx, sxy), (syx, syy) = params.stiffness
     if name in ("offset", "load"):
         vector = params.offset if name == "offset" else params.load
         size = math.hypot(*vector)
         unit = (vector[0] / size, vector[1] / size) if size > 0.0 else _DIRECTIONS[name]
-        return dataclasses.replace(params, **{name: (value * unit[0], value * unit[1])})
+        return replace(params, **{name: (value * unit[0], value * unit[1])})
     if name in ("offset_x", "offset_y", "load_x", "load_y"):
         base, axis = name.split("_")
         vector = list(getattr(params, base))
         vector["xy".index(axis)] = value
-        return dataclasses.replace(params, **{base: tuple(vector)})
+        return replace(params, **{base: tuple(vector)})
     if name == "cross_coupling":
         mean = 0.5 * (sxy + syx)
-        return dataclasses.replace(params, stiffness=((sxx, mean + value), (mean - value, syy)))
+        return replace(params, stiffness=((sxx, mean + value), (mean - value, syy)))
     if name in ("k_xx", "k_xy", "k_yx", "k_yy"):
         entries = {"k_xx": sxx, "k_xy": sxy, "k_yx": syx, "k_yy": syy, name: value}
-        return dataclasses.replace(
+        return replace(
             params,
             stiffness=((entries["k_xx"], entries["k_xy"]), (entries["k_yx"], entries["k_yy"])),
         )
@@ -348,14 +346,15 @@ def support_problem(
 # e, rate and tau0 are read only where the speed changes (``unbalance_value``).
 # The general machine enters as its departure from the paper's (``support_extra``): the
 # stiffness S - I (s_xx .. s_yy), the damping D - nu I (d_xx .. d_yy) and the constant
-# force g - S c (g_x, g_y); all 0 on the paper's machine.
+# force g - S c (g_x, g_y); all 0 on the paper's machine, where "general" is 0 too (1 on the
+# general machine: the hot paths test this one entry, not the ten, before adding them).
 PARAMETER_RECORD = (
     "nu", "eta", "E", "phi0", "K", "mu", "Rp", "e", "rate", "tau0",
-    "s_xx", "s_xy", "s_yx", "s_yy", "d_xx", "d_xy", "d_yx", "d_yy", "g_x", "g_y",
+    "s_xx", "s_xy", "s_yx", "s_yy", "d_xx", "d_xy", "d_yx", "d_yy", "g_x", "g_y", "general",
 )  # fmt: skip
 (
     P_NU, P_ETA, P_E, P_PHI0, P_K, P_MU, P_RP, P_ECC, P_RATE, P_TAU0,
-    P_SXX, P_SXY, P_SYX, P_SYY, P_DXX, P_DXY, P_DYX, P_DYY, P_GX, P_GY,
+    P_SXX, P_SXY, P_SYX, P_SYY, P_DXX, P_DXY, P_DYX, P_DYY, P_GX, P_GY, P_GENERAL,
 ) = range(len(PARAMETER_RECORD))  # fmt: skip
 N_PARAMS = len(PARAMETER_RECORD)
 
@@ -367,7 +366,8 @@ def params_vector(params: ModelParams) -> tuple[float, ...]:
     nu = params.nu
     extra = (sxx - 1.0, sxy, syx, syy - 1.0, dxx - nu, dxy, dyx, dyy - nu, *params.static_force)
     scalars = tuple(float(getattr(params, name)) for name in PARAMETER_RECORD[:P_SXX])
-    return scalars + tuple(float(v) + 0.0 for v in extra)
+    general = 0.0 if params.is_paper_machine else 1.0
+    return scalars + tuple(float(v) + 0.0 for v in extra) + (general,)
 
 
 def support_extra(
@@ -538,7 +538,9 @@ def linearised_contact_arrays(
 def add_support_linear(A: np.ndarray, b: np.ndarray, pars: np.ndarray | tuple[float, ...]) -> None:
     """The general machine's departures (``support_extra``: linear in the state, with a
     constant force) added to a first-order system ``s' = A s + b`` in place (compilable
-    core; nothing changes on the paper's machine)."""
+    core; on the paper's machine it returns at once)."""
+    if not is_general_record(pars):
+        return
     A[2, 0] -= pars[P_SXX]
     A[2, 1] -= pars[P_SXY]
     A[3, 0] -= pars[P_SYX]
@@ -779,12 +781,9 @@ def rhs_jacobian_array(
 
 
 def is_general_record(pars: np.ndarray | tuple[float, ...]) -> bool:
-    """Whether a record holds a general machine (any departure from the paper's machine
-    nonzero): a series or loop may then skip ``support_extra`` (compilable core)."""
-    for i in range(P_SXX, P_GY + 1):  # noqa: SIM110 (a loop numba compiles)
-        if pars[i] != 0.0:
-            return True
-    return False
+    """Whether a record holds a general machine (its ``general`` entry): on the paper's
+    machine ``support_extra`` is 0 and is skipped (compilable core)."""
+    return pars[P_GENERAL] != 0.0
 
 
 def add_support_extra(
@@ -795,7 +794,9 @@ def add_support_extra(
     ``support_extra`` added (compilable core). ``(vx, vy)`` is the velocity the law was
     evaluated at (projected in stick). In stick the rolling constraint fixes the
     tangential acceleration: the friction takes up the extra force's tangential part, so
-    only its normal part is added."""
+    only its normal part is added. Skipped on the paper's machine (``is_general_record``)."""
+    if not is_general_record(pars):
+        return ax, ay
     ex, ey = support_extra(x, y, vx, vy, pars)
     if regime == STICK:
         tangential = (ey * x - ex * y) / (x * x + y * y)
@@ -842,14 +843,15 @@ def rhs_jacobian_record(
         tau, x, y, vx, vy, pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0], pars[P_K],
         pars[P_MU], pars[P_RP], regime, pars[P_ECC], pars[P_RATE], pars[P_TAU0],
     )  # fmt: skip
-    jac[2, 0] -= pars[P_SXX]
-    jac[2, 1] -= pars[P_SXY]
-    jac[3, 0] -= pars[P_SYX]
-    jac[3, 1] -= pars[P_SYY]
-    jac[2, 2] -= 2.0 * pars[P_DXX]
-    jac[2, 3] -= 2.0 * pars[P_DXY]
-    jac[3, 2] -= 2.0 * pars[P_DYX]
-    jac[3, 3] -= 2.0 * pars[P_DYY]
+    if is_general_record(pars):
+        jac[2, 0] -= pars[P_SXX]
+        jac[2, 1] -= pars[P_SXY]
+        jac[3, 0] -= pars[P_SYX]
+        jac[3, 1] -= pars[P_SYY]
+        jac[2, 2] -= 2.0 * pars[P_DXX]
+        jac[2, 3] -= 2.0 * pars[P_DXY]
+        jac[3, 2] -= 2.0 * pars[P_DYX]
+        jac[3, 3] -= 2.0 * pars[P_DYY]
     return jac
 
 
@@ -864,6 +866,8 @@ def stick_friction_record(
         tau, x, y, vx, vy, pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0], pars[P_ECC],
         pars[P_RATE], pars[P_TAU0], pars[P_RP],
     )  # fmt: skip
+    if not is_general_record(pars):
+        return T
     ex, ey = support_extra(x, y, vx, vy, pars)
     return T + (ey * x - ex * y) / np.hypot(x, y)
 

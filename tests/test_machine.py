@@ -139,6 +139,42 @@ def test_the_anisotropic_threshold_of_cross_coupling_is_the_closed_form():
             assert np.hypot(sol.x[-1], sol.y[-1]) < 0.01
 
 
+def test_small_oscillations_about_a_loaded_contact_are_the_linear_modes():
+    """mu = 0, e = 0, D = 0, a load pressing the rotor into an offset stator on an
+    anisotropic support: the rotor rests in permanent contact at d* with g - S (d* + c) =
+    K (1 - 1/z) d* (solved here by scipy's fsolve), and a small displacement from it moves
+    as the linearised system's exp(A tau) (scipy's expm), A = [[0, I], [-(S + K_t), 0]]
+    with the contact's tangent stiffness K_t = K ((1 - 1/z) I + (1/z) n n^T)."""
+    from scipy.linalg import expm
+    from scipy.optimize import fsolve
+
+    S = np.array([[1.0, 0.2], [0.2, 1.5]])
+    p = ModelParams(nu=0.0, eta=1.0, e=0.0, K=20.0, offset=(0.2, -0.1), load=(0.3, -2.5),
+                    stiffness=((1.0, 0.2), (0.2, 1.5)))  # fmt: skip
+    g, c = np.array(p.load), np.array(p.offset)
+
+    def residual(d: np.ndarray) -> np.ndarray:
+        z = np.hypot(*d)
+        return g - S @ (d + c) - p.K * (1.0 - 1.0 / z) * d
+
+    rest = fsolve(residual, np.array([0.0, -1.2]), xtol=1e-14)
+    z = np.hypot(*rest)
+    assert z > 1.04 and np.abs(residual(rest)).max() < 1e-13
+    n = rest / z
+    Kt = p.K * ((1.0 - 1.0 / z) * np.eye(2) + np.outer(n, n) / z)
+    A = np.block([[np.zeros((2, 2)), np.eye(2)], [-(S + Kt), np.zeros((2, 2))]])
+    kick = 1e-6 * np.array([0.3, -0.7, 0.5, 0.2])
+    t = np.linspace(0.0, 20.0, 201)
+    linear = np.array([np.concatenate((rest, (0.0, 0.0))) + expm(A * tau) @ kick for tau in t])
+    for method in ("taylor", "dop853-jit", "analytic"):
+        tight = {"steps_per_period": 4000, "rtol": 1e-13, "atol": 1e-16}
+        options = options_for(method, tight)
+        sol = solve(Problem(p, tuple(linear[0]), t), method, **options)
+        assert sol.success and sol.n_contact_switches == 0
+        # the nonlinearity's share: |kick|^2; the method's own below it
+        assert np.abs(sol.states - linear).max() < 1e-11, method
+
+
 def rubbing_cases() -> dict[str, ModelParams]:
     """Two rubs on the general machine: a partial rub with long stick episodes (low
     speed, a heavy unbalance) and a fast one with stick, slip reversals and contacts."""
@@ -365,7 +401,8 @@ def test_compare_measures_every_method_against_a_numerical_reference(tmp_path):
     assert result.exit_code == 0, result.output
     report = json.loads((tmp_path / "out" / "compare" / "report.json").read_text())
     assert not report["reference"]["kind"].startswith("exact")
-    rows = list(csv.DictReader(open(tmp_path / "out" / "compare" / "work_precision.csv")))
+    with open(tmp_path / "out" / "compare" / "work_precision.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
     for method in ("analytic", "dop853-jit", "taylor"):
         errors = [float(r["error_max"]) for r in rows if r["method"] == method]
         assert errors == sorted(errors, reverse=True) and errors[-1] < 1e-4, (method, errors)

@@ -151,7 +151,12 @@ def test_suite_covers_the_extremes_of_the_issue():
     for c in cases:
         assert c.quick_periods < c.periods
     # a speed that changes: a profile onto a stiff stator, a profile in stick, a drive
-    assert {c.feature for c in cases} == {None, registry.SPEED_PROFILE, registry.DRIVEN}
+    assert {c.feature for c in cases} == {
+        None,
+        registry.SPEED_PROFILE,
+        registry.DRIVEN,
+        registry.GENERAL_MACHINE,
+    }
     rolling = next(c for c in cases if c.name == "coast-down-rolling")
     assert model.regime_of_state(rolling.initial, rolling.params) == model.STICK
 

@@ -83,8 +83,8 @@ SMALL_SHIFT = 1e-4  # phase shifts below this: cos and sin by their Taylor serie
 # Columns of the power array: unbalance, damping, friction on the translation
 # (-T r theta'), contact dissipation (T v_r), spin drive (T Rp eta), |P_in|, |T r theta'|,
 # and on the general machine the cross-coupled stiffness's work on the rotor
-# (-w'^T S_anti w) and its magnitude.
-_IN, _DAMP, _FRIC, _SLIP, _SPIN, _ABS_IN, _ABS_FRIC, _CROSS, _ABS_CROSS = range(9)
+# (-w'^T S_anti w) and its magnitude (also analysis.transient_energy's columns).
+W_IN, W_DAMP, W_FRIC, W_SLIP, W_SPIN, W_ABS_IN, W_ABS_FRIC, W_CROSS, W_ABS_CROSS = range(9)
 N_TERMS = 9
 
 
@@ -244,18 +244,18 @@ def powers(
     else:  # 2 w'^T D w' (the antisymmetric part does no work), the cross-coupling's work
         (dxx, dxy), (dyx, dyy) = params.damping_matrix
         p_damp = 2.0 * (dxx * vx * vx + (dxy + dyx) * vx * vy + dyy * vy * vy)
-        out[:, _CROSS] = cross_coupling_power(x, y, vx, vy, params)
-        out[:, _ABS_CROSS] = np.abs(out[:, _CROSS])
-    out[:, _IN], out[:, _DAMP], out[:, _ABS_IN] = p_in, p_damp, np.abs(p_in)
+        out[:, W_CROSS] = cross_coupling_power(x, y, vx, vy, params)
+        out[:, W_ABS_CROSS] = np.abs(out[:, W_CROSS])
+    out[:, W_IN], out[:, W_DAMP], out[:, W_ABS_IN] = p_in, p_damp, np.abs(p_in)
     if regime != model.FREE:
         T = model.tangential_force(tau, x, y, vx, vy, params, regime)
         z = np.hypot(x, y)
         whirl = (x * vy - y * vx) / z  # r theta'
         v_r = model.slip_velocity(x, y, vx, vy, params.Rp, eta)
-        out[:, _FRIC] = -T * whirl
-        out[:, _SLIP] = T * v_r
-        out[:, _SPIN] = T * params.Rp * eta
-        out[:, _ABS_FRIC] = np.abs(T * whirl)
+        out[:, W_FRIC] = -T * whirl
+        out[:, W_SLIP] = T * v_r
+        out[:, W_SPIN] = T * params.Rp * eta
+        out[:, W_ABS_FRIC] = np.abs(T * whirl)
     return out
 
 
@@ -301,7 +301,7 @@ def _node_powers_and_rates(tau: np.ndarray, states: np.ndarray, params, regime: 
     forward = powers(tau + delta[:, 0], states + delta * rate, params, regime, ahead)
     backward = powers(tau - delta[:, 0], states - delta * rate, params, regime, behind)
     dP = (forward - backward) / (2.0 * delta)
-    dP[:, [_ABS_IN, _ABS_FRIC, _ABS_CROSS]] = 0.0
+    dP[:, [W_ABS_IN, W_ABS_FRIC, W_ABS_CROSS]] = 0.0
     return P, dP
 
 
@@ -341,7 +341,10 @@ def _coarse_estimate(piece: Piece, fine: np.ndarray, P: np.ndarray, dP: np.ndarr
 def _balance_combination(integrals: np.ndarray) -> np.ndarray:
     """W_in - D_damp - D_fric + W_cross from integral columns (D_fric = -int P_fric)."""
     return (
-        integrals[..., _IN] - integrals[..., _DAMP] + integrals[..., _FRIC] + integrals[..., _CROSS]
+        integrals[..., W_IN]
+        - integrals[..., W_DAMP]
+        + integrals[..., W_FRIC]
+        + integrals[..., W_CROSS]
     )
 
 
@@ -367,7 +370,7 @@ def _pass(solution: Solution, cum: np.ndarray, energies: np.ndarray):
     bounds, args = _kernel_inputs(solution)
     running, quad_sum, first, last, largest = balance_pass(*args, cum, energies)
     throughput = float(
-        running[_ABS_IN] + running[_DAMP] + running[_ABS_FRIC] + running[_ABS_CROSS] + largest
+        running[W_ABS_IN] + running[W_DAMP] + running[W_ABS_FRIC] + running[W_ABS_CROSS] + largest
     )
     quad = quad_sum / throughput if throughput > 0.0 else 0.0
     return running, float(first), float(last), throughput, float(quad), bounds.size
@@ -430,15 +433,15 @@ def energy_totals(solution: Solution) -> EnergyTotals:
     return EnergyTotals(
         energy_first=first,
         energy_last=last,
-        work_unbalance=float(running[_IN]),
-        damping=float(running[_DAMP]),
-        friction=float(-running[_FRIC]),
-        contact_dissipation=float(running[_SLIP]),
-        spin_drive=float(running[_SPIN]),
+        work_unbalance=float(running[W_IN]),
+        damping=float(running[W_DAMP]),
+        friction=float(-running[W_FRIC]),
+        contact_dissipation=float(running[W_SLIP]),
+        spin_drive=float(running[W_SPIN]),
         throughput=throughput,
         quadrature_error=quad,
         n_pieces=n_pieces,
-        cross_coupling=float(running[_CROSS]),
+        cross_coupling=float(running[W_CROSS]),
     )
 
 
@@ -461,7 +464,7 @@ def energy_balance(solution: Solution) -> EnergyBalance:
 
     running, quad_sum, _, _, largest = balance_pass(*args, cum, energies)
     throughput = float(
-        running[_ABS_IN] + running[_DAMP] + running[_ABS_FRIC] + running[_ABS_CROSS] + largest
+        running[W_ABS_IN] + running[W_DAMP] + running[W_ABS_FRIC] + running[W_ABS_CROSS] + largest
     )
     tau = np.empty(nodes)
     offset = 0
@@ -509,10 +512,10 @@ def energy_balance_numpy(solution: Solution) -> EnergyBalance:
     kinetic, spring, stator = mechanical_energy(S, params, np.concatenate(regimes))
     energy = kinetic + spring + stator
     throughput = float(
-        running[_ABS_IN]
-        + running[_DAMP]
-        + running[_ABS_FRIC]
-        + running[_ABS_CROSS]
+        running[W_ABS_IN]
+        + running[W_DAMP]
+        + running[W_ABS_FRIC]
+        + running[W_ABS_CROSS]
         + np.max(np.abs(energy))
     )
     return _balance(tau, kinetic, spring, stator, cum, throughput, quad_error, len(pieces))
@@ -520,21 +523,21 @@ def energy_balance_numpy(solution: Solution) -> EnergyBalance:
 
 def _balance(tau, kinetic, spring, stator, cum, throughput, quad_sum, n_pieces) -> EnergyBalance:
     """The balance from the mechanical energies at the nodes and the cumulative integrals
-    of the power columns (``cum``, columns ``_IN`` ... ``_ABS_FRIC``): both paths'."""
+    of the power columns (``cum``, columns ``W_IN`` ... ``W_ABS_FRIC``): both paths'."""
     return EnergyBalance(
         tau=tau,
         kinetic=kinetic,
         rotor_spring=spring,
         stator=stator,
-        work_unbalance=cum[:, _IN],
-        damping=cum[:, _DAMP],
-        friction=-cum[:, _FRIC],
-        contact_dissipation=cum[:, _SLIP],
-        spin_drive=cum[:, _SPIN],
+        work_unbalance=cum[:, W_IN],
+        damping=cum[:, W_DAMP],
+        friction=-cum[:, W_FRIC],
+        contact_dissipation=cum[:, W_SLIP],
+        spin_drive=cum[:, W_SPIN],
         throughput=throughput,
         quadrature_error=quad_sum / throughput if throughput > 0.0 else 0.0,
         n_pieces=n_pieces,
-        cross_coupling=cum[:, _CROSS],
+        cross_coupling=cum[:, W_CROSS],
     )
 
 

@@ -48,7 +48,7 @@ _support_extra = jit(model.support_extra)
 _is_general = jit(model.is_general_record)
 
 FREE, STICK = model.FREE, model.STICK
-# Columns, as energy._IN ... energy._ABS_CROSS
+# Columns, as energy.W_IN ... energy.W_ABS_CROSS
 _IN, _DAMP, _FRIC, _SLIP, _SPIN, _ABS_IN, _ABS_FRIC, _CROSS, _ABS_CROSS = range(9)
 N_TERMS = 9
 # After the model's parameter record, ``pv`` carries energy.DERIVATIVE_STEP and

@@ -52,7 +52,14 @@ from rubcli.drive import Drive
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solution import SUCCESS, Solution
-from rubcli.solvers.registry import DRIVEN, SPECS, SPEED_PROFILE, options_for, unsupported
+from rubcli.solvers.registry import (
+    DRIVEN,
+    GENERAL_MACHINE,
+    SPECS,
+    SPEED_PROFILE,
+    options_for,
+    unsupported,
+)
 from rubcli.speed import SpeedProfile
 
 if TYPE_CHECKING:
@@ -109,11 +116,13 @@ class StressCase:
         """The registry feature the case needs of a method (None: any method runs it)."""
         if self.drive is not None:
             return DRIVEN
-        return SPEED_PROFILE if self.speed is not None else None
+        if self.speed is not None:
+            return SPEED_PROFILE
+        return None if self.params.is_paper_machine else GENERAL_MACHINE
 
     def problem(self, quick: bool) -> Problem:
         periods = self.quick_periods if quick else self.periods
-        if self.feature is None:
+        if self.speed is None and self.drive is None:
             return Problem.from_periods(
                 self.params, self.initial, periods, self.samples_per_period, name=self.name
             )
@@ -313,6 +322,7 @@ def stress_cases() -> list[StressCase]:
         )
     )  # fmt: skip
     cases += _changing_speed_cases()
+    cases += _general_machine_cases()
     long = cases[0]
     cases.append(
         replace(
@@ -370,6 +380,49 @@ def _changing_speed_cases() -> list[StressCase]:
             400,
             drive=Drive(inertia=200.0, start=3.5, stall_torque=4.0, no_load_speed=4.0),
         ),  # fmt: skip
+    ]
+
+
+def _general_machine_cases() -> list[StressCase]:
+    """The general machine (docs/machines.md) on a stiff stator, rolling under a load,
+    and whirling on its own."""
+    offset = ModelParams(nu=0.05, eta=1.1, e=0.1, K=1.76e4, mu=0.1, Rp=3.0, offset=(0.6, 0.0))
+    loaded = ModelParams(nu=0.02, eta=1.0, e=0.05, K=100.0, mu=0.5, Rp=2.0, load=(0.0, -3.0),
+                         offset=(0.1, 0.0), stiffness=((1.0, 0.05), (-0.05, 1.2)))  # fmt: skip
+    crossed = ModelParams(nu=0.01, eta=1.0, e=0.05, K=100.0, mu=0.3, Rp=2.0,
+                          stiffness=((1.0, 0.3), (-0.3, 1.2)))  # fmt: skip
+    return [
+        StressCase(
+            "offset-stiff",
+            "a misaligned stator (offset 0.6) made stiff, K = 1.76e4: short partial rubs "
+            "once per revolution, from rest on the support's centre",
+            offset,
+            (-0.6, 0.0, 0.0, 0.0),
+            periods=20,
+            quick_periods=3,
+            samples_per_period=2000,  # the samples resolve the stiff contact
+        ),
+        StressCase(
+            "loaded-whip",
+            "a load of 3 clearances pressing the rotor into an offset stator (K = 100, "
+            "mu = 0.5, anisotropic, cross-coupled support), started rolling backward at the "
+            "bottom: stick, slip reversals and bounces",
+            loaded,
+            (-0.1, -1.02, -2.0, 0.0),
+            periods=20,
+            quick_periods=1,
+            samples_per_period=200,
+        ),
+        StressCase(
+            "cross-whip",
+            "cross-coupling q = 0.3 well above its threshold (anisotropic support, nu = "
+            "0.01): a self-excited whirl grows into the stator (K = 100, mu = 0.3)",
+            crossed,
+            (0.9, 0.0, 0.0, 0.0),
+            periods=20,
+            quick_periods=3,
+            samples_per_period=200,
+        ),
     ]
 
 

@@ -80,13 +80,13 @@ def profile_powers(
     problem: Problem, tau: np.ndarray, states: np.ndarray, regime: int
 ) -> np.ndarray:
     """``analysis.energy.powers`` at the nodes ``tau`` (states (n, 4)) of one piece in
-    ``regime``, each node on its leg of the profile: array (n, 7)."""
-    from rubcli.analysis.energy import powers
+    ``regime``, each node on its leg of the profile: array (n, ``energy.N_TERMS``)."""
+    from rubcli.analysis.energy import N_TERMS, powers
 
     legs = problem.legs()
     starts = np.array([start for start, _ in legs])
     leg_of = np.clip(np.searchsorted(starts, tau, side="right") - 1, 0, len(legs) - 1)
-    out = np.empty((tau.size, 7))
+    out = np.empty((tau.size, N_TERMS))
     for i, (_, params) in enumerate(legs):
         on = leg_of == i
         if np.any(on):
@@ -97,33 +97,35 @@ def profile_powers(
 def profile_energy_summary(solution: Solution) -> dict[str, float]:
     """A prescribed speed's balance over the run, for report.json (module docstring):
     the keys of ``analysis.energy``'s summary."""
-    from rubcli.analysis.energy import mechanical_energy
+    from rubcli.analysis import energy as en
     from rubcli.analysis.regimes import solution_pieces
 
     if solution.t.size < 3:
         return {"energy_residual": 0.0, "energy_quadrature_error": 0.0}
-    fine, coarse = np.zeros(7), np.zeros(7)
+    fine, coarse = np.zeros(en.N_TERMS), np.zeros(en.N_TERMS)
     for piece in solution_pieces(solution):
         P = profile_powers(solution.problem, piece.tau, piece.states, piece.regime)
-        fine += [_trapezoid(piece.tau, P[:, i]) for i in range(7)]
-        coarse += [_coarse(piece.tau, P[:, i]) for i in range(7)]
-    # columns: unbalance, damping, -friction on the translation, contact, spin, |in|, |fric|
-    energy = sum(mechanical_energy(solution.states, solution.problem.params, solution.regimes))
-    throughput = fine[5] + fine[1] + fine[6] + float(np.max(energy))
+        fine += [_trapezoid(piece.tau, P[:, i]) for i in range(en.N_TERMS)]
+        coarse += [_coarse(piece.tau, P[:, i]) for i in range(en.N_TERMS)]
+    params = solution.problem.params
+    energy = sum(en.mechanical_energy(solution.states, params, solution.regimes))
+    throughput = (fine[en.W_ABS_IN] + fine[en.W_DAMP] + fine[en.W_ABS_FRIC]
+                  + fine[en.W_ABS_CROSS] + float(np.max(energy)))  # fmt: skip
     change = float(energy[-1] - energy[0])
 
     def net(works: np.ndarray) -> float:
-        return works[0] - works[1] + works[2]
+        return works[en.W_IN] - works[en.W_DAMP] + works[en.W_FRIC] + works[en.W_CROSS]
 
     return {
         "energy_residual": abs(change - net(fine)) / throughput,
         "energy_quadrature_error": abs(net(fine) - net(coarse)) / 3.0 / throughput,
         "energy_change": change,
-        "work_unbalance": fine[0],
-        "damping_dissipation": fine[1],
-        "friction_dissipation": -fine[2],
-        "contact_dissipation": fine[3],
-        "spin_drive_work": fine[4],
+        "work_unbalance": fine[en.W_IN],
+        "damping_dissipation": fine[en.W_DAMP],
+        "friction_dissipation": -fine[en.W_FRIC],
+        "contact_dissipation": fine[en.W_SLIP],
+        "spin_drive_work": fine[en.W_SPIN],
+        **({"cross_coupling_work": fine[en.W_CROSS]} if fine[en.W_CROSS] != 0.0 else {}),
         "energy_throughput": throughput,
     }
 

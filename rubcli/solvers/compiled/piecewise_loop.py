@@ -132,7 +132,7 @@ def advance_piecewise(
     check_slip = pars[P_MU] > 0.0
     ws = _workspace()
     general = is_general_record(pars)  # the free flight is then the linear propagator's
-    wf = _workspace()
+    wf = _workspace() if general else ws  # (unused on the paper's machine)
     st = np.empty((4, 4))
     meta = np.empty(2)
     row = np.empty(4)

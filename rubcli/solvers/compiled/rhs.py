@@ -8,18 +8,17 @@ import numpy as np
 
 from rubcli.model import (
     P_E,
-    P_ECC,
     P_ETA,
+    P_GENERAL,
     P_K,
     P_MU,
     P_NU,
     P_PHI0,
     P_RATE,
     P_RP,
-    P_TAU0,
-    add_support_extra,
     rhs_entries,
     rhs_jacobian_record,
+    rhs_record,
 )
 from rubcli.solvers.compiled.jit import (
     jit,
@@ -33,15 +32,14 @@ def _rhs_into(t, y, pars, regime, out):
     nu, eta, E, phi0 = pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0]
     K, mu, Rp = pars[P_K], pars[P_MU], pars[P_RP]
     rate = pars[P_RATE]
-    if rate == 0.0:  # a constant speed: the core compiled with rate = 0 folded in
+    if rate == 0.0 and pars[P_GENERAL] == 0.0:
+        # the paper's machine at a constant speed: the core compiled with rate = 0 folded
+        # in and nothing added (the general machine's terms inside this branch cost the
+        # paper's stages 5-10 %)
         vx, vy, ax, ay = rhs_entries(t, y[0], y[1], y[2], y[3], nu, eta, E, phi0, K, mu, Rp,
                                      regime)  # fmt: skip
     else:
-        e, tau0 = pars[P_ECC], pars[P_TAU0]
-        vx, vy, ax, ay = rhs_entries(
-            t, y[0], y[1], y[2], y[3], nu, eta, E, phi0, K, mu, Rp, regime, e, rate, tau0
-        )
-    ax, ay = add_support_extra(y[0], y[1], vx, vy, ax, ay, pars, regime)
+        vx, vy, ax, ay = rhs_record(t, y[0], y[1], y[2], y[3], pars, regime)
     out[0], out[1], out[2], out[3] = vx, vy, ax, ay
 
 
