@@ -3,7 +3,7 @@ it, and heyoka with the cheapest correct model a heyoka user would write.
 
 Run from the repository root:
 
-    python benchmarks/machines.py      # about 2 minutes on 2 cores
+    python benchmarks/machines.py      # about 8 minutes on 2 cores (radau is 6 of them)
 
 Cases: the three of cases/machines (a misaligned stator, a rotor under gravity, an
 anisotropic cross-coupled support), each over its [time] span from its [initial] state.
