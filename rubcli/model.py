@@ -541,16 +541,23 @@ def add_support_linear(A: np.ndarray, b: np.ndarray, pars: np.ndarray | tuple[fl
     core; on the paper's machine it returns at once)."""
     if not is_general_record(pars):
         return
-    A[2, 0] -= pars[P_SXX]
-    A[2, 1] -= pars[P_SXY]
-    A[3, 0] -= pars[P_SYX]
-    A[3, 1] -= pars[P_SYY]
-    A[2, 2] -= 2.0 * pars[P_DXX]
-    A[2, 3] -= 2.0 * pars[P_DXY]
-    A[3, 2] -= 2.0 * pars[P_DYX]
-    A[3, 3] -= 2.0 * pars[P_DYY]
+    subtract_support(A, pars)
     b[2] += pars[P_GX]
     b[3] += pars[P_GY]
+
+
+def subtract_support(M: np.ndarray, pars: np.ndarray | tuple[float, ...]) -> None:
+    """The linear part of ``support_extra``, ``-(S - I)`` on the positions and ``-2 (D -
+    nu I)`` on the velocities, added to a system matrix or a Jacobian (4, 4) in place
+    (compilable core)."""
+    M[2, 0] -= pars[P_SXX]
+    M[2, 1] -= pars[P_SXY]
+    M[3, 0] -= pars[P_SYX]
+    M[3, 1] -= pars[P_SYY]
+    M[2, 2] -= 2.0 * pars[P_DXX]
+    M[2, 3] -= 2.0 * pars[P_DXY]
+    M[3, 2] -= 2.0 * pars[P_DYX]
+    M[3, 3] -= 2.0 * pars[P_DYY]
 
 
 def linearised_contact_record(
@@ -844,14 +851,7 @@ def rhs_jacobian_record(
         pars[P_MU], pars[P_RP], regime, pars[P_ECC], pars[P_RATE], pars[P_TAU0],
     )  # fmt: skip
     if is_general_record(pars):
-        jac[2, 0] -= pars[P_SXX]
-        jac[2, 1] -= pars[P_SXY]
-        jac[3, 0] -= pars[P_SYX]
-        jac[3, 1] -= pars[P_SYY]
-        jac[2, 2] -= 2.0 * pars[P_DXX]
-        jac[2, 3] -= 2.0 * pars[P_DXY]
-        jac[3, 2] -= 2.0 * pars[P_DYX]
-        jac[3, 3] -= 2.0 * pars[P_DYY]
+        subtract_support(jac, pars)
     return jac
 
 

@@ -22,6 +22,7 @@ COMPILABLE_CORES = (
     model.force_jacobian_entries,
     model.linearised_contact_arrays,
     model.add_support_linear,
+    model.subtract_support,
     model.linearised_contact_record,
     model.free_flight_record,
     model.unbalance_value,
