@@ -107,8 +107,9 @@ def draw_orbits(
     circle = np.linspace(0.0, 2.0 * np.pi, 721)
     ax.plot(*at(np.cos(circle), np.sin(circle)), label="clearance", **display.CLEARANCE_STYLE)
     if cx != 0.0 or cy != 0.0:
-        ax.plot(0.0, 0.0, "P", color="white", ms=9, mec="k", mew=1.0, label="support centre",
-                zorder=7)  # fmt: skip
+        # a ring about the start's star (a rotor at rest on its support starts there)
+        ax.plot(0.0, 0.0, "o", ms=17, mfc="none", mec="0.2", mew=1.3, ls="none",
+                label="support centre", zorder=5)  # fmt: skip
     if radius is None:  # the orbits, the clearance and the support's centre
         radius = unit * max(display.orbit_radius(solutions), display.MARGIN * math.hypot(cx, cy))
     drawing = OrbitDrawing(radius=radius)
