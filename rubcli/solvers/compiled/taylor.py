@@ -144,12 +144,12 @@ MAX_ORDER = 30
 MIN_ORDER = 4
 ORDER_FACTOR = 0.5  # N = ceil(-0.5 ln(rtol)) + 6 (Jorba & Zou's rule: 0.5 and + 1)
 ORDER_OFFSET = 6
-WORK_ROWS = 35
+WORK_ROWS = 34
 # rows of the work space holding a speed profile's unbalance force (x, y) and exp(i p)
 FORCE_X, FORCE_Y, PHASE_C, PHASE_S = 27, 28, 29, 30
-# the general machine's force beyond the paper's (model.support_extra) in stick, and its
-# tangential part (x e_y - y e_x) and that over z, which the rolling friction takes up
-EXTRA_X, EXTRA_Y, EXTRA_CROSS, EXTRA_T = 31, 32, 33, 34
+# the general machine's force beyond the paper's (model.support_extra) in stick, and
+# x e_y - y e_x, whose quotient by z the rolling friction takes up
+EXTRA_X, EXTRA_Y, EXTRA_CROSS = 31, 32, 33
 WORK_COLS = 2 * MAX_ORDER + 1  # the surface's polynomial has degree 2N
 STEP_SAFETY_EXPONENT = 0.7  # h *= exp(-0.7 / (N - 1)) (heyoka)
 PRECHECK_MARGIN = 1e-9  # relative margin of the series bound (plus the state tolerance)
