@@ -751,10 +751,11 @@ def rhs_entries(
 
 def rhs_jacobian_array(
     tau: float, x: float, y: float, vx: float, vy: float, nu: float, eta: float, E: float,
-    phi0: float, K: float, mu: float, Rp: float, regime: int, e: float = 0.0,
-    rate: float = 0.0, tau0: float = 0.0,
+    phi0: float, K: float, mu: float, Rp: float, regime: int,
 ) -> np.ndarray:  # fmt: skip
-    """``rhs_jacobian`` from scalars (compilable core)."""
+    """``rhs_jacobian`` from scalars in free flight and in slip (compilable core; stick,
+    which has no closed form kept for the rolling law, is ``rhs_jacobian_record``'s
+    central differences)."""
     jac = np.zeros((4, 4))
     jac[0, 2] = 1.0
     jac[1, 3] = 1.0
@@ -763,20 +764,7 @@ def rhs_jacobian_array(
     jac[2, 2] = -2.0 * nu
     jac[3, 3] = -2.0 * nu
     if regime == STICK:
-        # No closed form kept for the rolling law: central differences of rhs.
-        s = np.array([x, y, vx, vy])
-        for j in range(4):
-            step = 1e-7 * max(1.0, abs(s[j]))
-            sp = s.copy()
-            sm = s.copy()
-            sp[j] += step
-            sm[j] -= step
-            fp = rhs_entries(tau, sp[0], sp[1], sp[2], sp[3], nu, eta, E, phi0, K, mu, Rp,
-                             STICK, e, rate, tau0)  # fmt: skip
-            fm = rhs_entries(tau, sm[0], sm[1], sm[2], sm[3], nu, eta, E, phi0, K, mu, Rp,
-                             STICK, e, rate, tau0)  # fmt: skip
-            for i in range(4):
-                jac[i, j] = (fp[i] - fm[i]) / (2 * step)
+        raise ValueError("rhs_jacobian_array: stick is rhs_jacobian_record's")
     elif regime != FREE:
         mu_c = mu * friction_sign(regime)
         j00, j01, j10, j11 = force_jacobian_entries(x, y, mu_c)
@@ -848,7 +836,7 @@ def rhs_jacobian_record(
         return jac
     jac = rhs_jacobian_array(
         tau, x, y, vx, vy, pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0], pars[P_K],
-        pars[P_MU], pars[P_RP], regime, pars[P_ECC], pars[P_RATE], pars[P_TAU0],
+        pars[P_MU], pars[P_RP], regime,
     )  # fmt: skip
     if is_general_record(pars):
         subtract_support(jac, pars)
