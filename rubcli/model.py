@@ -37,6 +37,8 @@ if TYPE_CHECKING:
 
     from numpy.typing import ArrayLike
 
+    from rubcli.stator import Stator
+
 # What the cores that work "from scalars or arrays" take and give: a float or an array
 FloatOrArray = float | np.ndarray
 ComplexOrArray = complex | np.ndarray
@@ -121,6 +123,8 @@ class ModelParams:
     load: tuple[float, float] = (0.0, 0.0)
     stiffness: tuple[tuple[float, float], tuple[float, float]] = ((1.0, 0.0), (0.0, 1.0))
     damping: tuple[tuple[float, float], tuple[float, float]] | None = None
+    # A stator with its own mass on its own supports (rubcli.stator; None: rigid).
+    stator: Stator | None = None
 
     def __post_init__(self) -> None:
         for name in PARAMETER_SIGNS:
@@ -155,6 +159,11 @@ class ModelParams:
                 object.__setattr__(self, "nu", dxx)
                 damping = None
             object.__setattr__(self, "damping", damping)
+        from rubcli.stator import Stator
+
+        if self.stator is not None and not isinstance(self.stator, Stator):
+            raise TypeError(f"ModelParams: stator must be a rubcli.stator.Stator or None, got "
+                            f"{type(self.stator).__name__}")  # fmt: skip
 
     def speed(self, tau: FloatOrArray) -> FloatOrArray:
         """The speed ratio at tau: eta, or on a leg of a speed profile eta + rate (tau - tau0)."""
@@ -190,10 +199,11 @@ class ModelParams:
 
     @property
     def is_paper_machine(self) -> bool:
-        """Whether this is the paper's machine: a concentric stator, no static load and an
-        isotropic support (S = I, D = nu I)."""
+        """Whether this is the paper's machine: a rigid concentric stator, no static load and
+        an isotropic support (S = I, D = nu I)."""
         return (
-            self.offset == (0.0, 0.0)
+            self.stator is None
+            and self.offset == (0.0, 0.0)
             and self.load == (0.0, 0.0)
             and self.stiffness == ((1.0, 0.0), (0.0, 1.0))
             and self.damping is None
@@ -220,7 +230,12 @@ class ModelParams:
             inner = (text(v) if isinstance(v, list) else f"{v:g}" for v in value)
             return "[" + ", ".join(inner) + "]"
 
-        return ", ".join(f"{k}={text(v)}" for k, v in self.machine_dict().items())
+        line = ", ".join(f"{k}={text(v)}" for k, v in self.machine_dict().items())
+        if self.stator is None:
+            return line
+        (kx, ky), (nx, ny) = self.stator.stiffness, self.stator.damping
+        ring = f"stator m={self.stator.mass:g} k=[{kx:g}, {ky:g}] n=[{nx:g}, {ny:g}]"
+        return f"{line}, {ring}" if line else ring
 
     @property
     def static_force(self) -> tuple[float, float]:
@@ -256,6 +271,9 @@ MACHINE_PARAMETERS = {
     "k_yx": "support stiffness k_yx / k_r (-)",
     "k_yy": "support stiffness k_yy / k_r (-)",
     "cross_coupling": "cross-coupled stiffness q / k_r (-)",
+    "stator_mass": "stator mass M_s / m (-)",
+    "stator_k_x": "stator support stiffness k_sx / k_r (-)",
+    "stator_k_y": "stator support stiffness k_sy / k_r (-)",
 }
 
 
@@ -286,6 +304,15 @@ def with_value(params: ModelParams, name: str, value: float) -> ModelParams:
             params,
             stiffness=((entries["k_xx"], entries["k_xy"]), (entries["k_yx"], entries["k_yy"])),
         )
+    if name.startswith("stator_"):
+        if params.stator is None:
+            raise ValueError(f"{name} needs a stator with its own mass ([stator] in the case)")
+        stator = params.stator
+        if name == "stator_mass":
+            return replace(params, stator=replace(stator, mass=value))
+        stiffness = list(stator.stiffness)
+        stiffness["xy".index(name[-1])] = value
+        return replace(params, stator=replace(stator, stiffness=tuple(stiffness)))
     raise ValueError(f"unknown parameter {name!r}")
 
 

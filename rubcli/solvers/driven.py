@@ -1,91 +1,56 @@
-"""The driven rotor (``rubcli.drive``) integrated by scipy's methods, in the driver's
-event loop.
+"""The driven rotor (``rubcli.drive``) in the event loop of ``solvers.extended``.
 
-The state has six entries, ``(x, y, vx, vy, p, w)``. A run is the driver's
-(``driver.integrate``: budgets, storms, progress, failures) with the drive's two states
-carried beside the rotor's (``DrivenRun``) and the drive's rules at an event
-(``switch``): contact entry takes the sign of v_r, a slip reversal Filippov's rule with
-the stick friction of the coupled system (``drive.stick_torque_value``), a stick exit the
-side the needed friction points to. Stick begins and ends with the velocities projected
-onto the rolling constraint along the kinetic energy's metric
+The state has six entries, ``(x, y, vx, vy, p, w)``; the drive's rules at an event are
+the extended systems': Filippov's rule at a slip reversal with the stick friction of the
+coupled system (``drive.stick_torque_value``), and stick begun and ended with the
+velocities projected onto the rolling constraint along the kinetic energy's metric
 (``drive.rolling_projection``), the rotor's and the drive's together.
 
-``DrivenStepper`` is one accepted scipy step per ``advance``: the regime's right-hand
-side (compiled, ``compiled.drive``), the step's dense output scanned at
-``SCAN_POINTS`` sub-intervals for the regime's events, the first located by Brent's
-method. The event functions, each an event where it rises through 0:
-
-- free flight: ``z^2 - 1`` (contact entry);
-- slip of sign ``s``: ``1 - z^2`` (exit) and ``-s v_r`` (reversal);
-- stick: ``1 - z^2`` and, on each side ``s``, ``s T - mu K (z - 1) (1 + margin)`` (the
-  needed friction leaving the friction cone).
-
-Where the rate of the contact surface's function (``2 (x vx + y vy)``), of the slip's
-(from the accelerations) or of a stick margin (a central difference along the flow)
-changes sign inside a scan interval, the turn is found (a graze between two scan points,
-a return to the surface right after the segment left it: ``_turns``; a dip below the
-restart band and back inside the first interval of a segment begun on the contact
-surface: ``_dipped``), so such a pair of crossings is not missed.
-
-Implicit methods get forward differences of the right-hand side
-(``DrivenStepper._jacobian``).
-
-``dop853-jit`` (``DrivenJitStepper``) takes scipy's DOP853 steps in a compiled loop
-(``compiled.driven_loop``), ``taylor`` (``DrivenTaylorStepper``) Taylor steps
-(``compiled.driven_taylor``); both hand the steps that may hold an event to this event
-search.
+The scipy methods and ``dop853-jit`` run it through ``extended.solve_extended``;
+``taylor`` (``DrivenTaylorStepper``) takes Taylor steps (``compiled.driven_taylor``)
+and hands the steps that may hold an event to the same event search.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable
-
 import numpy as np
-from scipy.optimize import brentq
 
 from rubcli import model
 from rubcli.drive import D_INERTIA, rolling_projection, shaft_torque_value, stick_torque_value
 from rubcli.problem import Problem
-from rubcli.solution import KIND_NAMES, Solution, SwitchEvent
+from rubcli.solution import Solution
 from rubcli.solvers import compiled as kernels
 from rubcli.solvers import driver
-from rubcli.solvers.compiled.drive import _driven_into, driven_columns, driven_rhs
-from rubcli.solvers.compiled.driven_loop import advance_driven, driven_initial_step
+from rubcli.solvers.compiled.drive import (
+    _driven_into,
+    advance_driven,
+    driven_columns,
+    driven_initial_step,
+    driven_rhs,
+)
 from rubcli.solvers.compiled.driven_taylor import advance_driven_taylor, driven_polynomial
 from rubcli.solvers.compiled.taylor import MAX_ORDER, taylor_order
-from rubcli.solvers.events import (
-    ENTRY,
-    EXIT,
-    NO_EVENT,
-    REVERSAL,
-    STICK_ENTRY,
-    STICK_EXIT,
-    initial_kind,
+from rubcli.solvers.extended import (
+    CompiledExtendedStepper,
+    Dense,
+    ExtendedRun,
+    System,
+    solve_extended,
 )
 from rubcli.solvers.registry import DRIVEN, SPECS, ToleranceOptions
-from rubcli.solvers.scipy_ivp import ScipyStepper
-from rubcli.solvers.shared import SCAN_POINTS, Dop853Dense, kernel_failure
-
-Dense = Callable[[float], np.ndarray]  # a step's dense output (of one time, or of times)
-CHUNK_STEPS = 2000  # committed steps per kernel call: budget and progress checks between
 
 
-class DrivenRun(driver.Run):
-    """A driver run whose state is the driven rotor's six entries (module docstring)."""
+class DrivenRun(ExtendedRun):
+    """An extended run whose state is the driven rotor's six entries (module docstring)."""
 
     def __init__(self, problem: Problem, method: str, **budget) -> None:
-        super().__init__(problem, method, **budget)
         drive = problem.drive
-        self.pars = np.array(model.params_vector(self.params))
+        self.system = DRIVEN_SYSTEM
         self.drive = drive.record()
         self.table = drive.table()
-        self.state = np.array([*problem.initial, self.params.phi0, drive.start])
-        self.states = np.empty((self.t_eval.size, 6))
-        self.regime = regime_of(self.state, self)
-        self.states[0], self.regimes[0] = self.state, self.regime
-        # (at tau = 0 the leg's spin is the drive's start: the constant-speed rule holds)
-        self.last_kind = initial_kind(self.state[:4], self.regime, self.params, self.tau)
+        pars = np.array(model.params_vector(problem.params))
+        state = np.array([*problem.initial, problem.params.phi0, drive.start])
+        super().__init__(problem, method, (pars, self.drive, *self.table), state, **budget)
 
     def stick_friction(self, s: np.ndarray) -> float:
         """The friction T that holds v_r = 0 at the state ``s`` (``stick_torque_value``)."""
@@ -95,26 +60,12 @@ class DrivenRun(driver.Run):
         Q0 = shaft_torque_value(w, self.drive, *self.table)
         return stick_torque_value(x, y, vx, vy, phase, w, p.nu, p.K, p.e, p.Rp, j, Q0)[0]
 
-    def switch(self, tau: float, kind: int, state: np.ndarray) -> bool:
-        """Apply and record the event ``kind`` at ``tau`` (the drive's rules, module
-        docstring); False (and the run failed) on a switch storm."""
-        state = np.array(state, dtype=float)
-        before = self.regime
+    def project(self, s: np.ndarray) -> np.ndarray:
+        """The state with v_r = 0 exactly (``drive.rolling_projection``)."""
         p = self.params
-        if kind == EXIT:
-            new = model.FREE
-        elif kind == ENTRY:
-            new = model.entry_regime_value(*state[:4], p.mu, p.Rp * state[5])
-        elif kind == STICK_EXIT:
-            new = model.SLIP_POSITIVE if self.stick_friction(state) > 0.0 else model.SLIP_NEGATIVE
-        else:
-            new = zero_slip_regime(state, self)
-        recorded = STICK_ENTRY if new == model.STICK else kind
-        if (before == model.STICK or new == model.STICK) and model.FREE not in (before, new):
-            state = project(state, self)
-        self.state, self.regime, self.last_kind, self.tau = state, new, recorded, tau
-        event = SwitchEvent(tau, KIND_NAMES[recorded], tuple(state[:4]), before, new)
-        return self.record(event)
+        out = np.array(s, dtype=float)
+        out[2], out[3], out[5] = rolling_projection(*s, p.e, p.Rp, self.drive[D_INERTIA])
+        return out
 
     def solution(self, settings: dict) -> Solution:
         solution = super().solution(settings)
@@ -122,284 +73,6 @@ class DrivenRun(driver.Run):
         solution.states = np.ascontiguousarray(self.states[:k, :4])
         solution.drive_states = np.ascontiguousarray(self.states[:k, 4:])
         return solution
-
-
-def slip_velocity(S: np.ndarray, Rp: float) -> np.ndarray:
-    """v_r of states (6,) or (6, n): ``model.slip_velocity`` with the spin a state."""
-    x, y, vx, vy, _, w = S
-    return model.slip_velocity(x, y, vx, vy, Rp, w)
-
-
-def zero_slip_regime(s: np.ndarray, run: DrivenRun) -> int:
-    """Filippov's rule at v_r = 0 with the coupled system's stick friction."""
-    p = run.params
-    limit = p.mu * p.K * (math.hypot(s[0], s[1]) - 1.0)
-    return model.filippov_regime(run.stick_friction(s), limit)
-
-
-def regime_of(s: np.ndarray, run: DrivenRun) -> int:
-    """The regime a driven state is in (``model.regime_of_state`` with the spin a state)."""
-    p = run.params
-    if math.hypot(s[0], s[1]) <= 1.0:
-        return model.FREE
-    if p.mu == 0.0:
-        return model.SLIP_POSITIVE
-    v_r = float(slip_velocity(s, p.Rp))
-    if abs(v_r) <= 1e-12 * (1.0 + abs(p.Rp * s[5])):
-        return zero_slip_regime(s, run)
-    return model.SLIP_POSITIVE if v_r >= 0.0 else model.SLIP_NEGATIVE
-
-
-def project(s: np.ndarray, run: DrivenRun) -> np.ndarray:
-    """The state with v_r = 0 exactly (``drive.rolling_projection``)."""
-    p = run.params
-    out = np.array(s, dtype=float)
-    out[2], out[3], out[5] = rolling_projection(*s, p.e, p.Rp, run.drive[D_INERTIA])
-    return out
-
-
-class DrivenStepper(ScipyStepper):
-    """One of scipy's ``OdeSolver`` classes on the driven rotor (module docstring): the
-    constant-speed stepper's step and segments, with the drive's right-hand side, events
-    and samples."""
-
-    # the segment began on the slip surface and its function has not yet left the band;
-    # the segment began on the contact surface and its function is still 0 there
-    settling = False
-    on_surface = False
-    intervals = SCAN_POINTS  # scan intervals of the step's dense output
-
-    def _start_segment(self, run: DrivenRun) -> None:
-        pars, drive, (ts, tt), regime = run.pars, run.drive, run.table, run.regime
-        one, columns = (driven_rhs, driven_columns) if self.compiled else PYTHON
-
-        def fun(t: float, s: np.ndarray) -> np.ndarray:
-            return one(s, pars, drive, ts, tt, regime)
-
-        self.columns = lambda S: columns(np.ascontiguousarray(S), pars, drive, ts, tt, regime)
-        options = {"rtol": self.rtol, "atol": self.atol}
-        if SPECS[self.name].implicit:
-            options["jac"] = self._jacobian
-        self.solver = self.cls(fun, run.tau, run.state, run.t_end, **options)
-        run.stats["n_segments"] += 1
-
-    def _jacobian(self, t: float, s: np.ndarray) -> np.ndarray:
-        """Forward differences of the right-hand side, one column per state, each of
-        step sqrt(eps) (1 + |s_i|), in one call of the columns. (scipy's own adaptive
-        differences grow their step without bound on a column that is identically zero,
-        as the angle's is without unbalance and the velocity along the rolling
-        constraint's is in stick, until it overflows.)"""
-        step = np.sqrt(np.finfo(float).eps) * (1.0 + np.abs(s))
-        S = np.repeat(s[:, None], s.size + 1, axis=1)
-        S[np.arange(s.size), np.arange(1, s.size + 1)] += step
-        dS = self.columns(S)[0]
-        return (dS[:, 1:] - dS[:, :1]) / step
-
-    def advance(self, run: DrivenRun) -> None:
-        if self.step(run):
-            solver = self.solver
-            self.close_step(run, solver.dense_output(), solver.t_old, solver.t, solver.y[5])
-
-    def close_step(
-        self, run: DrivenRun, dense: Dense, t_old: float, t_new: float, w: float
-    ) -> None:
-        """An accepted step from t_old to t_new, ending at the speed ``w``: a stop of the
-        rotor, or its earliest event, its samples, and the run moved on (``finish``)."""
-        if w <= 0.0:  # stopped: the phase no longer advances
-            stop = brentq(lambda t: dense(t)[5], t_old, t_new)
-            self._end_segment(run)
-            k = self._fill(run, dense, stop)
-            while k > 1 and run.states[k - 1, 5] <= 0.0:  # the samples keep speeds above 0
-                k -= 1
-            run.k = k
-            run.fail(
-                f"the speed fell to 0 at tau = {stop:.6g}: the rotor stopped, its load "
-                "beyond what the motor gives (a rotor turning backward is outside the model)"
-            )
-            return
-        if run.last_kind != NO_EVENT:  # a segment's first step: begun on which surface?
-            self.settling = run.last_kind in (REVERSAL, STICK_EXIT)
-            self.on_surface = run.last_kind in (ENTRY, EXIT)
-        event = self._earliest_event(run, dense, t_old, t_new)
-        run.last_kind = NO_EVENT
-        run.k = self._fill(run, dense, event[0] if event else t_new)
-        self.finish(run, dense, event)
-
-    @staticmethod
-    def _fill(run: DrivenRun, dense, t_stop: float) -> int:
-        """The samples up to ``t_stop`` from a step's dense output (projected onto the
-        rolling constraint in stick); returns the next sample to fill."""
-        k = run.k
-        while k < run.t_eval.size and run.t_eval[k] <= t_stop:
-            sample = dense(run.t_eval[k])
-            if run.regime == model.STICK:
-                sample = project(sample, run)
-            run.states[k], run.regimes[k] = sample, run.regime
-            k += 1
-        return k
-
-    def _functions(self, run: DrivenRun):
-        """The regime's event functions h(S) of states (6, n): ``(kind, h)``."""
-        p, regime = run.params, run.regime
-
-        def surface(S: np.ndarray) -> np.ndarray:
-            return S[0] ** 2 + S[1] ** 2 - 1.0
-
-        if regime == model.FREE:
-            return [(ENTRY, surface)]
-        out = [(EXIT, lambda S: -surface(S))]
-        if p.mu == 0.0:
-            return out
-        if regime == model.STICK:
-            margin = 1.0 + model.STICK_EXIT_MARGIN
-
-            def side(sign: float) -> Callable[[np.ndarray], np.ndarray]:
-                def h(S: np.ndarray) -> np.ndarray:
-                    T = self.columns(np.atleast_2d(S.T).T)[1]
-                    limit = p.mu * p.K * (np.hypot(S[0], S[1]) - 1.0)
-                    out = sign * T - limit * margin
-                    return out if np.ndim(S) > 1 else float(out[0])
-
-                return h
-
-            return out + [(STICK_EXIT, side(1.0)), (STICK_EXIT, side(-1.0))]
-        sign = model.friction_sign(regime)
-        return out + [(REVERSAL, lambda S: -sign * slip_velocity(S, p.Rp))]
-
-    def _earliest_event(self, run: DrivenRun, dense, t0: float, t1: float):
-        """The earliest event in (t0, t1] on the step's dense output: (tau, kind) or None."""
-        grid = np.linspace(t0, t1, self.intervals + 1)
-        S = dense(grid)
-        tol = 4.0 * np.finfo(float).eps * max(1.0, abs(t1))
-        # the restart band: right after a stick exit or a reversal the slip's function is
-        # 0 to the solver's tolerance, not to round-off, and leaves it with zero rate: a
-        # reversal counts only after the function has once left the band on its side
-        # (``settling`` until then, over as many steps as that takes)
-        band = self.restart_band * (1.0 + abs(run.params.Rp * run.state[5]))
-        best = None
-        for kind, h in self._functions(run):
-            values, ends = h(S), grid
-            turning = self._turning(run, kind, h)
-            started = turning is not None and run.last_kind in turning[1]
-            if kind in (ENTRY, EXIT) and self.on_surface:
-                # still on the contact surface the segment began on (z^2 - 1 rounds to 0
-                # over a short first step): it leaves it to the event's side, an event
-                # where it leaves, or to the other side, and the search goes on; unless
-                # it dipped below the restart band and came back inside the first scan
-                # interval (a long step: the return is found from where it turned)
-                if np.all(values >= 0.0) and not _dipped(grid, S, dense, h, turning[0], band):
-                    if values[-1] > 0.0:
-                        zeros = np.flatnonzero(values == 0.0)
-                        return (float(grid[zeros[-1]] if zeros.size else grid[0]), kind)
-                    continue
-                self.on_surface = False
-            if turning is not None:
-                rate = turning[0]
-                rates = rate(S)
-                values, ends = _turns(grid, values, rates, lambda t, h=h: h(dense(t)),
-                                      lambda t, r=rate: float(r(dense(t))), started,
-                                      band)  # fmt: skip
-            begin = 0
-            if kind == REVERSAL and self.settling:
-                left = np.flatnonzero(values < -band)
-                if left.size == 0:
-                    continue  # still within the band of the slip surface it began on
-                begin, self.settling = int(left[0]), False
-            for i in range(begin, self.intervals):
-                if values[i] < 0.0 <= values[i + 1]:
-                    a, b = ends[i], ends[i + 1]
-                    root = b if values[i + 1] == 0.0 else _root(h, dense, a, b, tol)
-                    if best is None or root < best[0]:
-                        best = (root, kind)
-                    break
-        return best
-
-    def _turning(self, run: DrivenRun, kind: int, h: Callable[[np.ndarray], np.ndarray]):
-        """For each event function ``h`` of the regime, which can cross twice inside one
-        scan interval: (its rate on states, the events that start a segment on its
-        surface). The stick margins' rate is a central difference along the flow (a
-        short excursion out of the friction cone inside one interval of a long step is
-        found from where the margin turns)."""
-        if kind in (ENTRY, EXIT):
-            sign = 1.0 if kind == ENTRY else -1.0
-            return (lambda S: sign * (S[0] * S[2] + S[1] * S[3])), (ENTRY, EXIT)
-        if kind == REVERSAL:
-            sign, Rp = model.friction_sign(run.regime), run.params.Rp
-
-            def rate(S: np.ndarray) -> np.ndarray:
-                S2 = np.atleast_2d(S.T).T
-                dS = self.columns(S2)[0]
-                x, y, vx, vy = S2[:4]
-                z = np.hypot(x, y)
-                whirl = (x * dS[3] - y * dS[2]) / z - (x * vy - y * vx) * (x * vx + y * vy) / z**3
-                out = -sign * (Rp * dS[5] + whirl)
-                return out if np.ndim(S) > 1 else out[0]
-
-            return rate, (REVERSAL, STICK_EXIT)
-
-        def flow_rate(S: np.ndarray) -> np.ndarray:
-            S2 = np.atleast_2d(S.T).T
-            dS = self.columns(S2)[0]
-            d = 1e-6
-            out = (h(S2 + d * dS) - h(S2 - d * dS)) / (2.0 * d)
-            return out if np.ndim(S) > 1 else out[0]
-
-        return flow_rate, ()
-
-
-def _dipped(grid, S, dense, h, rate, band: float) -> bool:
-    """Whether the event function ``h`` (rate ``rate``), on its surface at grid[0], falls
-    below the restart band (``-band``) before turning back inside the first scan
-    interval."""
-    rates = rate(S[:, :2])
-    if not rates[0] < 0.0 < rates[1]:
-        return False
-    low = brentq(lambda t: float(rate(dense(t))), grid[0], grid[1], xtol=1e-15,
-                 rtol=4 * np.finfo(float).eps)  # fmt: skip
-    return float(h(dense(low))) < -band
-
-
-def _turns(grid, values, rates, level, rate, started_here: bool, band: float):
-    """An event function's ``values`` on ``grid`` with the crossings a scan interval can
-    hide put in, where its rate (``rates`` on the grid; ``level(t)`` and ``rate(t)`` at
-    one time) changes sign inside the interval:
-
-    - a graze: both ends below 0, a maximum at or above 0 between them: the interval
-      ends at that maximum;
-    - a return right after the segment left the function's surface (``started_here``):
-      the first interval ends at or above 0 while the function fell first: the interval
-      starts at its minimum, when that is below the restart band (``-band``).
-
-    Returns (values, grid), copies where changed."""
-    tol = 4 * np.finfo(float).eps
-    if started_here and rates[0] < 0.0 < rates[1] and values[1] >= 0.0:
-        low = brentq(rate, grid[0], grid[1], xtol=1e-15, rtol=tol)
-        if level(low) < -band:
-            values, grid = values.copy(), grid.copy()
-            values[0], grid[0] = level(low), low
-            return values, grid
-    for i in range(grid.size - 1):
-        if values[i] < 0.0 and values[i + 1] < 0.0 and rates[i] > 0.0 > rates[i + 1]:
-            peak = brentq(rate, grid[i], grid[i + 1], xtol=1e-15, rtol=tol)
-            top = level(peak)
-            if top >= 0.0:
-                values, grid = values.copy(), grid.copy()
-                values[i + 1], grid[i + 1] = top, peak
-                return values, grid
-    return values, grid
-
-
-def _root(h, dense, a: float, b: float, tol: float) -> float:
-    """The crossing of h in [a, b] by Brent's method, and the end of its bracket where h
-    has risen through 0 (so the event's state lies on its far side)."""
-
-    def f(t: float) -> float:
-        return float(h(dense(t)))
-
-    root = brentq(f, a, b, xtol=tol, rtol=4 * np.finfo(float).eps, maxiter=200)
-    if f(root) < 0.0:
-        root = min(b, root + tol)
-    return root
 
 
 def _python_rhs(s, pars, drive, table_speed, table_torque, regime) -> np.ndarray:
@@ -416,9 +89,6 @@ def _python_columns(S, pars, drive, table_speed, table_torque, regime):
         T[k] = _driven_into.py_func(S[:, k], pars, drive, table_speed, table_torque, regime, out)
         dS[:, k] = out
     return dS, T
-
-
-PYTHON = (_python_rhs, _python_columns)  # the interpreter's right-hand side and columns
 
 
 def sample_derivatives(solution: Solution) -> tuple[np.ndarray, np.ndarray]:
@@ -444,97 +114,10 @@ def rub_force(solution: Solution) -> np.ndarray:
     return sample_derivatives(solution)[1]
 
 
-class CompiledDrivenStepper(DrivenStepper):
-    """A compiled loop on the driven rotor (``dop853-jit``, ``taylor``). The kernel
-    commits the steps in which no event can lie, with their samples; a step that may
-    hold one, a segment's first step, a step still on the surface its segment began on
-    and a step that ends at a speed of 0 or below come back pending, and ``close_step``
-    (the Python event search above, the definition of the drive's events) takes them.
-    So the compiled steppers find the scipy steppers' events, and spend Python only on
-    the steps around them. A subclass runs its kernel (``_run_kernel``) and gives a
-    pending step's dense output (``_pending``)."""
-
-    def __init__(self, run: DrivenRun, name: str, rtol: float, atol: float) -> None:
-        super().__init__(run, "dop853", rtol, atol, compiled=True)
-        self.name = name
-        # scipy raises a too small rtol to 100 eps (with a warning); so do we, silently
-        self.rtol = max(rtol, 100 * np.finfo(float).eps)
-        self.ctx = (run.pars, run.drive, *run.table)
-        self.y_new = np.empty(6)
-        self.t_new = 0.0
-        self.in_segment = False  # a segment is to start
-        run.stats.update(python_steps=0)
-        self.settings.update(rtol=self.rtol, compiled_events=False)
-
-    def _start_segment(self, run: DrivenRun) -> None:
-        run.state = np.ascontiguousarray(run.state, dtype=float)
-        regime = run.regime
-        self.columns = lambda S: driven_columns(np.ascontiguousarray(S), *self.ctx, regime)
-        run.stats["n_segments"] += 1
-        self.in_segment = True
-
-    def _end_segment(self, run: DrivenRun) -> None:
-        self.in_segment = False
-
-    def advance(self, run: DrivenRun) -> None:
-        if not self.in_segment:
-            self._start_segment(run)
-        hand_first = run.last_kind != NO_EVENT or self.settling or self.on_surface
-        chunk = max(1, min(CHUNK_STEPS, run.steps_left))
-        tau, reason = self._run_kernel(run, hand_first, chunk)
-        run.tau = tau  # the kernel moved the state in place
-        failure = kernel_failure(reason, self.name, tau, self.t_new)
-        if failure:
-            run.fail(failure)
-        elif reason == kernels.STOP_EVENT:
-            run.stats["nsteps"] += 1
-            run.stats["python_steps"] += 1
-            dense = self._pending(run, tau)
-            self.close_step(run, dense, tau, self.t_new, self.y_new[5])
-
-    def finish(self, run: DrivenRun, dense: Dense, event: tuple[float, int] | None) -> None:
-        if event is None:
-            run.tau = self.t_new
-            run.state[:] = self.y_new
-            return
-        self._end_segment(run)
-        run.switch(event[0], event[1], dense(event[0]))
-
-
-class DrivenJitStepper(CompiledDrivenStepper):
-    """``dop853-jit`` on the driven rotor: scipy's DOP853 step for step, compiled
-    (``compiled.driven_loop.advance_driven``)."""
-
-    def __init__(self, run: DrivenRun, rtol: float, atol: float) -> None:
-        super().__init__(run, "dop853-jit", rtol, atol)
-        self.f, self.f_new, self.F = np.empty(6), np.empty(6), np.empty((7, 6))
-        self.h_abs = 0.0
-
-    def _start_segment(self, run: DrivenRun) -> None:
-        """As scipy starts a solver: f and the initial step."""
-        super()._start_segment(run)
-        self.f[:] = driven_rhs(run.state, *self.ctx, run.regime)
-        self.h_abs = driven_initial_step(run.tau, run.state, self.f, run.t_end, self.ctx,
-                                         run.regime, self.rtol, self.atol)  # fmt: skip
-        run.stats["nfev"] += 2
-
-    def _run_kernel(self, run: DrivenRun, hand_first: bool, chunk: int) -> tuple[float, int]:
-        tau, self.t_new, self.h_abs, run.k, steps, nfev, reason = advance_driven(
-            run.tau, run.state, self.f, self.h_abs, run.t_end, self.ctx, run.regime,
-            self.rtol, self.atol, run.t_eval, run.states, run.regimes, run.k, chunk,
-            hand_first, self.y_new, self.f_new, self.F,
-        )  # fmt: skip
-        run.stats["nsteps"] += steps
-        run.stats["nfev"] += nfev
-        return tau, reason
-
-    def _pending(self, run: DrivenRun, tau: float) -> Dense:
-        return Dop853Dense(tau, self.t_new, run.state, self.F)
-
-    def finish(self, run: DrivenRun, dense: Dense, event: tuple[float, int] | None) -> None:
-        if event is None:
-            self.f[:] = self.f_new
-        super().finish(run, dense, event)
+DRIVEN_SYSTEM = System(
+    size=6, rhs=driven_rhs, columns=driven_columns, python_rhs=_python_rhs,
+    python_columns=_python_columns, loop=(driven_initial_step, advance_driven),
+)  # fmt: skip
 
 
 class PolynomialDense:
@@ -550,7 +133,7 @@ class PolynomialDense:
         return out[:, 0] if np.ndim(t) == 0 else out
 
 
-class DrivenTaylorStepper(CompiledDrivenStepper):
+class DrivenTaylorStepper(CompiledExtendedStepper):
     """``taylor`` on the driven rotor: the six states' Taylor series
     (``compiled.driven_taylor``), a pending step scanned on its own intervals
     (``taylor``'s rule)."""
@@ -598,7 +181,4 @@ def solve_driven(problem: Problem, options: ToleranceOptions, name: str) -> Solu
     if name == "taylor":
         kernels.ensure_fresh()
         return driver.integrate(run, DrivenTaylorStepper(run, o.rtol, o.atol))
-    if name == "dop853-jit" and o.compiled and kernels.ensure_fresh():
-        return driver.integrate(run, DrivenJitStepper(run, o.rtol, o.atol))
-    scipy_name = "dop853" if name == "dop853-jit" else name
-    return driver.integrate(run, DrivenStepper(run, scipy_name, o.rtol, o.atol, o.compiled))
+    return solve_extended(run, name, o.rtol, o.atol, o.compiled)

@@ -15,13 +15,15 @@
   regime, events located by ``events.event_search`` and applied in the loop;
 - ``rhs.py``: the regime-locked right-hand side for scipy and the compiled DOP853;
 - ``dop853.py``: scipy's DOP853 step, error norm, dense output and initial step, built
-  per right-hand side (``dop853_step``: the rotor's four states, the driven rotor's six);
+  per right-hand side (``dop853_step``: the rotor's four states, an extended system's);
 - ``roots.py``: the event pre-check and the event search (``events.event_search``) on a
   DOP853 step's dense output, and the application of an event;
 - ``dop853_loop.py``: the compiled DOP853 loop (``dop853-jit``);
-- ``drive.py``, ``driven_loop.py`` and ``driven_taylor.py``: the driven rotor's
-  right-hand side, the pre-check of its events, its DOP853 loop (``dop853-jit``) and
-  its Taylor series and loop (``taylor``);
+- ``extended_loop.py``: the DOP853 loop and the event pre-check of a system with
+  states beyond the rotor's four, built per system;
+- ``drive.py`` and ``driven_taylor.py``: the driven rotor's right-hand side, its DOP853
+  loop (``dop853-jit``) and its Taylor series and loop (``taylor``);
+- ``two_body.py``: the stator with its own mass: its right-hand side and DOP853 loop;
 - ``taylor.py``: the ``taylor`` method's series, step size, event pre-check, the event
   search (``events.event_search``) on the step polynomial, and its loop (about 1,080
   lines, over the usual 500: the series are written out once per regime, free, slip and

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from numba.core.dispatcher import Dispatcher
 
-from rubcli import drive, model
+from rubcli import drive, model, stator
 from rubcli.model import (
     cartesian_entries,
     entry_regime_value,
@@ -52,6 +52,7 @@ CORE_FILES = (
     Path(events.__file__),
     Path(control.__file__),
     Path(drive.__file__),
+    Path(stator.__file__),
     ENERGY_KERNEL,
     *sorted(Path(__file__).parent.glob("*.py")),
 )
@@ -205,6 +206,8 @@ def _dispatchers() -> list:
         dop853,
         dop853_loop,
         drive,
+        driven_taylor,
+        extended_loop,
         linalg,
         piecewise,
         piecewise_loop,
@@ -213,11 +216,12 @@ def _dispatchers() -> list:
         rhs,
         roots,
         taylor,
+        two_body,
     )  # fmt: skip
 
     modules = (
         linalg, propagators, precheck, contact, rhs, dop853, roots, dop853_loop, taylor,
-        piecewise, piecewise_loop, drive, energy_kernel,
+        piecewise, piecewise_loop, drive, driven_taylor, extended_loop, two_body, energy_kernel,
     )  # fmt: skip
     found = [_probe]
     for module in modules:

@@ -5,7 +5,7 @@ in ``dop853_coefficients.py``): the same stages, the 5th/3rd-order error blend, 
 7th-order dense output and Hairer's initial step, so that for the same rtol/atol the
 compiled loops take scipy's steps. The steps are built per right-hand side
 (``dop853_step``): the rotor's four states (``rhs._rhs_into``, ``dop853-jit``) and the
-driven rotor's six (``driven_loop._driven_stage``).
+extended systems' (``extended_loop.dop853_loop``).
 """
 
 from __future__ import annotations

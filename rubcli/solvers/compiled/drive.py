@@ -1,5 +1,6 @@
-"""The driven rotor's right-hand side compiled (``rubcli.drive``): one state, or the
-columns of a step's scan grid with the rub's tangential force beside (the events)."""
+"""The driven rotor compiled (``rubcli.drive``): its right-hand side at one state, or at
+the columns of a step's scan grid with the rub's tangential force beside (the events),
+and its DOP853 loop (``extended_loop``, with the drive as the system)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,10 @@ import numpy as np
 
 from rubcli.drive import D_INERTIA, driven_rhs_entries, rolling_projection, shaft_torque_value
 from rubcli.model import P_ECC, P_K, P_MU, P_NU, P_RP, STICK
+from rubcli.solvers.compiled.extended_loop import dop853_loop
 from rubcli.solvers.compiled.jit import jit
+
+N_STATES = 6  # x, y, vx, vy, the phase p and the speed w
 
 
 @jit
@@ -57,3 +61,22 @@ def driven_columns(
         for i in range(6):
             dS[i, k] = out[i]
     return dS, T
+
+
+@jit
+def drive_into(row, ctx, regime, out):
+    """``_driven_into`` as ``extended_loop``'s system; ctx = (pars, drive, table_speed,
+    table_torque)."""
+    return _driven_into(row, ctx[0], ctx[1], ctx[2], ctx[3], regime, out)
+
+
+@jit
+def drive_project(row, ctx):
+    """``rolling_projection`` of ``row`` in place, as ``extended_loop``'s system."""
+    e, Rp, j = ctx[0][P_ECC], ctx[0][P_RP], ctx[1][D_INERTIA]
+    row[2], row[3], row[5] = rolling_projection(
+        row[0], row[1], row[2], row[3], row[4], row[5], e, Rp, j
+    )
+
+
+driven_initial_step, advance_driven = dop853_loop(drive_into, drive_project, N_STATES)

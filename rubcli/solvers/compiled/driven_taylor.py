@@ -14,7 +14,7 @@ end, so that no series carries a table's corner.
 The order, the step (the last two terms below the state tolerance; the phase, which
 grows without bound, is left out of the state's scale) and the scan grid (eight
 intervals a period of the fastest frequency, the spin's from the larger end speed) are
-``taylor``'s rules. A step that may hold an event (``driven_loop.driven_step_parts`` on the
+``taylor``'s rules. A step that may hold an event (``extended_loop.step_parts`` on the
 step's polynomial), a segment's first step and a step after which the speed is 0 or
 below go back to the Python event search (``solvers.driven``), as for ``dop853-jit``.
 """
@@ -28,7 +28,8 @@ import numpy as np
 
 from rubcli.drive import D_INERTIA, motor_line
 from rubcli.model import FREE, P_ECC, P_K, P_MU, P_NU, P_RP, STICK, friction_sign
-from rubcli.solvers.compiled.driven_loop import N_STATES, driven_step_parts
+from rubcli.solvers.compiled.drive import N_STATES, drive_into, drive_project
+from rubcli.solvers.compiled.extended_loop import step_parts
 from rubcli.solvers.compiled.jit import (
     STOP_END,
     STOP_EVENT,
@@ -255,7 +256,9 @@ def _polynomial(t: float, dense: Any, row: np.ndarray) -> None:
         row[i] = v
 
 
-_polynomial_may_have_event, _polynomial_fill = driven_step_parts(_polynomial)
+_polynomial_may_have_event, _polynomial_fill = step_parts(
+    drive_into, drive_project, N_STATES, _polynomial
+)
 
 
 @jit
@@ -279,7 +282,7 @@ def advance_driven_taylor(
     info: np.ndarray,
 ) -> tuple[float, float, int, int, int]:  # fmt: skip
     """Taylor steps of the driven rotor in one regime, up to the first step that may
-    hold an event (``driven_loop.advance_driven``'s rules). A pending step (reason
+    hold an event (``compiled.drive.advance_driven``'s rules). A pending step (reason
     EVENT) leaves its coefficients in ``C`` and its scan intervals in ``info[0]``.
     Returns ``(tau, t_new, k, steps, reason)``."""
     pars, drive, table_speed, table_torque = ctx[0], ctx[1], ctx[2], ctx[3]

@@ -13,7 +13,7 @@ import numba
 import numpy as np
 from numba.extending import register_jitable
 
-from rubcli import drive, model
+from rubcli import drive, model, stator
 from rubcli.solvers import control, events
 
 # The model's compilable cores, registered so that compiled code calls the same functions.
@@ -63,6 +63,8 @@ COMPILABLE_CORES = (
     drive.stick_torque_value,
     drive.driven_rhs_entries,
     drive.rolling_projection,
+    stator.two_body_projection,
+    stator.two_body_entries,
 )
 
 

@@ -1,0 +1,250 @@
+"""The compiled DOP853 loop of a system with states beyond the rotor's four
+(``solvers.extended``: the driven rotor, the stator with its own mass): scipy's DOP853
+step on the system's states, a conservative pre-check of its events on each step's
+scan grid, and the samples of the steps without one.
+
+A system is its right-hand side ``into(row, ctx, regime, out) -> T`` (the derivatives
+into ``out``, the rub's tangential force returned; ``ctx`` the system's records), its
+projection onto the rolling constraint ``project(row, ctx)`` (in place) and its state
+count. Its first four states are the rotor's position and velocity relative to the
+stator's centre, the fifth and sixth the unbalance's phase and speed (so ``v_r = Rp
+row[5] + (x vy - y vx) / z``, the events of every such system the same).
+
+A step that may hold an event goes back to Python (``solvers.extended``), whose event
+search is the definition of the events; so the kernel decides only which steps surely
+hold none, and writes the event rules nowhere.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from rubcli.model import (
+    P_K,
+    P_MU,
+    P_RP,
+    STICK_EXIT_MARGIN,
+    slip_velocity_rate,
+    slip_velocity_value,
+)
+from rubcli.solvers.compiled.dop853 import (
+    DOP_A,
+    DOP_SCAN_POINTS,
+    DOP_STAGES,
+    _dop853_dense_at,
+    dop853_step,
+)
+from rubcli.solvers.compiled.jit import (
+    STOP_END,
+    STOP_EVENT,
+    STOP_LIMIT,
+    STOP_PYTHON,
+    STOP_SMALL_STEP,
+    jit,
+)
+from rubcli.solvers.compiled.precheck import EVENT_MARGIN, _may_cross, _surface_may_cross
+from rubcli.solvers.compiled.roots import FREE_REGIME, STICK_REGIME
+from rubcli.solvers.events import linspace_into, run_time
+
+SPEED = 5  # the unbalance's speed w: v_r = Rp w + ..., a run stops where it reaches 0
+
+
+def step_parts(
+    into: Callable[..., float], project: Callable[..., None], n_states: int,
+    dense_at: Callable[..., None],
+) -> tuple[Callable[..., bool], Callable[..., int]]:  # fmt: skip
+    """What a loop of the system (``into``, ``project``, ``n_states``: module docstring)
+    does with a step's dense output ``dense_at(t, dense, row)`` (``dense`` whatever it
+    needs: a DOP853 step's coefficients, a Taylor polynomial), compiled with them as
+    closure constants (as ``events.event_search``): the event pre-check
+    ``may_have_event(dense, ctx, regime, grid, n, S, hv, hd, row, out)`` and the samples
+    of a committed step ``fill(dense, t_new, ctx, regime, t_eval, out_states,
+    out_regimes, k, row)`` (projected onto the rolling constraint in stick, as Python
+    reports them; returns the next sample to fill).
+
+    False only if ``ExtendedStepper._earliest_event`` surely finds no event on the scan
+    grid ``grid[:n + 1]`` (``np.linspace`` of the step, as Python's): contact entry in
+    free flight; contact exit, and the slip reversal or the stick exit, in contact. For a
+    segment that has left the surface it began on (the caller hands the others to
+    Python)."""
+    N = n_states
+
+    def slip_may_reverse(
+        grid: np.ndarray, S: np.ndarray, ctx: Any, regime: int, n: int, hv: np.ndarray,
+        hd: np.ndarray, row: np.ndarray, out: np.ndarray,
+    ) -> bool:  # fmt: skip
+        """The pre-check of the slip reversal, h = -sign v_r, and its rate from the
+        accelerations (``ExtendedStepper._turning``)."""
+        Rp = ctx[0][P_RP]
+        sign = float(regime)
+        value_scale = 0.0
+        rate_scale = 0.0
+        for i in range(n + 1):
+            for m in range(N):
+                row[m] = S[i, m]
+            into(row, ctx, regime, out)
+            x, y, vx, vy, w = row[0], row[1], row[2], row[3], row[SPEED]
+            hv[i] = -sign * slip_velocity_value(x, y, vx, vy, Rp * w)
+            hd[i] = -sign * (slip_velocity_rate(x, y, vx, vy, out[2], out[3]) + Rp * out[SPEED])
+            value_scale = max(value_scale, abs(Rp * w))
+            rate_scale = max(rate_scale, abs(hd[i]))
+        margin_v = EVENT_MARGIN * (1.0 + value_scale)
+        margin_d = EVENT_MARGIN * (1.0 + rate_scale)
+        return _may_cross(grid, hv, hd, n, margin_v, margin_d, run_time(False), run_time(True))
+
+    def stick_margin(
+        t: float, dense: Any, ctx: Any, sign: float, row: np.ndarray, out: np.ndarray
+    ) -> float:
+        """The side ``sign`` of the friction cone in stick at t: sign T - mu K (z - 1)
+        (1 + margin), T the system's stick friction."""
+        pars = ctx[0]
+        dense_at(t, dense, row)
+        T = into(row, ctx, STICK_REGIME, out)
+        limit = pars[P_MU] * pars[P_K] * (math.hypot(row[0], row[1]) - 1.0)
+        return sign * T - limit * (1.0 + STICK_EXIT_MARGIN)
+
+    def stick_may_exit(
+        grid: np.ndarray, dense: Any, ctx: Any, n: int, hv: np.ndarray, hd: np.ndarray,
+        row: np.ndarray, out: np.ndarray,
+    ) -> bool:  # fmt: skip
+        """The pre-check of a stick exit on each side, the rate by central differences."""
+        d = 1e-6 * max(1.0, grid[n] - grid[0])
+        for sign in (1.0, -1.0):
+            value_scale = 0.0
+            rate_scale = 0.0
+            for i in range(n + 1):
+                hv[i] = stick_margin(grid[i], dense, ctx, sign, row, out)
+                up = stick_margin(grid[i] + d, dense, ctx, sign, row, out)
+                down = stick_margin(grid[i] - d, dense, ctx, sign, row, out)
+                hd[i] = (up - down) / (2.0 * d)
+                value_scale = max(value_scale, abs(hv[i]))
+                rate_scale = max(rate_scale, abs(hd[i]))
+            margin_v = EVENT_MARGIN * (1.0 + value_scale)
+            margin_d = EVENT_MARGIN * (1.0 + rate_scale)
+            if _may_cross(grid, hv, hd, n, margin_v, margin_d, run_time(False), run_time(True)):
+                return True
+        return False
+
+    def may_have_event(
+        dense: Any, ctx: Any, regime: int, grid: np.ndarray, n: int, S: np.ndarray,
+        hv: np.ndarray, hd: np.ndarray, row: np.ndarray, out: np.ndarray,
+    ) -> bool:  # fmt: skip
+        for k in range(n + 1):
+            dense_at(grid[k], dense, row)
+            for i in range(N):
+                S[k, i] = row[i]
+        direction = 1.0 if regime == FREE_REGIME else -1.0
+        if _surface_may_cross(grid, S, n, direction, 1.0, hv, hd, run_time(False)):
+            return True
+        if regime == FREE_REGIME or ctx[0][P_MU] == 0.0:
+            return False
+        if regime == STICK_REGIME:
+            return stick_may_exit(grid, dense, ctx, n, hv, hd, row, out)
+        return slip_may_reverse(grid, S, ctx, regime, n, hv, hd, row, out)
+
+    def fill(
+        dense: Any, t_new: float, ctx: Any, regime: int, t_eval: np.ndarray,
+        out_states: np.ndarray, out_regimes: np.ndarray, k: int, row: np.ndarray,
+    ) -> int:  # fmt: skip
+        while k < t_eval.shape[0] and t_eval[k] <= t_new:
+            dense_at(t_eval[k], dense, row)
+            if regime == STICK_REGIME:
+                project(row, ctx)
+            for i in range(N):
+                out_states[k, i] = row[i]
+            out_regimes[k] = regime
+            k += 1
+        return k
+
+    slip_may_reverse = jit(slip_may_reverse)
+    stick_margin = jit(stick_margin)
+    stick_may_exit = jit(stick_may_exit)
+    return jit(may_have_event), jit(fill)
+
+
+@jit
+def _dop853_dense(t: float, dense: Any, row: np.ndarray) -> None:
+    """A DOP853 step's dense output, dense = (t_old, h, y_old, F)."""
+    _dop853_dense_at(t, dense[0], dense[1], dense[2], dense[3], row)
+
+
+def dop853_loop(
+    into: Callable[..., float], project: Callable[..., None], n_states: int
+) -> tuple[Callable[..., float], Callable[..., tuple]]:
+    """scipy's DOP853 on the system (``into``, ``project``, ``n_states``: module
+    docstring), compiled once per system: ``(initial_step, advance)``, ``advance`` as
+    below."""
+    N = n_states
+
+    def stage(t: float, y: np.ndarray, ctx: Any, regime: int, out: np.ndarray) -> None:
+        into(y, ctx, regime, out)
+
+    initial_step, accepted_step, dense_coefficients = dop853_step(jit(stage), N)
+    may_have_event, fill = step_parts(into, project, N, _dop853_dense)
+
+    def advance(
+        tau: float, y: np.ndarray, f: np.ndarray, h_abs: float, t_end: float, ctx: Any,
+        regime: int, rtol: float, atol: float, t_eval: np.ndarray, out_states: np.ndarray,
+        out_regimes: np.ndarray, k: int, max_steps: int, hand_first: bool,
+        y_new: np.ndarray, f_new: np.ndarray, F: np.ndarray,
+    ) -> tuple[float, float, float, int, int, int, int]:  # fmt: skip
+        """Adaptive DOP853 steps of the system in one regime, up to the first step that
+        may hold an event.
+
+        Each step is scipy's DOP853 step. A step in which no event can lie (the
+        pre-check) and after which the speed is still positive is committed: ``y`` and
+        ``f`` move on and the samples ``t_eval[k:]`` it covers go to ``out_states`` and
+        ``out_regimes`` (in stick projected onto the rolling constraint, as Python
+        reports them). Any other step, and the first with ``hand_first`` (a segment's
+        first step, or one still on the surface it began on), is returned pending, with
+        ``y_new``, ``f_new`` and the dense coefficients ``F`` filled. Returns ``(tau,
+        t_new, h_abs, k, steps, nfev, reason)``: reason END, LIMIT (``max_steps`` steps
+        committed), EVENT (a pending step from ``tau`` to ``t_new``), PYTHON (a
+        non-finite state) or SMALL_STEP.
+        """
+        Kst = np.empty((DOP_A.shape[0], N))
+        tmp = np.empty(N)
+        row = np.empty(N)
+        out = np.empty(N)
+        n = DOP_SCAN_POINTS
+        grid = np.empty(n + 1)
+        S = np.empty((n + 1, N))
+        hv = np.empty(n + 1)
+        hd = np.empty(n + 1)
+        steps = 0
+        nfev = 0
+        while True:
+            if tau >= t_end:
+                return tau, tau, h_abs, k, steps, nfev, STOP_END
+            if steps >= max_steps:
+                return tau, tau, h_abs, k, steps, nfev, STOP_LIMIT
+            t_new, h, h_abs, spent = accepted_step(
+                tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, Kst, y_new, tmp
+            )
+            nfev += spent
+            if h == 0.0:
+                return tau, tau, h_abs, k, steps, nfev, STOP_SMALL_STEP
+            for i in range(N):
+                f_new[i] = Kst[DOP_STAGES, i]
+            nfev += dense_coefficients(tau, h, y, y_new, ctx, regime, Kst, F, tmp)
+            for i in range(N):
+                if not math.isfinite(y_new[i]):
+                    return tau, t_new, h_abs, k, steps, nfev, STOP_PYTHON
+            if hand_first or y_new[SPEED] <= 0.0:
+                return tau, t_new, h_abs, k, steps, nfev, STOP_EVENT
+            linspace_into(grid, tau, t_new, n)
+            dense = (tau, h, y, F)
+            if may_have_event(dense, ctx, regime, grid, n, S, hv, hd, row, out):
+                return tau, t_new, h_abs, k, steps, nfev, STOP_EVENT
+            k = fill(dense, t_new, ctx, regime, t_eval, out_states, out_regimes, k, row)
+            steps += 1
+            for i in range(N):
+                y[i] = y_new[i]
+                f[i] = f_new[i]
+            tau = t_new
+
+    return initial_step, jit(advance)

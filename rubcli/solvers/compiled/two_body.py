@@ -1,0 +1,59 @@
+"""The stator with its own mass compiled (``rubcli.stator``): its right-hand side at one
+state, or at the columns of a step's scan grid with the rub's tangential force beside
+(the events), and its DOP853 loop (``extended_loop``, with the two bodies as the
+system)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rubcli.model import P_RP
+from rubcli.solvers.compiled.extended_loop import dop853_loop
+from rubcli.solvers.compiled.jit import jit
+from rubcli.stator import N_STATES, S_INV_MASS, two_body_entries, two_body_projection
+
+
+@jit
+def two_body_into(row, ctx, regime, out):
+    """``stator.two_body_entries`` as ``extended_loop``'s system; ctx = (pars, stator)."""
+    return two_body_entries(row, ctx[0], ctx[1], regime, out)
+
+
+@jit
+def two_body_project(row, ctx):
+    """``stator.two_body_projection`` of ``row`` in place, as ``extended_loop``'s system."""
+    spin = ctx[0][P_RP] * row[5]
+    row[2], row[3], row[8], row[9] = two_body_projection(
+        row[0], row[1], row[2], row[3], row[8], row[9], spin, ctx[1][S_INV_MASS]
+    )
+
+
+@jit
+def two_body_rhs(s: np.ndarray, pars: np.ndarray, stator: np.ndarray, regime: int) -> np.ndarray:
+    """The ten derivatives at one state."""
+    out = np.empty(N_STATES)
+    two_body_entries(s, pars, stator, regime, out)
+    return out
+
+
+@jit
+def two_body_columns(
+    S: np.ndarray, pars: np.ndarray, stator: np.ndarray, regime: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """For the states in the columns of S (10, n): their derivatives and the rub's
+    tangential force T (positive opposing positive slip; 0 in free flight)."""
+    n = S.shape[1]
+    dS = np.empty((N_STATES, n))
+    T = np.empty(n)
+    row = np.empty(N_STATES)
+    out = np.empty(N_STATES)
+    for k in range(n):
+        for i in range(N_STATES):
+            row[i] = S[i, k]
+        T[k] = two_body_entries(row, pars, stator, regime, out)
+        for i in range(N_STATES):
+            dS[i, k] = out[i]
+    return dS, T
+
+
+two_body_initial_step, advance_two_body = dop853_loop(two_body_into, two_body_project, N_STATES)
