@@ -46,6 +46,7 @@ from rubcli.model import ModelParams
 from rubcli.problem import Problem, resolution_problem
 from rubcli.solvers import registry
 from rubcli.speed import SpeedProfile
+from rubcli.stator import Stator
 
 MethodName = Literal[registry.NAMES]  # every method of the registry
 KNOWN_METHODS: tuple[str, ...] = get_args(MethodName)
@@ -267,6 +268,50 @@ class PhysicalSection(_Section):
         if self.d_r is None and self.damping is None:
             raise PydanticCustomError("damping_missing", "d_r: missing (or give damping)")
         return self
+
+
+# ========================================================================== [stator]
+
+
+class StatorSection(_Section):
+    """[stator]: a stator (snubber ring) with its own mass on its own supports
+    (``rubcli.stator``); no [stator] is the rigid stator. With [model]: the mass ratio
+    M_s / m, the stiffness ratios k_s / k_r, the damping n_s (forces 2 n_s s'). With
+    [physical]: kg, N/m and N s/m, converted once."""
+
+    mass: float = Field(gt=0)
+    stiffness: Pair
+    damping: Pair = Field(default_factory=lambda: [0.0, 0.0])
+
+    @field_validator("stiffness")
+    @classmethod
+    def _positive(cls, value: list[float]) -> list[float]:
+        if not all(v > 0.0 for v in value):
+            raise PydanticCustomError(
+                "stator_stiffness",
+                "both entries must be > 0 (a stator without support has no rest position)",
+            )
+        return value
+
+    @field_validator("damping")
+    @classmethod
+    def _not_negative(cls, value: list[float]) -> list[float]:
+        if not all(v >= 0.0 for v in value):
+            raise PydanticCustomError("stator_damping", "both entries must be >= 0")
+        return value
+
+    def stator(self, physical: PhysicalSection | None) -> Stator:
+        """The nondimensional stator (converted from SI with [physical]: over m, k_r and
+        2 sqrt(k_r m), as the rotor's own)."""
+        if physical is None:
+            return Stator(self.mass, tuple(self.stiffness), tuple(self.damping))
+        m, k_r = physical.m, physical.k_r
+        unit = 2.0 * math.sqrt(k_r * m)
+        return Stator(
+            self.mass / m,
+            (self.stiffness[0] / k_r, self.stiffness[1] / k_r),
+            (self.damping[0] / unit, self.damping[1] / unit),
+        )
 
 
 # =========================================================================== [speed]
@@ -578,7 +623,7 @@ SweepParameter = Literal[
     "nu", "eta", "e", "K", "mu", "Rp", "phi0", "x", "y", "vx", "vy",
     # the general machine's (model.MACHINE_PARAMETERS)
     "offset", "offset_x", "offset_y", "load", "load_x", "load_y", "k_xx", "k_xy", "k_yx",
-    "k_yy", "cross_coupling",
+    "k_yy", "cross_coupling", "stator_mass", "stator_k_x", "stator_k_y",
 ]  # fmt: skip
 SWEEP_MODEL_PARAMETERS: tuple[str, ...] = ("nu", "eta", "e", "K", "mu", "Rp", "phi0")
 SWEEP_INITIAL_PARAMETERS: tuple[str, ...] = ("x", "y", "vx", "vy")
@@ -1091,6 +1136,7 @@ class CaseFile(_Section):
     case: CaseSection
     model: ModelSection | None = None
     physical: PhysicalSection | None = None
+    stator: StatorSection | None = None
     speed: SpeedSection | None = None
     initial: InitialSection
     time: TimeSection
@@ -1228,6 +1274,16 @@ class CaseFile(_Section):
         return self
 
     @model_validator(mode="after")
+    def _stator_plots(self) -> CaseFile:
+        if self.stator is not None and "energy" in self.output.plots:
+            raise PydanticCustomError(
+                "stator_plots",
+                "output.plots: energy.png is drawn for a rigid stator; with [stator] the "
+                "energy balance is in report.json (leave energy out of plots)",
+            )
+        return self
+
+    @model_validator(mode="after")
     def _model_xor_physical(self) -> CaseFile:
         # The loader reports this with a field name before pydantic runs; this keeps the
         # rule for anyone who validates a dict directly.
@@ -1348,6 +1404,7 @@ class Case:
             "output_dir": str(self.output_dir),
             "nondimensional": {
                 "params": {**p.params.as_dict(), **p.params.machine_dict()},
+                "stator": p.params.stator.as_dict() if p.params.stator is not None else None,
                 "initial": dict(zip(("x", "y", "vx", "vy"), p.initial, strict=True)),
                 "t_span": list(p.t_span),
                 "n_samples": int(p.t_eval.size),
@@ -1580,6 +1637,11 @@ def assemble_case(
         values = settings.model.model_dump()
         initial = (init.x, init.y, init.vx, init.vy)
     values = machine_values(values)
+    if settings.stator is not None:
+        try:
+            values["stator"] = settings.stator.stator(settings.physical)
+        except (TypeError, ValueError) as exc:
+            raise CaseError([f"{source}: stator: {str(exc).removeprefix('stator: ')}"]) from None
     for name, value in zip(("x", "y", "vx", "vy"), initial, strict=True):
         why = _state_problem(value)
         if why:
@@ -1638,17 +1700,29 @@ def _check_machine(settings: CaseFile, values: dict[str, Any], source: str) -> N
         raise CaseError(
             [
                 f"{source}: speed.profile: a driven rotor runs on the paper's machine only (the "
-                "drive's equations have no offset, static load or anisotropic support)"
+                "drive's equations have no offset, static load, anisotropic support or moving "
+                "stator)"
             ]
         )
+    if settings.speed is not None and machine.stator is not None:
+        raise CaseError(
+            [
+                f"{source}: speed: a stator with its own mass runs at a constant speed only "
+                "(leave out [speed], or [stator])"
+            ]
+        )
+    features = [registry.GENERAL_MACHINE]
+    if machine.stator is not None:
+        features.append(registry.MOVING_STATOR)
     lists = [("solver.methods", settings.solver.methods)]
     if settings.compare is not None and settings.compare.methods is not None:
         lists.append(("compare.methods", settings.compare.methods))
     for name, methods in lists:
         for method in methods:
-            why = registry.unsupported(method, registry.GENERAL_MACHINE)
-            if why:
-                raise CaseError([f"{source}: {name}: {why}"])
+            for feature in features:
+                why = registry.unsupported(method, feature)
+                if why:
+                    raise CaseError([f"{source}: {name}: {why}"])
 
 
 def _sweep_machine_problem(cfg: SweepSection, params: ModelParams) -> str | None:

@@ -187,6 +187,10 @@ class Solution:
     wall_time_s: float = 0.0
     # a driven rotor's own states at the samples, shape (n, 2): phase p and speed w
     drive_states: np.ndarray | None = None
+    # a stator with its own mass: its displacement and velocity (u, v, u', v') at the
+    # samples, (n, 4), and at the events, (m, 4)
+    stator_states: np.ndarray | None = None
+    stator_events: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.events = Events.from_records(self.events)
@@ -284,6 +288,10 @@ class Solution:
             from rubcli.solvers.driven import rub_force
 
             return rub_force(self)
+        if self.stator_states is not None:
+            from rubcli.solvers.two_body import sample_derivatives
+
+            return sample_derivatives(self)[1]
         if self.problem.speed is None:
             return model.tangential_force(
                 self.t, self.x, self.y, self.vx, self.vy, self.problem.params, self.regimes

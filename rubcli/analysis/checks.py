@@ -127,6 +127,10 @@ def method_summary(solution: Solution, balance: Any = None) -> dict[str, Any]:
             from rubcli.analysis.transient_energy import speed_energy_summary
 
             energy = speed_energy_summary(solution)
+        elif solution.stator_states is not None:
+            from rubcli.analysis.two_body_energy import two_body_energy_summary
+
+            energy = two_body_energy_summary(solution)
         elif balance is not None:
             energy = balance.summary()
         else:

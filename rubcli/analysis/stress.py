@@ -506,6 +506,11 @@ def measure_run(case: StressCase, solution: Solution, target_periods: float) -> 
 
         summary = speed_energy_summary(solution)
         residual, quadrature = summary["energy_residual"], summary["energy_quadrature_error"]
+    elif finite and solution.stator_states is not None:
+        from rubcli.analysis.two_body_energy import two_body_energy_summary
+
+        summary = two_body_energy_summary(solution)
+        residual, quadrature = summary["energy_residual"], summary["energy_quadrature_error"]
     elif finite:
         balance = energy_balance(solution)
         residual, quadrature = balance.relative_residual, balance.quadrature_error

@@ -47,10 +47,13 @@ CSV_COLUMNS = (
 # (rad, the exact integral of the speed), and with [physical] the speed in rpm.
 CSV_SPEED_COLUMNS = ("eta", "phase")
 CSV_SPEED_PHYSICAL_COLUMNS = ("speed_rpm",)
-# an offset stator: x, y are the rotor's centre relative to the stator's (the model's
-# coordinates); these are the rotor's position about its support's centre, x + c
+# an offset or moving stator: x, y are the rotor's centre relative to the stator's (the
+# model's coordinates); these are the rotor's position about its support's centre, x + s + c
 CSV_OFFSET_COLUMNS = ("rotor_x", "rotor_y")
 CSV_OFFSET_PHYSICAL_COLUMNS = ("rotor_x_m", "rotor_y_m")
+# a stator with its own mass: its displacement from its rest position, and velocity
+CSV_STATOR_COLUMNS = ("stator_x", "stator_y", "stator_vx", "stator_vy")
+CSV_STATOR_PHYSICAL_COLUMNS = ("stator_x_m", "stator_y_m", "stator_vx_m_s", "stator_vy_m_s")
 # a driven rotor: the motor's torque less the bearing drag, and the rub's, on the spin
 CSV_DRIVE_COLUMNS = ("drive_torque", "rub_torque")
 CSV_DRIVE_PHYSICAL_COLUMNS = ("drive_torque_Nm", "rub_torque_Nm")
@@ -108,11 +111,23 @@ def solution_columns(
             }
         )
     cx, cy = solution.problem.params.offset
-    if cx != 0.0 or cy != 0.0:
+    stator = solution.stator_states
+    if cx != 0.0 or cy != 0.0 or stator is not None:
+        if stator is not None:
+            cx, cy = cx + stator[:, 0], cy + stator[:, 1]
         columns.update({"rotor_x": solution.x + cx, "rotor_y": solution.y + cy})
         if scale is not None:
             columns["rotor_x_m"] = units.metres(solution.x + cx, scale)
             columns["rotor_y_m"] = units.metres(solution.y + cy, scale)
+    if stator is not None:
+        columns.update(dict(zip(CSV_STATOR_COLUMNS, stator.T, strict=True)))
+        if scale is not None:
+            columns.update({
+                "stator_x_m": units.metres(stator[:, 0], scale),
+                "stator_y_m": units.metres(stator[:, 1], scale),
+                "stator_vx_m_s": units.metres_per_second(stator[:, 2], scale),
+                "stator_vy_m_s": units.metres_per_second(stator[:, 3], scale),
+            })  # fmt: skip
     if solution.problem.changes_speed:
         eta = solution.speed
         columns.update({"eta": eta, "phase": solution.phase})
@@ -159,12 +174,15 @@ def solution_blocks(
     n = int(solution.t.size)
     for a in range(0, n, rows):
         b = min(n, a + rows)
+        own = {name: getattr(solution, name)[a:b] for name in ("drive_states", "stator_states")
+               if getattr(solution, name) is not None}  # fmt: skip
         part = _replace(
             solution,
             t=solution.t[a:b],
             states=solution.states[a:b],
             regimes=solution.regimes[a:b],
             events=[],
+            **own,
         )
         yield list(solution_columns(part, scale).values())
 
@@ -174,12 +192,16 @@ def solution_header(
     speed: bool = False,
     drive: bool = False,
     offset: bool = False,
+    stator: bool = False,
 ) -> tuple[str, ...]:
     """The CSV header of a solution (``speed``: its speed changes, ``Problem.changes_speed``;
-    ``drive``: a driven rotor's torques; ``offset``: an offset stator's rotor position)."""
+    ``drive``: a driven rotor's torques; ``offset``: an offset or moving stator's rotor
+    position; ``stator``: a moving stator's own states)."""
     header = CSV_COLUMNS + (CSV_PHYSICAL_COLUMNS if scale is not None else ())
-    if offset:
+    if offset or stator:
         header += CSV_OFFSET_COLUMNS + (CSV_OFFSET_PHYSICAL_COLUMNS if scale is not None else ())
+    if stator:
+        header += CSV_STATOR_COLUMNS + (CSV_STATOR_PHYSICAL_COLUMNS if scale is not None else ())
     if speed:
         header += CSV_SPEED_COLUMNS + (CSV_SPEED_PHYSICAL_COLUMNS if scale is not None else ())
     if drive:
@@ -187,11 +209,12 @@ def solution_header(
     return header
 
 
-def _extra_columns(solution: Solution) -> tuple[bool, bool, bool]:
-    """(speed, drive, offset) flags of ``solution_header`` for ``solution``."""
+def _extra_columns(solution: Solution) -> tuple[bool, bool, bool, bool]:
+    """(speed, drive, offset, stator) flags of ``solution_header`` for ``solution``."""
     problem = solution.problem
     offset = problem.params.offset != (0.0, 0.0)
-    return problem.changes_speed, problem.drive is not None, offset
+    stator = problem.params.stator is not None
+    return problem.changes_speed, problem.drive is not None, offset, stator
 
 
 def write_solution_csv(

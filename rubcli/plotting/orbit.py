@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -98,14 +98,21 @@ def draw_orbits(
     several panels; default ``display.orbit_radius``.
     """
     # the states are relative to the stator's centre; drawn where the rotor is, about its
-    # support's centre, with the clearance circle about the stator's (its offset)
+    # support's centre, with the clearance circle about the stator's (its offset); a
+    # moving stator's at its rest position, its centre's path beside
     cx, cy = solutions[0].problem.params.offset if solutions else (0.0, 0.0)
+    moving = bool(solutions) and solutions[0].stator_states is not None
+    if moving:
+        paths = {s.method: s.stator_states[:, :2] for s in solutions}
+        solutions = [rotor_view(s) for s in solutions]
 
     def at(x: np.ndarray | float, y: np.ndarray | float) -> tuple:
         return unit * (x + cx), unit * (y + cy)
 
     circle = np.linspace(0.0, 2.0 * np.pi, 721)
-    ax.plot(*at(np.cos(circle), np.sin(circle)), label="clearance", **display.CLEARANCE_STYLE)
+    ax.plot(*at(np.cos(circle), np.sin(circle)),
+            label="clearance (stator at rest)" if moving else "clearance",
+            **display.CLEARANCE_STYLE)  # fmt: skip
     if cx != 0.0 or cy != 0.0:
         # a ring about the start's star (a rotor at rest on its support starts there)
         ax.plot(0.0, 0.0, "o", ms=17, mfc="none", mec="0.2", mew=1.3, ls="none",
@@ -176,11 +183,25 @@ def draw_orbits(
             near = display.distance(first, sol, steady)
             drawing.distance_steady[sol.method] = _scaled(near, unit)
             drawing.distance_all[sol.method] = _scaled(display.distance(first, sol), unit)
+    if moving and first is not None:
+        n = display.finite_length(first)
+        last = first.t[:n] >= drawing.bold_from[first.method]
+        path = paths[first.method][:n][last]
+        ax.plot(*at(path[:, 0], path[:, 1]), color="0.25", lw=1.4, zorder=4,
+                label="stator centre (last periods)")  # fmt: skip
     ax.set_xlim(unit * cx - radius, unit * cx + radius)
     ax.set_ylim(unit * cy - radius, unit * cy + radius)
     ax.set_aspect("equal", adjustable="box")
     ax.grid(True, alpha=0.3)
     return drawing
+
+
+def rotor_view(solution: Solution) -> Solution:
+    """A moving stator's solution with the rotor's own motion as its states (relative
+    plus the stator's displacement and velocity): what the orbit plot draws about the
+    support's centre."""
+    return replace(solution, states=solution.states + solution.stator_states,
+                   stator_states=None)  # fmt: skip
 
 
 def transient_alpha(periods: float) -> float:

@@ -221,7 +221,8 @@ def time_figure(
             pad = 0.05 * (hi - lo)
             axes[k, 0].set_ylim(lo - pad, hi + pad)
     # with an offset stator the positions are the rotor's relative to the stator's centre
-    offset = bool(solutions) and solutions[0].problem.params.offset != (0.0, 0.0)
+    machine = solutions[0].problem.params if solutions else None
+    offset = machine is not None and (machine.offset != (0.0, 0.0) or machine.stator is not None)
     names = ("x rel. stator", "y rel. stator", "z") if offset else ("x", "y", "z")
     for k, name in enumerate(names):
         axes[k, 0].set_ylabel(f"{name} / clearance" if scale is None else f"{name} (m)")

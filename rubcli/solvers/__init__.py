@@ -21,6 +21,7 @@ from rubcli.solvers.registry import (  # noqa: F401
     DRIVEN,
     FAMILY_MODULES,
     GENERAL_MACHINE,
+    MOVING_STATOR,
     SPECS,
     SPEED_PROFILE,
     Options,
@@ -71,6 +72,8 @@ def problem_features(problem: Problem) -> list[str]:
         found.append(DRIVEN)
     if not problem.params.is_paper_machine:
         found.append(GENERAL_MACHINE)
+    if problem.params.stator is not None:
+        found.append(MOVING_STATOR)
     return found
 
 
@@ -108,13 +111,22 @@ def solve(problem: Problem, method: str, *, watch: Watch | None = None, **option
     if problem.drive is not None and not problem.params.is_paper_machine:
         raise ValueError(
             "solve(): a driven rotor runs on the paper's machine only (the drive's equations, "
-            "rubcli.drive, have no offset, static load or anisotropic support)"
+            "rubcli.drive, have no offset, static load, anisotropic support or moving stator)"
+        )
+    if problem.speed is not None and problem.params.stator is not None:
+        raise ValueError(
+            "solve(): a stator with its own mass runs at a constant speed only (its "
+            "equations, rubcli.stator, carry the speed as a constant state)"
         )
     methods = _methods(SPECS[method].family)
     if problem.drive is not None:
         from rubcli.solvers.driven import solve_driven
 
         methods = {method: partial(solve_driven, name=method)}
+    elif problem.params.stator is not None:
+        from rubcli.solvers.two_body import solve_two_body
+
+        methods = {method: partial(solve_two_body, name=method)}
     start = time.perf_counter()
     if watch is None:
         solution = methods[method](problem, typed)

@@ -116,11 +116,13 @@ FAMILY_MODULES = {
 SPEED_PROFILE = "speed profile"
 DRIVEN = "driven rotor"
 GENERAL_MACHINE = "general machine"
+MOVING_STATOR = "moving stator"
 FEATURES = {
     SPEED_PROFILE: "a speed that changes in time ([speed])",
     DRIVEN: "a driven rotor (the speed a state, [speed] profile = 'driven')",
     GENERAL_MACHINE: "the general machine (an offset stator, a static load, anisotropic or "
     "cross-coupled supports: [model] offset, load, stiffness, damping)",
+    MOVING_STATOR: "a stator with its own mass on its own supports ([stator])",
 }
 # why the methods without a feature lack it (named in the refusal)
 LACKS = {
@@ -130,6 +132,11 @@ LACKS = {
     ("analytic-polar", DRIVEN): "its closed forms assume a constant speed",
     ("analytic-polar", GENERAL_MACHINE): "its polar form needs a concentric stator and an "
     "isotropic support",
+    ("analytic", MOVING_STATOR): "its linearised propagators are written for the rotor's four "
+    "states, not the two bodies' ten",
+    ("analytic-polar", MOVING_STATOR): "its polar form needs a rigid concentric stator",
+    ("taylor", MOVING_STATOR): "its series are written for the rotor alone (and a drive), "
+    "not for the stator's own equations",
 }
 
 
@@ -137,7 +144,7 @@ def _scipy(name: str, order: int, implicit: bool, summary: str) -> MethodSpec:
     return MethodSpec(
         name=name, family="scipy", knob=RTOL, options=ToleranceOptions, order=order,
         implicit=implicit, adaptive=None, summary=summary,
-        features=frozenset({SPEED_PROFILE, DRIVEN, GENERAL_MACHINE}),
+        features=frozenset({SPEED_PROFILE, DRIVEN, GENERAL_MACHINE, MOVING_STATOR}),
     )  # fmt: skip
 
 
@@ -193,7 +200,7 @@ SPECS: dict[str, MethodSpec] = {
             implicit=False,
             adaptive=None,
             summary="scipy's DOP853, step for step, with the step loop compiled (numba)",
-            features=frozenset({SPEED_PROFILE, DRIVEN, GENERAL_MACHINE}),
+            features=frozenset({SPEED_PROFILE, DRIVEN, GENERAL_MACHINE, MOVING_STATOR}),
         ),
         MethodSpec(
             name="taylor",

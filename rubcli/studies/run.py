@@ -180,8 +180,8 @@ def _balance_or_none(solution: Solution):
     """The energy balance with its series (None if a state is not finite)."""
     from rubcli.analysis.energy import energy_balance
 
-    if not np.all(np.isfinite(solution.states)):
-        return None
+    if not np.all(np.isfinite(solution.states)) or solution.stator_states is not None:
+        return None  # (a moving stator's balance: analysis.two_body_energy, no figure)
     with np.errstate(all="ignore"):
         return energy_balance(solution)
 

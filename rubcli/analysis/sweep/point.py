@@ -197,7 +197,11 @@ def _compute(task: PointTask) -> PointResult:
         "energy_residual": math.nan,
         "nsteps": float(nsteps),
     }
-    if task.energy:
+    if task.energy and sol.stator_states is not None:
+        from rubcli.analysis.two_body_energy import two_body_energy_summary
+
+        scalars["energy_residual"] = float(two_body_energy_summary(sol)["energy_residual"])
+    elif task.energy:
         scalars["energy_residual"] = float(energy_balance(sol).relative_residual)
     kept = None
     if task.spectrum:
