@@ -473,6 +473,9 @@ class InitialSection(_Section):
     y: float
     vx: float = 0.0
     vy: float = 0.0
+    # a stator with its own mass: its displacement from its rest position and velocity
+    # [u, v, u', v'] (default: at rest there)
+    stator: Annotated[list[float], Field(min_length=4, max_length=4)] | None = None
 
 
 # ============================================================================ [time]
@@ -1274,8 +1277,15 @@ class CaseFile(_Section):
         return self
 
     @model_validator(mode="after")
-    def _stator_plots(self) -> CaseFile:
-        if self.stator is not None and "energy" in self.output.plots:
+    def _stator_defaults(self) -> CaseFile:
+        """With [stator]: the methods default to those that run it, and energy.png (the
+        rigid stator's balance drawn term by term) is not drawn."""
+        if self.stator is None:
+            return self
+        if "methods" not in self.solver.model_fields_set:
+            solver = self.solver.model_copy(update={"methods": ["dop853-jit"]})
+            object.__setattr__(self, "solver", solver)
+        if "energy" in self.output.plots:
             raise PydanticCustomError(
                 "stator_plots",
                 "output.plots: energy.png is drawn for a rigid stator; with [stator] the "
@@ -1682,7 +1692,25 @@ def assemble_case(
         )
     except ValueError as exc:  # e.g. a time span that overflows
         raise CaseError([f"{source}: time: cannot build the time grid: {exc}"]) from None
+    if init.stator is not None:
+        problem = _with_stator_start(problem, init.stator, scale, source)
     return Case(settings=settings, problem=problem, scale=scale, path=path)
+
+
+def _with_stator_start(
+    problem: Problem, start: list[float], scale: units.PhysicalScale | None, source: str
+) -> Problem:
+    """``problem`` with the stator's start from [initial] stator (converted with
+    [physical]); CaseError without a [stator] or with a value out of the model's domain."""
+    if problem.params.stator is None:
+        raise CaseError([f"{source}: initial.stator: needs a [stator] (a stator with its own "
+                         "mass)"])  # fmt: skip
+    state = tuple(start) if scale is None else units.nondimensional_state(*start, scale)
+    for name, value in zip(("u", "v", "u'", "v'"), state, strict=True):
+        why = _state_problem(value)
+        if why:
+            raise CaseError([f"{source}: initial.stator: {name} {why}"])
+    return dataclasses.replace(problem, stator_initial=state)
 
 
 def _check_machine(settings: CaseFile, values: dict[str, Any], source: str) -> None:
@@ -1712,8 +1740,8 @@ def _check_machine(settings: CaseFile, values: dict[str, Any], source: str) -> N
             ]
         )
     features = [registry.GENERAL_MACHINE]
-    if machine.stator is not None:
-        features.append(registry.MOVING_STATOR)
+    if machine.stator is not None:  # the more particular refusal first
+        features.insert(0, registry.MOVING_STATOR)
     lists = [("solver.methods", settings.solver.methods)]
     if settings.compare is not None and settings.compare.methods is not None:
         lists.append(("compare.methods", settings.compare.methods))
@@ -1729,7 +1757,11 @@ def _sweep_machine_problem(cfg: SweepSection, params: ModelParams) -> str | None
     """Why a sweep over the general machine's parameters leaves the model's domain at an
     end of an axis (each entry's domain, a positive-definite stiffness among them, is an
     interval in that entry), or None."""
-    for axis in cfg.resolved_axes():
+    axes = cfg.resolved_axes()
+    if params.stator is not None and axes and axes[0].parameter in ("x", "y", "vx", "vy"):
+        return ("an initial-state grid (basins) starts the rotor alone; with a [stator] sweep "
+                "model parameters")  # fmt: skip
+    for axis in axes:
         if axis.parameter not in model.MACHINE_PARAMETERS:
             continue
         values = axis.resolved_values()

@@ -39,11 +39,16 @@ class Problem:
     speed: SpeedProfile | None = None
     # a driven rotor: the speed is a state, its start params.eta (rubcli.drive)
     drive: Drive | None = None
+    # a stator with its own mass (params.stator): its (u, v, u', v') at t_eval[0], from
+    # its rest position (default: at rest there)
+    stator_initial: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         if not isinstance(self.params, ModelParams):
             raise TypeError(f"Problem: params must be a ModelParams, got {_kind(self.params)}")
         object.__setattr__(self, "initial", _initial_state(self.initial))
+        stator = _initial_state(self.stator_initial, "stator_initial")
+        object.__setattr__(self, "stator_initial", stator)
         object.__setattr__(self, "t_eval", _time_grid(self.t_eval))
         if not isinstance(self.name, str):
             raise TypeError(f"Problem: name must be a str, got {_kind(self.name)}")
@@ -148,26 +153,29 @@ def _kind(value) -> str:
     return type(value).__name__
 
 
-def _initial_state(initial) -> tuple[float, float, float, float]:
-    """``initial`` checked: 4 finite real numbers of at most MAX_MAGNITUDE in size."""
+def _initial_state(initial, field: str = "initial") -> tuple[float, float, float, float]:
+    """``initial`` (the field ``field``) checked: 4 finite real numbers of at most
+    MAX_MAGNITUDE in size."""
+    names = ("x", "y", "vx", "vy") if field == "initial" else ("u", "v", "u'", "v'")
+    order = ", ".join(names)
     try:
         if isinstance(initial, str | bytes):
             raise TypeError
         values = list(initial)
     except TypeError:
         raise TypeError(
-            f"Problem: initial must be a sequence of 4 numbers (x, y, vx, vy), got {_kind(initial)}"
+            f"Problem: {field} must be a sequence of 4 numbers ({order}), got {_kind(initial)}"
         ) from None
     if len(values) != 4:
-        raise ValueError(f"Problem: initial must hold 4 numbers (x, y, vx, vy), got {len(values)}")
+        raise ValueError(f"Problem: {field} must hold 4 numbers ({order}), got {len(values)}")
     out = []
-    for name, value in zip(("x", "y", "vx", "vy"), values, strict=True):
-        v = real_number("Problem", f"initial {name}", value)
+    for name, value in zip(names, values, strict=True):
+        v = real_number("Problem", f"{field} {name}", value)
         if not math.isfinite(v):
-            raise ValueError(f"Problem: initial {name} must be finite (got {v!r})")
+            raise ValueError(f"Problem: {field} {name} must be finite (got {v!r})")
         if abs(v) > MAX_MAGNITUDE:
             raise ValueError(
-                f"Problem: initial {name} must be at most {MAX_MAGNITUDE:g} in size (got {v!r}): "
+                f"Problem: {field} {name} must be at most {MAX_MAGNITUDE:g} in size (got {v!r}): "
                 "the model's domain (docs/cases.md)"
             )
         out.append(v)

@@ -66,7 +66,8 @@ def plan_from_case(case: case_module.Case, quick: bool = False) -> SweepPlan:
         recognition = Recognition(**cfg.recognition.model_dump(exclude={"enabled"}))
     return SweepPlan(
         params=case.params,
-        initial=case.problem.initial,
+        initial=case.problem.initial
+        + (case.problem.stator_initial if case.params.stator is not None else ()),
         axes=tuple(axes),
         direction=cfg.direction,
         transient_periods=transient,

@@ -45,9 +45,11 @@ def energy_at(params: model.ModelParams, S10: np.ndarray) -> np.ndarray:
     sym = 0.5 * (S + S.T)
     z = np.hypot(x, y)
     contact = np.where(z > 1.0, 0.5 * params.K * (z - 1.0) ** 2, 0.0)
-    rotor = 0.5 * (wvx**2 + wvy**2) + 0.5 * (
-        sym[0, 0] * wx * wx + 2.0 * sym[0, 1] * wx * wy + sym[1, 1] * wy * wy
-    ) - (g[0] * wx + g[1] * wy)
+    rotor = (
+        0.5 * (wvx**2 + wvy**2)
+        + 0.5 * (sym[0, 0] * wx * wx + 2.0 * sym[0, 1] * wx * wy + sym[1, 1] * wy * wy)
+        - (g[0] * wx + g[1] * wy)
+    )
     (kx, ky) = st.stiffness
     ring = 0.5 * st.mass * (up**2 + vp**2) + 0.5 * (kx * u * u + ky * v * v)
     return rotor + ring + contact

@@ -65,15 +65,13 @@ def __getattr__(name: str) -> Any:
 
 def problem_features(problem: Problem) -> list[str]:
     """The features (``registry.FEATURES``) a problem asks of the method that solves it."""
-    found = []
+    found = [MOVING_STATOR] if problem.params.stator is not None else []
     if problem.speed is not None:
         found.append(SPEED_PROFILE)
     if problem.drive is not None:
         found.append(DRIVEN)
     if not problem.params.is_paper_machine:
         found.append(GENERAL_MACHINE)
-    if problem.params.stator is not None:
-        found.append(MOVING_STATOR)
     return found
 
 

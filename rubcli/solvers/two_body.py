@@ -3,7 +3,7 @@
 
 The state has ten entries, ``(x, y, vx, vy, p, w, u, v, u', v')``: the rotor relative to
 the stator's centre, the unbalance's phase and (constant) speed, the stator's
-displacement from its rest position and velocity. The stator starts at rest there. Its
+displacement from its rest position and velocity (``Problem.stator_initial``). Its
 stick friction is the two bodies' (``stator.two_body_entries`` in stick), and stick
 begins and ends with the two bodies' velocities projected onto the rolling constraint
 (``stator.two_body_projection``). The scipy methods and ``dop853-jit`` run it
@@ -59,7 +59,7 @@ class TwoBodyRun(ExtendedRun):
         p = problem.params
         self.stator = p.stator.record()
         pars = np.array(model.params_vector(p))
-        state = np.array([*problem.initial, p.phi0, p.eta, 0.0, 0.0, 0.0, 0.0])
+        state = np.array([*problem.initial, p.phi0, p.eta, *problem.stator_initial])
         super().__init__(problem, method, (pars, self.stator), state, **budget)
         self.event_stators: list[np.ndarray] = []  # the stator's states at each event
 

@@ -73,7 +73,7 @@ class Point:
     direction: str  # "up", "down" or "independent"
     index: tuple[int, ...]
     params: ModelParams
-    start: tuple[float, float, float, float] | None  # None: continue the chain
+    start: tuple[float, ...] | None  # None: continue the chain
 
     @property
     def key(self) -> str:
@@ -93,7 +93,7 @@ class SweepPlan:
     """Everything that determines a sweep's numbers (and nothing about where it runs)."""
 
     params: ModelParams  # the case's machine; the swept parameters are replaced per point
-    initial: tuple[float, float, float, float]
+    initial: tuple[float, ...]  # the rotor's state, and a moving stator's after it
     axes: tuple[Axis, ...]
     direction: str = "independent"
     transient_periods: int = 200
@@ -164,13 +164,13 @@ class SweepPlan:
         for k, v in values.items():
             if k in MODEL_AXES:
                 params = model.with_value(params, k, v)
-        start: tuple[float, float, float, float] | None = None
+        start: tuple[float, ...] | None = None
         if direction == "independent" or index[0] == self._first_index(direction):
             state = list(self.initial)
             for k, v in values.items():
                 if k in INITIAL_AXES:
                     state[INITIAL_AXES.index(k)] = v
-            start = (state[0], state[1], state[2], state[3])
+            start = tuple(state)  # (a moving stator's four states after the rotor's)
         return Point(direction, tuple(index), params, start)
 
     def _first_index(self, direction: str) -> int:

@@ -15,6 +15,7 @@ k T, k = 1 ... record_periods: samples, not interpolated.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 import traceback
@@ -143,8 +144,18 @@ def compute_points(tasks: list[PointTask]) -> list[PointResult]:
 def _solve(params: ModelParams, start, periods: int, spp: int, task: PointTask):
     from rubcli.solvers import solve
 
-    problem = Problem.from_periods(params, start, periods, spp, name="sweep-point")
+    problem = Problem.from_periods(params, start[:4], periods, spp, name="sweep-point")
+    if len(start) == 8:  # a stator with its own mass: its state goes on too
+        problem = dataclasses.replace(problem, stator_initial=tuple(start[4:]))
     return solve(problem, task.method, **task.options)
+
+
+def _last_state(sol) -> tuple[float, ...]:
+    """The run's last state: the rotor's, and a moving stator's after it."""
+    last = [float(v) for v in sol.states[-1]]
+    if sol.stator_states is not None:
+        last += [float(v) for v in sol.stator_states[-1]]
+    return tuple(last)
 
 
 def _compute(task: PointTask) -> PointResult:
@@ -159,7 +170,7 @@ def _compute(task: PointTask) -> PointResult:
         nsteps += int(sol.stats.get("nsteps", 0))
         if not sol.success:
             return failed(f"transient: {sol.message}")
-        state = tuple(float(v) for v in sol.states[-1])
+        state = _last_state(sol)
     sol = _solve(p, state, record, spp, task)
     nsteps += int(sol.stats.get("nsteps", 0))
     if not sol.success:
@@ -175,7 +186,7 @@ def _compute(task: PointTask) -> PointResult:
     response = rsp.classify_solution(
         sol,
         transient_periods=0.0,
-        lyapunov=task.lyapunov,
+        lyapunov=task.lyapunov and p.stator is None,  # (its propagator: the rotor's state)
         lyapunov_periods=task.lyapunov_periods,
         lyapunov_method=LYAPUNOV_METHOD,
     )
@@ -209,5 +220,5 @@ def _compute(task: PointTask) -> PointResult:
         bins = np.rint(spec.order * record).astype(int)
         lookup = dict(zip(bins.tolist(), spec.amplitude.tolist(), strict=True))
         kept = np.array([lookup.get(int(round(o * record)), 0.0) for o in orders])
-    final = tuple(float(v) for v in states[-1])
+    final = _last_state(sol)
     return PointResult(True, response.message, scalars, section, final, kept)  # type: ignore[arg-type]

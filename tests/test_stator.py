@@ -1,0 +1,351 @@
+"""A stator with its own mass (rubcli.stator, docs/machines.md): two bodies, ten states.
+
+Checked against exact and independent references: the two bodies' linear normal modes
+in permanent contact about a static preload (the eigenvectors of the linearised
+system, each returning after its own period), a very heavy, very stiff stator
+approaching the rigid one, the conservation of energy without damping and friction,
+the energy balance with every term converging at the trapezoid's order, the rolling
+constraint's projection (momentum kept), and every method that runs it against a
+tight ``dop853-jit`` and against scipy's own DOP853 in Python."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.optimize import fsolve
+from typer.testing import CliRunner
+
+from rubcli import model
+from rubcli.analysis.two_body_energy import energy_at, two_body_energy_summary
+from rubcli.case import CaseError, load_case, load_case_text
+from rubcli.cli.app import app
+from rubcli.model import ModelParams
+from rubcli.problem import Problem
+from rubcli.solvers import solve
+from rubcli.solvers.registry import MOVING_STATOR, SPECS
+from rubcli.solvers.two_body import full_states
+from rubcli.stator import Stator, two_body_projection
+
+REPO = Path(__file__).resolve().parents[1]
+STATOR_METHODS = [name for name, spec in SPECS.items() if MOVING_STATOR in spec.features]
+RING = Stator(0.2, (2.0, 4.0), (0.05, 0.05))
+
+
+def ring_machine(**overrides) -> ModelParams:
+    values = dict(nu=0.05, eta=1.2, e=0.25, K=10.0, mu=0.1, Rp=3.0, offset=(0.3, 0.0),
+                  stiffness=((1.0, 0.0), (0.0, 1.3)), stator=RING)  # fmt: skip
+    return ModelParams(**{**values, **overrides})
+
+
+def rotor_and_ring(solution) -> np.ndarray:
+    """The rotor's position from its support's centre and the ring's, (4, n)."""
+    c = np.array(solution.problem.params.offset)
+    s = solution.stator_states[:, :2]
+    return np.vstack([(solution.states[:, :2] + s + c).T, s.T])
+
+
+def test_the_ring_moves_and_the_rigid_stator_is_the_default():
+    p = ring_machine()
+    assert not p.is_paper_machine and "stator m=0.2" in p.machine_text()
+    assert dataclasses.replace(p, stator=None).stator is None
+    with pytest.raises(ValueError, match="mass must be > 0"):
+        Stator(-1.0, (1.0, 1.0))
+    with pytest.raises(ValueError, match=r"stiffness\[1\] must be > 0"):
+        Stator(1.0, (1.0, 0.0))
+    with pytest.raises(ValueError, match=r"damping\[0\] must be >= 0"):
+        Stator(1.0, (1.0, 1.0), (-0.1, 0.0))
+    problem = Problem.from_periods(p, (-0.3, 0.0, 0.0, 0.0), 20, 50)
+    sol = solve(problem, "dop853-jit", rtol=1e-10, atol=1e-12)
+    assert sol.success and sol.contact_fraction() > 0.2
+    assert np.max(np.abs(sol.stator_states[:, :2])) > 0.1  # struck, the ring moves
+    assert sol.stator_events.shape == (len(sol.events), 4)
+
+
+def _preloaded(K: float, load: float, stator: Stator, S: np.ndarray):
+    """The loaded equilibrium of rotor and ring in permanent contact (mu = 0, e = 0):
+    the rotor's position w, the ring's s, and the linearised stiffness and mass."""
+    g = np.array([load, 0.0])
+    ks = np.diag(stator.stiffness)
+
+    def residual(q: np.ndarray) -> np.ndarray:
+        w, s = q[:2], q[2:]
+        d = w - s
+        z = np.linalg.norm(d)
+        F = -K * (z - 1.0) * d / z
+        return np.concatenate((-S @ w + g + F, -ks @ s - F))
+
+    q = fsolve(residual, np.array([1.2, 0.0, 0.1, 0.0]), xtol=1e-13, full_output=True)[0]
+    assert np.max(np.abs(residual(q))) < 1e-13
+    w, s = q[:2], q[2:]
+    d = w - s
+    z = np.linalg.norm(d)
+    n = d / z
+    Kt = K * ((1.0 - 1.0 / z) * np.eye(2) + np.outer(n, n) / z)  # tangent contact stiffness
+    stiffness = np.block([[S + Kt, -Kt], [-Kt, ks + Kt]])
+    mass = np.diag([1.0, 1.0, stator.mass, stator.mass])
+    return w, s, stiffness, mass
+
+
+@pytest.mark.parametrize("mode", range(4))
+def test_two_body_normal_modes_in_permanent_contact(mode):
+    """Reference 4 of general-machine.md: about a static preload pressing the rotor into
+    the ring (mu = 0, e = 0, no damping), each linear mode of the two bodies, started
+    small along its eigenvector, is reversed after half its period and back after a
+    whole one; the modes come from the generalised eigenproblem K q = omega^2 M q."""
+    stator = Stator(0.5, (4.0, 6.0))
+    S = np.array([[1.0, 0.0], [0.0, 1.4]])
+    K, load = 10.0, 1.6
+    w, s, stiffness, mass = _preloaded(K, load, stator, S)
+    assert np.linalg.norm(w - s) > 1.0  # in contact
+    omega2, vectors = np.linalg.eig(np.linalg.solve(mass, stiffness))
+    order = np.argsort(omega2.real)
+    omega = np.sqrt(omega2.real[order][mode])
+    phi = vectors[:, order][:, mode].real
+    phi /= np.max(np.abs(phi))
+    a = 1e-5
+    params = ModelParams(nu=0.0, eta=1.0, e=0.0, K=K, stiffness=tuple(map(tuple, S)),
+                         load=(load, 0.0), stator=stator)  # fmt: skip
+    q0 = np.concatenate((w, s)) + a * phi
+    period = 2.0 * np.pi / omega
+    problem = Problem(params, (*(q0[:2] - q0[2:]), 0.0, 0.0), np.array([0.0, period / 2, period]),
+                      stator_initial=(*q0[2:], 0.0, 0.0))  # fmt: skip
+    sol = solve(problem, "dop853-jit", rtol=1e-13, atol=1e-15)
+    assert sol.success and len(sol.events) == 0  # never leaves contact
+    q = rotor_and_ring(sol)
+    rest = np.concatenate((w, s))
+    assert np.max(np.abs(q[:, 1] - (rest - a * phi))) < 2e-3 * a  # half a period: reversed
+    assert np.max(np.abs(q[:, 2] - q0)) < 2e-3 * a  # a whole one: back
+    # and not back at another mode's period: the frequencies are told apart
+    others = np.sqrt(np.sort(omega2.real))
+    assert np.min(np.abs(np.delete(others, mode) - omega)) > 0.05 * omega
+
+
+def test_a_heavy_stiff_stator_approaches_the_rigid_one():
+    """Reference 5: the ring's deflection under the rub's force goes as 1/k_s, so the
+    distance from the rigid stator's run falls about a hundredfold per hundredfold
+    stiffness (the ring's own frequency held at 20)."""
+    base = dict(nu=0.05, eta=1.1, e=0.3, K=20.0, mu=0.1, Rp=3.0)
+    problem = Problem.from_periods(ModelParams(**base), (0.0, 0.0, 0.0, 0.0), 10, 20)
+    rigid = solve(problem, "dop853-jit", rtol=1e-12, atol=1e-14)
+    distances = []
+    for k in (1e3, 1e5, 1e7):
+        ring = Stator(k / 400.0, (k, k), (0.0, 0.0))
+        two = solve(dataclasses.replace(problem, params=ModelParams(**base, stator=ring)),
+                    "dop853-jit", rtol=1e-12, atol=1e-14)  # fmt: skip
+        assert two.success and two.n_contact_switches == rigid.n_contact_switches
+        distances.append(np.max(np.abs(two.states - rigid.states)))
+    assert distances[1] < distances[0] / 30.0 and distances[2] < distances[1] / 30.0
+    assert distances[2] < 1e-4
+
+
+def test_energy_is_conserved_without_damping_friction_load_or_unbalance():
+    """Reference 6: mu = 0, D = 0, n_s = 0, g = 0, e = 0 (an offset stator and an
+    anisotropic support kept): the two bodies' energy is constant through the rubs."""
+    p = ModelParams(nu=0.0, eta=1.0, e=0.0, K=30.0, offset=(0.2, 0.1),
+                    stiffness=((1.0, 0.2), (0.2, 1.5)), stator=Stator(0.4, (3.0, 5.0)))  # fmt: skip
+    problem = Problem.from_periods(p, (-0.2, -0.1, 1.4, 0.6), 10, 50)
+    sol = solve(problem, "dop853-jit", rtol=1e-12, atol=1e-14)
+    assert sol.success and sol.n_contact_switches > 10
+    E = energy_at(p, full_states(sol))
+    assert np.max(np.abs(E - E[0])) < 1e-9 * E[0]
+
+
+def test_energy_balance_closes_at_the_trapezoid_order():
+    """Every term (unbalance, rotor and ring damping, cross-coupling, friction with the
+    spin's share, load): the residual falls as the square of the sample spacing and
+    matches the rule's own estimate."""
+    p = ring_machine(load=(0.0, -0.2), nu=0.0, damping=((0.05, 0.01), (0.0, 0.08)),
+                     stiffness=((1.0, 0.1), (-0.05, 1.3)))  # fmt: skip
+    residuals = []
+    for spp in (200, 800):
+        problem = Problem.from_periods(p, (-0.3, 0.0, 0.0, 0.0), 20, spp)
+        sol = solve(problem, "dop853-jit", rtol=1e-12, atol=1e-14)
+        summary = two_body_energy_summary(sol)
+        assert summary["cross_coupling_work"] != 0.0 and summary["contact_dissipation"] > 0
+        residuals.append(summary["energy_residual"])
+        assert summary["energy_residual"] < 3.0 * summary["energy_quadrature_error"] + 1e-10
+    order = np.log(residuals[0] / residuals[1]) / np.log(4.0)
+    assert 1.7 < order < 2.5
+    assert residuals[1] < 1e-5
+
+
+def test_the_projection_onto_rolling_keeps_momentum():
+    x, y, vx, vy, up, vp, spin, m_inv = 1.02, -0.3, 0.4, 0.9, -0.2, 0.1, 0.7, 1.0 / 0.3
+    vx2, vy2, up2, vp2 = two_body_projection(x, y, vx, vy, up, vp, spin, m_inv)
+    assert model.slip_velocity_value(x, y, vx2, vy2, spin) == pytest.approx(0.0, abs=1e-15)
+    rotor = np.array([vx2 + up2 - vx - up, vy2 + vp2 - vy - vp])  # the rotor's change
+    ring = np.array([up2 - up, vp2 - vp]) / m_inv  # the ring's momentum change
+    assert np.allclose(rotor + ring, 0.0, atol=1e-15)
+    normal = np.array([x, y]) / np.hypot(x, y)
+    assert abs(rotor @ normal) < 1e-15  # a tangential impulse
+
+
+def _stick_machine() -> ModelParams:
+    # a heavy, high-friction rub on a rotor too slow to whip: the rotor rolls on the ring
+    return ModelParams(nu=0.02, eta=0.9, e=0.6, K=30.0, mu=0.5, Rp=0.2,
+                       stator=Stator(0.5, (3.0, 3.0), (0.1, 0.1)))  # fmt: skip
+
+
+def test_stick_on_a_moving_ring_holds_the_rolling_constraint():
+    problem = Problem.from_periods(_stick_machine(), (0.0, 0.0, 0.0, 0.0), 20, 100)
+    sol = solve(problem, "dop853-jit", rtol=1e-11, atol=1e-13)
+    assert sol.success
+    stick = sol.regimes == model.STICK
+    assert np.count_nonzero(stick) > 50
+    assert np.max(np.abs(sol.slip_velocity[stick])) < 1e-12
+    T = sol.friction_force[stick]
+    assert np.all(np.abs(T) <= 0.5 * sol.normal_force[stick] * (1.0 + 1e-9))
+
+
+@pytest.mark.parametrize("machine", ["ring", "stick"])
+def test_every_method_agrees_with_a_tight_reference(machine):
+    p = ring_machine() if machine == "ring" else _stick_machine()
+    start = (-0.3, 0.0, 0.0, 0.0) if machine == "ring" else (0.0, 0.0, 0.0, 0.0)
+    problem = Problem.from_periods(p, start, 8, 20)
+    ref = solve(problem, "dop853-jit", rtol=1e-12, atol=1e-14)
+    python = solve(problem, "dop853-jit", rtol=1e-12, atol=1e-14, compiled=False)
+    assert ref.success and python.success
+    assert len(python.events) == len(ref.events)
+    assert np.max(np.abs(python.states - ref.states)) < 1e-9  # scipy's DOP853 step for step
+    for method in STATOR_METHODS:
+        sol = solve(problem, method, rtol=1e-10, atol=1e-12)
+        assert sol.success, (method, sol.message)
+        assert list(sol.events.kinds) == list(ref.events.kinds), method
+        assert np.allclose(sol.events.tau, ref.events.tau, atol=1e-5), method
+        assert np.max(np.abs(sol.states - ref.states)) < 1e-5, method
+        assert np.max(np.abs(sol.stator_states - ref.stator_states)) < 1e-5, method
+
+
+def test_the_methods_without_it_refuse_naming_the_feature():
+    problem = Problem.from_periods(ring_machine(), (-0.3, 0.0, 0.0, 0.0), 1, 20)
+    for method in ("analytic", "analytic-polar", "taylor"):
+        with pytest.raises(ValueError, match="stator with its own mass"):
+            solve(problem, method)
+
+
+CASE = """
+[case]
+name = "ring"
+[model]
+nu = 0.05
+eta = 1.2
+e = 0.25
+K = 10.0
+mu = 0.1
+Rp = 3.0
+[stator]
+mass = 0.2
+stiffness = [2.0, 4.0]
+[initial]
+x = 0.0
+y = 0.0
+[time]
+periods = 2
+samples_per_period = 20
+[solver]
+methods = ["dop853-jit"]
+"""
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (("mass = 0.2", "mass = -0.2"), "stator.mass"),
+        (("stiffness = [2.0, 4.0]", "stiffness = [2.0, 0.0]"), "stator.stiffness"),
+        (('methods = ["dop853-jit"]', 'methods = ["taylor"]'), "solver.methods"),
+        (
+            (
+                "[solver]",
+                "[speed]\nprofile = 'ramp'\nstart = 1.0\nend = 1.5\nrate = 0.01\n[solver]",
+            ),
+            "speed",
+        ),
+        (("[output]", "[output]"), None),
+    ],
+)
+def test_bad_stator_input_names_the_field(change, message):
+    text = CASE.replace(*change)
+    if message is None:
+        assert load_case_text(text).params.stator == Stator(0.2, (2.0, 4.0))
+        return
+    with pytest.raises(CaseError, match=message):
+        load_case_text(text)
+
+
+def test_initial_stator_needs_a_stator_and_sets_its_start():
+    case = load_case_text(CASE.replace("y = 0.0\n", "y = 0.0\nstator = [0.1, 0.0, 0.0, 0.2]\n"))
+    assert case.problem.stator_initial == (0.1, 0.0, 0.0, 0.2)
+    sol = solve(case.problem, "dop853-jit")
+    assert tuple(sol.stator_states[0]) == (0.1, 0.0, 0.0, 0.2)
+    rigid = CASE.replace("[stator]\nmass = 0.2\nstiffness = [2.0, 4.0]\n", "")
+    with pytest.raises(CaseError, match="initial.stator: needs a"):
+        load_case_text(rigid.replace("y = 0.0\n", "y = 0.0\nstator = [0.1, 0.0, 0.0, 0.0]\n"))
+
+
+def test_physical_stator_converts_once():
+    text = """
+[case]
+name = "ring-si"
+[physical]
+m = 10.0
+k_r = 1e6
+d_r = 316.2
+k_s = 1e7
+clearance = 1e-4
+e = 2e-5
+Omega = 350.0
+[stator]
+mass = 2.0
+stiffness = [2e6, 4e6]
+damping = [63.2, 126.5]
+[initial]
+x = 0.0
+y = 0.0
+[time]
+periods = 2
+samples_per_period = 20
+"""
+    p = load_case_text(text).params
+    assert p.stator.mass == pytest.approx(0.2)
+    assert p.stator.stiffness == pytest.approx((2.0, 4.0))
+    assert p.stator.damping == pytest.approx((0.01, 0.02), rel=1e-3)  # over 2 sqrt(k_r m)
+
+
+def test_run_writes_the_ring_columns(tmp_path):
+    out = tmp_path / "out"
+    result = CliRunner().invoke(
+        app, ["run", str(REPO / "cases" / "machines" / "snubber.toml"), "--out", str(out),
+              "--periods", "4"],
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    header = (out / "dop853-jit.csv").read_text().splitlines()[0].split(",")
+    assert header[-6:] == ["rotor_x", "rotor_y", "stator_x", "stator_y", "stator_vx", "stator_vy"]
+    rows = np.loadtxt(out / "dop853-jit.csv", delimiter=",", skiprows=1,
+                      usecols=[header.index(n) for n in ("x", "rotor_x", "stator_x")])  # fmt: skip
+    assert np.allclose(rows[:, 1], rows[:, 0] + rows[:, 2] + 0.3, atol=1e-12)  # w = d + s + c
+    report = json.loads((out / "report.json").read_text())
+    assert report["case"]["nondimensional"]["stator"]["mass"] == 0.2
+    energy = report["methods"]["dop853-jit"]["energy"]
+    assert energy["energy_residual"] < 3.0 * energy["energy_quadrature_error"] + 1e-9
+
+
+def test_compare_runs_the_ring(tmp_path):
+    out = tmp_path / "out"
+    case = REPO / "cases" / "machines" / "snubber.toml"
+    result = CliRunner().invoke(app, ["compare", str(case), "--out", str(out), "--quick"])
+    assert result.exit_code == 0, result.output
+    report = json.loads((out / "report.json").read_text())
+    # the reference checked against lsoda, an independent family, on the two bodies
+    assert report["reference"]["error_estimate"] < 1e-8
+    rows = report["work_precision"]["rows"]
+    assert {row["method"] for row in rows} == {"dop853-jit", "dop853"}
+    assert all(row["status"] == "success" for row in rows)
+
+
+def test_the_snubber_case_is_a_moving_stator():
+    case = load_case(REPO / "cases" / "machines" / "snubber.toml")
+    assert case.params.stator is not None and case.params.offset == (0.3, 0.0)
