@@ -225,17 +225,22 @@ class ModelParams:
 
     def machine_text(self) -> str:
         """The general machine's entries in one line (``offset=[0.6, 0], ...``), or ''."""
+        return ", ".join(self.machine_lines())
+
+    def machine_lines(self) -> list[str]:
+        """The general machine's entries: the support's and the offset and load in one
+        line, a moving stator's in another (none on the paper's machine)."""
 
         def text(value: list) -> str:
             inner = (text(v) if isinstance(v, list) else f"{v:g}" for v in value)
             return "[" + ", ".join(inner) + "]"
 
         line = ", ".join(f"{k}={text(v)}" for k, v in self.machine_dict().items())
-        if self.stator is None:
-            return line
-        (kx, ky), (nx, ny) = self.stator.stiffness, self.stator.damping
-        ring = f"stator m={self.stator.mass:g} k=[{kx:g}, {ky:g}] n=[{nx:g}, {ny:g}]"
-        return f"{line}, {ring}" if line else ring
+        lines = [line] if line else []
+        if self.stator is not None:
+            (kx, ky), (nx, ny) = self.stator.stiffness, self.stator.damping
+            lines.append(f"stator m={self.stator.mass:g} k=[{kx:g}, {ky:g}] n=[{nx:g}, {ny:g}]")
+        return lines
 
     @property
     def static_force(self) -> tuple[float, float]:

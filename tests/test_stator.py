@@ -349,3 +349,69 @@ def test_compare_runs_the_ring(tmp_path):
 def test_the_snubber_case_is_a_moving_stator():
     case = load_case(REPO / "cases" / "machines" / "snubber.toml")
     assert case.params.stator is not None and case.params.offset == (0.3, 0.0)
+
+
+def _multipliers_match(a: np.ndarray, b: np.ndarray, tol: float) -> bool:
+    """Each multiplier of ``a`` has one of ``b`` within ``tol`` (and the counts agree)."""
+    left = list(b)
+    for m in a:
+        i = int(np.argmin([abs(m - o) for o in left]))
+        if abs(m - left[i]) > tol:
+            return False
+        left.pop(i)
+    return not left
+
+
+def test_the_two_body_monodromy_without_contact_is_the_exponential():
+    """Without contact the two bodies are linear and apart: the multipliers of the
+    flow's monodromy (central differences) are those of exp(A T) of each body."""
+    from scipy.linalg import expm
+
+    from rubcli.analysis import orbits as ob
+
+    p = ring_machine(e=0.02, mu=0.0)
+    S, D = np.array(p.stiffness), np.array(p.damping_matrix)
+    st = p.stator
+    ks, ns = np.diag(st.stiffness), np.diag(st.damping)
+    rotor = np.block([[np.zeros((2, 2)), np.eye(2)], [-S, -2.0 * D]])
+    ring = np.block([[np.zeros((2, 2)), np.eye(2)], [-ks / st.mass, -2.0 * ns / st.mass]])
+    expected = np.concatenate([np.linalg.eigvals(expm(M * p.period)) for M in (rotor, ring)])
+    orbit = ob.shoot(p, np.array([-0.3, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]), 1)
+    assert orbit.flow.max_z < 1.0 and orbit.flow.events == []
+    assert _multipliers_match(orbit.multipliers, expected, 1e-6)
+
+
+def test_the_two_body_monodromy_across_rubs_keeps_liouvilles_determinant():
+    """The contact force and the friction are continuous at z = 1 and the friction in
+    slip does not depend on the velocities: across contact entries and exits the
+    saltation is the identity and the monodromy's determinant is exp of the trace of
+    the damping over the period, exp(-(2 tr D + 2 tr(N_s) / m_s) T) (Liouville)."""
+    from rubcli.analysis import orbits as ob
+
+    p = ring_machine()
+    guess = ob.transient_state(p, np.array([-0.3, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]), 40)
+    orbit = ob.shoot(p, guess, 1)
+    kinds = {kind for _, kind, _, _ in orbit.flow.events}
+    assert orbit.flow.contact_phases >= 1 and kinds == {"contact_entry", "contact_exit"}
+    trace = 2.0 * np.trace(np.array(p.damping_matrix)) + 2.0 * sum(p.stator.damping) / p.stator.mass
+    expected = np.exp(-trace * p.period)
+    assert np.linalg.det(orbit.monodromy) == pytest.approx(expected, rel=1e-5)
+    # the orbit is one: a run from it returns after a period
+    problem = Problem(p, tuple(orbit.state[:4]), np.array([0.0, p.period]),
+                      stator_initial=tuple(orbit.state[4:]))  # fmt: skip
+    sol = solve(problem, "dop853-jit", rtol=1e-12, atol=1e-14)
+    back = np.concatenate((sol.states[-1], sol.stator_states[-1]))
+    assert np.max(np.abs(back - orbit.state)) < 1e-8
+
+
+def test_orbits_continues_the_ring_branch(tmp_path):
+    out = tmp_path / "out"
+    case = REPO / "cases" / "machines" / "snubber.toml"
+    result = CliRunner().invoke(app, ["orbits", str(case), "--out", str(out), "--quick"])
+    assert result.exit_code == 0, result.output
+    header = (out / "branch.csv").read_text().splitlines()[0].split(",")
+    assert header[4:12] == ["x", "y", "vx", "vy", "stator_x", "stator_y", "stator_vx",
+                            "stator_vy"]  # fmt: skip
+    assert "multiplier8_re" in header
+    report = json.loads((out / "report.json").read_text())
+    assert report["branch"]["status"] == "ok"

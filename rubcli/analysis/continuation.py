@@ -307,7 +307,7 @@ def _deflated(G: np.ndarray, X: np.ndarray, avoid: np.ndarray | None) -> float:
     res = float(np.max(np.abs(G)))
     if avoid is None:
         return res
-    d = X[:4] - avoid
+    d = X[:-1] - avoid
     return res * (1.0 + 1.0 / max(float(d @ d), 1e-300))
 
 
@@ -335,19 +335,19 @@ class _Problem:
         self, X: np.ndarray, derivative: bool = True
     ) -> tuple[ob.FlowResult, np.ndarray, np.ndarray | None]:
         """(flow result, G, dP/dq or None) at X."""
-        p = self.params_at(X[4])
+        p = self.params_at(X[-1])
         fl = ob.stroboscopic_map(
-            p, X[:4], self.s.k, rtol=self.s.rtol, atol=self.s.atol, locked=self.locked,
+            p, X[:-1], self.s.k, rtol=self.s.rtol, atol=self.s.atol, locked=self.locked,
             deadline=self.deadline,
         )  # fmt: skip
         self.evaluations += 1
         dPdq = self.derivative(X) if derivative else None
-        return fl, fl.state - X[:4], dPdq
+        return fl, fl.state - X[:-1], dPdq
 
     def derivative(self, X: np.ndarray) -> np.ndarray:
         """dP/dq at X by central differences of the map; one-sided where one side lies
         outside the model's domain (at mu = 0, the bound of a window starting there)."""
-        q = X[4]
+        q = X[-1]
         h = 1e-6 * max(1.0, abs(q))
         sides = []
         for step in (h, -h):
@@ -358,7 +358,7 @@ class _Problem:
         (q_plus, p_plus), (q_minus, p_minus) = sides
         plus, minus = (
             ob.stroboscopic_map(
-                p, X[:4], self.s.k, variational=False, rtol=self.s.rtol, atol=self.s.atol,
+                p, X[:-1], self.s.k, variational=False, rtol=self.s.rtol, atol=self.s.atol,
                 locked=self.locked, deadline=self.deadline,
             ).state
             for p in (p_plus, p_minus)
@@ -367,8 +367,8 @@ class _Problem:
 
     def point(self, X: np.ndarray, fl: ob.FlowResult, iterations: int) -> BranchPoint:
         return BranchPoint(
-            parameter=float(X[4] * self.s.scale),
-            state=X[:4].copy(),
+            parameter=float(X[-1] * self.s.scale),
+            state=X[:-1].copy(),
             k=self.s.k,
             multipliers=ob.floquet_multipliers(fl.monodromy),
             max_z=fl.max_z,
@@ -397,23 +397,24 @@ class _Problem:
         fl, G = self._residual(X)
         dPdq = self._dPdq(X)
         for it in range(self.s.max_newton + 1):
-            if float(np.max(np.abs(G))) <= self.s.newton_tol * ob.residual_scale(X[:4]):
+            if float(np.max(np.abs(G))) <= self.s.newton_tol * ob.residual_scale(X[:-1]):
                 self.last = (X.copy(), fl.monodromy, dPdq)  # reused by tangent()
                 return X, self.point(X, fl, it)
             if it == self.s.max_newton:
                 break
-            A = np.zeros((5, 5))
-            A[:4, :4] = fl.monodromy - np.eye(4)
-            A[:4, 4] = dPdq
-            A[4] = normal
+            n = X.size - 1  # the state's size: the rotor's four, with a moving stator eight
+            A = np.zeros((n + 1, n + 1))
+            A[:n, :n] = fl.monodromy - np.eye(n)
+            A[:n, n] = dPdq
+            A[n] = normal
             rhs = np.concatenate([-G, [-float(normal @ (X - X_pred))]])
             if avoid is not None:
-                d = X[:4] - avoid
+                d = X[:n] - avoid
                 dd = max(float(d @ d), 1e-300)
                 m = 1.0 + 1.0 / dd
-                A[:4] *= m
-                A[:4, :4] += np.outer(G, -2.0 * d / dd**2)
-                rhs[:4] *= m
+                A[:n] *= m
+                A[:n, :n] += np.outer(G, -2.0 * d / dd**2)
+                rhs[:n] *= m
             try:
                 dX = np.linalg.solve(A, rhs)
             except np.linalg.LinAlgError:
@@ -456,14 +457,15 @@ class _Problem:
         else:
             fl, _, dPdq = self.evaluate(X)
             monodromy = fl.monodromy
-        J = np.zeros((4, 5))
-        J[:, :4] = monodromy - np.eye(4)
-        J[:, 4] = dPdq
+        n = X.size - 1
+        J = np.zeros((n, n + 1))
+        J[:, :n] = monodromy - np.eye(n)
+        J[:, n] = dPdq
         t = np.linalg.svd(J)[2][-1]
         if previous is not None:
             sign = np.sign(t @ previous)
         else:
-            sign = np.sign(t[4]) * direction if t[4] != 0.0 else direction
+            sign = np.sign(t[-1]) * direction if t[-1] != 0.0 else direction
         return t * (sign if sign != 0.0 else 1.0)
 
 
@@ -578,7 +580,7 @@ def _one_direction(prob: _Problem, start, direction, done, progress, out) -> str
             X_new, pt = crossed
             t = _away_from_corner(prob, X, last, X_new, pt, ds_min)
             ds = s.step / s.scale
-        q = X_new[4]
+        q = X_new[-1]
         if q > q_max or q < q_min:
             bound = q_max if q > q_max else q_min
             end = _at_bound(prob, X, X_new, bound)
@@ -621,19 +623,19 @@ def _cross_corner(prob: _Problem, X, last: BranchPoint, t):
     and within ``sqrt(h)`` of the last point (a branch leaves a grazing like a square root
     at most: a farther orbit is another branch) is returned with its point, or None.
     """
-    onward = 1.0 if t[4] >= 0.0 else -1.0
-    normal = np.zeros(5)
-    normal[4] = 1.0
+    onward = 1.0 if t[-1] >= 0.0 else -1.0
+    normal = np.zeros(X.size)
+    normal[-1] = 1.0
     # the smooth extensions of the flows on the other side: leaving contact, the free
     # flow; entering it, the contact flow locked in slip either way (a full rub's orbit)
     locked = (model.FREE,) if last.max_z > 1.0 else (model.SLIP_POSITIVE, model.SLIP_NEGATIVE)
     extensions = [_Problem(prob.params, prob.s, locked=r, deadline=prob.deadline) for r in locked]
-    unit = max(1.0, abs(X[4]))
+    unit = max(1.0, abs(X[-1]))
     h = CORNER_FIRST_OFFSET * unit
     while h <= CORNER_LAST_OFFSET * unit:
         for side in (onward, -onward):
             guess = X.copy()
-            guess[4] = X[4] + side * h
+            guess[-1] = X[-1] + side * h
             same = None  # the orbit of the last piece at this value, once found
             for way in ("direct", *extensions, "deflated"):
                 try:
@@ -642,7 +644,7 @@ def _cross_corner(prob: _Problem, X, last: BranchPoint, t):
                     elif way != "deflated":  # from the orbit of a smooth extension
                         X_new, pt = prob.correct(way.correct(guess, normal)[0], normal)
                     elif same is not None:
-                        X_new, pt = prob.correct(guess, normal, avoid=same[:4])
+                        X_new, pt = prob.correct(guess, normal, avoid=same[:-1])
                     else:
                         continue
                 except CorrectorError:
@@ -675,13 +677,13 @@ def _away_from_corner(prob: _Problem, X, last: BranchPoint, X_new, pt: BranchPoi
 
 def _at_bound(prob: _Problem, X_a, X_b, bound: float):
     """The branch point with q = bound between X_a and X_b (Newton with q fixed), or None."""
-    if abs(bound - X_a[4]) <= 1e-12 * max(1.0, abs(bound)):
+    if abs(bound - X_a[-1]) <= 1e-12 * max(1.0, abs(bound)):
         return None  # the last point is on the bound already
-    theta = (bound - X_a[4]) / (X_b[4] - X_a[4])
+    theta = (bound - X_a[-1]) / (X_b[-1] - X_a[-1])
     guess = X_a + theta * (X_b - X_a)
-    normal = np.zeros(5)
-    normal[4] = 1.0
-    guess[4] = bound
+    normal = np.zeros(X_a.size)
+    normal[-1] = 1.0
+    guess[-1] = bound
     try:
         return prob.correct(guess, normal)
     except CorrectorError:
@@ -751,18 +753,18 @@ def _locate_grazing(prob: _Problem, Xs, points, i, locate) -> Bifurcation:
     free = i if points[i].max_z < 1.0 else i + 1
     other = 2 * i + 1 - free
     side = _Problem(prob.params, prob.s, locked=model.FREE, deadline=prob.deadline)
-    normal = np.zeros(5)
-    normal[4] = 1.0
+    normal = np.zeros(Xs[free].size)
+    normal[-1] = 1.0
     cache: dict[float, BranchPoint] = {}
 
     def g(q: float) -> float:
         if q not in cache:
             guess = Xs[free].copy()
-            guess[4] = q
+            guess[-1] = q
             cache[q] = side.correct(guess, normal)[1]
         return grazing_test(cache[q])
 
-    q_free, q_other = float(Xs[free][4]), float(Xs[other][4])
+    q_free, q_other = float(Xs[free][-1]), float(Xs[other][-1])
     try:
         g_free = g(q_free)
         span = q_other - q_free

@@ -172,7 +172,7 @@ class _System:
 
     def params_at(self, Z: np.ndarray) -> ModelParams:
         p = self.params
-        for name, q, scale in zip(self.names, Z[4:], self.scales, strict=True):
+        for name, q, scale in zip(self.names, Z[-2:], self.scales, strict=True):
             try:
                 p = ob.with_parameter(p, name, float(q * scale))
             except ob.OrbitError as exc:
@@ -182,7 +182,7 @@ class _System:
     def flow(self, Z: np.ndarray, variational: bool) -> ob.FlowResult:
         try:
             return ob.stroboscopic_map(
-                self.params_at(Z), Z[:4], self.s.k, variational=variational, rtol=self.s.rtol,
+                self.params_at(Z), Z[:-2], self.s.k, variational=variational, rtol=self.s.rtol,
                 atol=self.s.atol, locked=self.locked, deadline=self.deadline,
             )  # fmt: skip
         except ob.OrbitError as exc:
@@ -199,42 +199,44 @@ class _System:
         }[self.kind](multipliers)
 
     def evaluate(self, Z: np.ndarray) -> tuple[np.ndarray, np.ndarray, ob.FlowResult]:
-        """H(Z), its 5 x 6 Jacobian, and the flow at Z."""
+        """H(Z), its (n + 1) x (n + 2) Jacobian, and the flow at Z (n states: the rotor's
+        four, with a moving stator eight)."""
+        n = Z.size - 2
         fl = self.flow(Z, True)
         T = self.test(fl)
-        H = np.concatenate([fl.state - Z[:4], [T]])
-        J = np.zeros((5, 6))
-        J[:4, :4] = fl.monodromy - np.eye(4)
-        for j in (4, 5):  # dP/dq: central differences of the map
+        H = np.concatenate([fl.state - Z[:n], [T]])
+        J = np.zeros((n + 1, n + 2))
+        J[:n, :n] = fl.monodromy - np.eye(n)
+        for j in (n, n + 1):  # dP/dq: central differences of the map
             h = FD_STEP * max(1.0, abs(Z[j]))
             plus, minus = Z.copy(), Z.copy()
             plus[j] += h
             minus[j] -= h
-            J[:4, j] = (self.flow(plus, False).state - self.flow(minus, False).state) / (2 * h)
+            J[:n, j] = (self.flow(plus, False).state - self.flow(minus, False).state) / (2 * h)
         if self.kind == cn.GRAZING:
             # max z of a trajectory has a kink in its start (any start off a circular orbit
             # reaches farther): T is differenced along the orbit family instead, the orbit
             # at each shifted parameter from one Newton step (exact for the linear free flow)
-            step_matrix = fl.monodromy - np.eye(4)
-            for j in (4, 5):
+            step_matrix = fl.monodromy - np.eye(n)
+            for j in (n, n + 1):
                 h = FD_STEP * max(1.0, abs(Z[j]))
                 shifted = Z.copy()
                 shifted[j] += h
-                shifted[:4] -= np.linalg.solve(step_matrix, self.flow(shifted, False).state - Z[:4])
-                J[4, j] = (self.test(self.flow(shifted, False)) - T) / h
+                shifted[:n] -= np.linalg.solve(step_matrix, self.flow(shifted, False).state - Z[:n])
+                J[n, j] = (self.test(self.flow(shifted, False)) - T) / h
             return H, J, fl
-        for j in range(6):  # grad T: forward differences
+        for j in range(n + 2):  # grad T: forward differences
             h = FD_STEP * max(1.0, abs(Z[j]))
             shifted = Z.copy()
             shifted[j] += h
-            J[4, j] = (self.test(self.flow(shifted, True)) - T) / h
+            J[n, j] = (self.test(self.flow(shifted, True)) - T) / h
         return H, J, fl
 
     def point(self, Z: np.ndarray, fl: ob.FlowResult, H: np.ndarray, iterations: int) -> CurvePoint:
         multipliers = ob.floquet_multipliers(fl.monodromy)
-        values = (float(Z[4] * self.scales[0]), float(Z[5] * self.scales[1]))
-        return CurvePoint(values, Z[:4].copy(), multipliers, fl.max_z, fl.contact_fraction,
-                          float(H[4]), iterations)  # fmt: skip
+        values = (float(Z[-2] * self.scales[0]), float(Z[-1] * self.scales[1]))
+        return CurvePoint(values, Z[:-2].copy(), multipliers, fl.max_z, fl.contact_fraction,
+                          float(H[-1]), iterations)  # fmt: skip
 
     def correct(
         self, Z_pred: np.ndarray, normal: np.ndarray
@@ -244,7 +246,7 @@ class _System:
         step = math.inf
         for it in range(self.s.max_newton + 1):
             H, J, fl = self.evaluate(Z)
-            small = float(np.max(np.abs(H[:4]))) <= self.s.newton_tol * ob.residual_scale(Z[:4])
+            small = float(np.max(np.abs(H[:-1]))) <= self.s.newton_tol * ob.residual_scale(Z[:-2])
             if small and step <= STEP_TOL * max(1.0, float(np.linalg.norm(Z))):
                 return Z, self.point(Z, fl, H, it), J
             if it == self.s.max_newton:
@@ -334,7 +336,7 @@ def _one_way(system: _System, Z0, t0, out: list, done: list, progress) -> str:
                 return _stalled(system, Z, out[-1] if out else None, exc)
             ds /= 2.0
             continue
-        q = Z_new[4:]
+        q = Z_new[-2:]
         outside = np.flatnonzero((q < lower) | (q > upper))
         if outside.size:
             return _to_bound(system, Z, Z_new, int(outside[0]), lower, upper, out)
@@ -358,7 +360,7 @@ def _stalled(system: _System, Z: np.ndarray, last: CurvePoint | None, exc) -> st
     orbit's distance from the stator's edge when it is near (a curve of a rub's fold or
     stability boundary ends where that orbit grazes)."""
     where = ", ".join(f"{n} = {q * sc:.6g}" for n, q, sc in
-                      zip(system.names, Z[4:], system.scales, strict=True))  # fmt: skip
+                      zip(system.names, Z[-2:], system.scales, strict=True))  # fmt: skip
     text = f"no point beyond {where} at the minimum step"
     if last is not None and abs(last.max_z - 1.0) < GRAZING_NEAR:
         text += f" (max z = {last.max_z:.6g}: the orbit grazes the stator there)"
@@ -368,14 +370,15 @@ def _stalled(system: _System, Z: np.ndarray, last: CurvePoint | None, exc) -> st
 def _to_bound(system: _System, Z_a, Z_b, i: int, lower, upper, out: list) -> str:
     """The point where parameter ``i`` reaches its bound between Z_a and Z_b (appended if
     found), and the reason the curve stops."""
-    q_a, q_b = Z_a[4 + i], Z_b[4 + i]
+    at = Z_a.size - 2 + i  # the parameter's entry
+    q_a, q_b = Z_a[at], Z_b[at]
     bound = lower[i] if q_b < lower[i] else upper[i]
     which = "lower" if bound == lower[i] else "upper"
     theta = (bound - q_a) / (q_b - q_a)
     guess = Z_a + theta * (Z_b - Z_a)
-    guess[4 + i] = bound
-    normal = np.zeros(6)
-    normal[4 + i] = 1.0
+    guess[at] = bound
+    normal = np.zeros(Z_a.size)
+    normal[at] = 1.0
     with contextlib.suppress(_CurveError):  # without it the curve ends at its last point
         out.append(system.correct(guess, normal)[1])
     name = system.names[i]

@@ -34,6 +34,7 @@ import numpy as np
 
 from rubcli import model
 from rubcli.model import ModelParams
+from rubcli.problem import Problem
 from rubcli.solvers import events as ev
 
 if TYPE_CHECKING:
@@ -52,6 +53,12 @@ PARAMETERS = ("eta", "mu", "K", "e", "nu", "Rp")
 # of at most this many forcing periods: the dense output of one piece is kept (for the
 # extremes of z), and 1e5 periods in one piece once held 3 GB.
 TRANSIENT_CHUNK_PERIODS = 16
+# A stator with its own mass (``two_body_flow``): the samples a period on which its flow's
+# extremes of z are read, and the step of its monodromy's central differences, relative
+# to 1 + |s_j| (the flow's own error at rtol 1e-12 is then 1e-7 of a column, the
+# differences' truncation 1e-10).
+TWO_BODY_SAMPLES = 200
+TWO_BODY_FD_STEP = 1e-5
 
 
 class OrbitError(RuntimeError):
@@ -260,6 +267,9 @@ def flow(
     """
     if not tau1 > tau0:
         raise OrbitError(f"empty time span tau = {tau0:.9g} .. {tau1:.9g}")
+    if params.stator is not None:
+        return two_body_flow(params, s0, tau0, tau1, variational=variational, rtol=rtol,
+                             atol=atol, locked=locked, deadline=deadline)  # fmt: skip
     s = np.asarray(s0, dtype=float).copy()
     regime = _start_regime(tau0, s, params) if locked is None else int(locked)
     if regime == model.STICK:
@@ -362,6 +372,78 @@ def flow(
         min_z=min_z,
         contact_time=contact_time,
         stick_time=stick_time,
+        duration=float(tau1 - tau0),
+        nfev=nfev,
+    )
+
+
+def two_body_flow(
+    params: ModelParams,
+    s0: ArrayLike,
+    tau0: float,
+    tau1: float,
+    *,
+    variational: bool = True,
+    rtol: float = RTOL,
+    atol: float = ATOL,
+    locked: int | None = None,
+    deadline: float | None = None,
+) -> FlowResult:
+    """``flow`` of a stator with its own mass: the state on the section is the rotor's
+    four entries and the ring's, ``(x, y, vx, vy, u, v, u', v')``. Integrated by
+    ``dop853-jit`` in the extended event loop (``solvers.two_body``); its extremes of z
+    read on ``TWO_BODY_SAMPLES`` samples a period; its monodromy matrix by central
+    differences of the flow, a step of ``TWO_BODY_FD_STEP`` (1 + |s_j|) in each entry
+    (the saltation at each event is in the differences: the perturbed flows switch
+    where their own events lie). Raises OrbitError on a failed flow, WallTimeBudgetError
+    past ``deadline``."""
+    from rubcli.analysis.regimes import time_in_regimes
+    from rubcli.solvers.two_body import two_body_flow as run
+
+    s = np.asarray(s0, dtype=float).copy()
+    if s.shape != (8,):
+        raise OrbitError(f"a two-body state has 8 entries (got {s.shape})")
+    n = max(2, int(math.ceil(TWO_BODY_SAMPLES * (tau1 - tau0) / params.period))) + 1
+    grid = np.linspace(tau0, tau1, n)
+
+    def end(start: np.ndarray, t_eval: np.ndarray):
+        check_deadline(deadline)
+        budget = None if deadline is None else max(deadline - time.perf_counter(), 0.0)
+        problem = Problem(params, tuple(start[:4]), t_eval, stator_initial=tuple(start[4:]))
+        sol = run(problem, rtol, atol, locked=locked, max_wall_time_s=budget)
+        if not sol.success:
+            check_deadline(deadline)
+            raise OrbitError(f"integration failed: {sol.message}")
+        return sol
+
+    sol = end(s, grid)
+    state = np.concatenate((sol.states[-1], sol.stator_states[-1]))
+    nfev = int(sol.stats.get("nfev", 0))
+    phi = None
+    if variational:
+        phi = np.empty((8, 8))
+        ends = np.array([tau0, tau1])
+        for j in range(8):
+            h = TWO_BODY_FD_STEP * (1.0 + abs(s[j]))
+            sides = []
+            for step in (h, -h):
+                moved = s.copy()
+                moved[j] += step
+                other = end(moved, ends)
+                nfev += int(other.stats.get("nfev", 0))
+                sides.append(np.concatenate((other.states[-1], other.stator_states[-1])))
+            phi[:, j] = (sides[0] - sides[1]) / (2.0 * h)
+    regimes = time_in_regimes(sol)
+    events = [(e.tau, e.kind, e.regime_before, e.regime_after) for e in sol.events]
+    z = sol.z
+    return FlowResult(
+        state=state,
+        monodromy=phi,
+        events=events,
+        max_z=float(np.max(z)),
+        min_z=float(np.min(z)),
+        contact_time=float(sum(v for k, v in regimes.items() if k != "free")),
+        stick_time=float(regimes["stick"]),
         duration=float(tau1 - tau0),
         nfev=nfev,
     )
@@ -482,7 +564,7 @@ def shoot(
         if it == max_iter:
             break
         try:
-            dx = np.linalg.solve(fl.monodromy - np.eye(4), -G)
+            dx = np.linalg.solve(fl.monodromy - np.eye(x.size), -G)
         except np.linalg.LinAlgError:
             raise NewtonError(f"singular Phi - I at Newton iteration {it}", x, res) from None
         x = x + dx

@@ -61,8 +61,7 @@ def parameters_title(
     eta = speed if speed is not None else f"eta={p.eta:g}"
     nu = "" if p.damping is not None else f"nu={p.nu:g}, "
     title = f"{name}\n{nu}{eta}, e={p.e:g}, K={p.K:g}, {mu}, Rp={p.Rp:g}, phi0={p.phi0:g}"
-    machine = p.machine_text()
-    return title + (f"\n{machine}" if machine else "")
+    return "\n".join([title, *p.machine_lines()])
 
 
 def orbit_figure(

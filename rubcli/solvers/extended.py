@@ -95,13 +95,16 @@ class ExtendedRun(driver.Run):
     system: System
 
     def __init__(self, problem: Problem, method: str, ctx: tuple, state: np.ndarray,
-                 **budget) -> None:  # fmt: skip
+                 locked: int | None = None, **budget) -> None:  # fmt: skip
         super().__init__(problem, method, **budget)
         self.pars = np.array(model.params_vector(self.params))
         self.ctx = ctx
         self.state = np.array(state, dtype=float)
         self.states = np.empty((self.t_eval.size, self.system.size))
-        self.regime = regime_of(self.state, self)
+        # locked: the run stays in this regime, with no event (the smooth extension of a
+        # flow across its surfaces: ``analysis.orbits`` locates grazing with it)
+        self.locked = locked
+        self.regime = regime_of(self.state, self) if locked is None else int(locked)
         self.states[0], self.regimes[0] = self.state, self.regime
         # (at tau = 0 the system's speed is the start's: the constant-speed rule holds)
         self.last_kind = initial_kind(self.state[:4], self.regime, self.params, self.tau)
@@ -249,6 +252,8 @@ class ExtendedStepper(ScipyStepper):
     def _functions(self, run: ExtendedRun):
         """The regime's event functions h(S) of states (size, n): ``(kind, h)``."""
         p, regime = run.params, run.regime
+        if run.locked is not None:
+            return []
 
         def surface(S: np.ndarray) -> np.ndarray:
             return S[0] ** 2 + S[1] ** 2 - 1.0

@@ -41,6 +41,18 @@ CSV_COLUMNS = (
                                 for part in ("re", "im")),
     "label", "located", "newton_iterations",
 )  # fmt: skip
+# a stator with its own mass: its four states on the section, and four more multipliers
+STATE_NAMES = ("x", "y", "vx", "vy", "stator_x", "stator_y", "stator_vx", "stator_vy")
+
+
+def csv_columns(size: int) -> tuple[str, ...]:
+    """The branch CSV's columns for a state of ``size`` entries (4, or 8 with a moving
+    stator): ``CSV_COLUMNS`` with the state and the multipliers of that size."""
+    if size == 4:
+        return CSV_COLUMNS
+    head, tail = CSV_COLUMNS[:4], CSV_COLUMNS[8:16]
+    pairs = tuple(f"multiplier{i}_{part}" for i in range(1, size + 1) for part in ("re", "im"))
+    return (*head, *STATE_NAMES[:size], *tail, *pairs, *CSV_COLUMNS[-3:])
 
 
 # Progress of a study: (phase, orbits computed so far, orbits at most).
@@ -314,8 +326,7 @@ def fixed_text(case: Case, names: tuple[str, ...]) -> str:
     """The parameters held fixed, as text."""
     fixed = {k: v for k, v in case.params.as_dict().items() if k not in names}
     text = ", ".join(f"{k}={v:g}" for k, v in fixed.items())
-    machine = case.params.machine_text()  # the general machine's, on a line of its own
-    return f"{text}\n{machine}" if machine else text
+    return "\n".join([text, *case.params.machine_lines()])  # the general machine's, apart
 
 
 def continue_orbits(
@@ -375,8 +386,9 @@ def continue_orbits(
 
 
 def _row(index: int, name: str, pt: cn.BranchPoint) -> list[str]:
-    m = np.zeros(4, dtype=complex)
-    m[: pt.multipliers.size] = pt.multipliers[:4]
+    size = pt.state.size
+    m = np.zeros(size, dtype=complex)
+    m[: pt.multipliers.size] = pt.multipliers[:size]
     cells = [str(index), name, f"{pt.parameter:.17g}", str(pt.k)]
     cells += [f"{v:.17g}" for v in pt.state]
     cells += [f"{pt.max_z:.17g}", f"{pt.min_z:.17g}", f"{pt.contact_fraction:.12g}",
@@ -389,8 +401,9 @@ def _row(index: int, name: str, pt: cn.BranchPoint) -> list[str]:
 
 
 def write_branch_csv(path: Path, branch: cn.Branch) -> None:
-    lines = [",".join(CSV_COLUMNS)]
-    for i, pt in enumerate(branch.rows()):
+    rows = branch.rows()
+    lines = [",".join(csv_columns(rows[0].state.size if rows else 4))]
+    for i, pt in enumerate(rows):
         lines.append(",".join(_row(i, branch.parameter, pt)))
     io.write_text(path, "\n".join(lines) + "\n")
 
@@ -401,10 +414,11 @@ def branch_dataset(branch: cn.Branch, attrs: dict[str, Any]) -> xr.Dataset:
 
     rows = branch.rows()
     n = len(rows)
-    mult = np.zeros((n, 4), dtype=complex)
+    size = rows[0].state.size if rows else 4
+    mult = np.zeros((n, size), dtype=complex)
     for i, pt in enumerate(rows):
-        mult[i, : pt.multipliers.size] = pt.multipliers[:4]
-    states = np.array([pt.state for pt in rows]).reshape(n, 4)
+        mult[i, : pt.multipliers.size] = pt.multipliers[:size]
+    states = np.array([pt.state for pt in rows]).reshape(n, size)
     data = {
         branch.parameter: ("point", np.array([pt.parameter for pt in rows])),
         "k": ("point", np.array([pt.k for pt in rows], dtype=np.int32)),
@@ -418,9 +432,9 @@ def branch_dataset(branch: cn.Branch, attrs: dict[str, Any]) -> xr.Dataset:
         "multiplier_im": (("point", "multiplier"), mult.imag),
         "label": ("point", np.array([pt.label for pt in rows], dtype=object).astype(str)),
     }
-    for j, name in enumerate(("x", "y", "vx", "vy")):
+    for j, name in enumerate(STATE_NAMES[:size]):
         data[name] = ("point", states[:, j])
-    ds = xr.Dataset(data, coords={"point": np.arange(n), "multiplier": np.arange(4)})
+    ds = xr.Dataset(data, coords={"point": np.arange(n), "multiplier": np.arange(size)})
     ds["stable"].attrs["meaning"] = "1 if every multiplier lies inside the unit circle"
     ds["max_z"].attrs["units"] = "clearances"
     ds.attrs.update({k: v if isinstance(v, str | int | float) else io_json(v)
@@ -447,6 +461,8 @@ def start_guess(case: Case, o: OrbitsSection, deadline: float | None = None) -> 
     if o.start == "synchronous_rub":
         return model.synchronous_rub(np.array([0.0]), params)[:, 0]
     initial = np.array(case.problem.initial, dtype=float)
+    if params.stator is not None:  # the two bodies' section: the ring's state after
+        initial = np.concatenate((initial, case.problem.stator_initial))
     if o.start == "transient":
         try:
             return ob.transient_state(params, initial, o.transient_periods * o.period, deadline)
