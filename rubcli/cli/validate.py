@@ -42,6 +42,16 @@ def _time_line(problem: Problem) -> str:
     return f"speed     {problem.speed.text()}: tau 0 .. {end:.6g}, {turns:.0f} turns, {n} samples"
 
 
+def _stator_lines(p, problem: Problem) -> list[str]:
+    """A moving stator: its values, its own frequencies and its start."""
+    fx, fy = p.stator.natural_frequencies()
+    start = "at rest"
+    if any(problem.stator_initial):
+        start = "at u={:.6g} v={:.6g} u'={:.6g} v'={:.6g}".format(*problem.stator_initial)
+    ring = p.stator.text().removeprefix("stator ")
+    return [f"stator    {ring}; own frequencies {fx:.4g}, {fy:.4g} (x omega); starts {start}"]
+
+
 def summary_lines(case: Case) -> list[str]:
     """What a case resolves to, in a few lines (the nondimensional problem it defines)."""
     p, problem = case.params, case.problem
@@ -55,7 +65,8 @@ def summary_lines(case: Case) -> list[str]:
         ),
         f"model     {nu}eta={p.eta:.6g} e={p.e:.6g} K={p.K:.6g} mu={p.mu:.6g} Rp={p.Rp:.6g} "
         f"phi0={p.phi0:.6g}",
-        *([f"machine   {p.machine_text()}"] if not p.is_paper_machine else []),
+        *([f"machine   {p.machine_lines()[0]}"] if p.machine_dict() else []),
+        *(_stator_lines(p, problem) if p.stator is not None else []),
         "initial   x={:.6g} y={:.6g} vx={:.6g} vy={:.6g}".format(*problem.initial),
         _time_line(problem),
         f"methods   {', '.join(case.methods)}",
