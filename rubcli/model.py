@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from collections.abc import Sequence
+    from collections.abc import Iterable, Sequence
 
     from numpy.typing import ArrayLike
 
@@ -227,19 +227,25 @@ class ModelParams:
         """The general machine's entries in one line (``offset=[0.6, 0], ...``), or ''."""
         return ", ".join(self.machine_lines())
 
-    def machine_lines(self) -> list[str]:
+    def machine_lines(self, omit: Iterable[str] = ()) -> list[str]:
         """The general machine's entries: the support's and the offset and load in one
-        line, a moving stator's in another (none on the paper's machine)."""
+        line, a moving stator's in another (none on the paper's machine). ``omit``: the
+        ``MACHINE_PARAMETERS`` a figure varies, whose entries are not one value."""
+        omit = {_ENTRY_OF.get(name, name) for name in omit}
 
         def text(value: list) -> str:
             inner = (text(v) if isinstance(v, list) else f"{v:g}" for v in value)
             return "[" + ", ".join(inner) + "]"
 
-        line = ", ".join(f"{k}={text(v)}" for k, v in self.machine_dict().items())
+        entries = self.machine_dict().items()
+        line = ", ".join(f"{k}={text(v)}" for k, v in entries if k not in omit)
         lines = [line] if line else []
         if self.stator is not None:
             (kx, ky), (nx, ny) = self.stator.stiffness, self.stator.damping
-            lines.append(f"stator m={self.stator.mass:g} k=[{kx:g}, {ky:g}] n=[{nx:g}, {ny:g}]")
+            ring = [f"m={self.stator.mass:g}" if "stator_mass" not in omit else "",
+                    f"k=[{kx:g}, {ky:g}]" if "stator_stiffness" not in omit else "",
+                    f"n=[{nx:g}, {ny:g}]"]  # fmt: skip
+            lines.append(" ".join(["stator", *filter(None, ring)]))
         return lines
 
     @property
@@ -280,6 +286,15 @@ MACHINE_PARAMETERS = {
     "stator_k_x": "stator support stiffness k_sx / k_r (-)",
     "stator_k_y": "stator support stiffness k_sy / k_r (-)",
 }
+
+
+# the entry of ``machine_lines`` each of ``MACHINE_PARAMETERS`` changes
+_ENTRY_OF = {
+    "offset_x": "offset", "offset_y": "offset", "load_x": "load", "load_y": "load",
+    "k_xx": "stiffness", "k_xy": "stiffness", "k_yx": "stiffness", "k_yy": "stiffness",
+    "cross_coupling": "stiffness", "stator_k_x": "stator_stiffness",
+    "stator_k_y": "stator_stiffness",
+}  # fmt: skip
 
 
 def with_value(params: ModelParams, name: str, value: float) -> ModelParams:

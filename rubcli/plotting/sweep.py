@@ -117,7 +117,7 @@ def bifurcation_figure(ds: xr.Dataset, title: str) -> Figure:
     z_axes, x_axes = columns[0]
     _value_label(fig, z_axes, "stroboscopic z = |x + i y| (clearances)", broken=len(ranges) > 1)
     _value_label(fig, x_axes, "stroboscopic x (clearances)", broken=False)
-    fig.legend(handles=_direction_handles(ds, dirs), loc="outside right upper", fontsize=8)
+    fig.legend(handles=_direction_handles(ds, dirs), loc="outside right center", fontsize=8)
     fig.suptitle(title, fontsize=10)
     return fig
 

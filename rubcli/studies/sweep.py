@@ -101,9 +101,7 @@ def title_of(case: Case, plan: SweepPlan) -> str:
     p = case.params
     swept = {a.parameter for a in plan.axes}
     fixed = ", ".join(f"{k}={v:g}" for k, v in p.as_dict().items() if k not in swept)
-    lines = p.machine_lines()
-    ring = lines.pop() if p.stator is not None else None  # a moving stator's: a line apart
-    fixed += "".join(f", {line}" for line in lines) + (f"\n{ring}" if ring else "")
+    fixed = "\n".join([fixed, *p.machine_lines(omit=swept)])  # the machine's lines apart
     axes = " and ".join(a.parameter for a in plan.axes)
     if plan.recognition is not None:
         budget = plan.transient_periods + plan.record_periods

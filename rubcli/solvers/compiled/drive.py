@@ -79,4 +79,40 @@ def drive_project(row, ctx):
     )
 
 
-driven_initial_step, advance_driven = dop853_loop(drive_into, drive_project, N_STATES)
+_initial_step, _advance = dop853_loop(drive_into, drive_project, N_STATES)
+
+
+# The loop's entry points at module level: numba caches a function by its code, and a
+# closure also by its cells, which hold dispatchers that differ in every process; so the
+# factory's closures would compile anew in each one, while these load from the cache
+# with the closures compiled into them.
+@jit
+def driven_initial_step(t0, y0, f0, t_bound, ctx, regime, rtol, atol):
+    """The loop's initial step (``extended_loop.dop853_loop``)."""
+    return _initial_step(t0, y0, f0, t_bound, ctx, regime, rtol, atol)
+
+
+@jit
+def advance_driven(
+    tau,
+    y,
+    f,
+    h_abs,
+    t_end,
+    ctx,
+    regime,
+    rtol,
+    atol,
+    t_eval,
+    out_states,
+    out_regimes,
+    k,
+    max_steps,
+    hand_first,
+    y_new,
+    f_new,
+    F,
+):
+    """The loop's steps up to a pending one (``extended_loop.dop853_loop``'s advance)."""
+    return _advance(tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, t_eval, out_states,
+                    out_regimes, k, max_steps, hand_first, y_new, f_new, F)  # fmt: skip
