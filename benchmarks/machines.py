@@ -5,8 +5,10 @@ Run from the repository root:
 
     python benchmarks/machines.py      # about 8 minutes on 2 cores (radau is 6 of them)
 
-Cases: the three of cases/machines (a misaligned stator, a rotor under gravity, an
-anisotropic cross-coupled support), each over its [time] span from its [initial] state.
+Cases: the four of cases/machines (a misaligned stator, a rotor under gravity, an
+anisotropic cross-coupled support, a snubber ring with its own mass), each over its
+[time] span from its [initial] state; the snubber ring by the methods that run a moving
+stator (``TWO_BODY_METHODS``).
 Each method at rtol = 1e-6 and 1e-9 (atol = rtol / 100; ``analytic`` at 400 and 1600
 steps per period), the best of 3 timed runs after a warm-up; errors against a reference
 (dop853-jit at rtol = 1e-13), whose own error is estimated by its distance from lsoda at
@@ -19,7 +21,8 @@ Its model is the one a heyoka user would write for the case: the slip of these c
 reverses and they never stick (checked on the reference), so two integrators, free flight
 and contact in forward slip, switched at terminal events on the clearance
 (``peers.HeyokaSwitched``), with the general machine's support terms
-(``peers.support_terms``). Writes benchmarks/machines.md.
+(``peers.support_terms``); for the snubber ring the same two integrators on the two
+bodies' eight states (``HeyokaTwoBody``). Writes benchmarks/machines.md.
 """
 
 from __future__ import annotations
@@ -32,13 +35,16 @@ import numpy as np
 from machine import best_of, describe
 from peers import HeyokaSwitched
 
+from rubcli import model
 from rubcli.case import load_case
+from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solvers import solve
 
 REPO = Path(__file__).resolve().parents[1]
-CASES = ("misaligned", "gravity", "cross-coupled")
+CASES = ("misaligned", "gravity", "cross-coupled", "snubber")
 METHODS = ("taylor", "dop853-jit", "dop853", "rk45", "radau", "analytic")
+TWO_BODY_METHODS = ("taylor", "dop853-jit", "dop853", "rk45")  # analytic refuses it
 TOLERANCES = (1e-6, 1e-9)
 STEPS = {1e-6: 400, 1e-9: 1600}  # the analytic method's setting in each row
 REPEATS = 3
@@ -61,8 +67,9 @@ def case_rows(name: str) -> tuple[list[str], list[tuple]]:
     ref_error = float(np.max(np.hypot(check.x - reference.x, check.y - reference.y)))
     kinds = sorted(set(reference.events.kinds))
     rows = []
+    methods = TWO_BODY_METHODS if p.params.stator is not None else METHODS
     for tol in TOLERANCES:
-        for method in METHODS:
+        for method in methods:
             best, sol = best_of(p, method, REPEATS, **options(method, tol))
             error = float(np.max(np.hypot(sol.x - reference.x, sol.y - reference.y)))
             final = final_error(sol.states[-1], reference)
@@ -94,24 +101,68 @@ def heyoka_rows(p: Problem, reference, tol: float, kinds: list[str]) -> list[tup
         )
         return []
     rows = []
-    ends = Problem(p.params, p.initial, p.t_eval[[0, -1]])  # no samples
+    ends = Problem(p.params, p.initial, p.t_eval[[0, -1]], stator_initial=p.stator_initial)
     for method in ("taylor", "dop853-jit"):
         best, sol = best_of(ends, method, REPEATS, **options(method, tol))
         rows.append((f"{method}, final state only", tol, best, None,
                      final_error(sol.states[-1], reference), sol.stats["nsteps"],
                      len(sol.events)))  # fmt: skip
-    integrator = HeyokaSwitched(p.params, tol)  # LLVM compilation, not timed
+    if p.params.stator is not None:  # LLVM compilation, not timed
+        integrator, initial = HeyokaTwoBody(p.params, tol), (*p.initial, *p.stator_initial)
+    else:
+        integrator, initial = HeyokaSwitched(p.params, tol), p.initial
     times = []
     t_end = float(p.t_eval[-1])
     for _ in range(REPEATS + 1):  # the first a warm-up
         start = time.perf_counter()
-        state, events, steps, status, note = integrator.run(p.initial, t_end, 600.0)
+        state, events, steps, status, note = integrator.run(initial, t_end, 600.0)
         times.append(time.perf_counter() - start)
     if status != "success":
         print(f"heyoka tol {tol:g}: {status} {note}", file=sys.stderr)
     rows.append(("heyoka", tol, min(times[1:]), None, final_error(state, reference), steps,
                  events))  # fmt: skip
     return rows
+
+
+class HeyokaTwoBody(HeyokaSwitched):
+    """``peers.HeyokaSwitched`` on a stator with its own mass: the state (d, d', s, s')
+    with d the rotor relative to the ring's centre (``rubcli.stator``), two integrators
+    (free flight, contact in forward slip) switched at terminal events on the clearance.
+    ``run`` is the parent's: it reads the clearance from the first two entries."""
+
+    def __init__(self, params: ModelParams, tol: float):
+        import heyoka as hy
+
+        self.hy = hy
+        x, y, vx, vy, u, v, up, vp = hy.make_vars("x", "y", "vx", "vy", "u", "v", "up", "vp")
+        r = model.params_vector(params)
+        st = params.stator
+        (sxx, sxy), (syx, syy) = params.stiffness
+        (dxx, dxy), (dyx, dyy) = params.damping_matrix
+        phase = params.eta * hy.time + params.phi0
+        wx, wy, wvx, wvy = x + u, y + v, vx + up, vy + vp  # from the support, less c
+        ax = (params.E * hy.cos(phase) + r[model.P_GX] - (sxx * wx + sxy * wy)
+              - 2.0 * (dxx * wvx + dxy * wvy))  # fmt: skip
+        ay = (params.E * hy.sin(phase) + r[model.P_GY] - (syx * wx + syy * wy)
+              - 2.0 * (dyx * wvx + dyy * wvy))  # fmt: skip
+        m_inv = 1.0 / st.mass
+        bx = -(st.stiffness[0] * u + 2.0 * st.damping[0] * up) * m_inv
+        by = -(st.stiffness[1] * v + 2.0 * st.damping[1] * vp) * m_inv
+        fac = params.K * (1.0 - 1.0 / hy.sqrt(x * x + y * y))
+        fx, fy = -fac * (x - params.mu * y), -fac * (y + params.mu * x)
+
+        def system(fx, fy) -> list:
+            rx, ry = bx - fx * m_inv, by - fy * m_inv  # the ring's accelerations
+            return [(x, vx), (y, vy), (vx, ax + fx - rx), (vy, ay + fy - ry), (u, up),
+                    (v, vp), (up, rx), (vp, ry)]  # fmt: skip
+
+        surface = x * x + y * y - 1.0
+        rising = [hy.t_event(surface, direction=hy.event_direction.positive)]
+        falling = [hy.t_event(surface, direction=hy.event_direction.negative)]
+        self.free = hy.taylor_adaptive(system(0.0, 0.0), [0.0] * 8, tol=tol, t_events=rising)
+        self.contact = hy.taylor_adaptive(system(fx, fy), [0.0] * 8, tol=tol,
+                                          t_events=falling)  # fmt: skip
+        self.params = params
 
 
 def main() -> None:

@@ -283,14 +283,17 @@ class HeyokaSwitched:
     def run(self, initial, t_end: float, budget_s: float):
         """(final state, events, steps, status, note)."""
         t, state = 0.0, np.array(initial, dtype=float)
-        in_contact = model.regime_of_state(state, self.params) != model.FREE
+        in_contact = model.regime_of_state(state[:4], self.params) != model.FREE
         n_events = steps = 0
         start = time.perf_counter()
         while True:
             ta = self.contact if in_contact else self.free
+            # at least 4 ulp off the surface, to the new regime's side (a state inside by
+            # less, its event function zero to round-off, hid the next crossing too)
             z2 = state[0] ** 2 + state[1] ** 2
-            if (z2 <= 1.0) if in_contact else (z2 >= 1.0):  # on the surface: off it
-                state[:2] *= 1.0 + (4.0 if in_contact else -4.0) * np.finfo(float).eps
+            target = 1.0 + (4.0 if in_contact else -4.0) * np.finfo(float).eps
+            if (z2 <= target) if in_contact else (z2 >= target):
+                state[:2] *= np.sqrt(target / z2)
             ta.time = t
             ta.state[:] = state
             ta.reset_cooldowns()

@@ -55,12 +55,14 @@ from rubcli.solution import SUCCESS, Solution
 from rubcli.solvers.registry import (
     DRIVEN,
     GENERAL_MACHINE,
+    MOVING_STATOR,
     SPECS,
     SPEED_PROFILE,
     options_for,
     unsupported,
 )
 from rubcli.speed import SpeedProfile
+from rubcli.stator import Stator
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
@@ -118,6 +120,8 @@ class StressCase:
             return DRIVEN
         if self.speed is not None:
             return SPEED_PROFILE
+        if self.params.stator is not None:
+            return MOVING_STATOR
         return None if self.params.is_paper_machine else GENERAL_MACHINE
 
     def problem(self, quick: bool) -> Problem:
@@ -422,6 +426,26 @@ def _general_machine_cases() -> list[StressCase]:
             periods=20,
             quick_periods=3,
             samples_per_period=200,
+        ),
+        StressCase(
+            "stiff-ring",
+            "a snubber ring with its own mass (0.5) on stiff supports (k_s = 1000, its own "
+            "frequency 45 times the rotor's) struck by a stiff contact, K = 1e4, under a load",
+            ModelParams(
+                nu=0.05,
+                eta=1.2,
+                e=0.25,
+                K=1e4,
+                mu=0.1,
+                Rp=3.0,
+                offset=(0.3, 0.0),
+                load=(0.0, -0.2),
+                stator=Stator(0.5, (1e3, 1e3), (0.5, 0.5)),
+            ),
+            (-0.3, -0.2, 0.0, 0.0),
+            periods=20,
+            quick_periods=3,
+            samples_per_period=2000,  # the samples resolve the stiff contact and ring
         ),
     ]
 

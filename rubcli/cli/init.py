@@ -195,8 +195,8 @@ damping = [[0.05, 0.0],         # support damping D (forces 2 D w'), instead of 
            [0.0, 0.06]]         #   damping = [[nu, 0], [0, nu]] is the isotropic nu
 
 # A stator with its own mass (a snubber ring on its own supports): uncomment it, and run
-# it with dop853-jit or a scipy method (methods = ["dop853-jit"]); [initial] may then
-# give the ring's start, stator = [u, v, u', v'] (default: at rest).
+# it with dop853-jit, taylor or a scipy method (methods = ["dop853-jit"]); [initial] may
+# then give the ring's start, stator = [u, v, u', v'] (default: at rest).
 # [stator]
 # mass = 0.2                    # M_s / m, > 0
 # stiffness = [2.0, 4.0]        # k_sx / k_r, k_sy / k_r, > 0 (forces k_s s, axis by axis)

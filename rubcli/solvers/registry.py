@@ -135,8 +135,6 @@ LACKS = {
     ("analytic", MOVING_STATOR): "its linearised propagators are written for the rotor's four "
     "states, not the two bodies' ten",
     ("analytic-polar", MOVING_STATOR): "its polar form needs a rigid concentric stator",
-    ("taylor", MOVING_STATOR): "its series are written for the rotor alone (and a drive), "
-    "not for the stator's own equations",
 }
 
 
@@ -213,7 +211,7 @@ SPECS: dict[str, MethodSpec] = {
             summary="adaptive Taylor series of the rub equations (automatic-differentiation "
             "recurrences, compiled), events on each step's polynomial; order N = "
             "ceil(-0.5 ln rtol) + 6: 13 at 1e-6, 18 at 1e-10",
-            features=frozenset({SPEED_PROFILE, DRIVEN, GENERAL_MACHINE}),
+            features=frozenset({SPEED_PROFILE, DRIVEN, GENERAL_MACHINE, MOVING_STATOR}),
         ),
     )  # fmt: skip
 }

@@ -23,7 +23,8 @@
   states beyond the rotor's four, built per system;
 - ``drive.py`` and ``driven_taylor.py``: the driven rotor's right-hand side, its DOP853
   loop (``dop853-jit``) and its Taylor series and loop (``taylor``);
-- ``two_body.py``: the stator with its own mass: its right-hand side and DOP853 loop;
+- ``two_body.py`` and ``two_body_taylor.py``: the stator with its own mass: its
+  right-hand side, its DOP853 loop and its Taylor series and loop;
 - ``taylor.py``: the ``taylor`` method's series, step size, event pre-check, the event
   search (``events.event_search``) on the step polynomial, and its loop (about 1,080
   lines, over the usual 500: the series are written out once per regime, free, slip and

@@ -217,11 +217,13 @@ def _dispatchers() -> list:
         roots,
         taylor,
         two_body,
+        two_body_taylor,
     )  # fmt: skip
 
     modules = (
         linalg, propagators, precheck, contact, rhs, dop853, roots, dop853_loop, taylor,
-        piecewise, piecewise_loop, drive, driven_taylor, extended_loop, two_body, energy_kernel,
+        piecewise, piecewise_loop, drive, driven_taylor, extended_loop, two_body, two_body_taylor,
+        energy_kernel,
     )  # fmt: skip
     found = [_probe]
     for module in modules:

@@ -93,26 +93,8 @@ def driven_initial_step(t0, y0, f0, t_bound, ctx, regime, rtol, atol):
 
 
 @jit
-def advance_driven(
-    tau,
-    y,
-    f,
-    h_abs,
-    t_end,
-    ctx,
-    regime,
-    rtol,
-    atol,
-    t_eval,
-    out_states,
-    out_regimes,
-    k,
-    max_steps,
-    hand_first,
-    y_new,
-    f_new,
-    F,
-):
+def advance_driven(tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, t_eval, out_states,
+                   out_regimes, k, max_steps, hand_first, y_new, f_new, F):  # fmt: skip
     """The loop's steps up to a pending one (``extended_loop.dop853_loop``'s advance)."""
     return _advance(tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, t_eval, out_states,
                     out_regimes, k, max_steps, hand_first, y_new, f_new, F)  # fmt: skip

@@ -59,10 +59,8 @@ def two_body_columns(
 _initial_step, _advance = dop853_loop(two_body_into, two_body_project, N_STATES)
 
 
-# The loop's entry points at module level: numba caches a function by its code, and a
-# closure also by its cells, which hold dispatchers that differ in every process; so the
-# factory's closures would compile anew in each one, while these load from the cache
-# with the closures compiled into them.
+# The loop's entry points at module level, so that numba's cache loads them (as
+# ``compiled.drive``'s).
 @jit
 def two_body_initial_step(t0, y0, f0, t_bound, ctx, regime, rtol, atol):
     """The loop's initial step (``extended_loop.dop853_loop``)."""
@@ -70,26 +68,8 @@ def two_body_initial_step(t0, y0, f0, t_bound, ctx, regime, rtol, atol):
 
 
 @jit
-def advance_two_body(
-    tau,
-    y,
-    f,
-    h_abs,
-    t_end,
-    ctx,
-    regime,
-    rtol,
-    atol,
-    t_eval,
-    out_states,
-    out_regimes,
-    k,
-    max_steps,
-    hand_first,
-    y_new,
-    f_new,
-    F,
-):
+def advance_two_body(tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, t_eval, out_states,
+                     out_regimes, k, max_steps, hand_first, y_new, f_new, F):  # fmt: skip
     """The loop's steps up to a pending one (``extended_loop.dop853_loop``'s advance)."""
     return _advance(tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, t_eval, out_states,
                     out_regimes, k, max_steps, hand_first, y_new, f_new, F)  # fmt: skip

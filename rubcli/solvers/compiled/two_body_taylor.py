@@ -1,0 +1,251 @@
+"""``taylor`` on the stator with its own mass (``rubcli.stator``): the ten states' Taylor
+series, the step, and the step loop with the extended systems' event pre-check.
+
+The series follow ``stator.two_body_entries`` (and, in stick, ``two_body_projection``)
+operation by operation, each by its recurrence (Moore 1966; Jorba & Zou 2005), as
+``driven_taylor``'s: products by Cauchy sums, quotients by the division rule, ``z =
+sqrt(q)``, and ``(cos p, sin p)`` with ``p' = w`` (the constant speed, a state). The
+order, the step (the last two terms below the state tolerance; the phase left out of
+the state's scale) and the scan grid are ``taylor``'s rules, the grid's frequency bound
+with the ring's own frequency and the contact's on the ring added. A step that may hold
+an event (``extended_loop.step_parts`` on the step's polynomial) and a segment's first
+step go back to the Python event search (``solvers.extended``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rubcli.model import (
+    FREE,
+    P_DXX,
+    P_DXY,
+    P_DYX,
+    P_DYY,
+    P_ECC,
+    P_GX,
+    P_GY,
+    P_K,
+    P_MU,
+    P_NU,
+    P_RP,
+    P_SXX,
+    P_SXY,
+    P_SYX,
+    P_SYY,
+    STICK,
+    friction_sign,
+)
+from rubcli.solvers.compiled.driven_taylor import _divide, _phase_terms, _root
+from rubcli.solvers.compiled.extended_loop import step_parts
+from rubcli.solvers.compiled.jit import (
+    STOP_END,
+    STOP_EVENT,
+    STOP_LIMIT,
+    STOP_PYTHON,
+    STOP_SMALL_STEP,
+    jit,
+)
+from rubcli.solvers.compiled.taylor import (
+    MAX_ORDER,
+    MAX_SCAN,
+    RECIPROCALS,
+    STEP_SAFETY_EXPONENT,
+    _cauchy,
+    scan_intervals,
+)
+from rubcli.solvers.compiled.two_body import two_body_into, two_body_project
+from rubcli.solvers.events import linspace_into
+from rubcli.stator import N_STATES, S_INV_MASS, S_KX, S_KY, S_NX, S_NY
+
+SERIES_ROWS = 32  # work rows of the series
+
+
+@jit
+def two_body_series(
+    s0: np.ndarray, pars: np.ndarray, st: np.ndarray, regime: int, order: int, C: np.ndarray,
+    R: np.ndarray,
+) -> None:  # fmt: skip
+    """The Taylor coefficients C[:, 0..order] (rows x, y, vx, vy, p, w, u, v, u', v') of
+    the two bodies' regime-locked solution through ``s0``; ``R`` (SERIES_ROWS, MAX_ORDER
+    + 1) is work space (module docstring)."""
+    nu, K, Rp, e = pars[P_NU], pars[P_K], pars[P_RP], pars[P_ECC]
+    sxx, sxy, syx, syy = 1.0 + pars[P_SXX], pars[P_SXY], pars[P_SYX], 1.0 + pars[P_SYY]
+    dxx, dxy, dyx, dyy = nu + pars[P_DXX], pars[P_DXY], pars[P_DYX], nu + pars[P_DYY]
+    gx, gy = pars[P_GX], pars[P_GY]
+    m_inv = st[S_INV_MASS]
+    share = m_inv / (1.0 + m_inv)
+    mu_c = pars[P_MU] * friction_sign(regime) if regime != FREE and regime != STICK else 0.0
+    x, y, vx, vy, w = C[0], C[1], C[2], C[3], C[5]
+    u, v, up, vp = C[6], C[7], C[8], C[9]
+    for i in range(N_STATES):
+        C[i, 0] = s0[i]
+    c, sn, q, z, nx, ny, normal, T = R[0], R[1], R[2], R[3], R[4], R[5], R[6], R[7]
+    w2, vxd, vyd, upd, vpd, change = R[8], R[9], R[10], R[11], R[12], R[13]
+    ax0, ay0, bx0, by0, relt, dn, prod, pz = R[14], R[15], R[16], R[17], R[18], R[19], R[20], R[21]
+    fx, fy = R[22], R[23]
+    c[0], sn[0] = math.cos(C[4, 0]), math.sin(C[4, 0])
+    stick = regime == STICK
+    contact = regime != FREE
+    for k in range(order):
+        one = 1.0 if k == 0 else 0.0
+        _phase_terms(c, sn, w, k)
+        if contact:
+            acc = 0.0
+            for m in range(k + 1):
+                acc += x[m] * x[k - m] + y[m] * y[k - m]
+            q[k] = acc
+            _root(z, q, k)
+            _divide(nx, x, z, k)
+            _divide(ny, y, z, k)
+            normal[k] = K * (z[k] - one)
+        if stick:  # the velocities projected onto v_r = 0 (two_body_projection)
+            change[k] = -Rp * w[k] + _cauchy(ny, vx, k) - _cauchy(nx, vy, k)
+            vxd[k] = vx[k] - _cauchy(change, ny, k)
+            vyd[k] = vy[k] + _cauchy(change, nx, k)
+            upd[k] = up[k] + share * _cauchy(change, ny, k)
+            vpd[k] = vp[k] - share * _cauchy(change, nx, k)
+        else:
+            vxd[k], vyd[k], upd[k], vpd[k] = vx[k], vy[k], up[k], vp[k]
+        w2[k] = _cauchy(w, w, k)
+        wx, wy = x[k] + u[k], y[k] + v[k]  # the rotor from the support, less the offset
+        wvx, wvy = vxd[k] + upd[k], vyd[k] + vpd[k]
+        ax0[k] = (e * _cauchy(w2, c, k) + gx * one - (sxx * wx + sxy * wy)
+                  - 2.0 * (dxx * wvx + dxy * wvy))  # fmt: skip
+        ay0[k] = (e * _cauchy(w2, sn, k) + gy * one - (syx * wx + syy * wy)
+                  - 2.0 * (dyx * wvx + dyy * wvy))  # fmt: skip
+        bx0[k] = -(st[S_KX] * u[k] + 2.0 * st[S_NX] * upd[k]) * m_inv
+        by0[k] = -(st[S_KY] * v[k] + 2.0 * st[S_NY] * vpd[k]) * m_inv
+        ax, ay, bx, by = ax0[k], ay0[k], bx0[k], by0[k]
+        if contact:
+            if stick:
+                relt[k] = -_cauchy(ny, ax0, k) + _cauchy(nx, ay0, k) + _cauchy(ny, bx0, k)
+                relt[k] -= _cauchy(nx, by0, k)
+                dn[k] = _cauchy(vxd, nx, k) + _cauchy(vyd, ny, k)
+                prod[k] = -Rp * _cauchy(w, dn, k)  # (d' . t)(d' . n), d' . t = -Rp w
+                _divide(pz, prod, z, k)
+                T[k] = (relt[k] - pz[k]) / (1.0 + m_inv)
+            else:
+                T[k] = mu_c * normal[k]
+            fx[k] = -_cauchy(normal, nx, k) + _cauchy(T, ny, k)
+            fy[k] = -_cauchy(normal, ny, k) - _cauchy(T, nx, k)
+            ax += fx[k]
+            ay += fy[k]
+            bx -= fx[k] * m_inv
+            by -= fy[k] * m_inv
+        inv = RECIPROCALS[k + 1]
+        C[0, k + 1] = vxd[k] * inv
+        C[1, k + 1] = vyd[k] * inv
+        C[2, k + 1] = (ax - bx) * inv
+        C[3, k + 1] = (ay - by) * inv
+        C[4, k + 1] = w[k] * inv
+        C[5, k + 1] = 0.0
+        C[6, k + 1] = upd[k] * inv
+        C[7, k + 1] = vpd[k] * inv
+        C[8, k + 1] = bx * inv
+        C[9, k + 1] = by * inv
+
+
+@jit
+def two_body_step_size(C: np.ndarray, order: int, rtol: float, atol: float) -> float:
+    """``taylor.step_size`` for the ten states: the last two terms below the state
+    tolerance max(atol, rtol |s_0|), the phase left out of |s_0| (it grows without
+    bound)."""
+    scale = 0.0
+    for i in range(N_STATES):
+        if i != 4:
+            scale = max(scale, abs(C[i, 0]))
+    eps = max(atol, rtol * scale)
+    h = math.inf
+    for k in (order - 1, order):
+        norm = 0.0
+        for i in range(N_STATES):
+            norm = max(norm, abs(C[i, k]))
+        if norm > 0.0:
+            h = min(h, (eps / norm) ** RECIPROCALS[k])
+    return h * math.exp(-STEP_SAFETY_EXPONENT * RECIPROCALS[order - 1])
+
+
+@jit
+def _polynomial(t, dense, row):
+    """The step's polynomial at t (Horner), dense = (t0, C, order)."""
+    t0, C, order = dense
+    dt = t - t0
+    for i in range(N_STATES):
+        value = C[i, order]
+        for k in range(order - 1, -1, -1):
+            value = value * dt + C[i, k]
+        row[i] = value
+
+
+_polynomial_may_have_event, _polynomial_fill = step_parts(
+    two_body_into, two_body_project, N_STATES, _polynomial
+)
+
+
+@jit
+def two_body_polynomial(t: np.ndarray, t0: float, C: np.ndarray, order: int) -> np.ndarray:
+    """The step's polynomial at the times t (n,): states (10, n) (``_polynomial``)."""
+    out = np.empty((N_STATES, t.shape[0]))
+    row = np.empty(N_STATES)
+    for m in range(t.shape[0]):
+        _polynomial(t[m], (t0, C, order), row)
+        for i in range(N_STATES):
+            out[i, m] = row[i]
+    return out
+
+
+@jit
+def advance_two_body_taylor(
+    tau: float, y: np.ndarray, t_end: float, ctx: tuple[np.ndarray, np.ndarray], regime: int,
+    order: int, rtol: float, atol: float, t_eval: np.ndarray, out_states: np.ndarray,
+    out_regimes: np.ndarray, k: int, max_steps: int, hand_first: bool, C: np.ndarray,
+    info: np.ndarray,
+) -> tuple[float, float, int, int, int]:  # fmt: skip
+    """Taylor steps of the two bodies in one regime, up to the first step that may hold
+    an event (``compiled.two_body.advance_two_body``'s rules). A pending step (reason
+    EVENT) leaves its coefficients in ``C`` and its scan intervals in ``info[0]``.
+    Returns ``(tau, t_new, k, steps, reason)``."""
+    pars, st = ctx[0], ctx[1]
+    # the scan grid's frequency bound: the spin, and the ring's own and the contact's on it
+    m_inv = st[S_INV_MASS]
+    ring = math.sqrt(max(st[S_KX], st[S_KY]) * m_inv) + math.sqrt(pars[P_K] * m_inv)
+    R = np.zeros((SERIES_ROWS, MAX_ORDER + 1))
+    row = np.empty(N_STATES)
+    out = np.empty(N_STATES)
+    y_new = np.empty(N_STATES)
+    grid = np.empty(MAX_SCAN + 1)
+    S = np.empty((MAX_SCAN + 1, N_STATES))
+    hv = np.empty(MAX_SCAN + 1)
+    hd = np.empty(MAX_SCAN + 1)
+    steps = 0
+    while True:
+        if tau >= t_end:
+            return tau, tau, k, steps, STOP_END
+        if steps >= max_steps:
+            return tau, tau, k, steps, STOP_LIMIT
+        two_body_series(y, pars, st, regime, order, C, R)
+        h = two_body_step_size(C, order, rtol, atol)
+        t_new = min(tau + h, t_end)
+        h = t_new - tau
+        if not (h >= 10.0 * abs(np.nextafter(tau, np.inf) - tau)):
+            return tau, t_new, k, steps, STOP_SMALL_STEP if math.isfinite(h) else STOP_PYTHON
+        dense = (tau, C, order)
+        _polynomial(t_new, dense, y_new)
+        for i in range(N_STATES):
+            if not math.isfinite(y_new[i]):
+                return tau, t_new, k, steps, STOP_PYTHON
+        n = scan_intervals(h, regime, pars, y, abs(y[5]) + ring)
+        info[0] = n
+        if hand_first:
+            return tau, t_new, k, steps, STOP_EVENT
+        linspace_into(grid, tau, t_new, n)
+        if _polynomial_may_have_event(dense, ctx, regime, grid, n, S, hv, hd, row, out):
+            return tau, t_new, k, steps, STOP_EVENT
+        k = _polynomial_fill(dense, t_new, ctx, regime, t_eval, out_states, out_regimes, k, row)
+        steps += 1
+        for i in range(N_STATES):
+            y[i] = y_new[i]
+        tau = t_new
