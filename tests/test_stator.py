@@ -415,3 +415,12 @@ def test_orbits_continues_the_ring_branch(tmp_path):
     assert "multiplier8_re" in header
     report = json.loads((out / "report.json").read_text())
     assert report["branch"]["status"] == "ok"
+
+
+def test_a_shortened_problem_keeps_the_rings_start():
+    from rubcli.analysis.reference import truncate_problem
+
+    problem = Problem.from_periods(ring_machine(), (-0.3, 0.0, 0.0, 0.0), 4, 20)
+    problem = dataclasses.replace(problem, stator_initial=(0.1, 0.0, 0.0, 0.3))
+    short = truncate_problem(problem, problem.params.period)
+    assert short.stator_initial == (0.1, 0.0, 0.0, 0.3) and short.t_eval.size < 30

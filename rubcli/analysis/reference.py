@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -311,14 +311,7 @@ def truncate_problem(problem: Problem, tau_end: float) -> Problem:
     keep = int(max(2, np.searchsorted(problem.t_eval, tau_end, side="right")))
     if keep >= problem.t_eval.size:
         return problem
-    return Problem(
-        params=problem.params,
-        initial=problem.initial,
-        t_eval=problem.t_eval[:keep].copy(),
-        name=problem.name,
-        speed=problem.speed,
-        drive=problem.drive,
-    )
+    return replace(problem, t_eval=problem.t_eval[:keep].copy())
 
 
 def position_errors(t: np.ndarray, states: np.ndarray, reference: Reference) -> np.ndarray:

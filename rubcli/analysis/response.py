@@ -648,10 +648,13 @@ def classify_solution(
     extent of the trajectory after the transient. If the section map does not decide in
     its linear regime and ``lyapunov`` is true, the largest exponent is estimated from
     the end of the run over ``lyapunov_periods`` forcing periods (renormalising once per
-    period) with ``rotor_propagator(lyapunov_method, **lyapunov_options)``.
+    period) with ``rotor_propagator(lyapunov_method, **lyapunov_options)``; not with a
+    stator with its own mass, whose state that propagator does not carry (the section's
+    evidence alone decides).
     """
     problem = solution.problem
     period = problem.params.period
+    lyapunov = lyapunov and solution.stator_states is None
     states = np.asarray(solution.states, dtype=float)
     if states.size and not np.all(np.isfinite(states)):
         return Response(

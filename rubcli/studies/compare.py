@@ -69,13 +69,14 @@ def _problem(case: Case, periods: float, mu: float | None = None) -> Problem:
 
         whole = dataclasses.replace(case.problem, params=params)
         return truncate_problem(whole, periods * params.period)
-    return Problem.from_periods(
+    problem = Problem.from_periods(
         params,
         case.problem.initial,
         periods=periods,
         samples_per_period=case.settings.time.samples_per_period,
         name=case.name,
-    )
+    )  # (a moving stator's start kept)
+    return dataclasses.replace(problem, stator_initial=case.problem.stator_initial)
 
 
 def _fmt(value: float | None, spec: str = ".3g") -> str:

@@ -186,7 +186,7 @@ def _compute(task: PointTask) -> PointResult:
     response = rsp.classify_solution(
         sol,
         transient_periods=0.0,
-        lyapunov=task.lyapunov and p.stator is None,  # (its propagator: the rotor's state)
+        lyapunov=task.lyapunov,
         lyapunov_periods=task.lyapunov_periods,
         lyapunov_method=LYAPUNOV_METHOD,
     )
