@@ -40,6 +40,8 @@ from rubcli.solvers import events as ev
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
 
+    from rubcli.solution import Solution
+
 # Integration tolerances of the map (relative and absolute): tight, so the monodromy
 # matrix and the located bifurcations are accurate to ~1e-9.
 RTOL = 1e-12
@@ -406,7 +408,7 @@ def two_body_flow(
     n = max(2, int(math.ceil(TWO_BODY_SAMPLES * (tau1 - tau0) / params.period))) + 1
     grid = np.linspace(tau0, tau1, n)
 
-    def end(start: np.ndarray, t_eval: np.ndarray):
+    def end(start: np.ndarray, t_eval: np.ndarray) -> Solution:
         check_deadline(deadline)
         budget = None if deadline is None else max(deadline - time.perf_counter(), 0.0)
         problem = Problem(params, tuple(start[:4]), t_eval, stator_initial=tuple(start[4:]))

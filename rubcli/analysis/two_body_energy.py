@@ -41,11 +41,11 @@ def _machine(params: model.ModelParams):
     return S, D, np.array(params.offset), np.array(params.load)
 
 
-def energy_at(params: model.ModelParams, S10: np.ndarray) -> np.ndarray:
-    """The two bodies' energy at the states in the columns of S10 (10, n)."""
+def energy_at(params: model.ModelParams, states: np.ndarray) -> np.ndarray:
+    """The two bodies' energy at the ten states in the columns of ``states`` (10, n)."""
     S, _, c, g = _machine(params)
     st = params.stator
-    x, y, vx, vy, _, _, u, v, up, vp = S10
+    x, y, vx, vy, _, _, u, v, up, vp = states
     wx, wy = x + u + c[0], y + v + c[1]
     wvx, wvy = vx + up, vy + vp
     sym = 0.5 * (S + S.T)
@@ -61,14 +61,14 @@ def energy_at(params: model.ModelParams, S10: np.ndarray) -> np.ndarray:
     return rotor + ring + contact
 
 
-def powers_at(params: model.ModelParams, S10: np.ndarray, T: np.ndarray) -> np.ndarray:
-    """The powers (``TERMS``, rows) at the states S10 (10, n) with the rub's tangential
-    force T (n,): unbalance, damping (dissipated, positive), cross-coupling, friction
-    (on the relative motion), and its parts contact (``T v_r``, dissipated) and spin
-    (``T Rp eta``)."""
+def powers_at(params: model.ModelParams, states: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """The powers (``TERMS``, rows) at the ten states in the columns of ``states`` (10, n),
+    with the rub's tangential force T (n,): unbalance, damping (dissipated, positive),
+    cross-coupling, friction (on the relative motion), and its parts contact (``T v_r``,
+    dissipated) and spin (``T Rp eta``)."""
     S, D, c, _ = _machine(params)
     st = params.stator
-    x, y, vx, vy, p, w, u, v, up, vp = S10
+    x, y, vx, vy, p, w, u, v, up, vp = states
     wx, wy = x + u + c[0], y + v + c[1]
     wvx, wvy = vx + up, vy + vp
     f = params.e * w * w

@@ -33,6 +33,12 @@ _OPTIONAL_TABLES = """
 # stall_torque = 20.0           #   torque over k_r gamma^2 (N m with [physical])
 # no_load_speed = 4.0
 
+# [stator]                      # a stator with its own mass: a snubber ring on its own
+# mass = 0.2                    #   supports (docs/machines.md); M_s / m (kg with [physical])
+# stiffness = [2.0, 4.0]        #   k_sx / k_r, k_sy / k_r (N/m), forces k_s s axis by axis
+# damping = [0.05, 0.05]        #   forces 2 n_s s' (N s/m); run by dop853-jit, taylor or a
+#                               #   scipy method; [initial] stator = [u, v, u', v'] its start
+
 # [analysis]                    # response class of each run (Poincare section, Lyapunov)
 # response = true
 # transient_periods = 10        # default: half the run
@@ -193,14 +199,6 @@ stiffness = [[1.0, 0.02],       # support stiffness S / k_r: k_xx = 1 is the ref
              [-0.02, 1.2]]      #   k_xy - k_yx = 2 q the cross-coupling; sym. part > 0
 damping = [[0.05, 0.0],         # support damping D (forces 2 D w'), instead of nu;
            [0.0, 0.06]]         #   damping = [[nu, 0], [0, nu]] is the isotropic nu
-
-# A stator with its own mass (a snubber ring on its own supports): uncomment it, and run
-# it with dop853-jit, taylor or a scipy method (methods = ["dop853-jit"]); [initial] may
-# then give the ring's start, stator = [u, v, u', v'] (default: at rest).
-# [stator]
-# mass = 0.2                    # M_s / m, > 0
-# stiffness = [2.0, 4.0]        # k_sx / k_r, k_sy / k_r, > 0 (forces k_s s, axis by axis)
-# damping = [0.05, 0.05]        # forces 2 n_s s', >= 0
 
 [initial]                       # relative to the stator's centre: the rotor's own position
 x = -0.3                        #   is x + offset_x (here: at rest on its support's centre)

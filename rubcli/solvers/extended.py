@@ -97,7 +97,6 @@ class ExtendedRun(driver.Run):
     def __init__(self, problem: Problem, method: str, ctx: tuple, state: np.ndarray,
                  locked: int | None = None, **budget) -> None:  # fmt: skip
         super().__init__(problem, method, **budget)
-        self.pars = np.array(model.params_vector(self.params))
         self.ctx = ctx
         self.state = np.array(state, dtype=float)
         self.states = np.empty((self.t_eval.size, self.system.size))

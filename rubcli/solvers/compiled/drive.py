@@ -64,14 +64,14 @@ def driven_columns(
 
 
 @jit
-def drive_into(row, ctx, regime, out):
+def drive_into(row: np.ndarray, ctx: tuple, regime: int, out: np.ndarray) -> float:
     """``_driven_into`` as ``extended_loop``'s system; ctx = (pars, drive, table_speed,
     table_torque)."""
     return _driven_into(row, ctx[0], ctx[1], ctx[2], ctx[3], regime, out)
 
 
 @jit
-def drive_project(row, ctx):
+def drive_project(row: np.ndarray, ctx: tuple) -> None:
     """``rolling_projection`` of ``row`` in place, as ``extended_loop``'s system."""
     e, Rp, j = ctx[0][P_ECC], ctx[0][P_RP], ctx[1][D_INERTIA]
     row[2], row[3], row[5] = rolling_projection(
@@ -87,14 +87,21 @@ _initial_step, _advance = dop853_loop(drive_into, drive_project, N_STATES)
 # factory's closures would compile anew in each one, while these load from the cache
 # with the closures compiled into them.
 @jit
-def driven_initial_step(t0, y0, f0, t_bound, ctx, regime, rtol, atol):
+def driven_initial_step(
+    t0: float, y0: np.ndarray, f0: np.ndarray, t_bound: float, ctx: tuple, regime: int,
+    rtol: float, atol: float,
+) -> float:  # fmt: skip
     """The loop's initial step (``extended_loop.dop853_loop``)."""
     return _initial_step(t0, y0, f0, t_bound, ctx, regime, rtol, atol)
 
 
 @jit
-def advance_driven(tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, t_eval, out_states,
-                   out_regimes, k, max_steps, hand_first, y_new, f_new, F):  # fmt: skip
+def advance_driven(
+    tau: float, y: np.ndarray, f: np.ndarray, h_abs: float, t_end: float, ctx: tuple,
+    regime: int, rtol: float, atol: float, t_eval: np.ndarray, out_states: np.ndarray,
+    out_regimes: np.ndarray, k: int, max_steps: int, hand_first: bool, y_new: np.ndarray,
+    f_new: np.ndarray, F: np.ndarray,
+) -> tuple[float, float, float, int, int, int, int]:  # fmt: skip
     """The loop's steps up to a pending one (``extended_loop.dop853_loop``'s advance)."""
     return _advance(tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, t_eval, out_states,
                     out_regimes, k, max_steps, hand_first, y_new, f_new, F)  # fmt: skip

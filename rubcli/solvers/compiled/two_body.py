@@ -14,13 +14,13 @@ from rubcli.stator import N_STATES, S_INV_MASS, two_body_entries, two_body_proje
 
 
 @jit
-def two_body_into(row, ctx, regime, out):
+def two_body_into(row: np.ndarray, ctx: tuple, regime: int, out: np.ndarray) -> float:
     """``stator.two_body_entries`` as ``extended_loop``'s system; ctx = (pars, stator)."""
     return two_body_entries(row, ctx[0], ctx[1], regime, out)
 
 
 @jit
-def two_body_project(row, ctx):
+def two_body_project(row: np.ndarray, ctx: tuple) -> None:
     """``stator.two_body_projection`` of ``row`` in place, as ``extended_loop``'s system."""
     spin = ctx[0][P_RP] * row[5]
     row[2], row[3], row[8], row[9] = two_body_projection(
@@ -62,14 +62,21 @@ _initial_step, _advance = dop853_loop(two_body_into, two_body_project, N_STATES)
 # The loop's entry points at module level, so that numba's cache loads them (as
 # ``compiled.drive``'s).
 @jit
-def two_body_initial_step(t0, y0, f0, t_bound, ctx, regime, rtol, atol):
+def two_body_initial_step(
+    t0: float, y0: np.ndarray, f0: np.ndarray, t_bound: float, ctx: tuple, regime: int,
+    rtol: float, atol: float,
+) -> float:  # fmt: skip
     """The loop's initial step (``extended_loop.dop853_loop``)."""
     return _initial_step(t0, y0, f0, t_bound, ctx, regime, rtol, atol)
 
 
 @jit
-def advance_two_body(tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, t_eval, out_states,
-                     out_regimes, k, max_steps, hand_first, y_new, f_new, F):  # fmt: skip
+def advance_two_body(
+    tau: float, y: np.ndarray, f: np.ndarray, h_abs: float, t_end: float, ctx: tuple,
+    regime: int, rtol: float, atol: float, t_eval: np.ndarray, out_states: np.ndarray,
+    out_regimes: np.ndarray, k: int, max_steps: int, hand_first: bool, y_new: np.ndarray,
+    f_new: np.ndarray, F: np.ndarray,
+) -> tuple[float, float, float, int, int, int, int]:  # fmt: skip
     """The loop's steps up to a pending one (``extended_loop.dop853_loop``'s advance)."""
     return _advance(tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, t_eval, out_states,
                     out_regimes, k, max_steps, hand_first, y_new, f_new, F)  # fmt: skip
