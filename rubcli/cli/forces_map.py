@@ -80,6 +80,7 @@ def _print_summary(report: dict[str, Any]) -> None:
             f"Re > 0 on {100 * e['positive_fraction_of_contact_points']:.2f}% of "
             f"{e['n_contact_points']} contact points; "
             f"modes merge beyond z0 = {e['flutter_radius_undamped']:.6g} (undamped)"
+            + (f"; {e['machine_note']}" if "machine_note" in e else "")
         )
 
 

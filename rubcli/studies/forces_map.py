@@ -121,6 +121,8 @@ def _eigen_product(case: Case, settings: ForcesMapSection, title: str, staged) -
     flutter = forces.friction_flutter_radius(p.mu)
     fields = [em.max_real, em.freq_1, em.freq_2]
     write_grid_csv(staged.path("eigen_map.csv"), EIGEN_COLUMNS, em.x, em.y, fields)
+    if not p.is_paper_machine:  # the map is the paper machine's linearisation: said so
+        title += f"\n{PAPER_MACHINE_EIGEN}"
     figure = plots.eigen_map_figure(em, title, flutter_radius=flutter)
     io.save_figure(figure, staged.path("eigen_map.png"))
     contact = em.in_contact
@@ -139,8 +141,16 @@ def _eigen_product(case: Case, settings: ForcesMapSection, title: str, staged) -
         if em.n_contact_points
         else None,
         "flutter_radius_undamped": flutter,
+        **({"machine_note": PAPER_MACHINE_EIGEN} if not p.is_paper_machine else {}),
         "files": ["eigen_map.csv", "eigen_map.png"],
     }
+
+
+# the eigen map linearises the contact of the paper's machine (forces.eigen_map)
+PAPER_MACHINE_EIGEN = (
+    "eigenvalues of the contact linearised on the paper's machine (isotropic support nu, "
+    "rigid stator), not of this case's general machine"
+)
 
 
 PRODUCTS = {"forces": _forces_product, "taylor_error": _taylor_product, "eigen": _eigen_product}
