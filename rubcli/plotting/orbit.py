@@ -185,10 +185,12 @@ def draw_orbits(
             drawing.distance_all[sol.method] = _scaled(display.distance(first, sol), unit)
     if moving and first is not None:
         n = display.finite_length(first)
-        last = first.t[:n] >= drawing.bold_from[first.method]
+        start = drawing.bold_from[first.method]
+        last = first.t[:n] >= start
         path = paths[first.method][:n][last]
+        periods = (float(first.t[n - 1]) - start) / first.problem.params.period
         ax.plot(*at(path[:, 0], path[:, 1]), color="0.25", lw=1.4, zorder=4,
-                label="stator centre (last periods)")  # fmt: skip
+                label=f"stator centre, last {periods:.3g} periods")  # fmt: skip
     ax.set_xlim(unit * cx - radius, unit * cx + radius)
     ax.set_ylim(unit * cy - radius, unit * cy + radius)
     ax.set_aspect("equal", adjustable="box")

@@ -6,9 +6,8 @@ coupled system (``drive.stick_torque_value``), and stick begun and ended with th
 velocities projected onto the rolling constraint along the kinetic energy's metric
 (``drive.rolling_projection``), the rotor's and the drive's together.
 
-The scipy methods and ``dop853-jit`` run it through ``extended.solve_extended``;
-``taylor`` (``DrivenTaylorStepper``) takes Taylor steps (``compiled.driven_taylor``)
-and hands the steps that may hold an event to the same event search.
+The scipy methods, ``dop853-jit`` and ``taylor`` (its series in
+``compiled.driven_taylor``) run it through ``extended.solve_extended``.
 """
 
 from __future__ import annotations
@@ -19,8 +18,6 @@ from rubcli import model
 from rubcli.drive import D_INERTIA, rolling_projection, shaft_torque_value, stick_torque_value
 from rubcli.problem import Problem
 from rubcli.solution import Solution
-from rubcli.solvers import compiled as kernels
-from rubcli.solvers import driver
 from rubcli.solvers.compiled.drive import (
     _driven_into,
     advance_driven,
@@ -28,11 +25,8 @@ from rubcli.solvers.compiled.drive import (
     driven_initial_step,
     driven_rhs,
 )
-from rubcli.solvers.compiled.driven_taylor import advance_driven_taylor, driven_polynomial
-from rubcli.solvers.compiled.taylor import MAX_ORDER, taylor_order
+from rubcli.solvers.compiled.driven_taylor import advance_driven_taylor
 from rubcli.solvers.extended import (
-    CompiledExtendedStepper,
-    Dense,
     ExtendedRun,
     System,
     solve_extended,
@@ -117,51 +111,8 @@ def rub_force(solution: Solution) -> np.ndarray:
 DRIVEN_SYSTEM = System(
     size=6, rhs=driven_rhs, columns=driven_columns, python_rhs=_python_rhs,
     python_columns=_python_columns, loop=(driven_initial_step, advance_driven),
+    taylor=advance_driven_taylor,
 )  # fmt: skip
-
-
-class PolynomialDense:
-    """A Taylor step's polynomial as a dense output: the state (6,) at a time, (6, n) at
-    times (``compiled.driven_taylor.driven_polynomial``, the kernel's operations)."""
-
-    def __init__(self, t0: float, C: np.ndarray, order: int) -> None:
-        self.t0, self.C, self.order = t0, C.copy(), order
-
-    def __call__(self, t: float | np.ndarray) -> np.ndarray:
-        times = np.atleast_1d(np.asarray(t, dtype=float))
-        out = driven_polynomial(times, self.t0, self.C, self.order)
-        return out[:, 0] if np.ndim(t) == 0 else out
-
-
-class DrivenTaylorStepper(CompiledExtendedStepper):
-    """``taylor`` on the driven rotor: the six states' Taylor series
-    (``compiled.driven_taylor``), a pending step scanned on its own intervals
-    (``taylor``'s rule)."""
-
-    def __init__(self, run: DrivenRun, rtol: float, atol: float) -> None:
-        super().__init__(run, "taylor", rtol, atol)
-        self.order = taylor_order(self.rtol)
-        self.C = np.zeros((6, MAX_ORDER + 1))
-        self.info = np.zeros(1, dtype=np.int64)
-        run.stats.update(order=self.order)
-        self.settings.update(order=self.order)
-
-    def _run_kernel(self, run: DrivenRun, hand_first: bool, chunk: int) -> tuple[float, int]:
-        tau, self.t_new, run.k, steps, reason = advance_driven_taylor(
-            run.tau, run.state, run.t_end, self.ctx, run.regime, self.order, self.rtol,
-            self.atol, run.t_eval, run.states, run.regimes, run.k, chunk, hand_first, self.C,
-            self.info,
-        )  # fmt: skip
-        run.stats["nsteps"] += steps
-        run.stats["nfev"] = run.stats["nsteps"]  # one series expansion per step
-        return tau, reason
-
-    def _pending(self, run: DrivenRun, tau: float) -> Dense:
-        run.stats["nfev"] += 1
-        dense = PolynomialDense(tau, self.C, self.order)
-        self.y_new = dense(self.t_new)
-        self.intervals = int(self.info[0])
-        return dense
 
 
 def solve_driven(problem: Problem, options: ToleranceOptions, name: str) -> Solution:
@@ -178,7 +129,4 @@ def solve_driven(problem: Problem, options: ToleranceOptions, name: str) -> Solu
         problem, name, max_steps=o.max_steps, max_wall_time_s=o.max_wall_time_s,
         progress=o.progress,
     )  # fmt: skip
-    if name == "taylor":
-        kernels.ensure_fresh()
-        return driver.integrate(run, DrivenTaylorStepper(run, o.rtol, o.atol))
     return solve_extended(run, name, o.rtol, o.atol, o.compiled)

@@ -53,6 +53,8 @@ from rubcli.problem import Problem
 from rubcli.solution import KIND_NAMES, Solution, SwitchEvent
 from rubcli.solvers import compiled as kernels
 from rubcli.solvers import driver
+from rubcli.solvers.compiled.driven_taylor import polynomial_values
+from rubcli.solvers.compiled.taylor import MAX_ORDER, taylor_order
 from rubcli.solvers.events import (
     ENTRY,
     EXIT,
@@ -76,8 +78,8 @@ class System:
     """A system with states beyond the rotor's four (module docstring): its state
     count, its right-hand side at one state ``rhs(s, *ctx, regime)`` and at the columns
     of states ``columns(S, *ctx, regime) -> (dS, T)`` (compiled, and the same run by the
-    interpreter), and its compiled DOP853 loop ``(initial_step, advance)``
-    (``compiled.extended_loop.dop853_loop``)."""
+    interpreter), its compiled DOP853 loop ``(initial_step, advance)``
+    (``compiled.extended_loop.dop853_loop``) and its compiled Taylor loop (``taylor``)."""
 
     size: int
     rhs: Callable
@@ -85,6 +87,7 @@ class System:
     python_rhs: Callable
     python_columns: Callable
     loop: tuple[Callable, Callable]
+    taylor: Callable
 
 
 class ExtendedRun(driver.Run):
@@ -509,10 +512,59 @@ class ExtendedJitStepper(CompiledExtendedStepper):
         super().finish(run, dense, event)
 
 
+class PolynomialDense:
+    """A Taylor step's polynomial as a dense output: the state at a time, the states
+    (size, n) at times (``compiled.driven_taylor.polynomial_values``, the kernels'
+    operations)."""
+
+    def __init__(self, t0: float, C: np.ndarray, order: int) -> None:
+        self.t0, self.C, self.order = t0, C.copy(), order
+
+    def __call__(self, t: float | np.ndarray) -> np.ndarray:
+        times = np.atleast_1d(np.asarray(t, dtype=float))
+        out = polynomial_values(times, self.t0, self.C, self.order)
+        return out[:, 0] if np.ndim(t) == 0 else out
+
+
+class ExtendedTaylorStepper(CompiledExtendedStepper):
+    """``taylor`` on a system: its states' Taylor series (``System.taylor``), a pending
+    step scanned on its own intervals (``taylor``'s rule)."""
+
+    def __init__(self, run: ExtendedRun, rtol: float, atol: float) -> None:
+        super().__init__(run, "taylor", rtol, atol)
+        self.order = taylor_order(self.rtol)
+        self.C = np.zeros((run.system.size, MAX_ORDER + 1))
+        self.info = np.zeros(1, dtype=np.int64)
+        self.kernel = run.system.taylor
+        run.stats.update(order=self.order)
+        self.settings.update(order=self.order)
+
+    def _run_kernel(self, run: ExtendedRun, hand_first: bool, chunk: int) -> tuple[float, int]:
+        tau, self.t_new, run.k, steps, reason = self.kernel(
+            run.tau, run.state, run.t_end, self.ctx, run.regime, self.order, self.rtol,
+            self.atol, run.t_eval, run.states, run.regimes, run.k, chunk, hand_first, self.C,
+            self.info,
+        )  # fmt: skip
+        run.stats["nsteps"] += steps
+        run.stats["nfev"] = run.stats["nsteps"]  # one series expansion per step
+        return tau, reason
+
+    def _pending(self, run: ExtendedRun, tau: float) -> Dense:
+        run.stats["nfev"] += 1
+        dense = PolynomialDense(tau, self.C, self.order)
+        self.y_new = dense(self.t_new)
+        self.intervals = int(self.info[0])
+        return dense
+
+
 def solve_extended(run: ExtendedRun, name: str, rtol: float, atol: float,
                    compiled: bool) -> Solution:  # fmt: skip
-    """A system's run by a scipy method or ``dop853-jit`` (``dop853-jit`` with
-    ``compiled=False``, or its kernels unusable, is scipy's ``dop853`` under its name)."""
+    """A system's run by a scipy method, ``dop853-jit`` or ``taylor`` (``dop853-jit``
+    with ``compiled=False``, or its kernels unusable, is scipy's ``dop853`` under its
+    name; ``taylor`` has no pure-Python path)."""
+    if name == "taylor":
+        kernels.ensure_fresh()
+        return driver.integrate(run, ExtendedTaylorStepper(run, rtol, atol))
     if name == "dop853-jit" and compiled and kernels.ensure_fresh():
         return driver.integrate(run, ExtendedJitStepper(run, rtol, atol))
     scipy_name = "dop853" if name == "dop853-jit" else name

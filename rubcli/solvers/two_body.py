@@ -7,9 +7,8 @@ displacement from its rest position and velocity (``Problem.stator_initial``). I
 stick friction is the two bodies' (``stator.two_body_entries`` in stick), and stick
 begins and ends with the two bodies' velocities projected onto the rolling constraint
 (``stator.two_body_projection``). The scipy methods and ``dop853-jit`` run it
-(``extended.solve_extended``); ``taylor`` (``TwoBodyTaylorStepper``) takes Taylor steps
-(``compiled.two_body_taylor``) and hands the steps that may hold an event to the same
-event search.
+(``extended.solve_extended``), and ``taylor`` (its series in
+``compiled.two_body_taylor``).
 """
 
 from __future__ import annotations
@@ -21,9 +20,6 @@ import numpy as np
 from rubcli import model
 from rubcli.problem import Problem
 from rubcli.solution import Solution
-from rubcli.solvers import compiled as kernels
-from rubcli.solvers import driver
-from rubcli.solvers.compiled.taylor import MAX_ORDER, taylor_order
 from rubcli.solvers.compiled.two_body import (
     advance_two_body,
     two_body_columns,
@@ -32,11 +28,8 @@ from rubcli.solvers.compiled.two_body import (
 )
 from rubcli.solvers.compiled.two_body_taylor import (
     advance_two_body_taylor,
-    two_body_polynomial,
 )
 from rubcli.solvers.extended import (
-    CompiledExtendedStepper,
-    Dense,
     ExtendedRun,
     System,
     solve_extended,
@@ -66,6 +59,7 @@ FLOW_MAX_STEPS = 10_000_000  # a flow's step budget (its wall time is the caller
 TWO_BODY_SYSTEM = System(
     size=N_STATES, rhs=two_body_rhs, columns=two_body_columns, python_rhs=_python_rhs,
     python_columns=_python_columns, loop=(two_body_initial_step, advance_two_body),
+    taylor=advance_two_body_taylor,
 )  # fmt: skip
 
 
@@ -144,49 +138,6 @@ def two_body_flow(
     return solve_extended(run, "dop853-jit", rtol, atol, compiled=True)
 
 
-class PolynomialDense:
-    """A Taylor step's polynomial as a dense output: the state (10,) at a time, (10, n)
-    at times (``compiled.two_body_taylor.two_body_polynomial``)."""
-
-    def __init__(self, t0: float, C: np.ndarray, order: int) -> None:
-        self.t0, self.C, self.order = t0, C.copy(), order
-
-    def __call__(self, t: float | np.ndarray) -> np.ndarray:
-        times = np.atleast_1d(np.asarray(t, dtype=float))
-        out = two_body_polynomial(times, self.t0, self.C, self.order)
-        return out[:, 0] if np.ndim(t) == 0 else out
-
-
-class TwoBodyTaylorStepper(CompiledExtendedStepper):
-    """``taylor`` on the two bodies: the ten states' Taylor series
-    (``compiled.two_body_taylor``), a pending step scanned on its own intervals."""
-
-    def __init__(self, run: TwoBodyRun, rtol: float, atol: float) -> None:
-        super().__init__(run, "taylor", rtol, atol)
-        self.order = taylor_order(self.rtol)
-        self.C = np.zeros((N_STATES, MAX_ORDER + 1))
-        self.info = np.zeros(1, dtype=np.int64)
-        run.stats.update(order=self.order)
-        self.settings.update(order=self.order)
-
-    def _run_kernel(self, run: TwoBodyRun, hand_first: bool, chunk: int) -> tuple[float, int]:
-        tau, self.t_new, run.k, steps, reason = advance_two_body_taylor(
-            run.tau, run.state, run.t_end, self.ctx, run.regime, self.order, self.rtol,
-            self.atol, run.t_eval, run.states, run.regimes, run.k, chunk, hand_first, self.C,
-            self.info,
-        )  # fmt: skip
-        run.stats["nsteps"] += steps
-        run.stats["nfev"] = run.stats["nsteps"]  # one series expansion per step
-        return tau, reason
-
-    def _pending(self, run: TwoBodyRun, tau: float) -> Dense:
-        run.stats["nfev"] += 1
-        dense = PolynomialDense(tau, self.C, self.order)
-        self.y_new = dense(self.t_new)
-        self.intervals = int(self.info[0])
-        return dense
-
-
 def solve_two_body(problem: Problem, options: ToleranceOptions, name: str) -> Solution:
     """A stator with its own mass by the method ``name``: a scipy method, ``dop853-jit``
     or ``taylor`` (module docstring; the compiled loops hand a step that may hold an
@@ -198,7 +149,4 @@ def solve_two_body(problem: Problem, options: ToleranceOptions, name: str) -> So
         problem, name, max_steps=o.max_steps, max_wall_time_s=o.max_wall_time_s,
         progress=o.progress,
     )  # fmt: skip
-    if name == "taylor":
-        kernels.ensure_fresh()
-        return driver.integrate(run, TwoBodyTaylorStepper(run, o.rtol, o.atol))
     return solve_extended(run, name, o.rtol, o.atol, o.compiled)

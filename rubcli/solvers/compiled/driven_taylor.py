@@ -226,18 +226,19 @@ def _leaves_at(C, order, h, low, high, grid_points):
 
 
 @jit
-def driven_step_size(C: np.ndarray, order: int, rtol: float, atol: float) -> float:
-    """``taylor.step_size`` for the six states: the last two terms below the state
-    tolerance max(atol, rtol |s_0|), the phase left out of |s_0| (it grows without
-    bound)."""
+def extended_step_size(C: np.ndarray, order: int, rtol: float, atol: float) -> float:
+    """``taylor.step_size`` for an extended system's states (the rows of C): the last
+    two terms below the state tolerance max(atol, rtol |s_0|), the phase (entry 4) left
+    out of |s_0| (it grows without bound)."""
     scale = 0.0
-    for i in (0, 1, 2, 3, 5):
-        scale = max(scale, abs(C[i, 0]))
+    for i in range(C.shape[0]):
+        if i != 4:
+            scale = max(scale, abs(C[i, 0]))
     eps = max(atol, rtol * scale)
     h = math.inf
     for k in (order - 1, order):
         norm = 0.0
-        for i in range(N_STATES):
+        for i in range(C.shape[0]):
             norm = max(norm, abs(C[i, k]))
         if norm > 0.0:
             h = min(h, (eps / norm) ** RECIPROCALS[k])
@@ -245,32 +246,32 @@ def driven_step_size(C: np.ndarray, order: int, rtol: float, atol: float) -> flo
 
 
 @jit
-def _polynomial(t: float, dense: Any, row: np.ndarray) -> None:
-    """The step's polynomial at t (Horner), dense = (t0, C, order)."""
+def polynomial_at(t: float, dense: Any, row: np.ndarray) -> None:
+    """A Taylor step's polynomial at t (Horner), dense = (t0, C, order): every row of C."""
     t0, C, order = dense
     dt = t - t0
-    for i in range(N_STATES):
+    for i in range(C.shape[0]):
         v = C[i, order]
         for k in range(order - 1, -1, -1):
             v = v * dt + C[i, k]
         row[i] = v
 
 
-_polynomial_may_have_event, _polynomial_fill = step_parts(
-    drive_into, drive_project, N_STATES, _polynomial
-)
-
-
 @jit
-def driven_polynomial(t: np.ndarray, t0: float, C: np.ndarray, order: int) -> np.ndarray:
-    """The step's polynomial at the times t (n,): states (6, n) (``_polynomial``)."""
-    out = np.empty((N_STATES, t.shape[0]))
-    row = np.empty(N_STATES)
+def polynomial_values(t: np.ndarray, t0: float, C: np.ndarray, order: int) -> np.ndarray:
+    """A Taylor step's polynomial at the times t (n,): states (rows of C, n)."""
+    out = np.empty((C.shape[0], t.shape[0]))
+    row = np.empty(C.shape[0])
     for m in range(t.shape[0]):
-        _polynomial(t[m], (t0, C, order), row)
-        for i in range(N_STATES):
+        polynomial_at(t[m], (t0, C, order), row)
+        for i in range(C.shape[0]):
             out[i, m] = row[i]
     return out
+
+
+_polynomial_may_have_event, _polynomial_fill = step_parts(
+    drive_into, drive_project, N_STATES, polynomial_at
+)
 
 
 @jit
@@ -306,7 +307,7 @@ def advance_driven_taylor(
         if y[5] == low and C[5, 1] < 0.0:  # on a table's corner, slowing: the piece below
             torque, slope, low, high = motor_line(y[5], False, drive, table_speed, table_torque)
             driven_series(y, pars, drive, regime, order, C, R, torque, slope)
-        h = driven_step_size(C, order, rtol, atol)
+        h = extended_step_size(C, order, rtol, atol)
         t_new = min(tau + h, t_end)
         h = t_new - tau
         if tabled:  # the step ends where the speed reaches a corner of the table
@@ -317,7 +318,7 @@ def advance_driven_taylor(
         if not (h >= 10.0 * abs(np.nextafter(tau, np.inf) - tau)):
             return tau, t_new, k, steps, STOP_SMALL_STEP if math.isfinite(h) else STOP_PYTHON
         dense = (tau, C, order)
-        _polynomial(t_new, dense, y_new)
+        polynomial_at(t_new, dense, y_new)
         for i in range(N_STATES):
             if not math.isfinite(y_new[i]):
                 return tau, t_new, k, steps, STOP_PYTHON

@@ -38,7 +38,13 @@ from rubcli.model import (
     STICK,
     friction_sign,
 )
-from rubcli.solvers.compiled.driven_taylor import _divide, _phase_terms, _root
+from rubcli.solvers.compiled.driven_taylor import (
+    _divide,
+    _phase_terms,
+    _root,
+    extended_step_size,
+    polynomial_at,
+)
 from rubcli.solvers.compiled.extended_loop import step_parts
 from rubcli.solvers.compiled.jit import (
     STOP_END,
@@ -52,7 +58,6 @@ from rubcli.solvers.compiled.taylor import (
     MAX_ORDER,
     MAX_SCAN,
     RECIPROCALS,
-    STEP_SAFETY_EXPONENT,
     _cauchy,
     scan_intervals,
 )
@@ -148,53 +153,9 @@ def two_body_series(
         C[9, k + 1] = by * inv
 
 
-@jit
-def two_body_step_size(C: np.ndarray, order: int, rtol: float, atol: float) -> float:
-    """``taylor.step_size`` for the ten states: the last two terms below the state
-    tolerance max(atol, rtol |s_0|), the phase left out of |s_0| (it grows without
-    bound)."""
-    scale = 0.0
-    for i in range(N_STATES):
-        if i != 4:
-            scale = max(scale, abs(C[i, 0]))
-    eps = max(atol, rtol * scale)
-    h = math.inf
-    for k in (order - 1, order):
-        norm = 0.0
-        for i in range(N_STATES):
-            norm = max(norm, abs(C[i, k]))
-        if norm > 0.0:
-            h = min(h, (eps / norm) ** RECIPROCALS[k])
-    return h * math.exp(-STEP_SAFETY_EXPONENT * RECIPROCALS[order - 1])
-
-
-@jit
-def _polynomial(t, dense, row):
-    """The step's polynomial at t (Horner), dense = (t0, C, order)."""
-    t0, C, order = dense
-    dt = t - t0
-    for i in range(N_STATES):
-        value = C[i, order]
-        for k in range(order - 1, -1, -1):
-            value = value * dt + C[i, k]
-        row[i] = value
-
-
 _polynomial_may_have_event, _polynomial_fill = step_parts(
-    two_body_into, two_body_project, N_STATES, _polynomial
+    two_body_into, two_body_project, N_STATES, polynomial_at
 )
-
-
-@jit
-def two_body_polynomial(t: np.ndarray, t0: float, C: np.ndarray, order: int) -> np.ndarray:
-    """The step's polynomial at the times t (n,): states (10, n) (``_polynomial``)."""
-    out = np.empty((N_STATES, t.shape[0]))
-    row = np.empty(N_STATES)
-    for m in range(t.shape[0]):
-        _polynomial(t[m], (t0, C, order), row)
-        for i in range(N_STATES):
-            out[i, m] = row[i]
-    return out
 
 
 @jit
@@ -227,13 +188,13 @@ def advance_two_body_taylor(
         if steps >= max_steps:
             return tau, tau, k, steps, STOP_LIMIT
         two_body_series(y, pars, st, regime, order, C, R)
-        h = two_body_step_size(C, order, rtol, atol)
+        h = extended_step_size(C, order, rtol, atol)
         t_new = min(tau + h, t_end)
         h = t_new - tau
         if not (h >= 10.0 * abs(np.nextafter(tau, np.inf) - tau)):
             return tau, t_new, k, steps, STOP_SMALL_STEP if math.isfinite(h) else STOP_PYTHON
         dense = (tau, C, order)
-        _polynomial(t_new, dense, y_new)
+        polynomial_at(t_new, dense, y_new)
         for i in range(N_STATES):
             if not math.isfinite(y_new[i]):
                 return tau, t_new, k, steps, STOP_PYTHON
