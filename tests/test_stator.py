@@ -26,7 +26,7 @@ from rubcli.cli.app import app
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solvers import solve
-from rubcli.solvers.registry import MOVING_STATOR, SPECS
+from rubcli.solvers.registry import MOVING_STATOR, RTOL, SPECS
 from rubcli.solvers.two_body import full_states
 from rubcli.stator import Stator, two_body_projection
 
@@ -211,7 +211,7 @@ def test_every_method_agrees_with_a_tight_reference(machine):
     assert ref.success and python.success
     assert len(python.events) == len(ref.events)
     assert np.max(np.abs(python.states - ref.states)) < 1e-9  # scipy's DOP853 step for step
-    for method in STATOR_METHODS:
+    for method in (m for m in STATOR_METHODS if SPECS[m].knob == RTOL):
         sol = solve(problem, method, rtol=1e-10, atol=1e-12)
         assert sol.success, (method, sol.message)
         assert list(sol.events.kinds) == list(ref.events.kinds), method
@@ -220,11 +220,63 @@ def test_every_method_agrees_with_a_tight_reference(machine):
         assert np.max(np.abs(sol.stator_states - ref.stator_states)) < 1e-5, method
 
 
+def _errors(problem: Problem, ref, **options) -> tuple[float, object]:
+    sol = solve(problem, "analytic", **options)
+    assert sol.success, sol.message
+    error = max(np.max(np.abs(sol.states - ref.states)),
+                np.max(np.abs(sol.stator_states - ref.stator_states)))  # fmt: skip
+    return float(error), sol
+
+
+@pytest.mark.parametrize("machine", ["ring", "stick"])
+def test_analytic_converges_at_order_two_on_the_two_bodies(machine):
+    # the paper's scheme on eight states: exact free flights, slip linearised each step
+    # (global order 2), stick by RK4; the same events as a tight reference
+    p = ring_machine() if machine == "ring" else _stick_machine()
+    start = (-0.3, 0.0, 0.0, 0.0) if machine == "ring" else (0.0, 0.0, 0.0, 0.0)
+    problem = Problem.from_periods(p, start, 8, 20)
+    ref = solve(problem, "dop853-jit", rtol=1e-12, atol=1e-14)
+    errors = []
+    for n in (200, 400, 800):
+        error, sol = _errors(problem, ref, steps_per_period=n)
+        assert list(sol.events.kinds) == list(ref.events.kinds), n
+        errors.append(error)
+    orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    assert np.all((orders > 1.8) & (orders < 2.4)), (errors, orders)
+    if machine == "stick":
+        assert sol.stats["n_stick_steps"] > 0
+        stick = sol.regimes == model.STICK
+        assert np.max(np.abs(sol.slip_velocity[stick])) < 1e-12  # samples on the constraint
+    python, _ = _errors(problem, ref, steps_per_period=200, compiled=False)
+    assert python == pytest.approx(errors[0], rel=1e-6)  # the interpreter's right-hand side
+
+
+def test_analytic_free_flight_of_the_two_bodies_is_exact():
+    # no contact: both bodies linear, the closed form exact whatever the step
+    p = ring_machine(e=0.05, offset=(0.0, 0.0), load=(0.0, -0.1))
+    problem = dataclasses.replace(Problem.from_periods(p, (0.0, 0.0, 0.1, 0.0), 6, 20),
+                                  stator_initial=(0.05, 0.0, 0.0, 0.2))  # fmt: skip
+    ref = solve(problem, "dop853-jit", rtol=1e-13, atol=1e-15)
+    assert len(ref.events) == 0 and np.max(ref.z) < 0.9
+    error, sol = _errors(problem, ref, steps_per_period=4)
+    assert error < 1e-10 and sol.stats["n_free_segments"] == 1
+
+
+def test_analytic_step_doubling_follows_its_tolerance():
+    problem = Problem.from_periods(ring_machine(), (-0.3, 0.0, 0.0, 0.0), 4, 20)
+    ref = solve(problem, "dop853-jit", rtol=1e-12, atol=1e-14)
+    loose, _ = _errors(problem, ref, analytic_tol=1e-6)
+    tight, sol = _errors(problem, ref, analytic_tol=1e-9)
+    assert list(sol.events.kinds) == list(ref.events.kinds)
+    # local error ~ h^3 and steps ~ tol^(-1/3): the global error falls about as tol^(2/3)
+    assert 30.0 < loose / tight < 3000.0 and tight < 1e-5
+    assert sol.settings["analytic_tol"] == 1e-9
+
+
 def test_the_methods_without_it_refuse_naming_the_feature():
     problem = Problem.from_periods(ring_machine(), (-0.3, 0.0, 0.0, 0.0), 1, 20)
-    for method in ("analytic", "analytic-polar"):
-        with pytest.raises(ValueError, match="stator with its own mass"):
-            solve(problem, method)
+    with pytest.raises(ValueError, match="stator with its own mass"):
+        solve(problem, "analytic-polar")
 
 
 CASE = """
@@ -256,7 +308,7 @@ methods = ["dop853-jit"]
     [
         (("mass = 0.2", "mass = -0.2"), "stator.mass"),
         (("stiffness = [2.0, 4.0]", "stiffness = [2.0, 0.0]"), "stator.stiffness"),
-        (('methods = ["dop853-jit"]', 'methods = ["analytic"]'), "solver.methods"),
+        (('methods = ["dop853-jit"]', 'methods = ["analytic-polar"]'), "solver.methods"),
         (
             (
                 "[solver]",
@@ -342,8 +394,13 @@ def test_compare_runs_the_ring(tmp_path):
     # the reference checked against lsoda, an independent family, on the two bodies
     assert report["reference"]["error_estimate"] < 1e-8
     rows = report["work_precision"]["rows"]
-    assert {row["method"] for row in rows} == {"dop853-jit", "dop853"}
+    assert {row["method"] for row in rows} == {"dop853-jit", "dop853", "analytic"}
     assert all(row["status"] == "success" for row in rows)
+    # analytic: order 2, so four times the steps cut the error about sixteenfold
+    ladder = sorted((row["setting"], row["error_max"]) for row in rows
+                    if row["method"] == "analytic")  # fmt: skip
+    ratios = [a[1] / b[1] for a, b in zip(ladder[:-1], ladder[1:], strict=True)]
+    assert len(ratios) == 2 and all(8.0 < r < 25.0 for r in ratios), ladder
 
 
 def test_the_snubber_case_is_a_moving_stator():

@@ -101,24 +101,25 @@ class FreeFlight:
         return np.array([S[2], S[3], ax, ay])
 
 
-class LinearisedContact:
-    """Exact solution of the contact equation linearised about (tau0, s0) (eq. 13-18 corrected).
+class LinearFlow:
+    """Exact solution of a linear system with constant coefficients, constant and
+    harmonic forcing, from (tau0, s0)::
+
+        s' = A s + b + Re(F exp(i (eta t + phi0)))
 
     ``s(t) = s_c + Re(S_hat exp(i(eta t + phi0))) + exp(A (t - tau0)) d0`` where
-    ``A s_c + b = 0``, ``(i eta - A) S_hat = (0, 0, E, -i E)`` and ``d0`` matches s0.
-    """
+    ``A s_c + b = 0``, ``(i eta - A) S_hat = F`` and ``d0`` matches s0. The homogeneous
+    part comes from the full eigen-decomposition of A (correction 5: complex or growing
+    modes are kept), or from ``expm`` where the eigenbasis is ill-conditioned. Any state
+    size: the rotor's four (``LinearisedContact``) or the two bodies' eight
+    (``solvers.two_body_analytic``)."""
 
-    def __init__(self, tau0: float, s0: np.ndarray, params: model.ModelParams, mu_c: float):
-        self._solve(tau0, s0, params, *model.linearised_contact_system(s0, params, mu_c))
-
-    def _solve(
-        self, tau0: float, s0: np.ndarray, params: model.ModelParams, A: np.ndarray, b: np.ndarray
-    ) -> None:
-        self.tau0, self.params = tau0, params
+    def _solve(self, tau0: float, s0: np.ndarray, A: np.ndarray, b: np.ndarray,
+               forcing: np.ndarray, eta: float, phi0: float) -> None:  # fmt: skip
+        self.tau0, self.eta, self.phi0 = tau0, eta, phi0
         self.A, self.b = A, b
         self.s_c = np.linalg.solve(A, -b)
-        forcing = np.array([0.0, 0.0, params.E, -1j * params.E])
-        self.S_hat = np.linalg.solve(1j * params.eta * np.eye(4) - A, forcing)
+        self.S_hat = np.linalg.solve(1j * eta * np.eye(A.shape[0]) - A, forcing)
         self.d0 = np.asarray(s0, dtype=float) - self.s_c - self._harmonic(tau0)
         lam, V = np.linalg.eig(A)
         self.lam = lam
@@ -126,10 +127,10 @@ class LinearisedContact:
         if not self.use_expm:
             self.V = V
             self.c = np.linalg.solve(V, self.d0.astype(complex))
-        self.omega_max = max(float(np.max(np.abs(lam.imag))), params.eta, 1.0)
+        self.omega_max = max(float(np.max(np.abs(lam.imag))), eta, 1.0)
 
     def _harmonic(self, t):
-        phase = self.params.eta * np.asarray(t, dtype=float) + self.params.phi0
+        phase = self.eta * np.asarray(t, dtype=float) + self.phi0
         if np.ndim(phase) == 0:
             return np.real(self.S_hat * np.exp(1j * phase))
         return np.real(self.S_hat[:, None] * np.exp(1j * phase)[None, :])
@@ -149,6 +150,21 @@ class LinearisedContact:
         s_c = self.s_c if dt.ndim == 0 else self.s_c[:, None]
         return s_c + self._harmonic(t) + hom
 
+
+class LinearisedContact(LinearFlow):
+    """Exact solution of the contact equation linearised about (tau0, s0) (eq. 13-18
+    corrected): ``LinearFlow`` with the unbalance's forcing ``F = (0, 0, E, -i E)``."""
+
+    def __init__(self, tau0: float, s0: np.ndarray, params: model.ModelParams, mu_c: float):
+        self._start(tau0, s0, params, *model.linearised_contact_system(s0, params, mu_c))
+
+    def _start(
+        self, tau0: float, s0: np.ndarray, params: model.ModelParams, A: np.ndarray, b: np.ndarray
+    ) -> None:
+        self.params = params
+        forcing = np.array([0.0, 0.0, params.E, -1j * params.E])
+        self._solve(tau0, s0, A, b, forcing, params.eta, params.phi0)
+
     def derivatives(self, t: FloatOrArray, S: np.ndarray) -> np.ndarray:
         p = self.params
         phase = p.eta * np.asarray(t, dtype=float) + p.phi0
@@ -164,7 +180,7 @@ class LinearFreeFlight(LinearisedContact):
     exact. On the paper's machine ``FreeFlight`` (eq. 7-8) is used."""
 
     def __init__(self, tau0: float, s0: np.ndarray, params: model.ModelParams):
-        self._solve(tau0, s0, params, *model.free_flight_system(params))
+        self._start(tau0, s0, params, *model.free_flight_system(params))
 
 
 def _phi12(z: np.ndarray):

@@ -132,8 +132,6 @@ LACKS = {
     ("analytic-polar", DRIVEN): "its closed forms assume a constant speed",
     ("analytic-polar", GENERAL_MACHINE): "its polar form needs a concentric stator and an "
     "isotropic support",
-    ("analytic", MOVING_STATOR): "its linearised propagators are written for the rotor's four "
-    "states, not the two bodies' ten",
     ("analytic-polar", MOVING_STATOR): "its polar form needs a rigid concentric stator",
 }
 
@@ -160,7 +158,7 @@ SPECS: dict[str, MethodSpec] = {
             summary="the paper's method: closed-form free flight, first-order Taylor "
             "linearisation of the contact force in Cartesian coordinates each step, solved "
             "exactly",
-            features=frozenset({GENERAL_MACHINE}),
+            features=frozenset({GENERAL_MACHINE, MOVING_STATOR}),
         ),
         MethodSpec(
             name="analytic-polar",

@@ -7,8 +7,8 @@ displacement from its rest position and velocity (``Problem.stator_initial``). I
 stick friction is the two bodies' (``stator.two_body_entries`` in stick), and stick
 begins and ends with the two bodies' velocities projected onto the rolling constraint
 (``stator.two_body_projection``). The scipy methods and ``dop853-jit`` run it
-(``extended.solve_extended``), and ``taylor`` (its series in
-``compiled.two_body_taylor``).
+(``extended.solve_extended``), ``taylor`` (its series in ``compiled.two_body_taylor``)
+and ``analytic`` (``solvers.two_body_analytic``).
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ from rubcli.solvers.extended import (
     System,
     solve_extended,
 )
-from rubcli.solvers.registry import MOVING_STATOR, SPECS, ToleranceOptions
+from rubcli.solvers.registry import MOVING_STATOR, SPECS, Options, StepOptions
 from rubcli.stator import N_STATES, S_INV_MASS, two_body_entries, two_body_projection
 
 
@@ -138,10 +138,11 @@ def two_body_flow(
     return solve_extended(run, "dop853-jit", rtol, atol, compiled=True)
 
 
-def solve_two_body(problem: Problem, options: ToleranceOptions, name: str) -> Solution:
-    """A stator with its own mass by the method ``name``: a scipy method, ``dop853-jit``
-    or ``taylor`` (module docstring; the compiled loops hand a step that may hold an
-    event to the Python event search, so ``compiled_events`` changes nothing here)."""
+def solve_two_body(problem: Problem, options: Options, name: str) -> Solution:
+    """A stator with its own mass by the method ``name``: a scipy method, ``dop853-jit``,
+    ``taylor`` (module docstring; the compiled loops hand a step that may hold an event
+    to the Python event search, so ``compiled_events`` changes nothing here) or
+    ``analytic`` (``solvers.two_body_analytic``)."""
     if MOVING_STATOR not in SPECS[name].features:
         raise ValueError(f"{name} does not run a stator with its own mass")
     o = options
@@ -149,4 +150,8 @@ def solve_two_body(problem: Problem, options: ToleranceOptions, name: str) -> So
         problem, name, max_steps=o.max_steps, max_wall_time_s=o.max_wall_time_s,
         progress=o.progress,
     )  # fmt: skip
+    if isinstance(o, StepOptions):
+        from rubcli.solvers.two_body_analytic import solve_two_body_analytic
+
+        return solve_two_body_analytic(run, o)
     return solve_extended(run, name, o.rtol, o.atol, o.compiled)
