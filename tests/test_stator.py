@@ -20,6 +20,7 @@ from scipy.optimize import fsolve
 from typer.testing import CliRunner
 
 from rubcli import model
+from rubcli.analysis import orbits
 from rubcli.analysis.two_body_energy import energy_at, two_body_energy_summary
 from rubcli.case import CaseError, load_case, load_case_text
 from rubcli.cli.app import app
@@ -421,10 +422,9 @@ def _multipliers_match(a: np.ndarray, b: np.ndarray, tol: float) -> bool:
 
 def test_the_two_body_monodromy_without_contact_is_the_exponential():
     """Without contact the two bodies are linear and apart: the multipliers of the
-    flow's monodromy (central differences) are those of exp(A T) of each body."""
+    flow's monodromy (one smooth segment's differences) are those of exp(A T) of each
+    body."""
     from scipy.linalg import expm
-
-    from rubcli.analysis import orbits as ob
 
     p = ring_machine(e=0.02, mu=0.0)
     S, D = np.array(p.stiffness), np.array(p.damping_matrix)
@@ -433,9 +433,32 @@ def test_the_two_body_monodromy_without_contact_is_the_exponential():
     rotor = np.block([[np.zeros((2, 2)), np.eye(2)], [-S, -2.0 * D]])
     ring = np.block([[np.zeros((2, 2)), np.eye(2)], [-ks / st.mass, -2.0 * ns / st.mass]])
     expected = np.concatenate([np.linalg.eigvals(expm(M * p.period)) for M in (rotor, ring)])
-    orbit = ob.shoot(p, np.array([-0.3, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]), 1)
+    orbit = orbits.shoot(p, np.array([-0.3, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]), 1)
     assert orbit.flow.max_z < 1.0 and orbit.flow.events == []
     assert _multipliers_match(orbit.multipliers, expected, 1e-6)
+
+
+@pytest.mark.parametrize("machine", ["ring", "stick"])
+def test_the_saltation_monodromy_is_the_flows_differences(machine):
+    # the monodromy through the switches (segments' Jacobians, saltation matrices, the
+    # rolling projection's Jacobian) against central differences of the whole flow, an
+    # independent construction: the perturbed flows switch where their own events lie
+    p = ring_machine() if machine == "ring" else _stick_machine()
+    start = (-0.3, 0.0, 0.0, 0.0) if machine == "ring" else (0.0, 0.0, 0.0, 0.0)
+    sol = solve(Problem.from_periods(p, start, 20, 20), "dop853-jit", rtol=1e-11, atol=1e-13)
+    q = np.concatenate((sol.states[-1], sol.stator_states[-1]))
+    t0 = float(sol.t[-1])
+    result = orbits.flow(p, q, t0, t0 + p.period)
+    kinds = {kind for _, kind, _, _ in result.events}
+    expected = {"contact_entry", "contact_exit"}
+    assert kinds == (expected if machine == "ring" else expected | {"stick_entry", "stick_exit"})
+    differences = np.empty((8, 8))
+    for j in range(8):
+        h = 1e-5 * (1.0 + abs(q[j]))
+        ends = [orbits.flow(p, q + sign * h * np.eye(8)[j], t0, t0 + p.period,
+                            variational=False).state for sign in (1.0, -1.0)]  # fmt: skip
+        differences[:, j] = (ends[0] - ends[1]) / (2.0 * h)
+    assert np.max(np.abs(result.monodromy - differences)) < 1e-6
 
 
 def test_the_two_body_monodromy_across_rubs_keeps_liouvilles_determinant():
@@ -443,11 +466,9 @@ def test_the_two_body_monodromy_across_rubs_keeps_liouvilles_determinant():
     slip does not depend on the velocities: across contact entries and exits the
     saltation is the identity and the monodromy's determinant is exp of the trace of
     the damping over the period, exp(-(2 tr D + 2 tr(N_s) / m_s) T) (Liouville)."""
-    from rubcli.analysis import orbits as ob
-
     p = ring_machine()
-    guess = ob.transient_state(p, np.array([-0.3, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]), 40)
-    orbit = ob.shoot(p, guess, 1)
+    guess = orbits.transient_state(p, np.array([-0.3, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]), 40)
+    orbit = orbits.shoot(p, guess, 1)
     kinds = {kind for _, kind, _, _ in orbit.flow.events}
     assert orbit.flow.contact_phases >= 1 and kinds == {"contact_entry", "contact_exit"}
     trace = 2.0 * np.trace(np.array(p.damping_matrix)) + 2.0 * sum(p.stator.damping) / p.stator.mass

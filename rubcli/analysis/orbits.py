@@ -56,11 +56,8 @@ PARAMETERS = ("eta", "mu", "K", "e", "nu", "Rp")
 # extremes of z), and 1e5 periods in one piece once held 3 GB.
 TRANSIENT_CHUNK_PERIODS = 16
 # A stator with its own mass (``two_body_flow``): the samples a period on which its flow's
-# extremes of z are read, and the step of its monodromy's central differences, relative
-# to 1 + |s_j| (the flow's own error at rtol 1e-12 is then 1e-7 of a column, the
-# differences' truncation 1e-10).
+# extremes of z are read.
 TWO_BODY_SAMPLES = 200
-TWO_BODY_FD_STEP = 1e-5
 
 
 class OrbitError(RuntimeError):
@@ -394,11 +391,11 @@ def two_body_flow(
     """``flow`` of a stator with its own mass: the state on the section is the rotor's
     four entries and the ring's, ``(x, y, vx, vy, u, v, u', v')``. Integrated by
     ``dop853-jit`` in the extended event loop (``solvers.two_body``); its extremes of z
-    read on ``TWO_BODY_SAMPLES`` samples a period; its monodromy matrix by central
-    differences of the flow, a step of ``TWO_BODY_FD_STEP`` (1 + |s_j|) in each entry
-    (the saltation at each event is in the differences: the perturbed flows switch
-    where their own events lie). Raises OrbitError on a failed flow, WallTimeBudgetError
-    past ``deadline``."""
+    read on ``TWO_BODY_SAMPLES`` samples a period; its monodromy matrix through the
+    switches by saltation matrices, each smooth segment's Jacobian by central differences
+    of its locked flow (``analysis.two_body_monodromy``). Raises OrbitError on a failed
+    flow or a grazing switch, WallTimeBudgetError past ``deadline``."""
+    from rubcli.analysis import two_body_monodromy
     from rubcli.analysis.regimes import time_in_regimes
     from rubcli.solvers.two_body import two_body_flow as run
 
@@ -408,33 +405,31 @@ def two_body_flow(
     n = max(2, int(math.ceil(TWO_BODY_SAMPLES * (tau1 - tau0) / params.period))) + 1
     grid = np.linspace(tau0, tau1, n)
 
-    def end(start: np.ndarray, t_eval: np.ndarray) -> Solution:
+    def end(start: np.ndarray, t_eval: np.ndarray, regime: int | None) -> Solution:
         check_deadline(deadline)
         budget = None if deadline is None else max(deadline - time.perf_counter(), 0.0)
         problem = Problem(params, tuple(start[:4]), t_eval, stator_initial=tuple(start[4:]))
-        sol = run(problem, rtol, atol, locked=locked, max_wall_time_s=budget)
+        sol = run(problem, rtol, atol, locked=regime, max_wall_time_s=budget)
         if not sol.success:
             check_deadline(deadline)
             raise OrbitError(f"integration failed: {sol.message}")
         return sol
 
-    sol = end(s, grid)
+    def segment(start: np.ndarray, ta: float, tb: float, regime: int) -> tuple[np.ndarray, int]:
+        other = end(start, np.array([ta, tb]), regime)
+        ends = np.concatenate((other.states[-1], other.stator_states[-1]))
+        return ends, int(other.stats.get("nfev", 0))
+
+    sol = end(s, grid, locked)
     state = np.concatenate((sol.states[-1], sol.stator_states[-1]))
     nfev = int(sol.stats.get("nfev", 0))
     phi = None
     if variational:
-        phi = np.empty((8, 8))
-        ends = np.array([tau0, tau1])
-        for j in range(8):
-            h = TWO_BODY_FD_STEP * (1.0 + abs(s[j]))
-            sides = []
-            for step in (h, -h):
-                moved = s.copy()
-                moved[j] += step
-                other = end(moved, ends)
-                nfev += int(other.stats.get("nfev", 0))
-                sides.append(np.concatenate((other.states[-1], other.stator_states[-1])))
-            phi[:, j] = (sides[0] - sides[1]) / (2.0 * h)
+        try:
+            phi, more = two_body_monodromy.monodromy(segment, sol, s, tau0, tau1)
+        except two_body_monodromy.GrazingSwitchError as exc:
+            raise OrbitError(f"{exc} in the flow from tau = {tau0:.9g}") from None
+        nfev += more
     regimes = time_in_regimes(sol)
     events = [(e.tau, e.kind, e.regime_before, e.regime_after) for e in sol.events]
     z = sol.z
