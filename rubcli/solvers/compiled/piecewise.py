@@ -21,6 +21,7 @@ Every ``ev(t, deriv, ctx, row, drow)`` fills ``row`` with the state at ``t`` and
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from numba.extending import register_jitable
@@ -29,8 +30,11 @@ from rubcli.model import (
     P_E,
     P_ETA,
     P_K,
+    P_MU,
     P_NU,
     P_PHI0,
+    P_RATE,
+    P_RP,
     P_SXX,
     P_SXY,
     P_SYX,
@@ -38,6 +42,8 @@ from rubcli.model import (
     STICK,
     free_flight_value,
     free_steady_value,
+    is_general_record,
+    rhs_entries,
     rhs_record,
 )
 from rubcli.solvers.compiled.jit import jit
@@ -96,7 +102,15 @@ def free_ev(
 
 
 @register_jitable
-def _stick_f(t, x, y, vx, vy, pars):
+def _paper_stick_f(t, x, y, vx, vy, pars):
+    """The rolling law on the paper's machine at a constant speed."""
+    return rhs_entries(t, x, y, vx, vy, pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0],
+                       pars[P_K], pars[P_MU], pars[P_RP], STICK)  # fmt: skip
+
+
+@register_jitable
+def _general_stick_f(t, x, y, vx, vy, pars):
+    """The rolling law of any machine and speed."""
     return rhs_record(t, x, y, vx, vy, pars, STICK)
 
 
@@ -113,23 +127,44 @@ def stick_prepare(
     tau0: float, s0: np.ndarray, h: float, pars: np.ndarray | tuple[float, ...], st: np.ndarray,
     meta: np.ndarray,
 ) -> None:  # fmt: skip
-    """``StickStep(tau0, s0, h)``: st rows (s0, s1, f0, f1), meta = (tau0, h)."""
-    x, y, vx, vy = s0[0], s0[1], s0[2], s0[3]
-    k1 = _stick_f(tau0, x, y, vx, vy, pars)
-    h2 = h / 2
-    k2 = _stick_f(tau0 + h2, x + h2 * k1[0], y + h2 * k1[1], vx + h2 * k1[2], vy + h2 * k1[3], pars)
-    k3 = _stick_f(tau0 + h2, x + h2 * k2[0], y + h2 * k2[1], vx + h2 * k2[2], vy + h2 * k2[3], pars)
-    k4 = _stick_f(tau0 + h, x + h * k3[0], y + h * k3[1], vx + h * k3[2], vy + h * k3[3], pars)
-    h6 = h / 6
-    for j in range(4):
-        st[0, j] = s0[j]
-        st[1, j] = s0[j] + h6 * (k1[j] + 2 * k2[j] + 2 * k3[j] + k4[j])
-        st[2, j] = k1[j]
-    f1 = _stick_f(tau0 + h, st[1, 0], st[1, 1], st[1, 2], st[1, 3], pars)
-    for j in range(4):
-        st[3, j] = f1[j]
-    meta[0] = tau0
-    meta[1] = h
+    """``StickStep(tau0, s0, h)``: st rows (s0, s1, f0, f1), meta = (tau0, h). The
+    paper's machine at a constant speed has its own step, without the general machine's
+    terms (a branch to them in every evaluation cost the paper's stick step about 30 %)."""
+    if pars[P_RATE] == 0.0 and not is_general_record(pars):
+        _paper_stick_rk4(tau0, s0, h, pars, st, meta)
+    else:
+        _general_stick_rk4(tau0, s0, h, pars, st, meta)
+
+
+def _stick_rk4(f: Callable[..., tuple]) -> Callable[..., None]:
+    """``stick_prepare``'s RK4 step on the rolling law ``f`` (compilable core)."""
+
+    def rk4(
+        tau0: float, s0: np.ndarray, h: float, pars: np.ndarray | tuple[float, ...],
+        st: np.ndarray, meta: np.ndarray,
+    ) -> None:  # fmt: skip
+        x, y, vx, vy = s0[0], s0[1], s0[2], s0[3]
+        k1 = f(tau0, x, y, vx, vy, pars)
+        h2 = h / 2
+        k2 = f(tau0 + h2, x + h2 * k1[0], y + h2 * k1[1], vx + h2 * k1[2], vy + h2 * k1[3], pars)
+        k3 = f(tau0 + h2, x + h2 * k2[0], y + h2 * k2[1], vx + h2 * k2[2], vy + h2 * k2[3], pars)
+        k4 = f(tau0 + h, x + h * k3[0], y + h * k3[1], vx + h * k3[2], vy + h * k3[3], pars)
+        h6 = h / 6
+        for j in range(4):
+            st[0, j] = s0[j]
+            st[1, j] = s0[j] + h6 * (k1[j] + 2 * k2[j] + 2 * k3[j] + k4[j])
+            st[2, j] = k1[j]
+        f1 = f(tau0 + h, st[1, 0], st[1, 1], st[1, 2], st[1, 3], pars)
+        for j in range(4):
+            st[3, j] = f1[j]
+        meta[0] = tau0
+        meta[1] = h
+
+    return register_jitable(rk4)
+
+
+_paper_stick_rk4 = _stick_rk4(_paper_stick_f)
+_general_stick_rk4 = _stick_rk4(_general_stick_f)
 
 
 @register_jitable
@@ -161,7 +196,7 @@ def stick_ev(
     st, meta, pars = ctx
     stick_at(t, st, meta, row)
     if deriv:
-        f = _stick_f(t, row[0], row[1], row[2], row[3], pars)
+        f = rhs_record(t, row[0], row[1], row[2], row[3], pars, STICK)
         for j in range(4):
             drow[j] = f[j]
 

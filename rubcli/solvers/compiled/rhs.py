@@ -26,21 +26,27 @@ from rubcli.solvers.compiled.jit import (
 
 
 @jit
-def _rhs_into(t, y, pars, regime, out):
-    # the record unpacked here, not through model.rhs_record: one call level less in
-    # DOP853's stages, which LLVM then inlines whole
+def _rhs_paper_into(t, y, pars, regime, out):
+    """The paper's machine at a constant speed: ``model.rhs_entries`` with rate = 0
+    folded in and nothing added. The record is unpacked here, not through
+    ``model.rhs_record``: one call level less in DOP853's stages, which LLVM then inlines
+    whole. (``dop853-jit``'s loop on the paper's machine is built on it: the general
+    machine's terms behind a branch in the stages cost the paper's case about 10 %.)"""
     nu, eta, E, phi0 = pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0]
     K, mu, Rp = pars[P_K], pars[P_MU], pars[P_RP]
-    rate = pars[P_RATE]
-    if rate == 0.0 and pars[P_GENERAL] == 0.0:
-        # the paper's machine at a constant speed: the core compiled with rate = 0 folded
-        # in and nothing added (the general machine's terms inside this branch cost the
-        # paper's stages 5-10 %)
-        vx, vy, ax, ay = rhs_entries(t, y[0], y[1], y[2], y[3], nu, eta, E, phi0, K, mu, Rp,
-                                     regime)  # fmt: skip
+    vx, vy, ax, ay = rhs_entries(t, y[0], y[1], y[2], y[3], nu, eta, E, phi0, K, mu, Rp, regime)
+    out[0], out[1], out[2], out[3] = vx, vy, ax, ay
+
+
+@jit
+def _rhs_into(t, y, pars, regime, out):
+    """Any machine and speed: ``_rhs_paper_into`` on the paper's machine at a constant
+    speed, else ``model.rhs_record``."""
+    if pars[P_RATE] == 0.0 and pars[P_GENERAL] == 0.0:
+        _rhs_paper_into(t, y, pars, regime, out)
     else:
         vx, vy, ax, ay = rhs_record(t, y[0], y[1], y[2], y[3], pars, regime)
-    out[0], out[1], out[2], out[3] = vx, vy, ax, ay
+        out[0], out[1], out[2], out[3] = vx, vy, ax, ay
 
 
 @jit

@@ -8,14 +8,25 @@ run too), and the application of an event (``events.switch_regime``).
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING
+
+from numba.extending import register_jitable
 
 from rubcli import model
 from rubcli.model import (
+    P_E,
+    P_ETA,
+    P_K,
     P_MU,
+    P_NU,
+    P_PHI0,
     P_RATE,
     P_RP,
+    STICK_EXIT_MARGIN,
     rolling_velocity,
+    stick_friction_value,
 )
 from rubcli.solvers.compiled.dop853 import DOP_SCAN_POINTS, _dop853_dense_at
 from rubcli.solvers.compiled.jit import jit
@@ -25,7 +36,7 @@ from rubcli.solvers.compiled.precheck import (
     _slip_may_cross,
     _surface_may_cross,
 )
-from rubcli.solvers.compiled.rhs import _rhs_into
+from rubcli.solvers.compiled.rhs import _rhs_into, _rhs_paper_into
 from rubcli.solvers.events import (
     event_search,
     run_time,
@@ -40,64 +51,96 @@ if TYPE_CHECKING:
 FREE_REGIME, STICK_REGIME = model.FREE, model.STICK
 
 
-@jit
-def _dop853_may_have_event(t_old, h, y_old, F, pars, regime, grid, S, dS, hv, hd, row, starts):
-    """The event pre-check of one accepted step on scipy_ivp's scan grid.
+def dop853_precheck(rhs_into: Callable[..., None],
+                    stick_may_exit: Callable[..., bool]) -> Callable[..., bool]:  # fmt: skip
+    """The event pre-check of one accepted DOP853 step, its slip rates from
+    ``rhs_into`` and its stick exit from ``stick_may_exit`` (``_rhs_into`` and
+    ``stick_margin``: any machine; ``_rhs_paper_into`` and ``_paper_margin``: the paper's
+    machine at a constant speed), compiled."""
 
-    Conservative, like ``advance_contact``'s: False only if ``events.earliest_event``
-    surely finds no event in the step (contact entry in free flight; contact exit and
-    slip reversal in slip; contact exit and stick exit in stick). ``starts`` = (on the
-    contact surface, on the slip surface, slip start immediate), as in
-    ``advance_contact``. Fills ``grid`` (``np.linspace`` of the step, element for
-    element, as Python builds it) and the dense states ``S`` on it.
-    """
-    n = DOP_SCAN_POINTS
-    step = h / n
-    for k in range(n):
-        grid[k] = k * step + t_old
-    grid[n] = t_old + h
-    for k in range(n + 1):
-        _dop853_dense_at(grid[k], t_old, h, y_old, F, row)
-        for i in range(4):
-            S[k, i] = row[i]
-    direction = 1.0 if regime == FREE_REGIME else -1.0
-    if _surface_may_cross(grid, S, n, direction, 1.0, hv, hd, starts[0]):
-        return True
-    if regime == STICK_REGIME:
-        return _stick_may_exit(grid, S, n, t_old, h, y_old, F, pars, hv, hd, row)
-    if regime == FREE_REGIME or pars[P_MU] == 0.0:
-        return False
-    for k in range(n + 1):
-        _rhs_into(grid[k], S[k], pars, regime, row)
-        for i in range(4):
-            dS[k, i] = row[i]
-    spin, spin_rate = spin_at(grid[0], pars), pars[P_RP] * pars[P_RATE]
-    return _slip_may_cross(grid, S, dS, n, float(regime), spin, spin_rate, 1.0, hv, hd, starts)
+    def may_have_event(
+        t_old: float, h: float, y_old: np.ndarray, F: np.ndarray, pars: np.ndarray,
+        regime: int, grid: np.ndarray, S: np.ndarray, dS: np.ndarray, hv: np.ndarray,
+        hd: np.ndarray, row: np.ndarray, starts: tuple[bool, bool, bool],
+    ) -> bool:  # fmt: skip
+        """The event pre-check of one accepted step on scipy_ivp's scan grid.
 
-
-@jit
-def _stick_may_exit(grid, S, n, t_old, h, y_old, F, pars, hv, hd, row):
-    """The pre-check of the stick exit (``earliest_event`` in stick): the margin on the
-    grid for each side of the friction cone, its rate by the same central differences."""
-    d = 1e-6 * max(1.0, grid[n] - grid[0])
-    for sign in (1.0, -1.0):
-        value_scale = 0.0
-        rate_scale = 0.0
-        for i in range(n + 1):
-            hv[i] = stick_margin(grid[i], S[i, 0], S[i, 1], S[i, 2], S[i, 3], pars, sign)
-            _dop853_dense_at(grid[i] + d, t_old, h, y_old, F, row)
-            up = stick_margin(grid[i] + d, row[0], row[1], row[2], row[3], pars, sign)
-            _dop853_dense_at(grid[i] - d, t_old, h, y_old, F, row)
-            down = stick_margin(grid[i] - d, row[0], row[1], row[2], row[3], pars, sign)
-            hd[i] = (up - down) / (2.0 * d)
-            value_scale = max(value_scale, abs(hv[i]))
-            rate_scale = max(rate_scale, abs(hd[i]))
-        margin_v = EVENT_MARGIN * (1.0 + value_scale)
-        margin_d = EVENT_MARGIN * (1.0 + rate_scale)
-        from_surface, immediate = run_time(False), run_time(True)
-        if _may_cross(grid, hv, hd, n, margin_v, margin_d, from_surface, immediate):
+        Conservative, like ``advance_contact``'s: False only if ``events.earliest_event``
+        surely finds no event in the step (contact entry in free flight; contact exit and
+        slip reversal in slip; contact exit and stick exit in stick). ``starts`` = (on the
+        contact surface, on the slip surface, slip start immediate), as in
+        ``advance_contact``. Fills ``grid`` (``np.linspace`` of the step, element for
+        element, as Python builds it) and the dense states ``S`` on it.
+        """
+        n = DOP_SCAN_POINTS
+        step = h / n
+        for k in range(n):
+            grid[k] = k * step + t_old
+        grid[n] = t_old + h
+        for k in range(n + 1):
+            _dop853_dense_at(grid[k], t_old, h, y_old, F, row)
+            for i in range(4):
+                S[k, i] = row[i]
+        direction = 1.0 if regime == FREE_REGIME else -1.0
+        if _surface_may_cross(grid, S, n, direction, 1.0, hv, hd, starts[0]):
             return True
-    return False
+        if regime == STICK_REGIME:
+            return stick_may_exit(grid, S, n, t_old, h, y_old, F, pars, hv, hd, row)
+        if regime == FREE_REGIME or pars[P_MU] == 0.0:
+            return False
+        for k in range(n + 1):
+            rhs_into(grid[k], S[k], pars, regime, row)
+            for i in range(4):
+                dS[k, i] = row[i]
+        spin, spin_rate = spin_at(grid[0], pars), pars[P_RP] * pars[P_RATE]
+        return _slip_may_cross(grid, S, dS, n, float(regime), spin, spin_rate, 1.0, hv, hd, starts)
+
+    return jit(may_have_event)
+
+
+def _stick_may_exit_with(margin: Callable[..., float]) -> Callable[..., bool]:
+    """The stick-exit pre-check on the margin ``margin(t, x, y, vx, vy, pars, sign)``
+    (``events.stick_margin``, or ``_paper_margin``), compilable."""
+
+    def stick_may_exit(
+        grid: np.ndarray, S: np.ndarray, n: int, t_old: float, h: float, y_old: np.ndarray,
+        F: np.ndarray, pars: np.ndarray, hv: np.ndarray, hd: np.ndarray, row: np.ndarray,
+    ) -> bool:  # fmt: skip
+        """The pre-check of the stick exit (``earliest_event`` in stick): the margin on the
+        grid for each side of the friction cone, its rate by the same central differences."""
+        d = 1e-6 * max(1.0, grid[n] - grid[0])
+        for sign in (1.0, -1.0):
+            value_scale = 0.0
+            rate_scale = 0.0
+            for i in range(n + 1):
+                hv[i] = margin(grid[i], S[i, 0], S[i, 1], S[i, 2], S[i, 3], pars, sign)
+                _dop853_dense_at(grid[i] + d, t_old, h, y_old, F, row)
+                up = margin(grid[i] + d, row[0], row[1], row[2], row[3], pars, sign)
+                _dop853_dense_at(grid[i] - d, t_old, h, y_old, F, row)
+                down = margin(grid[i] - d, row[0], row[1], row[2], row[3], pars, sign)
+                hd[i] = (up - down) / (2.0 * d)
+                value_scale = max(value_scale, abs(hv[i]))
+                rate_scale = max(rate_scale, abs(hd[i]))
+            margin_v = EVENT_MARGIN * (1.0 + value_scale)
+            margin_d = EVENT_MARGIN * (1.0 + rate_scale)
+            from_surface, immediate = run_time(False), run_time(True)
+            if _may_cross(grid, hv, hd, n, margin_v, margin_d, from_surface, immediate):
+                return True
+        return False
+
+    return register_jitable(stick_may_exit)
+
+
+@register_jitable
+def _paper_margin(t, x, y, vx, vy, pars, sign):
+    """``events.stick_margin`` on the paper's machine at a constant speed."""
+    T = stick_friction_value(t, x, y, vx, vy, pars[P_NU], pars[P_ETA], pars[P_E], pars[P_PHI0])
+    limit = pars[P_MU] * pars[P_K] * (math.hypot(x, y) - 1.0)
+    return sign * T - limit * (1.0 + STICK_EXIT_MARGIN)
+
+
+_dop853_may_have_event = dop853_precheck(_rhs_into, _stick_may_exit_with(stick_margin))
+_paper_may_have_event = dop853_precheck(_rhs_paper_into, _stick_may_exit_with(_paper_margin))
 
 
 @jit
