@@ -144,7 +144,7 @@ class StickRK4:
         frictionless[model.P_MU] = 0.0
         lam = np.linalg.eigvals(two_body_system(s0, frictionless, stator, model.SLIP_POSITIVE)[0])
         self.omega_max = max(float(np.max(np.abs(lam.imag))), float(s0[SPEED]), 1.0)
-        self.use_expm = False
+        self.use_expm = False  # (no eigenbasis: the expm fallbacks count slip steps only)
 
     def __call__(self, t: float | np.ndarray) -> np.ndarray:
         u = (np.asarray(t, dtype=float) - self.tau0) / self.h
