@@ -476,18 +476,15 @@ class PiecewiseStepper:
             prop = _contact_step(self.linearisation, tau, run.state, tb - tau, params, run.regime)
         else:
             if not self.pending:
-                while True:
-                    step = min(self.h, self.h_max, run.t_end - tau)
-                    err, first, second = _doubling_error(
-                        self.linearisation, tau, run.state, step, params, run.regime
-                    )
-                    self.h, accept = control.next_step(
-                        step, err, self.analytic_tol, control.SAFETY, control.MIN_FACTOR,
-                        control.MAX_FACTOR, self.min_step,
-                    )  # fmt: skip
-                    if accept:
-                        break
-                    run.stats["n_rejected_steps"] += 1
+
+                def pair(step: float) -> tuple[float, object, object]:
+                    return _doubling_error(self.linearisation, tau, run.state, step, params,
+                                           run.regime)  # fmt: skip
+
+                first, second, step, self.h, rejected = control.accepted_pair(
+                    pair, self.h, self.h_max, run.t_end - tau, self.analytic_tol, self.min_step
+                )
+                run.stats["n_rejected_steps"] += rejected
                 self.pending.extend([(first, tau + step / 2), (second, tau + step)])
             prop, tb = self.pending.pop(0)
         if run.regime == model.STICK:

@@ -6,12 +6,14 @@ times 4/3, estimates the local error of the half steps (the method's local error
 ``O(h^3)``). The next step is ``h * min(MAX_FACTOR, max(MIN_FACTOR, SAFETY * (tol /
 err)^(1/3)))``; a step is accepted when ``err <= tol`` or it is already as short as
 allowed. These are compilable cores: the Python stepper (``analytic.PiecewiseStepper``)
-and the compiled one (``compiled/contact.py``) call the same functions.
+and the compiled one (``compiled/contact.py``) call the same functions; the Python
+steppers (the rotor's, ``two_body_analytic``'s) retry a step through ``accepted_pair``.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     import numpy as np
@@ -40,3 +42,21 @@ def next_step(
     ``err`` (compilable core)."""
     factor = safety * (tol / max(err, 1e-300)) ** (1 / 3)
     return step * min(max_factor, max(min_factor, factor)), err <= tol or step <= min_step
+
+
+def accepted_pair(
+    pair: Callable[[float], tuple[float, Any, Any]], h: float, h_max: float, t_left: float,
+    tol: float, min_step: float,
+) -> tuple[Any, Any, float, float, int]:  # fmt: skip
+    """Step doubling's next accepted pair of half steps (the Python steppers'):
+    ``pair(step) -> (error, first half, second half)`` is tried at ``min(h, h_max,
+    t_left)`` and retried at the controller's shorter step until accepted. Returns
+    ``(first, second, step, next h, rejections)``."""
+    rejected = 0
+    while True:
+        step = min(h, h_max, t_left)
+        err, first, second = pair(step)
+        h, accept = next_step(step, err, tol, SAFETY, MIN_FACTOR, MAX_FACTOR, min_step)
+        if accept:
+            return first, second, step, h, rejected
+        rejected += 1

@@ -214,24 +214,22 @@ class TwoBodyAnalyticStepper(ExtendedStepper):
             tb = min(run.t_end, tau + self.h)
             return self._step(run, tau, run.state, tb - tau), tb
         if not self.pending:
-            while True:
-                step = min(self.h, self.h_max, run.t_end - tau)
+
+            def pair(step: float) -> tuple[float, TwoBodyFlow | StickRK4, TwoBodyFlow | StickRK4]:
                 full = self._step(run, tau, run.state, step)
                 first = self._step(run, tau, run.state, step / 2)
                 mid = first(tau + step / 2)
                 if run.regime == model.STICK:
                     mid = run.project(mid)
                 second = self._step(run, tau + step / 2, mid, step / 2)
-                end_full, end_halves = full(tau + step), second(tau + step)
-                change = np.abs(end_full - end_halves)[MECHANICAL]
+                change = np.abs(full(tau + step) - second(tau + step))[MECHANICAL]
                 err = float(np.max(change / (1.0 + np.abs(run.state[MECHANICAL])))) * 4.0 / 3.0
-                self.h, accept = control.next_step(
-                    step, err, self.analytic_tol, control.SAFETY, control.MIN_FACTOR,
-                    control.MAX_FACTOR, self.min_step,
-                )  # fmt: skip
-                if accept:
-                    break
-                run.stats["n_rejected_steps"] += 1
+                return err, first, second
+
+            first, second, step, self.h, rejected = control.accepted_pair(
+                pair, self.h, self.h_max, run.t_end - tau, self.analytic_tol, self.min_step
+            )
+            run.stats["n_rejected_steps"] += rejected
             self.pending.extend([(first, tau + step / 2), (second, tau + step)])
         return self.pending.pop(0)
 
