@@ -404,6 +404,20 @@ def test_compare_runs_the_ring(tmp_path):
     assert len(ratios) == 2 and all(8.0 < r < 25.0 for r in ratios), ladder
 
 
+def test_the_compare_orbit_panel_holds_the_rotors_orbit():
+    # the panel is drawn about the support's centre: its axes hold the rotor's own orbit
+    # (relative position plus the ring's displacement plus the offset), not the relative
+    from rubcli.plotting.compare import orbits_figure
+
+    problem = Problem.from_periods(ring_machine(), (-0.3, 0.0, 0.0, 0.0), 6, 20)
+    sol = solve(problem, "dop853-jit")
+    fig = orbits_figure([{"title": "ring", "solutions": [sol]}], "ring")
+    (x0, x1), (y0, y1) = fig.axes[0].get_xlim(), fig.axes[0].get_ylim()
+    w = rotor_and_ring(sol)[:2]
+    assert x0 < w[0].min() and w[0].max() < x1 and y0 < w[1].min() and w[1].max() < y1
+    assert max(np.ptp(w[0]), np.ptp(w[1])) > 0.6 * (x1 - x0)  # and is not lost in them
+
+
 def test_the_snubber_case_is_a_moving_stator():
     case = load_case(REPO / "cases" / "machines" / "snubber.toml")
     assert case.params.stator is not None and case.params.offset == (0.3, 0.0)

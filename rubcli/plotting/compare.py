@@ -118,16 +118,16 @@ def orbits_figure(panels: Sequence[dict], title: str) -> Figure:
     (``shared_radii``): a panel drawn at the larger of two scales says so in its title and
     shows the frame of the others as a dotted square.
     """
-    from rubcli.plotting.orbit import distance_text, draw_orbits, legend_handles
+    from rubcli.plotting.orbit import axes_radius, distance_text, draw_orbits, legend_handles
 
     n = len(panels)
     cols = 3 if n > 4 else max(1, n) if n <= 2 else 2
     rows = math.ceil(n / cols)
-    fig = _new_figure(max(6.4, 4.4 * cols), 4.7 * rows + 1.8)
+    fig = _new_figure(max(6.8, 4.4 * cols), 4.7 * rows + 1.8)
     method_handles: dict[str, object] = {}
     drawings = []
     bold = display.BOLD_PERIODS
-    radii = shared_radii([display.orbit_radius(p["solutions"]) for p in panels])
+    radii = shared_radii([axes_radius(p["solutions"]) for p in panels])
     small = min(radii, default=1.0)
     for k, panel in enumerate(panels):
         ax = fig.add_subplot(rows, cols, k + 1)
@@ -157,7 +157,7 @@ def orbits_figure(panels: Sequence[dict], title: str) -> Figure:
     if drawings:
         styles, _ = legend_handles(drawings, bold, "clearances")
         fig.legend(handles=list(method_handles.values()) + styles, loc="outside lower center",
-                   ncols=3, fontsize="small")  # fmt: skip
+                   ncols=3 if cols > 1 else 2, fontsize="small")  # fmt: skip
     fig.suptitle(title, fontsize="medium")
     return fig
 

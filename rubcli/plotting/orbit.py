@@ -102,6 +102,8 @@ def draw_orbits(
     # moving stator's at its rest position, its centre's path beside
     cx, cy = solutions[0].problem.params.offset if solutions else (0.0, 0.0)
     moving = bool(solutions) and solutions[0].stator_states is not None
+    if radius is None:  # the orbits, the clearance and the support's centre
+        radius = unit * axes_radius(solutions)
     if moving:
         paths = {s.method: s.stator_states[:, :2] for s in solutions}
         solutions = [rotor_view(s) for s in solutions]
@@ -117,8 +119,6 @@ def draw_orbits(
         # a ring about the start's star (a rotor at rest on its support starts there)
         ax.plot(0.0, 0.0, "o", ms=17, mfc="none", mec="0.2", mew=1.3, ls="none",
                 label="support centre", zorder=5)  # fmt: skip
-    if radius is None:  # the orbits, the clearance and the support's centre
-        radius = unit * max(display.orbit_radius(solutions), display.MARGIN * math.hypot(cx, cy))
     drawing = OrbitDrawing(radius=radius)
     good = [s for s in solutions if s.success and display.finite_length(s) >= 2]
     first = good[0] if good else None
@@ -196,6 +196,18 @@ def draw_orbits(
     ax.set_aspect("equal", adjustable="box")
     ax.grid(True, alpha=0.3)
     return drawing
+
+
+def axes_radius(solutions: Sequence[Solution]) -> float:
+    """The half-width (clearances) of the axes ``draw_orbits`` gives these solutions,
+    about the stator's centre: the orbits as drawn (with a moving stator, the rotor's own
+    motion), the clearance and the support's centre."""
+    if not solutions:
+        return display.orbit_radius([])
+    cx, cy = solutions[0].problem.params.offset
+    if solutions[0].stator_states is not None:
+        solutions = [rotor_view(s) for s in solutions]
+    return max(display.orbit_radius(solutions), display.MARGIN * math.hypot(cx, cy))
 
 
 def rotor_view(solution: Solution) -> Solution:
