@@ -55,14 +55,15 @@ EVENT_BUFFER = 256  # events the kernel may apply before it returns to flush the
 class Dop853Stepper:
     """The compiled DOP853 as a driver stepper (``driver.integrate``).
 
-    One ``advance`` is one call of ``kernels.advance_dop853``: up to ``CHUNK_STEPS``
-    steps with the events it locates and applies itself (recorded here, with the storm
-    guard), or, with ``compiled_events=False`` (or a step the kernel hands back), the
-    pending step's events located by the Python event code.
+    One ``advance`` is one call of ``kernels.advance_dop853`` (or
+    ``advance_paper_dop853``): up to ``CHUNK_STEPS`` steps with the events it locates and
+    applies itself (recorded here, with the storm guard), or, with ``compiled_events=False``
+    (or a step the kernel hands back), the pending step's events located by the Python
+    event code.
     """
 
     def __init__(self, run: driver.Run, rtol: float, atol: float, compiled_events: bool):
-        self.pars = np.array(model.params_vector(run.params))
+        self._set_pars(run)
         self.restart_band = max(RESTART_BAND_FLOOR, rtol)
         # scipy raises a too small rtol to 100 eps (with a warning); so do we, silently
         self.rtol, self.atol = max(rtol, 100 * np.finfo(float).eps), atol
@@ -89,9 +90,16 @@ class Dop853Stepper:
             "compiled_events": compiled_events,
         }
 
+    def _set_pars(self, run: driver.Run) -> None:
+        """The record of the run's parameters and the loop that runs them: the paper's
+        machine at a constant speed has its own (``kernels.advance_paper_dop853``)."""
+        self.pars = np.array(model.params_vector(run.params))
+        paper = self.pars[model.P_RATE] == 0.0 and not model.is_general_record(self.pars)
+        self.kernel = kernels.advance_paper_dop853 if paper else kernels.advance_dop853
+
     def new_leg(self, run: driver.Run) -> None:
         """A new leg of the speed profile: its parameters, and a new segment."""
-        self.pars = np.array(model.params_vector(run.params))
+        self._set_pars(run)
         self.new_segment = True
 
     def advance(self, run: driver.Run) -> None:
@@ -109,7 +117,7 @@ class Dop853Stepper:
         chunk = max(1, min(CHUNK_STEPS, run.steps_left))
         tau0, state0 = run.tau, run.state
         tau, t_new, self.h_abs, run.k, steps, nfev, reason, run.regime, n_ev, self.at_event = (
-            kernels.advance_dop853(
+            self.kernel(
                 tau0, state0, self.f, self.h_abs, run.t_end, pars, run.regime, self.rtol,
                 self.atol, run.t_eval, run.states, run.regimes, run.k, chunk, starts,
                 self.y_new, self.f_new, self.F, self.restart_band, self.ev_tau, self.ev_kind,

@@ -8,8 +8,6 @@ from collections.abc import Callable
 import numpy as np
 
 from rubcli.model import (
-    P_GENERAL,
-    P_RATE,
     rolling_velocity,
 )
 from rubcli.solvers.compiled.dop853 import (
@@ -183,16 +181,30 @@ def advance_dop853(
     are full; the state is at the last event, its segment not yet started), PYTHON (a
     non-finite state) or SMALL_STEP; ``at_event``: ``tau`` is the last event's time.
 
-    On the paper's machine at a constant speed the loop's stages are those of
-    ``rhs._rhs_paper_into`` (no branch to the general machine's terms).
+    Any machine and speed; ``advance_paper_dop853``, with the same arguments, is the
+    paper's machine at a constant speed, whose stages are ``rhs._rhs_paper_into``'s (no
+    branch to the general machine's terms). Two entry points, so that a run compiles only
+    the loop it uses.
     """
-    if pars[P_RATE] == 0.0 and pars[P_GENERAL] == 0.0:
-        return _advance_paper(
-            tau, y, f, h_abs, t_end, pars, regime, rtol, atol, t_eval, out_states,
-            out_regimes, k, max_steps, starts, y_new, f_new, F, band, events_tau,
-            events_kind, events_state, events_regimes, compiled_events,
-        )  # fmt: skip
     return _advance_any(
+        tau, y, f, h_abs, t_end, pars, regime, rtol, atol, t_eval, out_states, out_regimes,
+        k, max_steps, starts, y_new, f_new, F, band, events_tau, events_kind, events_state,
+        events_regimes, compiled_events,
+    )  # fmt: skip
+
+
+@jit
+def advance_paper_dop853(
+    tau: float, y: np.ndarray, f: np.ndarray, h_abs: float, t_end: float, pars: np.ndarray,
+    regime: int, rtol: float, atol: float, t_eval: np.ndarray, out_states: np.ndarray,
+    out_regimes: np.ndarray, k: int, max_steps: int, starts: tuple[bool, bool, bool],
+    y_new: np.ndarray, f_new: np.ndarray, F: np.ndarray, band: float, events_tau: np.ndarray,
+    events_kind: np.ndarray, events_state: np.ndarray, events_regimes: np.ndarray,
+    compiled_events: bool,
+) -> tuple[float, float, float, int, int, int, int, int, int, bool]:  # fmt: skip
+    """``advance_dop853`` on the paper's machine at a constant speed (``pars`` must hold
+    one: ``dop853_jit`` picks the entry)."""
+    return _advance_paper(
         tau, y, f, h_abs, t_end, pars, regime, rtol, atol, t_eval, out_states, out_regimes,
         k, max_steps, starts, y_new, f_new, F, band, events_tau, events_kind, events_state,
         events_regimes, compiled_events,
