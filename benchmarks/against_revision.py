@@ -77,6 +77,7 @@ def run_tree(tree: Path) -> dict[str, dict[str, float]]:
 
 
 def main(revision: str) -> None:
+    load = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as tmp:
         tree = Path(tmp) / "tree"
         subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "-q", str(tree),
@@ -98,7 +99,7 @@ def main(revision: str) -> None:
         "",
         f"Command: `python benchmarks/against_revision.py {revision}`",
         "",
-        f"Load average at start: {os.getloadavg()[0]:.2f}. Best of {REPEATS} solves in a "
+        f"Load average at start: {load:.2f}. Best of {REPEATS} solves in a "
         f"process, better of {ROUNDS} processes per tree (alternating).",
         "",
         f"| case | method | here (ms) | {revision[:10]} (ms) | here / before |",

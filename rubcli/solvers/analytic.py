@@ -331,6 +331,18 @@ def _doubling_error(linearisation, tau, state, h, params, regime):
     return error, first, second
 
 
+def step_settings(run: driver.Run, steps_per_period: int, analytic_tol: float | None,
+                  compiled: bool) -> dict:  # fmt: skip
+    """The settings an analytic stepper reports (``Solution.settings``)."""
+    return {
+        "steps_per_period": steps_per_period,
+        "analytic_tol": analytic_tol,
+        "max_steps": run.max_steps,
+        "max_wall_time_s": run.max_wall_time_s,
+        "compiled": compiled,
+    }
+
+
 class PiecewiseStepper:
     """The piecewise method as a driver stepper (``driver.integrate``).
 
@@ -378,13 +390,7 @@ class PiecewiseStepper:
                 np.empty(EVENT_BUFFER), np.empty(EVENT_BUFFER, dtype=np.int64),
                 np.empty((EVENT_BUFFER, 4)), np.empty((EVENT_BUFFER, 2), dtype=np.int64),
             )  # fmt: skip
-        self.settings = {
-            "steps_per_period": steps_per_period,
-            "analytic_tol": analytic_tol,
-            "max_steps": run.max_steps,
-            "max_wall_time_s": run.max_wall_time_s,
-            "compiled": self.use_kernel,
-        }
+        self.settings = step_settings(run, steps_per_period, analytic_tol, self.use_kernel)
 
     def _fill(self, run: driver.Run, prop, t_stop: float) -> None:
         """The samples of the propagator's span up to ``t_stop``."""

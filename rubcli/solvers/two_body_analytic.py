@@ -47,6 +47,7 @@ from rubcli.solvers.analytic import (
     FREE_SCAN_FRACTION,
     RESTART_BAND,
     LinearFlow,
+    step_settings,
 )
 from rubcli.solvers.events import MAX_SCAN_POINTS, scan_spacing
 from rubcli.solvers.extended import SPEED, Dense, ExtendedRun, ExtendedStepper
@@ -185,13 +186,7 @@ class TwoBodyAnalyticStepper(ExtendedStepper):
             n_free_segments=0, n_contact_steps=0, n_stick_steps=0, n_rejected_steps=0,
             n_expm_fallbacks=0,
         )  # fmt: skip
-        self.settings = {
-            "steps_per_period": steps_per_period,
-            "analytic_tol": analytic_tol,
-            "max_steps": run.max_steps,
-            "max_wall_time_s": run.max_wall_time_s,
-            "compiled": compiled,
-        }
+        self.settings = step_settings(run, steps_per_period, analytic_tol, compiled)
 
     def _step(self, run: ExtendedRun, tau: float, state: np.ndarray,
               h: float) -> TwoBodyFlow | StickRK4:  # fmt: skip
