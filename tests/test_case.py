@@ -230,7 +230,7 @@ def test_known_methods_match_the_solver_registry():
 
 
 def test_init_samples_validate():
-    from rubcli.cli.init import SAMPLE_CASE, SAMPLE_PHYSICAL_CASE
+    from rubcli.samples import SAMPLE_CASE, SAMPLE_PHYSICAL_CASE
 
     assert load_case_text(SAMPLE_CASE, "sample.toml").scale is None
     assert load_case_text(SAMPLE_PHYSICAL_CASE, "sample.toml").scale is not None

@@ -29,9 +29,9 @@ from rubcli import io, model, solvers
 from rubcli.case import KNOWN_METHODS, CaseFile, load_case_text
 from rubcli.cli import console
 from rubcli.cli.app import app
-from rubcli.cli.init import SAMPLE_CASE, SAMPLE_PHYSICAL_CASE
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
+from rubcli.samples import SAMPLE_CASE, SAMPLE_PHYSICAL_CASE
 from rubcli.solution import Solution
 
 ROOT = Path(__file__).resolve().parents[1]
