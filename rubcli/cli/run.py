@@ -55,6 +55,7 @@ from rubcli.cli.common import (
 )
 from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 from rubcli.studies import run as study
+from rubcli.studies import run_summary as summary
 
 if TYPE_CHECKING:
     from rubcli.plotting.transient import SteadyStates
@@ -97,29 +98,6 @@ COMPILING_NOTICE = (
     "minute on an idle 2-core machine, longer on a busy one); later runs load them in about "
     "a second"
 )
-
-
-def _summary_rows(entries: dict[str, dict[str, Any]]) -> list[list[str]]:
-    rows = []
-    for name, e in entries.items():
-        stats = e.get("stats", {})
-        steps = stats.get("nsteps")
-        fraction = e.get("contact_fraction")
-        penetration = e.get("max_penetration")
-        residual = e.get("energy_residual")
-        rows.append(
-            [
-                name,
-                e["status"],
-                f"{e['wall_time_s']:.3f}",
-                "-" if steps is None else str(steps),
-                str(e.get("n_contact_switches", "-")),
-                "-" if fraction is None else f"{100 * fraction:.1f}%",
-                "-" if penetration is None else f"{penetration:.4g}",
-                "-" if residual is None else f"{residual:.2g}",
-            ]
-        )
-    return rows
 
 
 def command(
@@ -199,16 +177,9 @@ def _run(
     plan: io.OutputPlan,
     steady: SteadyStates | None = None,
 ) -> dict[str, Any]:
-    problem = case.problem
-    if problem.drive is not None:
-        span = f"{problem.drive.text()}, tau 0 .. {problem.t_span[1]:.6g}"
-    elif problem.speed is None:
-        span = f"{problem.periods:g} periods (tau 0 .. {problem.t_span[1]:.6g})"
-    else:
-        turns = problem.speed.phase(problem.t_span[1], 0.0) - problem.speed.phase(0.0, 0.0)
-        revolutions = turns / (2.0 * math.pi)
-        span = f"{problem.speed.text()}, tau 0 .. {problem.t_span[1]:.6g} ({revolutions:.0f} turns)"
-    console.info(f"{case.name}: {span}, methods {', '.join(case.methods)}")
+    console.info(
+        f"{case.name}: {summary.span_text(case.problem)}, methods {', '.join(case.methods)}"
+    )
     command_line = {
         "case_file": str(case_file),
         "methods": method or None,
@@ -234,16 +205,11 @@ def _run(
     entries = report["methods"]
     report_stale(plan)
 
-    console.table(
-        f"{case.name}: results",
-        ["method", "status", "wall s", "steps", "events", "contact", "max pen", "E resid"],
-        _summary_rows(entries),
-        caption="events: located switches; contact: share of time in contact; max pen: "
-        "largest penetration (clearances); E resid: energy-balance residual (report.json)",
-    )
+    console.table(f"{case.name}: results", list(summary.COLUMNS), summary.summary_rows(entries),
+                  caption=summary.CAPTION)  # fmt: skip
     for name, entry in entries.items():
         if entry.get("transient") is not None:
-            console.info(_transient_line(name, entry["transient"]))
+            console.info(summary.transient_line(name, entry["transient"]))
     files = report["files"]
     console.info(f"wrote {len(files)} files to {case.output_dir}: {', '.join(files)}")
     return report
@@ -264,36 +230,3 @@ def _steady_or_exit(case: Case, case_file: Path, overlay: Path | None) -> Steady
         console.error_lines("cannot overlay the sweep", steady)
         raise typer.Exit(EXIT_INVALID)
     return steady
-
-
-def _transient_line(method: str, transient: dict) -> str:
-    """One line of a run whose speed changes: the 1X peak and the rub's speeds."""
-    if "note" in transient:
-        return transient["note"]
-    rpm = "peak_1x_forward_rpm" in transient
-    unit, key = ("rpm", "rpm") if rpm else ("", "eta")
-
-    def speed(name: str) -> str:
-        value = transient.get(f"{name}_{key}")
-        if value is None:
-            return "-"
-        return f"{value:.0f} {unit}".strip() if rpm else f"eta {value:.4g}"
-
-    end = speed("rub_end") if transient.get("rub_end_eta") is not None else "still rubbing"
-    if transient.get("rub_onset_eta") is None:
-        rub = "no rub"
-    else:
-        rub = f"rub from {speed('rub_onset')} to {end}, {transient['rub_transitions']} rub starts"
-    line = (
-        f"{method}: peak 1X {transient['peak_1x_forward_amplitude']:.4g} clearances at "
-        f"{speed('peak_1x_forward')}; {rub} over {transient['revolutions']} revolutions"
-    )
-    drive = transient.get("drive")
-    if drive is not None:  # a driven rotor: where its speed went
-        captured = ", captured" if drive["captured"] else ""
-        if rpm:
-            went = f"{drive['start_speed_rpm']:.0f} to {drive['final_speed_rpm']:.0f} rpm"
-        else:
-            went = f"eta {drive['start_speed']:.4g} to {drive['final_speed']:.4g}"
-        line += f"; speed {went}{captured}"
-    return line
