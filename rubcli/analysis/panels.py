@@ -11,7 +11,7 @@
 
 Results are typed (dataclasses); ``to_dict()`` gives the report.json form. Long steps
 report progress through a *progress factory*: a callable ``(label, total)`` returning a
-context manager that yields ``update(done)`` (``rubcli.cli.console.progress_bar`` is one;
+context manager that yields ``update(done)`` (``rubcli.cli.progress.progress_bar`` is one;
 the default shows nothing). Nothing here prints or writes files.
 """
 

@@ -25,7 +25,7 @@ from typing import Annotated
 
 import typer
 
-from rubcli.cli import console
+from rubcli.cli import console, progress
 from rubcli.cli.common import (
     ForceOption,
     JsonOption,
@@ -75,7 +75,7 @@ def command(
         checks = min(c.check_points, study.QUICK_CHECK_POINTS) if quick else c.check_points
         with (
             console.notice_if_slow(f"charting {c.nx} x {c.ny} points in ({c.x}, {c.y})"),
-            console.progress_bar("continuation check", total=checks)
+            progress.progress_bar("continuation check", total=checks)
             if checks
             else contextlib.nullcontext(None) as update,
         ):

@@ -46,7 +46,7 @@ import typer
 from rubcli import io
 from rubcli.analysis.reference import ReferenceError
 from rubcli.case import Case, CompareSection
-from rubcli.cli import console
+from rubcli.cli import console, progress
 from rubcli.cli.common import (
     ForceOption,
     JsonOption,
@@ -107,7 +107,7 @@ def _compare(
 ) -> dict[str, Any]:
     console.info(f"{case.name}: compare {', '.join(methods)}" + (" (quick)" if quick else ""))
     try:
-        result = study.compare_case(case, quick=quick, progress_bar=console.progress_bar)
+        result = study.compare_case(case, quick=quick, progress_bar=progress.progress_bar)
     except ReferenceError as exc:
         console.error(f"no reference solution: {exc}")
         raise typer.Exit(EXIT_FAILED) from None

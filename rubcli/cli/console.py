@@ -19,24 +19,14 @@ from __future__ import annotations
 import os
 import sys
 import threading
-import time
 import warnings
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TextIO
 
 from rich import box
 from rich.console import Console
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    Progress,
-    TaskProgressColumn,
-    TextColumn,
-    TimeElapsedColumn,
-    TimeRemainingColumn,
-)
 from rich.table import Table
 
 
@@ -121,7 +111,8 @@ def formatted_python_warnings() -> Iterator[None]:
         yield
 
 
-def _stderr() -> Console:
+def stderr_console() -> Console:
+    """The console of diagnostics and progress (stderr, followed at each call)."""
     return Console(file=sys.stderr, highlight=False)
 
 
@@ -160,17 +151,17 @@ def success(message: str) -> None:
 
 
 def warning(message: str) -> None:
-    _stderr().print(f"warning: {message}", style="yellow", markup=False, soft_wrap=True)
+    stderr_console().print(f"warning: {message}", style="yellow", markup=False, soft_wrap=True)
 
 
 def error(message: str) -> None:
     """An error for the user; each line of ``message`` printed as it is."""
-    _stderr().print(f"error: {message}", style="bold red", markup=False, soft_wrap=True)
+    stderr_console().print(f"error: {message}", style="bold red", markup=False, soft_wrap=True)
 
 
 def error_lines(header: str, lines: Sequence[str]) -> None:
     """An error with one line per problem (e.g. every invalid field of a case file)."""
-    console = _stderr()
+    console = stderr_console()
     console.print(f"error: {header}", style="bold red", markup=False, soft_wrap=True)
     for line in lines:
         console.print(f"  {line}", style="red", markup=False, soft_wrap=True)
@@ -180,7 +171,7 @@ def exception(exc: BaseException) -> None:
     """An unexpected exception with its traceback (never swallowed silently)."""
     from rich.traceback import Traceback
 
-    _stderr().print(Traceback.from_exception(type(exc), exc, exc.__traceback__))
+    stderr_console().print(Traceback.from_exception(type(exc), exc, exc.__traceback__))
 
 
 def table(
@@ -227,97 +218,3 @@ def output_width() -> int:
         return console.width
     columns = os.environ.get("COLUMNS", "")
     return int(columns) if columns.isdigit() and int(columns) > 0 else DEFAULT_WIDTH
-
-
-@contextmanager
-def progress_bar(description: str, total: float) -> Iterator[Callable[[float], None]]:
-    """A progress bar from 0 to ``total``; yields ``update(done)``.
-
-    Shown only on a terminal (in a pipe or a log it would only add noise). Updates are
-    thinned to about 200 per bar, so that a solver calling back at every step is not slowed.
-    """
-    console = _stderr()
-    bar = Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        TaskProgressColumn(),
-        TimeElapsedColumn(),
-        console=console,
-        disable=_machine[0] or not console.is_terminal,
-        transient=False,
-    )
-    task = bar.add_task(description, total=total)
-    stride = total / 200.0 if total > 0 else 0.0
-    last = [-float("inf")]
-
-    def update(done: float) -> None:
-        if done - last[0] >= stride:
-            last[0] = done
-            bar.update(task, completed=min(done, total))
-
-    with bar:
-        yield update
-        bar.update(task, completed=last[0] if last[0] > 0 else 0.0)
-
-
-@contextmanager
-def count_bar(description: str, total: int) -> Iterator[Callable[[int], None]]:
-    """A bar of ``total`` items (done/total, rate, elapsed, ETA); yields ``update(done)``.
-
-    For work counted in items (the points of a sweep). Shown only on a terminal.
-    """
-    console = _stderr()
-    bar = Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("{task.fields[rate]}"),
-        TimeElapsedColumn(),
-        TextColumn("ETA"),
-        TimeRemainingColumn(),
-        console=console,
-        disable=not console.is_terminal,
-        transient=False,
-    )
-    task = bar.add_task(description, total=total, rate="")
-    started: list = [None]
-
-    def update(done: int) -> None:
-        now = time.perf_counter()
-        if started[0] is None:
-            started[0] = (now, done)
-        t0, d0 = started[0]
-        rate = (done - d0) / (now - t0) if now > t0 and done > d0 else 0.0
-        bar.update(task, completed=done, rate=f"{rate:.2f} points/s" if rate else "")
-
-    with bar:
-        yield update
-
-
-@contextmanager
-def progress_lines(status: Callable[[], str], every_s: float = 10.0) -> Iterator[None]:
-    """Where no progress bar shows (stderr is not a terminal: a log, a pipe, a batch job),
-    print ``progress: <status()>`` on stderr when the block starts and every ``every_s``
-    seconds while it runs, so that a long computation is never silent. Nothing on a
-    terminal (the bars show there)."""
-    if _stderr().is_terminal:
-        yield
-        return
-    done = threading.Event()
-
-    def line() -> None:
-        _stderr().print(f"progress: {status()}", markup=False, soft_wrap=True)
-
-    def beat() -> None:
-        while not done.wait(every_s):
-            line()
-
-    line()
-
-    thread = threading.Thread(target=beat, daemon=True)
-    thread.start()
-    try:
-        yield
-    finally:
-        done.set()
-        thread.join()

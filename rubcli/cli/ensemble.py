@@ -31,7 +31,7 @@ import typer
 
 from rubcli import io
 from rubcli.analysis import ensemble as en
-from rubcli.cli import console
+from rubcli.cli import console, progress
 from rubcli.cli.common import (
     ForceOption,
     JsonOption,
@@ -115,7 +115,7 @@ def command(
             lyapunov_periods=s["lyapunov_periods"], settle_tolerance=s["settle_tolerance"],
             starts=starts,
         )  # fmt: skip
-        with console.progress_bar(f"ensemble of {len(tasks)} runs", total=len(tasks)) as update:
+        with progress.progress_bar(f"ensemble of {len(tasks)} runs", total=len(tasks)) as update:
             result = en.run_ensemble(tasks, workers=min(workers, len(tasks)), progress=update,
                                      settings=s)  # fmt: skip
         report = {
@@ -173,7 +173,7 @@ def _basin_stability(case_file, case, out, workers, quick, json, force, wait) ->
     with console.machine_readable(json):
         n = len(s["values"])
         bar = f"basin stability: {n} values of {s['parameter']}"
-        with console.progress_bar(bar, total=1.0) as update:
+        with progress.progress_bar(bar, total=1.0) as update:
             result = study.basin_stability_of(
                 case, quick=quick, workers=workers, progress=lambda done, n: update(done / n)
             )

@@ -154,7 +154,7 @@ def _orbits(case_file, case, target, plan, overlay, overlay_data, quick, max_wal
         update(done / total)
 
     bar = f"orbits continued in {case.settings.orbits.parameter}"
-    with console.progress_lines(status), console.progress_bar(bar, total=1.0) as update:
+    with progress.progress_lines(status), progress.progress_bar(bar, total=1.0) as update:
         result = study.continue_orbits(case, quick=quick, max_wall_time_s=max_wall_time,
                                        overlay=overlay_data, progress=progress)  # fmt: skip
     command_line = {"case_file": str(case_file), "out": str(target), "quick": quick,

@@ -43,7 +43,7 @@ import typer
 from rubcli import io
 from rubcli.analysis.checks import WARNING
 from rubcli.case import KNOWN_METHODS, Case, CaseError
-from rubcli.cli import console
+from rubcli.cli import console, progress
 from rubcli.cli.common import (
     ForceOption,
     JsonOption,
@@ -199,9 +199,9 @@ def _run(
         startup = study.start_up(case)
     if startup > 0.05:
         console.info(f"start-up (compiled kernels loaded or compiled): {startup:.2f} s")
-    result = study.run_case(case, progress_bar=console.progress_bar, on_error=console.exception,
+    result = study.run_case(case, progress_bar=progress.progress_bar, on_error=console.exception,
                             startup_s=startup)  # fmt: skip
-    report = result.write(case.output_dir, plan, command_line, console.progress_bar, steady)
+    report = result.write(case.output_dir, plan, command_line, progress.progress_bar, steady)
     entries = report["methods"]
     report_stale(plan)
 

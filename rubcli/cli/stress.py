@@ -29,7 +29,7 @@ import typer
 
 from rubcli import io
 from rubcli.analysis import stress
-from rubcli.cli import console
+from rubcli.cli import console, progress
 from rubcli.cli.common import (
     ForceOption,
     JsonOption,
@@ -113,7 +113,7 @@ def _stress(
     )
     done = [0]
     total = len(cases) * len(stress.method_variants(methods))
-    with console.progress_bar("stress  ", total=total) as update:
+    with progress.progress_bar("stress  ", total=total) as update:
 
         def on_run(run: stress.StressRun) -> None:
             done[0] += 1

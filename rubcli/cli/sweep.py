@@ -32,7 +32,7 @@ from typing import Annotated
 import typer
 
 from rubcli import io
-from rubcli.cli import console
+from rubcli.cli import console, progress
 from rubcli.cli.common import (
     EXIT_WRITE,
     ForceOption,
@@ -129,7 +129,7 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
     console.info(study.describe(case, plan, quick))
     started = time.perf_counter()
     try:
-        with console.count_bar("sweep points", total=plan.n_points) as bar:
+        with progress.count_bar("sweep points", total=plan.n_points) as bar:
             results, stats, where = engine.execute(
                 plan,
                 workers=workers,

@@ -28,7 +28,7 @@ import typer
 from rubcli import io
 from rubcli.analysis import whirls as wh
 from rubcli.case import Case, OrbitsSection
-from rubcli.cli import console
+from rubcli.cli import console, progress
 from rubcli.cli.common import emit, prepare_output, report_stale
 from rubcli.studies.orbits import CSV_COLUMNS as ORBIT_COLUMNS
 
@@ -122,7 +122,7 @@ def run(
     with console.machine_readable(json):
         t0 = time.perf_counter()
         total = float(settings.max_points * len(settings.directions) * 2)
-        with console.progress_bar(f"whirls in {o.parameter}", total=total) as update:
+        with progress.progress_bar(f"whirls in {o.parameter}", total=total) as update:
             result = wh.continue_whirls(case.params, settings, progress=lambda n: update(n))
         wall = time.perf_counter() - t0
         command_line = {"case_file": str(case_file), "out": str(target), "quick": quick}

@@ -65,7 +65,7 @@ class Background:
     def wait(self, bar: Callable[[str, float], Any] | None = None) -> None:
         """Wait for every job, in order, doing the pieces of it the job offers (``helper``)
         meanwhile; a job still running shows ``bar(label, total)`` (a context manager
-        yielding ``update(done)``, as ``console.progress_bar``). Re-raises the first
+        yielding ``update(done)``, as ``progress.progress_bar``). Re-raises the first
         failed job's exception."""
         for future, label, total, done, helper in self._jobs:
             if not future.done() and bar is not None and label is not None:

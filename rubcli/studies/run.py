@@ -149,7 +149,7 @@ def run_case(
 ) -> RunResult:
     """Solve the case with each of its methods, each alone and timed, after the warm-up
     (``start_up``; ``startup_s``: its seconds, if the caller ran it). ``progress_bar`` as
-    ``rubcli.cli.console.progress_bar``; ``on_error(exc)`` for a solver that raised."""
+    ``rubcli.cli.progress.progress_bar``; ``on_error(exc)`` for a solver that raised."""
     if startup_s is None:
         startup_s = start_up(case)
     solutions, failures = [], {}
