@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from rubcli.analysis import continuation as cn
-from rubcli.cli import console
+from rubcli.cli import console, progress
 from rubcli.cli.common import (
     ForceOption,
     JsonOption,
@@ -149,14 +149,14 @@ def _orbits(case_file, case, target, plan, overlay, overlay_data, quick, max_wal
         return (f"orbits: {state['phase']}, {state['done']} orbits, "
                 f"{time.perf_counter() - t0:.0f} s of the {budget:g} s budget")  # fmt: skip
 
-    def progress(phase: str, done: int, total: int) -> None:
+    def advanced(phase: str, done: int, total: int) -> None:
         state.update(phase=phase, done=done)
         update(done / total)
 
     bar = f"orbits continued in {case.settings.orbits.parameter}"
     with progress.progress_lines(status), progress.progress_bar(bar, total=1.0) as update:
         result = study.continue_orbits(case, quick=quick, max_wall_time_s=max_wall_time,
-                                       overlay=overlay_data, progress=progress)  # fmt: skip
+                                       overlay=overlay_data, progress=advanced)  # fmt: skip
     command_line = {"case_file": str(case_file), "out": str(target), "quick": quick,
                     "overlay": str(overlay) if overlay is not None else None}  # fmt: skip
     report = result.write(target, plan, command_line)
