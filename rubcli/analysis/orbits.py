@@ -202,13 +202,15 @@ def rolling_projection_jacobian(s: np.ndarray, params: ModelParams) -> np.ndarra
 
 
 def _event_functions(params: ModelParams, regime: int) -> list:
-    """solve_ivp event functions of a regime, each tagged with its kind."""
+    """solve_ivp event functions of a regime, each tagged with its kind: the event
+    functions of ``events`` (``surface_value``, ``slip_value``, ``stick_margin``) on the
+    flow's first four entries."""
 
     def entry(t: float, Y: np.ndarray) -> float:
-        return Y[0] * Y[0] + Y[1] * Y[1] - 1.0
+        return float(ev.surface_value(Y))
 
     def exit_(t: float, Y: np.ndarray) -> float:
-        return Y[0] * Y[0] + Y[1] * Y[1] - 1.0
+        return float(ev.surface_value(Y))
 
     entry.terminal, entry.direction, entry.kind = True, 1.0, ev.ENTRY
     exit_.terminal, exit_.direction, exit_.kind = True, -1.0, ev.EXIT
@@ -218,7 +220,7 @@ def _event_functions(params: ModelParams, regime: int) -> list:
     if params.mu > 0.0 and regime in (model.SLIP_POSITIVE, model.SLIP_NEGATIVE):
 
         def reversal(t: float, Y: np.ndarray) -> float:
-            return model.slip_velocity(float(Y[0]), float(Y[1]), Y[2], Y[3], params.Rp, params.eta)
+            return float(ev.slip_value(Y, params, t))
 
         reversal.terminal, reversal.kind = True, ev.REVERSAL
         reversal.direction = -1.0 if regime == model.SLIP_POSITIVE else 1.0
