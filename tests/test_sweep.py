@@ -10,6 +10,7 @@ import contextlib
 import json
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -24,7 +25,7 @@ import rubcli
 from rubcli import model
 from rubcli.analysis.sweep import Axis, SweepPlan, execute
 from rubcli.analysis.sweep.dataset import build_dataset, csv_text
-from rubcli.analysis.sweep.point import RESPONSE_CLASSES
+from rubcli.analysis.sweep.point import RESPONSE_CLASSES, SCALARS
 from rubcli.case import load_case
 from rubcli.cli.app import app
 from rubcli.sweeps import plan_from_case
@@ -161,6 +162,27 @@ def test_results_do_not_depend_on_the_executor(fig3_params):
         assert csv_text(ds, plan) == csv_text(reference, plan)
         for key, result in other.items():
             assert result.final_state == one[key].final_state
+
+
+def test_every_scalar_result_is_one_entry_of_the_table_and_a_column_of_each_output(fig3_params):
+    """A point's results are point.SCALARS: each is in docs/sweeps.md's table of what a
+    point computes, a variable of sweep.nc (its meaning as long_name) and a column of
+    sweep.csv, in the table's order (how a result is added, docs/sweeps.md)."""
+    docs = (REPO / "docs" / "sweeps.md").read_text()
+    table = docs[docs.index("## What each point computes") : docs.index("## Outputs")]
+    documented = set(re.findall(r"`([a-z_]+)`", table))
+    assert set(SCALARS) <= documented, sorted(set(SCALARS) - documented)
+    plan = SweepPlan(
+        fig3_params(mu=0.0), (0.88544, -0.8039, 0.0, 0.0), (Axis("mu", (0.0, 0.02)),),
+        transient_periods=2, record_periods=8, samples_per_period=16,
+        options={"rtol": 1e-8, "atol": 1e-10},
+    )  # fmt: skip
+    results, _, _ = execute(plan, workers=1)
+    ds = build_dataset(plan, results)
+    for name, meaning in SCALARS.items():
+        assert ds[name].attrs["long_name"] == meaning
+    header = csv_text(ds, plan).splitlines()[0].split(",")
+    assert [c for c in header if c in SCALARS] == list(SCALARS)
 
 
 _DIE_MARKER = None
