@@ -302,7 +302,9 @@ def balance_pass(
     energy_first = 0.0
     energy_last = 0.0
     energy_max = 0.0
-    offset = 0
+    # an int64, not the literal 0: with a literal numba would compile _piece_pass twice,
+    # once for Literal[int](0) while inferring the loop's types and once for int64
+    offset = np.int64(0)
     for p in range(regimes.size):
         n = hi[p] - lo[p] + 2
         first, last, largest = _piece_pass(p, n, t, states, bounds, pv, regimes[p], fine, coarse,

@@ -179,7 +179,9 @@ def advance_piecewise(
             spacing = free_frac * 2.0 * math.pi / max(omega, 1e-300)
             tb = tau
             ctx = (ff, pars)
-            linear = (False, ff[0], pars, wf)
+            # the Cartesian propagator's ctx, its flag through run_time: a literal False
+            # would compile the contact search a second time (beside the slip's bool)
+            linear = (run_time(False), ff[0], pars, wf)
             while tb < t_end and work < max_work:
                 ta = tb
                 tb = min(t_end, tb + ff[5] * spacing)

@@ -161,7 +161,10 @@ def _dop853_locate(t_old, h, y_old, F, pars, regime, grid, hv, hd, row, drow, st
     """The event search's ``locate`` on one step's dense output (scan grid ``grid[:DOP_SCAN_POINTS +
     1]``): (tau, kind) of the earliest event, or (NaN, NO_EVENT)."""
     ctx = (t_old, h, y_old, F, pars, regime)
-    return _locate_dense(ctx, regime, pars, grid, DOP_SCAN_POINTS, starts, band, hv, hd, row, drow)
+    # the grid size through run_time: a literal would compile the search's scan twice (for
+    # Literal[int](DOP_SCAN_POINTS) and for the refinement's int64)
+    n = run_time(DOP_SCAN_POINTS)
+    return _locate_dense(ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow)
 
 
 @jit
