@@ -444,62 +444,6 @@ def test_adaptive_kernel_hands_back_whole_pairs(fig3_params):
     assert steps % 2 == 0 and 0.0 < h <= 4 * settings[4]
 
 
-def test_kernel_stops_before_an_event_and_at_its_limits(fig3_params):
-    """advance_contact on its own, one step into the first contact phase of the paper's
-    case: it stops before the step that holds the contact exit (fills the samples up to
-    there, as the Python reference does, and no later ones), at its step limit and at
-    t_end."""
-    p = fig3_params(0.0)
-    prob = Problem.from_periods(p, FIG3_INITIAL, 3, 100)
-    ref = solve(prob, "analytic-polar", compiled=False)
-    kinds = [ev.kind for ev in ref.events]
-    entry = ref.events[kinds.index("contact_entry")]  # (the orbit starts in contact)
-    exit_ = ref.events[kinds.index("contact_entry") + 1]
-    assert exit_.kind == "contact_exit"
-    h = p.period / 400
-    first = analytic.PolarLinearisedContact(entry.tau, np.array(entry.state), p, 0.0)
-    tau0 = entry.tau + h
-    s0 = np.ascontiguousarray(first.states(tau0))
-    t_eval = prob.t_eval.copy()
-    k0 = int(np.searchsorted(t_eval, tau0, side="right"))
-    pars = np.array(model.params_vector(p))
-
-    def advance(t_end, limit):
-        out = np.full((t_eval.size, 4), np.nan)
-        result = compiled.advance_contact(
-            True,
-            tau0,
-            s0,
-            h,
-            t_end,
-            model.SLIP_POSITIVE,
-            pars,
-            t_eval,
-            out,
-            k0,
-            limit,
-            analytic.CONTACT_SCAN_FRACTION,
-            analytic.EIGVEC_COND_LIMIT,
-            (False, False, False),
-        )
-        return (*result, out)
-
-    tau, state, k, steps, reason, out = advance(t_eval[-1], 10**9)
-    assert reason == compiled.STOP_EVENT
-    assert 0.0 <= exit_.tau - tau < 3 * h  # stopped just before the exit's step
-    assert steps == round((tau - tau0) / h)
-    assert t_eval[k - 1] <= tau < t_eval[k]
-    np.testing.assert_allclose(out[k0:k], ref.states[k0:k], rtol=0, atol=1e-12)
-    assert np.all(np.isnan(out[k:]))
-    assert model.regime_of_state(state, p) == model.SLIP_POSITIVE
-
-    tau, _, _, steps, reason, _ = advance(t_eval[-1], 5)
-    assert (steps, reason) == (5, compiled.STOP_LIMIT) and tau == pytest.approx(tau0 + 5 * h)
-    t_end = tau0 + 2.5 * h
-    tau, _, _, steps, reason, _ = advance(t_end, 10**9)
-    assert (steps, reason, tau) == (3, compiled.STOP_END, t_end)
-
-
 # ------------------------------------------------------------------ scipy right-hand sides
 
 

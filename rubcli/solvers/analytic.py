@@ -346,11 +346,13 @@ def step_settings(run: driver.Run, steps_per_period: int, analytic_tol: float | 
 class PiecewiseStepper:
     """The piecewise method as a driver stepper (``driver.integrate``).
 
-    One ``advance`` is one step of the method: a whole free flight up to its next event
-    (scanned chunk by chunk on the closed form), a compiled run of event-free slip
-    steps (``kernels.advance_contact`` or ``advance_contact_adaptive``), or one contact
-    step in Python (fixed, or the next accepted half step of the adaptive control) with
-    its events. ``linearisation`` is 'cartesian' (``analytic``) or 'polar'
+    One ``advance`` is, at fixed steps, a call of the compiled loop
+    (``kernels.advance_piecewise``: every regime and its events); else, or for a step
+    the loop leaves to Python, one step of the method: a whole free flight up to its
+    next event (scanned chunk by chunk on the closed form), a compiled run of
+    event-free adaptive slip steps (``kernels.advance_contact_adaptive``), or one
+    contact step in Python (fixed, or the next accepted half step of the adaptive
+    control) with its events. ``linearisation`` is 'cartesian' (``analytic``) or 'polar'
     (``analytic-polar``).
     """
 
@@ -444,8 +446,9 @@ class PiecewiseStepper:
         return prop, tb, event
 
     def _compiled_slip_steps(self, run: driver.Run) -> bool:
-        """Event-free slip steps in the kernel; True if it took this advance's steps
-        (False: a possible event or a step it leaves to Python is next)."""
+        """Event-free adaptive slip steps in the kernel (``advance_contact_adaptive``);
+        True if it took this advance's steps (False: a possible event or a step it
+        leaves to Python is next)."""
         k0 = run.k
         args = (
             self.linearisation == "polar", run.tau,
@@ -454,15 +457,12 @@ class PiecewiseStepper:
             min(KERNEL_CHUNK_STEPS, run.steps_left), CONTACT_SCAN_FRACTION,
             EIGVEC_COND_LIMIT, start_flags(run.last_kind),
         )  # fmt: skip
-        if self.analytic_tol is None:
-            tau, state, k, taken, reason = kernels.advance_contact(*args)
-        else:
-            # h comes back as the controller's next step (unchanged if no pair was
-            # taken); the rejections of the pairs it took
-            tau, state, k, taken, rejected, self.h, reason = kernels.advance_contact_adaptive(
-                *args, self.control
-            )
-            run.stats["n_rejected_steps"] += rejected
+        # h comes back as the controller's next step (unchanged if no pair was taken);
+        # the rejections of the pairs it took
+        tau, state, k, taken, rejected, self.h, reason = kernels.advance_contact_adaptive(
+            *args, self.control
+        )
+        run.stats["n_rejected_steps"] += rejected
         run.tau, run.state, run.k = tau, state, k
         if taken:
             run.last_kind = NO_EVENT
@@ -540,8 +540,16 @@ class PiecewiseStepper:
                 prop, tb, event = self._free_flight(run)
             else:
                 slip = run.regime in (model.SLIP_POSITIVE, model.SLIP_NEGATIVE)
-                # (adaptive: only between pairs of half steps, when `pending` is empty)
-                if self.use_kernel and slip and not self.pending and self._compiled_slip_steps(run):
+                # adaptive steps, between pairs of half steps (`pending` empty); a fixed
+                # step is here only where the compiled loop left it to Python
+                adaptive = self.analytic_tol is not None
+                if (
+                    adaptive
+                    and self.use_kernel
+                    and slip
+                    and not self.pending
+                    and (self._compiled_slip_steps(run))
+                ):
                     return  # the kernel advanced tau, the state, the samples and the counts
                 try:
                     prop, tb, event = self._contact_step(run)
@@ -568,10 +576,10 @@ def solve_piecewise(
     Fixed steps of ``period / steps_per_period`` in contact, or, with ``analytic_tol``,
     adaptive steps chosen by step doubling so that the estimated local error per step
     stays below the tolerance (``steps_per_period`` then sets the first step).
-    With ``compiled`` the event-free slip steps run in the numba kernels
-    ``kernels.advance_contact`` (fixed) or ``kernels.advance_contact_adaptive`` (the
-    same step doubling and control as ``PiecewiseStepper``); ``compiled=False`` is the
-    pure-Python path.
+    With ``compiled`` fixed steps run in the compiled loop
+    (``kernels.advance_piecewise``), and the event-free adaptive slip steps in
+    ``kernels.advance_contact_adaptive`` (the same step doubling and control as
+    ``PiecewiseStepper``); ``compiled=False`` is the pure-Python path.
     """
     o = options
     run = driver.Run(

@@ -37,7 +37,7 @@ What the drivers call is re-exported here.
 """
 
 from rubcli.solvers.compiled.cache import ensure_fresh
-from rubcli.solvers.compiled.contact import advance_contact, advance_contact_adaptive
+from rubcli.solvers.compiled.contact import advance_contact_adaptive
 from rubcli.solvers.compiled.dop853 import dop853_dense, dop853_dense_point, dop853_initial_step
 from rubcli.solvers.compiled.dop853_loop import advance_dop853, advance_paper_dop853
 from rubcli.solvers.compiled.jit import (
@@ -60,7 +60,6 @@ __all__ = [
     "STOP_PYTHON",
     "STOP_REASONS",
     "STOP_SMALL_STEP",
-    "advance_contact",
     "advance_contact_adaptive",
     "advance_dop853",
     "advance_paper_dop853",

@@ -1,14 +1,15 @@
-"""The compiled bulk of the analytic methods: consecutive event-free slip steps.
+"""The analytic methods' compiled slip steps: the parts of a linearised contact step the
+fixed-step loop (``piecewise_loop.advance_piecewise``) uses, and the adaptive steps.
 
-``advance_contact`` advances consecutive fixed-length contact steps in one slip regime
-with the Cartesian (``analytic``) or polar (``analytic-polar``) linearisation, exactly
-as the Python propagators do, and fills the output samples of each step from its closed
-form. ``advance_contact_adaptive`` does the same for adaptive steps (``analytic_tol``),
-pair of half steps by pair, with the step doubling and control of analytic.py's Python
-loop. Both hand control back before any step that might contain an event (the
-pre-check, ``precheck.py``), or that needs Python (an ill-conditioned eigenbasis, a
-singular system, a non-finite state), so every event is located, and every regime
-change decided, by the driver's stepper in analytic.py.
+``advance_contact_adaptive`` advances adaptive contact steps (``analytic_tol``) in one
+slip regime with the Cartesian (``analytic``) or polar (``analytic-polar``)
+linearisation, pair of half steps by pair, with the step doubling and control of
+analytic.py's Python loop, exactly as the Python propagators do, and fills the output
+samples of each step from its closed form. It hands control back before any pair that
+might contain an event (the pre-check, ``precheck.py``), or that needs Python (an
+ill-conditioned eigenbasis, a singular system, a non-finite state), so every event of an
+adaptive run is located, and every regime change decided, by the driver's stepper in
+analytic.py.
 """
 
 from __future__ import annotations
@@ -104,8 +105,7 @@ def _fill_grid(polar, tau, tb, n, pars, ws, grid, S, dS, out, dout):
 def _check_step(polar, tau, tb, n, ws, cond, pars, event_args, scan, end, work):
     """The event pre-check of one prepared contact step [tau, tb] (propagator in ``ws``).
 
-    The lines of ``advance_contact``'s step (kept inline there: this call, with the
-    workspace, costs its fixed steps ~10% more): the step is evaluated on its scan grid
+    The step is evaluated on its scan grid
     of ``n`` intervals (``np.linspace(tau, tb, n + 1)``, ``n`` from ``_scan_points``)
     and ``_step_may_have_event`` decides. ``event_args`` = (sign, check_slip, spin,
     starts); ``scan`` = (grid, S, dS, hv, hd) of at least n + 1 points
@@ -131,7 +131,7 @@ def _check_step(polar, tau, tb, n, ws, cond, pars, event_args, scan, end, work):
 @jit_inline
 def _fill_samples(polar, tau, tb, pars, ws, t_eval, out_states, k, work):
     """Write the samples of ``t_eval[k:]`` in (.., tb] from the step prepared at tau
-    (as ``advance_contact`` does); returns the new k. ``work`` = (out, dout)."""
+    (as the fixed-step loop does); returns the new k. ``work`` = (out, dout)."""
     out, dout = work
     while k < t_eval.shape[0] and t_eval[k] <= tb:
         _evaluate(polar, tau, t_eval[k], pars, ws, out, dout)
@@ -146,92 +146,6 @@ def _event_args(regime, pars, starts):
     """(sign, check_slip, spin, starts) of a slip regime, for ``_check_step``."""
     eta, mu, Rp = pars[P_ETA], pars[P_MU], pars[P_RP]
     return float(regime), mu > 0.0, Rp * eta, starts
-
-
-@jit
-def advance_contact(
-    polar: bool,
-    tau: float,
-    state: np.ndarray,
-    h: float,
-    t_end: float,
-    regime: int,
-    pars: np.ndarray,
-    t_eval: np.ndarray,
-    out_states: np.ndarray,
-    k: int,
-    max_steps: int,
-    scan_fraction: float,
-    cond_limit: float,
-    starts: tuple[bool, bool, bool],
-) -> tuple[float, np.ndarray, int, int, int]:
-    """Fixed contact steps of length h in one slip regime while no event can occur.
-
-    ``polar`` selects the linearisation (``PolarLinearisedContact`` or
-    ``LinearisedContact``); ``pars`` is ``model.params_vector``; each step is
-    ``[tau, min(t_end, tau + h)]`` and ``out_states[k:]`` receives the samples of
-    ``t_eval[k:]`` that it covers. ``scan_fraction`` and ``cond_limit`` are analytic.py's
-    ``CONTACT_SCAN_FRACTION`` and ``EIGVEC_COND_LIMIT``. At most ``max_steps`` steps.
-    ``starts`` = (on the contact surface, on the slip surface, slip start immediate)
-    says whether the first step starts at an event (as ``earliest_event``'s last_kind).
-
-    Returns ``(tau, state, k, steps, reason)`` (reason: a ``STOP_*`` code); the step
-    from ``(tau, state)`` has not been taken.
-    """
-    eta, mu, Rp = pars[P_ETA], pars[P_MU], pars[P_RP]
-    mu_c = mu * friction_sign(regime)
-    check_slip = mu > 0.0
-    sign = float(regime)
-    spin = Rp * eta
-    s = state.copy()
-    n_out = t_eval.shape[0]
-    ws = _workspace()
-    out = np.empty(4)
-    dout = np.empty(4)
-    end = np.empty(4)
-    size = 2
-    grid, S, dS, hv, hd = _scan_buffers(run_time(size))
-    steps = 0
-    while True:
-        if tau >= t_end:
-            return tau, s, k, steps, STOP_END
-        if steps >= max_steps:
-            return tau, s, k, steps, STOP_LIMIT
-        tb = min(t_end, tau + h)
-        # from the second step on, the previous eigenvalues start the eigensolver
-        cond, omega_max = _prepare(polar, tau, s, pars, mu_c, ws, steps > 0)
-        # Python uses the eigenbasis while cond2(V) <= cond_limit, and cond2 <= 4 cond1:
-        # proceed only where Python surely uses it too.
-        if not 8.0 * cond <= cond_limit:
-            return tau, s, k, steps, STOP_PYTHON
-        spacing = scan_fraction * 2.0 * math.pi / max(omega_max, 1e-300)
-        if (tb - tau) / spacing > MAX_SCAN_POINTS:
-            return tau, s, k, steps, STOP_PYTHON  # Python fails the run cleanly
-        n = max(1, math.ceil((tb - tau) / spacing))
-        if steps > 0:
-            starts = (False, False, False)
-        # the end state (into end): from the mode bounds alone, or the grid's last point
-        if not _clear_by_bound(
-            polar, tau, tb, pars, ws, cond, (sign, check_slip, spin, starts), end, dout
-        ):
-            if size < n + 1:
-                size = n + 1
-                grid, S, dS, hv, hd = _scan_buffers(run_time(size))
-            if not _fill_grid(polar, tau, tb, n, pars, ws, grid, S, dS, out, dout):
-                return tau, s, k, steps, STOP_PYTHON
-            if _step_may_have_event(grid, S, dS, n, sign, check_slip, spin, cond, hv, hd, starts):
-                return tau, s, k, steps, STOP_EVENT
-            for j in range(4):
-                end[j] = S[n, j]
-        while k < n_out and t_eval[k] <= tb:
-            _evaluate(polar, tau, t_eval[k], pars, ws, out, dout)
-            for j in range(4):
-                out_states[k, j] = out[j]
-            k += 1
-        for j in range(4):
-            s[j] = end[j]
-        tau = tb
-        steps += 1
 
 
 @jit
@@ -261,9 +175,11 @@ def advance_contact_adaptive(
     ``step * min(max_factor, max(min_factor, safety * (tol / err)^(1/3)))``, and the step
     is rejected (and retried with that step) unless ``err <= tol`` or
     ``step <= min_step``. An accepted pair is taken as its two half steps, each checked
-    for events and sampled as ``advance_contact`` checks and samples one step, each
+    for events and sampled as the fixed-step loop checks and samples one step, each
     counted as one step. ``control`` = (tol, safety, min_factor, max_factor, h_max,
-    min_step); the other arguments are ``advance_contact``'s.
+    min_step); ``starts`` = (on the contact surface, on the slip surface, slip start
+    immediate) of the first step (``events.start_flags``), ``scan_fraction`` and
+    ``cond_limit`` analytic.py's ``CONTACT_SCAN_FRACTION`` and ``EIGVEC_COND_LIMIT``.
 
     A pair is committed whole or not at all: if either half might hold an event, needs
     Python (conditioning, scan size, non-finite states), or the pair does not fit in
@@ -300,7 +216,9 @@ def advance_contact_adaptive(
             for i in range(4):
                 ws1[0][i] = ws2[0][i]
         cond1, omega1 = _prepare(polar, tau, s, pars, mu_c, ws1, steps > 0)
-        if not 8.0 * cond1 <= cond_limit:  # as in advance_contact
+        # Python uses the eigenbasis while cond2(V) <= cond_limit, and cond2 <= 4 cond1:
+        # proceed only where Python surely uses it too
+        if not 8.0 * cond1 <= cond_limit:
             return tau, s, k, steps, rejected, h, STOP_PYTHON
         h_next = h
         tries = 0

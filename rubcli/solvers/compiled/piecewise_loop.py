@@ -268,7 +268,7 @@ def advance_piecewise(
             mu_c = pars[P_MU] * friction_sign(regime)
             cond, omega = _prepare(polar, tau, state, pars, mu_c, ws, run_time(warm))
             # Python uses the eigenbasis while cond2(V) <= cond_limit, and cond2 <= 4
-            # cond1: proceed only where Python surely uses it too (advance_contact)
+            # cond1: proceed only where Python surely uses it too
             if not 8.0 * cond <= cond_limit:
                 return tau, regime, last_kind, k, n_events, free_active, STOP_PYTHON
             n = _scan_points(tau, tb, omega, contact_frac)

@@ -65,11 +65,12 @@ def dop853_precheck(rhs_into: Callable[..., None],
     ) -> bool:  # fmt: skip
         """The event pre-check of one accepted step on scipy_ivp's scan grid.
 
-        Conservative, like ``advance_contact``'s: False only if ``events.earliest_event``
-        surely finds no event in the step (contact entry in free flight; contact exit and
-        slip reversal in slip; contact exit and stick exit in stick). ``starts`` = (on the
-        contact surface, on the slip surface, slip start immediate), as in
-        ``advance_contact``. Fills ``grid`` (``np.linspace`` of the step, element for
+        Conservative, like the analytic loop's (``precheck``): False only if
+        ``events.earliest_event`` surely finds no event in the step (contact entry in free
+        flight; contact exit and slip reversal in slip; contact exit and stick exit in
+        stick). ``starts`` = (on the
+        contact surface, on the slip surface, slip start immediate), as
+        ``events.start_flags`` gives them. Fills ``grid`` (``np.linspace`` of the step, element for
         element, as Python builds it) and the dense states ``S`` on it.
         """
         n = DOP_SCAN_POINTS
