@@ -14,7 +14,8 @@ end, so that no series carries a table's corner.
 The order, the step (the last two terms below the state tolerance; the phase, which
 grows without bound, is left out of the state's scale) and the scan grid (eight
 intervals a period of the fastest frequency, the spin's from the larger end speed) are
-``taylor``'s rules. A step that may hold an event (``extended_loop.step_parts`` on the
+``taylor``'s rules. The step runs in the extended systems' one loop
+(``extended_loop.step_loop``): a step that may hold an event (its pre-check on the
 step's polynomial), a segment's first step and a step after which the speed is 0 or
 below go back to the Python event search (``solvers.driven``), as for ``dop853-jit``.
 """
@@ -29,15 +30,8 @@ import numpy as np
 from rubcli.drive import D_INERTIA, motor_line
 from rubcli.model import FREE, P_ECC, P_K, P_MU, P_NU, P_RP, STICK, friction_sign
 from rubcli.solvers.compiled.drive import N_STATES, drive_into, drive_project
-from rubcli.solvers.compiled.extended_loop import step_parts
-from rubcli.solvers.compiled.jit import (
-    STOP_END,
-    STOP_EVENT,
-    STOP_LIMIT,
-    STOP_PYTHON,
-    STOP_SMALL_STEP,
-    jit,
-)
+from rubcli.solvers.compiled.extended_loop import STOP_NONE, step_loop
+from rubcli.solvers.compiled.jit import STOP_PYTHON, STOP_SMALL_STEP, jit, jit_inline
 from rubcli.solvers.compiled.taylor import (
     MAX_ORDER,
     MAX_SCAN,
@@ -46,7 +40,6 @@ from rubcli.solvers.compiled.taylor import (
     _cauchy,
     scan_intervals,
 )
-from rubcli.solvers.events import linspace_into
 
 SERIES_ROWS = 40  # work rows of the series (the stick's intermediate quantities)
 TABLE_GRID = 32  # points a step's speed is checked at against the motor table's corners
@@ -269,9 +262,50 @@ def polynomial_values(t: np.ndarray, t0: float, C: np.ndarray, order: int) -> np
     return out
 
 
-_polynomial_may_have_event, _polynomial_fill = step_parts(
-    drive_into, drive_project, N_STATES, polynomial_at
-)
+@jit_inline
+def _step(tau, y, t_end, ctx, regime, m, c, y_new):
+    """``extended_loop.step_loop``'s step: the series from the motor's line at the
+    speed (the piece below on a table's corner while slowing), ``taylor``'s step size,
+    cut where the speed reaches a corner of the table, and the end state."""
+    C, R = m[0], m[1]
+    order, rtol, atol = c
+    pars, drive, table_speed, table_torque = ctx[0], ctx[1], ctx[2], ctx[3]
+    torque, slope, low, high = motor_line(y[5], True, drive, table_speed, table_torque)
+    driven_series(y, pars, drive, regime, order, C, R, torque, slope)
+    if y[5] == low and C[5, 1] < 0.0:  # on a table's corner, slowing: the piece below
+        torque, slope, low, high = motor_line(y[5], False, drive, table_speed, table_torque)
+        driven_series(y, pars, drive, regime, order, C, R, torque, slope)
+    h = extended_step_size(C, order, rtol, atol)
+    t_new = min(tau + h, t_end)
+    h = t_new - tau
+    if table_speed.shape[0] > 0:  # the step ends where the speed reaches a corner
+        cut = _leaves_at(C, order, h, low, high, TABLE_GRID)
+        if cut < h:
+            h = cut
+            t_new = tau + h
+    dense = (tau, C, order)
+    if not (h >= 10.0 * abs(np.nextafter(tau, np.inf) - tau)):
+        return t_new, STOP_SMALL_STEP if math.isfinite(h) else STOP_PYTHON, c, dense
+    polynomial_at(t_new, dense, y_new)
+    return t_new, STOP_NONE, c, dense
+
+
+@jit_inline
+def _intervals(tau, t_new, y, y_new, ctx, regime, m, c):
+    """``taylor``'s scan intervals, the spin's from the larger end speed, into
+    ``info[0]`` (for Python's event search of a pending step)."""
+    n = scan_intervals(t_new - tau, regime, ctx[0], y, max(abs(y[5]), abs(y_new[5])))
+    m[2][0] = n
+    return n
+
+
+@jit_inline
+def _commit(m):
+    """Nothing beyond the state: each step's series starts from its own state."""
+
+
+_loop = step_loop(_step, _intervals, _commit, polynomial_at, drive_into, drive_project,
+                  N_STATES, MAX_SCAN)  # fmt: skip
 
 
 @jit
@@ -283,54 +317,12 @@ def advance_driven_taylor(
     info: np.ndarray,
 ) -> tuple[float, float, int, int, int]:  # fmt: skip
     """Taylor steps of the driven rotor in one regime, up to the first step that may
-    hold an event (``compiled.drive.advance_driven``'s rules). A pending step (reason
-    EVENT) leaves its coefficients in ``C`` and its scan intervals in ``info[0]``.
-    Returns ``(tau, t_new, k, steps, reason)``."""
-    pars, drive, table_speed, table_torque = ctx[0], ctx[1], ctx[2], ctx[3]
-    tabled = table_speed.shape[0] > 0
-    R = np.zeros((SERIES_ROWS, MAX_ORDER + 1))
-    row = np.empty(N_STATES)
-    out = np.empty(N_STATES)
-    y_new = np.empty(N_STATES)
-    grid = np.empty(MAX_SCAN + 1)
-    S = np.empty((MAX_SCAN + 1, N_STATES))
-    hv = np.empty(MAX_SCAN + 1)
-    hd = np.empty(MAX_SCAN + 1)
-    steps = 0
-    while True:
-        if tau >= t_end:
-            return tau, tau, k, steps, STOP_END
-        if steps >= max_steps:
-            return tau, tau, k, steps, STOP_LIMIT
-        torque, slope, low, high = motor_line(y[5], True, drive, table_speed, table_torque)
-        driven_series(y, pars, drive, regime, order, C, R, torque, slope)
-        if y[5] == low and C[5, 1] < 0.0:  # on a table's corner, slowing: the piece below
-            torque, slope, low, high = motor_line(y[5], False, drive, table_speed, table_torque)
-            driven_series(y, pars, drive, regime, order, C, R, torque, slope)
-        h = extended_step_size(C, order, rtol, atol)
-        t_new = min(tau + h, t_end)
-        h = t_new - tau
-        if tabled:  # the step ends where the speed reaches a corner of the table
-            cut = _leaves_at(C, order, h, low, high, TABLE_GRID)
-            if cut < h:
-                h = cut
-                t_new = tau + h
-        if not (h >= 10.0 * abs(np.nextafter(tau, np.inf) - tau)):
-            return tau, t_new, k, steps, STOP_SMALL_STEP if math.isfinite(h) else STOP_PYTHON
-        dense = (tau, C, order)
-        polynomial_at(t_new, dense, y_new)
-        for i in range(N_STATES):
-            if not math.isfinite(y_new[i]):
-                return tau, t_new, k, steps, STOP_PYTHON
-        n = scan_intervals(h, regime, pars, y, max(abs(y[5]), abs(y_new[5])))
-        info[0] = n
-        if hand_first or y_new[5] <= 0.0:
-            return tau, t_new, k, steps, STOP_EVENT
-        linspace_into(grid, tau, t_new, n)
-        if _polynomial_may_have_event(dense, ctx, regime, grid, n, S, hv, hd, row, out):
-            return tau, t_new, k, steps, STOP_EVENT
-        k = _polynomial_fill(dense, t_new, ctx, regime, t_eval, out_states, out_regimes, k, row)
-        steps += 1
-        for i in range(N_STATES):
-            y[i] = y_new[i]
-        tau = t_new
+    hold an event (``extended_loop.step_loop``). A pending step (reason EVENT) leaves
+    its coefficients in ``C`` and its scan intervals in ``info[0]``. Returns ``(tau,
+    t_new, k, steps, reason)``."""
+    m = (C, np.zeros((SERIES_ROWS, MAX_ORDER + 1)), info)
+    tau, t_new, k, steps, reason, _ = _loop(
+        tau, y, t_end, ctx, regime, t_eval, out_states, out_regimes, k, max_steps,
+        hand_first, np.empty(N_STATES), m, (order, rtol, atol),
+    )  # fmt: skip
+    return tau, t_new, k, steps, reason

@@ -13,6 +13,16 @@ row[5] + (x vy - y vx) / z``, the events of every such system the same).
 A step that may hold an event goes back to Python (``solvers.extended``), whose event
 search is the definition of the events; so the kernel decides only which steps surely
 hold none, and writes the event rules nowhere.
+
+The loop is written once (``step_loop``), for every method and system: the budgets, the
+check of the new state, the hand-back of a segment's first step and of a step that ends
+at a speed of 0 or below, the event pre-check on the step's scan grid, the samples of a
+committed step and the commit. A method plugs in its step and what its dense output
+needs (``dop853_loop``: scipy's DOP853; ``driven_taylor`` and ``two_body_taylor``: the
+systems' Taylor series), inlined into the loop in numba IR. These loops' time is mostly
+the Python event search of the steps they hand back, so the reference counting of the
+arrays the plugged-in parts bind (see ``docs/solvers.md``, "The compiled loops") is
+small beside it.
 """
 
 from __future__ import annotations
@@ -45,6 +55,7 @@ from rubcli.solvers.compiled.jit import (
     STOP_PYTHON,
     STOP_SMALL_STEP,
     jit,
+    jit_inline,
 )
 from rubcli.solvers.compiled.precheck import EVENT_MARGIN, _may_cross, _surface_may_cross
 from rubcli.solvers.compiled.roots import FREE_REGIME, STICK_REGIME
@@ -166,6 +177,82 @@ def step_parts(
     return jit(may_have_event), jit(fill)
 
 
+STOP_NONE = -1  # a plugged-in step's reason: it was taken
+
+
+def step_loop(
+    step: Callable[..., tuple], intervals: Callable[..., int], commit: Callable[..., None],
+    dense_at: Callable[..., None], into: Callable[..., float], project: Callable[..., None],
+    n_states: int, max_scan: int,
+) -> Callable[..., tuple]:  # fmt: skip
+    """The step loop of one method on one system (``into``, ``project``, ``n_states``:
+    module docstring), compiled with its parts as closure constants (as
+    ``events.event_search``). The method's parts (``jit_inline``: ``m`` its work
+    arrays, ``c`` its scalars carried from step to step):
+
+    - ``step(tau, y, t_end, ctx, regime, m, c, y_new) -> (t_new, reason, c, dense)``: one
+      accepted step, its end state into ``y_new``, ``dense`` what ``dense_at(t, dense,
+      row)`` needs; ``reason`` ``STOP_NONE``, or the stop code of a step that cannot be
+      taken (SMALL_STEP, or PYTHON for a non-finite size);
+    - ``intervals(tau, t_new, y, y_new, ctx, regime, m, c) -> n``: the step's scan
+      intervals (at most ``max_scan``);
+    - ``commit(m)``: what the method keeps of a committed step beyond its state.
+    """
+    N = n_states
+    may_have_event, fill = step_parts(into, project, N, dense_at)
+
+    def advance(
+        tau: float, y: np.ndarray, t_end: float, ctx: Any, regime: int, t_eval: np.ndarray,
+        out_states: np.ndarray, out_regimes: np.ndarray, k: int, max_steps: int,
+        hand_first: bool, y_new: np.ndarray, m: tuple, c: tuple,
+    ) -> tuple:  # fmt: skip
+        """Steps of the system in one regime, up to the first step that may hold an
+        event.
+
+        A step in which no event can lie (the pre-check) and after which the speed is
+        still positive is committed: ``y`` moves on and the samples ``t_eval[k:]`` it
+        covers go to ``out_states`` and ``out_regimes`` (in stick projected onto the
+        rolling constraint, as Python reports them). Any other step, and the first with
+        ``hand_first`` (a segment's first step, or one still on the surface it began
+        on), is returned pending, with ``y_new`` and ``m`` holding it. Returns ``(tau,
+        t_new, k, steps, reason, c)``: reason END, LIMIT (``max_steps`` steps committed),
+        EVENT (a pending step from ``tau`` to ``t_new``), PYTHON (a non-finite state)
+        or the step's own.
+        """
+        row = np.empty(N)
+        out = np.empty(N)
+        grid = np.empty(max_scan + 1)
+        S = np.empty((max_scan + 1, N))
+        hv = np.empty(max_scan + 1)
+        hd = np.empty(max_scan + 1)
+        steps = 0
+        while True:
+            if tau >= t_end:
+                return tau, tau, k, steps, STOP_END, c
+            if steps >= max_steps:
+                return tau, tau, k, steps, STOP_LIMIT, c
+            t_new, reason, c, dense = step(tau, y, t_end, ctx, regime, m, c, y_new)
+            if reason != STOP_NONE:
+                return tau, t_new, k, steps, reason, c
+            for i in range(N):
+                if not math.isfinite(y_new[i]):
+                    return tau, t_new, k, steps, STOP_PYTHON, c
+            n = intervals(tau, t_new, y, y_new, ctx, regime, m, c)
+            if hand_first or y_new[SPEED] <= 0.0:
+                return tau, t_new, k, steps, STOP_EVENT, c
+            linspace_into(grid, tau, t_new, n)
+            if may_have_event(dense, ctx, regime, grid, n, S, hv, hd, row, out):
+                return tau, t_new, k, steps, STOP_EVENT, c
+            k = fill(dense, t_new, ctx, regime, t_eval, out_states, out_regimes, k, row)
+            steps += 1
+            for i in range(N):
+                y[i] = y_new[i]
+            commit(m)
+            tau = t_new
+
+    return jit(advance)
+
+
 @jit
 def _dop853_dense(t: float, dense: Any, row: np.ndarray) -> None:
     """A DOP853 step's dense output, dense = (t_old, h, y_old, F)."""
@@ -176,15 +263,39 @@ def dop853_loop(
     into: Callable[..., float], project: Callable[..., None], n_states: int
 ) -> tuple[Callable[..., float], Callable[..., tuple]]:
     """scipy's DOP853 on the system (``into``, ``project``, ``n_states``: module
-    docstring), compiled once per system: ``(initial_step, advance)``, ``advance`` as
-    below."""
+    docstring) in ``step_loop``, compiled once per system: ``(initial_step, advance)``,
+    ``advance`` as below."""
     N = n_states
 
     def stage(t: float, y: np.ndarray, ctx: Any, regime: int, out: np.ndarray) -> None:
         into(y, ctx, regime, out)
 
     initial_step, accepted_step, dense_coefficients = dop853_step(jit(stage), N)
-    may_have_event, fill = step_parts(into, project, N, _dop853_dense)
+
+    def step(tau, y, t_end, ctx, regime, m, c, y_new):
+        f, f_new, F, Kst, tmp = m
+        h_abs, nfev, rtol, atol = c
+        t_new, h, h_abs, spent = accepted_step(
+            tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, Kst, y_new, tmp
+        )
+        nfev += spent
+        if h == 0.0:
+            return tau, STOP_SMALL_STEP, (h_abs, nfev, rtol, atol), (tau, h, y, F)
+        for i in range(N):
+            f_new[i] = Kst[DOP_STAGES, i]
+        nfev += dense_coefficients(tau, h, y, y_new, ctx, regime, Kst, F, tmp)
+        return t_new, STOP_NONE, (h_abs, nfev, rtol, atol), (tau, h, y, F)
+
+    def intervals(tau, t_new, y, y_new, ctx, regime, m, c):
+        return DOP_SCAN_POINTS
+
+    def commit(m):
+        f, f_new = m[0], m[1]
+        for i in range(N):
+            f[i] = f_new[i]
+
+    loop = step_loop(jit_inline(step), jit_inline(intervals), jit_inline(commit),
+                     _dop853_dense, into, project, N, DOP_SCAN_POINTS)  # fmt: skip
 
     def advance(
         tau: float, y: np.ndarray, f: np.ndarray, h_abs: float, t_end: float, ctx: Any,
@@ -193,58 +304,14 @@ def dop853_loop(
         y_new: np.ndarray, f_new: np.ndarray, F: np.ndarray,
     ) -> tuple[float, float, float, int, int, int, int]:  # fmt: skip
         """Adaptive DOP853 steps of the system in one regime, up to the first step that
-        may hold an event.
-
-        Each step is scipy's DOP853 step. A step in which no event can lie (the
-        pre-check) and after which the speed is still positive is committed: ``y`` and
-        ``f`` move on and the samples ``t_eval[k:]`` it covers go to ``out_states`` and
-        ``out_regimes`` (in stick projected onto the rolling constraint, as Python
-        reports them). Any other step, and the first with ``hand_first`` (a segment's
-        first step, or one still on the surface it began on), is returned pending, with
-        ``y_new``, ``f_new`` and the dense coefficients ``F`` filled. Returns ``(tau,
-        t_new, h_abs, k, steps, nfev, reason)``: reason END, LIMIT (``max_steps`` steps
-        committed), EVENT (a pending step from ``tau`` to ``t_new``), PYTHON (a
-        non-finite state) or SMALL_STEP.
-        """
-        Kst = np.empty((DOP_A.shape[0], N))
-        tmp = np.empty(N)
-        row = np.empty(N)
-        out = np.empty(N)
-        n = DOP_SCAN_POINTS
-        grid = np.empty(n + 1)
-        S = np.empty((n + 1, N))
-        hv = np.empty(n + 1)
-        hd = np.empty(n + 1)
-        steps = 0
-        nfev = 0
-        while True:
-            if tau >= t_end:
-                return tau, tau, h_abs, k, steps, nfev, STOP_END
-            if steps >= max_steps:
-                return tau, tau, h_abs, k, steps, nfev, STOP_LIMIT
-            t_new, h, h_abs, spent = accepted_step(
-                tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, Kst, y_new, tmp
-            )
-            nfev += spent
-            if h == 0.0:
-                return tau, tau, h_abs, k, steps, nfev, STOP_SMALL_STEP
-            for i in range(N):
-                f_new[i] = Kst[DOP_STAGES, i]
-            nfev += dense_coefficients(tau, h, y, y_new, ctx, regime, Kst, F, tmp)
-            for i in range(N):
-                if not math.isfinite(y_new[i]):
-                    return tau, t_new, h_abs, k, steps, nfev, STOP_PYTHON
-            if hand_first or y_new[SPEED] <= 0.0:
-                return tau, t_new, h_abs, k, steps, nfev, STOP_EVENT
-            linspace_into(grid, tau, t_new, n)
-            dense = (tau, h, y, F)
-            if may_have_event(dense, ctx, regime, grid, n, S, hv, hd, row, out):
-                return tau, t_new, h_abs, k, steps, nfev, STOP_EVENT
-            k = fill(dense, t_new, ctx, regime, t_eval, out_states, out_regimes, k, row)
-            steps += 1
-            for i in range(N):
-                y[i] = y_new[i]
-                f[i] = f_new[i]
-            tau = t_new
+        may hold an event (``step_loop``'s advance), each scipy's DOP853 step. A pending
+        step leaves ``y_new``, ``f_new`` and the dense coefficients ``F`` filled.
+        Returns ``(tau, t_new, h_abs, k, steps, nfev, reason)``."""
+        m = (f, f_new, F, np.empty((DOP_A.shape[0], N)), np.empty(N))
+        tau, t_new, k, steps, reason, c = loop(
+            tau, y, t_end, ctx, regime, t_eval, out_states, out_regimes, k, max_steps,
+            hand_first, y_new, m, (h_abs, 0, rtol, atol),
+        )  # fmt: skip
+        return tau, t_new, c[0], k, steps, c[1], reason
 
     return initial_step, jit(advance)

@@ -8,8 +8,9 @@ sqrt(q)``, and ``(cos p, sin p)`` with ``p' = w`` (the constant speed, a state).
 order, the step (the last two terms below the state tolerance; the phase left out of
 the state's scale) and the scan grid are ``taylor``'s rules, the grid's frequency bound
 with the ring's own frequency and the contact's on the ring added. A step that may hold
-an event (``extended_loop.step_parts`` on the step's polynomial) and a segment's first
-step go back to the Python event search (``solvers.extended``).
+an event (the pre-check of the extended systems' one loop, ``extended_loop.step_loop``,
+on the step's polynomial) and a segment's first step go back to the Python event search
+(``solvers.extended``).
 """
 
 from __future__ import annotations
@@ -45,14 +46,12 @@ from rubcli.solvers.compiled.driven_taylor import (
     extended_step_size,
     polynomial_at,
 )
-from rubcli.solvers.compiled.extended_loop import step_parts
+from rubcli.solvers.compiled.extended_loop import STOP_NONE, step_loop
 from rubcli.solvers.compiled.jit import (
-    STOP_END,
-    STOP_EVENT,
-    STOP_LIMIT,
     STOP_PYTHON,
     STOP_SMALL_STEP,
     jit,
+    jit_inline,
 )
 from rubcli.solvers.compiled.taylor import (
     MAX_ORDER,
@@ -62,7 +61,6 @@ from rubcli.solvers.compiled.taylor import (
     scan_intervals,
 )
 from rubcli.solvers.compiled.two_body import two_body_into, two_body_project
-from rubcli.solvers.events import linspace_into
 from rubcli.stator import N_STATES, S_INV_MASS, S_KX, S_KY, S_NX, S_NY
 
 SERIES_ROWS = 32  # work rows of the series
@@ -153,9 +151,40 @@ def two_body_series(
         C[9, k + 1] = by * inv
 
 
-_polynomial_may_have_event, _polynomial_fill = step_parts(
-    two_body_into, two_body_project, N_STATES, polynomial_at
-)
+@jit_inline
+def _step(tau, y, t_end, ctx, regime, m, c, y_new):
+    """``extended_loop.step_loop``'s step: the two bodies' series, ``taylor``'s step
+    size and the end state."""
+    C, R = m[0], m[1]
+    order, rtol, atol, ring = c
+    two_body_series(y, ctx[0], ctx[1], regime, order, C, R)
+    h = extended_step_size(C, order, rtol, atol)
+    t_new = min(tau + h, t_end)
+    h = t_new - tau
+    dense = (tau, C, order)
+    if not (h >= 10.0 * abs(np.nextafter(tau, np.inf) - tau)):
+        return t_new, STOP_SMALL_STEP if math.isfinite(h) else STOP_PYTHON, c, dense
+    polynomial_at(t_new, dense, y_new)
+    return t_new, STOP_NONE, c, dense
+
+
+@jit_inline
+def _intervals(tau, t_new, y, y_new, ctx, regime, m, c):
+    """``taylor``'s scan intervals with the ring's own frequency and the contact's on
+    it added to the spin, into ``info[0]`` (for Python's event search of a pending
+    step)."""
+    n = scan_intervals(t_new - tau, regime, ctx[0], y, abs(y[5]) + c[3])
+    m[2][0] = n
+    return n
+
+
+@jit_inline
+def _commit(m):
+    """Nothing beyond the state: each step's series starts from its own state."""
+
+
+_loop = step_loop(_step, _intervals, _commit, polynomial_at, two_body_into, two_body_project,
+                  N_STATES, MAX_SCAN)  # fmt: skip
 
 
 @jit
@@ -166,47 +195,16 @@ def advance_two_body_taylor(
     info: np.ndarray,
 ) -> tuple[float, float, int, int, int]:  # fmt: skip
     """Taylor steps of the two bodies in one regime, up to the first step that may hold
-    an event (``compiled.two_body.advance_two_body``'s rules). A pending step (reason
-    EVENT) leaves its coefficients in ``C`` and its scan intervals in ``info[0]``.
-    Returns ``(tau, t_new, k, steps, reason)``."""
+    an event (``extended_loop.step_loop``). A pending step (reason EVENT) leaves its
+    coefficients in ``C`` and its scan intervals in ``info[0]``. Returns ``(tau, t_new,
+    k, steps, reason)``."""
     pars, st = ctx[0], ctx[1]
     # the scan grid's frequency bound: the spin, and the ring's own and the contact's on it
     m_inv = st[S_INV_MASS]
     ring = math.sqrt(max(st[S_KX], st[S_KY]) * m_inv) + math.sqrt(pars[P_K] * m_inv)
-    R = np.zeros((SERIES_ROWS, MAX_ORDER + 1))
-    row = np.empty(N_STATES)
-    out = np.empty(N_STATES)
-    y_new = np.empty(N_STATES)
-    grid = np.empty(MAX_SCAN + 1)
-    S = np.empty((MAX_SCAN + 1, N_STATES))
-    hv = np.empty(MAX_SCAN + 1)
-    hd = np.empty(MAX_SCAN + 1)
-    steps = 0
-    while True:
-        if tau >= t_end:
-            return tau, tau, k, steps, STOP_END
-        if steps >= max_steps:
-            return tau, tau, k, steps, STOP_LIMIT
-        two_body_series(y, pars, st, regime, order, C, R)
-        h = extended_step_size(C, order, rtol, atol)
-        t_new = min(tau + h, t_end)
-        h = t_new - tau
-        if not (h >= 10.0 * abs(np.nextafter(tau, np.inf) - tau)):
-            return tau, t_new, k, steps, STOP_SMALL_STEP if math.isfinite(h) else STOP_PYTHON
-        dense = (tau, C, order)
-        polynomial_at(t_new, dense, y_new)
-        for i in range(N_STATES):
-            if not math.isfinite(y_new[i]):
-                return tau, t_new, k, steps, STOP_PYTHON
-        n = scan_intervals(h, regime, pars, y, abs(y[5]) + ring)
-        info[0] = n
-        if hand_first:
-            return tau, t_new, k, steps, STOP_EVENT
-        linspace_into(grid, tau, t_new, n)
-        if _polynomial_may_have_event(dense, ctx, regime, grid, n, S, hv, hd, row, out):
-            return tau, t_new, k, steps, STOP_EVENT
-        k = _polynomial_fill(dense, t_new, ctx, regime, t_eval, out_states, out_regimes, k, row)
-        steps += 1
-        for i in range(N_STATES):
-            y[i] = y_new[i]
-        tau = t_new
+    m = (C, np.zeros((SERIES_ROWS, MAX_ORDER + 1)), info)
+    tau, t_new, k, steps, reason, _ = _loop(
+        tau, y, t_end, ctx, regime, t_eval, out_states, out_regimes, k, max_steps,
+        hand_first, np.empty(N_STATES), m, (order, rtol, atol, ring),
+    )  # fmt: skip
+    return tau, t_new, k, steps, reason
