@@ -382,8 +382,10 @@ class PiecewiseStepper:
                 float(analytic_tol) if analytic_tol is not None else 0.0,
                 control.SAFETY, control.MIN_FACTOR, control.MAX_FACTOR, self.h_max, self.min_step,
             )  # fmt: skip
-        # fixed steps: the compiled loop takes every regime, its events included
+        # fixed steps: the compiled loop takes every regime, its events included;
+        # adaptive steps: the kernel takes the event-free slip steps
         self.use_loop = self.use_kernel and analytic_tol is None
+        self.adaptive_kernel = self.use_kernel and analytic_tol is not None
         self.python_next = False  # the loop handed the next step to Python
         if self.use_loop:
             self.free = np.empty(6)  # the free flight in progress (advance_piecewise's ff)
@@ -540,17 +542,11 @@ class PiecewiseStepper:
                 prop, tb, event = self._free_flight(run)
             else:
                 slip = run.regime in (model.SLIP_POSITIVE, model.SLIP_NEGATIVE)
-                # adaptive steps, between pairs of half steps (`pending` empty); a fixed
-                # step is here only where the compiled loop left it to Python
-                adaptive = self.analytic_tol is not None
-                if (
-                    adaptive
-                    and self.use_kernel
-                    and slip
-                    and not self.pending
-                    and (self._compiled_slip_steps(run))
-                ):
-                    return  # the kernel advanced tau, the state, the samples and the counts
+                # the adaptive kernel's slip steps, between pairs of half steps (`pending`
+                # empty); a fixed step is here only where the compiled loop left it
+                kernel = self.adaptive_kernel and slip and not self.pending
+                if kernel and self._compiled_slip_steps(run):
+                    return  # the kernel advanced tau, the state, the samples, the counts
                 try:
                     prop, tb, event = self._contact_step(run)
                 except np.linalg.LinAlgError as exc:

@@ -268,7 +268,7 @@ def _step(tau, y, t_end, ctx, regime, m, c, y_new):
     speed (the piece below on a table's corner while slowing), ``taylor``'s step size,
     cut where the speed reaches a corner of the table, and the end state."""
     C, R = m[0], m[1]
-    order, rtol, atol = c
+    order, rtol, atol = c[0], c[1], c[2]
     pars, drive, table_speed, table_torque = ctx[0], ctx[1], ctx[2], ctx[3]
     torque, slope, low, high = motor_line(y[5], True, drive, table_speed, table_torque)
     driven_series(y, pars, drive, regime, order, C, R, torque, slope)
@@ -287,14 +287,15 @@ def _step(tau, y, t_end, ctx, regime, m, c, y_new):
     if not (h >= 10.0 * abs(np.nextafter(tau, np.inf) - tau)):
         return t_new, STOP_SMALL_STEP if math.isfinite(h) else STOP_PYTHON, c, dense
     polynomial_at(t_new, dense, y_new)
-    return t_new, STOP_NONE, c, dense
+    return t_new, STOP_NONE, (order, rtol, atol, h), dense
 
 
 @jit_inline
 def _intervals(tau, t_new, y, y_new, ctx, regime, m, c):
-    """``taylor``'s scan intervals, the spin's from the larger end speed, into
-    ``info[0]`` (for Python's event search of a pending step)."""
-    n = scan_intervals(t_new - tau, regime, ctx[0], y, max(abs(y[5]), abs(y_new[5])))
+    """``taylor``'s scan intervals of the step taken (``c[3]``: its length, cut at a
+    table's corner), the spin's from the larger end speed, into ``info[0]`` (for
+    Python's event search of a pending step)."""
+    n = scan_intervals(c[3], regime, ctx[0], y, max(abs(y[5]), abs(y_new[5])))
     m[2][0] = n
     return n
 
@@ -323,6 +324,6 @@ def advance_driven_taylor(
     m = (C, np.zeros((SERIES_ROWS, MAX_ORDER + 1)), info)
     tau, t_new, k, steps, reason, _ = _loop(
         tau, y, t_end, ctx, regime, t_eval, out_states, out_regimes, k, max_steps,
-        hand_first, np.empty(N_STATES), m, (order, rtol, atol),
+        hand_first, np.empty(N_STATES), m, (order, rtol, atol, 0.0),
     )  # fmt: skip
     return tau, t_new, k, steps, reason

@@ -272,7 +272,10 @@ def dop853_loop(
 
     initial_step, accepted_step, dense_coefficients = dop853_step(jit(stage), N)
 
-    def step(tau, y, t_end, ctx, regime, m, c, y_new):
+    def step(
+        tau: float, y: np.ndarray, t_end: float, ctx: Any, regime: int, m: tuple, c: tuple,
+        y_new: np.ndarray,
+    ) -> tuple:  # fmt: skip
         f, f_new, F, Kst, tmp = m
         h_abs, nfev, rtol, atol = c
         t_new, h, h_abs, spent = accepted_step(
@@ -286,10 +289,13 @@ def dop853_loop(
         nfev += dense_coefficients(tau, h, y, y_new, ctx, regime, Kst, F, tmp)
         return t_new, STOP_NONE, (h_abs, nfev, rtol, atol), (tau, h, y, F)
 
-    def intervals(tau, t_new, y, y_new, ctx, regime, m, c):
+    def intervals(
+        tau: float, t_new: float, y: np.ndarray, y_new: np.ndarray, ctx: Any, regime: int,
+        m: tuple, c: tuple,
+    ) -> int:  # fmt: skip
         return DOP_SCAN_POINTS
 
-    def commit(m):
+    def commit(m: tuple) -> None:
         f, f_new = m[0], m[1]
         for i in range(N):
             f[i] = f_new[i]
