@@ -1,6 +1,6 @@
 """``rubcli ensemble CASE [--out DIR] [--workers N] [--quick]``: a fragile outcome in numbers.
 
-Runs the case's ``[ensemble]`` table (``rubcli.analysis.ensemble``; docs/reproduction.md):
+Runs the case's ``[ensemble]`` table (``rubcli.studies.ensemble``; docs/reproduction.md):
 the case from a cloud of starts (or a box of them, ``starts = "box"``) at every setting of
 a tolerance ladder, the end of each run classified and named, and writes
 
@@ -23,14 +23,11 @@ Exit codes: 0 done; 1 every run failed; 2 invalid input (nothing written).
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from rubcli import io
-from rubcli.analysis import ensemble as en
 from rubcli.cli import console, progress
 from rubcli.cli.common import (
     ForceOption,
@@ -44,31 +41,7 @@ from rubcli.cli.common import (
 from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 
 if TYPE_CHECKING:
-    from rubcli.case import Case
-
-QUICK = {"runs": 4, "periods": 300, "record_periods": 100, "lyapunov_periods": 50}
-COLUMNS = ("run", "method", "rtol", "start_offset", "attractor", "regime", "kind", "settled",
-           "settle_period", "contact_fraction", "stick_fraction", "whirl_order", "z_max",
-           "lyapunov", "lyapunov_stderr", "contraction_rate", "rotation_number", "ok",
-           "message")  # fmt: skip
-
-
-def settings_of(case: Case, quick: bool) -> tuple[dict, list[str]]:
-    """The ensemble's settings from the case (and --quick), or the problems with it."""
-    src, e = case.source, case.settings.ensemble
-    if e is None:
-        return {}, [f"{src}: ensemble: missing table [ensemble] (docs/reproduction.md)"]
-    s = e.model_dump()
-    s["periods"] = s["periods"] or int(round(case.problem.periods))
-    s["methods"] = s["methods"] or case.methods[:1]
-    s["rtols"] = s["rtols"] or [case.settings.solver.rtol]
-    if quick:
-        s.update({k: min(s[k], v) for k, v in QUICK.items()})
-    if not s["record_periods"] < s["periods"]:
-        return s, [f"{src}: ensemble.record_periods: {s['record_periods']} must be below "
-                   f"the periods run ({s['periods']})"]  # fmt: skip
-    return s, []
-
+    pass
 
 OutOption = Annotated[
     Path | None, typer.Option("--out", "-o", help="Output dir (default: <case dir>/ensemble).")
@@ -76,7 +49,6 @@ OutOption = Annotated[
 WorkersOption = Annotated[
     int | None, typer.Option("--workers", "-w", min=1, help="Local processes (default: all cores).")
 ]
-EXPECTED_FILES = ("ensemble.csv", "ensemble.png", "report.json")
 QuickOption = Annotated[
     bool,
     typer.Option("--quick", help="CI mode: 4 runs of 300 periods (along a parameter: 12 runs "
@@ -99,56 +71,21 @@ def command(
     if e is not None and e.parameter is not None:
         _basin_stability(case_file, case, out, workers, quick, json, force, wait)
         return
-    s, workers = _checked(case_file, *settings_of(case, quick), workers)
-    target = command_dir(case, "ensemble", out)
-    plan = prepare_output(target, force, wait, EXPECTED_FILES)
-    with console.machine_readable(json):
-        started = time.perf_counter()
-        starts = (en.box_starts(case.problem.initial, e.box(), s["runs"], s["seed"])
-                  if s["starts"] == "box" else None)  # fmt: skip
-        tasks = en.member_tasks(
-            case.params, case.problem.initial, runs=s["runs"], spread=s["spread"],
-            seed=s["seed"], methods=s["methods"], rtols=s["rtols"],
-            options=case.solver_options, periods=s["periods"],
-            samples_per_period=case.settings.time.samples_per_period,
-            record_periods=s["record_periods"], lyapunov=s["lyapunov"],
-            lyapunov_periods=s["lyapunov_periods"], settle_tolerance=s["settle_tolerance"],
-            starts=starts,
-        )  # fmt: skip
-        with progress.progress_bar(f"ensemble of {len(tasks)} runs", total=len(tasks)) as update:
-            result = en.run_ensemble(tasks, workers=min(workers, len(tasks)), progress=update,
-                                     settings=s)  # fmt: skip
-        report = {
-            **io.report_envelope("ensemble", {"case_file": str(case_file), "out": str(target),
-                                              "quick": quick, "workers": workers}, case.to_dict()),
-            "wall_time_s": time.perf_counter() - started,
-            **result.to_dict(),
-            "members": [m.to_dict() for m in result.members],
-        }  # fmt: skip
-        with io.staged_output_dir(target, plan) as staged:
-            rows = [[m.index, m.method, m.rtol, m.offset, m.attractor, m.regime, m.kind,
-                     m.settled, m.settle_period, m.contact_fraction, m.stick_fraction,
-                     m.whirl_order, m.z_max, m.lyapunov, m.lyapunov_stderr,
-                     m.contraction_rate, m.rotation_number, m.ok, m.message]
-                    for m in result.members]  # fmt: skip
-            io.write_rows_csv(staged.path("ensemble.csv"), COLUMNS, rows, nonfinite="")
-            if result.good:
-                from rubcli.plotting.ensemble import ensemble_figure
+    from rubcli.studies import ensemble as study
 
-                p = case.params
-                where = (
-                    f"starts within {s['spread']:g}"
-                    if starts is None
-                    else "starts in a box: "
-                    + ", ".join(f"{k} in [{v[0]:g}, {v[1]:g}]" for k, v in e.box().items() if v)
-                )
-                title = (f"{case.name}: {len(tasks)} runs of {s['periods']} periods, mu = "
-                         f"{p.mu:g}, eta = {p.eta:g}, e = {p.e:g}, {where}")  # fmt: skip
-                io.save_figure(ensemble_figure(result, title), staged.path("ensemble.png"))
-            report["files"] = sorted(f.name for f in staged.staging.iterdir()) + ["report.json"]
-            staged.write_report(report)
+    s, workers = _checked(case_file, *study.settings_of(case, quick), workers)
+    target = command_dir(case, "ensemble", out)
+    plan = prepare_output(target, force, wait, study.FILES)
+    with console.machine_readable(json):
+        runs = study.run_count(s)
+        with progress.progress_bar(f"ensemble of {runs} runs", total=runs) as update:
+            found = study.ensemble_of(case, quick=quick, workers=workers, progress=update)
+        command_line = {"case_file": str(case_file), "out": str(target), "quick": quick,
+                        "workers": workers}  # fmt: skip
+        report = found.write(target, plan, command_line)
         report_stale(plan)
         emit(report, json)
+        result = found.result
         if not result.good:
             console.error(f"{case_file}: every run failed; see {target}/report.json")
             raise typer.Exit(1)

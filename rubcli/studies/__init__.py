@@ -11,6 +11,8 @@ line (``rubcli.cli``) only parses, calls and prints.
   (``rubcli compare``);
 - ``orbits``: periodic orbits continued in one parameter (``rubcli orbits``);
 - ``chart``: the stability chart of a parameter plane (``rubcli chart``);
+- ``ensemble``: runs from a cloud (or a box) of starts at every setting of a tolerance
+  ladder, each end classified and named (``rubcli ensemble``);
 - ``basin_stability``: the share of a box of starts on each attractor along a parameter,
   and the minimal perturbation off the free whirl (``rubcli ensemble`` with
   ``[ensemble] parameter``);
