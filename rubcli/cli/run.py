@@ -1,20 +1,7 @@
 """``rubcli run CASE [--method NAME]... [--out DIR] [--periods P] [--force] [--json]``.
 
-Each method of the case (or of ``--method``) is solved with ``rubcli.solvers.solve``; then
-only the products the case asks for are written into the output dir:
-
-- ``<method>.csv`` per method if ``[output] csv`` (streamed in blocks: any length fits);
-- ``orbit.png`` and/or ``time.png`` per ``[output] plots``;
-- ``energy.png`` if ``[output] plots`` lists ``energy`` (the energy balance, never by default);
-- ``spectrum.png`` if ``[output] plots`` lists ``spectrum`` (the full spectrum of x + i y);
-- ``poincare.png`` and the response classes with ``[analysis] response = true``;
-- ``report.json`` always: the case echoed, and per method its status, message, wall time,
-  step/evaluation counts, contact switches, contact fraction, max penetration, the time
-  spent in each regime (from the located switch times), the energy balance with its
-  ``energy_residual`` (``rubcli.analysis.energy``, docs/stability.md), its plausibility
-  ``warnings`` (``rubcli.analysis.checks``) and the dominant line of the full spectrum
-  over the steady span (``spectrum``: order, direction). Its ``files`` list is the run's
-  manifest.
+Each method of the case (or of ``--method``) is solved and only the products the case asks
+for are written into the output dir (``rubcli.studies.run``, whose docstring lists them).
 
 The output dir is locked and checked before anything is solved
 (``rubcli.io.open_output_dir``): writable, and either new, empty or written by rubcli

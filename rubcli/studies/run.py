@@ -4,6 +4,21 @@ whose ``entries()`` are the report's per-method summaries and whose
 ``write(directory)`` writes the products the case asks for (CSVs, figures, the response
 section) with ``report.json`` in one atomic commit (``rubcli.io``).
 
+The products, each only where the case asks for it:
+
+- ``<method>.csv`` per method if ``[output] csv`` (streamed in blocks: any length fits);
+- ``orbit.png`` and/or ``time.png`` per ``[output] plots``;
+- ``energy.png`` if ``[output] plots`` lists ``energy`` (the energy balance, never by default);
+- ``spectrum.png`` if ``[output] plots`` lists ``spectrum`` (the full spectrum of x + i y);
+- ``poincare.png`` and the response classes with ``[analysis] response = true``;
+- ``report.json`` always: the case echoed, and per method its status, message, wall time,
+  step/evaluation counts, contact switches, contact fraction, max penetration, the time
+  spent in each regime (from the located switch times), the energy balance with its
+  ``energy_residual`` (``rubcli.analysis.energy``, docs/stability.md), its plausibility
+  ``warnings`` (``rubcli.analysis.checks``) and the dominant line of the full spectrum
+  over the steady span (``spectrum``: order, direction). Its ``files`` list is the run's
+  manifest.
+
 Timing: every method is solved alone, after a warm-up (``start_up``) that pays numba's
 compilation or cache load; writing then runs the CSV formatter in a background thread
 while the report entries (the compiled energy balance) and the figures are computed.
