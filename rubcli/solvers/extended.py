@@ -65,8 +65,7 @@ from rubcli.solvers.events import (
     initial_kind,
 )
 from rubcli.solvers.registry import SPECS
-from rubcli.solvers.scipy_ivp import ScipyStepper
-from rubcli.solvers.shared import SCAN_POINTS, Dop853Dense, kernel_failure
+from rubcli.solvers.shared import SCAN_POINTS, Dop853Dense, OdeSolverStepper, kernel_failure
 
 Dense = Callable[[float], np.ndarray]  # a step's dense output (of one time, or of times)
 CHUNK_STEPS = 2000  # committed steps per kernel call: budget and progress checks between
@@ -168,7 +167,7 @@ def regime_of(s: np.ndarray, run: ExtendedRun) -> int:
     return model.SLIP_POSITIVE if v_r >= 0.0 else model.SLIP_NEGATIVE
 
 
-class ExtendedStepper(ScipyStepper):
+class ExtendedStepper(OdeSolverStepper):
     """One of scipy's ``OdeSolver`` classes on a system (module docstring): the
     constant-speed stepper's step and segments, with the system's right-hand side, events
     and samples."""

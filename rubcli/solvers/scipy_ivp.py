@@ -30,7 +30,6 @@ output is caught).
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from functools import partial
 
 import numpy as np
@@ -38,53 +37,29 @@ import numpy as np
 from rubcli import model
 from rubcli.problem import Problem
 from rubcli.solution import Solution
-from rubcli.solvers import compiled as kernels
 from rubcli.solvers import driver, register
 from rubcli.solvers.events import (
     NO_EVENT,
     earliest_event,
 )
 from rubcli.solvers.registry import SPECS, ToleranceOptions
-from rubcli.solvers.shared import RESTART_BAND_FLOOR, SCAN_POINTS, fill_samples, rhs_functions
-
-# The class of ``scipy.integrate`` for each method: scipy is imported when a scipy
-# method runs, not with the registry (a `rubcli run` of a compiled method never loads it).
-SCIPY_CLASSES = {
-    "rk45": "RK45",
-    "dop853": "DOP853",
-    "radau": "Radau",
-    "bdf": "BDF",
-    "lsoda": "LSODA",
-}
+from rubcli.solvers.shared import (
+    SCAN_POINTS,
+    SCIPY_CLASSES,
+    OdeSolverStepper,
+    fill_samples,
+    rhs_functions,
+)
 
 
-class ScipyStepper:
-    """One of scipy's ``OdeSolver`` classes as a driver stepper (``driver.integrate``).
+class ScipyStepper(OdeSolverStepper):
+    """One of scipy's ``OdeSolver`` classes as a driver stepper on the rotor's four states.
 
     One ``advance`` is one accepted scipy step: a solver is started at each segment
     (the regime-locked right-hand side), the step's dense output is scanned for the
     regime's events, the samples up to the step's end (or the event) are filled, and a
     located event is applied, which ends the segment.
     """
-
-    def __init__(self, run: driver.Run, name: str, rtol: float, atol: float, compiled: bool):
-        self.name, self.rtol, self.atol = name, rtol, atol
-        from scipy import integrate
-
-        self.cls = getattr(integrate, SCIPY_CLASSES[name])
-        # Right after a restart the dense output is consistent with the located state only
-        # to the solver's tolerance, not to round-off: a new crossing must clear that band.
-        self.restart_band = max(RESTART_BAND_FLOOR, rtol)
-        self.compiled = compiled and kernels.ensure_fresh()
-        self.solver = None  # the segment's scipy solver (None: a segment is to start)
-        run.stats.update(nfev=0, njev=0, nlu=0, n_segments=0)
-        self.settings = {
-            "rtol": rtol,
-            "atol": atol,
-            "max_steps": run.max_steps,
-            "max_wall_time_s": run.max_wall_time_s,
-            "compiled": self.compiled,
-        }
 
     def _start_segment(self, run: driver.Run) -> None:
         fun, jac, self.derivatives = rhs_functions(run.params, run.regime, self.compiled)
@@ -93,35 +68,6 @@ class ScipyStepper:
             options["jac"] = jac
         self.solver = self.cls(fun, run.tau, run.state, run.t_end, **options)
         run.stats["n_segments"] += 1
-
-    def _end_segment(self, run: driver.Run) -> None:
-        solver, self.solver = self.solver, None
-        run.stats["nfev"] += int(solver.nfev)
-        run.stats["njev"] += int(getattr(solver, "njev", 0) or 0)
-        run.stats["nlu"] += int(getattr(solver, "nlu", 0) or 0)
-
-    def new_leg(self, run: driver.Run) -> None:
-        """A new leg of the speed profile: the next segment starts with its parameters."""
-        if self.solver is not None:
-            self._end_segment(run)
-
-    def step(self, run: driver.Run) -> bool:
-        """One accepted step of the segment's solver (started first if need be); False,
-        with the run failed, if the solver failed or left the finite numbers."""
-        if self.solver is None:
-            self._start_segment(run)
-        solver = self.solver
-        msg = solver.step()
-        run.stats["nsteps"] += 1
-        if solver.status == "failed":
-            self._end_segment(run)
-            run.fail(f"{self.name} failed at tau = {solver.t:.6g}: {msg}")
-            return False
-        if not np.all(np.isfinite(solver.y)):
-            self._end_segment(run)
-            run.fail(f"non-finite state at tau = {solver.t:.6g}")
-            return False
-        return True
 
     def advance(self, run: driver.Run) -> None:
         if not self.step(run):
@@ -139,20 +85,6 @@ class ScipyStepper:
             dense, run.t_eval, run.k, t_stop, run.regime, run.params, run.states, run.regimes
         )
         self.finish(run, dense, event)
-
-    def finish(
-        self, run: driver.Run, dense: Callable[[float], np.ndarray], event: tuple[float, int] | None
-    ) -> None:
-        """End the step (its samples filled): the run moves to its end, or to the event
-        located in it, which is applied and ends the segment."""
-        solver = self.solver
-        if event is None:
-            run.tau, run.state = solver.t, solver.y
-            if solver.status == "finished":
-                self._end_segment(run)
-            return
-        self._end_segment(run)
-        run.switch(event[0], event[1], dense(event[0]))
 
 
 def solve_scipy(problem: Problem, options: ToleranceOptions, name: str) -> Solution:

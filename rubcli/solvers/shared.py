@@ -1,8 +1,9 @@
 """What the method families share: the regime's right-hand side for Python code, the
 samples of a step's dense output, the Python event search of a compiled loop's pending
-step, and a compiled DOP853 step's dense output. The families (``analytic``,
-``scipy_ivp``, ``dop853_jit``, ``taylor``, ``driven``) import these from here, never from
-each other."""
+step, a compiled DOP853 step's dense output, and scipy's solvers stepping a run segment
+by segment (``OdeSolverStepper``, for the rotor's states and a system's). The families
+(``analytic``, ``scipy_ivp``, ``dop853_jit``, ``taylor``, ``driven``) import these from
+here, never from each other."""
 
 from __future__ import annotations
 
@@ -141,3 +142,86 @@ class Dop853Dense:
         if isinstance(t, np.ndarray) and t.ndim == 1:
             return kernels.dop853_dense(t.astype(float), self.t_old, self.h, self.y_old, self.F)
         return kernels.dop853_dense_point(float(t), self.t_old, self.h, self.y_old, self.F)
+
+
+# The class of ``scipy.integrate`` for each method: scipy is imported when a scipy
+# method runs, not with the registry (a `rubcli run` of a compiled method never loads it).
+SCIPY_CLASSES = {
+    "rk45": "RK45",
+    "dop853": "DOP853",
+    "radau": "Radau",
+    "bdf": "BDF",
+    "lsoda": "LSODA",
+}
+
+
+class OdeSolverStepper:
+    """One of scipy's ``OdeSolver`` classes stepping a run segment by segment, for the
+    driver (``driver.integrate``): the solver of each segment, its counts, its failures,
+    and the end of a step at its end or at an event. A subclass starts a segment
+    (``_start_segment``: ``self.solver`` on the regime-locked right-hand side) and takes
+    a step with its events (``advance``): the rotor's four states (``scipy_ivp``) or a
+    system's (``extended``).
+    """
+
+    def __init__(self, run: driver.Run, name: str, rtol: float, atol: float, compiled: bool):
+        self.name, self.rtol, self.atol = name, rtol, atol
+        from scipy import integrate
+
+        self.cls = getattr(integrate, SCIPY_CLASSES[name])
+        # Right after a restart the dense output is consistent with the located state only
+        # to the solver's tolerance, not to round-off: a new crossing must clear that band.
+        self.restart_band = max(RESTART_BAND_FLOOR, rtol)
+        self.compiled = compiled and kernels.ensure_fresh()
+        self.solver = None  # the segment's scipy solver (None: a segment is to start)
+        run.stats.update(nfev=0, njev=0, nlu=0, n_segments=0)
+        self.settings = {
+            "rtol": rtol,
+            "atol": atol,
+            "max_steps": run.max_steps,
+            "max_wall_time_s": run.max_wall_time_s,
+            "compiled": self.compiled,
+        }
+
+    def _end_segment(self, run: driver.Run) -> None:
+        solver, self.solver = self.solver, None
+        run.stats["nfev"] += int(solver.nfev)
+        run.stats["njev"] += int(getattr(solver, "njev", 0) or 0)
+        run.stats["nlu"] += int(getattr(solver, "nlu", 0) or 0)
+
+    def new_leg(self, run: driver.Run) -> None:
+        """A new leg of the speed profile: the next segment starts with its parameters."""
+        if self.solver is not None:
+            self._end_segment(run)
+
+    def step(self, run: driver.Run) -> bool:
+        """One accepted step of the segment's solver (started first if need be); False,
+        with the run failed, if the solver failed or left the finite numbers."""
+        if self.solver is None:
+            self._start_segment(run)
+        solver = self.solver
+        msg = solver.step()
+        run.stats["nsteps"] += 1
+        if solver.status == "failed":
+            self._end_segment(run)
+            run.fail(f"{self.name} failed at tau = {solver.t:.6g}: {msg}")
+            return False
+        if not np.all(np.isfinite(solver.y)):
+            self._end_segment(run)
+            run.fail(f"non-finite state at tau = {solver.t:.6g}")
+            return False
+        return True
+
+    def finish(
+        self, run: driver.Run, dense: Callable[[float], np.ndarray], event: tuple[float, int] | None
+    ) -> None:
+        """End the step (its samples filled): the run moves to its end, or to the event
+        located in it, which is applied and ends the segment."""
+        solver = self.solver
+        if event is None:
+            run.tau, run.state = solver.t, solver.y
+            if solver.status == "finished":
+                self._end_segment(run)
+            return
+        self._end_segment(run)
+        run.switch(event[0], event[1], dense(event[0]))
