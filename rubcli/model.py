@@ -828,6 +828,13 @@ def is_general_record(pars: np.ndarray | tuple[float, ...]) -> bool:
     return pars[P_GENERAL] != 0.0
 
 
+def is_paper_record(pars: np.ndarray | tuple[float, ...]) -> bool:
+    """Whether a record holds the paper's machine at a constant speed: no general
+    machine's terms and no speed rate, so the kernels built without them (the compiled
+    stages, the stick step and its pre-check) may run it (compilable core)."""
+    return pars[P_RATE] == 0.0 and pars[P_GENERAL] == 0.0
+
+
 def add_support_extra(
     x: float, y: float, vx: float, vy: float, ax: float, ay: float,
     pars: np.ndarray | tuple[float, ...], regime: int,

@@ -94,7 +94,7 @@ class Dop853Stepper:
         """The record of the run's parameters and the loop that runs them: the paper's
         machine at a constant speed has its own (``kernels.advance_paper_dop853``)."""
         self.pars = np.array(model.params_vector(run.params))
-        paper = self.pars[model.P_RATE] == 0.0 and not model.is_general_record(self.pars)
+        paper = model.is_paper_record(self.pars)
         self.kernel = kernels.advance_paper_dop853 if paper else kernels.advance_dop853
 
     def new_leg(self, run: driver.Run) -> None:

@@ -57,7 +57,12 @@ from rubcli.solvers.compiled.jit import (
     jit,
     jit_inline,
 )
-from rubcli.solvers.compiled.precheck import EVENT_MARGIN, _may_cross, _surface_may_cross
+from rubcli.solvers.compiled.precheck import (
+    EVENT_MARGIN,
+    _may_cross,
+    _may_cross_relative,
+    _surface_may_cross,
+)
 from rubcli.solvers.compiled.roots import FREE_REGIME, STICK_REGIME
 from rubcli.solvers.events import linspace_into, run_time
 
@@ -125,18 +130,12 @@ def step_parts(
         """The pre-check of a stick exit on each side, the rate by central differences."""
         d = 1e-6 * max(1.0, grid[n] - grid[0])
         for sign in (1.0, -1.0):
-            value_scale = 0.0
-            rate_scale = 0.0
             for i in range(n + 1):
                 hv[i] = stick_margin(grid[i], dense, ctx, sign, row, out)
                 up = stick_margin(grid[i] + d, dense, ctx, sign, row, out)
                 down = stick_margin(grid[i] - d, dense, ctx, sign, row, out)
                 hd[i] = (up - down) / (2.0 * d)
-                value_scale = max(value_scale, abs(hv[i]))
-                rate_scale = max(rate_scale, abs(hd[i]))
-            margin_v = EVENT_MARGIN * (1.0 + value_scale)
-            margin_d = EVENT_MARGIN * (1.0 + rate_scale)
-            if _may_cross(grid, hv, hd, n, margin_v, margin_d, run_time(False), run_time(True)):
+            if _may_cross_relative(grid, hv, hd, n):
                 return True
         return False
 

@@ -34,6 +34,7 @@ COMPILABLE_CORES = (
     model.rhs_jacobian_record,
     model.support_extra,
     model.is_general_record,
+    model.is_paper_record,
     model.add_support_extra,
     model.stick_friction_record,
     model.zero_slip_regime_record,

@@ -33,7 +33,6 @@ from rubcli.model import (
     P_MU,
     P_NU,
     P_PHI0,
-    P_RATE,
     P_RP,
     P_SXX,
     P_SXY,
@@ -42,7 +41,7 @@ from rubcli.model import (
     STICK,
     free_flight_value,
     free_steady_value,
-    is_general_record,
+    is_paper_record,
     rhs_entries,
     rhs_record,
 )
@@ -130,7 +129,7 @@ def stick_prepare(
     """``StickStep(tau0, s0, h)``: st rows (s0, s1, f0, f1), meta = (tau0, h). The
     paper's machine at a constant speed has its own step, without the general machine's
     terms (a branch to them in every evaluation cost the paper's stick step about 30 %)."""
-    if pars[P_RATE] == 0.0 and not is_general_record(pars):
+    if is_paper_record(pars):
         _paper_stick_rk4(tau0, s0, h, pars, st, meta)
     else:
         _general_stick_rk4(tau0, s0, h, pars, st, meta)

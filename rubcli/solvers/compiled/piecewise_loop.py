@@ -41,12 +41,12 @@ from rubcli.model import (
     P_MU,
     P_NU,
     P_PHI0,
-    P_RATE,
     P_RP,
     STICK,
     STICK_EXIT_MARGIN,
     friction_sign,
     is_general_record,
+    is_paper_record,
     rolling_velocity,
     stick_friction_record,
     stick_friction_value,
@@ -73,8 +73,7 @@ from rubcli.solvers.compiled.piecewise import (
     stick_prepare,
 )
 from rubcli.solvers.compiled.precheck import (
-    EVENT_MARGIN,
-    _may_cross,
+    _may_cross_relative,
     _step_may_have_event,
     _surface_may_cross,
 )
@@ -394,21 +393,14 @@ def _stick_may_have_event(grid, n, st, meta, pars, S, W, hv, hd, row, on_surface
         return True
     # the paper's machine at a constant speed has its own fill, with the paper's rolling
     # force only (a branch to the general machine's in each evaluation cost about 30 %)
-    if pars[P_RATE] == 0.0 and not is_general_record(pars):
+    if is_paper_record(pars):
         _paper_stick_fill(grid, n, st, meta, pars, S, W, row)
     else:
         _general_stick_fill(grid, n, st, meta, pars, S, W, row)
     for sign in (1.0, -1.0):
-        value_scale = 0.0
-        rate_scale = 0.0
         for i in range(n + 1):
             hv[i] = sign * W[i, 0] - W[i, 1]
             hd[i] = sign * W[i, 2] - W[i, 3]
-            value_scale = max(value_scale, abs(hv[i]))
-            rate_scale = max(rate_scale, abs(hd[i]))
-        margin_v = EVENT_MARGIN * (1.0 + value_scale)
-        margin_d = EVENT_MARGIN * (1.0 + rate_scale)
-        from_surface, immediate = run_time(False), run_time(True)
-        if _may_cross(grid, hv, hd, n, margin_v, margin_d, from_surface, immediate):
+        if _may_cross_relative(grid, hv, hd, n):
             return True
     return False

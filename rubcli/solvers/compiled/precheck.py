@@ -61,6 +61,21 @@ def _may_cross(grid, hv, hd, n, margin_v, margin_d, on_surface, immediate):
 
 
 @jit
+def _may_cross_relative(grid, hv, hd, n):
+    """``_may_cross`` of a function that does not start on its surface (a side of the
+    friction cone in stick), its margins ``EVENT_MARGIN`` relative to the function's own
+    scale: 1 plus its largest |value| and |rate| on the grid."""
+    value_scale = 0.0
+    rate_scale = 0.0
+    for i in range(n + 1):
+        value_scale = max(value_scale, abs(hv[i]))
+        rate_scale = max(rate_scale, abs(hd[i]))
+    margin_v = EVENT_MARGIN * (1.0 + value_scale)
+    margin_d = EVENT_MARGIN * (1.0 + rate_scale)
+    return _may_cross(grid, hv, hd, n, margin_v, margin_d, run_time(False), run_time(True))
+
+
+@jit
 def _step_may_have_event(grid, S, dS, n, sign, check_slip, spin, cond, hv, hd, starts):
     """Whether ``events.earliest_event`` might find an event of a slip step on this grid.
 

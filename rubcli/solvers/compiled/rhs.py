@@ -9,13 +9,12 @@ import numpy as np
 from rubcli.model import (
     P_E,
     P_ETA,
-    P_GENERAL,
     P_K,
     P_MU,
     P_NU,
     P_PHI0,
-    P_RATE,
     P_RP,
+    is_paper_record,
     rhs_entries,
     rhs_jacobian_record,
     rhs_record,
@@ -42,7 +41,7 @@ def _rhs_paper_into(t, y, pars, regime, out):
 def _rhs_into(t, y, pars, regime, out):
     """Any machine and speed: ``_rhs_paper_into`` on the paper's machine at a constant
     speed, else ``model.rhs_record``."""
-    if pars[P_RATE] == 0.0 and pars[P_GENERAL] == 0.0:
+    if is_paper_record(pars):
         _rhs_paper_into(t, y, pars, regime, out)
     else:
         vx, vy, ax, ay = rhs_record(t, y[0], y[1], y[2], y[3], pars, regime)

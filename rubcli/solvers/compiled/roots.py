@@ -31,8 +31,7 @@ from rubcli.model import (
 from rubcli.solvers.compiled.dop853 import DOP_SCAN_POINTS, _dop853_dense_at
 from rubcli.solvers.compiled.jit import jit
 from rubcli.solvers.compiled.precheck import (
-    EVENT_MARGIN,
-    _may_cross,
+    _may_cross_relative,
     _slip_may_cross,
     _surface_may_cross,
 )
@@ -68,10 +67,10 @@ def dop853_precheck(rhs_into: Callable[..., None],
         Conservative, like the analytic loop's (``precheck``): False only if
         ``events.earliest_event`` surely finds no event in the step (contact entry in free
         flight; contact exit and slip reversal in slip; contact exit and stick exit in
-        stick). ``starts`` = (on the
-        contact surface, on the slip surface, slip start immediate), as
-        ``events.start_flags`` gives them. Fills ``grid`` (``np.linspace`` of the step, element for
-        element, as Python builds it) and the dense states ``S`` on it.
+        stick). ``starts`` = (on the contact surface, on the slip surface, slip start
+        immediate), as ``events.start_flags`` gives them. Fills ``grid`` (``np.linspace``
+        of the step, element for element, as Python builds it) and the dense states ``S``
+        on it.
         """
         n = DOP_SCAN_POINTS
         step = h / n
@@ -111,8 +110,6 @@ def _stick_may_exit_with(margin: Callable[..., float]) -> Callable[..., bool]:
         grid for each side of the friction cone, its rate by the same central differences."""
         d = 1e-6 * max(1.0, grid[n] - grid[0])
         for sign in (1.0, -1.0):
-            value_scale = 0.0
-            rate_scale = 0.0
             for i in range(n + 1):
                 hv[i] = margin(grid[i], S[i, 0], S[i, 1], S[i, 2], S[i, 3], pars, sign)
                 _dop853_dense_at(grid[i] + d, t_old, h, y_old, F, row)
@@ -120,12 +117,7 @@ def _stick_may_exit_with(margin: Callable[..., float]) -> Callable[..., bool]:
                 _dop853_dense_at(grid[i] - d, t_old, h, y_old, F, row)
                 down = margin(grid[i] - d, row[0], row[1], row[2], row[3], pars, sign)
                 hd[i] = (up - down) / (2.0 * d)
-                value_scale = max(value_scale, abs(hv[i]))
-                rate_scale = max(rate_scale, abs(hd[i]))
-            margin_v = EVENT_MARGIN * (1.0 + value_scale)
-            margin_d = EVENT_MARGIN * (1.0 + rate_scale)
-            from_surface, immediate = run_time(False), run_time(True)
-            if _may_cross(grid, hv, hd, n, margin_v, margin_d, from_surface, immediate):
+            if _may_cross_relative(grid, hv, hd, n):
                 return True
         return False
 
