@@ -102,11 +102,11 @@ def draw_orbits(
     # moving stator's at its rest position, its centre's path beside
     cx, cy = solutions[0].problem.params.offset if solutions else (0.0, 0.0)
     moving = bool(solutions) and solutions[0].stator_states is not None
-    if radius is None:  # the orbits, the clearance and the support's centre
-        radius = unit * axes_radius(solutions)
     if moving:
         paths = {s.method: s.stator_states[:, :2] for s in solutions}
         solutions = [rotor_view(s) for s in solutions]
+    if radius is None:  # the orbits, the clearance and the support's centre
+        radius = unit * _radius_about_support(solutions, cx, cy)
 
     def at(x: np.ndarray | float, y: np.ndarray | float) -> tuple:
         return unit * (x + cx), unit * (y + cy)
@@ -207,6 +207,11 @@ def axes_radius(solutions: Sequence[Solution]) -> float:
     cx, cy = solutions[0].problem.params.offset
     if solutions[0].stator_states is not None:
         solutions = [rotor_view(s) for s in solutions]
+    return _radius_about_support(solutions, cx, cy)
+
+
+def _radius_about_support(solutions: Sequence[Solution], cx: float, cy: float) -> float:
+    """``axes_radius`` of solutions already in the rotor's own motion."""
     return max(display.orbit_radius(solutions), display.MARGIN * math.hypot(cx, cy))
 
 
