@@ -23,6 +23,7 @@ from rubcli.analysis import orbits as ob
 from rubcli.analysis.synchronous import synchronous_rubs
 from rubcli.cli.app import app
 from rubcli.model import ModelParams
+from rubcli.solvers import variational
 
 PAPER = ModelParams(nu=0.009478, eta=0.7818, e=7.52, K=17.6, mu=0.0, Rp=46.16)
 # A transient through contact entry and exit and a slip reversal (slip+ -> slip-) in one
@@ -81,6 +82,34 @@ def test_free_rotor_multipliers_in_closed_form(k):
     assert _match(orbit.multipliers, ob.free_multipliers(params, k)) < 1e-10
 
 
+def test_extremes_of_z_are_the_closed_form_free_flights():
+    """A flow's largest and smallest z are refined from its samples to where z turns: on
+    a free flight they are the closed form's (``model.free_flight``, its extremes by
+    Brent's method on a fine grid's best) to 1e-11, where its samples alone miss them by
+    far more."""
+    from scipy.optimize import minimize_scalar
+
+    params = dataclasses.replace(RUN_UP, eta=0.6)
+    s0 = np.array([0.3, 0.0, 0.0, 0.4])
+    T = params.period
+    fl = ob.flow(params, s0, 0.0, T, variational=False)
+    assert not fl.events
+
+    def z(t):
+        s = model.free_flight(t, 0.0, s0, params)
+        return np.hypot(s[0], s[1])
+
+    grid = np.linspace(0.0, T, 20001)
+    for sign, found in ((1.0, fl.max_z), (-1.0, fl.min_z)):
+        i = int(np.argmax(sign * z(grid)))
+        best = minimize_scalar(lambda t, sign=sign: -sign * z(t), bounds=(grid[i - 1], grid[i + 1]),
+                               method="bounded", options={"xatol": 1e-14})  # fmt: skip
+        exact = float(z(best.x))
+        assert abs(found - exact) < 1e-11
+        samples = float(np.max(sign * z(ob.sample_grid(params, 0.0, T))) * sign)
+        assert abs(samples - exact) > 1e-7
+
+
 # --------------------------------------------------------- monodromy through switches
 
 
@@ -102,7 +131,7 @@ def test_without_saltation_the_monodromy_is_wrong(monkeypatch):
     """The check above can fail: drop the saltation matrices and it does."""
     params, s0, k = REVERSAL
     fd = _fd_monodromy(params, s0, k)
-    monkeypatch.setattr(ob, "saltation_matrix", lambda *args, **kw: np.eye(4))
+    monkeypatch.setattr(variational, "saltation_matrix", lambda *args, **kw: np.eye(4))
     broken = ob.stroboscopic_map(params, s0, k).monodromy
     assert np.max(np.abs(broken - fd)) > 1e-2 * np.max(np.abs(fd))
 
@@ -111,11 +140,11 @@ def test_saltation_is_identity_at_contact_and_not_at_slip_reversal():
     params = REVERSAL[0]
     on_circle = np.array([0.6, 0.8, -0.3, 0.5])  # z = 1
     grad = np.array([1.2, 1.6, 0.0, 0.0])
-    S = ob.saltation_matrix(0.3, on_circle, params, model.FREE, model.SLIP_POSITIVE, grad)
+    S = variational.saltation_matrix(0.3, on_circle, params, model.FREE, model.SLIP_POSITIVE, grad)
     assert np.array_equal(S, np.eye(4))
     s = np.array([1.02, 0.0, 0.0, -params.Rp * params.eta])  # v_r = 0 in contact
-    grad = ob.surface_gradient(ob.ev.REVERSAL, 0.0, s, params, model.SLIP_POSITIVE)[0]
-    S = ob.saltation_matrix(0.0, s, params, model.SLIP_POSITIVE, model.SLIP_NEGATIVE, grad)
+    grad = variational.surface_gradient(ob.ev.REVERSAL, 0.0, s, params, model.SLIP_POSITIVE)[0]
+    S = variational.saltation_matrix(0.0, s, params, model.SLIP_POSITIVE, model.SLIP_NEGATIVE, grad)
     # the friction force jumps by 2 mu K (z - 1) along the tangent (here +y) when the slip
     # reverses; S = I + jump e_y grad^T / (grad . f-), grad . f- = dv_r/dtau before
     f_minus = model.rhs(0.0, s, params, model.SLIP_POSITIVE)

@@ -2,24 +2,16 @@
 matrix through contact and stick, and shooting (docs/orbits.md).
 
 The stroboscopic map ``P^k(x0; p)`` is the state after k forcing periods ``T = 2 pi / eta``
-started from ``x0`` at ``tau = 0``. It is integrated here one smooth segment at a time
-(regime-locked ``model.rhs``, scipy DOP853 at tight tolerances, terminal events at every
-switch: contact entry/exit, slip reversal, stick exit), together with the variational
-equation ``Phi' = J Phi`` of the same segment (``model.rhs_jacobian``; in stick the
-Jacobian of the rolling flow, which ignores the slip component of the state). At each event
-``Phi`` is multiplied by the saltation matrix
+started from ``x0`` at ``tau = 0``. It is integrated through the solvers' driver, by
+``dop853-jit`` at tight tolerances in the variational mode of ``solvers.variational``:
+the rotor's flow with its variational equation ``Phi' = J Phi``, multiplied at each
+event by the saltation matrix (and where stick ends by the Jacobian of the projection
+onto the rolling constraint). The events are the solvers' own (the extended systems'
+event search and rules). In stick the rank of ``Phi`` drops: a zero multiplier is
+expected there. The largest and smallest z of a flow are refined from its samples to
+where z turns (``extreme_z``): grazing is located on them.
 
-    S = I + (f+ - f-) grad(h)^T / (grad(h)^T f- + dh/dtau)
-
-(``saltation_matrix``), and by the Jacobian of the projection onto the rolling constraint
-where stick ends (the state is projected there, as the solvers do: ``events.apply_event``).
-At contact entry and exit ``f+ = f-`` (the contact force vanishes at ``z = 1``), so
-``S = I``; at a slip reversal and at stick entry the friction force jumps and ``S`` is not
-the identity. In stick the rank of ``Phi`` drops: a zero multiplier is expected there.
-
-Shooting solves ``P^k(x0) - x0 = 0`` by Newton with ``Phi - I``. The regime switches
-themselves come from ``rubcli.solvers.events`` (which regime follows an event), so this
-module and the solvers share one set of switching rules.
+Shooting solves ``P^k(x0) - x0 = 0`` by Newton with ``Phi - I``.
 """
 
 from __future__ import annotations
@@ -33,11 +25,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rubcli import model
+from rubcli.analysis.regimes import time_in_regimes
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solvers import events as ev
+from rubcli.solvers.variational import N_ROTOR, Flow, rotor_flow
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from numpy.typing import ArrayLike
 
     from rubcli.solution import Solution
@@ -48,12 +44,18 @@ RTOL = 1e-12
 ATOL = 1e-12
 # A period with more switch events than this is a failure (a chattering contact).
 MAX_EVENTS_PER_PERIOD = 400
-# Events closer than this to a segment's start are the restart surface itself, not a crossing.
-RESTART_GAP = 1e-11
+# The samples a flow's extremes of z are first read on (``sample_grid``), and the
+# refinement of the extreme sample: Newton's iterations at most, and the step below
+# which it stops (relative to max(1, tau); its error is then of the order of the step's
+# square).
+SAMPLES_PER_PERIOD = 64
+SAMPLES_PER_CONTACT_PERIOD = 16
+EXTREME_ITERATIONS = 12
+EXTREME_STEP = 1e-7
 PARAMETERS = ("eta", "mu", "K", "e", "nu", "Rp")
 # A long flow without a map's variational equations (a transient) is integrated in pieces
-# of at most this many forcing periods: the dense output of one piece is kept (for the
-# extremes of z), and 1e5 periods in one piece once held 3 GB.
+# of at most this many forcing periods: the samples of one piece are kept (for the
+# extremes of z), so its memory is bounded whatever its length.
 TRANSIENT_CHUNK_PERIODS = 16
 # A stator with its own mass (``two_body_flow``): the samples a period on which its flow's
 # extremes of z are read.
@@ -114,131 +116,17 @@ def with_parameter(params: ModelParams, name: str, value: float) -> ModelParams:
         raise OrbitError(f"{name} = {value:.6g} leaves the model's domain ({exc})") from None
 
 
-# ----------------------------------------------------------------- switching surfaces
-
-
-def _slip_gradient(s: np.ndarray) -> np.ndarray:
-    """grad of v_r = Rp eta + (x vy - y vx) / z in (x, y, vx, vy)."""
-    x, y, vx, vy = s
-    z = math.hypot(x, y)
-    w = x * vy - y * vx
-    return np.array([vy / z - w * x / z**3, -vx / z - w * y / z**3, -y / z, x / z])
-
-
-def _stick_margin(tau: float, s: np.ndarray, params: ModelParams, sign: float) -> float:
-    """``events.stick_margin``: stick ends where it rises through zero."""
-    pars = model.params_vector(params)
-    return float(ev.stick_margin(tau, s[0], s[1], s[2], s[3], pars, sign))
-
-
-def _numerical_gradient(fun, tau: float, s: np.ndarray) -> tuple[np.ndarray, float]:
-    """Central differences of a scalar fun(tau, s): (grad in s, d/dtau)."""
-    grad = np.zeros(4)
-    for j in range(4):
-        h = 1e-7 * max(1.0, abs(s[j]))
-        sp, sm = s.copy(), s.copy()
-        sp[j] += h
-        sm[j] -= h
-        grad[j] = (fun(tau, sp) - fun(tau, sm)) / (2.0 * h)
-    h = 1e-7 * max(1.0, abs(tau))
-    return grad, (fun(tau + h, s) - fun(tau - h, s)) / (2.0 * h)
-
-
-def surface_gradient(
-    kind: int, tau: float, s: np.ndarray, params: ModelParams, regime: int
-) -> tuple[np.ndarray, float]:
-    """(grad h, dh/dtau) of the surface an event of ``kind`` (an ``events`` code) crosses."""
-    if kind in (ev.ENTRY, ev.EXIT):
-        return np.array([2.0 * s[0], 2.0 * s[1], 0.0, 0.0]), 0.0
-    if kind in (ev.REVERSAL, ev.STICK_ENTRY):
-        return _slip_gradient(s), 0.0
-    # stick exit: h = sign T - L, the sign the needed friction leaves the cone on
-    needed = float(model.stick_friction(tau, s[0], s[1], s[2], s[3], params))
-    sign = 1.0 if needed > 0.0 else -1.0
-    return _numerical_gradient(lambda t, q: _stick_margin(t, q, params, sign), tau, s)
-
-
-def saltation_matrix(
-    tau: float,
-    s: np.ndarray,
-    params: ModelParams,
-    regime_before: int,
-    regime_after: int,
-    grad: np.ndarray,
-    dh_dtau: float = 0.0,
-) -> np.ndarray:
-    """S = I + (f+ - f-) grad(h)^T / (grad(h)^T f- + dh/dtau) at a transversal crossing.
-
-    Raises OrbitError at a grazing crossing (the denominator vanishes): grazing is a
-    bifurcation of its own and is detected on the branch, not divided by.
-    """
-    f_minus = model.rhs(tau, s, params, regime_before)
-    f_plus = model.rhs(tau, s, params, regime_after)
-    rate = float(grad @ f_minus) + dh_dtau
-    jump = f_plus - f_minus
-    if not np.any(jump):
-        return np.eye(4)
-    scale = float(np.linalg.norm(grad) * np.linalg.norm(f_minus)) + abs(dh_dtau)
-    if abs(rate) <= 1e-13 * max(scale, 1e-300):
-        raise OrbitError(f"grazing switch at tau = {tau:.9g}: the saltation matrix is singular")
-    return np.eye(4) + np.outer(jump, grad) / rate
-
-
-def rolling_projection_jacobian(s: np.ndarray, params: ModelParams) -> np.ndarray:
-    """Jacobian of ``model.project_to_rolling`` at s (central differences)."""
-    jac = np.zeros((4, 4))
-    for j in range(4):
-        h = 1e-7 * max(1.0, abs(s[j]))
-        sp, sm = s.copy(), s.copy()
-        sp[j] += h
-        sm[j] -= h
-        jac[:, j] = (
-            model.project_to_rolling(sp, params) - model.project_to_rolling(sm, params)
-        ) / (2.0 * h)
-    return jac
-
-
 # ------------------------------------------------------------------------- the flow
 
 
-def _event_functions(params: ModelParams, regime: int) -> list:
-    """solve_ivp event functions of a regime, each tagged with its kind: the event
-    functions of ``events`` (``surface_value``, ``slip_value``, ``stick_margin``) on the
-    flow's first four entries."""
-
-    def entry(t: float, Y: np.ndarray) -> float:
-        return float(ev.surface_value(Y))
-
-    def exit_(t: float, Y: np.ndarray) -> float:
-        return float(ev.surface_value(Y))
-
-    entry.terminal, entry.direction, entry.kind = True, 1.0, ev.ENTRY
-    exit_.terminal, exit_.direction, exit_.kind = True, -1.0, ev.EXIT
-    if regime == model.FREE:
-        return [entry]
-    out = [exit_]
-    if params.mu > 0.0 and regime in (model.SLIP_POSITIVE, model.SLIP_NEGATIVE):
-
-        def reversal(t: float, Y: np.ndarray) -> float:
-            return float(ev.slip_value(Y, params, t))
-
-        reversal.terminal, reversal.kind = True, ev.REVERSAL
-        reversal.direction = -1.0 if regime == model.SLIP_POSITIVE else 1.0
-        out.append(reversal)
-    if regime == model.STICK:
-        for sign in (1.0, -1.0):
-
-            def margin(t: float, Y: np.ndarray, sign: float = sign) -> float:
-                return _stick_margin(t, Y[:4], params, sign)
-
-            margin.terminal, margin.direction, margin.kind = True, 1.0, ev.STICK_EXIT
-            out.append(margin)
-    return out
-
-
-def _start_regime(tau: float, s: np.ndarray, params: ModelParams) -> int:
-    """The regime a state starts in (contact by z, slip direction by v_r, Filippov at 0)."""
-    return model.regime_of_state(s, params, tau)
+def sample_grid(params: ModelParams, tau0: float, tau1: float) -> np.ndarray:
+    """The samples a flow is read on for its extremes of z: ``SAMPLES_PER_PERIOD`` a
+    forcing period, and ``SAMPLES_PER_CONTACT_PERIOD`` a period of the contact's
+    oscillation (of circular frequency ``sqrt(1 + K)``), whichever is closer."""
+    h = min(params.period / SAMPLES_PER_PERIOD,
+            2.0 * math.pi / (SAMPLES_PER_CONTACT_PERIOD * math.sqrt(1.0 + params.K)))  # fmt: skip
+    n = max(2, math.ceil((tau1 - tau0) / h)) + 1
+    return np.linspace(tau0, tau1, n)
 
 
 def flow(
@@ -257,10 +145,9 @@ def flow(
     """Integrate the nonsmooth flow from (tau0, s0) to tau1, with the monodromy matrix.
 
     Returns the final state, ``Phi = d s(tau1) / d s0`` (if ``variational``), the switch
-    events, the largest and smallest z (refined on the dense output), and the time spent
-    in contact and in stick. Raises OrbitError on chatter or a failed integration, and
-    WallTimeBudgetError once ``time.perf_counter()`` passes ``deadline`` (checked at every
-    evaluation of the right-hand side).
+    events, the largest and smallest z (``extreme_z``), and the time spent in contact
+    and in stick. Raises OrbitError on chatter or a failed integration, and
+    WallTimeBudgetError once ``time.perf_counter()`` passes ``deadline``.
 
     ``locked``: integrate in this one regime without any switch (the smooth extension of
     a free or a slipping flow across the surfaces), used to locate grazing from the side
@@ -272,110 +159,90 @@ def flow(
         return two_body_flow(params, s0, tau0, tau1, variational=variational, rtol=rtol,
                              atol=atol, locked=locked, deadline=deadline)  # fmt: skip
     s = np.asarray(s0, dtype=float).copy()
-    regime = _start_regime(tau0, s, params) if locked is None else int(locked)
+    regime = model.regime_of_state(s, params, tau0) if locked is None else int(locked)
     if regime == model.STICK:
         s = model.project_to_rolling(s, params)
-    phi = np.eye(4)
-    tau = float(tau0)
     periods = max(1.0, (tau1 - tau0) / params.period)
     limit = max_events if max_events is not None else int(MAX_EVENTS_PER_PERIOD * periods) + 10
-    args = model.params_vector(params)
-    found: list[tuple[float, str, int, int]] = []
-    contact_time = stick_time = 0.0
-    best_max = (-math.inf, None, None)  # (z, dense sol, (ta, tb))
-    best_min = (math.inf, None, None)
-    nfev = 0
-    last_kind = ev.NO_EVENT
 
-    while tau < tau1:
-        reg = regime
-
+    def run(start: np.ndarray, t_eval: np.ndarray, phi: np.ndarray | None) -> Flow:
         check_deadline(deadline)
-        if variational:
+        budget = math.inf if deadline is None else max(deadline - time.perf_counter(), 0.0)
+        out = rotor_flow(params, start, t_eval, phi=phi, locked=locked, rtol=rtol, atol=atol,
+                         max_events=limit, max_wall_time_s=budget)  # fmt: skip
+        if not out.solution.success:
+            check_deadline(deadline)
+            raise OrbitError(f"integration failed: {out.solution.message}")
+        return out
 
-            def fun(t: float, Y: np.ndarray, reg: int = reg) -> np.ndarray:
-                check_deadline(deadline)
-                f = model.rhs_record(t, Y[0], Y[1], Y[2], Y[3], args, reg)
-                J = model.rhs_jacobian_record(t, Y[0], Y[1], Y[2], Y[3], args, reg)
-                out = np.empty(20)
-                out[:4] = f
-                out[4:] = (J @ Y[4:].reshape(4, 4)).ravel()
-                return out
-
-            Y0 = np.concatenate([s, phi.ravel()])
-        else:
-
-            def fun(t: float, Y: np.ndarray, reg: int = reg) -> np.ndarray:
-                check_deadline(deadline)
-                return np.array(model.rhs_record(t, Y[0], Y[1], Y[2], Y[3], args, reg))
-
-            Y0 = s.copy()
-        evs = _event_functions(params, reg) if locked is None else []
-        from scipy.integrate import solve_ivp  # on use: `rubcli run` needs no scipy integrator
-
-        sol = solve_ivp(
-            fun, (tau, tau1), Y0, method="DOP853", rtol=rtol, atol=atol, events=evs,
-            dense_output=True,
-        )  # fmt: skip
-        nfev += sol.nfev
-        if sol.status == -1:
-            raise OrbitError(f"integration failed at tau = {tau:.9g}: {sol.message}")
-        t_end = float(sol.t[-1])
-        # extremes of z on this segment, refined later on the dense output
-        z = np.hypot(sol.y[0], sol.y[1])
-        i_max, i_min = int(np.argmax(z)), int(np.argmin(z))
-        if z[i_max] > best_max[0]:
-            best_max = (float(z[i_max]), sol.sol, _bracket(sol.t, i_max))
-        if z[i_min] < best_min[0]:
-            best_min = (float(z[i_min]), sol.sol, _bracket(sol.t, i_min))
-        if reg != model.FREE:
-            contact_time += t_end - tau
-        if reg == model.STICK:
-            stick_time += t_end - tau
-        if sol.status == 0:
-            s = sol.y[:4, -1].copy()
-            if variational:
-                phi = sol.y[4:, -1].reshape(4, 4).copy()
-            tau = float(tau1)
-            break
-        # a terminal event: which one
-        idx = next(i for i, te in enumerate(sol.t_events) if te.size)
-        kind = evs[idx].kind
-        t_ev = float(sol.t_events[idx][0])
-        Y_ev = sol.y_events[idx][0]
-        s_ev = Y_ev[:4].copy()
-        if variational:
-            phi = Y_ev[4:].reshape(4, 4).copy()
-        s_new, new_regime, kind, _ = ev.apply_event(t_ev, kind, s_ev, reg, params)
-        if variational:
-            grad, dh_dt = surface_gradient(kind, t_ev, s_ev, params, reg)
-            if kind == ev.STICK_EXIT:
-                # the rolling flow ignored the slip part of the state; the state is
-                # projected here, and so is its variation
-                phi = rolling_projection_jacobian(s_ev, params) @ phi
-            phi = saltation_matrix(t_ev, s_new, params, reg, new_regime, grad, dh_dt) @ phi
-        found.append((t_ev, ev.KIND_NAMES[kind], reg, new_regime))
-        if len(found) > limit:
-            raise OrbitError(
-                f"more than {limit} switch events in {periods:.3g} periods (chattering contact)"
-            )
-        if t_ev - tau <= RESTART_GAP and kind == last_kind and new_regime == reg:
-            raise OrbitError(f"switch storm at tau = {t_ev:.9g} ({ev.KIND_NAMES[kind]})")
-        s, regime, tau, last_kind = s_new, new_regime, t_ev, kind
-
-    max_z = _refine_extreme(best_max, +1.0)
-    min_z = _refine_extreme(best_min, -1.0)
+    main = run(s, sample_grid(params, tau0, tau1), np.eye(4) if variational else None)
+    sol, nfev = main.solution, main.nfev
+    extremes = []
+    for sign in (1.0, -1.0):
+        z, more = extreme_z(params, sol, sign, lambda a, t: run(a, t, None))
+        extremes.append(z)
+        nfev += more
+    regimes = time_in_regimes(sol)
     return FlowResult(
-        state=s,
-        monodromy=phi if variational else None,
-        events=found,
-        max_z=max_z,
-        min_z=min_z,
-        contact_time=contact_time,
-        stick_time=stick_time,
+        state=main.end[:4].copy(),
+        monodromy=main.end[N_ROTOR:].reshape(4, 4).copy() if variational else None,
+        events=[(e.tau, e.kind, e.regime_before, e.regime_after) for e in sol.events],
+        max_z=extremes[0],
+        min_z=extremes[1],
+        contact_time=float(sum(v for k, v in regimes.items() if k != "free")),
+        stick_time=float(regimes["stick"]),
         duration=float(tau1 - tau0),
         nfev=nfev,
     )
+
+
+def extreme_z(
+    params: ModelParams, sol: Solution, sign: float,
+    flow_to: Callable[[np.ndarray, np.ndarray], Flow],
+) -> tuple[float, int]:  # fmt: skip
+    """The largest z of a flow's samples (``sign`` +1; -1: the smallest) refined to where
+    z turns, ``g = x vx + y vy = 0``, by Newton's method on g (``g' = |v|^2 + x ax + y
+    ay``) safeguarded by bisection in the samples' bracket, each iterate's state from a
+    short flow ``flow_to(start, [t_j, t])`` from the sample t_j before it. At the span's
+    ends, or where g does not change sign around the sample (no turn between them), the
+    sample's z. Returns (z, evaluations spent)."""
+    t, S, z = sol.t, sol.states, sol.z
+    i = int(np.argmax(sign * z))
+    best, nfev = float(z[i]), 0
+    if i == 0 or i == t.size - 1:
+        return best, nfev
+    lo, hi = float(t[i - 1]), float(t[i + 1])
+    if not sign * _radial(S[i - 1]) > 0.0 > sign * _radial(S[i + 1]):
+        return best, nfev
+    tk, sk, regime = float(t[i]), S[i], int(sol.regimes[i])
+    for _ in range(EXTREME_ITERATIONS):
+        f = model.rhs(tk, sk, params, regime)
+        g = _radial(sk)
+        if sign * g > 0.0:
+            lo = max(lo, tk)
+        elif sign * g < 0.0:
+            hi = min(hi, tk)
+        else:
+            break
+        rate = sk[2] ** 2 + sk[3] ** 2 + sk[0] * f[2] + sk[1] * f[3]
+        t_next = tk - g / rate if rate != 0.0 else math.nan
+        if not lo < t_next < hi:
+            t_next = 0.5 * (lo + hi)
+        j = int(np.searchsorted(t, t_next, side="right")) - 1
+        end = flow_to(S[j], np.array([t[j], t_next]))
+        nfev += end.nfev
+        step, tk = abs(t_next - tk), t_next
+        sk, regime = end.solution.states[-1], int(end.solution.regimes[-1])
+        zk = math.hypot(sk[0], sk[1])
+        best = max(best, zk) if sign > 0.0 else min(best, zk)
+        if step <= EXTREME_STEP * max(1.0, abs(tk)):
+            break
+    return best, nfev
+
+
+def _radial(s: np.ndarray) -> float:
+    """g = x vx + y vy = z z': z turns where it changes sign."""
+    return float(s[0] * s[2] + s[1] * s[3])
 
 
 def two_body_flow(
@@ -398,7 +265,6 @@ def two_body_flow(
     of its locked flow (``analysis.two_body_monodromy``). Raises OrbitError on a failed
     flow or a grazing switch, WallTimeBudgetError past ``deadline``."""
     from rubcli.analysis import two_body_monodromy
-    from rubcli.analysis.regimes import time_in_regimes
     from rubcli.solvers.two_body import two_body_flow as run
 
     s = np.asarray(s0, dtype=float).copy()
@@ -446,26 +312,6 @@ def two_body_flow(
         duration=float(tau1 - tau0),
         nfev=nfev,
     )
-
-
-def _bracket(t: np.ndarray, i: int) -> tuple[float, float]:
-    return float(t[max(i - 1, 0)]), float(t[min(i + 1, t.size - 1)])
-
-
-def _refine_extreme(best, sign: float) -> float:
-    """The extreme of z on the dense output near the best step point (golden/Brent)."""
-    value, dense, (ta, tb) = best
-    if dense is None or tb <= ta:
-        return value
-
-    def neg(t: float) -> float:
-        y = dense(t)
-        return -sign * math.hypot(y[0], y[1])
-
-    from scipy.optimize import minimize_scalar
-
-    res = minimize_scalar(neg, bounds=(ta, tb), method="bounded", options={"xatol": 1e-12})
-    return max(value, -res.fun) if sign > 0 else min(value, res.fun)
 
 
 # ------------------------------------------------------------------------ the map

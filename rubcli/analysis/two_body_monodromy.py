@@ -22,7 +22,7 @@ Jacobian is the product
   projects (stick entry and exit, ``stator.two_body_projection``), else I.
 
 A grazing event (``grad(h)^T f- = 0``) has no saltation matrix: OrbitError, as on the
-rigid stator (``orbits.saltation_matrix``). The gradients and the projection's Jacobian
+rigid stator (``solvers.variational.saltation_matrix``). The gradients and the projection's Jacobian
 are central differences of closed-form functions (step ``GRADIENT_STEP`` (1 + |q_j|)).
 """
 
@@ -37,6 +37,7 @@ from rubcli import model
 from rubcli.model import ModelParams
 from rubcli.solution import Solution
 from rubcli.solvers.compiled.two_body import two_body_columns, two_body_rhs
+from rubcli.solvers.variational import GrazingSwitchError
 from rubcli.stator import S_INV_MASS, two_body_projection
 
 MECHANICAL = np.array([0, 1, 2, 3, 6, 7, 8, 9])  # the section's entries of the ten states
@@ -47,10 +48,6 @@ FD_STEP = 1e-5
 
 # a segment's locked flow: (start (8,), tau_a, tau_b, regime) -> end (8,), evaluations
 SegmentFlow = Callable[[np.ndarray, float, float, int], tuple[np.ndarray, int]]
-
-
-class GrazingSwitchError(ValueError):
-    """An event whose surface the flow crosses tangentially: no saltation matrix."""
 
 
 def full_state(q: np.ndarray, tau: float, params: ModelParams) -> np.ndarray:

@@ -78,7 +78,8 @@ class System:
     count, its right-hand side at one state ``rhs(s, *ctx, regime)`` and at the columns
     of states ``columns(S, *ctx, regime) -> (dS, T)`` (compiled, and the same run by the
     interpreter), its compiled DOP853 loop ``(initial_step, advance)``
-    (``compiled.extended_loop.dop853_loop``) and its compiled Taylor loop (``taylor``)."""
+    (``compiled.extended_loop.dop853_loop``) and its compiled Taylor loop (``taylor``;
+    None for a system only ``dop853-jit`` runs: ``solvers.variational``'s)."""
 
     size: int
     rhs: Callable
@@ -86,7 +87,7 @@ class System:
     python_rhs: Callable
     python_columns: Callable
     loop: tuple[Callable, Callable]
-    taylor: Callable
+    taylor: Callable | None
 
 
 class ExtendedRun(driver.Run):

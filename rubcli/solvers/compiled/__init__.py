@@ -25,6 +25,8 @@
   loop (``dop853-jit``) and its Taylor series and loop (``taylor``);
 - ``two_body.py`` and ``two_body_taylor.py``: the stator with its own mass: its
   right-hand side, its DOP853 loop and its Taylor series and loop;
+- ``variational.py``: the rotor at a constant speed as such a system, with or without
+  its variational matrix (``orbits``' flow) and its DOP853 loops;
 - ``taylor.py``: the ``taylor`` method's series, step size, event pre-check, the event
   search (``events.event_search``) on the step polynomial, and its loop (about 1,080
   lines, over the usual 500: the series are written out once per regime, free, slip and

@@ -218,12 +218,13 @@ def _dispatchers() -> list:
         taylor,
         two_body,
         two_body_taylor,
+        variational,
     )  # fmt: skip
 
     modules = (
         linalg, propagators, precheck, contact, rhs, dop853, roots, dop853_loop, taylor,
         piecewise, piecewise_loop, drive, driven_taylor, extended_loop, two_body, two_body_taylor,
-        energy_kernel,
+        variational, energy_kernel,
     )  # fmt: skip
     found = [_probe]
     for module in modules:
