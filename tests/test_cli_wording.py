@@ -11,7 +11,7 @@ import pytest
 import xarray as xr
 from typer.testing import CliRunner
 
-from rubcli.cli import console, orbits
+from rubcli.cli import orbits, tables
 from rubcli.cli.app import app
 from rubcli.studies import compare as compare_study
 from rubcli.studies import sweep
@@ -49,13 +49,13 @@ ROWS = [
 ]  # fmt: skip
 
 
-@pytest.mark.parametrize(("columns", "width"), [(None, console.DEFAULT_WIDTH), ("72", 72)])
+@pytest.mark.parametrize(("columns", "width"), [(None, tables.DEFAULT_WIDTH), ("72", 72)])
 def test_tables_fit_the_width_when_stdout_is_not_a_terminal(capsys, monkeypatch, columns, width):
     if columns is None:
         monkeypatch.delenv("COLUMNS", raising=False)
     else:
         monkeypatch.setenv("COLUMNS", columns)
-    console.table("bifurcations along mu", ["kind", "mu", "located", "max z", "|m|", "note"], ROWS)
+    tables.table("bifurcations along mu", ["kind", "mu", "located", "max z", "|m|", "note"], ROWS)
     out = capsys.readouterr().out
     lines = out.splitlines()
     assert max(len(line.rstrip()) for line in lines) <= width
@@ -68,7 +68,7 @@ def test_tables_fit_the_width_when_stdout_is_not_a_terminal(capsys, monkeypatch,
 
 def test_a_table_of_numbers_wider_than_the_width_is_widened_not_cut(capsys, monkeypatch):
     monkeypatch.setenv("COLUMNS", "20")
-    console.table("t", ["a", "b"], [["1.234567890123", "9.876543210987"]])
+    tables.table("t", ["a", "b"], [["1.234567890123", "9.876543210987"]])
     out = capsys.readouterr().out
     assert "1.234567890123" in out and "9.876543210987" in out
 

@@ -27,7 +27,7 @@ from typer.testing import CliRunner
 
 from rubcli import io, model, solvers
 from rubcli.case import KNOWN_METHODS, CaseFile, load_case_text
-from rubcli.cli import console
+from rubcli.cli import console, tables
 from rubcli.cli.app import app
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
@@ -462,7 +462,7 @@ def test_docs_cases_name_every_method_and_table():
 def test_console_tables_never_cut_a_number(capsys):
     rows = [["dop853-jit", "rtol = 1e-11", "0.01234", "1.234e-11", "2.345e-12", "14072",
              "1407200", "success"]]  # fmt: skip
-    console.table("work-precision", ["method", "setting", "wall s", "error max",
+    tables.table("work-precision", ["method", "setting", "wall s", "error max",
                   "error final", "steps", "f evals", "status"], rows)  # fmt: skip
     out = capsys.readouterr().out
     for cell in rows[0]:

@@ -29,7 +29,6 @@ from rubcli.analysis.regimes import time_in_regimes
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solvers import events as ev
-from rubcli.solvers.variational import N_ROTOR, Flow, rotor_flow
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -37,6 +36,7 @@ if TYPE_CHECKING:
     from numpy.typing import ArrayLike
 
     from rubcli.solution import Solution
+    from rubcli.solvers.variational import Flow
 
 # Integration tolerances of the map (relative and absolute): tight, so the monodromy
 # matrix and the located bifurcations are accurate to ~1e-9.
@@ -158,6 +158,10 @@ def flow(
     if params.stator is not None:
         return two_body_flow(params, s0, tau0, tau1, variational=variational, rtol=rtol,
                              atol=atol, locked=locked, deadline=deadline)  # fmt: skip
+    # on use: the extended loop's event search imports scipy, which `rubcli run` of a
+    # compiled method does without (analysis modules import this one)
+    from rubcli.solvers.variational import N_ROTOR, rotor_flow
+
     s = np.asarray(s0, dtype=float).copy()
     regime = model.regime_of_state(s, params, tau0) if locked is None else int(locked)
     if regime == model.STICK:

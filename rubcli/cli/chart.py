@@ -25,7 +25,7 @@ from typing import Annotated
 
 import typer
 
-from rubcli.cli import console, progress
+from rubcli.cli import console, progress, tables
 from rubcli.cli.common import (
     ForceOption,
     JsonOption,
@@ -86,7 +86,7 @@ def command(
         report_stale(plan)
         emit(report, json)
         rows = [[name, f"{share:.1%}"] for name, share in report["region_fractions"].items()]
-        console.table(f"regions of ({c.x}, {c.y})", ["region", "share of the plane"], rows)
+        tables.table(f"regions of ({c.x}, {c.y})", ["region", "share of the plane"], rows)
         for kind, found in report["continuation_check"]["by_kind"].items():
             if found["points"]:
                 console.info(f"{kind}: {found['points']} points located by continuation, "

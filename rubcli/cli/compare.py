@@ -46,7 +46,7 @@ import typer
 from rubcli import io
 from rubcli.analysis.reference import ReferenceError
 from rubcli.case import Case, CompareSection
-from rubcli.cli import console, progress
+from rubcli.cli import console, progress, tables
 from rubcli.cli.common import (
     ForceOption,
     JsonOption,
@@ -117,7 +117,7 @@ def _compare(
     from rubcli.plotting import compare as plots
 
     if wp is not None:
-        console.table(
+        tables.table(
             f"{case.name}: work-precision ({wp.problem.periods:.4g} periods)",
             [
                 "method",

@@ -16,7 +16,6 @@ the command line turns into a message on stderr and exit code 74 (141 for a clos
 
 from __future__ import annotations
 
-import os
 import sys
 import threading
 import warnings
@@ -25,9 +24,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TextIO
 
-from rich import box
 from rich.console import Console
-from rich.table import Table
 
 
 class StdoutError(Exception):
@@ -39,7 +36,8 @@ class StdoutError(Exception):
 
 
 @contextmanager
-def _writing_stdout() -> Iterator[None]:
+def writing_stdout() -> Iterator[None]:
+    """A write to stdout: its OSError raised as ``StdoutError``."""
     try:
         yield
     except OSError as exc:
@@ -48,7 +46,7 @@ def _writing_stdout() -> Iterator[None]:
 
 def flush_stdout() -> None:
     """Flush stdout now (a write error then surfaces as ``StdoutError``, not at exit)."""
-    with _writing_stdout():
+    with writing_stdout():
         sys.stdout.flush()
 
 
@@ -56,7 +54,8 @@ _machine = [False]  # --json: stdout carries only the JSON result
 MAX_VALUE_CHARS = 200  # longer user values are shortened in messages (shorten())
 
 
-def _stdout() -> Console:
+def stdout_console() -> Console:
+    """The console of results (stdout, followed at each call)."""
     return Console(file=sys.stdout, highlight=False)
 
 
@@ -77,7 +76,7 @@ def is_machine_readable() -> bool:
 
 def json_result(text: str) -> None:
     """The JSON result of a command (``--json``): on stdout, exactly as given."""
-    with _writing_stdout():
+    with writing_stdout():
         sys.stdout.write(text)
         sys.stdout.flush()
 
@@ -118,15 +117,15 @@ def stderr_console() -> Console:
 
 def raw(text: str) -> None:
     """Print text exactly as it is (no markup, no wrapping), e.g. a sample case file."""
-    with _writing_stdout():
+    with writing_stdout():
         sys.stdout.write(text)
         sys.stdout.flush()
 
 
 def info(message: str) -> None:
     if not _machine[0]:
-        with _writing_stdout():
-            _stdout().print(message, markup=False, soft_wrap=True)
+        with writing_stdout():
+            stdout_console().print(message, markup=False, soft_wrap=True)
 
 
 @contextmanager
@@ -146,8 +145,8 @@ def notice_if_slow(message: str, after_s: float = 3.0) -> Iterator[None]:
 
 def success(message: str) -> None:
     if not _machine[0]:
-        with _writing_stdout():
-            _stdout().print(message, style="green", markup=False, soft_wrap=True)
+        with writing_stdout():
+            stdout_console().print(message, style="green", markup=False, soft_wrap=True)
 
 
 def warning(message: str) -> None:
@@ -172,49 +171,3 @@ def exception(exc: BaseException) -> None:
     from rich.traceback import Traceback
 
     stderr_console().print(Traceback.from_exception(type(exc), exc, exc.__traceback__))
-
-
-def table(
-    title: str, columns: Sequence[str], rows: Sequence[Sequence[str]], caption: str | None = None
-) -> None:
-    """A table of results on stdout, fitted to ``output_width()``.
-
-    Columns of words (notes, messages) wrap within their cells; numbers and names are
-    never cut or wrapped. Only when those alone are wider than the width is the table
-    printed wider (a cut number would be a wrong number)."""
-    if _machine[0]:
-        return
-    out = Table(
-        title=title, title_justify="left", box=box.SIMPLE_HEAD, caption=caption,
-        caption_justify="left", pad_edge=False, collapse_padding=True,
-    )  # fmt: skip
-    fixed = 0  # the width the unbreakable columns need
-    for i, name in enumerate(columns):
-        cells = [str(row[i]) for row in rows]
-        width = max((len(c) for c in cells), default=0)
-        words = any(" " in c for c in cells)
-        if words:  # wraps at spaces, down to its longest word
-            longest = max((len(w) for c in cells for w in c.split()), default=0)
-            out.add_column(name, overflow="fold", min_width=min(longest, 12))
-            fixed += max(longest, min(len(name), 12)) + 2
-        else:
-            out.add_column(name, overflow="fold", min_width=width, no_wrap=True)
-            fixed += max(width, min(len(name), 12)) + 2
-    for row in rows:
-        out.add_row(*row)
-    width = max(output_width(), fixed)
-    with _writing_stdout():
-        Console(file=sys.stdout, highlight=False, width=width).print(out)
-
-
-DEFAULT_WIDTH = 100  # text width when stdout is not a terminal and COLUMNS is not set
-
-
-def output_width() -> int:
-    """The width text is fitted to: the terminal's, or (a pipe, a log file) ``COLUMNS``
-    when it is set, else ``DEFAULT_WIDTH``."""
-    console = _stdout()
-    if console.is_terminal:
-        return console.width
-    columns = os.environ.get("COLUMNS", "")
-    return int(columns) if columns.isdigit() and int(columns) > 0 else DEFAULT_WIDTH

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from rubcli.cli import console, progress
+from rubcli.cli import console, progress, tables
 from rubcli.cli.common import (
     ForceOption,
     JsonOption,
@@ -92,7 +92,7 @@ def command(
         rows = [[name, str(o["runs"]),
                  f"{o['fraction']:.2f} [{o['lower']:.2f}, {o['upper']:.2f}]"]
                 for name, o in result.outcomes().items()]  # fmt: skip
-        console.table("where the runs end", ["attractor", "runs", "fraction [95 %]"], rows)
+        tables.table("where the runs end", ["attractor", "runs", "fraction [95 %]"], rows)
         life = result.lifetimes()["mean_lifetime"]
         if life["mean"]:
             console.info(f"mean lifetime of the transient: {life['mean']:.0f} forcing periods "
@@ -130,8 +130,8 @@ def _basin_stability(case_file, case, out, workers, quick, json, force, wait) ->
             rows.append([f"{value:g}", str(basin.good_runs(i))]
                         + [f"{f[k]['fraction']:.2f} [{f[k]['ci_low']:.2f}, {f[k]['ci_high']:.2f}]"
                            for k in labels] + [str(basin.failed_runs(i))])  # fmt: skip
-        console.table(f"where the runs end along {basin.parameter} (fraction [95 %])",
-                      [basin.parameter, "runs", *labels, "failed"], rows)  # fmt: skip
+        tables.table(f"where the runs end along {basin.parameter} (fraction [95 %])",
+                     [basin.parameter, "runs", *labels, "failed"], rows)  # fmt: skip
         for p in basin.perturbations:
             if p.found:
                 d = ", ".join(f"{v:.2f}" for v in p.direction)

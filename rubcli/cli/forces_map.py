@@ -30,7 +30,7 @@ import typer
 
 from rubcli import case as case_module
 from rubcli.case import Case, ForcesMapSection
-from rubcli.cli import console
+from rubcli.cli import console, tables
 from rubcli.cli.common import ForceOption, WaitOption, command_dir, prepare_output, report_stale
 from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 from rubcli.studies import forces_map as study
@@ -66,7 +66,7 @@ def _print_summary(report: dict[str, Any]) -> None:
             ]
             for direction in slopes
         ]
-        console.table(
+        tables.table(
             "Taylor error: fitted slope of log error vs log delta",
             ["direction", *(f"K={float(k):g}" for k in K_labels)],
             rows,

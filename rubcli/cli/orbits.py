@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from rubcli.analysis import continuation as cn
-from rubcli.cli import console, progress
+from rubcli.cli import console, progress, tables
 from rubcli.cli.common import (
     ForceOption,
     JsonOption,
@@ -178,7 +178,7 @@ def _orbits(case_file, case, target, plan, overlay, overlay_data, quick, max_wal
         )
         raise typer.Exit(EXIT_FAILED)
     if branch.bifurcations:
-        console.table(
+        tables.table(
             f"bifurcations along {branch.parameter}",
             ["kind", branch.parameter, "located", "max z", "|multipliers|", "note"],
             summary_lines(branch),
@@ -186,7 +186,7 @@ def _orbits(case_file, case, target, plan, overlay, overlay_data, quick, max_wal
     else:
         console.info("no bifurcation detected on the branch")
     if case.settings.orbits.second_parameter:
-        console.table(
+        tables.table(
             f"bifurcations continued in {case.settings.orbits.second_parameter}",
             ["kind", "from", "points", "|distance| to closed form", "ends"],
             [curve_line(c, report) for c, report in zip(result.curves,

@@ -3,11 +3,9 @@
 Each method of the case (or of ``--method``) is solved and only the products the case asks
 for are written into the output dir (``rubcli.studies.run``, whose docstring lists them).
 
-The output dir is locked and checked before anything is solved
-(``rubcli.io.open_output_dir``): writable, and either new, empty or written by rubcli
-(else ``--force``); a file of the user's named like one of this run's outputs is refused;
-the files of a previous run that this run does not write are removed, and named. All
-files are staged and committed as a whole at the end (docs/cases.md, "Output dirs").
+The output dir is locked and checked before anything is solved, and all files are
+committed as a whole at the end (``rubcli.io.open_output_dir``; docs/cases.md, "Output
+dirs").
 
 Exit codes: 0 success; 2 invalid input or unusable output dir (nothing is solved or
 written); 1 if any method failed (its failure is in report.json; the outputs of the run
@@ -30,7 +28,7 @@ import typer
 from rubcli import io
 from rubcli.analysis.checks import WARNING
 from rubcli.case import KNOWN_METHODS, Case, CaseError
-from rubcli.cli import console, progress
+from rubcli.cli import console, progress, tables
 from rubcli.cli.common import (
     ForceOption,
     JsonOption,
@@ -136,7 +134,7 @@ def command(
     if unavailable:
         console.error(f"{case_file}: solver.methods: not available: {', '.join(unavailable)}")
         raise typer.Exit(EXIT_INVALID)
-    steady = _steady_or_exit(case, case_file, overlay)
+    steady = _steady_or_exit(case, overlay)
     plan = prepare_output(target, force, wait, study.expected_files(case))
 
     with machine_readable(json):
@@ -156,31 +154,18 @@ def command(
 
 
 def _run(
-    case: Case,
-    case_file: Path,
-    method: list[str] | None,
-    out: Path | None,
-    periods: float | None,
-    plan: io.OutputPlan,
-    steady: SteadyStates | None = None,
-) -> dict[str, Any]:
+    case: Case, case_file: Path, method: list[str] | None, out: Path | None,
+    periods: float | None, plan: io.OutputPlan, steady: SteadyStates | None = None,
+) -> dict[str, Any]:  # fmt: skip
     console.info(
         f"{case.name}: {summary.span_text(case.problem)}, methods {', '.join(case.methods)}"
     )
-    command_line = {
-        "case_file": str(case_file),
-        "methods": method or None,
-        "out": str(out) if out is not None else None,
-        "periods": periods,
-    }
-    # Solved first, every method alone (its timing is its own); then the plotting modules
-    # are imported and the CSVs written in the background while the report entries are
-    # computed and the figures drawn (``RunResult.write``).
-    # What the imports made lives as long as the process: out of the cyclic collector's
-    # full passes (they would walk numba's and the modules' objects again and again).
-    # Not unfrozen afterwards: the interpreter's last collection at exit would then walk
-    # them all (0.15-0.3 s measured); a caller that goes on in this process only keeps
-    # the few garbage cycles made before the run.
+    command_line = {"case_file": str(case_file), "methods": method or None,
+                    "out": str(out) if out is not None else None, "periods": periods}  # fmt: skip
+    # Solved first, every method alone (its timing its own), then written
+    # (``RunResult.write``). What the imports made lives as long as the process: frozen
+    # out of the cyclic collector's passes, and not unfrozen (the last collection at exit
+    # would walk it all).
     gc.freeze()
     with console.notice_if_slow(COMPILING_NOTICE, START_UP_NOTICE_S):
         startup = study.start_up(case)
@@ -192,8 +177,8 @@ def _run(
     entries = report["methods"]
     report_stale(plan)
 
-    console.table(f"{case.name}: results", list(summary.COLUMNS), summary.summary_rows(entries),
-                  caption=summary.CAPTION)  # fmt: skip
+    tables.table(f"{case.name}: results", list(summary.COLUMNS), summary.summary_rows(entries),
+                 caption=summary.CAPTION)  # fmt: skip
     for name, entry in entries.items():
         if entry.get("transient") is not None:
             console.info(summary.transient_line(name, entry["transient"]))
@@ -202,14 +187,10 @@ def _run(
     return report
 
 
-def _steady_or_exit(case: Case, case_file: Path, overlay: Path | None) -> SteadyStates | None:
+def _steady_or_exit(case: Case, overlay: Path | None) -> SteadyStates | None:
     """The steady states of ``--overlay`` (None without it); exit 2 naming the problem."""
     if overlay is None:
         return None
-    if not case.problem.changes_speed:
-        console.error(f"{case_file}: --overlay draws under a run-up's Bode plot: the case "
-                      "has no [speed]")  # fmt: skip
-        raise typer.Exit(EXIT_INVALID)
     from rubcli.studies.transient import load_steady
 
     steady = load_steady(overlay, case)

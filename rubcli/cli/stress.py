@@ -29,7 +29,7 @@ import typer
 
 from rubcli import io
 from rubcli.analysis import stress
-from rubcli.cli import console, progress
+from rubcli.cli import console, progress, tables
 from rubcli.cli.common import (
     ForceOption,
     JsonOption,
@@ -136,7 +136,7 @@ def _stress(
          short_number(r.energy_residual), "yes" if r.nan else "no", r.warning]
         for r in runs
     ]  # fmt: skip
-    console.table(
+    tables.table(
         "stress",
         ["case", "method", "status", "wall s", "error", "energy res.", "NaN", "warning"],
         rows,

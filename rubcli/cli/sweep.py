@@ -174,21 +174,15 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
     engine.PointStore(store_dir, plan.digest()).remove()
     report_stale(output)
     emit(report, json)
-    n_failed = report["points_failed"]
-    console.info(
-        f"{plan.n_points} points on {where} in {wall:.1f} s "
-        f"({stats.computed} computed, {stats.resumed} resumed, {n_failed} failed)"
-    )
+    counts = (f"{where} in {wall:.1f} s ({stats.computed} computed, {stats.resumed} resumed, "
+              f"{report['points_failed']} failed)")  # fmt: skip
+    for line in study.summary_lines(plan, report, ds, counts):
+        console.info(line)
     if stats.rejected:
         console.warning(
             f"{stats.rejected} stored file(s) in {store_dir} failed the store's check "
             "(edited, corrupted or not written by this user): those points were computed again"
         )
-    if plan.recognition is not None:
-        _basin_lines(report["basins"])
-    else:
-        for name, count in study.class_lines(ds):
-            console.info(f"  {name}: {count}")
     files = report["files"]
     console.info(f"wrote {len(files)} files to {target}: {', '.join(files)}")
 
@@ -201,15 +195,3 @@ def _interrupted(exc: BaseException, store_dir: Path, plan) -> None:
     )
     code = exc.exit_code if isinstance(exc, io.Terminated) else EXIT_INTERRUPTED
     raise typer.Exit(code) from None
-
-
-def _basin_lines(found: dict) -> None:
-    """The attractors of a basin grid and how its starts were labelled, on the console."""
-    for a in found["attractors"]:
-        console.info(f"  A{a['label']}: {a['name']}: {100 * a['basin_fraction']:.1f} % of starts")
-    for name in ("not_recognised", "diverged", "failed"):
-        if found[name]:
-            console.info(f"  {name.replace('_', ' ')}: {found[name]} starts")
-    how = ", ".join(f"{n} {k}" for k, n in found["recognised_by"].items() if n)
-    console.info(f"  labelled by: {how}; {found['mean_periods_integrated']:.1f} periods "
-                 "integrated a start on average")  # fmt: skip

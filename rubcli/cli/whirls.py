@@ -28,7 +28,7 @@ import typer
 from rubcli import io
 from rubcli.analysis import whirls as wh
 from rubcli.case import Case, OrbitsSection
-from rubcli.cli import console, progress
+from rubcli.cli import console, progress, tables
 from rubcli.cli.common import emit, prepare_output, report_stale
 from rubcli.studies.orbits import CSV_COLUMNS as ORBIT_COLUMNS
 
@@ -158,5 +158,5 @@ def run(
         rows = [[e.kind, f"{e.value:.10g}", f"{e.point.whirl.radius:.6g}", e.note]
                 for e in result.events]  # fmt: skip
         if rows:
-            console.table(f"events along {o.parameter}", ["kind", o.parameter, "r", "note"], rows)
+            tables.table(f"events along {o.parameter}", ["kind", o.parameter, "r", "note"], rows)
         console.success(f"wrote {', '.join(report['files'])} to {target}")

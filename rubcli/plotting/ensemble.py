@@ -64,6 +64,7 @@ def ensemble_figure(result: EnsembleResult, title: str) -> Figure:
                    fontsize="medium")  # fmt: skip
     ax_s.grid(True, alpha=0.3)
     ax_s.plot([], [], "o", color="0.4", ms=5, label="an escape (colour: the attractor reached)")
-    ax_s.legend(fontsize="small", loc="upper right")
+    # below the axes: inside, it would cover the curve's start and the escapes near 1
+    ax_s.legend(fontsize="small", loc="upper center", bbox_to_anchor=(0.5, -0.12), ncols=2)
     fig.suptitle(title, fontsize="medium")
     return fig

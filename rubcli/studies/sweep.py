@@ -160,6 +160,25 @@ def class_lines(ds: xr.Dataset) -> list[tuple[str, int]]:
     return lines
 
 
+def summary_lines(plan: SweepPlan, report: dict, ds: xr.Dataset, counts: str) -> list[str]:
+    """What ``rubcli sweep`` prints once its files are written: the points' count and
+    where they ran (``counts``), then a basin grid's attractors and how its starts were
+    labelled, or the response classes."""
+    lines = [f"{plan.n_points} points on {counts}"]
+    if plan.recognition is None:
+        return lines + [f"  {name}: {count}" for name, count in class_lines(ds)]
+    found = report["basins"]
+    for a in found["attractors"]:
+        lines.append(f"  A{a['label']}: {a['name']}: {100 * a['basin_fraction']:.1f} % of starts")
+    for name in ("not_recognised", "diverged", "failed"):
+        if found[name]:
+            lines.append(f"  {name.replace('_', ' ')}: {found[name]} starts")
+    how = ", ".join(f"{n} {k}" for k, n in found["recognised_by"].items() if n)
+    lines.append(f"  labelled by: {how}; {found['mean_periods_integrated']:.1f} periods "
+                 "integrated a start on average")  # fmt: skip
+    return lines
+
+
 def describe(case: Case, plan: SweepPlan, quick: bool = False) -> str:
     """One line on what the sweep runs."""
     return (

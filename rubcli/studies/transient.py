@@ -135,6 +135,9 @@ def load_steady(path: Path, case: Case) -> SteadyStates | list[str]:
     from rubcli.plotting.transient import SteadyStates
     from rubcli.studies.sweep import open_overlay, other_machine
 
+    if not case.problem.changes_speed:
+        return [f"{case.source}: --overlay draws under a run-up's Bode plot: the case has no "
+                "[speed]"]  # fmt: skip
     ds = open_overlay(path)
     if isinstance(ds, list):
         return ds
