@@ -3,7 +3,7 @@ differences, and the two shipped continuation cases.
 
 Run from the repository root:
 
-    python benchmarks/orbits.py            # ~10 s on a shared 2-core machine, cache warm
+    python benchmarks/orbits.py            # ~30 s on a shared 2-core machine, cache warm
     python benchmarks/orbits.py --repeats 1
 
 1. **Monodromy matrix** of one forcing period, two ways, in one process: the variational
@@ -15,9 +15,11 @@ Run from the repository root:
    synchronous rub (mu = 0.02, no switch) and a transient with contact entry, exit and a
    slip reversal. Times are the best of ``--repeats``; the table gives the ratio and the
    largest difference between the two matrices relative to the largest entry.
-2. **Branches**: ``continue_branch`` on ``cases/paper/fig3-orbits.toml`` and
-   ``cases/examples/run-up-orbits.toml`` (their full [orbits] settings): points, map
-   evaluations, wall time, time per point, the located bifurcations.
+2. **Branches**: ``continue_branch`` on ``cases/paper/fig3-orbits.toml``,
+   ``cases/examples/run-up-orbits.toml`` and ``cases/machines/snubber.toml`` (a stator
+   with its own mass: eight multipliers; their full [orbits] settings, the start's
+   transient excluded): points, map evaluations, wall time, time per point, the located
+   bifurcations.
 """
 
 from __future__ import annotations
@@ -100,7 +102,8 @@ def branch_table() -> list[str]:
         "| case | points | map evaluations | wall time (s) | ms per point | bifurcations |",
         "|---|---:|---:|---:|---:|---|",
     ]
-    for rel in ("cases/paper/fig3-orbits.toml", "cases/examples/run-up-orbits.toml"):
+    for rel in ("cases/paper/fig3-orbits.toml", "cases/examples/run-up-orbits.toml",
+                "cases/machines/snubber.toml"):  # fmt: skip
         case = load_case(ROOT / rel)
         settings = settings_from_case(case)
         guess = start_guess(case, case.settings.orbits)

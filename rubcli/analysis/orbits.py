@@ -27,7 +27,6 @@ import numpy as np
 from rubcli import model
 from rubcli.analysis.regimes import time_in_regimes
 from rubcli.model import ModelParams
-from rubcli.problem import Problem
 from rubcli.solvers import events as ev
 
 if TYPE_CHECKING:
@@ -263,58 +262,41 @@ def two_body_flow(
 ) -> FlowResult:
     """``flow`` of a stator with its own mass: the state on the section is the rotor's
     four entries and the ring's, ``(x, y, vx, vy, u, v, u', v')``. Integrated by
-    ``dop853-jit`` in the extended event loop (``solvers.two_body``); its extremes of z
-    read on ``TWO_BODY_SAMPLES`` samples a period; its monodromy matrix through the
-    switches by saltation matrices, each smooth segment's Jacobian by central differences
-    of its locked flow (``analysis.two_body_monodromy``). Raises OrbitError on a failed
-    flow or a grazing switch, WallTimeBudgetError past ``deadline``."""
-    from rubcli.analysis import two_body_monodromy
-    from rubcli.solvers.two_body import two_body_flow as run
+    ``dop853-jit`` in the extended event loop, its monodromy matrix in the variational
+    mode of ``solvers.variational`` (through the two bodies' saltation matrices); its
+    extremes of z read on ``TWO_BODY_SAMPLES`` samples a period. Raises OrbitError on a
+    failed flow or a grazing switch, WallTimeBudgetError past ``deadline``."""
+    from rubcli.solvers.compiled.two_body import N_SECTION, SECTION
+    from rubcli.solvers.variational import two_body_flow as run
+    from rubcli.stator import N_STATES
 
     s = np.asarray(s0, dtype=float).copy()
-    if s.shape != (8,):
-        raise OrbitError(f"a two-body state has 8 entries (got {s.shape})")
+    if s.shape != (N_SECTION,):
+        raise OrbitError(f"a two-body state has {N_SECTION} entries (got {s.shape})")
+    periods = max(1.0, (tau1 - tau0) / params.period)
     n = max(2, int(math.ceil(TWO_BODY_SAMPLES * (tau1 - tau0) / params.period))) + 1
-    grid = np.linspace(tau0, tau1, n)
-
-    def end(start: np.ndarray, t_eval: np.ndarray, regime: int | None) -> Solution:
+    check_deadline(deadline)
+    budget = math.inf if deadline is None else max(deadline - time.perf_counter(), 0.0)
+    out = run(params, s, np.linspace(tau0, tau1, n), phi=np.eye(N_SECTION) if variational
+              else None, locked=locked, rtol=rtol, atol=atol,
+              max_events=int(MAX_EVENTS_PER_PERIOD * periods) + 10,
+              max_wall_time_s=budget)  # fmt: skip
+    sol = out.solution
+    if not sol.success:
         check_deadline(deadline)
-        budget = None if deadline is None else max(deadline - time.perf_counter(), 0.0)
-        problem = Problem(params, tuple(start[:4]), t_eval, stator_initial=tuple(start[4:]))
-        sol = run(problem, rtol, atol, locked=regime, max_wall_time_s=budget)
-        if not sol.success:
-            check_deadline(deadline)
-            raise OrbitError(f"integration failed: {sol.message}")
-        return sol
-
-    def segment(start: np.ndarray, ta: float, tb: float, regime: int) -> tuple[np.ndarray, int]:
-        other = end(start, np.array([ta, tb]), regime)
-        ends = np.concatenate((other.states[-1], other.stator_states[-1]))
-        return ends, int(other.stats.get("nfev", 0))
-
-    sol = end(s, grid, locked)
-    state = np.concatenate((sol.states[-1], sol.stator_states[-1]))
-    nfev = int(sol.stats.get("nfev", 0))
-    phi = None
-    if variational:
-        try:
-            phi, more = two_body_monodromy.monodromy(segment, sol, s, tau0, tau1)
-        except two_body_monodromy.GrazingSwitchError as exc:
-            raise OrbitError(f"{exc} in the flow from tau = {tau0:.9g}") from None
-        nfev += more
+        raise OrbitError(f"integration failed: {sol.message}")
     regimes = time_in_regimes(sol)
-    events = [(e.tau, e.kind, e.regime_before, e.regime_after) for e in sol.events]
     z = sol.z
     return FlowResult(
-        state=state,
-        monodromy=phi,
-        events=events,
+        state=out.end[list(SECTION)],
+        monodromy=out.end[N_STATES:].reshape(N_SECTION, N_SECTION).copy() if variational else None,
+        events=[(e.tau, e.kind, e.regime_before, e.regime_after) for e in sol.events],
         max_z=float(np.max(z)),
         min_z=float(np.min(z)),
         contact_time=float(sum(v for k, v in regimes.items() if k != "free")),
         stick_time=float(regimes["stick"]),
         duration=float(tau1 - tau0),
-        nfev=nfev,
+        nfev=out.nfev,
     )
 
 

@@ -13,8 +13,6 @@ and ``analytic`` (``solvers.two_body_analytic``).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from rubcli import model
@@ -54,8 +52,6 @@ def _python_columns(S, pars, stator, regime):
     return dS, T
 
 
-FLOW_MAX_STEPS = 10_000_000  # a flow's step budget (its wall time is the caller's)
-
 TWO_BODY_SYSTEM = System(
     size=N_STATES, rhs=two_body_rhs, columns=two_body_columns, python_rhs=_python_rhs,
     python_columns=_python_columns, loop=(two_body_initial_step, advance_two_body),
@@ -68,19 +64,23 @@ class TwoBodyRun(ExtendedRun):
 
     system = TWO_BODY_SYSTEM
 
-    def __init__(self, problem: Problem, method: str, **options) -> None:
+    def __init__(self, problem: Problem, method: str, extra: np.ndarray | None = None,
+                 **options) -> None:  # fmt: skip
+        """``extra``: states after the ten, for a system with more (``solvers.variational``)."""
         p = problem.params
         self.stator = p.stator.record()
         pars = np.array(model.params_vector(p))
         phase = p.phi0 + p.eta * float(problem.t_eval[0])
-        state = np.array([*problem.initial, phase, p.eta, *problem.stator_initial])
-        super().__init__(problem, method, (pars, self.stator), state, **options)
+        state = [*problem.initial, phase, p.eta, *problem.stator_initial]
+        if extra is not None:
+            state += list(np.ravel(extra))
+        super().__init__(problem, method, (pars, self.stator), np.array(state), **options)
         self.event_stators: list[np.ndarray] = []  # the stator's states at each event
 
     def switch(self, tau: float, kind: int, state: np.ndarray) -> bool:
         """``ExtendedRun.switch``, the stator's states at the event kept beside."""
         switched = super().switch(tau, kind, state)
-        self.event_stators.append(np.array(self.state[6:]))
+        self.event_stators.append(np.array(self.state[6:N_STATES]))
         return switched
 
     def project(self, s: np.ndarray) -> np.ndarray:
@@ -96,7 +96,7 @@ class TwoBodyRun(ExtendedRun):
         solution = super().solution(settings)
         k = solution.t.size
         solution.states = np.ascontiguousarray(self.states[:k, :4])
-        solution.stator_states = np.ascontiguousarray(self.states[:k, 6:])
+        solution.stator_states = np.ascontiguousarray(self.states[:k, 6:N_STATES])
         solution.stator_events = np.array(self.event_stators).reshape(-1, 4)
         return solution
 
@@ -124,18 +124,6 @@ def sample_derivatives(solution: Solution) -> tuple[np.ndarray, np.ndarray]:
             dS[:, on], T[on] = two_body_columns(np.ascontiguousarray(S[:, on]), pars, stator,
                                                 regime)  # fmt: skip
     return dS, T
-
-
-def two_body_flow(
-    problem: Problem, rtol: float, atol: float, locked: int | None = None,
-    max_wall_time_s: float | None = None,
-) -> Solution:  # fmt: skip
-    """``dop853-jit``'s run of the two bodies (``analysis.orbits``' flow), in one regime
-    without events when ``locked``."""
-    budget = math.inf if max_wall_time_s is None else max_wall_time_s
-    run = TwoBodyRun(problem, "dop853-jit", locked=locked, max_steps=FLOW_MAX_STEPS,
-                     max_wall_time_s=budget)  # fmt: skip
-    return solve_extended(run, "dop853-jit", rtol, atol, compiled=True)
 
 
 def solve_two_body(problem: Problem, options: Options, name: str) -> Solution:

@@ -1,6 +1,7 @@
-"""The rotor at a constant speed in the event loop of ``solvers.extended``, with or
-without its variational equations: the flow ``analysis.orbits`` integrates for its
-stroboscopic map, monodromy matrix and shooting (docs/orbits.md).
+"""The flows ``analysis.orbits`` integrates for its stroboscopic map, monodromy matrix
+and shooting (docs/orbits.md): the rotor at a constant speed, and the two bodies of a
+stator with its own mass, in the event loop of ``solvers.extended``, with or without
+their variational equations.
 
 The state is the rotor's four entries and the unbalance's phase and constant speed,
 ``(x, y, vx, vy, p, w)``; in the variational mode the matrix ``Phi = d (x, y, vx, vy) /
@@ -18,6 +19,14 @@ contact entry and exit ``f+ = f-`` (the contact force vanishes at ``z = 1``), so
 I``; at a slip reversal and at stick entry the friction force jumps and ``S`` is not the
 identity. A grazing crossing has no saltation matrix (``GrazingSwitchError``: the run
 fails with it).
+
+The two bodies' state is their ten entries ``(x, y, vx, vy, p, w, u, v, u', v')``
+(``solvers.two_body``), and in the variational mode the matrix of the section's eight
+(all but the phase and the speed) after them (``compiled.two_body``; J by central
+differences of the right-hand side). At each event ``Phi`` is multiplied by their
+saltation matrix (``two_body_saltation``, in the ten states, where the system is
+autonomous: the phase's row of the jump is 0) and, where stick begins or ends, by the
+Jacobian of the two bodies' projection onto the rolling constraint.
 """
 
 from __future__ import annotations
@@ -35,6 +44,15 @@ from rubcli.solution import Solution
 from rubcli.solvers import compiled as kernels
 from rubcli.solvers import driver
 from rubcli.solvers import events as ev
+from rubcli.solvers.compiled.two_body import (
+    N_SECTION,
+    SECTION,
+    advance_two_body_variational,
+    two_body_columns,
+    two_body_rhs,
+    two_body_variational_initial_step,
+    two_body_variational_rhs,
+)
 from rubcli.solvers.compiled.variational import (
     N_ROTOR,
     N_VARIATIONAL,
@@ -47,9 +65,12 @@ from rubcli.solvers.compiled.variational import (
     variational_rhs,
 )
 from rubcli.solvers.extended import ExtendedJitStepper, ExtendedRun, System
+from rubcli.solvers.two_body import TwoBodyRun
+from rubcli.stator import N_STATES, S_INV_MASS, two_body_projection
 
 # A flow's step budget (its wall time is the caller's).
 FLOW_MAX_STEPS = 10_000_000
+GRADIENT_STEP = 1e-7  # the two bodies' event gradients and projection: central differences
 
 
 class GrazingSwitchError(ArithmeticError):
@@ -143,6 +164,87 @@ def rolling_projection_jacobian(s: np.ndarray, params: ModelParams) -> np.ndarra
     return jac
 
 
+def _two_body_records(params: ModelParams) -> tuple[np.ndarray, np.ndarray]:
+    return np.array(model.params_vector(params)), params.stator.record()
+
+
+def _two_body_event_function(
+    before: int, after: int, params: ModelParams
+) -> Callable[[np.ndarray], float]:
+    """The event function h(ten states) whose rising zero switched ``before`` into
+    ``after``: the clearance ``z^2 - 1`` at contact entry and exit, the slip velocity
+    ``v_r`` at a reversal or stick entry, the stick margin ``s T - mu K (z - 1)`` at
+    stick exit."""
+    pars, stator = _two_body_records(params)
+    if model.FREE in (before, after):
+        return lambda s: s[0] ** 2 + s[1] ** 2 - 1.0
+    if before == model.STICK:
+        side = 1.0 if after == model.SLIP_POSITIVE else -1.0
+        limit = params.mu * params.K
+
+        def margin(s: np.ndarray) -> float:
+            T = two_body_columns(np.ascontiguousarray(s[:, None]), pars, stator, model.STICK)[1]
+            return side * float(T[0]) - limit * (math.hypot(s[0], s[1]) - 1.0)
+
+        return margin
+    return lambda s: float(model.slip_velocity(s[0], s[1], s[2], s[3], params.Rp, s[5]))
+
+
+def _section_gradient(h: Callable[[np.ndarray], float], s: np.ndarray) -> np.ndarray:
+    """grad h in the ten states, by central differences in the section's eight (0 in the
+    phase and the speed)."""
+    grad = np.zeros(s.size)
+    for j in SECTION:
+        step = GRADIENT_STEP * (1.0 + abs(s[j]))
+        up, down = s.copy(), s.copy()
+        up[j] += step
+        down[j] -= step
+        grad[j] = (h(up) - h(down)) / (2.0 * step)
+    return grad
+
+
+def two_body_saltation(s: np.ndarray, before: int, after: int, params: ModelParams) -> np.ndarray:
+    """The two bodies' saltation matrix (8, 8) on the section at the event state ``s``
+    (ten states) switching ``before`` into ``after``; GrazingSwitchError where the
+    crossing is tangential."""
+    pars, stator = _two_body_records(params)
+    f_minus = two_body_rhs(s, pars, stator, before)
+    f_plus = two_body_rhs(s, pars, stator, after)
+    jump = f_plus - f_minus
+    if not np.any(jump[list(SECTION)]):
+        return np.eye(N_SECTION)
+    grad = _section_gradient(_two_body_event_function(before, after, params), s)
+    rate = float(grad @ f_minus)
+    scale = float(np.linalg.norm(grad) * np.linalg.norm(f_minus))
+    if abs(rate) <= 1e-13 * max(scale, 1e-300):
+        raise GrazingSwitchError("the saltation matrix is singular (a grazing switch)")
+    full = np.eye(N_STATES) + np.outer(jump, grad) / rate
+    return full[np.ix_(SECTION, SECTION)]
+
+
+def two_body_projection_jacobian(s: np.ndarray, params: ModelParams) -> np.ndarray:
+    """The Jacobian (8, 8) of the two bodies' projection onto the rolling constraint at
+    ``s`` (ten states), by central differences."""
+    m_inv = params.stator.record()[S_INV_MASS]
+
+    def project(state: np.ndarray) -> np.ndarray:
+        out = state.copy()
+        spin = params.Rp * state[5]
+        out[2], out[3], out[8], out[9] = two_body_projection(
+            state[0], state[1], state[2], state[3], state[8], state[9], spin, m_inv
+        )
+        return out[list(SECTION)]
+
+    jac = np.zeros((N_SECTION, N_SECTION))
+    for col, j in enumerate(SECTION):
+        step = GRADIENT_STEP * (1.0 + abs(s[j]))
+        up, down = s.copy(), s.copy()
+        up[j] += step
+        down[j] -= step
+        jac[:, col] = (project(up) - project(down)) / (2.0 * step)
+    return jac
+
+
 # --------------------------------------------------------------------------- the run
 
 ROTOR_SYSTEM = System(
@@ -155,6 +257,23 @@ VARIATIONAL_SYSTEM = System(
     python_rhs=variational_rhs, python_columns=rotor_columns,
     loop=(variational_initial_step, advance_variational), taylor=None,
 )  # fmt: skip
+
+
+TWO_BODY_VARIATIONAL_SYSTEM = System(
+    size=N_STATES + N_SECTION * N_SECTION, rhs=two_body_variational_rhs,
+    columns=two_body_columns, python_rhs=two_body_variational_rhs,
+    python_columns=two_body_columns,
+    loop=(two_body_variational_initial_step, advance_two_body_variational), taylor=None,
+)  # fmt: skip
+
+
+def _chattering(run: ExtendedRun, switched: bool, max_events: int) -> bool:
+    """Whether a switch just applied makes more than ``max_events`` events (and the run
+    then failed: a chattering contact)."""
+    if switched and run.recorder.n > max_events:
+        run.fail(f"more than {max_events} switch events (a chattering contact)")
+        return True
+    return False
 
 
 class RotorFlowRun(ExtendedRun):
@@ -197,10 +316,7 @@ class RotorFlowRun(ExtendedRun):
                 phi = rolling_projection_jacobian(s_event, p) @ phi
             jump = saltation_matrix(tau, self.state[:4], p, before, self.regime, grad, dh_dtau)
             self.state[N_ROTOR:] = (jump @ phi).ravel()
-        if switched and self.recorder.n > self.max_events:
-            self.fail(f"more than {self.max_events} switch events (a chattering contact)")
-            return False
-        return switched
+        return switched and not _chattering(self, switched, self.max_events)
 
     def solution(self, settings: dict) -> Solution:
         solution = super().solution(settings)
@@ -208,15 +324,54 @@ class RotorFlowRun(ExtendedRun):
         return solution
 
 
+class TwoBodyFlowRun(TwoBodyRun):
+    """A run of the two bodies (``solvers.two_body``) as a flow: in the variational mode
+    when ``phi`` (8 x 8) is given, Phi jumping at every event (module docstring); more
+    than ``max_events`` events fail it."""
+
+    def __init__(
+        self, problem: Problem, phi: np.ndarray | None, locked: int | None, max_events: int,
+        max_wall_time_s: float,
+    ) -> None:  # fmt: skip
+        if phi is not None:
+            self.system = TWO_BODY_VARIATIONAL_SYSTEM
+        self.max_events = max_events
+        super().__init__(problem, "dop853-jit", extra=phi, locked=locked,
+                         max_steps=FLOW_MAX_STEPS, max_wall_time_s=max_wall_time_s)  # fmt: skip
+
+    def switch(self, tau: float, kind: int, state: np.ndarray) -> bool:
+        """``TwoBodyRun.switch``, and in the variational mode Phi through the event's
+        saltation matrix and, where stick begins or ends, the projection's Jacobian, both
+        at the state after the event."""
+        before = self.regime
+        switched = super().switch(tau, kind, state)
+        if self.system is TWO_BODY_VARIATIONAL_SYSTEM:
+            s, after, p = self.state[:N_STATES], self.regime, self.params
+            phi = two_body_saltation(s, before, after, p) @ self.state[N_STATES:].reshape(
+                N_SECTION, N_SECTION
+            )
+            if model.STICK in (before, after) and model.FREE not in (before, after):
+                phi = two_body_projection_jacobian(s, p) @ phi
+            self.state[N_STATES:] = phi.ravel()
+        return switched and not _chattering(self, switched, self.max_events)
+
+
 @dataclass
 class Flow:
-    """A flow's run: its Solution (the rotor's samples and events), the full state at
-    its last sample (the phase, the speed and in the variational mode Phi after the
-    rotor's) and the right-hand side evaluations spent."""
+    """A flow's run: its Solution (the rotor's samples and events; the stator's beside
+    for the two bodies), the full state at its last sample (after the rotor's and the
+    stator's, in the variational mode Phi) and the right-hand side evaluations spent."""
 
     solution: Solution
     end: np.ndarray
     nfev: int
+
+
+def _flow(run: ExtendedRun, rtol: float, atol: float) -> Flow:
+    kernels.ensure_fresh()
+    sol = driver.integrate(run, ExtendedJitStepper(run, rtol, atol))
+    end = np.array(run.states[sol.t.size - 1])
+    return Flow(sol, end, int(run.stats.get("nfev", 0)))
 
 
 def rotor_flow(
@@ -235,9 +390,23 @@ def rotor_flow(
     at ``t_eval[0]``, sampled at ``t_eval``; with ``phi`` (4 x 4) in the variational mode;
     in one regime without events when ``locked`` (the smooth extension of a flow across
     its surfaces)."""
-    kernels.ensure_fresh()
     problem = Problem(params, tuple(start), t_eval)
-    run = RotorFlowRun(problem, phi, locked, max_events, max_wall_time_s)
-    sol = driver.integrate(run, ExtendedJitStepper(run, rtol, atol))
-    end = np.array(run.states[sol.t.size - 1])
-    return Flow(sol, end, int(run.stats.get("nfev", 0)))
+    return _flow(RotorFlowRun(problem, phi, locked, max_events, max_wall_time_s), rtol, atol)
+
+
+def two_body_flow(
+    params: ModelParams,
+    start: np.ndarray,
+    t_eval: np.ndarray,
+    *,
+    phi: np.ndarray | None = None,
+    locked: int | None = None,
+    rtol: float,
+    atol: float,
+    max_events: int,
+    max_wall_time_s: float = math.inf,
+) -> Flow:
+    """``rotor_flow`` of the two bodies: ``start`` their eight entries on the section
+    ``(x, y, vx, vy, u, v, u', v')``, ``phi`` (8 x 8)."""
+    problem = Problem(params, tuple(start[:4]), t_eval, stator_initial=tuple(start[4:]))
+    return _flow(TwoBodyFlowRun(problem, phi, locked, max_events, max_wall_time_s), rtol, atol)
