@@ -34,7 +34,6 @@ if TYPE_CHECKING:
 
     from numpy.typing import ArrayLike
 
-    from rubcli.solution import Solution
     from rubcli.solvers.variational import Flow
 
 # Integration tolerances of the map (relative and absolute): tight, so the monodromy
@@ -56,8 +55,8 @@ PARAMETERS = ("eta", "mu", "K", "e", "nu", "Rp")
 # of at most this many forcing periods: the samples of one piece are kept (for the
 # extremes of z), so its memory is bounded whatever its length.
 TRANSIENT_CHUNK_PERIODS = 16
-# A stator with its own mass (``two_body_flow``): the samples a period on which its flow's
-# extremes of z are read.
+# A stator with its own mass (``two_body_flow``): the samples a period its flow's extremes
+# of z are first read on (the ring's own oscillation resolved too).
 TWO_BODY_SAMPLES = 200
 
 
@@ -180,9 +179,18 @@ def flow(
 
     main = run(s, sample_grid(params, tau0, tau1), np.eye(4) if variational else None)
     sol, nfev = main.solution, main.nfev
+
+    def acceleration(t: float, state: np.ndarray, regime: int) -> tuple[float, float]:
+        f = model.rhs(t, state, params, regime)
+        return f[2], f[3]
+
+    def flow_to(start: np.ndarray, t_eval: np.ndarray) -> tuple[np.ndarray, int, int]:
+        out = run(start, t_eval, None).solution
+        return out.states[-1], int(out.regimes[-1]), int(out.stats.get("nfev", 0))
+
     extremes = []
     for sign in (1.0, -1.0):
-        z, more = extreme_z(params, sol, sign, lambda a, t: run(a, t, None))
+        z, more = extreme_z(sol.t, sol.states, sol.regimes, sign, acceleration, flow_to)
         extremes.append(z)
         nfev += more
     regimes = time_in_regimes(sol)
@@ -200,16 +208,20 @@ def flow(
 
 
 def extreme_z(
-    params: ModelParams, sol: Solution, sign: float,
-    flow_to: Callable[[np.ndarray, np.ndarray], Flow],
+    t: np.ndarray, S: np.ndarray, regimes: np.ndarray, sign: float,
+    acceleration: Callable[[float, np.ndarray, int], tuple[float, float]],
+    flow_to: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, int, int]],
 ) -> tuple[float, int]:  # fmt: skip
     """The largest z of a flow's samples (``sign`` +1; -1: the smallest) refined to where
     z turns, ``g = x vx + y vy = 0``, by Newton's method on g (``g' = |v|^2 + x ax + y
     ay``) safeguarded by bisection in the samples' bracket, each iterate's state from a
-    short flow ``flow_to(start, [t_j, t])`` from the sample t_j before it. At the span's
-    ends, or where g does not change sign around the sample (no turn between them), the
-    sample's z. Returns (z, evaluations spent)."""
-    t, S, z = sol.t, sol.states, sol.z
+    short flow ``flow_to(start, [t_j, t]) -> (state at t, its regime, evaluations)``
+    from the sample t_j before it. ``S`` holds
+    the section's states at the samples ``t`` (n, m), the rotor's (x, y, vx, vy) first,
+    ``regimes`` their regimes; ``acceleration(t, state, regime)`` is the rotor's (ax,
+    ay). At the span's ends, or where g does not change sign around the sample (no turn
+    between them), the sample's z. Returns (z, evaluations spent)."""
+    z = np.hypot(S[:, 0], S[:, 1])
     i = int(np.argmax(sign * z))
     best, nfev = float(z[i]), 0
     if i == 0 or i == t.size - 1:
@@ -217,9 +229,9 @@ def extreme_z(
     lo, hi = float(t[i - 1]), float(t[i + 1])
     if not sign * _radial(S[i - 1]) > 0.0 > sign * _radial(S[i + 1]):
         return best, nfev
-    tk, sk, regime = float(t[i]), S[i], int(sol.regimes[i])
+    tk, sk, regime = float(t[i]), S[i], int(regimes[i])
     for _ in range(EXTREME_ITERATIONS):
-        f = model.rhs(tk, sk, params, regime)
+        ax, ay = acceleration(tk, sk, regime)
         g = _radial(sk)
         if sign * g > 0.0:
             lo = max(lo, tk)
@@ -227,15 +239,14 @@ def extreme_z(
             hi = min(hi, tk)
         else:
             break
-        rate = sk[2] ** 2 + sk[3] ** 2 + sk[0] * f[2] + sk[1] * f[3]
+        rate = sk[2] ** 2 + sk[3] ** 2 + sk[0] * ax + sk[1] * ay
         t_next = tk - g / rate if rate != 0.0 else math.nan
         if not lo < t_next < hi:
             t_next = 0.5 * (lo + hi)
         j = int(np.searchsorted(t, t_next, side="right")) - 1
-        end = flow_to(S[j], np.array([t[j], t_next]))
-        nfev += end.nfev
+        sk, regime, spent = flow_to(S[j], np.array([t[j], t_next]))
+        nfev += spent
         step, tk = abs(t_next - tk), t_next
-        sk, regime = end.solution.states[-1], int(end.solution.regimes[-1])
         zk = math.hypot(sk[0], sk[1])
         best = max(best, zk) if sign > 0.0 else min(best, zk)
         if step <= EXTREME_STEP * max(1.0, abs(tk)):
@@ -264,39 +275,62 @@ def two_body_flow(
     four entries and the ring's, ``(x, y, vx, vy, u, v, u', v')``. Integrated by
     ``dop853-jit`` in the extended event loop, its monodromy matrix in the variational
     mode of ``solvers.variational`` (through the two bodies' saltation matrices); its
-    extremes of z read on ``TWO_BODY_SAMPLES`` samples a period. Raises OrbitError on a
-    failed flow or a grazing switch, WallTimeBudgetError past ``deadline``."""
-    from rubcli.solvers.compiled.two_body import N_SECTION, SECTION
-    from rubcli.solvers.variational import two_body_flow as run
+    extremes of z refined (``extreme_z``) from ``TWO_BODY_SAMPLES`` samples a period.
+    Raises OrbitError on a failed flow or a grazing switch, WallTimeBudgetError past
+    ``deadline``."""
+    from rubcli.solvers.compiled.two_body import N_SECTION, SECTION, two_body_rhs
+    from rubcli.solvers.variational import two_body_flow as run_flow
     from rubcli.stator import N_STATES
 
     s = np.asarray(s0, dtype=float).copy()
     if s.shape != (N_SECTION,):
         raise OrbitError(f"a two-body state has {N_SECTION} entries (got {s.shape})")
     periods = max(1.0, (tau1 - tau0) / params.period)
-    n = max(2, int(math.ceil(TWO_BODY_SAMPLES * (tau1 - tau0) / params.period))) + 1
-    check_deadline(deadline)
-    budget = math.inf if deadline is None else max(deadline - time.perf_counter(), 0.0)
-    out = run(params, s, np.linspace(tau0, tau1, n), phi=np.eye(N_SECTION) if variational
-              else None, locked=locked, rtol=rtol, atol=atol,
-              max_events=int(MAX_EVENTS_PER_PERIOD * periods) + 10,
-              max_wall_time_s=budget)  # fmt: skip
-    sol = out.solution
-    if not sol.success:
+    limit = int(MAX_EVENTS_PER_PERIOD * periods) + 10
+
+    def run(start: np.ndarray, t_eval: np.ndarray, phi: np.ndarray | None) -> Flow:
         check_deadline(deadline)
-        raise OrbitError(f"integration failed: {sol.message}")
+        budget = math.inf if deadline is None else max(deadline - time.perf_counter(), 0.0)
+        out = run_flow(params, start, t_eval, phi=phi, locked=locked, rtol=rtol, atol=atol,
+                       max_events=limit, max_wall_time_s=budget)  # fmt: skip
+        if not out.solution.success:
+            check_deadline(deadline)
+            raise OrbitError(f"integration failed: {out.solution.message}")
+        return out
+
+    n = max(2, int(math.ceil(TWO_BODY_SAMPLES * (tau1 - tau0) / params.period))) + 1
+    main = run(s, np.linspace(tau0, tau1, n), np.eye(N_SECTION) if variational else None)
+    sol, nfev = main.solution, main.nfev
+    pars, stator = np.array(model.params_vector(params)), params.stator.record()
+
+    def acceleration(t: float, q: np.ndarray, regime: int) -> tuple[float, float]:
+        full = np.empty(N_STATES)
+        full[list(SECTION)] = q
+        full[4], full[5] = params.phi0 + params.eta * t, params.eta
+        f = two_body_rhs(full, pars, stator, regime)
+        return f[2], f[3]
+
+    def flow_to(start: np.ndarray, t_eval: np.ndarray) -> tuple[np.ndarray, int, int]:
+        out = run(start, t_eval, None)
+        return out.end[list(SECTION)], int(out.solution.regimes[-1]), out.nfev
+
+    section = np.hstack((sol.states, sol.stator_states))
+    extremes = []
+    for sign in (1.0, -1.0):
+        z, more = extreme_z(sol.t, section, sol.regimes, sign, acceleration, flow_to)
+        extremes.append(z)
+        nfev += more
     regimes = time_in_regimes(sol)
-    z = sol.z
     return FlowResult(
-        state=out.end[list(SECTION)],
-        monodromy=out.end[N_STATES:].reshape(N_SECTION, N_SECTION).copy() if variational else None,
+        state=main.end[list(SECTION)],
+        monodromy=main.end[N_STATES:].reshape(N_SECTION, N_SECTION).copy() if variational else None,
         events=[(e.tau, e.kind, e.regime_before, e.regime_after) for e in sol.events],
-        max_z=float(np.max(z)),
-        min_z=float(np.min(z)),
+        max_z=extremes[0],
+        min_z=extremes[1],
         contact_time=float(sum(v for k, v in regimes.items() if k != "free")),
         stick_time=float(regimes["stick"]),
         duration=float(tau1 - tau0),
-        nfev=out.nfev,
+        nfev=nfev,
     )
 
 
