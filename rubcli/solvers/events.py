@@ -49,6 +49,9 @@ REFINE_POINTS = 32
 # interval later to be >= 0: a start rate that is zero to round-off (a tangential start,
 # as at an exit located at the apex of a graze) is decided by where h goes next.
 LOOK_AHEAD = 1e-6
+# The entry of an extended system's state that holds the unbalance's speed w (its surface
+# speed is Rp w: ``solvers.extended``).
+SPEED = 5
 # Root location tolerance in tau.
 XTOL = 1e-14
 RTOL = 4.0 * np.finfo(float).eps
@@ -254,6 +257,7 @@ def event_search(
     fill: Callable[..., None] | None = None,
     compile: Callable[[Callable[..., Any]], Callable[..., Any]] | None = None,
     compile_inline: Callable[[Callable[..., Any]], Callable[..., Any]] | None = None,
+    margin: Callable[..., float] | None = None,
 ) -> tuple[Callable[..., tuple[float, int]], Callable[..., float]]:
     """The event search over one kind of segment: ``(locate, crossing)``.
 
@@ -278,6 +282,14 @@ def event_search(
     (``compile_time``); otherwise they, and the search's flags, are run-time values
     (``run_time``), so that each function is compiled once.
 
+    ``margin`` makes it the search of a system with states beyond the rotor's four
+    (``solvers.extended``): ``ev`` writes the system's whole state into ``row`` (and its
+    derivative into ``drow``), the surface speed is ``Rp`` times the state's speed
+    ``row[SPEED]`` (its rate ``Rp drow[SPEED]``), and ``margin(ctx, t, pars, sign, row)``
+    is the stick margin of side ``sign`` at the state in ``row`` (the system's stick
+    friction). Without it, the rotor's: the speed from the record (``spin_at``), the
+    margin ``stick_margin``.
+
     The search itself does not check for non-finite values (a NaN compares false and
     ends no scan): the Python segments raise ValueError when asked for a non-finite
     state (a diverged closed form; the analytic methods end the run cleanly on it, as
@@ -293,12 +305,32 @@ def event_search(
         differences of half-width d."""
         if not deriv:
             ev(t, run_time(False), ctx, row, drow)
-            return stick_margin(t, row[0], row[1], row[2], row[3], pars, sign)
+            return margin_at(ctx, t, pars, sign, row)
         ev(t + d, run_time(False), ctx, row, drow)
-        up = stick_margin(t + d, row[0], row[1], row[2], row[3], pars, sign)
+        up = margin_at(ctx, t + d, pars, sign, row)
         ev(t - d, run_time(False), ctx, row, drow)
-        down = stick_margin(t - d, row[0], row[1], row[2], row[3], pars, sign)
+        down = margin_at(ctx, t - d, pars, sign, row)
         return (up - down) / (2.0 * d)
+
+    def margin_at(ctx: Any, t: float, pars: np.ndarray, sign: float, row: np.ndarray) -> float:
+        """The stick margin of side ``sign`` at the state in ``row`` at t."""
+        if system:
+            return margin(ctx, t, pars, sign, row)
+        return stick_margin(t, row[0], row[1], row[2], row[3], pars, sign)
+
+    def slip_at(t: float, pars: np.ndarray, row: np.ndarray, drow: np.ndarray,
+                deriv: bool) -> float:  # fmt: skip
+        """v_r at the state in ``row`` at t, or (``deriv``) its rate from ``drow``."""
+        x, y, vx, vy = row[0], row[1], row[2], row[3]
+        if not deriv:
+            spin = pars[P_RP] * row[SPEED] if system else spin_at(t, pars)
+            return model.slip_velocity_value(x, y, vx, vy, spin)
+        rate = model.slip_velocity_rate(x, y, vx, vy, drow[2], drow[3])
+        if system:
+            rate += pars[P_RP] * drow[SPEED]
+        elif pars[P_RATE] != 0.0:
+            rate += pars[P_RP] * pars[P_RATE]
+        return rate
 
     def event_value(
         ctx: Any, t: float, fn: int, sign: float, deriv: bool, pars: np.ndarray, d: float,
@@ -315,12 +347,7 @@ def event_search(
             if deriv:
                 return sign * (2.0 * (x * vx + y * vy))
             return sign * (x**2 + y**2 - 1.0)
-        if deriv:
-            rate = model.slip_velocity_rate(x, y, vx, vy, drow[2], drow[3])
-            if pars[P_RATE] != 0.0:
-                rate += pars[P_RP] * pars[P_RATE]
-            return -sign * rate
-        return -sign * model.slip_velocity_value(x, y, vx, vy, spin_at(t, pars))
+        return -sign * slip_at(t, pars, row, drow, deriv)
 
     def event_values(
         ctx: Any, t: float, fn: int, sign: float, pars: np.ndarray, d: float, row: np.ndarray,
@@ -337,10 +364,8 @@ def event_search(
         x, y, vx, vy = row[0], row[1], row[2], row[3]
         if fn == FN_SURFACE:
             return sign * (x**2 + y**2 - 1.0), sign * (2.0 * (x * vx + y * vy))
-        rate = model.slip_velocity_rate(x, y, vx, vy, drow[2], drow[3])
-        if pars[P_RATE] != 0.0:
-            rate += pars[P_RP] * pars[P_RATE]
-        return -sign * model.slip_velocity_value(x, y, vx, vy, spin_at(t, pars)), -sign * rate
+        yes, no = run_time(True), run_time(False)
+        return -sign * slip_at(t, pars, row, drow, no), -sign * slip_at(t, pars, row, drow, yes)
 
     def fill_values(
         ctx: Any, fn: int, sign: float, grid: np.ndarray, n: int, pars: np.ndarray, d: float,
@@ -552,7 +577,11 @@ def event_search(
             best, kind = t, EXIT
         if pars[P_MU] > 0.0 and regime != model.STICK:
             sign = float(regime)
-            level = band * (1.0 + abs(spin_at(grid[0], pars)))
+            if system:
+                ev(grid[0], no, ctx, row, drow)
+                level = band * (1.0 + abs(pars[P_RP] * row[SPEED]))
+            else:
+                level = band * (1.0 + abs(spin_at(grid[0], pars)))
             fill(ctx, slip, sign, grid, n, pars, d, row, drow, hv, hd)
             t = crossing(
                 ctx, slip, sign, grid, hv, hd, n, starts[1], 0.0, level, starts[2], pars,
@@ -571,10 +600,13 @@ def event_search(
                     best, kind = t, STICK_EXIT
         return best, kind
 
+    system = margin is not None  # a closure constant: the compiled search folds it
     fn_value = run_time  # the event-function kinds as run-time values (see compile_time)
     if compile is not None:
         if compile_inline is not None:
             fn_value = compile(compile_time)
+        margin_at = compile(margin_at)
+        slip_at = compile(slip_at)
         stick_value = compile(stick_value)
         event_value = (compile_inline or compile)(event_value)
         event_values = compile(event_values)
@@ -681,6 +713,83 @@ def _python_fill(segment, fn, sign, grid, n, pars, d, row, drow, hv, hd):
 
 # The event search of the Python paths (the same functions the kernels compile)
 _python_locate, _python_crossing = event_search(_python_ev, _python_fill)
+
+
+class _SystemSegment(_PythonSegment):
+    """A segment of a system with states beyond the rotor's four (``earliest_system_event``):
+    ``columns(S) -> (dS, T)`` its derivatives and its stick friction at the states in the
+    columns of S."""
+
+    def __init__(self, states, columns, grid, pars):
+        self.states, self.columns, self.grid, self.pars = states, columns, grid, pars
+        self.S = states(grid)
+        self.dS = None
+
+    def ev(self, t: float, deriv: bool, row: np.ndarray, drow: np.ndarray) -> None:
+        s = self.states(t)
+        row[:] = s
+        if deriv:
+            drow[:] = self.columns(s[:, None])[0][:, 0]
+        if not (np.all(np.isfinite(row)) and (not deriv or np.all(np.isfinite(drow)))):
+            raise ValueError(f"the segment is not finite at tau = {t!r}")
+
+    def margin(self, S: np.ndarray, pars: np.ndarray, sign: float) -> np.ndarray:
+        """The stick margin of side ``sign`` at the states in the columns of S."""
+        T = self.columns(np.atleast_2d(S.T).T)[1]
+        limit = pars[P_MU] * pars[P_K] * (np.hypot(S[0], S[1]) - 1.0)
+        return sign * T - limit * (1.0 + model.STICK_EXIT_MARGIN)
+
+    def fill(
+        self, fn: int, sign: float, grid: np.ndarray, n: int, pars: np.ndarray, d: float,
+        row: np.ndarray, drow: np.ndarray, hv: np.ndarray, hd: np.ndarray,
+    ) -> None:  # fmt: skip
+        S = self.S
+        if fn == FN_SURFACE:
+            hv[:] = sign * surface_value(S)
+            hd[:] = sign * surface_rate(S)
+        elif fn == FN_SLIP:
+            if self.dS is None:
+                self.dS = self.columns(S)[0]
+            dS, Rp = self.dS, pars[P_RP]
+            hv[:] = -sign * model.slip_velocity(S[0], S[1], S[2], S[3], Rp, S[SPEED])
+            rate = model.slip_velocity_rate(S[0], S[1], S[2], S[3], dS[2], dS[3])
+            hd[:] = -sign * (rate + Rp * dS[SPEED])
+        else:
+            hv[:] = self.margin(S, pars, sign)
+            up, down = self.states(grid + d), self.states(grid - d)
+            hd[:] = (self.margin(up, pars, sign) - self.margin(down, pars, sign)) / (2 * d)
+
+
+def _python_margin(segment, t, pars, sign, row):
+    return float(segment.margin(row, pars, sign)[0])
+
+
+_system_locate = event_search(_python_ev, _python_fill, margin=_python_margin)[0]
+
+
+def earliest_system_event(
+    states: Callable[[FloatOrArray], np.ndarray],
+    columns: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
+    grid: ArrayLike,
+    regime: int,
+    pars: np.ndarray,
+    last_kind: int,
+    restart_band: float,
+) -> tuple[float, int] | None:
+    """``earliest_event`` of a system with states beyond the rotor's four
+    (``solvers.extended``): ``states(t)`` its whole state at a time or times, ``columns(S)
+    -> (dS, T)`` its derivatives and stick friction at the states in the columns of S,
+    ``pars`` the parameter record; the surface speed is ``Rp`` times the state's speed
+    (``event_search`` with ``margin``)."""
+    grid = np.asarray(grid, dtype=float)
+    n = len(grid) - 1
+    segment = _SystemSegment(states, columns, grid, pars)
+    size = segment.S.shape[0]
+    tau, kind = _system_locate(
+        segment, regime, pars, grid, n, start_flags(last_kind), restart_band,
+        np.empty(n + 1), np.empty(n + 1), np.empty(size), np.empty(size),
+    )  # fmt: skip
+    return None if kind == NO_EVENT else (float(tau), kind)
 
 
 def initial_kind(

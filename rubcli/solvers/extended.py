@@ -16,20 +16,12 @@ energy's metric (the system's ``project``).
 
 ``ExtendedStepper`` is one accepted scipy step per ``advance``: the regime's right-hand
 side (compiled), the step's dense output scanned at ``SCAN_POINTS`` sub-intervals for
-the regime's events, the first located by Brent's method. The event functions, each an
-event where it rises through 0:
-
-- free flight: ``z^2 - 1`` (contact entry);
-- slip of sign ``s``: ``1 - z^2`` (exit) and ``-s v_r`` (reversal);
-- stick: ``1 - z^2`` and, on each side ``s``, ``s T - mu K (z - 1) (1 + margin)`` (the
-  needed friction leaving the friction cone).
-
-Where the rate of the contact surface's function (``2 (x vx + y vy)``), of the slip's
-(from the accelerations) or of a stick margin (a central difference along the flow)
-changes sign inside a scan interval, the turn is found (a graze between two scan points,
-a return to the surface right after the segment left it: ``_turns``; a dip below the
-restart band and back inside the first interval of a segment begun on the contact
-surface: ``_dipped``), so such a pair of crossings is not missed.
+the regime's events by the rotor's own event search (``events.earliest_system_event``:
+``events.event_search`` with the surface speed ``Rp w`` a state and the system's stick
+friction in the stick margin ``s T - mu K (z - 1) (1 + margin)``), so every system and
+the rotor switch on one definition of the event functions, the crossing rules (grazes
+inside a scan interval, a segment begun on its surface, the restart band) and the Brent
+iteration.
 
 Implicit methods get forward differences of the right-hand side
 (``ExtendedStepper._jacobian``).
@@ -59,9 +51,9 @@ from rubcli.solvers.events import (
     ENTRY,
     EXIT,
     NO_EVENT,
-    REVERSAL,
     STICK_ENTRY,
     STICK_EXIT,
+    earliest_system_event,
     initial_kind,
 )
 from rubcli.solvers.registry import SPECS
@@ -173,10 +165,6 @@ class ExtendedStepper(OdeSolverStepper):
     constant-speed stepper's step and segments, with the system's right-hand side, events
     and samples."""
 
-    # the segment began on the slip surface and its function has not yet left the band;
-    # the segment began on the contact surface and its function is still 0 there
-    settling = False
-    on_surface = False
     intervals = SCAN_POINTS  # scan intervals of the step's dense output
 
     def _start_segment(self, run: ExtendedRun) -> None:
@@ -230,11 +218,8 @@ class ExtendedStepper(OdeSolverStepper):
                 "beyond what the motor gives (a rotor turning backward is outside the model)"
             )
             return
-        if run.last_kind != NO_EVENT:  # a segment's first step: begun on which surface?
-            self.settling = run.last_kind in (REVERSAL, STICK_EXIT)
-            self.on_surface = run.last_kind in (ENTRY, EXIT)
         event = self._earliest_event(run, dense, t_old, t_new)
-        run.last_kind = NO_EVENT
+        run.last_kind = NO_EVENT  # (the event that began the segment: its first step's)
         run.k = self._fill(run, dense, event[0] if event else t_new)
         self.finish(run, dense, event)
 
@@ -251,170 +236,15 @@ class ExtendedStepper(OdeSolverStepper):
             k += 1
         return k
 
-    def _functions(self, run: ExtendedRun):
-        """The regime's event functions h(S) of states (size, n): ``(kind, h)``."""
-        p, regime = run.params, run.regime
-        if run.locked is not None:
-            return []
-
-        def surface(S: np.ndarray) -> np.ndarray:
-            return S[0] ** 2 + S[1] ** 2 - 1.0
-
-        if regime == model.FREE:
-            return [(ENTRY, surface)]
-        out = [(EXIT, lambda S: -surface(S))]
-        if p.mu == 0.0:
-            return out
-        if regime == model.STICK:
-            margin = 1.0 + model.STICK_EXIT_MARGIN
-
-            def side(sign: float) -> Callable[[np.ndarray], np.ndarray]:
-                def h(S: np.ndarray) -> np.ndarray:
-                    T = self.columns(np.atleast_2d(S.T).T)[1]
-                    limit = p.mu * p.K * (np.hypot(S[0], S[1]) - 1.0)
-                    out = sign * T - limit * margin
-                    return out if np.ndim(S) > 1 else float(out[0])
-
-                return h
-
-            return out + [(STICK_EXIT, side(1.0)), (STICK_EXIT, side(-1.0))]
-        sign = model.friction_sign(regime)
-        return out + [(REVERSAL, lambda S: -sign * slip_velocity(S, p.Rp))]
-
     def _earliest_event(self, run: ExtendedRun, dense, t0: float, t1: float):
-        """The earliest event in (t0, t1] on the step's dense output: (tau, kind) or None."""
+        """The earliest event in (t0, t1] on the step's dense output: (tau, kind) or None
+        (``events.earliest_system_event``, the one event search, on the scan grid; none
+        in a locked run)."""
+        if run.locked is not None:
+            return None
         grid = np.linspace(t0, t1, self.intervals + 1)
-        S = dense(grid)
-        tol = 4.0 * np.finfo(float).eps * max(1.0, abs(t1))
-        # the restart band: right after a stick exit or a reversal the slip's function is
-        # 0 to the solver's tolerance, not to round-off, and leaves it with zero rate: a
-        # reversal counts only after the function has once left the band on its side
-        # (``settling`` until then, over as many steps as that takes)
-        band = self.restart_band * (1.0 + abs(run.params.Rp * run.state[SPEED]))
-        best = None
-        for kind, h in self._functions(run):
-            values, ends = h(S), grid
-            turning = self._turning(run, kind, h)
-            started = turning is not None and run.last_kind in turning[1]
-            if kind in (ENTRY, EXIT) and self.on_surface:
-                # still on the contact surface the segment began on (z^2 - 1 rounds to 0
-                # over a short first step): it leaves it to the event's side, an event
-                # where it leaves, or to the other side, and the search goes on; unless
-                # it dipped below the restart band and came back inside the first scan
-                # interval (a long step: the return is found from where it turned)
-                if np.all(values >= 0.0) and not _dipped(grid, S, dense, h, turning[0], band):
-                    if values[-1] > 0.0:
-                        zeros = np.flatnonzero(values == 0.0)
-                        return (float(grid[zeros[-1]] if zeros.size else grid[0]), kind)
-                    continue
-                self.on_surface = False
-            if turning is not None:
-                rate = turning[0]
-                rates = rate(S)
-                values, ends = _turns(grid, values, rates, lambda t, h=h: h(dense(t)),
-                                      lambda t, r=rate: float(r(dense(t))), started,
-                                      band)  # fmt: skip
-            begin = 0
-            if kind == REVERSAL and self.settling:
-                left = np.flatnonzero(values < -band)
-                if left.size == 0:
-                    continue  # still within the band of the slip surface it began on
-                begin, self.settling = int(left[0]), False
-            for i in range(begin, self.intervals):
-                if values[i] < 0.0 <= values[i + 1]:
-                    a, b = ends[i], ends[i + 1]
-                    root = b if values[i + 1] == 0.0 else _root(h, dense, a, b, tol)
-                    if best is None or root < best[0]:
-                        best = (root, kind)
-                    break
-        return best
-
-    def _turning(self, run: ExtendedRun, kind: int, h: Callable[[np.ndarray], np.ndarray]):
-        """For each event function ``h`` of the regime, which can cross twice inside one
-        scan interval: (its rate on states, the events that start a segment on its
-        surface). The stick margins' rate is a central difference along the flow (a
-        short excursion out of the friction cone inside one interval of a long step is
-        found from where the margin turns)."""
-        if kind in (ENTRY, EXIT):
-            sign = 1.0 if kind == ENTRY else -1.0
-            return (lambda S: sign * (S[0] * S[2] + S[1] * S[3])), (ENTRY, EXIT)
-        if kind == REVERSAL:
-            sign, Rp = model.friction_sign(run.regime), run.params.Rp
-
-            def rate(S: np.ndarray) -> np.ndarray:
-                S2 = np.atleast_2d(S.T).T
-                dS = self.columns(S2)[0]
-                x, y, vx, vy = S2[:4]
-                z = np.hypot(x, y)
-                whirl = (x * dS[3] - y * dS[2]) / z - (x * vy - y * vx) * (x * vx + y * vy) / z**3
-                out = -sign * (Rp * dS[SPEED] + whirl)
-                return out if np.ndim(S) > 1 else out[0]
-
-            return rate, (REVERSAL, STICK_EXIT)
-
-        def flow_rate(S: np.ndarray) -> np.ndarray:
-            S2 = np.atleast_2d(S.T).T
-            dS = self.columns(S2)[0]
-            d = 1e-6
-            out = (h(S2 + d * dS) - h(S2 - d * dS)) / (2.0 * d)
-            return out if np.ndim(S) > 1 else out[0]
-
-        return flow_rate, ()
-
-
-def _dipped(grid, S, dense, h, rate, band: float) -> bool:
-    """Whether the event function ``h`` (rate ``rate``), on its surface at grid[0], falls
-    below the restart band (``-band``) before turning back inside the first scan
-    interval."""
-    rates = rate(S[:, :2])
-    if not rates[0] < 0.0 < rates[1]:
-        return False
-    low = brentq(lambda t: float(rate(dense(t))), grid[0], grid[1], xtol=1e-15,
-                 rtol=4 * np.finfo(float).eps)  # fmt: skip
-    return float(h(dense(low))) < -band
-
-
-def _turns(grid, values, rates, level, rate, started_here: bool, band: float):
-    """An event function's ``values`` on ``grid`` with the crossings a scan interval can
-    hide put in, where its rate (``rates`` on the grid; ``level(t)`` and ``rate(t)`` at
-    one time) changes sign inside the interval:
-
-    - a graze: both ends below 0, a maximum at or above 0 between them: the interval
-      ends at that maximum;
-    - a return right after the segment left the function's surface (``started_here``):
-      the first interval ends at or above 0 while the function fell first: the interval
-      starts at its minimum, when that is below the restart band (``-band``).
-
-    Returns (values, grid), copies where changed."""
-    tol = 4 * np.finfo(float).eps
-    if started_here and rates[0] < 0.0 < rates[1] and values[1] >= 0.0:
-        low = brentq(rate, grid[0], grid[1], xtol=1e-15, rtol=tol)
-        if level(low) < -band:
-            values, grid = values.copy(), grid.copy()
-            values[0], grid[0] = level(low), low
-            return values, grid
-    for i in range(grid.size - 1):
-        if values[i] < 0.0 and values[i + 1] < 0.0 and rates[i] > 0.0 > rates[i + 1]:
-            peak = brentq(rate, grid[i], grid[i + 1], xtol=1e-15, rtol=tol)
-            top = level(peak)
-            if top >= 0.0:
-                values, grid = values.copy(), grid.copy()
-                values[i + 1], grid[i + 1] = top, peak
-                return values, grid
-    return values, grid
-
-
-def _root(h, dense, a: float, b: float, tol: float) -> float:
-    """The crossing of h in [a, b] by Brent's method, and the end of its bracket where h
-    has risen through 0 (so the event's state lies on its far side)."""
-
-    def f(t: float) -> float:
-        return float(h(dense(t)))
-
-    root = brentq(f, a, b, xtol=tol, rtol=4 * np.finfo(float).eps, maxiter=200)
-    if f(root) < 0.0:
-        root = min(b, root + tol)
-    return root
+        return earliest_system_event(dense, self.columns, grid, run.regime, run.ctx[0],
+                                     run.last_kind, self.restart_band)  # fmt: skip
 
 
 class CompiledExtendedStepper(ExtendedStepper):
@@ -452,7 +282,7 @@ class CompiledExtendedStepper(ExtendedStepper):
     def advance(self, run: ExtendedRun) -> None:
         if not self.in_segment:
             self._start_segment(run)
-        hand_first = run.last_kind != NO_EVENT or self.settling or self.on_surface
+        hand_first = run.last_kind != NO_EVENT
         chunk = max(1, min(CHUNK_STEPS, run.steps_left))
         tau, reason = self._run_kernel(run, hand_first, chunk)
         run.tau = tau  # the kernel moved the state in place
