@@ -44,12 +44,13 @@ ATOL = 1e-12
 MAX_EVENTS_PER_PERIOD = 400
 # The samples a flow's extremes of z are first read on (``sample_grid``), and the
 # refinement of the extreme sample: Newton's iterations at most, and the step below
-# which it stops (relative to max(1, tau); its error is then of the order of the step's
-# square).
+# which it stops (relative to max(1, tau)): the time of the turn is then off by about the
+# step's square times the contact's frequency, and z, flat there, by that error's square
+# (about 1e-14).
 SAMPLES_PER_PERIOD = 64
 SAMPLES_PER_CONTACT_PERIOD = 16
 EXTREME_ITERATIONS = 12
-EXTREME_STEP = 1e-7
+EXTREME_STEP = 1e-4
 PARAMETERS = ("eta", "mu", "K", "e", "nu", "Rp")
 # A long flow without a map's variational equations (a transient) is integrated in pieces
 # of at most this many forcing periods: the samples of one piece are kept (for the

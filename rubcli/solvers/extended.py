@@ -55,6 +55,7 @@ from rubcli.solvers.events import (
     STICK_EXIT,
     earliest_system_event,
     initial_kind,
+    start_flags,
 )
 from rubcli.solvers.registry import SPECS
 from rubcli.solvers.shared import SCAN_POINTS, Dop853Dense, OdeSolverStepper, kernel_failure
@@ -248,14 +249,14 @@ class ExtendedStepper(OdeSolverStepper):
 
 
 class CompiledExtendedStepper(ExtendedStepper):
-    """A compiled loop on a system (``dop853-jit``; the driven rotor's ``taylor``). The kernel
-    commits the steps in which no event can lie, with their samples; a step that may
-    hold one, a segment's first step, a step still on the surface its segment began on
-    and a step that ends at a speed of 0 or below come back pending, and ``close_step``
-    (the Python event search above, the definition of the events) takes them.
-    So the compiled steppers find the scipy steppers' events, and spend Python only on
-    the steps around them. A subclass runs its kernel (``_run_kernel``) and gives a
-    pending step's dense output (``_pending``)."""
+    """A compiled loop on a system (``dop853-jit``; ``taylor`` on the driven rotor and the
+    two bodies). The kernel commits the steps in which no event lies, with their
+    samples, and locates the events in the others with the one event search
+    (``events.event_search``, compiled on the step's dense output:
+    ``compiled.extended_loop.system_search``); Python applies each event
+    (``ExtendedRun.switch``). A step that ends at a speed of 0 or below comes back
+    pending, and ``close_step`` takes it. A subclass runs its kernel (``_run_kernel``)
+    and gives the dense output of the step it stopped in (``_pending``)."""
 
     def __init__(self, run: ExtendedRun, name: str, rtol: float, atol: float) -> None:
         super().__init__(run, "dop853", rtol, atol, compiled=True)
@@ -265,9 +266,10 @@ class CompiledExtendedStepper(ExtendedStepper):
         self.ctx = run.ctx
         self.y_new = np.empty(run.system.size)
         self.t_new = 0.0
+        self.found = np.empty(2)  # the kernel's event: (tau, kind), kind -1 if none
         self.in_segment = False  # a segment is to start
         run.stats.update(python_steps=0)
-        self.settings.update(rtol=self.rtol, compiled_events=False)
+        self.settings.update(rtol=self.rtol, compiled_events=True)
 
     def _start_segment(self, run: ExtendedRun) -> None:
         run.state = np.ascontiguousarray(run.state, dtype=float)
@@ -282,17 +284,28 @@ class CompiledExtendedStepper(ExtendedStepper):
     def advance(self, run: ExtendedRun) -> None:
         if not self.in_segment:
             self._start_segment(run)
-        hand_first = run.last_kind != NO_EVENT
         chunk = max(1, min(CHUNK_STEPS, run.steps_left))
-        tau, reason = self._run_kernel(run, hand_first, chunk)
+        start = run.tau
+        tau, reason = self._run_kernel(run, start_flags(run.last_kind), chunk)
         run.tau = tau  # the kernel moved the state in place
+        if tau > start:
+            run.last_kind = NO_EVENT  # the segment's first step is behind
         failure = kernel_failure(reason, self.name, tau, self.t_new)
         if failure:
             run.fail(failure)
         elif reason == kernels.STOP_EVENT:
             run.stats["nsteps"] += 1
-            run.stats["python_steps"] += 1
             dense = self._pending(run, tau)
+            if self.found[1] >= 0.0 and run.locked is not None:
+                # a locked run has no events: the step is taken whole
+                run.k = self._fill(run, dense, self.t_new)
+                self.finish(run, dense, None)
+                return
+            if self.found[1] >= 0.0:  # located, its samples filled: the switch
+                self._end_segment(run)
+                run.switch(float(self.found[0]), int(self.found[1]), dense(self.found[0]))
+                return
+            run.stats["python_steps"] += 1
             self.close_step(run, dense, tau, self.t_new, self.y_new[SPEED])
 
     def finish(self, run: ExtendedRun, dense: Dense, event: tuple[float, int] | None) -> None:
@@ -323,11 +336,13 @@ class ExtendedJitStepper(CompiledExtendedStepper):
                                        run.regime, self.rtol, self.atol)  # fmt: skip
         run.stats["nfev"] += 2
 
-    def _run_kernel(self, run: ExtendedRun, hand_first: bool, chunk: int) -> tuple[float, int]:
+    def _run_kernel(
+        self, run: ExtendedRun, starts: tuple[bool, bool, bool], chunk: int
+    ) -> tuple[float, int]:
         tau, self.t_new, self.h_abs, run.k, steps, nfev, reason = self.advance_kernel(
             run.tau, run.state, self.f, self.h_abs, run.t_end, self.ctx, run.regime,
             self.rtol, self.atol, run.t_eval, run.states, run.regimes, run.k, chunk,
-            hand_first, self.y_new, self.f_new, self.F,
+            starts, self.restart_band, self.found, self.y_new, self.f_new, self.F,
         )  # fmt: skip
         run.stats["nsteps"] += steps
         run.stats["nfev"] += nfev
@@ -369,11 +384,13 @@ class ExtendedTaylorStepper(CompiledExtendedStepper):
         run.stats.update(order=self.order)
         self.settings.update(order=self.order)
 
-    def _run_kernel(self, run: ExtendedRun, hand_first: bool, chunk: int) -> tuple[float, int]:
+    def _run_kernel(
+        self, run: ExtendedRun, starts: tuple[bool, bool, bool], chunk: int
+    ) -> tuple[float, int]:
         tau, self.t_new, run.k, steps, reason = self.kernel(
             run.tau, run.state, run.t_end, self.ctx, run.regime, self.order, self.rtol,
-            self.atol, run.t_eval, run.states, run.regimes, run.k, chunk, hand_first, self.C,
-            self.info,
+            self.atol, run.t_eval, run.states, run.regimes, run.k, chunk, starts,
+            self.restart_band, self.found, self.C, self.info,
         )  # fmt: skip
         run.stats["nsteps"] += steps
         run.stats["nfev"] = run.stats["nsteps"]  # one series expansion per step

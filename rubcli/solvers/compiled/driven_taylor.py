@@ -314,16 +314,17 @@ def advance_driven_taylor(
     tau: float, y: np.ndarray, t_end: float,
     ctx: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], regime: int, order: int,
     rtol: float, atol: float, t_eval: np.ndarray, out_states: np.ndarray,
-    out_regimes: np.ndarray, k: int, max_steps: int, hand_first: bool, C: np.ndarray,
-    info: np.ndarray,
+    out_regimes: np.ndarray, k: int, max_steps: int, starts: tuple[bool, bool, bool],
+    band: float, found: np.ndarray, C: np.ndarray, info: np.ndarray,
 ) -> tuple[float, float, int, int, int]:  # fmt: skip
-    """Taylor steps of the driven rotor in one regime, up to the first step that may
-    hold an event (``extended_loop.step_loop``). A pending step (reason EVENT) leaves
-    its coefficients in ``C`` and its scan intervals in ``info[0]``. Returns ``(tau,
+    """Taylor steps of the driven rotor in one regime, up to the first event
+    (``extended_loop.step_loop``: ``found`` its time and kind). The step of an event, or
+    a pending one (reason EVENT), leaves its coefficients in ``C`` and its scan intervals
+    in ``info[0]``. Returns ``(tau,
     t_new, k, steps, reason)``."""
     m = (C, np.zeros((SERIES_ROWS, MAX_ORDER + 1)), info)
     tau, t_new, k, steps, reason, _ = _loop(
         tau, y, t_end, ctx, regime, t_eval, out_states, out_regimes, k, max_steps,
-        hand_first, np.empty(N_STATES), m, (order, rtol, atol, 0.0),
+        starts, band, found, np.empty(N_STATES), m, (order, rtol, atol, 0.0),
     )  # fmt: skip
     return tau, t_new, k, steps, reason

@@ -10,19 +10,18 @@ count. Its first four states are the rotor's position and velocity relative to t
 stator's centre, the fifth and sixth the unbalance's phase and speed (so ``v_r = Rp
 row[5] + (x vy - y vx) / z``, the events of every such system the same).
 
-A step that may hold an event goes back to Python (``solvers.extended``), whose event
-search is the definition of the events; so the kernel decides only which steps surely
-hold none, and writes the event rules nowhere.
+The events are located in the loop by the one event search (``events.event_search``,
+compiled on the step's dense output with the surface speed ``Rp w`` a state and the
+system's stick margin: ``system_search``), on each step the pre-check flags and on a
+segment's first step; the loop returns at an event, which Python applies
+(``ExtendedRun.switch``: the system's rules and projection).
 
 The loop is written once (``step_loop``), for every method and system: the budgets, the
-check of the new state, the hand-back of a segment's first step and of a step that ends
-at a speed of 0 or below, the event pre-check on the step's scan grid, the samples of a
-committed step and the commit. A method plugs in its step and what its dense output
+check of the new state, the hand-back of a step that ends at a speed of 0 or below, the
+event pre-check on the step's scan grid, the event search, the samples of a committed
+step and the commit. A method plugs in its step and what its dense output
 needs (``dop853_loop``: scipy's DOP853; ``driven_taylor`` and ``two_body_taylor``: the
-systems' Taylor series), inlined into the loop in numba IR. These loops' time is mostly
-the Python event search of the steps they hand back, so the reference counting of the
-arrays the plugged-in parts bind (see ``docs/solvers.md``, "The compiled loops") is
-small beside it.
+systems' Taylor series), inlined into the loop in numba IR.
 """
 
 from __future__ import annotations
@@ -64,7 +63,7 @@ from rubcli.solvers.compiled.precheck import (
     _surface_may_cross,
 )
 from rubcli.solvers.compiled.roots import FREE_REGIME, STICK_REGIME
-from rubcli.solvers.events import linspace_into, run_time
+from rubcli.solvers.events import event_search, linspace_into, run_time
 
 SPEED = 5  # the unbalance's speed w: v_r = Rp w + ..., a run stops where it reaches 0
 
@@ -82,11 +81,11 @@ def step_parts(
     out_regimes, k, row)`` (projected onto the rolling constraint in stick, as Python
     reports them; returns the next sample to fill).
 
-    False only if ``ExtendedStepper._earliest_event`` surely finds no event on the scan
-    grid ``grid[:n + 1]`` (``np.linspace`` of the step, as Python's): contact entry in
-    free flight; contact exit, and the slip reversal or the stick exit, in contact. For a
-    segment that has left the surface it began on (the caller hands the others to
-    Python)."""
+    False only if the event search surely finds no event on the scan grid ``grid[:n +
+    1]`` (``np.linspace`` of the step, as Python's): contact entry in free flight;
+    contact exit, and the slip reversal or the stick exit, in contact. For a segment that
+    has left the surface it began on (the loop searches a segment's first step
+    whatever)."""
     N = n_states
 
     def slip_may_reverse(
@@ -179,10 +178,34 @@ def step_parts(
 STOP_NONE = -1  # a plugged-in step's reason: it was taken
 
 
+def system_search(
+    dense_at: Callable[..., None], into: Callable[..., float], n_states: int
+) -> Callable[..., tuple[float, int]]:
+    """The event search (``events.event_search``, the one definition every path runs)
+    on a step's dense output ``dense_at(t, dense, row)`` of the system (``into``,
+    ``n_states``), compiled: ``locate(ctx, regime, pars, grid, n, starts, band, hv, hd,
+    row, drow)`` with ``ctx = (dense, the system's records, regime)``. The surface speed
+    is ``Rp w``, a state; the stick margin takes the system's stick friction."""
+    N = n_states
+
+    def ev(t: float, deriv: bool, ctx: Any, row: np.ndarray, drow: np.ndarray) -> None:
+        dense_at(t, ctx[0], row)
+        if deriv:
+            into(row, ctx[1], ctx[2], drow)
+
+    def margin(ctx: Any, t: float, pars: np.ndarray, sign: float, row: np.ndarray) -> float:
+        out = np.empty(N)
+        T = into(row, ctx[1], STICK_REGIME, out)
+        limit = pars[P_MU] * pars[P_K] * (math.hypot(row[0], row[1]) - 1.0)
+        return sign * T - limit * (1.0 + STICK_EXIT_MARGIN)
+
+    return event_search(jit(ev), compile=jit, margin=jit(margin))[0]
+
+
 def step_loop(
     step: Callable[..., tuple], intervals: Callable[..., int], commit: Callable[..., None],
     dense_at: Callable[..., None], into: Callable[..., float], project: Callable[..., None],
-    n_states: int, max_scan: int,
+    n_states: int, max_scan: int, events_into: Callable[..., float] | None = None,
 ) -> Callable[..., tuple]:  # fmt: skip
     """The step loop of one method on one system (``into``, ``project``, ``n_states``:
     module docstring), compiled with its parts as closure constants (as
@@ -196,35 +219,46 @@ def step_loop(
     - ``intervals(tau, t_new, y, y_new, ctx, regime, m, c) -> n``: the step's scan
       intervals (at most ``max_scan``);
     - ``commit(m)``: what the method keeps of a committed step beyond its state.
+
+    ``events_into``: the right-hand side the pre-check and the event search evaluate
+    (default ``into``): the first states' alone, where the system carries more that the
+    events do not read (a variational matrix: ``compiled.variational``).
     """
     N = n_states
-    may_have_event, fill = step_parts(into, project, N, dense_at)
+    may_have_event, fill = step_parts(events_into or into, project, N, dense_at)
+    locate = system_search(dense_at, events_into or into, N)
 
     def advance(
         tau: float, y: np.ndarray, t_end: float, ctx: Any, regime: int, t_eval: np.ndarray,
         out_states: np.ndarray, out_regimes: np.ndarray, k: int, max_steps: int,
-        hand_first: bool, y_new: np.ndarray, m: tuple, c: tuple,
+        starts: tuple[bool, bool, bool], band: float, found: np.ndarray, y_new: np.ndarray,
+        m: tuple, c: tuple,
     ) -> tuple:  # fmt: skip
-        """Steps of the system in one regime, up to the first step that may hold an
-        event.
+        """Steps of the system in one regime, up to the first event.
 
-        A step in which no event can lie (the pre-check) and after which the speed is
-        still positive is committed: ``y`` moves on and the samples ``t_eval[k:]`` it
-        covers go to ``out_states`` and ``out_regimes`` (in stick projected onto the
-        rolling constraint, as Python reports them). Any other step, and the first with
-        ``hand_first`` (a segment's first step, or one still on the surface it began
-        on), is returned pending, with ``y_new`` and ``m`` holding it. Returns ``(tau,
+        Each step's events are sought (``system_search``) where the pre-check says one
+        may lie, and on a segment's first step, begun on an event's surface (``starts``:
+        ``events.start_flags``; ``band`` the restart band). A step without one, after
+        which the speed is still positive, is committed: ``y`` moves on and the samples
+        ``t_eval[k:]`` it covers go to ``out_states`` and ``out_regimes`` (in stick
+        projected onto the rolling constraint, as Python reports them). A step with an
+        event fills the samples up to it and returns with ``found = (tau, kind)`` of the
+        event (kind -1: none); a step that ends at a speed of 0 or below returns
+        pending; either leaves ``y_new`` and ``m`` holding the step. Returns ``(tau,
         t_new, k, steps, reason, c)``: reason END, LIMIT (``max_steps`` steps committed),
-        EVENT (a pending step from ``tau`` to ``t_new``), PYTHON (a non-finite state)
-        or the step's own.
+        EVENT (the step from ``tau`` to ``t_new``: its event, or pending), PYTHON (a
+        non-finite state) or the step's own.
         """
         row = np.empty(N)
+        drow = np.empty(N)
         out = np.empty(N)
         grid = np.empty(max_scan + 1)
         S = np.empty((max_scan + 1, N))
         hv = np.empty(max_scan + 1)
         hd = np.empty(max_scan + 1)
+        pars = ctx[0]
         steps = 0
+        found[1] = -1.0
         while True:
             if tau >= t_end:
                 return tau, tau, k, steps, STOP_END, c
@@ -237,17 +271,27 @@ def step_loop(
                 if not math.isfinite(y_new[i]):
                     return tau, t_new, k, steps, STOP_PYTHON, c
             n = intervals(tau, t_new, y, y_new, ctx, regime, m, c)
-            if hand_first or y_new[SPEED] <= 0.0:
+            if y_new[SPEED] <= 0.0:
                 return tau, t_new, k, steps, STOP_EVENT, c
             linspace_into(grid, tau, t_new, n)
-            if may_have_event(dense, ctx, regime, grid, n, S, hv, hd, row, out):
-                return tau, t_new, k, steps, STOP_EVENT, c
+            if (
+                starts[0]
+                or starts[1]
+                or may_have_event(dense, ctx, regime, grid, n, S, hv, hd, row, out)
+            ):
+                t_ev, kind = locate((dense, ctx, regime), regime, pars, grid, n, starts, band,
+                                    hv, hd, row, drow)  # fmt: skip
+                if kind >= 0:
+                    k = fill(dense, t_ev, ctx, regime, t_eval, out_states, out_regimes, k, row)
+                    found[0], found[1] = t_ev, float(kind)
+                    return tau, t_new, k, steps, STOP_EVENT, c
             k = fill(dense, t_new, ctx, regime, t_eval, out_states, out_regimes, k, row)
             steps += 1
             for i in range(N):
                 y[i] = y_new[i]
             commit(m)
             tau = t_new
+            starts = (False, False, True)
 
     return jit(advance)
 
@@ -259,11 +303,12 @@ def _dop853_dense(t: float, dense: Any, row: np.ndarray) -> None:
 
 
 def dop853_loop(
-    into: Callable[..., float], project: Callable[..., None], n_states: int
-) -> tuple[Callable[..., float], Callable[..., tuple]]:
+    into: Callable[..., float], project: Callable[..., None], n_states: int,
+    events_into: Callable[..., float] | None = None,
+) -> tuple[Callable[..., float], Callable[..., tuple]]:  # fmt: skip
     """scipy's DOP853 on the system (``into``, ``project``, ``n_states``: module
-    docstring) in ``step_loop``, compiled once per system: ``(initial_step, advance)``,
-    ``advance`` as below."""
+    docstring; ``events_into``: ``step_loop``'s) in ``step_loop``, compiled once per
+    system: ``(initial_step, advance)``, ``advance`` as below."""
     N = n_states
 
     def stage(t: float, y: np.ndarray, ctx: Any, regime: int, out: np.ndarray) -> None:
@@ -300,22 +345,22 @@ def dop853_loop(
             f[i] = f_new[i]
 
     loop = step_loop(jit_inline(step), jit_inline(intervals), jit_inline(commit),
-                     _dop853_dense, into, project, N, DOP_SCAN_POINTS)  # fmt: skip
+                     _dop853_dense, into, project, N, DOP_SCAN_POINTS, events_into)  # fmt: skip
 
     def advance(
         tau: float, y: np.ndarray, f: np.ndarray, h_abs: float, t_end: float, ctx: Any,
         regime: int, rtol: float, atol: float, t_eval: np.ndarray, out_states: np.ndarray,
-        out_regimes: np.ndarray, k: int, max_steps: int, hand_first: bool,
-        y_new: np.ndarray, f_new: np.ndarray, F: np.ndarray,
+        out_regimes: np.ndarray, k: int, max_steps: int, starts: tuple[bool, bool, bool],
+        band: float, found: np.ndarray, y_new: np.ndarray, f_new: np.ndarray, F: np.ndarray,
     ) -> tuple[float, float, float, int, int, int, int]:  # fmt: skip
-        """Adaptive DOP853 steps of the system in one regime, up to the first step that
-        may hold an event (``step_loop``'s advance), each scipy's DOP853 step. A pending
-        step leaves ``y_new``, ``f_new`` and the dense coefficients ``F`` filled.
+        """Adaptive DOP853 steps of the system in one regime, up to the first event
+        (``step_loop``'s advance), each scipy's DOP853 step. The step of an event (or a
+        pending one) leaves ``y_new``, ``f_new`` and the dense coefficients ``F`` filled.
         Returns ``(tau, t_new, h_abs, k, steps, nfev, reason)``."""
         m = (f, f_new, F, np.empty((DOP_A.shape[0], N)), np.empty(N))
         tau, t_new, k, steps, reason, c = loop(
             tau, y, t_end, ctx, regime, t_eval, out_states, out_regimes, k, max_steps,
-            hand_first, y_new, m, (h_abs, 0, rtol, atol),
+            starts, band, found, y_new, m, (h_abs, 0, rtol, atol),
         )  # fmt: skip
         return tau, t_new, c[0], k, steps, c[1], reason
 

@@ -99,8 +99,9 @@ def two_body_variational_into(row: np.ndarray, ctx: tuple, regime: int, out: np.
 
 
 _initial_step, _advance = dop853_loop(two_body_into, two_body_project, N_STATES)
+# (the events read the ten states: the search evaluates their right-hand side alone)
 _variational_initial, _variational_advance = dop853_loop(
-    two_body_variational_into, two_body_project, N_VARIATIONAL
+    two_body_variational_into, two_body_project, N_VARIATIONAL, two_body_into
 )
 
 
@@ -119,12 +120,12 @@ def two_body_initial_step(
 def advance_two_body(
     tau: float, y: np.ndarray, f: np.ndarray, h_abs: float, t_end: float, ctx: tuple,
     regime: int, rtol: float, atol: float, t_eval: np.ndarray, out_states: np.ndarray,
-    out_regimes: np.ndarray, k: int, max_steps: int, hand_first: bool, y_new: np.ndarray,
-    f_new: np.ndarray, F: np.ndarray,
+    out_regimes: np.ndarray, k: int, max_steps: int, starts: tuple[bool, bool, bool],
+    band: float, found: np.ndarray, y_new: np.ndarray, f_new: np.ndarray, F: np.ndarray,
 ) -> tuple[float, float, float, int, int, int, int]:  # fmt: skip
     """The loop's steps up to a pending one (``extended_loop.dop853_loop``'s advance)."""
     return _advance(tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, t_eval, out_states,
-                    out_regimes, k, max_steps, hand_first, y_new, f_new, F)  # fmt: skip
+                    out_regimes, k, max_steps, starts, band, found, y_new, f_new, F)  # fmt: skip
 
 
 @jit
@@ -150,10 +151,10 @@ def two_body_variational_initial_step(
 def advance_two_body_variational(
     tau: float, y: np.ndarray, f: np.ndarray, h_abs: float, t_end: float, ctx: tuple,
     regime: int, rtol: float, atol: float, t_eval: np.ndarray, out_states: np.ndarray,
-    out_regimes: np.ndarray, k: int, max_steps: int, hand_first: bool, y_new: np.ndarray,
-    f_new: np.ndarray, F: np.ndarray,
+    out_regimes: np.ndarray, k: int, max_steps: int, starts: tuple[bool, bool, bool],
+    band: float, found: np.ndarray, y_new: np.ndarray, f_new: np.ndarray, F: np.ndarray,
 ) -> tuple[float, float, float, int, int, int, int]:  # fmt: skip
     """The variational loop's steps up to a pending one (``dop853_loop``'s advance)."""
     return _variational_advance(tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, t_eval,
-                                out_states, out_regimes, k, max_steps, hand_first, y_new,
+                                out_states, out_regimes, k, max_steps, starts, band, found, y_new,
                                 f_new, F)  # fmt: skip

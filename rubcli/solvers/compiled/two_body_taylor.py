@@ -191,12 +191,13 @@ _loop = step_loop(_step, _intervals, _commit, polynomial_at, two_body_into, two_
 def advance_two_body_taylor(
     tau: float, y: np.ndarray, t_end: float, ctx: tuple[np.ndarray, np.ndarray], regime: int,
     order: int, rtol: float, atol: float, t_eval: np.ndarray, out_states: np.ndarray,
-    out_regimes: np.ndarray, k: int, max_steps: int, hand_first: bool, C: np.ndarray,
-    info: np.ndarray,
+    out_regimes: np.ndarray, k: int, max_steps: int, starts: tuple[bool, bool, bool],
+    band: float, found: np.ndarray, C: np.ndarray, info: np.ndarray,
 ) -> tuple[float, float, int, int, int]:  # fmt: skip
-    """Taylor steps of the two bodies in one regime, up to the first step that may hold
-    an event (``extended_loop.step_loop``). A pending step (reason EVENT) leaves its
-    coefficients in ``C`` and its scan intervals in ``info[0]``. Returns ``(tau, t_new,
+    """Taylor steps of the two bodies in one regime, up to the first event
+    (``extended_loop.step_loop``: ``found`` its time and kind). The step of an event, or a
+    pending one (reason EVENT), leaves its coefficients in ``C`` and its scan intervals in
+    ``info[0]``. Returns ``(tau, t_new,
     k, steps, reason)``."""
     pars, st = ctx[0], ctx[1]
     # the scan grid's frequency bound: the spin, and the ring's own and the contact's on it
@@ -205,6 +206,6 @@ def advance_two_body_taylor(
     m = (C, np.zeros((SERIES_ROWS, MAX_ORDER + 1)), info)
     tau, t_new, k, steps, reason, _ = _loop(
         tau, y, t_end, ctx, regime, t_eval, out_states, out_regimes, k, max_steps,
-        hand_first, np.empty(N_STATES), m, (order, rtol, atol, ring),
+        starts, band, found, np.empty(N_STATES), m, (order, rtol, atol, ring),
     )  # fmt: skip
     return tau, t_new, k, steps, reason

@@ -120,8 +120,9 @@ def rotor_columns(S: np.ndarray, pars: np.ndarray, regime: int) -> tuple[np.ndar
 
 
 _rotor_initial, _rotor_advance = dop853_loop(rotor_into, rotor_project, N_ROTOR)
+# (the events read the rotor's six states: the search evaluates their right-hand side alone)
 _variational_initial, _variational_advance = dop853_loop(
-    variational_into, rotor_project, N_VARIATIONAL
+    variational_into, rotor_project, N_VARIATIONAL, rotor_into
 )
 
 
@@ -140,12 +141,12 @@ def rotor_initial_step(
 def advance_rotor(
     tau: float, y: np.ndarray, f: np.ndarray, h_abs: float, t_end: float, ctx: tuple,
     regime: int, rtol: float, atol: float, t_eval: np.ndarray, out_states: np.ndarray,
-    out_regimes: np.ndarray, k: int, max_steps: int, hand_first: bool, y_new: np.ndarray,
-    f_new: np.ndarray, F: np.ndarray,
+    out_regimes: np.ndarray, k: int, max_steps: int, starts: tuple[bool, bool, bool],
+    band: float, found: np.ndarray, y_new: np.ndarray, f_new: np.ndarray, F: np.ndarray,
 ) -> tuple[float, float, float, int, int, int, int]:  # fmt: skip
     """The rotor's loop's steps up to a pending one (``dop853_loop``'s advance)."""
     return _rotor_advance(tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, t_eval,
-                          out_states, out_regimes, k, max_steps, hand_first, y_new, f_new,
+                          out_states, out_regimes, k, max_steps, starts, band, found, y_new, f_new,
                           F)  # fmt: skip
 
 
@@ -162,10 +163,10 @@ def variational_initial_step(
 def advance_variational(
     tau: float, y: np.ndarray, f: np.ndarray, h_abs: float, t_end: float, ctx: tuple,
     regime: int, rtol: float, atol: float, t_eval: np.ndarray, out_states: np.ndarray,
-    out_regimes: np.ndarray, k: int, max_steps: int, hand_first: bool, y_new: np.ndarray,
-    f_new: np.ndarray, F: np.ndarray,
+    out_regimes: np.ndarray, k: int, max_steps: int, starts: tuple[bool, bool, bool],
+    band: float, found: np.ndarray, y_new: np.ndarray, f_new: np.ndarray, F: np.ndarray,
 ) -> tuple[float, float, float, int, int, int, int]:  # fmt: skip
     """The variational loop's steps up to a pending one (``dop853_loop``'s advance)."""
     return _variational_advance(tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, t_eval,
-                                out_states, out_regimes, k, max_steps, hand_first, y_new,
+                                out_states, out_regimes, k, max_steps, starts, band, found, y_new,
                                 f_new, F)  # fmt: skip
