@@ -165,39 +165,69 @@ def flow(
     regime = model.regime_of_state(s, params, tau0) if locked is None else int(locked)
     if regime == model.STICK:
         s = model.project_to_rolling(s, params)
-    periods = max(1.0, (tau1 - tau0) / params.period)
-    limit = max_events if max_events is not None else int(MAX_EVENTS_PER_PERIOD * periods) + 10
-
-    def run(start: np.ndarray, t_eval: np.ndarray, phi: np.ndarray | None) -> Flow:
-        check_deadline(deadline)
-        budget = math.inf if deadline is None else max(deadline - time.perf_counter(), 0.0)
-        out = rotor_flow(params, start, t_eval, phi=phi, locked=locked, rtol=rtol, atol=atol,
-                         max_events=limit, max_wall_time_s=budget)  # fmt: skip
-        if not out.solution.success:
-            check_deadline(deadline)
-            raise OrbitError(f"integration failed: {out.solution.message}")
-        return out
-
+    limit = _event_limit(params, tau0, tau1, max_events)
+    run = _runner(rotor_flow, params, locked, rtol, atol, limit, deadline)
     main = run(s, sample_grid(params, tau0, tau1), np.eye(4) if variational else None)
-    sol, nfev = main.solution, main.nfev
 
     def acceleration(t: float, state: np.ndarray, regime: int) -> tuple[float, float]:
         f = model.rhs(t, state, params, regime)
         return f[2], f[3]
 
     def flow_to(start: np.ndarray, t_eval: np.ndarray) -> tuple[np.ndarray, int, int]:
-        out = run(start, t_eval, None).solution
-        return out.states[-1], int(out.regimes[-1]), int(out.stats.get("nfev", 0))
+        out = run(start, t_eval, None)
+        return out.solution.states[-1], int(out.solution.regimes[-1]), out.nfev
 
+    sol = main.solution
+    phi = main.end[N_ROTOR:].reshape(4, 4) if variational else None
+    return _flow_result(main, main.end[:4], phi, sol.states, acceleration, flow_to, tau0, tau1)
+
+
+def _event_limit(params: ModelParams, tau0: float, tau1: float, given: int | None) -> int:
+    """A flow's event budget: ``given``, or ``MAX_EVENTS_PER_PERIOD`` a period."""
+    periods = max(1.0, (tau1 - tau0) / params.period)
+    return given if given is not None else int(MAX_EVENTS_PER_PERIOD * periods) + 10
+
+
+def _runner(
+    flow_of: Callable[..., Flow], params: ModelParams, locked: int | None, rtol: float,
+    atol: float, limit: int, deadline: float | None,
+) -> Callable[[np.ndarray, np.ndarray, np.ndarray | None], Flow]:  # fmt: skip
+    """``run(start, t_eval, phi)``: the flow ``flow_of`` (``solvers.variational``) with
+    the deadline's time left as its budget; OrbitError if it fails, WallTimeBudgetError
+    past ``deadline``."""
+
+    def run(start: np.ndarray, t_eval: np.ndarray, phi: np.ndarray | None) -> Flow:
+        check_deadline(deadline)
+        budget = math.inf if deadline is None else max(deadline - time.perf_counter(), 0.0)
+        out = flow_of(params, start, t_eval, phi=phi, locked=locked, rtol=rtol, atol=atol,
+                      max_events=limit, max_wall_time_s=budget)  # fmt: skip
+        if not out.solution.success:
+            check_deadline(deadline)
+            raise OrbitError(f"integration failed: {out.solution.message}")
+        return out
+
+    return run
+
+
+def _flow_result(
+    main: Flow, state: np.ndarray, monodromy: np.ndarray | None, section: np.ndarray,
+    acceleration: Callable[[float, np.ndarray, int], tuple[float, float]],
+    flow_to: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, int, int]], tau0: float,
+    tau1: float,
+) -> FlowResult:  # fmt: skip
+    """The FlowResult of a flow's run ``main``: its end ``state`` and ``monodromy``, its
+    extremes of z refined from its samples (``section``: the section's states there;
+    ``extreme_z``), its events and its time in contact and in stick."""
+    sol, nfev = main.solution, main.nfev
     extremes = []
     for sign in (1.0, -1.0):
-        z, more = extreme_z(sol.t, sol.states, sol.regimes, sign, acceleration, flow_to)
+        z, more = extreme_z(sol.t, section, sol.regimes, sign, acceleration, flow_to)
         extremes.append(z)
         nfev += more
     regimes = time_in_regimes(sol)
     return FlowResult(
-        state=main.end[:4].copy(),
-        monodromy=main.end[N_ROTOR:].reshape(4, 4).copy() if variational else None,
+        state=np.array(state),
+        monodromy=None if monodromy is None else np.array(monodromy),
         events=[(e.tau, e.kind, e.regime_before, e.regime_after) for e in sol.events],
         max_z=extremes[0],
         min_z=extremes[1],
@@ -286,53 +316,29 @@ def two_body_flow(
     s = np.asarray(s0, dtype=float).copy()
     if s.shape != (N_SECTION,):
         raise OrbitError(f"a two-body state has {N_SECTION} entries (got {s.shape})")
-    periods = max(1.0, (tau1 - tau0) / params.period)
-    limit = int(MAX_EVENTS_PER_PERIOD * periods) + 10
-
-    def run(start: np.ndarray, t_eval: np.ndarray, phi: np.ndarray | None) -> Flow:
-        check_deadline(deadline)
-        budget = math.inf if deadline is None else max(deadline - time.perf_counter(), 0.0)
-        out = run_flow(params, start, t_eval, phi=phi, locked=locked, rtol=rtol, atol=atol,
-                       max_events=limit, max_wall_time_s=budget)  # fmt: skip
-        if not out.solution.success:
-            check_deadline(deadline)
-            raise OrbitError(f"integration failed: {out.solution.message}")
-        return out
-
+    run = _runner(run_flow, params, locked, rtol, atol, _event_limit(params, tau0, tau1, None),
+                  deadline)  # fmt: skip
     n = max(2, int(math.ceil(TWO_BODY_SAMPLES * (tau1 - tau0) / params.period))) + 1
     main = run(s, np.linspace(tau0, tau1, n), np.eye(N_SECTION) if variational else None)
-    sol, nfev = main.solution, main.nfev
     pars, stator = np.array(model.params_vector(params)), params.stator.record()
+    on_section = list(SECTION)
 
     def acceleration(t: float, q: np.ndarray, regime: int) -> tuple[float, float]:
         full = np.empty(N_STATES)
-        full[list(SECTION)] = q
+        full[on_section] = q
         full[4], full[5] = params.phi0 + params.eta * t, params.eta
         f = two_body_rhs(full, pars, stator, regime)
         return f[2], f[3]
 
     def flow_to(start: np.ndarray, t_eval: np.ndarray) -> tuple[np.ndarray, int, int]:
         out = run(start, t_eval, None)
-        return out.end[list(SECTION)], int(out.solution.regimes[-1]), out.nfev
+        return out.end[on_section], int(out.solution.regimes[-1]), out.nfev
 
+    sol = main.solution
     section = np.hstack((sol.states, sol.stator_states))
-    extremes = []
-    for sign in (1.0, -1.0):
-        z, more = extreme_z(sol.t, section, sol.regimes, sign, acceleration, flow_to)
-        extremes.append(z)
-        nfev += more
-    regimes = time_in_regimes(sol)
-    return FlowResult(
-        state=main.end[list(SECTION)],
-        monodromy=main.end[N_STATES:].reshape(N_SECTION, N_SECTION).copy() if variational else None,
-        events=[(e.tau, e.kind, e.regime_before, e.regime_after) for e in sol.events],
-        max_z=extremes[0],
-        min_z=extremes[1],
-        contact_time=float(sum(v for k, v in regimes.items() if k != "free")),
-        stick_time=float(regimes["stick"]),
-        duration=float(tau1 - tau0),
-        nfev=nfev,
-    )
+    phi = main.end[N_STATES:].reshape(N_SECTION, N_SECTION) if variational else None
+    return _flow_result(main, main.end[on_section], phi, section, acceleration, flow_to, tau0,
+                        tau1)  # fmt: skip
 
 
 # ------------------------------------------------------------------------ the map

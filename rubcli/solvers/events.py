@@ -744,9 +744,8 @@ class _SystemSegment(_PythonSegment):
         row: np.ndarray, drow: np.ndarray, hv: np.ndarray, hd: np.ndarray,
     ) -> None:  # fmt: skip
         S = self.S
-        if fn == FN_SURFACE:
-            hv[:] = sign * surface_value(S)
-            hd[:] = sign * surface_rate(S)
+        if fn == FN_SURFACE:  # the rotor's, on the system's first four states
+            super().fill(fn, sign, grid, n, pars, d, row, drow, hv, hd)
         elif fn == FN_SLIP:
             if self.dS is None:
                 self.dS = self.columns(S)[0]
