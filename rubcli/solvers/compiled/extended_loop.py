@@ -26,6 +26,7 @@ systems' Taylor series), inlined into the loop in numba IR.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from typing import Any
@@ -178,15 +179,17 @@ def step_parts(
 STOP_NONE = -1  # a plugged-in step's reason: it was taken
 
 
+@functools.cache
 def system_search(
-    dense_at: Callable[..., None], into: Callable[..., float], n_states: int
+    dense_at: Callable[..., None], into: Callable[..., float]
 ) -> Callable[..., tuple[float, int]]:
     """The event search (``events.event_search``, the one definition every path runs)
-    on a step's dense output ``dense_at(t, dense, row)`` of the system (``into``,
-    ``n_states``), compiled: ``locate(ctx, regime, pars, grid, n, starts, band, hv, hd,
-    row, drow)`` with ``ctx = (dense, the system's records, regime)``. The surface speed
-    is ``Rp w``, a state; the stick margin takes the system's stick friction."""
-    N = n_states
+    on a step's dense output ``dense_at(t, dense, row)`` of the system ``into``,
+    compiled: ``locate(ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow)``
+    with ``ctx = (dense, the system's records, regime)``. The surface speed is ``Rp w``,
+    a state; the stick margin takes the system's stick friction. One per pair, so loops
+    that share their dense output and their events' right-hand side (a system with and
+    without its variational matrix) compile it once."""
 
     def ev(t: float, deriv: bool, ctx: Any, row: np.ndarray, drow: np.ndarray) -> None:
         dense_at(t, ctx[0], row)
@@ -194,7 +197,7 @@ def system_search(
             into(row, ctx[1], ctx[2], drow)
 
     def margin(ctx: Any, t: float, pars: np.ndarray, sign: float, row: np.ndarray) -> float:
-        out = np.empty(N)
+        out = np.empty(row.shape[0])
         T = into(row, ctx[1], STICK_REGIME, out)
         limit = pars[P_MU] * pars[P_K] * (math.hypot(row[0], row[1]) - 1.0)
         return sign * T - limit * (1.0 + STICK_EXIT_MARGIN)
@@ -226,7 +229,7 @@ def step_loop(
     """
     N = n_states
     may_have_event, fill = step_parts(events_into or into, project, N, dense_at)
-    locate = system_search(dense_at, events_into or into, N)
+    locate = system_search(dense_at, events_into or into)
 
     def advance(
         tau: float, y: np.ndarray, t_end: float, ctx: Any, regime: int, t_eval: np.ndarray,
