@@ -220,7 +220,7 @@ class ExtendedStepper(OdeSolverStepper):
             )
             return
         event = self._earliest_event(run, dense, t_old, t_new)
-        run.last_kind = NO_EVENT  # (the event that began the segment: its first step's)
+        run.last_kind = NO_EVENT  # the segment's start concerns its first step only
         run.k = self._fill(run, dense, event[0] if event else t_new)
         self.finish(run, dense, event)
 
