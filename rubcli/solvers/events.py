@@ -722,16 +722,9 @@ class _SystemSegment(_PythonSegment):
 
     def __init__(self, states, columns, grid, pars):
         self.states, self.columns, self.grid, self.pars = states, columns, grid, pars
+        self.derivatives = lambda t, S: columns(S)[0]  # autonomous: the time is a state
         self.S = states(grid)
         self.dS = None
-
-    def ev(self, t: float, deriv: bool, row: np.ndarray, drow: np.ndarray) -> None:
-        s = self.states(t)
-        row[:] = s
-        if deriv:
-            drow[:] = self.columns(s[:, None])[0][:, 0]
-        if not (np.all(np.isfinite(row)) and (not deriv or np.all(np.isfinite(drow)))):
-            raise ValueError(f"the segment is not finite at tau = {t!r}")
 
     def margin(self, S: np.ndarray, pars: np.ndarray, sign: float) -> np.ndarray:
         """The stick margin of side ``sign`` at the states in the columns of S."""
