@@ -275,7 +275,10 @@ def extreme_z(
         if not lo < t_next < hi:
             t_next = 0.5 * (lo + hi)
         j = int(np.searchsorted(t, t_next, side="right")) - 1
-        sk, regime, spent = flow_to(S[j], np.array([t[j], t_next]))
+        if t[j] == t_next:  # an iterate exactly on a sample: its state, not an empty flow
+            sk, regime, spent = S[j], int(regimes[j]), 0
+        else:
+            sk, regime, spent = flow_to(S[j], np.array([t[j], t_next]))
         nfev += spent
         step, tk = abs(t_next - tk), t_next
         zk = math.hypot(sk[0], sk[1])
