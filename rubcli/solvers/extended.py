@@ -51,6 +51,7 @@ from rubcli.solvers.events import (
     ENTRY,
     EXIT,
     NO_EVENT,
+    SPEED,
     STICK_ENTRY,
     STICK_EXIT,
     earliest_system_event,
@@ -62,7 +63,6 @@ from rubcli.solvers.shared import SCAN_POINTS, Dop853Dense, OdeSolverStepper, ke
 
 Dense = Callable[[float], np.ndarray]  # a step's dense output (of one time, or of times)
 CHUNK_STEPS = 2000  # committed steps per kernel call: budget and progress checks between
-SPEED = 5  # the state's entry of the unbalance's speed w
 
 
 @dataclass(frozen=True)

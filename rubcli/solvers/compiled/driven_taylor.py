@@ -15,9 +15,8 @@ The order, the step (the last two terms below the state tolerance; the phase, wh
 grows without bound, is left out of the state's scale) and the scan grid (eight
 intervals a period of the fastest frequency, the spin's from the larger end speed) are
 ``taylor``'s rules. The step runs in the extended systems' one loop
-(``extended_loop.step_loop``): a step that may hold an event (its pre-check on the
-step's polynomial), a segment's first step and a step after which the speed is 0 or
-below go back to the Python event search (``solvers.driven``), as for ``dop853-jit``.
+(``extended_loop.step_loop``), which locates the events on the step's polynomial with
+the one event search, as for ``dop853-jit``.
 """
 
 from __future__ import annotations
@@ -30,7 +29,7 @@ import numpy as np
 from rubcli.drive import D_INERTIA, motor_line
 from rubcli.model import FREE, P_ECC, P_K, P_MU, P_NU, P_RP, STICK, friction_sign
 from rubcli.solvers.compiled.drive import N_STATES, drive_into, drive_project
-from rubcli.solvers.compiled.extended_loop import STOP_NONE, step_loop
+from rubcli.solvers.compiled.extended_loop import STOP_NONE, keep_nothing, step_loop
 from rubcli.solvers.compiled.jit import STOP_PYTHON, STOP_SMALL_STEP, jit, jit_inline
 from rubcli.solvers.compiled.taylor import (
     MAX_ORDER,
@@ -294,18 +293,13 @@ def _step(tau, y, t_end, ctx, regime, m, c, y_new):
 def _intervals(tau, t_new, y, y_new, ctx, regime, m, c):
     """``taylor``'s scan intervals of the step taken (``c[3]``: its length, cut at a
     table's corner), the spin's from the larger end speed, into ``info[0]`` (for
-    Python's event search of a pending step)."""
+    Python's dense output of the step the loop stops in)."""
     n = scan_intervals(c[3], regime, ctx[0], y, max(abs(y[5]), abs(y_new[5])))
     m[2][0] = n
     return n
 
 
-@jit_inline
-def _commit(m):
-    """Nothing beyond the state: each step's series starts from its own state."""
-
-
-_loop = step_loop(_step, _intervals, _commit, polynomial_at, drive_into, drive_project,
+_loop = step_loop(_step, _intervals, keep_nothing, polynomial_at, drive_into, drive_project,
                   N_STATES, MAX_SCAN)  # fmt: skip
 
 
@@ -320,8 +314,7 @@ def advance_driven_taylor(
     """Taylor steps of the driven rotor in one regime, up to the first event
     (``extended_loop.step_loop``: ``found`` its time and kind). The step of an event, or
     a pending one (reason EVENT), leaves its coefficients in ``C`` and its scan intervals
-    in ``info[0]``. Returns ``(tau,
-    t_new, k, steps, reason)``."""
+    in ``info[0]``. Returns ``(tau, t_new, k, steps, reason)``."""
     m = (C, np.zeros((SERIES_ROWS, MAX_ORDER + 1)), info)
     tau, t_new, k, steps, reason, _ = _loop(
         tau, y, t_end, ctx, regime, t_eval, out_states, out_regimes, k, max_steps,

@@ -64,9 +64,7 @@ from rubcli.solvers.compiled.precheck import (
     _surface_may_cross,
 )
 from rubcli.solvers.compiled.roots import FREE_REGIME, STICK_REGIME
-from rubcli.solvers.events import event_search, linspace_into, run_time
-
-SPEED = 5  # the unbalance's speed w: v_r = Rp w + ..., a run stops where it reaches 0
+from rubcli.solvers.events import SPEED, event_search, linspace_into, run_time
 
 
 def step_parts(
@@ -177,6 +175,12 @@ def step_parts(
 
 
 STOP_NONE = -1  # a plugged-in step's reason: it was taken
+
+
+@jit_inline
+def keep_nothing(m: tuple) -> None:
+    """``step_loop``'s commit of a method that keeps nothing of a step beyond its state
+    (a Taylor series starts from each step's own state)."""
 
 
 @functools.cache

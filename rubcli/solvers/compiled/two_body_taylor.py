@@ -1,5 +1,5 @@
 """``taylor`` on the stator with its own mass (``rubcli.stator``): the ten states' Taylor
-series, the step, and the step loop with the extended systems' event pre-check.
+series, the step, and the extended systems' step loop.
 
 The series follow ``stator.two_body_entries`` (and, in stick, ``two_body_projection``)
 operation by operation, each by its recurrence (Moore 1966; Jorba & Zou 2005), as
@@ -7,10 +7,9 @@ operation by operation, each by its recurrence (Moore 1966; Jorba & Zou 2005), a
 sqrt(q)``, and ``(cos p, sin p)`` with ``p' = w`` (the constant speed, a state). The
 order, the step (the last two terms below the state tolerance; the phase left out of
 the state's scale) and the scan grid are ``taylor``'s rules, the grid's frequency bound
-with the ring's own frequency and the contact's on the ring added. A step that may hold
-an event (the pre-check of the extended systems' one loop, ``extended_loop.step_loop``,
-on the step's polynomial) and a segment's first step go back to the Python event search
-(``solvers.extended``).
+with the ring's own frequency and the contact's on the ring added. The step runs in the
+extended systems' one loop (``extended_loop.step_loop``), which locates the events on
+the step's polynomial with the one event search.
 """
 
 from __future__ import annotations
@@ -46,7 +45,7 @@ from rubcli.solvers.compiled.driven_taylor import (
     extended_step_size,
     polynomial_at,
 )
-from rubcli.solvers.compiled.extended_loop import STOP_NONE, step_loop
+from rubcli.solvers.compiled.extended_loop import STOP_NONE, keep_nothing, step_loop
 from rubcli.solvers.compiled.jit import (
     STOP_PYTHON,
     STOP_SMALL_STEP,
@@ -171,19 +170,14 @@ def _step(tau, y, t_end, ctx, regime, m, c, y_new):
 @jit_inline
 def _intervals(tau, t_new, y, y_new, ctx, regime, m, c):
     """``taylor``'s scan intervals with the ring's own frequency and the contact's on
-    it added to the spin, into ``info[0]`` (for Python's event search of a pending
-    step)."""
+    it added to the spin, into ``info[0]`` (for Python's dense output of the step the
+    loop stops in)."""
     n = scan_intervals(t_new - tau, regime, ctx[0], y, abs(y[5]) + c[3])
     m[2][0] = n
     return n
 
 
-@jit_inline
-def _commit(m):
-    """Nothing beyond the state: each step's series starts from its own state."""
-
-
-_loop = step_loop(_step, _intervals, _commit, polynomial_at, two_body_into, two_body_project,
+_loop = step_loop(_step, _intervals, keep_nothing, polynomial_at, two_body_into, two_body_project,
                   N_STATES, MAX_SCAN)  # fmt: skip
 
 
@@ -197,8 +191,7 @@ def advance_two_body_taylor(
     """Taylor steps of the two bodies in one regime, up to the first event
     (``extended_loop.step_loop``: ``found`` its time and kind). The step of an event, or a
     pending one (reason EVENT), leaves its coefficients in ``C`` and its scan intervals in
-    ``info[0]``. Returns ``(tau, t_new,
-    k, steps, reason)``."""
+    ``info[0]``. Returns ``(tau, t_new, k, steps, reason)``."""
     pars, st = ctx[0], ctx[1]
     # the scan grid's frequency bound: the spin, and the ring's own and the contact's on it
     m_inv = st[S_INV_MASS]
