@@ -18,9 +18,11 @@
   per right-hand side (``dop853_step``: the rotor's four states, an extended system's);
 - ``roots.py``: the event pre-check and the event search (``events.event_search``) on a
   DOP853 step's dense output, and the application of an event;
-- ``dop853_loop.py``: the compiled DOP853 loop (``dop853-jit``);
-- ``extended_loop.py``: the DOP853 loop and the event pre-check of a system with
-  states beyond the rotor's four, built per system;
+- ``event_loop.py``: the one step-and-event loop of every compiled method that takes
+  steps, built from the method's parts;
+- ``dop853_loop.py``: the compiled DOP853 method's parts in it (``dop853-jit``);
+- ``extended_loop.py``: a system with states beyond the rotor's four in it (its event
+  pre-check, search and projection), and DOP853 on such a system, built per system;
 - ``drive.py`` and ``driven_taylor.py``: the driven rotor's right-hand side, its DOP853
   loop (``dop853-jit``) and its Taylor series and loop (``taylor``);
 - ``two_body.py`` and ``two_body_taylor.py``: the stator with its own mass: its
@@ -28,10 +30,11 @@
 - ``variational.py``: the rotor at a constant speed as such a system, with or without
   its variational matrix (``orbits``' flow) and its DOP853 loops;
 - ``taylor.py``: the ``taylor`` method's series, step size, event pre-check, the event
-  search (``events.event_search``) on the step polynomial, and its loop (about 1,080
-  lines, over the usual 500: the series are written out once per regime, free, slip and
-  stick, as straight-line recurrences, which is where its speed comes from, and the
-  pre-checks bound those series; split, each part would import the other's internals);
+  search (``events.event_search``) on the step polynomial, and its parts in the event
+  loop (about 1,150 lines, over the usual 500: the series are written out once per
+  regime, free, slip and stick, as straight-line recurrences, which is where its speed
+  comes from, and the pre-checks bound those series; split, each part would import the
+  other's internals);
 - ``cache.py``: numba's cache kept fresh when model.py, events.py or control.py change
   (a fingerprint of their sources and a probe).
 

@@ -2,14 +2,10 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 
 import numpy as np
 
-from rubcli.model import (
-    rolling_velocity,
-)
 from rubcli.solvers.compiled.dop853 import (
     DOP_A,
     DOP_SCAN_POINTS,
@@ -21,32 +17,86 @@ from rubcli.solvers.compiled.dop853 import (
     _paper_dense_coefficients,
     dop853_initial_step,
 )
-from rubcli.solvers.compiled.jit import (
-    STOP_END,
-    STOP_EVENT,
-    STOP_FULL,
-    STOP_LIMIT,
-    STOP_PYTHON,
-    STOP_SMALL_STEP,
-    jit,
-)
+from rubcli.solvers.compiled.event_loop import SCAN_NONE, STOP_NONE, event_loop
+from rubcli.solvers.compiled.jit import STOP_SMALL_STEP, jit, jit_inline
 from rubcli.solvers.compiled.rhs import (
     _rhs_into,
 )
 from rubcli.solvers.compiled.roots import (
-    STICK_REGIME,
     _dop853_locate,
     _dop853_may_have_event,
     _paper_may_have_event,
-    apply_and_record,
+    rotor_apply,
+    rotor_project,
 )
-from rubcli.solvers.events import run_time, spin_at, start_flags
 
 
 def _dop853_loop(accepted_step: Callable[..., tuple], dense_coefficients: Callable[..., int],
                  may_have_event: Callable[..., bool]) -> Callable[..., tuple]:  # fmt: skip
-    """The loop of ``advance_dop853`` on a DOP853 step and a pre-check built for one
-    right-hand side (``dop853.dop853_step``, ``roots.dop853_precheck``), compiled."""
+    """``advance_dop853`` on a DOP853 step and a pre-check built for one right-hand side
+    (``dop853.dop853_step``, ``roots.dop853_precheck``): their parts in the one event
+    loop (``event_loop``), compiled. ``m = (f, f_new, F, Kst, tmp, grid, S, dS, hv, hd,
+    drow, scratch)``, ``c = (h_abs, nfev, rtol, atol, h)``."""
+
+    def step(
+        tau: float, y: np.ndarray, t_end: float, pars: np.ndarray, regime: int, m: tuple,
+        c: tuple, y_new: np.ndarray,
+    ) -> tuple:  # fmt: skip
+        f, f_new, F, Kst, tmp = m[0], m[1], m[2], m[3], m[4]
+        h_abs, nfev, rtol, atol, _ = c
+        t_new, h, h_abs, spent = accepted_step(
+            tau, y, f, h_abs, t_end, pars, regime, rtol, atol, Kst, y_new, tmp
+        )
+        nfev += spent
+        if h == 0.0:
+            return tau, STOP_SMALL_STEP, (h_abs, nfev, rtol, atol, h)
+        for i in range(4):
+            f_new[i] = Kst[DOP_STAGES, i]
+        nfev += dense_coefficients(tau, h, y, y_new, pars, regime, Kst, F, tmp)
+        return t_new, STOP_NONE, (h_abs, nfev, rtol, atol, h)
+
+    def precheck(
+        tau: float, t_new: float, y: np.ndarray, y_new: np.ndarray, pars: np.ndarray,
+        regime: int, m: tuple, c: tuple, starts: tuple[bool, bool, bool], band: float,
+    ) -> int:  # fmt: skip
+        F, grid, S, dS, hv, hd, scratch = m[2], m[5], m[6], m[7], m[8], m[9], m[11]
+        if may_have_event(tau, c[4], y, F, pars, regime, grid, S, dS, hv, hd, scratch, starts):
+            return 1
+        return SCAN_NONE
+
+    def locate(
+        tau: float, t_new: float, y: np.ndarray, pars: np.ndarray, regime: int, m: tuple,
+        c: tuple, scan: int, starts: tuple[bool, bool, bool], band: float,
+    ) -> tuple[float, int]:  # fmt: skip
+        F, grid, hv, hd, drow, scratch = m[2], m[5], m[8], m[9], m[10], m[11]
+        return _dop853_locate(
+            tau, c[4], y, F, pars, regime, grid, hv, hd, scratch, drow, starts, band
+        )
+
+    def dense_at(
+        t: float, tau: float, t_new: float, y: np.ndarray, m: tuple, c: tuple, row: np.ndarray
+    ) -> None:
+        _dop853_dense_at(t, tau, c[4], y, m[2], row)
+
+    def commit(y: np.ndarray, y_new: np.ndarray, m: tuple) -> None:
+        f, f_new = m[0], m[1]
+        for i in range(4):
+            y[i] = y_new[i]
+            f[i] = f_new[i]
+
+    def restart(
+        tau: float, y: np.ndarray, t_end: float, pars: np.ndarray, regime: int, m: tuple,
+        c: tuple,
+    ) -> tuple:  # fmt: skip
+        h_abs, nfev, rtol, atol, h = c
+        f = m[0]
+        _rhs_into(tau, y, pars, regime, f)
+        h_abs = dop853_initial_step(tau, y, f, t_end, pars, regime, rtol, atol)
+        return h_abs, nfev + 2, rtol, atol, h
+
+    loop = event_loop(4, jit_inline(step), jit_inline(precheck), jit_inline(locate),
+                      jit_inline(dense_at), rotor_project, jit_inline(commit),
+                      jit_inline(restart), rotor_apply)  # fmt: skip
 
     def advance(
         tau: float, y: np.ndarray, f: np.ndarray, h_abs: float, t_end: float,
@@ -57,83 +107,18 @@ def _dop853_loop(accepted_step: Callable[..., tuple], dense_coefficients: Callab
         events_state: np.ndarray, events_regimes: np.ndarray, compiled_events: bool,
     ) -> tuple[float, float, float, int, int, int, int, int, int, bool]:  # fmt: skip
         """``advance_dop853`` on the step's right-hand side."""
-        Kst = np.empty((DOP_A.shape[0], 4))
-        tmp = np.empty(4)
-        row = np.empty(4)
-        drow = np.empty(4)
         n = DOP_SCAN_POINTS
-        grid = np.empty(n + 1)
-        S = np.empty((n + 1, 4))
-        dS = np.empty((n + 1, 4))
-        hv = np.empty(n + 1)
-        hd = np.empty(n + 1)
-        n_out = t_eval.shape[0]
-        capacity = events_tau.shape[0]
-        steps = 0
-        nfev = 0
-        n_events = 0
-        while True:
-            at_event = starts[0] or starts[1]
-            if tau >= t_end:
-                return tau, tau, h_abs, k, steps, nfev, STOP_END, regime, n_events, at_event
-            if steps >= max_steps:
-                return tau, tau, h_abs, k, steps, nfev, STOP_LIMIT, regime, n_events, at_event
-            t_new, h, h_abs, spent = accepted_step(
-                tau, y, f, h_abs, t_end, pars, regime, rtol, atol, Kst, y_new, tmp
-            )
-            nfev += spent
-            if h == 0.0:
-                return tau, tau, h_abs, k, steps, nfev, STOP_SMALL_STEP, regime, n_events, at_event
-            for i in range(4):
-                f_new[i] = Kst[DOP_STAGES, i]
-            nfev += dense_coefficients(tau, h, y, y_new, pars, regime, Kst, F, tmp)
-            finite = True
-            for i in range(4):
-                finite = finite and math.isfinite(y_new[i])
-            if not finite:
-                return tau, t_new, h_abs, k, steps, nfev, STOP_PYTHON, regime, n_events, at_event
-            kind = -1
-            t_stop = t_new
-            if may_have_event(tau, h, y, F, pars, regime, grid, S, dS, hv, hd, row, starts):
-                if not compiled_events:
-                    return tau, t_new, h_abs, k, steps, nfev, STOP_EVENT, regime, n_events, at_event
-                t_ev, kind = _dop853_locate(
-                    tau, h, y, F, pars, regime, grid, hv, hd, row, drow, starts, band
-                )
-                if kind >= 0:
-                    t_stop = t_ev
-            while k < n_out and t_eval[k] <= t_stop:
-                _dop853_dense_at(t_eval[k], tau, h, y, F, row)
-                if regime == STICK_REGIME:  # samples in stick are reported projected
-                    row[2], row[3] = rolling_velocity(
-                        row[0], row[1], row[2], row[3], spin_at(t_eval[k], pars)
-                    )
-                for i in range(4):
-                    out_states[k, i] = row[i]
-                out_regimes[k] = regime
-                k += 1
-            steps += 1
-            if kind < 0:
-                for i in range(4):
-                    y[i] = y_new[i]
-                    f[i] = f_new[i]
-                tau = t_new
-                starts = (False, False, True)
-                continue
-            # the event: events.apply_event, then a new segment as the driver starts one
-            _dop853_dense_at(t_stop, tau, h, y, F, row)
-            new_regime, kind = apply_and_record(
-                kind, t_stop, row, regime, pars, events_tau, events_kind, events_state,
-                events_regimes, run_time(n_events), y,
-            )  # fmt: skip
-            n_events += 1
-            tau, regime = t_stop, new_regime
-            starts = start_flags(kind)
-            if n_events == capacity:
-                return tau, tau, h_abs, k, steps, nfev, STOP_FULL, regime, n_events, True
-            _rhs_into(tau, y, pars, regime, f)
-            h_abs = dop853_initial_step(tau, y, f, t_end, pars, regime, rtol, atol)
-            nfev += 2
+        m = (
+            f, f_new, F, np.empty((DOP_A.shape[0], 4)), np.empty(4), np.empty(n + 1),
+            np.empty((n + 1, 4)), np.empty((n + 1, 4)), np.empty(n + 1), np.empty(n + 1),
+            np.empty(4), np.empty(4),
+        )  # fmt: skip
+        tau, t_new, k, steps, reason, regime, n_events, at_event, c = loop(
+            tau, y, y_new, t_end, pars, regime, t_eval, out_states, out_regimes, k,
+            max_steps, starts, band, np.empty(2), events_tau, events_kind, events_state,
+            events_regimes, compiled_events, np.empty(4), m, (h_abs, 0, rtol, atol, 0.0),
+        )  # fmt: skip
+        return tau, t_new, c[0], k, steps, c[1], reason, regime, n_events, at_event
 
     return jit(advance)
 

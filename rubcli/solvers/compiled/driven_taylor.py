@@ -29,7 +29,8 @@ import numpy as np
 from rubcli.drive import D_INERTIA, motor_line
 from rubcli.model import FREE, P_ECC, P_K, P_MU, P_NU, P_RP, STICK, friction_sign
 from rubcli.solvers.compiled.drive import N_STATES, drive_into, drive_project
-from rubcli.solvers.compiled.extended_loop import STOP_NONE, keep_nothing, step_loop
+from rubcli.solvers.compiled.event_loop import STOP_NONE
+from rubcli.solvers.compiled.extended_loop import keep_nothing, step_loop
 from rubcli.solvers.compiled.jit import STOP_PYTHON, STOP_SMALL_STEP, jit, jit_inline
 from rubcli.solvers.compiled.taylor import (
     MAX_ORDER,
@@ -282,11 +283,10 @@ def _step(tau, y, t_end, ctx, regime, m, c, y_new):
         if cut < h:
             h = cut
             t_new = tau + h
-    dense = (tau, C, order)
     if not (h >= 10.0 * abs(np.nextafter(tau, np.inf) - tau)):
-        return t_new, STOP_SMALL_STEP if math.isfinite(h) else STOP_PYTHON, c, dense
-    polynomial_at(t_new, dense, y_new)
-    return t_new, STOP_NONE, (order, rtol, atol, h), dense
+        return t_new, STOP_SMALL_STEP if math.isfinite(h) else STOP_PYTHON, c
+    polynomial_at(t_new, (tau, C, order), y_new)
+    return t_new, STOP_NONE, (order, rtol, atol, h)
 
 
 @jit_inline
@@ -299,8 +299,14 @@ def _intervals(tau, t_new, y, y_new, ctx, regime, m, c):
     return n
 
 
-_loop = step_loop(_step, _intervals, keep_nothing, polynomial_at, drive_into, drive_project,
-                  N_STATES, MAX_SCAN)  # fmt: skip
+@jit_inline
+def _dense(tau, y, m, c):
+    """The step's polynomial: (its start, the coefficients, the order)."""
+    return tau, m[0], c[0]
+
+
+_loop = step_loop(_step, _intervals, keep_nothing, _dense, polynomial_at, drive_into,
+                  drive_project, N_STATES, MAX_SCAN)  # fmt: skip
 
 
 @jit

@@ -16,12 +16,13 @@ system's stick margin: ``system_search``), on each step the pre-check flags and 
 segment's first step; the loop returns at an event, which Python applies
 (``ExtendedRun.switch``: the system's rules and projection).
 
-The loop is written once (``step_loop``), for every method and system: the budgets, the
-check of the new state, the hand-back of a step that ends at a speed of 0 or below, the
-event pre-check on the step's scan grid, the event search, the samples of a committed
-step and the commit. A method plugs in its step and what its dense output
-needs (``dop853_loop``: scipy's DOP853; ``driven_taylor`` and ``two_body_taylor``: the
-systems' Taylor series), inlined into the loop in numba IR.
+The loop is the one event loop (``event_loop.event_loop``, which the rotor's
+``dop853-jit`` and ``taylor`` run too); ``step_loop`` plugs a system's parts into it:
+the hand-back of a step that ends at a speed of 0 or below, the event pre-check on the
+step's scan grid, the event search, and the samples' projection in stick. A method
+plugs in its step and its dense output (``dop853_loop``: scipy's DOP853;
+``driven_taylor`` and ``two_body_taylor``: the systems' Taylor series), inlined into
+the loop in numba IR.
 """
 
 from __future__ import annotations
@@ -48,11 +49,8 @@ from rubcli.solvers.compiled.dop853 import (
     _dop853_dense_at,
     dop853_step,
 )
+from rubcli.solvers.compiled.event_loop import SCAN_NONE, SCAN_PYTHON, STOP_NONE, event_loop
 from rubcli.solvers.compiled.jit import (
-    STOP_END,
-    STOP_EVENT,
-    STOP_LIMIT,
-    STOP_PYTHON,
     STOP_SMALL_STEP,
     jit,
     jit_inline,
@@ -68,17 +66,13 @@ from rubcli.solvers.events import SPEED, event_search, linspace_into, run_time
 
 
 def step_parts(
-    into: Callable[..., float], project: Callable[..., None], n_states: int,
-    dense_at: Callable[..., None],
-) -> tuple[Callable[..., bool], Callable[..., int]]:  # fmt: skip
-    """What a loop of the system (``into``, ``project``, ``n_states``: module docstring)
-    does with a step's dense output ``dense_at(t, dense, row)`` (``dense`` whatever it
+    into: Callable[..., float], n_states: int, dense_at: Callable[..., None]
+) -> Callable[..., bool]:
+    """The event pre-check of a step of the system (``into``, ``n_states``: module
+    docstring) on its dense output ``dense_at(t, dense, row)`` (``dense`` whatever it
     needs: a DOP853 step's coefficients, a Taylor polynomial), compiled with them as
-    closure constants (as ``events.event_search``): the event pre-check
-    ``may_have_event(dense, ctx, regime, grid, n, S, hv, hd, row, out)`` and the samples
-    of a committed step ``fill(dense, t_new, ctx, regime, t_eval, out_states,
-    out_regimes, k, row)`` (projected onto the rolling constraint in stick, as Python
-    reports them; returns the next sample to fill).
+    closure constants (as ``events.event_search``): ``may_have_event(dense, ctx, regime,
+    grid, n, S, hv, hd, row, out)``.
 
     False only if the event search surely finds no event on the scan grid ``grid[:n +
     1]`` (``np.linspace`` of the step, as Python's): contact entry in free flight;
@@ -154,27 +148,10 @@ def step_parts(
             return stick_may_exit(grid, dense, ctx, n, hv, hd, row, out)
         return slip_may_reverse(grid, S, ctx, regime, n, hv, hd, row, out)
 
-    def fill(
-        dense: Any, t_new: float, ctx: Any, regime: int, t_eval: np.ndarray,
-        out_states: np.ndarray, out_regimes: np.ndarray, k: int, row: np.ndarray,
-    ) -> int:  # fmt: skip
-        while k < t_eval.shape[0] and t_eval[k] <= t_new:
-            dense_at(t_eval[k], dense, row)
-            if regime == STICK_REGIME:
-                project(row, ctx)
-            for i in range(N):
-                out_states[k, i] = row[i]
-            out_regimes[k] = regime
-            k += 1
-        return k
-
     slip_may_reverse = jit(slip_may_reverse)
     stick_margin = jit(stick_margin)
     stick_may_exit = jit(stick_may_exit)
-    return jit(may_have_event), jit(fill)
-
-
-STOP_NONE = -1  # a plugged-in step's reason: it was taken
+    return jit(may_have_event)
 
 
 @jit_inline
@@ -211,18 +188,20 @@ def system_search(
 
 def step_loop(
     step: Callable[..., tuple], intervals: Callable[..., int], commit: Callable[..., None],
-    dense_at: Callable[..., None], into: Callable[..., float], project: Callable[..., None],
-    n_states: int, max_scan: int, events_into: Callable[..., float] | None = None,
+    dense: Callable[..., tuple], dense_at: Callable[..., None], into: Callable[..., float],
+    project: Callable[..., None], n_states: int, max_scan: int,
+    events_into: Callable[..., float] | None = None,
 ) -> Callable[..., tuple]:  # fmt: skip
-    """The step loop of one method on one system (``into``, ``project``, ``n_states``:
-    module docstring), compiled with its parts as closure constants (as
-    ``events.event_search``). The method's parts (``jit_inline``: ``m`` its work
-    arrays, ``c`` its scalars carried from step to step):
+    """The one event loop (``event_loop``) of one method on one system (``into``,
+    ``project``, ``n_states``: module docstring), its events applied by Python, compiled
+    with the method's parts (``jit_inline``: ``m`` its work arrays, ``c`` its scalars
+    carried from step to step) as closure constants:
 
-    - ``step(tau, y, t_end, ctx, regime, m, c, y_new) -> (t_new, reason, c, dense)``: one
-      accepted step, its end state into ``y_new``, ``dense`` what ``dense_at(t, dense,
-      row)`` needs; ``reason`` ``STOP_NONE``, or the stop code of a step that cannot be
-      taken (SMALL_STEP, or PYTHON for a non-finite size);
+    - ``step(tau, y, t_end, ctx, regime, m, c, y_new) -> (t_new, reason, c)``: one
+      accepted step, its end state into ``y_new``; ``reason`` ``STOP_NONE``, or the stop
+      code of a step that cannot be taken (SMALL_STEP, or PYTHON for a non-finite size);
+    - ``dense(tau, y, m, c)``: what ``dense_at(t, dense, row)`` needs of the step taken
+      (a DOP853 step's coefficients, a Taylor polynomial);
     - ``intervals(tau, t_new, y, y_new, ctx, regime, m, c) -> n``: the step's scan
       intervals (at most ``max_scan``);
     - ``commit(m)``: what the method keeps of a committed step beyond its state.
@@ -230,10 +209,70 @@ def step_loop(
     ``events_into``: the right-hand side the pre-check and the event search evaluate
     (default ``into``): the first states' alone, where the system carries more that the
     events do not read (a variational matrix: ``compiled.variational``).
+
+    ``advance(tau, y, t_end, ctx, regime, t_eval, out_states, out_regimes, k,
+    max_steps, starts, band, found, y_new, m, c) -> (tau, t_new, k, steps, reason, c)``:
+    steps of the system in one regime, up to the first event. Each step's events are
+    sought (``system_search``) where the pre-check says one may lie, and on a segment's
+    first step, begun on an event's surface (``starts``: ``events.start_flags``; ``band``
+    the restart band). A step without one, after which the speed is still positive, is
+    committed, with its samples (in stick projected onto the rolling constraint). A step
+    with an event fills the samples up to it and returns with ``found = (tau, kind)`` of
+    the event; a step that ends at a speed of 0 or below returns pending (``found`` kind
+    -1); either leaves ``y_new`` and ``m`` holding the step (reason EVENT). Other
+    reasons as the event loop's.
     """
     N = n_states
-    may_have_event, fill = step_parts(events_into or into, project, N, dense_at)
-    locate = system_search(dense_at, events_into or into)
+    may_have_event = step_parts(events_into or into, N, dense_at)
+    search = system_search(dense_at, events_into or into)
+
+    def method_step(
+        tau: float, y: np.ndarray, t_end: float, ctx: Any, regime: int, m: tuple, c: tuple,
+        y_new: np.ndarray,
+    ) -> tuple:  # fmt: skip
+        return step(tau, y, t_end, ctx, regime, m[0], c, y_new)
+
+    def precheck(
+        tau: float, t_new: float, y: np.ndarray, y_new: np.ndarray, ctx: Any, regime: int,
+        m: tuple, c: tuple, starts: tuple[bool, bool, bool], band: float,
+    ) -> int:  # fmt: skip
+        """The step's scan intervals where the search must run (always on a segment's
+        first step); SCAN_PYTHON where the step ends at a speed of 0 or below."""
+        grid, S, hv, hd, row, out = m[1][0], m[1][1], m[1][2], m[1][3], m[1][4], m[1][5]
+        n = intervals(tau, t_new, y, y_new, ctx, regime, m[0], c)
+        if y_new[SPEED] <= 0.0:
+            return SCAN_PYTHON
+        linspace_into(grid, tau, t_new, n)
+        if starts[0] or starts[1]:
+            return n
+        if may_have_event(dense(tau, y, m[0], c), ctx, regime, grid, n, S, hv, hd, row, out):
+            return n
+        return SCAN_NONE
+
+    def locate(
+        tau: float, t_new: float, y: np.ndarray, ctx: Any, regime: int, m: tuple, c: tuple,
+        scan: int, starts: tuple[bool, bool, bool], band: float,
+    ) -> tuple[float, int]:  # fmt: skip
+        grid, hv, hd, row, drow = m[1][0], m[1][2], m[1][3], m[1][4], m[1][6]
+        return search((dense(tau, y, m[0], c), ctx, regime), regime, ctx[0], grid, scan,
+                      starts, band, hv, hd, row, drow)  # fmt: skip
+
+    def state_at(
+        t: float, tau: float, t_new: float, y: np.ndarray, m: tuple, c: tuple, row: np.ndarray
+    ) -> None:
+        dense_at(t, dense(tau, y, m[0], c), row)
+
+    def sample_project(t: float, row: np.ndarray, ctx: Any) -> None:
+        project(row, ctx)
+
+    def system_commit(y: np.ndarray, y_new: np.ndarray, m: tuple) -> None:
+        for i in range(N):
+            y[i] = y_new[i]
+        commit(m[0])
+
+    loop = event_loop(N, jit_inline(method_step), jit_inline(precheck), jit_inline(locate),
+                      jit_inline(state_at), jit_inline(sample_project),
+                      jit_inline(system_commit))  # fmt: skip
 
     def advance(
         tau: float, y: np.ndarray, t_end: float, ctx: Any, regime: int, t_eval: np.ndarray,
@@ -241,64 +280,18 @@ def step_loop(
         starts: tuple[bool, bool, bool], band: float, found: np.ndarray, y_new: np.ndarray,
         m: tuple, c: tuple,
     ) -> tuple:  # fmt: skip
-        """Steps of the system in one regime, up to the first event.
-
-        Each step's events are sought (``system_search``) where the pre-check says one
-        may lie, and on a segment's first step, begun on an event's surface (``starts``:
-        ``events.start_flags``; ``band`` the restart band). A step without one, after
-        which the speed is still positive, is committed: ``y`` moves on and the samples
-        ``t_eval[k:]`` it covers go to ``out_states`` and ``out_regimes`` (in stick
-        projected onto the rolling constraint, as Python reports them). A step with an
-        event fills the samples up to it and returns with ``found = (tau, kind)`` of the
-        event (kind -1: none); a step that ends at a speed of 0 or below returns
-        pending; either leaves ``y_new`` and ``m`` holding the step. Returns ``(tau,
-        t_new, k, steps, reason, c)``: reason END, LIMIT (``max_steps`` steps committed),
-        EVENT (the step from ``tau`` to ``t_new``: its event, or pending), PYTHON (a
-        non-finite state) or the step's own.
-        """
-        row = np.empty(N)
-        drow = np.empty(N)
-        out = np.empty(N)
-        grid = np.empty(max_scan + 1)
-        S = np.empty((max_scan + 1, N))
-        hv = np.empty(max_scan + 1)
-        hd = np.empty(max_scan + 1)
-        pars = ctx[0]
-        steps = 0
-        found[1] = -1.0
-        while True:
-            if tau >= t_end:
-                return tau, tau, k, steps, STOP_END, c
-            if steps >= max_steps:
-                return tau, tau, k, steps, STOP_LIMIT, c
-            t_new, reason, c, dense = step(tau, y, t_end, ctx, regime, m, c, y_new)
-            if reason != STOP_NONE:
-                return tau, t_new, k, steps, reason, c
-            for i in range(N):
-                if not math.isfinite(y_new[i]):
-                    return tau, t_new, k, steps, STOP_PYTHON, c
-            n = intervals(tau, t_new, y, y_new, ctx, regime, m, c)
-            if y_new[SPEED] <= 0.0:
-                return tau, t_new, k, steps, STOP_EVENT, c
-            linspace_into(grid, tau, t_new, n)
-            if (
-                starts[0]
-                or starts[1]
-                or may_have_event(dense, ctx, regime, grid, n, S, hv, hd, row, out)
-            ):
-                t_ev, kind = locate((dense, ctx, regime), regime, pars, grid, n, starts, band,
-                                    hv, hd, row, drow)  # fmt: skip
-                if kind >= 0:
-                    k = fill(dense, t_ev, ctx, regime, t_eval, out_states, out_regimes, k, row)
-                    found[0], found[1] = t_ev, float(kind)
-                    return tau, t_new, k, steps, STOP_EVENT, c
-            k = fill(dense, t_new, ctx, regime, t_eval, out_states, out_regimes, k, row)
-            steps += 1
-            for i in range(N):
-                y[i] = y_new[i]
-            commit(m)
-            tau = t_new
-            starts = (False, False, True)
+        work = (
+            np.empty(max_scan + 1), np.empty((max_scan + 1, N)), np.empty(max_scan + 1),
+            np.empty(max_scan + 1), np.empty(N), np.empty(N), np.empty(N),
+        )  # fmt: skip
+        # no event buffers: Python applies the events
+        tau, t_new, k, steps, reason, _, _, _, c = loop(
+            tau, y, y_new, t_end, ctx, regime, t_eval, out_states, out_regimes, k,
+            max_steps, starts, band, found, np.empty(0), np.empty(0, dtype=np.int64),
+            np.empty((0, 4)), np.empty((0, 2), dtype=np.int64), True, np.empty(N),
+            (m, work), c,
+        )  # fmt: skip
+        return tau, t_new, k, steps, reason, c
 
     return jit(advance)
 
@@ -328,17 +321,21 @@ def dop853_loop(
         y_new: np.ndarray,
     ) -> tuple:  # fmt: skip
         f, f_new, F, Kst, tmp = m
-        h_abs, nfev, rtol, atol = c
+        h_abs, nfev, rtol, atol, _ = c
         t_new, h, h_abs, spent = accepted_step(
             tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, Kst, y_new, tmp
         )
         nfev += spent
         if h == 0.0:
-            return tau, STOP_SMALL_STEP, (h_abs, nfev, rtol, atol), (tau, h, y, F)
+            return tau, STOP_SMALL_STEP, (h_abs, nfev, rtol, atol, h)
         for i in range(N):
             f_new[i] = Kst[DOP_STAGES, i]
         nfev += dense_coefficients(tau, h, y, y_new, ctx, regime, Kst, F, tmp)
-        return t_new, STOP_NONE, (h_abs, nfev, rtol, atol), (tau, h, y, F)
+        return t_new, STOP_NONE, (h_abs, nfev, rtol, atol, h)
+
+    def dense(tau: float, y: np.ndarray, m: tuple, c: tuple) -> tuple:
+        """The step's dense output: (its start, its length, its start state, F)."""
+        return tau, c[4], y, m[2]
 
     def intervals(
         tau: float, t_new: float, y: np.ndarray, y_new: np.ndarray, ctx: Any, regime: int,
@@ -352,7 +349,8 @@ def dop853_loop(
             f[i] = f_new[i]
 
     loop = step_loop(jit_inline(step), jit_inline(intervals), jit_inline(commit),
-                     _dop853_dense, into, project, N, DOP_SCAN_POINTS, events_into)  # fmt: skip
+                     jit_inline(dense), _dop853_dense, into, project, N, DOP_SCAN_POINTS,
+                     events_into)  # fmt: skip
 
     def advance(
         tau: float, y: np.ndarray, f: np.ndarray, h_abs: float, t_end: float, ctx: Any,
@@ -367,7 +365,7 @@ def dop853_loop(
         m = (f, f_new, F, np.empty((DOP_A.shape[0], N)), np.empty(N))
         tau, t_new, k, steps, reason, c = loop(
             tau, y, t_end, ctx, regime, t_eval, out_states, out_regimes, k, max_steps,
-            starts, band, found, y_new, m, (h_abs, 0, rtol, atol),
+            starts, band, found, y_new, m, (h_abs, 0, rtol, atol, 0.0),
         )  # fmt: skip
         return tau, t_new, c[0], k, steps, c[1], reason
 

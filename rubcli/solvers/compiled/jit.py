@@ -96,11 +96,17 @@ EPS = np.finfo(float).eps
 # nogil: a kernel releases the GIL while it runs, so that threads can solve side by side
 # (a library user's thread pool; `rubcli run` itself never runs anything beside a timed
 # solve, see rubcli/io/background.py ``Background``).
-jit = numba.njit(cache=True, nogil=True)
+# _nrt set, not left to its default: a kernel inherits an unset flag from its caller,
+# and the event loop (``jit_loop``) is compiled without reference counting
+jit = numba.njit(cache=True, nogil=True, _nrt=True)
 # inlined in numba IR into its caller (and compiled with the caller's flags): no call, so
 # the arrays it takes are not passed and reference-counted again (taylor's pre-checks and
 # the event search's pointwise evaluation)
 jit_inline = numba.njit(cache=True, nogil=True, inline="always")
+# compiled without numba's reference counting: the step-and-event loop
+# (``event_loop.event_loop``), whose plugged-in parts bind the method's arrays on every
+# step; it allocates nothing (its entry point does), and what it calls counts its own
+jit_loop = numba.njit(cache=True, nogil=True, _nrt=False)
 # No fastmath but one flag in one place: every kernel rounds as IEEE arithmetic in source
 # order, the same on every machine, except taylor's free-flight and slip series
 # (``jit_fused``), whose products and sums may fuse into FMA instructions where the host
@@ -111,4 +117,4 @@ jit_inline = numba.njit(cache=True, nogil=True, inline="always")
 # (taylor's series once allowed reassociation, which vectorised their short sums: on an
 # AMD EPYC (Zen 4) host that was 7-16 % slower per run, and its rounding followed the
 # host's vector width.)
-jit_fused = numba.njit(cache=True, nogil=True, fastmath={"contract"})
+jit_fused = numba.njit(cache=True, nogil=True, _nrt=True, fastmath={"contract"})

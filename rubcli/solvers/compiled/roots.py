@@ -29,7 +29,7 @@ from rubcli.model import (
     stick_friction_value,
 )
 from rubcli.solvers.compiled.dop853 import DOP_SCAN_POINTS, _dop853_dense_at
-from rubcli.solvers.compiled.jit import jit
+from rubcli.solvers.compiled.jit import jit, jit_inline
 from rubcli.solvers.compiled.precheck import (
     _may_cross_relative,
     _slip_may_cross,
@@ -189,3 +189,21 @@ def apply_and_record(
         events_state[n_events, i] = s[i]
         y[i] = s[i]
     return new_regime, recorded
+
+
+@jit_inline
+def rotor_project(t: float, row: np.ndarray, pars: np.ndarray) -> None:
+    """The event loop's projection of a sample in stick onto the rolling constraint
+    (the rotor's: ``ctx`` is the parameter record)."""
+    row[2], row[3] = rolling_velocity(row[0], row[1], row[2], row[3], spin_at(t, pars))
+
+
+@jit_inline
+def rotor_apply(
+    kind: int, t: float, s: np.ndarray, regime: int, pars: np.ndarray, events_tau: np.ndarray,
+    events_kind: np.ndarray, events_state: np.ndarray, events_regimes: np.ndarray, n_events: int,
+    y: np.ndarray,
+) -> tuple[int, int]:  # fmt: skip
+    """The event loop's event on the rotor: ``apply_and_record``."""
+    return apply_and_record(kind, t, s, regime, pars, events_tau, events_kind, events_state,
+                            events_regimes, n_events, y)  # fmt: skip

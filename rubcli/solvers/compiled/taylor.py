@@ -112,31 +112,25 @@ from rubcli.model import (
     add_support_extra,
     is_general_record,
     rhs_entries,
-    rolling_velocity,
     slip_velocity_rate,
     slip_velocity_value,
 )
+from rubcli.solvers.compiled.event_loop import SCAN_NONE, STOP_NONE, event_loop
 from rubcli.solvers.compiled.jit import (
-    STOP_END,
-    STOP_EVENT,
-    STOP_FULL,
-    STOP_LIMIT,
     STOP_PYTHON,
     STOP_SMALL_STEP,
     jit,
     jit_fused,
     jit_inline,
 )
-from rubcli.solvers.compiled.roots import FREE_REGIME, STICK_REGIME, apply_and_record
+from rubcli.solvers.compiled.roots import FREE_REGIME, STICK_REGIME, rotor_apply, rotor_project
 from rubcli.solvers.events import (
     FN_STICK,
     FN_SURFACE,
     SURFACE_BAND,
     event_search,
     linspace_into,
-    run_time,
     spin_at,
-    start_flags,
     stick_margin,
 )
 
@@ -158,7 +152,7 @@ MIN_SCAN = 4
 PRECHECK_GRID = 16  # intervals of the pre-check's second, finer bound
 MAX_SCAN = 4096
 START_ROUNDOFF = 1e-13  # relative round-off of H near the start of a step on the surface
-SCAN_NONE, SCAN_SURFACE, SCAN_ALL = 0, 1, 2  # step_events: what locate must scan
+SCAN_SURFACE, SCAN_ALL = 1, 2  # step_events: what locate must scan (or SCAN_NONE)
 # 1 / k for the recurrences (a constant table: no division on the series' chain)
 RECIPROCALS = np.array([0.0] + [1.0 / k for k in range(1, MAX_ORDER + 2)])
 
@@ -1017,6 +1011,103 @@ def locate(
 # ------------------------------------------------------------------------ the step loop
 
 
+@jit_inline
+def _step(
+    tau: float, y: np.ndarray, t_end: float, pars: np.ndarray, regime: int, m: tuple,
+    c: tuple, y_new: np.ndarray,
+) -> tuple:  # fmt: skip
+    """The event loop's step: the step's coefficients (``taylor_coefficients``) and size
+    (``step_size``, cut at t_end). ``m = (C, W, grid, hv, hd, ctx, pars_surface, info,
+    drow, row)``, ``c = (order, rtol, atol, eps)``."""
+    C, W = m[0], m[1]
+    order, rtol, atol, _ = c
+    # the free and slip series called from here, not through taylor_coefficients: a
+    # function taking the step's arrays and calling another reference-counts them on
+    # every call (atomic operations: a fifth of a step's time); the series are leaves
+    if regime == STICK_REGIME:
+        taylor_coefficients(tau, y, pars, regime, order, C, W)
+    else:
+        for i in range(4):
+            C[i, 0] = y[i]
+        fr, fi = _forcing(pars[P_ETA], pars[P_PHI0], tau)
+        if pars[P_RATE] != 0.0:
+            _profile_forcing(tau, pars, order, W)
+        if regime == FREE_REGIME:
+            _free_coefficients(fr, fi, pars, order, C, W)
+        else:
+            _slip_coefficients(fr, fi, pars, float(regime), order, C, W)
+    h, eps = step_size(C, order, rtol, atol)
+    t_new = min(tau + h, t_end)
+    h = t_new - tau
+    if not (h >= 10.0 * abs(np.nextafter(tau, np.inf) - tau)):
+        return t_new, STOP_SMALL_STEP if math.isfinite(h) else STOP_PYTHON, c
+    dense_at(t_new, tau, C, order, y_new)
+    return t_new, STOP_NONE, (order, rtol, atol, eps)
+
+
+@jit_inline
+def _precheck(
+    tau: float, t_new: float, y: np.ndarray, y_new: np.ndarray, pars: np.ndarray,
+    regime: int, m: tuple, c: tuple, starts: tuple[bool, bool, bool], band: float,
+) -> int:  # fmt: skip
+    """The event loop's pre-check: ``step_clear``, then ``step_events``; where a scan is
+    needed, its intervals into ``info[0]`` (for ``_locate``, or for Python)."""
+    C, W, info = m[0], m[1], m[7]
+    order, eps = c[0], c[3]
+    h = t_new - tau
+    spin = spin_at(tau, pars)
+    scan = SCAN_NONE
+    if not step_clear(C, order, h, regime, pars, W, starts, spin):
+        scan = step_events(C, order, h, regime, pars, W, eps, starts, band, spin)
+    if scan != SCAN_NONE:
+        info[0] = scan_points(h, regime, pars, y, tau)
+    return scan
+
+
+@jit_inline
+def _locate(
+    tau: float, t_new: float, y: np.ndarray, pars: np.ndarray, regime: int, m: tuple,
+    c: tuple, scan: int, starts: tuple[bool, bool, bool], band: float,
+) -> tuple[float, int]:  # fmt: skip
+    """The event loop's search: ``locate_in`` on the step's polynomial, on the grid of
+    ``info[0]`` intervals; where the slip reversal cannot occur (SCAN_SURFACE) it is
+    handed the parameters with mu = 0 (it reads mu only to decide whether to scan the
+    slip)."""
+    C, grid, hv, hd, ctx, pars_surface, info, drow, row = (
+        m[0], m[2], m[3], m[4], m[5], m[6], m[7], m[8], m[9]
+    )  # fmt: skip
+    n = info[0]
+    linspace_into(grid, tau, t_new, n)
+    scan_pars = pars if scan == SCAN_ALL else pars_surface
+    fill_context(ctx, tau, C, c[0], scan_pars, regime)
+    return locate_in(ctx, scan_pars, regime, grid, n, hv, hd, row, drow, starts, band)
+
+
+@jit_inline
+def _state_at(
+    t: float, tau: float, t_new: float, y: np.ndarray, m: tuple, c: tuple, row: np.ndarray
+) -> None:
+    dense_at(t, tau, m[0], c[0], row)
+
+
+@jit_inline
+def _commit(y: np.ndarray, y_new: np.ndarray, m: tuple) -> None:
+    for i in range(4):
+        y[i] = y_new[i]
+
+
+@jit_inline
+def _restart(
+    tau: float, y: np.ndarray, t_end: float, pars: np.ndarray, regime: int, m: tuple, c: tuple
+) -> tuple:
+    """A series starts from each step's own state: nothing to restart."""
+    return c
+
+
+_loop = event_loop(4, _step, _precheck, _locate, _state_at, rotor_project, _commit, _restart,
+                   rotor_apply)  # fmt: skip
+
+
 @jit
 def advance_taylor(
     tau: float, y: np.ndarray, t_end: float, pars: np.ndarray, regime: int, order: int,
@@ -1026,113 +1117,32 @@ def advance_taylor(
     events_state: np.ndarray, events_regimes: np.ndarray, compiled_events: bool,
     info: np.ndarray,
 ) -> tuple[float, float, int, int, int, int, int, bool]:  # fmt: skip
-    """Taylor steps of order ``order`` with their events, from ``(tau, y)``.
+    """Taylor steps of order ``order`` with their events, from ``(tau, y)``: the one
+    event loop (``event_loop``) on the parts above.
 
-    Like ``dop853_loop.advance_dop853``: each step's coefficients (``taylor_coefficients``)
-    and step (``step_size``, cut at t_end); the step goes through the event pre-check
-    (``step_clear``, then ``step_events``; stick steps and steps that start on the slip
-    surface always scan). A
-    clear step is committed and fills the samples it covers (projected in stick).
-    Otherwise, with ``compiled_events``, ``locate`` finds the earliest event on the
-    scan grid, the samples up to it are filled, the event is applied
-    (``roots._apply_event``), recorded in ``events_*``, and a new segment starts;
-    without, the step is returned uncommitted (reason EVENT) with ``C`` holding its
-    coefficients and ``info[0]`` the scan intervals, for the Python event code.
+    Like ``dop853_loop.advance_dop853``: each step's coefficients and size; the step goes
+    through the event pre-check (stick steps and steps that start on the slip surface
+    always scan). A clear step is committed and fills the samples it covers (projected
+    in stick). Otherwise, with ``compiled_events``, ``locate`` finds the earliest event
+    on the scan grid, the samples up to it are filled, the event is applied and recorded
+    in ``events_*``, and a new segment starts; without, the step is returned uncommitted
+    (reason EVENT) with ``C`` holding its coefficients and ``info[0]`` the scan
+    intervals, for the Python event code.
 
     ``starts``: (on the contact surface, on the slip surface, slip start immediate) of
     the current segment, as ``events.start_flags``. Returns ``(tau, t_new, k, steps,
     reason, regime, n_events, at_event)``; reasons as ``advance_dop853``'s.
     """
-    W = np.zeros((WORK_ROWS, WORK_COLS))
-    row = np.empty(4)
-    drow = np.empty(4)
-    y_new = np.empty(4)
-    grid = np.empty(MAX_SCAN + 1)
-    hv = np.empty(MAX_SCAN + 1)
-    hd = np.empty(MAX_SCAN + 1)
-    ctx = np.empty(CTX_SIZE)
     pars_surface = pars.copy()
     pars_surface[P_MU] = 0.0
-    n_out = t_eval.shape[0]
-    capacity = events_tau.shape[0]
-    steps = 0
-    n_events = 0
-    while True:
-        at_event = starts[0] or starts[1]
-        if tau >= t_end:
-            return tau, tau, k, steps, STOP_END, regime, n_events, at_event
-        if steps >= max_steps:
-            return tau, tau, k, steps, STOP_LIMIT, regime, n_events, at_event
-        # taylor_coefficients, its free and slip series called from here: a function
-        # taking the step's arrays and calling another reference-counts them on every
-        # call (atomic operations: a fifth of a step's time); the series are leaves
-        if regime == STICK_REGIME:
-            taylor_coefficients(tau, y, pars, regime, order, C, W)
-        else:
-            for i in range(4):
-                C[i, 0] = y[i]
-            fr, fi = _forcing(pars[P_ETA], pars[P_PHI0], tau)
-            if pars[P_RATE] != 0.0:
-                _profile_forcing(tau, pars, order, W)
-            if regime == FREE_REGIME:
-                _free_coefficients(fr, fi, pars, order, C, W)
-            else:
-                _slip_coefficients(fr, fi, pars, float(regime), order, C, W)
-        h, eps = step_size(C, order, rtol, atol)
-        t_new = min(tau + h, t_end)
-        h = t_new - tau
-        if not (h >= 10.0 * abs(np.nextafter(tau, np.inf) - tau)):
-            reason = STOP_SMALL_STEP if math.isfinite(h) else STOP_PYTHON
-            return tau, t_new, k, steps, reason, regime, n_events, at_event
-        dense_at(t_new, tau, C, order, y_new)
-        finite = True
-        for i in range(4):
-            finite = finite and math.isfinite(y_new[i])
-        if not finite:
-            return tau, t_new, k, steps, STOP_PYTHON, regime, n_events, at_event
-        kind = -1
-        t_stop = t_new
-        scan = SCAN_NONE
-        spin = spin_at(tau, pars)
-        if not step_clear(C, order, h, regime, pars, W, starts, spin):
-            scan = step_events(C, order, h, regime, pars, W, eps, starts, band, spin)
-        if scan != SCAN_NONE:
-            n = scan_points(h, regime, pars, y, tau)
-            info[0] = n
-            if not compiled_events:
-                return tau, t_new, k, steps, STOP_EVENT, regime, n_events, at_event
-            linspace_into(grid, tau, t_new, n)
-            # no slip reversal possible: locate reads mu only to decide whether to scan
-            # the slip, so it is handed the parameters with mu = 0
-            scan_pars = pars if scan == SCAN_ALL else pars_surface
-            fill_context(ctx, tau, C, order, scan_pars, regime)
-            t_ev, kind = locate_in(ctx, scan_pars, regime, grid, n, hv, hd, row, drow, starts, band)
-            if kind >= 0:
-                t_stop = t_ev
-        while k < n_out and t_eval[k] <= t_stop:
-            dense_at(t_eval[k], tau, C, order, row)
-            if regime == STICK_REGIME:
-                row[2], row[3] = rolling_velocity(
-                    row[0], row[1], row[2], row[3], spin_at(t_eval[k], pars)
-                )
-            for i in range(4):
-                out_states[k, i] = row[i]
-            out_regimes[k] = regime
-            k += 1
-        steps += 1
-        if kind < 0:
-            for i in range(4):
-                y[i] = y_new[i]
-            tau = t_new
-            starts = (False, False, True)
-            continue
-        dense_at(t_stop, tau, C, order, row)
-        new_regime, kind = apply_and_record(
-            kind, t_stop, row, regime, pars, events_tau, events_kind, events_state,
-            events_regimes, run_time(n_events), y,
-        )  # fmt: skip
-        n_events += 1
-        tau, regime = t_stop, new_regime
-        starts = start_flags(kind)
-        if n_events == capacity:
-            return tau, tau, k, steps, STOP_FULL, regime, n_events, True
+    m = (
+        C, np.zeros((WORK_ROWS, WORK_COLS)), np.empty(MAX_SCAN + 1), np.empty(MAX_SCAN + 1),
+        np.empty(MAX_SCAN + 1), np.empty(CTX_SIZE), pars_surface, info, np.empty(4),
+        np.empty(4),
+    )  # fmt: skip
+    tau, t_new, k, steps, reason, regime, n_events, at_event, _ = _loop(
+        tau, y, np.empty(4), t_end, pars, regime, t_eval, out_states, out_regimes, k,
+        max_steps, starts, band, np.empty(2), events_tau, events_kind, events_state,
+        events_regimes, compiled_events, np.empty(4), m, (order, rtol, atol, 0.0),
+    )  # fmt: skip
+    return tau, t_new, k, steps, reason, regime, n_events, at_event

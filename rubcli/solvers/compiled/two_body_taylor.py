@@ -45,7 +45,8 @@ from rubcli.solvers.compiled.driven_taylor import (
     extended_step_size,
     polynomial_at,
 )
-from rubcli.solvers.compiled.extended_loop import STOP_NONE, keep_nothing, step_loop
+from rubcli.solvers.compiled.event_loop import STOP_NONE
+from rubcli.solvers.compiled.extended_loop import keep_nothing, step_loop
 from rubcli.solvers.compiled.jit import (
     STOP_PYTHON,
     STOP_SMALL_STEP,
@@ -160,11 +161,10 @@ def _step(tau, y, t_end, ctx, regime, m, c, y_new):
     h = extended_step_size(C, order, rtol, atol)
     t_new = min(tau + h, t_end)
     h = t_new - tau
-    dense = (tau, C, order)
     if not (h >= 10.0 * abs(np.nextafter(tau, np.inf) - tau)):
-        return t_new, STOP_SMALL_STEP if math.isfinite(h) else STOP_PYTHON, c, dense
-    polynomial_at(t_new, dense, y_new)
-    return t_new, STOP_NONE, c, dense
+        return t_new, STOP_SMALL_STEP if math.isfinite(h) else STOP_PYTHON, c
+    polynomial_at(t_new, (tau, C, order), y_new)
+    return t_new, STOP_NONE, c
 
 
 @jit_inline
@@ -177,8 +177,14 @@ def _intervals(tau, t_new, y, y_new, ctx, regime, m, c):
     return n
 
 
-_loop = step_loop(_step, _intervals, keep_nothing, polynomial_at, two_body_into, two_body_project,
-                  N_STATES, MAX_SCAN)  # fmt: skip
+@jit_inline
+def _dense(tau, y, m, c):
+    """The step's polynomial: (its start, the coefficients, the order)."""
+    return tau, m[0], c[0]
+
+
+_loop = step_loop(_step, _intervals, keep_nothing, _dense, polynomial_at, two_body_into,
+                  two_body_project, N_STATES, MAX_SCAN)  # fmt: skip
 
 
 @jit
