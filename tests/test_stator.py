@@ -423,6 +423,63 @@ def test_the_snubber_case_is_a_moving_stator():
     assert case.params.stator is not None and case.params.offset == (0.3, 0.0)
 
 
+def _applied_both_ways(run_class: type, problem: Problem, method: str) -> tuple:
+    """A system's run with the loop applying its events, and with the loop returning at
+    each event for Python to apply it: (solution, run) of each."""
+    from rubcli.solvers.extended import solve_extended
+
+    class PythonApplies(run_class):
+        loop_applies_events = False
+
+    out = []
+    for kind in (run_class, PythonApplies):
+        run = kind(problem, method, max_steps=10**6, max_wall_time_s=600.0)
+        out.append((solve_extended(run, method, 1e-8, 1e-10, True), run))
+    return tuple(out)
+
+
+@pytest.mark.parametrize("machine", ["snubber", "stick ring", "driven dry whip"])
+@pytest.mark.parametrize("method", ["dop853-jit", "taylor"])
+def test_the_loops_apply_the_events_as_python_does(machine, method):
+    """The compiled loop applies a system's events itself (``events.switch_rule`` with
+    the system's stick law, and its projection where stick begins or ends): the same
+    events, states at them and end state as when the loop returns at each event and
+    Python applies it (``ExtendedRun.switch``). The snubber makes more events than the
+    loop's buffer holds (its flush and the segment Python then starts); the ring with
+    stick and the driven dry whip stick and slip (the projections)."""
+    from rubcli.solvers import driven, two_body
+    from rubcli.solvers.extended import EVENT_BUFFER
+
+    if machine == "snubber":
+        run_class = two_body.TwoBodyRun
+        problem = load_case(REPO / "cases" / "machines" / "snubber.toml").problem
+    elif machine == "stick ring":
+        run_class = two_body.TwoBodyRun
+        problem = Problem.from_periods(_stick_machine(), (0.0, 0.0, 0.0, 0.0), 20, 100)
+    else:
+        run_class = driven.DrivenRun
+        problem = load_case(REPO / "cases" / "runup" / "driven-dry-whip.toml").problem
+    (loop, loop_run), (python, _) = _applied_both_ways(run_class, problem, method)
+    assert loop.status == python.status == "success"
+    kinds = [e.kind for e in loop.events]
+    assert kinds == [e.kind for e in python.events]
+    assert [e.regime_after for e in loop.events] == [e.regime_after for e in python.events]
+    if machine == "snubber":
+        assert len(kinds) > EVENT_BUFFER
+    else:
+        assert {"stick_entry", "stick_exit"} <= set(kinds)
+    # the same steps and events; Python evaluates the event's state on its own copy of
+    # the dense output (the step's length as t_new - t_old), so to round-off
+    np.testing.assert_allclose(loop.events.tau, python.events.tau, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(loop.events.state, python.events.state, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(loop.states, python.states, rtol=0, atol=1e-7)
+    assert loop.stats["nsteps"] == python.stats["nsteps"]
+    assert loop.stats["n_segments"] == python.stats["n_segments"]
+    if run_class is two_body.TwoBodyRun:
+        assert len(loop_run.event_stators) == len(kinds)
+        np.testing.assert_allclose(loop.stator_events, python.stator_events, rtol=0, atol=1e-8)
+
+
 def _multipliers_match(a: np.ndarray, b: np.ndarray, tol: float) -> bool:
     """Each multiplier of ``a`` has one of ``b`` within ``tol`` (and the counts agree)."""
     left = list(b)

@@ -159,30 +159,47 @@ def start_flags(last_kind: int) -> tuple[bool, bool, bool]:
     )
 
 
-def switch_regime(
-    kind: int, tau: float, x: float, y: float, vx: float, vy: float, regime: int,
-    pars: np.ndarray | tuple[float, ...],
+def switch_rule(
+    kind: int, x: float, y: float, vx: float, vy: float, regime: int, mu: float,
+    spin: float, needed: float, limit: float,
 ) -> tuple[int, int, bool]:  # fmt: skip
-    """The switch at a located event of ``kind`` (compilable core).
+    """The switch at a located event of ``kind`` on any system (compilable core): the
+    rotor's state relative to the stator, the surface speed ``spin`` there and, for a
+    stick exit or a slip reversal, the friction ``needed`` to hold v_r = 0 (the system's
+    stick law) and the cone's ``limit`` mu K (z - 1).
 
     Returns ``(new regime, kind as recorded, project)``: contact exit -> free; contact
     entry -> the sign of v_r; stick exit -> the slip the needed friction points to;
-    slip reversal -> Filippov's rule (``model.zero_slip_regime_record``), recorded as a
-    stick entry when it ends in stick. ``project``: the state must be projected onto the
+    slip reversal -> Filippov's rule (``model.filippov_regime``), recorded as a stick
+    entry when it ends in stick. ``project``: the state must be projected onto the
     rolling constraint (stick begins or ends in contact).
     """
     if kind == EXIT:
         new = model.FREE
     elif kind == ENTRY:
-        new = model.entry_regime_value(x, y, vx, vy, pars[P_MU], spin_at(tau, pars))
+        new = model.entry_regime_value(x, y, vx, vy, mu, spin)
     elif kind == STICK_EXIT:
-        needed = model.stick_friction_record(tau, x, y, vx, vy, pars)
         new = model.SLIP_POSITIVE if needed > 0.0 else model.SLIP_NEGATIVE
     else:  # slip reversal
-        new = model.zero_slip_regime_record(tau, x, y, vx, vy, pars)
+        new = model.filippov_regime(needed, limit)
     recorded = STICK_ENTRY if new == model.STICK else kind
     stick = regime == model.STICK or new == model.STICK
     return new, recorded, stick and regime != model.FREE and new != model.FREE
+
+
+def switch_regime(
+    kind: int, tau: float, x: float, y: float, vx: float, vy: float, regime: int,
+    pars: np.ndarray | tuple[float, ...],
+) -> tuple[int, int, bool]:  # fmt: skip
+    """``switch_rule`` on the rotor (compilable core): the needed friction from the
+    machine's stick law (``model.stick_friction_record``), evaluated only where the rule
+    reads it."""
+    needed = limit = 0.0
+    if kind != EXIT and kind != ENTRY:
+        needed = model.stick_friction_record(tau, x, y, vx, vy, pars)
+        limit = pars[P_MU] * pars[P_K] * (math.hypot(x, y) - 1.0)
+    spin = spin_at(tau, pars)
+    return switch_rule(kind, x, y, vx, vy, regime, pars[P_MU], spin, needed, limit)
 
 
 # ---------------------------------------------------------------------------------------

@@ -8,9 +8,10 @@ contact (``z = |(x, y)|``), the slip ``v_r = Rp w + (x vy - y vx) / z`` and the 
 the same for every system, and a system is its right-hand side, its stick friction and
 its projection onto the rolling constraint (``System``). A run is the driver's
 (``driver.integrate``: budgets, storms, progress, failures) with the system's states
-carried beside the rotor's (``ExtendedRun``) and the rules at an event (``switch``):
-contact entry takes the sign of v_r, a slip reversal Filippov's rule with the system's
-stick friction, a stick exit the side the needed friction points to. Stick begins and
+carried beside the rotor's (``ExtendedRun``) and the rules at an event (``switch``, on
+the rotor's ``events.switch_rule``): contact entry takes the sign of v_r, a slip
+reversal Filippov's rule with the system's stick friction, a stick exit the side the
+needed friction points to. Stick begins and
 ends with the velocities projected onto the rolling constraint along the kinetic
 energy's metric (the system's ``project``).
 
@@ -26,9 +27,12 @@ iteration.
 Implicit methods get forward differences of the right-hand side
 (``ExtendedStepper._jacobian``).
 
-``dop853-jit`` (``ExtendedJitStepper``) takes scipy's DOP853 steps in the system's
-compiled loop (``compiled.extended_loop``) and hands the steps that may hold an event
-to this event search; so does the driven rotor's ``taylor``.
+``dop853-jit`` (``ExtendedJitStepper``) and ``taylor`` (``ExtendedTaylorStepper``, on the
+driven rotor and the two bodies) run in the one compiled event loop
+(``compiled.extended_loop.step_loop``), which locates the events with the same search
+compiled and applies them with the same rule (``events.switch_rule``, the system's
+stick law and projection compiled); a run whose ``switch`` does more (``orbits``'
+flows: the variational matrix's jumps) has the loop return at each event instead.
 """
 
 from __future__ import annotations
@@ -52,17 +56,17 @@ from rubcli.solvers.events import (
     EXIT,
     NO_EVENT,
     SPEED,
-    STICK_ENTRY,
-    STICK_EXIT,
     earliest_system_event,
     initial_kind,
     start_flags,
+    switch_rule,
 )
 from rubcli.solvers.registry import SPECS
 from rubcli.solvers.shared import SCAN_POINTS, Dop853Dense, OdeSolverStepper, kernel_failure
 
 Dense = Callable[[float], np.ndarray]  # a step's dense output (of one time, or of times)
 CHUNK_STEPS = 2000  # committed steps per kernel call: budget and progress checks between
+EVENT_BUFFER = 256  # events a kernel may apply before it returns to flush them
 
 
 @dataclass(frozen=True)
@@ -89,6 +93,9 @@ class ExtendedRun(driver.Run):
     projection onto the rolling constraint, and the solution's extra states."""
 
     system: System
+    # the compiled loops apply this run's events (False: a run whose ``switch`` does more
+    # than the system's rule, and the loops return at each event for it)
+    loop_applies_events = True
 
     def __init__(self, problem: Problem, method: str, ctx: tuple, state: np.ndarray,
                  locked: int | None = None, **budget) -> None:  # fmt: skip
@@ -113,22 +120,28 @@ class ExtendedRun(driver.Run):
         """The state with v_r = 0 exactly, moved along the kinetic energy's metric."""
         raise NotImplementedError
 
+    def record_events(
+        self, n: int, taus: np.ndarray, kinds: np.ndarray, states: np.ndarray,
+        regimes: np.ndarray,
+    ) -> bool:  # fmt: skip
+        """Record the ``n`` events a compiled loop applied (its buffers; ``states`` the
+        system's states there, of which the rotor's four are recorded): False (and the
+        run failed) on a switch storm (``driver.record_kernel_events``)."""
+        return driver.record_kernel_events(self, n, taus, kinds, states[:, :4], regimes)
+
     def switch(self, tau: float, kind: int, state: np.ndarray) -> bool:
         """Apply and record the event ``kind`` at ``tau`` (module docstring); False (and
         the run failed) on a switch storm."""
         state = np.array(state, dtype=float)
         before = self.regime
         p = self.params
-        if kind == EXIT:
-            new = model.FREE
-        elif kind == ENTRY:
-            new = model.entry_regime_value(*state[:4], p.mu, p.Rp * state[SPEED])
-        elif kind == STICK_EXIT:
-            new = model.SLIP_POSITIVE if self.stick_friction(state) > 0.0 else model.SLIP_NEGATIVE
-        else:
-            new = zero_slip_regime(state, self)
-        recorded = STICK_ENTRY if new == model.STICK else kind
-        if (before == model.STICK or new == model.STICK) and model.FREE not in (before, new):
+        needed = limit = 0.0
+        if kind not in (EXIT, ENTRY):  # the rule reads the stick law
+            needed = self.stick_friction(state)
+            limit = p.mu * p.K * (math.hypot(state[0], state[1]) - 1.0)
+        new, recorded, project = switch_rule(kind, *state[:4], before, p.mu,
+                                             p.Rp * state[SPEED], needed, limit)  # fmt: skip
+        if project:
             state = self.project(state)
         self.state, self.regime, self.last_kind, self.tau = state, new, recorded, tau
         event = SwitchEvent(tau, KIND_NAMES[recorded], tuple(state[:4]), before, new)
@@ -250,13 +263,17 @@ class ExtendedStepper(OdeSolverStepper):
 
 class CompiledExtendedStepper(ExtendedStepper):
     """A compiled loop on a system (``dop853-jit``; ``taylor`` on the driven rotor and the
-    two bodies). The kernel commits the steps in which no event lies, with their
-    samples, and locates the events in the others with the one event search
-    (``events.event_search``, compiled on the step's dense output:
-    ``compiled.extended_loop.system_search``); Python applies each event
-    (``ExtendedRun.switch``). A step that ends at a speed of 0 or below comes back
-    pending, and ``close_step`` takes it. A subclass runs its kernel (``_run_kernel``)
-    and gives the dense output of the step it stopped in (``_pending``)."""
+    two bodies): the one event loop (``compiled.extended_loop.step_loop``). The kernel
+    commits the steps in which no event lies, with their samples, locates the events in
+    the others with the one event search (``events.event_search``, compiled on the
+    step's dense output: ``compiled.extended_loop.system_search``), and applies them
+    itself (``events.switch_rule`` with the system's stick law and projection), recorded
+    here with the storm guard (``ExtendedRun.record_events``); for a run that applies its
+    own events (``ExtendedRun.loop_applies_events`` False: ``orbits``' flows) it returns
+    at each and Python applies it (``ExtendedRun.switch``). A step that ends at a speed of
+    0 or below comes back pending, and ``close_step`` takes it. A subclass runs its
+    kernel (``_run_kernel``) and gives the dense output of the step it stopped in
+    (``_pending``)."""
 
     def __init__(self, run: ExtendedRun, name: str, rtol: float, atol: float) -> None:
         super().__init__(run, "dop853", rtol, atol, compiled=True)
@@ -267,14 +284,23 @@ class CompiledExtendedStepper(ExtendedStepper):
         self.y_new = np.empty(run.system.size)
         self.t_new = 0.0
         self.found = np.empty(2)  # the kernel's event: (tau, kind), kind -1 if none
+        self.applies = run.loop_applies_events and run.locked is None
+        self.events = (
+            np.empty(EVENT_BUFFER),
+            np.empty(EVENT_BUFFER, dtype=np.int64),
+            np.empty((EVENT_BUFFER, run.system.size)),
+            np.empty((EVENT_BUFFER, 2), dtype=np.int64),
+        )
         self.in_segment = False  # a segment is to start
+        # the regime's right-hand side at columns of states (the Python paths' events):
+        # the run's regime when called, which the kernel changes at its events
+        self.columns = lambda S: run.system.columns(np.ascontiguousarray(S), *self.ctx,
+                                                    run.regime)  # fmt: skip
         run.stats.update(python_steps=0)
         self.settings.update(rtol=self.rtol, compiled_events=True)
 
     def _start_segment(self, run: ExtendedRun) -> None:
         run.state = np.ascontiguousarray(run.state, dtype=float)
-        regime = run.regime
-        self.columns = lambda S: run.system.columns(np.ascontiguousarray(S), *self.ctx, regime)
         run.stats["n_segments"] += 1
         self.in_segment = True
 
@@ -286,13 +312,22 @@ class CompiledExtendedStepper(ExtendedStepper):
             self._start_segment(run)
         chunk = max(1, min(CHUNK_STEPS, run.steps_left))
         start = run.tau
-        tau, reason = self._run_kernel(run, start_flags(run.last_kind), chunk)
+        tau, reason, regime, n_events = self._run_kernel(run, start_flags(run.last_kind), chunk)
         run.tau = tau  # the kernel moved the state in place
+        if n_events:
+            run.regime = regime
+            # segments the kernel started (with a full buffer the last one starts here)
+            run.stats["n_segments"] += n_events - (reason == kernels.STOP_FULL)
+            if not run.record_events(n_events, *self.events):
+                return
+            start = float(self.events[0][n_events - 1])
         if tau > start:
             run.last_kind = NO_EVENT  # the segment's first step is behind
         failure = kernel_failure(reason, self.name, tau, self.t_new)
         if failure:
             run.fail(failure)
+        elif reason == kernels.STOP_FULL:
+            self._end_segment(run)
         elif reason == kernels.STOP_EVENT:
             run.stats["nsteps"] += 1
             dense = self._pending(run, tau)
@@ -338,15 +373,18 @@ class ExtendedJitStepper(CompiledExtendedStepper):
 
     def _run_kernel(
         self, run: ExtendedRun, starts: tuple[bool, bool, bool], chunk: int
-    ) -> tuple[float, int]:
-        tau, self.t_new, self.h_abs, run.k, steps, nfev, reason = self.advance_kernel(
-            run.tau, run.state, self.f, self.h_abs, run.t_end, self.ctx, run.regime,
-            self.rtol, self.atol, run.t_eval, run.states, run.regimes, run.k, chunk,
-            starts, self.restart_band, self.found, self.y_new, self.f_new, self.F,
+    ) -> tuple[float, int, int, int]:
+        tau, self.t_new, self.h_abs, run.k, steps, nfev, reason, regime, n_events, _ = (
+            self.advance_kernel(
+                run.tau, run.state, self.f, self.h_abs, run.t_end, self.ctx, run.regime,
+                self.rtol, self.atol, run.t_eval, run.states, run.regimes, run.k, chunk,
+                starts, self.restart_band, self.found, self.y_new, self.f_new, self.F,
+                self.events, self.applies,
+            )
         )  # fmt: skip
         run.stats["nsteps"] += steps
         run.stats["nfev"] += nfev
-        return tau, reason
+        return tau, reason, regime, n_events
 
     def _pending(self, run: ExtendedRun, tau: float) -> Dense:
         return Dop853Dense(tau, self.t_new, run.state, self.F)
@@ -386,15 +424,15 @@ class ExtendedTaylorStepper(CompiledExtendedStepper):
 
     def _run_kernel(
         self, run: ExtendedRun, starts: tuple[bool, bool, bool], chunk: int
-    ) -> tuple[float, int]:
-        tau, self.t_new, run.k, steps, reason = self.kernel(
+    ) -> tuple[float, int, int, int]:
+        tau, self.t_new, run.k, steps, reason, regime, n_events, _ = self.kernel(
             run.tau, run.state, run.t_end, self.ctx, run.regime, self.order, self.rtol,
             self.atol, run.t_eval, run.states, run.regimes, run.k, chunk, starts,
-            self.restart_band, self.found, self.C, self.info,
+            self.restart_band, self.found, self.C, self.info, self.events, self.applies,
         )  # fmt: skip
         run.stats["nsteps"] += steps
         run.stats["nfev"] = run.stats["nsteps"]  # one series expansion per step
-        return tau, reason
+        return tau, reason, regime, n_events
 
     def _pending(self, run: ExtendedRun, tau: float) -> Dense:
         run.stats["nfev"] += 1

@@ -83,6 +83,17 @@ class TwoBodyRun(ExtendedRun):
         self.event_stators.append(np.array(self.state[6:N_STATES]))
         return switched
 
+    def record_events(
+        self, n: int, taus: np.ndarray, kinds: np.ndarray, states: np.ndarray,
+        regimes: np.ndarray,
+    ) -> bool:  # fmt: skip
+        """``ExtendedRun.record_events``, the stator's states at the events recorded kept
+        beside."""
+        before = self.recorder.n
+        recorded = super().record_events(n, taus, kinds, states, regimes)
+        self.event_stators += [np.array(s[6:N_STATES]) for s in states[: self.recorder.n - before]]
+        return recorded
+
     def project(self, s: np.ndarray) -> np.ndarray:
         """The state with v_r = 0 exactly (``stator.two_body_projection``)."""
         out = np.array(s, dtype=float)

@@ -281,6 +281,8 @@ class RotorFlowRun(ExtendedRun):
     variational mode when ``phi`` is given: Phi then starts there and jumps at every
     event. More than ``max_events`` events fail the run (a chattering contact)."""
 
+    loop_applies_events = False  # ``switch`` moves Phi and counts the events
+
     def __init__(
         self, problem: Problem, phi: np.ndarray | None, locked: int | None, max_events: int,
         max_wall_time_s: float,
@@ -328,6 +330,8 @@ class TwoBodyFlowRun(TwoBodyRun):
     """A run of the two bodies (``solvers.two_body``) as a flow: in the variational mode
     when ``phi`` (8 x 8) is given, Phi jumping at every event (module docstring); more
     than ``max_events`` events fail it."""
+
+    loop_applies_events = False  # ``switch`` moves Phi and counts the events
 
     def __init__(
         self, problem: Problem, phi: np.ndarray | None, locked: int | None, max_events: int,

@@ -17,7 +17,13 @@ from rubcli.solvers.compiled.dop853 import (
     _paper_dense_coefficients,
     dop853_initial_step,
 )
-from rubcli.solvers.compiled.event_loop import SCAN_NONE, STOP_NONE, event_loop
+from rubcli.solvers.compiled.event_loop import (
+    LOOP_APPLIES,
+    PYTHON_LOCATES,
+    SCAN_NONE,
+    STOP_NONE,
+    event_loop,
+)
 from rubcli.solvers.compiled.jit import STOP_SMALL_STEP, jit, jit_inline
 from rubcli.solvers.compiled.rhs import (
     _rhs_into,
@@ -116,7 +122,8 @@ def _dop853_loop(accepted_step: Callable[..., tuple], dense_coefficients: Callab
         tau, t_new, k, steps, reason, regime, n_events, at_event, c = loop(
             tau, y, y_new, t_end, pars, regime, t_eval, out_states, out_regimes, k,
             max_steps, starts, band, np.empty(2), events_tau, events_kind, events_state,
-            events_regimes, compiled_events, np.empty(4), m, (h_abs, 0, rtol, atol, 0.0),
+            events_regimes, LOOP_APPLIES if compiled_events else PYTHON_LOCATES, np.empty(4),
+            m, (h_abs, 0, rtol, atol, 0.0),
         )  # fmt: skip
         return tau, t_new, c[0], k, steps, c[1], reason, regime, n_events, at_event
 

@@ -29,7 +29,7 @@ import numpy as np
 from rubcli.drive import D_INERTIA, motor_line
 from rubcli.model import FREE, P_ECC, P_K, P_MU, P_NU, P_RP, STICK, friction_sign
 from rubcli.solvers.compiled.drive import N_STATES, drive_into, drive_project
-from rubcli.solvers.compiled.event_loop import STOP_NONE
+from rubcli.solvers.compiled.event_loop import STOP_NONE, no_restart
 from rubcli.solvers.compiled.extended_loop import keep_nothing, step_loop
 from rubcli.solvers.compiled.jit import STOP_PYTHON, STOP_SMALL_STEP, jit, jit_inline
 from rubcli.solvers.compiled.taylor import (
@@ -305,7 +305,7 @@ def _dense(tau, y, m, c):
     return tau, m[0], c[0]
 
 
-_loop = step_loop(_step, _intervals, keep_nothing, _dense, polynomial_at, drive_into,
+_loop = step_loop(_step, _intervals, keep_nothing, no_restart, _dense, polynomial_at, drive_into,
                   drive_project, N_STATES, MAX_SCAN)  # fmt: skip
 
 
@@ -315,15 +315,17 @@ def advance_driven_taylor(
     ctx: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], regime: int, order: int,
     rtol: float, atol: float, t_eval: np.ndarray, out_states: np.ndarray,
     out_regimes: np.ndarray, k: int, max_steps: int, starts: tuple[bool, bool, bool],
-    band: float, found: np.ndarray, C: np.ndarray, info: np.ndarray,
-) -> tuple[float, float, int, int, int]:  # fmt: skip
-    """Taylor steps of the driven rotor in one regime, up to the first event
-    (``extended_loop.step_loop``: ``found`` its time and kind). The step of an event, or
-    a pending one (reason EVENT), leaves its coefficients in ``C`` and its scan intervals
-    in ``info[0]``. Returns ``(tau, t_new, k, steps, reason)``."""
+    band: float, found: np.ndarray, C: np.ndarray, info: np.ndarray, events: tuple,
+    applies: bool,
+) -> tuple[float, float, int, int, int, int, int, bool]:  # fmt: skip
+    """Taylor steps of the driven rotor with their events (``extended_loop.step_loop``:
+    applied in the loop and recorded in ``events``, or with ``applies`` False returned
+    at in ``found``). A step handed to Python (reason EVENT) leaves its coefficients in
+    ``C`` and its scan intervals in ``info[0]``. Returns ``(tau, t_new, k, steps,
+    reason, regime, n_events, at_event)``."""
     m = (C, np.zeros((SERIES_ROWS, MAX_ORDER + 1)), info)
-    tau, t_new, k, steps, reason, _ = _loop(
+    tau, t_new, k, steps, reason, regime, n_events, at_event, _ = _loop(
         tau, y, t_end, ctx, regime, t_eval, out_states, out_regimes, k, max_steps,
-        starts, band, found, np.empty(N_STATES), m, (order, rtol, atol, 0.0),
+        starts, band, found, np.empty(N_STATES), events, applies, m, (order, rtol, atol, 0.0),
     )  # fmt: skip
-    return tau, t_new, k, steps, reason
+    return tau, t_new, k, steps, reason, regime, n_events, at_event

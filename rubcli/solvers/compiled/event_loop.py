@@ -13,9 +13,9 @@ an event-free step, and at an event the samples up to it, its rule and record
 (``events.start_flags``). A method plugs in its step, its event pre-check, its event
 search (``events.event_search`` compiled on its dense output), its dense output, what it
 keeps of a committed step and how it restarts after an event; a system its projection
-onto the rolling constraint and its event rule (the rotor's: ``roots.rotor_apply``). A
-system whose rule is not compiled lets Python apply its events: the loop returns at
-each event it locates.
+onto the rolling constraint and its event rule (the rotor's: ``roots.rotor_apply``; a
+system's: ``extended_loop.step_loop``). A run that applies its own events (``orbits``'
+flows) has the loop return at each event it locates, for Python.
 
 The parts are inlined into the loop in numba IR, and the loop is compiled without
 numba's reference counting (``jit.jit_loop``): a part that takes the method's arrays
@@ -40,6 +40,7 @@ from rubcli.solvers.compiled.jit import (
     STOP_FULL,
     STOP_LIMIT,
     STOP_PYTHON,
+    jit_inline,
     jit_loop,
 )
 from rubcli.solvers.compiled.roots import STICK_REGIME
@@ -48,13 +49,17 @@ from rubcli.solvers.events import run_time, start_flags
 STOP_NONE = -1  # a plugged-in step's reason: it was taken
 SCAN_NONE = 0  # a plugged-in pre-check's answer: no event can lie in the step
 SCAN_PYTHON = -1  # a pre-check's answer: the step goes to Python whole, not searched
+# who takes a step's events (the loop's ``events`` argument): Python locates and applies
+# them (the loop hands the step back), the loop locates and Python applies (the loop
+# returns at each), or the loop locates and applies them
+PYTHON_LOCATES, PYTHON_APPLIES, LOOP_APPLIES = 0, 1, 2
 
 
 def event_loop(
     n_states: int, step: Callable[..., tuple], precheck: Callable[..., int],
     locate: Callable[..., tuple], dense_at: Callable[..., None],
     project: Callable[..., None], commit: Callable[..., None],
-    restart: Callable[..., tuple] | None = None, apply: Callable[..., tuple] | None = None,
+    restart: Callable[..., tuple], apply: Callable[..., tuple],
 ) -> Callable[..., tuple]:  # fmt: skip
     """The loop of one method on a system of ``n_states`` states (the first four the
     rotor's position and velocity), compiled with its parts (``jit_inline``; ``ctx`` the
@@ -74,24 +79,23 @@ def event_loop(
     - ``project(t, row, ctx)``: a state in stick onto the rolling constraint (samples in
       stick are reported projected);
     - ``commit(y, y_new, m)``: the step committed (``y`` takes ``y_new``);
-    - ``apply(kind, t, row, regime, ctx, events_tau, events_kind, events_state,
+    - ``apply(kind, t, row, regime, ctx, m, events_tau, events_kind, events_state,
       events_regimes, n_events, y) -> (new regime, kind as recorded)``: the event's rule,
       its record as entry ``n_events`` and the state ``y`` the next segment starts from,
       and ``restart(tau, y, t_end, ctx, regime, m, c) -> c`` then begins that segment.
-      Without them (None) the loop returns at each event it locates, with ``found =
-      (tau, kind)``, and Python applies it.
 
     The loop ``(tau, y, y_new, t_end, ctx, regime, t_eval, out_states, out_regimes, k,
     max_steps, starts, band, found, events_tau, events_kind, events_state,
-    events_regimes, compiled_events, row, m, c)`` runs steps, each step's events sought
-    where its pre-check says one may lie. A step without one is committed and fills the
-    samples ``t_eval[k:]`` it covers. With ``compiled_events``, the earliest event of a
-    step is located and the samples up to it are filled; then it is applied and recorded
-    in ``events_*`` and the next segment starts from it (or the loop returns with it in
-    ``found``, kind -1 when it returns for another reason). Without ``compiled_events``
-    the step is returned uncommitted for Python (reason EVENT; ``y_new`` and ``m`` hold
-    it). ``starts``: the current segment's (on the contact surface, on the slip surface,
-    slip start immediate), as ``events.start_flags``.
+    events_regimes, events, row, m, c)`` runs steps, each step's events sought where its
+    pre-check says one may lie. A step without one is committed and fills the samples
+    ``t_eval[k:]`` it covers. Unless Python locates the events (``events``
+    PYTHON_LOCATES: the step is returned uncommitted, reason EVENT, ``y_new`` and ``m``
+    holding it), the earliest event of a step is located and the samples up to it are
+    filled; then it is applied and recorded in ``events_*`` and the next segment starts
+    from it (LOOP_APPLIES), or the loop returns with it in ``found`` (PYTHON_APPLIES;
+    ``found`` kind -1 when the loop returns for another reason). ``starts``: the current
+    segment's (on the contact surface, on the slip surface, slip start immediate), as
+    ``events.start_flags``.
 
     Returns ``(tau, t_new, k, steps, reason, regime, n_events, at_event, c)``: reason
     END, LIMIT (``max_steps`` steps), EVENT (a step from ``tau`` to ``t_new`` for Python:
@@ -100,15 +104,13 @@ def event_loop(
     the step's own; ``at_event``: ``tau`` is the last event's time.
     """
     N = n_states
-    python_applies = apply is None
 
     def loop(
         tau: float, y: np.ndarray, y_new: np.ndarray, t_end: float, ctx: Any, regime: int,
         t_eval: np.ndarray, out_states: np.ndarray, out_regimes: np.ndarray, k: int,
         max_steps: int, starts: tuple[bool, bool, bool], band: float, found: np.ndarray,
         events_tau: np.ndarray, events_kind: np.ndarray, events_state: np.ndarray,
-        events_regimes: np.ndarray, compiled_events: bool, row: np.ndarray, m: tuple,
-        c: tuple,
+        events_regimes: np.ndarray, events: int, row: np.ndarray, m: tuple, c: tuple,
     ) -> tuple:  # fmt: skip
         n_out = t_eval.shape[0]
         capacity = events_tau.shape[0]
@@ -133,7 +135,7 @@ def event_loop(
             t_stop = t_new
             scan = precheck(tau, t_new, y, y_new, ctx, regime, m, c, starts, band)
             if scan != SCAN_NONE:
-                if scan == SCAN_PYTHON or not compiled_events:
+                if scan == SCAN_PYTHON or events == PYTHON_LOCATES:
                     return tau, t_new, k, steps, STOP_EVENT, regime, n_events, at_event, c
                 t_ev, kind = locate(tau, t_new, y, ctx, regime, m, c, scan, starts, band)
                 if kind >= 0:
@@ -152,13 +154,13 @@ def event_loop(
                 tau = t_new
                 starts = (False, False, True)
                 continue
-            if python_applies:
+            if events == PYTHON_APPLIES:
                 found[0], found[1] = t_stop, float(kind)
                 return tau, t_new, k, steps, STOP_EVENT, regime, n_events, at_event, c
             steps += 1
             dense_at(t_stop, tau, t_new, y, m, c, row)
             new_regime, kind = apply(
-                kind, t_stop, row, regime, ctx, events_tau, events_kind, events_state,
+                kind, t_stop, row, regime, ctx, m, events_tau, events_kind, events_state,
                 events_regimes, run_time(n_events), y,
             )  # fmt: skip
             n_events += 1
@@ -169,3 +171,11 @@ def event_loop(
             c = restart(tau, y, t_end, ctx, regime, m, c)
 
     return jit_loop(loop)
+
+
+@jit_inline
+def no_restart(tau: float, y: np.ndarray, t_end: float, ctx: Any, regime: int, m: tuple,
+               c: tuple) -> tuple:  # fmt: skip
+    """The restart of a method that carries nothing from one segment to the next (a
+    Taylor series starts from each step's own state)."""
+    return c

@@ -13,8 +13,9 @@ row[5] + (x vy - y vx) / z``, the events of every such system the same).
 The events are located in the loop by the one event search (``events.event_search``,
 compiled on the step's dense output with the surface speed ``Rp w`` a state and the
 system's stick margin: ``system_search``), on each step the pre-check flags and on a
-segment's first step; the loop returns at an event, which Python applies
-(``ExtendedRun.switch``: the system's rules and projection).
+segment's first step, and applied in the loop by the rotor's rule
+(``events.switch_rule``) with the system's stick friction and projection; or, for a run
+that applies its own (``orbits``' flows), the loop returns at each for Python.
 
 The loop is the one event loop (``event_loop.event_loop``, which the rotor's
 ``dop853-jit`` and ``taylor`` run too); ``step_loop`` plugs a system's parts into it:
@@ -49,7 +50,14 @@ from rubcli.solvers.compiled.dop853 import (
     _dop853_dense_at,
     dop853_step,
 )
-from rubcli.solvers.compiled.event_loop import SCAN_NONE, SCAN_PYTHON, STOP_NONE, event_loop
+from rubcli.solvers.compiled.event_loop import (
+    LOOP_APPLIES,
+    PYTHON_APPLIES,
+    SCAN_NONE,
+    SCAN_PYTHON,
+    STOP_NONE,
+    event_loop,
+)
 from rubcli.solvers.compiled.jit import (
     STOP_SMALL_STEP,
     jit,
@@ -62,7 +70,15 @@ from rubcli.solvers.compiled.precheck import (
     _surface_may_cross,
 )
 from rubcli.solvers.compiled.roots import FREE_REGIME, STICK_REGIME
-from rubcli.solvers.events import SPEED, event_search, linspace_into, run_time
+from rubcli.solvers.events import (
+    ENTRY,
+    EXIT,
+    SPEED,
+    event_search,
+    linspace_into,
+    run_time,
+    switch_rule,
+)
 
 
 def step_parts(
@@ -188,14 +204,14 @@ def system_search(
 
 def step_loop(
     step: Callable[..., tuple], intervals: Callable[..., int], commit: Callable[..., None],
-    dense: Callable[..., tuple], dense_at: Callable[..., None], into: Callable[..., float],
-    project: Callable[..., None], n_states: int, max_scan: int,
+    restart: Callable[..., tuple], dense: Callable[..., tuple], dense_at: Callable[..., None],
+    into: Callable[..., float], project: Callable[..., None], n_states: int, max_scan: int,
     events_into: Callable[..., float] | None = None,
 ) -> Callable[..., tuple]:  # fmt: skip
     """The one event loop (``event_loop``) of one method on one system (``into``,
-    ``project``, ``n_states``: module docstring), its events applied by Python, compiled
-    with the method's parts (``jit_inline``: ``m`` its work arrays, ``c`` its scalars
-    carried from step to step) as closure constants:
+    ``project``, ``n_states``: module docstring), compiled with the method's parts
+    (``jit_inline``: ``m`` its work arrays, ``c`` its scalars carried from step to step)
+    as closure constants:
 
     - ``step(tau, y, t_end, ctx, regime, m, c, y_new) -> (t_new, reason, c)``: one
       accepted step, its end state into ``y_new``; ``reason`` ``STOP_NONE``, or the stop
@@ -204,27 +220,33 @@ def step_loop(
       (a DOP853 step's coefficients, a Taylor polynomial);
     - ``intervals(tau, t_new, y, y_new, ctx, regime, m, c) -> n``: the step's scan
       intervals (at most ``max_scan``);
-    - ``commit(m)``: what the method keeps of a committed step beyond its state.
+    - ``commit(m)``: what the method keeps of a committed step beyond its state;
+    - ``restart(tau, y, t_end, ctx, regime, m, c) -> c``: a segment begins at an event.
 
     ``events_into``: the right-hand side the pre-check and the event search evaluate
     (default ``into``): the first states' alone, where the system carries more that the
     events do not read (a variational matrix: ``compiled.variational``).
 
     ``advance(tau, y, t_end, ctx, regime, t_eval, out_states, out_regimes, k,
-    max_steps, starts, band, found, y_new, m, c) -> (tau, t_new, k, steps, reason, c)``:
-    steps of the system in one regime, up to the first event. Each step's events are
-    sought (``system_search``) where the pre-check says one may lie, and on a segment's
-    first step, begun on an event's surface (``starts``: ``events.start_flags``; ``band``
-    the restart band). A step without one, after which the speed is still positive, is
-    committed, with its samples (in stick projected onto the rolling constraint). A step
-    with an event fills the samples up to it and returns with ``found = (tau, kind)`` of
-    the event; a step that ends at a speed of 0 or below returns pending (``found`` kind
-    -1); either leaves ``y_new`` and ``m`` holding the step (reason EVENT). Other
-    reasons as the event loop's.
+    max_steps, starts, band, found, y_new, events, applies, m, c) -> (tau, t_new, k,
+    steps, reason, regime, n_events, at_event, c)``: the event loop's steps. Each step's events
+    are sought (``system_search``) where the pre-check says one may lie, and on a
+    segment's first step, begun on an event's surface (``starts``:
+    ``events.start_flags``; ``band`` the restart band). A step without one, after which
+    the speed is still positive, is committed, with its samples (in stick projected onto
+    the rolling constraint). At an event, with ``applies``, the loop applies the
+    system's rule (``events.switch_rule`` with the system's stick friction, and its
+    projection) and records it in ``events`` (the event loop's four buffers, the state's
+    of width up to ``n_states``); without (a run that applies its own: ``orbits``' flows,
+    whose variational matrix jumps at each event), it returns with ``found = (tau,
+    kind)`` of the event. A step that ends at a speed of 0 or
+    below returns pending (``found`` kind -1); either leaves ``y_new`` and ``m`` holding
+    the step (reason EVENT). Other reasons as the event loop's.
     """
     N = n_states
-    may_have_event = step_parts(events_into or into, N, dense_at)
-    search = system_search(dense_at, events_into or into)
+    rule_into = events_into or into
+    may_have_event = step_parts(rule_into, N, dense_at)
+    search = system_search(dense_at, rule_into)
 
     def method_step(
         tau: float, y: np.ndarray, t_end: float, ctx: Any, regime: int, m: tuple, c: tuple,
@@ -270,28 +292,61 @@ def step_loop(
             y[i] = y_new[i]
         commit(m[0])
 
-    loop = event_loop(N, jit_inline(method_step), jit_inline(precheck), jit_inline(locate),
-                      jit_inline(state_at), jit_inline(sample_project),
-                      jit_inline(system_commit))  # fmt: skip
+    def method_restart(
+        tau: float, y: np.ndarray, t_end: float, ctx: Any, regime: int, m: tuple, c: tuple
+    ) -> tuple:
+        return restart(tau, y, t_end, ctx, regime, m[0], c)
+
+    def apply(
+        kind: int, t: float, row: np.ndarray, regime: int, ctx: Any, m: tuple,
+        events_tau: np.ndarray, events_kind: np.ndarray, events_state: np.ndarray,
+        events_regimes: np.ndarray, n_events: int, y: np.ndarray,
+    ) -> tuple[int, int]:  # fmt: skip
+        """The system's event: ``events.switch_rule`` with its stick friction, its
+        projection where stick begins or ends, the record, and the state ``y`` from
+        which the next segment starts."""
+        pars, out = ctx[0], m[1][5]
+        needed = limit = 0.0
+        if kind != EXIT and kind != ENTRY:  # the rule reads the stick law
+            needed = rule_into(row, ctx, STICK_REGIME, out)
+            limit = pars[P_MU] * pars[P_K] * (math.hypot(row[0], row[1]) - 1.0)
+        new, recorded, to_project = switch_rule(
+            kind, row[0], row[1], row[2], row[3], regime, pars[P_MU], pars[P_RP] * row[SPEED],
+            needed, limit,
+        )  # fmt: skip
+        if to_project:
+            project(row, ctx)
+        events_tau[n_events] = t
+        events_kind[n_events] = recorded
+        events_regimes[n_events, 0] = regime
+        events_regimes[n_events, 1] = new
+        for i in range(events_state.shape[1]):
+            events_state[n_events, i] = row[i]
+        for i in range(N):
+            y[i] = row[i]
+        return new, recorded
+
+    loop = event_loop(
+        N, jit_inline(method_step), jit_inline(precheck), jit_inline(locate),
+        jit_inline(state_at), jit_inline(sample_project), jit_inline(system_commit),
+        jit_inline(method_restart), jit_inline(apply),
+    )  # fmt: skip
 
     def advance(
         tau: float, y: np.ndarray, t_end: float, ctx: Any, regime: int, t_eval: np.ndarray,
         out_states: np.ndarray, out_regimes: np.ndarray, k: int, max_steps: int,
         starts: tuple[bool, bool, bool], band: float, found: np.ndarray, y_new: np.ndarray,
-        m: tuple, c: tuple,
+        events: tuple, applies: bool, m: tuple, c: tuple,
     ) -> tuple:  # fmt: skip
         work = (
             np.empty(max_scan + 1), np.empty((max_scan + 1, N)), np.empty(max_scan + 1),
             np.empty(max_scan + 1), np.empty(N), np.empty(N), np.empty(N),
         )  # fmt: skip
-        # no event buffers: Python applies the events
-        tau, t_new, k, steps, reason, _, _, _, c = loop(
+        return loop(
             tau, y, y_new, t_end, ctx, regime, t_eval, out_states, out_regimes, k,
-            max_steps, starts, band, found, np.empty(0), np.empty(0, dtype=np.int64),
-            np.empty((0, 4)), np.empty((0, 2), dtype=np.int64), True, np.empty(N),
-            (m, work), c,
+            max_steps, starts, band, found, events[0], events[1], events[2], events[3],
+            LOOP_APPLIES if applies else PYTHON_APPLIES, np.empty(N), (m, work), c,
         )  # fmt: skip
-        return tau, t_new, k, steps, reason, c
 
     return jit(advance)
 
@@ -348,25 +403,36 @@ def dop853_loop(
         for i in range(N):
             f[i] = f_new[i]
 
+    def restart(
+        tau: float, y: np.ndarray, t_end: float, ctx: Any, regime: int, m: tuple, c: tuple
+    ) -> tuple:
+        """As scipy starts a solver: f and the initial step (two evaluations)."""
+        h_abs, nfev, rtol, atol, h = c
+        f = m[0]
+        into(y, ctx, regime, f)
+        h_abs = initial_step(tau, y, f, t_end, ctx, regime, rtol, atol)
+        return h_abs, nfev + 2, rtol, atol, h
+
     loop = step_loop(jit_inline(step), jit_inline(intervals), jit_inline(commit),
-                     jit_inline(dense), _dop853_dense, into, project, N, DOP_SCAN_POINTS,
-                     events_into)  # fmt: skip
+                     jit_inline(restart), jit_inline(dense), _dop853_dense, into, project, N,
+                     DOP_SCAN_POINTS, events_into)  # fmt: skip
 
     def advance(
         tau: float, y: np.ndarray, f: np.ndarray, h_abs: float, t_end: float, ctx: Any,
         regime: int, rtol: float, atol: float, t_eval: np.ndarray, out_states: np.ndarray,
         out_regimes: np.ndarray, k: int, max_steps: int, starts: tuple[bool, bool, bool],
         band: float, found: np.ndarray, y_new: np.ndarray, f_new: np.ndarray, F: np.ndarray,
-    ) -> tuple[float, float, float, int, int, int, int]:  # fmt: skip
-        """Adaptive DOP853 steps of the system in one regime, up to the first event
-        (``step_loop``'s advance), each scipy's DOP853 step. The step of an event (or a
-        pending one) leaves ``y_new``, ``f_new`` and the dense coefficients ``F`` filled.
-        Returns ``(tau, t_new, h_abs, k, steps, nfev, reason)``."""
+        events: tuple, applies: bool,
+    ) -> tuple[float, float, float, int, int, int, int, int, int, bool]:  # fmt: skip
+        """Adaptive DOP853 steps of the system with their events (``step_loop``'s
+        advance), each scipy's DOP853 step. A step handed to Python leaves ``y_new``,
+        ``f_new`` and the dense coefficients ``F`` filled. Returns ``(tau, t_new, h_abs,
+        k, steps, nfev, reason, regime, n_events, at_event)``."""
         m = (f, f_new, F, np.empty((DOP_A.shape[0], N)), np.empty(N))
-        tau, t_new, k, steps, reason, c = loop(
+        tau, t_new, k, steps, reason, regime, n_events, at_event, c = loop(
             tau, y, t_end, ctx, regime, t_eval, out_states, out_regimes, k, max_steps,
-            starts, band, found, y_new, m, (h_abs, 0, rtol, atol, 0.0),
+            starts, band, found, y_new, events, applies, m, (h_abs, 0, rtol, atol, 0.0),
         )  # fmt: skip
-        return tau, t_new, c[0], k, steps, c[1], reason
+        return tau, t_new, c[0], k, steps, c[1], reason, regime, n_events, at_event
 
     return initial_step, jit(advance)

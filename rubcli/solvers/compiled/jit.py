@@ -51,6 +51,7 @@ COMPILABLE_CORES = (
     model.damped_basis,
     model.free_flight_value,
     events.start_flags,
+    events.switch_rule,
     events.switch_regime,
     control.doubling_error,
     control.next_step,

@@ -200,9 +200,9 @@ def rotor_project(t: float, row: np.ndarray, pars: np.ndarray) -> None:
 
 @jit_inline
 def rotor_apply(
-    kind: int, t: float, s: np.ndarray, regime: int, pars: np.ndarray, events_tau: np.ndarray,
-    events_kind: np.ndarray, events_state: np.ndarray, events_regimes: np.ndarray, n_events: int,
-    y: np.ndarray,
+    kind: int, t: float, s: np.ndarray, regime: int, pars: np.ndarray, m: tuple,
+    events_tau: np.ndarray, events_kind: np.ndarray, events_state: np.ndarray,
+    events_regimes: np.ndarray, n_events: int, y: np.ndarray,
 ) -> tuple[int, int]:  # fmt: skip
     """The event loop's event on the rotor: ``apply_and_record``."""
     return apply_and_record(kind, t, s, regime, pars, events_tau, events_kind, events_state,

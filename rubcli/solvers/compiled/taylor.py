@@ -115,7 +115,14 @@ from rubcli.model import (
     slip_velocity_rate,
     slip_velocity_value,
 )
-from rubcli.solvers.compiled.event_loop import SCAN_NONE, STOP_NONE, event_loop
+from rubcli.solvers.compiled.event_loop import (
+    LOOP_APPLIES,
+    PYTHON_LOCATES,
+    SCAN_NONE,
+    STOP_NONE,
+    event_loop,
+    no_restart,
+)
 from rubcli.solvers.compiled.jit import (
     STOP_PYTHON,
     STOP_SMALL_STEP,
@@ -1096,15 +1103,7 @@ def _commit(y: np.ndarray, y_new: np.ndarray, m: tuple) -> None:
         y[i] = y_new[i]
 
 
-@jit_inline
-def _restart(
-    tau: float, y: np.ndarray, t_end: float, pars: np.ndarray, regime: int, m: tuple, c: tuple
-) -> tuple:
-    """A series starts from each step's own state: nothing to restart."""
-    return c
-
-
-_loop = event_loop(4, _step, _precheck, _locate, _state_at, rotor_project, _commit, _restart,
+_loop = event_loop(4, _step, _precheck, _locate, _state_at, rotor_project, _commit, no_restart,
                    rotor_apply)  # fmt: skip
 
 
@@ -1143,6 +1142,7 @@ def advance_taylor(
     tau, t_new, k, steps, reason, regime, n_events, at_event, _ = _loop(
         tau, y, np.empty(4), t_end, pars, regime, t_eval, out_states, out_regimes, k,
         max_steps, starts, band, np.empty(2), events_tau, events_kind, events_state,
-        events_regimes, compiled_events, np.empty(4), m, (order, rtol, atol, 0.0),
+        events_regimes, LOOP_APPLIES if compiled_events else PYTHON_LOCATES, np.empty(4),
+        m, (order, rtol, atol, 0.0),
     )  # fmt: skip
     return tau, t_new, k, steps, reason, regime, n_events, at_event

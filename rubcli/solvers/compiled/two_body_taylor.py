@@ -45,7 +45,7 @@ from rubcli.solvers.compiled.driven_taylor import (
     extended_step_size,
     polynomial_at,
 )
-from rubcli.solvers.compiled.event_loop import STOP_NONE
+from rubcli.solvers.compiled.event_loop import STOP_NONE, no_restart
 from rubcli.solvers.compiled.extended_loop import keep_nothing, step_loop
 from rubcli.solvers.compiled.jit import (
     STOP_PYTHON,
@@ -183,7 +183,7 @@ def _dense(tau, y, m, c):
     return tau, m[0], c[0]
 
 
-_loop = step_loop(_step, _intervals, keep_nothing, _dense, polynomial_at, two_body_into,
+_loop = step_loop(_step, _intervals, keep_nothing, no_restart, _dense, polynomial_at, two_body_into,
                   two_body_project, N_STATES, MAX_SCAN)  # fmt: skip
 
 
@@ -192,19 +192,21 @@ def advance_two_body_taylor(
     tau: float, y: np.ndarray, t_end: float, ctx: tuple[np.ndarray, np.ndarray], regime: int,
     order: int, rtol: float, atol: float, t_eval: np.ndarray, out_states: np.ndarray,
     out_regimes: np.ndarray, k: int, max_steps: int, starts: tuple[bool, bool, bool],
-    band: float, found: np.ndarray, C: np.ndarray, info: np.ndarray,
-) -> tuple[float, float, int, int, int]:  # fmt: skip
-    """Taylor steps of the two bodies in one regime, up to the first event
-    (``extended_loop.step_loop``: ``found`` its time and kind). The step of an event, or a
-    pending one (reason EVENT), leaves its coefficients in ``C`` and its scan intervals in
-    ``info[0]``. Returns ``(tau, t_new, k, steps, reason)``."""
+    band: float, found: np.ndarray, C: np.ndarray, info: np.ndarray, events: tuple,
+    applies: bool,
+) -> tuple[float, float, int, int, int, int, int, bool]:  # fmt: skip
+    """Taylor steps of the two bodies with their events (``extended_loop.step_loop``:
+    applied in the loop and recorded in ``events``, or with ``applies`` False returned
+    at in ``found``). A step handed to Python (reason EVENT) leaves its coefficients in
+    ``C`` and its scan intervals in ``info[0]``. Returns ``(tau, t_new, k, steps,
+    reason, regime, n_events, at_event)``."""
     pars, st = ctx[0], ctx[1]
     # the scan grid's frequency bound: the spin, and the ring's own and the contact's on it
     m_inv = st[S_INV_MASS]
     ring = math.sqrt(max(st[S_KX], st[S_KY]) * m_inv) + math.sqrt(pars[P_K] * m_inv)
     m = (C, np.zeros((SERIES_ROWS, MAX_ORDER + 1)), info)
-    tau, t_new, k, steps, reason, _ = _loop(
+    tau, t_new, k, steps, reason, regime, n_events, at_event, _ = _loop(
         tau, y, t_end, ctx, regime, t_eval, out_states, out_regimes, k, max_steps,
-        starts, band, found, np.empty(N_STATES), m, (order, rtol, atol, ring),
+        starts, band, found, np.empty(N_STATES), events, applies, m, (order, rtol, atol, ring),
     )  # fmt: skip
-    return tau, t_new, k, steps, reason
+    return tau, t_new, k, steps, reason, regime, n_events, at_event

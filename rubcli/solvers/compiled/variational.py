@@ -143,11 +143,13 @@ def advance_rotor(
     regime: int, rtol: float, atol: float, t_eval: np.ndarray, out_states: np.ndarray,
     out_regimes: np.ndarray, k: int, max_steps: int, starts: tuple[bool, bool, bool],
     band: float, found: np.ndarray, y_new: np.ndarray, f_new: np.ndarray, F: np.ndarray,
-) -> tuple[float, float, float, int, int, int, int]:  # fmt: skip
-    """The rotor's loop's steps up to a pending one (``dop853_loop``'s advance)."""
-    return _rotor_advance(tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, t_eval,
-                          out_states, out_regimes, k, max_steps, starts, band, found, y_new, f_new,
-                          F)  # fmt: skip
+    events: tuple, applies: bool,
+) -> tuple[float, float, float, int, int, int, int, int, int, bool]:  # fmt: skip
+    """The rotor's loop's steps with their events (``dop853_loop``'s advance)."""
+    return _rotor_advance(
+        tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, t_eval, out_states, out_regimes, k,
+        max_steps, starts, band, found, y_new, f_new, F, events, applies,
+    )  # fmt: skip
 
 
 @jit
@@ -165,8 +167,10 @@ def advance_variational(
     regime: int, rtol: float, atol: float, t_eval: np.ndarray, out_states: np.ndarray,
     out_regimes: np.ndarray, k: int, max_steps: int, starts: tuple[bool, bool, bool],
     band: float, found: np.ndarray, y_new: np.ndarray, f_new: np.ndarray, F: np.ndarray,
-) -> tuple[float, float, float, int, int, int, int]:  # fmt: skip
-    """The variational loop's steps up to a pending one (``dop853_loop``'s advance)."""
-    return _variational_advance(tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, t_eval,
-                                out_states, out_regimes, k, max_steps, starts, band, found, y_new,
-                                f_new, F)  # fmt: skip
+    events: tuple, applies: bool,
+) -> tuple[float, float, float, int, int, int, int, int, int, bool]:  # fmt: skip
+    """The variational loop's steps with their events (``dop853_loop``'s advance)."""
+    return _variational_advance(
+        tau, y, f, h_abs, t_end, ctx, regime, rtol, atol, t_eval, out_states, out_regimes, k,
+        max_steps, starts, band, found, y_new, f_new, F, events, applies,
+    )  # fmt: skip
