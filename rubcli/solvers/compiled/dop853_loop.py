@@ -127,7 +127,8 @@ def _dop853_loop(accepted_step: Callable[..., tuple], dense_coefficients: Callab
         )  # fmt: skip
         return tau, t_new, c[0], k, steps, c[1], reason, regime, n_events, at_event
 
-    return jit(advance)
+    # inlined into the entry point (advance_dop853, advance_paper_dop853)
+    return jit_inline(advance)
 
 
 # the loop on any machine and speed, and on the paper's machine at a constant speed (its

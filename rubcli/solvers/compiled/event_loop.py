@@ -59,7 +59,7 @@ def event_loop(
     n_states: int, step: Callable[..., tuple], precheck: Callable[..., int],
     locate: Callable[..., tuple], dense_at: Callable[..., None],
     project: Callable[..., None], commit: Callable[..., None],
-    restart: Callable[..., tuple], apply: Callable[..., tuple],
+    restart: Callable[..., tuple] | None, apply: Callable[..., tuple] | None,
 ) -> Callable[..., tuple]:  # fmt: skip
     """The loop of one method on a system of ``n_states`` states (the first four the
     rotor's position and velocity), compiled with its parts (``jit_inline``; ``ctx`` the
@@ -82,7 +82,9 @@ def event_loop(
     - ``apply(kind, t, row, regime, ctx, m, events_tau, events_kind, events_state,
       events_regimes, n_events, y) -> (new regime, kind as recorded)``: the event's rule,
       its record as entry ``n_events`` and the state ``y`` the next segment starts from,
-      and ``restart(tau, y, t_end, ctx, regime, m, c) -> c`` then begins that segment.
+      and ``restart(tau, y, t_end, ctx, regime, m, c) -> c`` then begins that segment;
+      None for a system whose runs all apply their own events (``orbits``' flows): the
+      loop then returns at every event it locates, and does not compile the branch.
 
     The loop ``(tau, y, y_new, t_end, ctx, regime, t_eval, out_states, out_regimes, k,
     max_steps, starts, band, found, events_tau, events_kind, events_state,
@@ -104,6 +106,7 @@ def event_loop(
     the step's own; ``at_event``: ``tau`` is the last event's time.
     """
     N = n_states
+    python_only = apply is None  # a closure constant: numba prunes the branch it decides
 
     def loop(
         tau: float, y: np.ndarray, y_new: np.ndarray, t_end: float, ctx: Any, regime: int,
@@ -154,7 +157,7 @@ def event_loop(
                 tau = t_new
                 starts = (False, False, True)
                 continue
-            if events == PYTHON_APPLIES:
+            if python_only or events == PYTHON_APPLIES:
                 found[0], found[1] = t_stop, float(kind)
                 return tau, t_new, k, steps, STOP_EVENT, regime, n_events, at_event, c
             steps += 1

@@ -206,7 +206,7 @@ def step_loop(
     step: Callable[..., tuple], intervals: Callable[..., int], commit: Callable[..., None],
     restart: Callable[..., tuple], dense: Callable[..., tuple], dense_at: Callable[..., None],
     into: Callable[..., float], project: Callable[..., None], n_states: int, max_scan: int,
-    events_into: Callable[..., float] | None = None,
+    events_into: Callable[..., float] | None = None, loop_applies: bool = True,
 ) -> Callable[..., tuple]:  # fmt: skip
     """The one event loop (``event_loop``) of one method on one system (``into``,
     ``project``, ``n_states``: module docstring), compiled with the method's parts
@@ -226,6 +226,8 @@ def step_loop(
     ``events_into``: the right-hand side the pre-check and the event search evaluate
     (default ``into``): the first states' alone, where the system carries more that the
     events do not read (a variational matrix: ``compiled.variational``).
+    ``loop_applies`` False: no run of the system has the loop apply its events (the
+    variational systems), so the loop is compiled without that branch.
 
     ``advance(tau, y, t_end, ctx, regime, t_eval, out_states, out_regimes, k,
     max_steps, starts, band, found, y_new, events, applies, m, c) -> (tau, t_new, k,
@@ -329,7 +331,8 @@ def step_loop(
     loop = event_loop(
         N, jit_inline(method_step), jit_inline(precheck), jit_inline(locate),
         jit_inline(state_at), jit_inline(sample_project), jit_inline(system_commit),
-        jit_inline(method_restart), jit_inline(apply),
+        jit_inline(method_restart) if loop_applies else None,
+        jit_inline(apply) if loop_applies else None,
     )  # fmt: skip
 
     def advance(
@@ -348,7 +351,8 @@ def step_loop(
             LOOP_APPLIES if applies else PYTHON_APPLIES, np.empty(N), (m, work), c,
         )  # fmt: skip
 
-    return jit(advance)
+    # inlined into the method's entry point: one compiled function fewer per system
+    return jit_inline(advance)
 
 
 @jit
@@ -359,11 +363,11 @@ def _dop853_dense(t: float, dense: Any, row: np.ndarray) -> None:
 
 def dop853_loop(
     into: Callable[..., float], project: Callable[..., None], n_states: int,
-    events_into: Callable[..., float] | None = None,
+    events_into: Callable[..., float] | None = None, loop_applies: bool = True,
 ) -> tuple[Callable[..., float], Callable[..., tuple]]:  # fmt: skip
     """scipy's DOP853 on the system (``into``, ``project``, ``n_states``: module
-    docstring; ``events_into``: ``step_loop``'s) in ``step_loop``, compiled once per
-    system: ``(initial_step, advance)``, ``advance`` as below."""
+    docstring; ``events_into``, ``loop_applies``: ``step_loop``'s) in ``step_loop``,
+    compiled once per system: ``(initial_step, advance)``, ``advance`` as below."""
     N = n_states
 
     def stage(t: float, y: np.ndarray, ctx: Any, regime: int, out: np.ndarray) -> None:
@@ -415,7 +419,7 @@ def dop853_loop(
 
     loop = step_loop(jit_inline(step), jit_inline(intervals), jit_inline(commit),
                      jit_inline(restart), jit_inline(dense), _dop853_dense, into, project, N,
-                     DOP_SCAN_POINTS, events_into)  # fmt: skip
+                     DOP_SCAN_POINTS, events_into, loop_applies)  # fmt: skip
 
     def advance(
         tau: float, y: np.ndarray, f: np.ndarray, h_abs: float, t_end: float, ctx: Any,
@@ -435,4 +439,5 @@ def dop853_loop(
         )  # fmt: skip
         return tau, t_new, c[0], k, steps, c[1], reason, regime, n_events, at_event
 
-    return initial_step, jit(advance)
+    # inlined into the system's entry point (``compiled.drive``'s and the others')
+    return initial_step, jit_inline(advance)

@@ -100,8 +100,13 @@ def two_body_variational_into(row: np.ndarray, ctx: tuple, regime: int, out: np.
 
 _initial_step, _advance = dop853_loop(two_body_into, two_body_project, N_STATES)
 # (the events read the ten states: the search evaluates their right-hand side alone)
+# (the variational flow applies its own events, Phi jumping at each: the loop returns)
 _variational_initial, _variational_advance = dop853_loop(
-    two_body_variational_into, two_body_project, N_VARIATIONAL, two_body_into
+    two_body_variational_into,
+    two_body_project,
+    N_VARIATIONAL,
+    two_body_into,
+    loop_applies=False,
 )
 
 

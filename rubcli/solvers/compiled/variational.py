@@ -119,10 +119,12 @@ def rotor_columns(S: np.ndarray, pars: np.ndarray, regime: int) -> tuple[np.ndar
     return dS, T
 
 
-_rotor_initial, _rotor_advance = dop853_loop(rotor_into, rotor_project, N_ROTOR)
+# orbits' flows apply their own events (Phi jumps at each): the loops return at each
+_rotor_initial, _rotor_advance = dop853_loop(rotor_into, rotor_project, N_ROTOR,
+                                             loop_applies=False)  # fmt: skip
 # (the events read the rotor's six states: the search evaluates their right-hand side alone)
 _variational_initial, _variational_advance = dop853_loop(
-    variational_into, rotor_project, N_VARIATIONAL, rotor_into
+    variational_into, rotor_project, N_VARIATIONAL, rotor_into, loop_applies=False
 )
 
 
