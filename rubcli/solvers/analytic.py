@@ -58,6 +58,7 @@ from rubcli.solvers.events import (
     start_flags,
 )
 from rubcli.solvers.registry import StepOptions
+from rubcli.solvers.shared import EVENT_BUFFER
 
 if TYPE_CHECKING:
     from rubcli.model import FloatOrArray
@@ -79,7 +80,6 @@ FREE_FIRST_CHUNK = 16
 EIGVEC_COND_LIMIT = 1e10  # above this the eigenbasis is not trusted: use expm
 KERNEL_CHUNK_STEPS = 4096  # compiled steps per call between wall-time and progress checks
 RESTART_BAND = 1e-12  # the event search's restart band (earliest_event's default)
-EVENT_BUFFER = 256  # events the compiled loop may apply before it returns to record them
 
 
 class FreeFlight:

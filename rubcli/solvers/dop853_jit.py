@@ -41,6 +41,7 @@ from rubcli.solvers.events import (
 )
 from rubcli.solvers.registry import CompiledOptions, ToleranceOptions
 from rubcli.solvers.shared import (
+    EVENT_BUFFER,
     RESTART_BAND_FLOOR,
     SCAN_POINTS,
     Dop853Dense,
@@ -49,7 +50,6 @@ from rubcli.solvers.shared import (
 )
 
 CHUNK_STEPS = 2000  # committed steps per kernel call: budget and progress checks between
-EVENT_BUFFER = 256  # events the kernel may apply before it returns to flush them
 
 
 class Dop853Stepper:

@@ -62,11 +62,16 @@ from rubcli.solvers.events import (
     switch_rule,
 )
 from rubcli.solvers.registry import SPECS
-from rubcli.solvers.shared import SCAN_POINTS, Dop853Dense, OdeSolverStepper, kernel_failure
+from rubcli.solvers.shared import (
+    EVENT_BUFFER,
+    SCAN_POINTS,
+    Dop853Dense,
+    OdeSolverStepper,
+    kernel_failure,
+)
 
 Dense = Callable[[float], np.ndarray]  # a step's dense output (of one time, or of times)
 CHUNK_STEPS = 2000  # committed steps per kernel call: budget and progress checks between
-EVENT_BUFFER = 256  # events a kernel may apply before it returns to flush them
 
 
 @dataclass(frozen=True)

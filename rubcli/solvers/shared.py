@@ -26,6 +26,8 @@ if TYPE_CHECKING:
 # an event began does not see it again) is max(RESTART_BAND_FLOOR, rtol).
 RESTART_BAND_FLOOR = 1e-12
 SCAN_POINTS = 4  # sub-intervals per step in which events are scanned on the dense output
+# events a compiled loop may apply before it returns for its stepper to record them
+EVENT_BUFFER = 256
 
 
 def _column_derivatives(fun):
