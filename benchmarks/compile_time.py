@@ -82,7 +82,8 @@ def main(argv=None) -> int:
     ap.add_argument("--tag", default="", help="suffix of the output file")
     opts = ap.parse_args(argv)
     sources = opts.source or [ROOT]
-    labels = opts.label or [str(s) for s in sources]
+    # the tree a label names, never a machine's path: "this tree" for the default
+    labels = opts.label or ["this tree" if not opts.source else str(s) for s in sources]
     if len(labels) != len(sources):
         ap.error("give one --label per --source")
     methods = opts.method or list(METHODS)
