@@ -120,28 +120,28 @@ def step_parts(
         margin_d = EVENT_MARGIN * (1.0 + rate_scale)
         return _may_cross(grid, hv, hd, n, margin_v, margin_d, run_time(False), run_time(True))
 
-    def stick_margin(
-        t: float, dense: Any, ctx: Any, sign: float, row: np.ndarray, out: np.ndarray
-    ) -> float:
-        """The side ``sign`` of the friction cone in stick at t: sign T - mu K (z - 1)
-        (1 + margin), T the system's stick friction."""
-        pars = ctx[0]
-        dense_at(t, dense, row)
-        T = into(row, ctx, STICK_REGIME, out)
-        limit = pars[P_MU] * pars[P_K] * (math.hypot(row[0], row[1]) - 1.0)
-        return sign * T - limit * (1.0 + STICK_EXIT_MARGIN)
-
     def stick_may_exit(
-        grid: np.ndarray, dense: Any, ctx: Any, n: int, hv: np.ndarray, hd: np.ndarray,
-        row: np.ndarray, out: np.ndarray,
+        grid: np.ndarray, dense: Any, ctx: Any, n: int, S: np.ndarray, hv: np.ndarray,
+        hd: np.ndarray, row: np.ndarray, out: np.ndarray,
     ) -> bool:  # fmt: skip
-        """The pre-check of a stick exit on each side, the rate by central differences."""
+        """The pre-check of a stick exit on each side of the friction cone, ``sign T - mu
+        K (z - 1) (1 + margin)`` (T the system's stick friction), its rate by central
+        differences. T and the cone at each grid point and its two neighbours are
+        evaluated once for both sides, into ``S``'s first six columns (free after the
+        surface's pre-check; a system has at least six states)."""
+        pars = ctx[0]
         d = 1e-6 * max(1.0, grid[n] - grid[0])
+        for i in range(n + 1):
+            for j in range(3):
+                t = grid[i] if j == 0 else (grid[i] + d if j == 1 else grid[i] - d)
+                dense_at(t, dense, row)
+                S[i, 2 * j] = into(row, ctx, STICK_REGIME, out)
+                S[i, 2 * j + 1] = pars[P_MU] * pars[P_K] * (math.hypot(row[0], row[1]) - 1.0)
         for sign in (1.0, -1.0):
             for i in range(n + 1):
-                hv[i] = stick_margin(grid[i], dense, ctx, sign, row, out)
-                up = stick_margin(grid[i] + d, dense, ctx, sign, row, out)
-                down = stick_margin(grid[i] - d, dense, ctx, sign, row, out)
+                hv[i] = sign * S[i, 0] - S[i, 1] * (1.0 + STICK_EXIT_MARGIN)
+                up = sign * S[i, 2] - S[i, 3] * (1.0 + STICK_EXIT_MARGIN)
+                down = sign * S[i, 4] - S[i, 5] * (1.0 + STICK_EXIT_MARGIN)
                 hd[i] = (up - down) / (2.0 * d)
             if _may_cross_relative(grid, hv, hd, n):
                 return True
@@ -161,11 +161,10 @@ def step_parts(
         if regime == FREE_REGIME or ctx[0][P_MU] == 0.0:
             return False
         if regime == STICK_REGIME:
-            return stick_may_exit(grid, dense, ctx, n, hv, hd, row, out)
+            return stick_may_exit(grid, dense, ctx, n, S, hv, hd, row, out)
         return slip_may_reverse(grid, S, ctx, regime, n, hv, hd, row, out)
 
     slip_may_reverse = jit(slip_may_reverse)
-    stick_margin = jit(stick_margin)
     stick_may_exit = jit(stick_may_exit)
     return jit(may_have_event)
 
