@@ -81,7 +81,7 @@ from rubcli.solvers.events import (
 )
 
 
-def step_parts(
+def system_precheck(
     into: Callable[..., float], n_states: int, dense_at: Callable[..., None]
 ) -> Callable[..., bool]:
     """The event pre-check of a step of the system (``into``, ``n_states``: module
@@ -102,7 +102,7 @@ def step_parts(
         hd: np.ndarray, row: np.ndarray, out: np.ndarray,
     ) -> bool:  # fmt: skip
         """The pre-check of the slip reversal, h = -sign v_r, and its rate from the
-        accelerations (``ExtendedStepper._turning``)."""
+        accelerations (the spin's, ``Rp w'``, among them)."""
         Rp = ctx[0][P_RP]
         sign = float(regime)
         value_scale = 0.0
@@ -246,7 +246,7 @@ def step_loop(
     """
     N = n_states
     rule_into = events_into or into
-    may_have_event = step_parts(rule_into, N, dense_at)
+    may_have_event = system_precheck(rule_into, N, dense_at)
     search = system_search(dense_at, rule_into)
 
     def method_step(
