@@ -1,4 +1,6 @@
-"""The compiled DOP853 loop with its events: ``advance_dop853`` (``dop853-jit``)."""
+"""``dop853-jit``'s parts in the one compiled event loop (``event_loop``): scipy's DOP853
+step, its event pre-check and search on the step's dense output, and the entry points
+``advance_dop853`` and ``advance_paper_dop853``."""
 
 from __future__ import annotations
 
