@@ -117,8 +117,8 @@ DRIVEN_SYSTEM = System(
 
 def solve_driven(problem: Problem, options: ToleranceOptions, name: str) -> Solution:
     """A driven rotor by the method ``name``: a scipy method, ``dop853-jit`` or
-    ``taylor`` (module docstring). The compiled loops always locate the events compiled
-    (``compiled_events`` changes nothing here); ``dop853-jit`` with ``compiled=False``
+    ``taylor`` (module docstring). The compiled loops always locate and apply the events
+    compiled (``compiled_events`` changes nothing here); ``dop853-jit`` with ``compiled=False``
     (or its kernels unusable) is scipy's ``dop853`` under its name, and ``taylor`` has no
     pure-Python path, as at a constant speed."""
     if DRIVEN not in SPECS[name].features:

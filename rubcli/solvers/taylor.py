@@ -42,10 +42,9 @@ from rubcli.solvers.shared import RESTART_BAND_FLOOR, kernel_failure, locate_in_
 # steps per kernel call, with budget and progress checks between: 20,000 steps are 5-20
 # ms (0.25-1 us a step); a call costs ~20 us of dispatch (2,000 cost 1.3 % at mu = 0.03)
 CHUNK_STEPS = 20_000
-# events the kernel may apply before it returns to flush them (the others':
-# shared.EVENT_BUFFER, 256); a
-# kernel call costs ~20 us of dispatch, so a run with an event every 3 steps returns
-# only every 4096 events (and CHUNK_STEPS steps)
+# events the kernel may apply before it returns to flush them (the other compiled
+# loops': shared.EVENT_BUFFER, 256); a kernel call costs ~20 us of dispatch, so a run
+# with an event every 3 steps returns only every 4096 events (and CHUNK_STEPS steps)
 EVENT_BUFFER = 4096
 
 

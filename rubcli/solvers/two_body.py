@@ -139,8 +139,8 @@ def sample_derivatives(solution: Solution) -> tuple[np.ndarray, np.ndarray]:
 
 def solve_two_body(problem: Problem, options: Options, name: str) -> Solution:
     """A stator with its own mass by the method ``name``: a scipy method, ``dop853-jit``,
-    ``taylor`` (module docstring; the compiled loops always locate the events compiled,
-    so ``compiled_events`` changes nothing here) or
+    ``taylor`` (module docstring; the compiled loops always locate and apply the events
+    compiled, so ``compiled_events`` changes nothing here) or
     ``analytic`` (``solvers.two_body_analytic``)."""
     if MOVING_STATOR not in SPECS[name].features:
         raise ValueError(f"{name} does not run a stator with its own mass")

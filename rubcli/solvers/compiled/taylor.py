@@ -244,7 +244,7 @@ def _profile_forcing(t0, pars, order, W):
         fx[k], fy[k] = e * gx, e * gy
 
 
-@jit
+@jit_inline
 def taylor_coefficients(
     t0: float, s: np.ndarray, pars: np.ndarray, regime: int, order: int, C: np.ndarray,
     W: np.ndarray,
@@ -254,8 +254,9 @@ def taylor_coefficients(
     WORK_COLS) is work space, left holding the series of q = z^2 (row 0) up to
     ``order`` in every regime, of P = w / z (rows 4, 5) in slip (to ``order`` with
     friction, ``order - 1`` without) and of u = 1 / z (row 2) in stick, and on a leg of
-    a speed profile the unbalance force's (``_profile_forcing``). (The step loop,
-    ``advance_taylor``, calls the free and slip series itself: see there.)"""
+    a speed profile the unbalance force's (``_profile_forcing``). Inlined into the event
+    loop's step (``_step``), which runs without reference counting: called, it would
+    count the references of its arrays, and of the series' it calls, on every step."""
     for i in range(4):
         C[i, 0] = s[i]
     fr, fi = _forcing(pars[P_ETA], pars[P_PHI0], t0)
@@ -1028,21 +1029,7 @@ def _step(
     drow, row)``, ``c = (order, rtol, atol, eps)``."""
     C, W = m[0], m[1]
     order, rtol, atol, _ = c
-    # the free and slip series called from here, not through taylor_coefficients: a
-    # function taking the step's arrays and calling another reference-counts them on
-    # every call (atomic operations: a fifth of a step's time); the series are leaves
-    if regime == STICK_REGIME:
-        taylor_coefficients(tau, y, pars, regime, order, C, W)
-    else:
-        for i in range(4):
-            C[i, 0] = y[i]
-        fr, fi = _forcing(pars[P_ETA], pars[P_PHI0], tau)
-        if pars[P_RATE] != 0.0:
-            _profile_forcing(tau, pars, order, W)
-        if regime == FREE_REGIME:
-            _free_coefficients(fr, fi, pars, order, C, W)
-        else:
-            _slip_coefficients(fr, fi, pars, float(regime), order, C, W)
+    taylor_coefficients(tau, y, pars, regime, order, C, W)
     h, eps = step_size(C, order, rtol, atol)
     t_new = min(tau + h, t_end)
     h = t_new - tau
