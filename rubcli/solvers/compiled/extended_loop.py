@@ -81,6 +81,21 @@ from rubcli.solvers.events import (
 )
 
 
+@functools.cache
+def stick_law(into: Callable[..., float]) -> Callable[..., tuple[float, float]]:
+    """The system's stick law at a state, compilable (inlined): ``law(row, ctx, out) ->
+    (T, limit)``, T the friction that holds v_r = 0 (``into`` in stick; ``out`` work) and
+    limit the cone's mu K (z - 1). The pre-check, the search's stick margin and the
+    event's rule read it."""
+
+    def law(row: np.ndarray, ctx: Any, out: np.ndarray) -> tuple[float, float]:
+        pars = ctx[0]
+        T = into(row, ctx, STICK_REGIME, out)
+        return T, pars[P_MU] * pars[P_K] * (math.hypot(row[0], row[1]) - 1.0)
+
+    return jit_inline(law)
+
+
 def system_precheck(
     into: Callable[..., float], n_states: int, dense_at: Callable[..., None]
 ) -> Callable[..., bool]:
@@ -96,6 +111,7 @@ def system_precheck(
     has left the surface it began on (the loop searches a segment's first step
     whatever)."""
     N = n_states
+    law = stick_law(into)
 
     def slip_may_reverse(
         grid: np.ndarray, S: np.ndarray, ctx: Any, regime: int, n: int, hv: np.ndarray,
@@ -129,14 +145,12 @@ def system_precheck(
         differences. T and the cone at each grid point and its two neighbours are
         evaluated once for both sides, into ``S``'s first six columns (free after the
         surface's pre-check; a system has at least six states)."""
-        pars = ctx[0]
         d = 1e-6 * max(1.0, grid[n] - grid[0])
         for i in range(n + 1):
             for j in range(3):
                 t = grid[i] if j == 0 else (grid[i] + d if j == 1 else grid[i] - d)
                 dense_at(t, dense, row)
-                S[i, 2 * j] = into(row, ctx, STICK_REGIME, out)
-                S[i, 2 * j + 1] = pars[P_MU] * pars[P_K] * (math.hypot(row[0], row[1]) - 1.0)
+                S[i, 2 * j], S[i, 2 * j + 1] = law(row, ctx, out)
         for sign in (1.0, -1.0):
             for i in range(n + 1):
                 hv[i] = sign * S[i, 0] - S[i, 1] * (1.0 + STICK_EXIT_MARGIN)
@@ -192,10 +206,10 @@ def system_search(
         if deriv:
             into(row, ctx[1], ctx[2], drow)
 
+    law = stick_law(into)
+
     def margin(ctx: Any, t: float, pars: np.ndarray, sign: float, row: np.ndarray) -> float:
-        out = np.empty(row.shape[0])
-        T = into(row, ctx[1], STICK_REGIME, out)
-        limit = pars[P_MU] * pars[P_K] * (math.hypot(row[0], row[1]) - 1.0)
+        T, limit = law(row, ctx[1], np.empty(row.shape[0]))
         return sign * T - limit * (1.0 + STICK_EXIT_MARGIN)
 
     return event_search(jit(ev), compile=jit, margin=jit(margin))[0]
@@ -248,6 +262,7 @@ def step_loop(
     rule_into = events_into or into
     may_have_event = system_precheck(rule_into, N, dense_at)
     search = system_search(dense_at, rule_into)
+    law = stick_law(rule_into)
 
     def method_step(
         tau: float, y: np.ndarray, t_end: float, ctx: Any, regime: int, m: tuple, c: tuple,
@@ -306,11 +321,10 @@ def step_loop(
         """The system's event: ``events.switch_rule`` with its stick friction, its
         projection where stick begins or ends, the record, and the state ``y`` from
         which the next segment starts."""
-        pars, out = ctx[0], m[1][5]
+        pars = ctx[0]
         needed = limit = 0.0
         if kind != EXIT and kind != ENTRY:  # the rule reads the stick law
-            needed = rule_into(row, ctx, STICK_REGIME, out)
-            limit = pars[P_MU] * pars[P_K] * (math.hypot(row[0], row[1]) - 1.0)
+            needed, limit = law(row, ctx, m[1][5])
         new, recorded, to_project = switch_rule(
             kind, row[0], row[1], row[2], row[3], regime, pars[P_MU], pars[P_RP] * row[SPEED],
             needed, limit,
