@@ -395,9 +395,10 @@ def test_ill_conditioned_adaptive_steps_are_left_to_python(method, fig3_params, 
 
 
 def test_adaptive_kernel_hands_back_whole_pairs(fig3_params):
-    """advance_contact_adaptive on its own: a pair that does not fit the step limit goes
-    to Python untouched (h as given), one that fits is taken as two steps, and at t_end
-    it stops with the controller's proposed step."""
+    """advance_contact_adaptive on its own: with no room for a pair it takes none (h and
+    the state as given), a pair is taken as two steps, at t_end it stops with the
+    controller's proposed step, and a pair whose scan grid outgrows the buffers is
+    handed back untaken with the size it needs."""
     p = fig3_params(0.02)
     r = model.synchronous_rub_radii(p)[-1]
     s0 = model.synchronous_rub(0.0, p, r)
@@ -414,34 +415,30 @@ def test_adaptive_kernel_hands_back_whole_pairs(fig3_params):
         control.MIN_STEP_FRACTION * p.period,
     )
 
-    def advance(limit, t_end=t_eval[-1]):
+    def advance(pairs, size=analytic.KERNEL_SCAN_POINTS):
+        state = s0.copy()
         out = np.full((t_eval.size, 4), np.nan)
-        return compiled.advance_contact_adaptive(
-            True,
-            0.0,
-            s0,
-            h0,
-            t_end,
-            model.SLIP_POSITIVE,
-            pars,
-            t_eval,
-            out,
-            1,
-            limit,
-            analytic.CONTACT_SCAN_FRACTION,
-            analytic.EIGVEC_COND_LIMIT,
-            (False, False, False),
-            settings,
-        )
+        regimes = np.zeros(t_eval.size, dtype=np.int64)
+        result = compiled.advance_contact_adaptive(
+            True, 0.0, state, h0, t_eval[-1], model.SLIP_POSITIVE, pars, t_eval, out,
+            regimes, 1, pairs, analytic.CONTACT_SCAN_FRACTION, analytic.EIGVEC_COND_LIMIT,
+            (False, False, False), settings, size,
+        )  # fmt: skip
+        return state, regimes, result
 
-    tau, state, k, steps, rejected, h, reason = advance(1)
-    assert (tau, k, steps, rejected, h, reason) == (0.0, 1, 0, 0, h0, compiled.STOP_PYTHON)
+    state, _, (tau, k, steps, rejected, h, reason, _) = advance(0)
+    assert (tau, k, steps, rejected, h, reason) == (0.0, 1, 0, 0, h0, compiled.STOP_LIMIT)
     np.testing.assert_array_equal(state, s0)
-    tau, _, _, steps, _, h, reason = advance(3)
+    state, _, (tau, _, steps, _, h, reason, _) = advance(1)
     assert (steps, reason) == (2, compiled.STOP_LIMIT) and tau > 0.0 and h != h0
-    tau, _, k, steps, _, h, reason = advance(10**9)
+    assert not np.array_equal(state, s0)
+    _, regimes, (tau, k, steps, _, h, reason, _) = advance(10**9)
     assert reason == compiled.STOP_END and tau >= t_eval[-1] and k == t_eval.size
     assert steps % 2 == 0 and 0.0 < h <= 4 * settings[4]
+    assert np.all(regimes[1:] == model.SLIP_POSITIVE)
+    state, _, (tau, k, steps, _, h, reason, need) = advance(10**9, size=1)
+    assert (tau, k, steps, h, reason) == (0.0, 1, 0, h0, compiled.STOP_GROW) and need >= 2
+    np.testing.assert_array_equal(state, s0)
 
 
 # ------------------------------------------------------------------ scipy right-hand sides

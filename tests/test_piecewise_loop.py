@@ -201,3 +201,36 @@ def test_loop_chunks_and_event_buffer_do_not_change_the_run(method, monkeypatch)
     chunked = solve(prob, method, steps_per_period=400)
     assert len(whole.events) > 4
     assert_same(chunked, whole, 1e-12, 1e-12)
+
+
+@pytest.mark.parametrize("method", ANALYTIC)
+@pytest.mark.parametrize("analytic_tol", [None, 1e-8])
+@pytest.mark.parametrize("start", ["rest", "rolling"])
+def test_loop_grows_its_scan_buffers_without_changing_the_run(
+    method, analytic_tol, start, monkeypatch
+):
+    """The compiled loops start from scan buffers of one point: each step whose grid
+    needs more (free-flight chunks and slip steps from rest, stick steps of a twentieth
+    of a period on the rolling whirl) returns untaken for larger ones, and the run is the
+    one with large buffers (states to round-off: a slip step after a return starts its
+    eigensolver cold)."""
+    if start == "rest":
+        prob, spp = Problem.from_periods(FORCED, (0.0, 0.0, 0.0, 0.0), 20, 20), 400
+    else:
+        prob, spp = Problem.from_periods(FORCED, rolling_start(FORCED), 2, 20), 20
+    whole = solve(prob, method, steps_per_period=spp, analytic_tol=analytic_tol)
+    grown = []
+    grow = analytic.PiecewiseStepper._grow
+
+    def spy(self, need):
+        grown.append(need)
+        grow(self, need)
+
+    monkeypatch.setattr(analytic, "KERNEL_SCAN_POINTS", 1)
+    monkeypatch.setattr(analytic.PiecewiseStepper, "_grow", spy)
+    small = solve(prob, method, steps_per_period=spp, analytic_tol=analytic_tol)
+    assert grown and all(b > a for a, b in zip(grown, grown[1:], strict=False))
+    assert [e.kind for e in small.events] == [e.kind for e in whole.events]
+    for key in ("nsteps", "n_free_segments", "n_stick_steps", "n_contact_steps"):
+        assert small.stats[key] == whole.stats[key], key
+    assert_same(small, whole, 1e-12, 1e-12)

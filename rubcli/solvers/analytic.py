@@ -79,6 +79,9 @@ FREE_SCAN_CHUNK = 512  # scan intervals evaluated at once in free flight, at mos
 FREE_FIRST_CHUNK = 16
 EIGVEC_COND_LIMIT = 1e10  # above this the eigenbasis is not trusted: use expm
 KERNEL_CHUNK_STEPS = 4096  # compiled steps per call between wall-time and progress checks
+# the compiled loops' first scan buffers: a free flight's largest chunk and its end
+# points; a step with a finer grid has the loop return for larger ones
+KERNEL_SCAN_POINTS = FREE_SCAN_CHUNK + 2
 RESTART_BAND = 1e-12  # the event search's restart band (earliest_event's default)
 
 
@@ -387,6 +390,7 @@ class PiecewiseStepper:
         self.use_loop = self.use_kernel and analytic_tol is None
         self.adaptive_kernel = self.use_kernel and analytic_tol is not None
         self.python_next = False  # the loop handed the next step to Python
+        self.scan_size = KERNEL_SCAN_POINTS  # the compiled loops' scan buffers (points)
         if self.use_loop:
             self.free = np.empty(6)  # the free flight in progress (advance_piecewise's ff)
             self.free_active = False
@@ -451,30 +455,34 @@ class PiecewiseStepper:
         """Event-free adaptive slip steps in the kernel (``advance_contact_adaptive``);
         True if it took this advance's steps (False: a possible event or a step it
         leaves to Python is next)."""
-        k0 = run.k
-        args = (
-            self.linearisation == "polar", run.tau,
-            np.ascontiguousarray(run.state, dtype=float), self.h, run.t_end, run.regime,
-            self.pars, self.t_eval_c, run.states, run.k,
-            min(KERNEL_CHUNK_STEPS, run.steps_left), CONTACT_SCAN_FRACTION,
-            EIGVEC_COND_LIMIT, start_flags(run.last_kind),
-        )  # fmt: skip
+        pairs = min(KERNEL_CHUNK_STEPS, run.steps_left) // 2
+        if pairs == 0:  # the budget has no room for a pair: Python's half step
+            return False
+        state = np.array(run.state, dtype=float)
         # h comes back as the controller's next step (unchanged if no pair was taken);
         # the rejections of the pairs it took
-        tau, state, k, taken, rejected, self.h, reason = kernels.advance_contact_adaptive(
-            *args, self.control
-        )
+        tau, k, taken, rejected, self.h, reason, need = kernels.advance_contact_adaptive(
+            self.linearisation == "polar", run.tau, state, self.h, run.t_end, run.regime,
+            self.pars, self.t_eval_c, run.states, run.regimes, run.k, pairs,
+            CONTACT_SCAN_FRACTION, EIGVEC_COND_LIMIT, start_flags(run.last_kind),
+            self.control, self.scan_size,
+        )  # fmt: skip
         run.stats["n_rejected_steps"] += rejected
         run.tau, run.state, run.k = tau, state, k
         if taken:
             run.last_kind = NO_EVENT
-        run.regimes[k0:k] = run.regime
         run.stats["nsteps"] += taken
         run.stats["n_contact_steps"] += taken
         run.stats["n_compiled_steps"] += taken
+        if reason == kernels.STOP_GROW:  # the next advance calls it with larger buffers
+            self._grow(need)
         # at a possible event (or a step the kernel leaves to Python) the Python step is
         # taken from where the kernel stopped
         return reason not in (kernels.STOP_EVENT, kernels.STOP_PYTHON)
+
+    def _grow(self, need: int) -> None:
+        """Scan buffers of at least ``need`` points for the compiled loops' next call."""
+        self.scan_size = max(need, 2 * self.scan_size)
 
     def _contact_step(self, run: driver.Run):
         """One contact step in Python (fixed, or the next accepted adaptive half step)."""
@@ -514,22 +522,29 @@ class PiecewiseStepper:
             FREE_SCAN_FRACTION, CONTACT_SCAN_FRACTION, float(FREE_FIRST_CHUNK),
             float(FREE_SCAN_CHUNK),
         )  # fmt: skip
-        tau, regime, last_kind, k, n_ev, self.free_active, reason = kernels.advance_piecewise(
+        tau, k, regime, n_ev, at_event, reason, need = kernels.advance_piecewise(
             self.linearisation == "polar", run.tau, state, self.h, run.t_end, run.regime,
-            run.last_kind, self.pars, self.t_eval_c, run.states, run.regimes, run.k,
-            min(KERNEL_CHUNK_STEPS, run.steps_left), fractions, EIGVEC_COND_LIMIT,
-            RESTART_BAND, self.free, self.free_active, *self.events, counts,
+            start_flags(run.last_kind), self.pars, self.t_eval_c, run.states, run.regimes,
+            run.k, min(KERNEL_CHUNK_STEPS, run.steps_left), fractions, EIGVEC_COND_LIMIT,
+            RESTART_BAND, self.free, self.free_active, self.scan_size, *self.events, counts,
         )  # fmt: skip
         stats = run.stats
         for key, i in kernels.PIECEWISE_COUNTS.items():
             stats[key] += int(counts[i])
         run.tau, run.state, run.regime, run.k = tau, state, regime, k
+        # a free flight the loop began goes on in the next call (not one left to Python,
+        # nor one whose event filled the buffers: the loop has not begun it)
+        python = reason in (kernels.STOP_PYTHON, kernels.STOP_EVENT)
+        self.free_active = regime == model.FREE and not python and reason != kernels.STOP_FULL
         if not driver.record_kernel_events(run, n_ev, *self.events):
             return
-        run.last_kind = last_kind
+        if not at_event:  # a step was taken since the last event
+            run.last_kind = NO_EVENT
+        if reason == kernels.STOP_GROW:
+            self._grow(need)
         # a step the loop leaves to Python (conditioning, scan size, a non-finite
         # state): the Python step below is taken next, from where the loop stopped
-        self.python_next = reason == kernels.STOP_PYTHON
+        self.python_next = python
 
     def advance(self, run: driver.Run) -> None:
         if self.use_loop:

@@ -7,19 +7,19 @@
 - ``linalg.py``: LU and a small eigensolver for the 4x4 linearised contact systems;
 - ``propagators.py``: the analytic methods' linearised contact steps (Cartesian, polar);
 - ``precheck.py``: the conservative event pre-check of a step;
-- ``contact.py``: the analytic methods' compiled bulk of event-free slip steps (the
-  adaptive steps, ``analytic_tol``);
+- ``contact.py``: the analytic methods' linearised slip step's scan and pre-check, and
+  their adaptive slip steps (``analytic_tol``) in the event loop;
 - ``piecewise.py``: the analytic methods' free flight and stick step, and the ``ev``
   functions of their propagators for the event search;
-- ``piecewise_loop.py``: the analytic methods' compiled loop (fixed steps): every
+- ``piecewise_loop.py``: the analytic methods' fixed steps in the event loop: every
   regime, events located by ``events.event_search`` and applied in the loop;
 - ``rhs.py``: the regime-locked right-hand side for scipy and the compiled DOP853;
 - ``dop853.py``: scipy's DOP853 step, error norm, dense output and initial step, built
   per right-hand side (``dop853_step``: the rotor's four states, an extended system's);
 - ``roots.py``: the event pre-check and the event search (``events.event_search``) on a
   DOP853 step's dense output, and the application of an event;
-- ``event_loop.py``: the one step-and-event loop of every compiled method that takes
-  steps, built from the method's parts;
+- ``event_loop.py``: the one step-and-event loop of every compiled method, built from
+  the method's parts;
 - ``dop853_loop.py``: the compiled DOP853 method's parts in it (``dop853-jit``);
 - ``extended_loop.py``: a system with states beyond the rotor's four in it (its event
   pre-check, search and projection), and DOP853 on such a system, built per system;
@@ -49,6 +49,7 @@ from rubcli.solvers.compiled.jit import (
     STOP_END,
     STOP_EVENT,
     STOP_FULL,
+    STOP_GROW,
     STOP_LIMIT,
     STOP_PYTHON,
     STOP_REASONS,
@@ -61,6 +62,7 @@ __all__ = [
     "STOP_END",
     "STOP_EVENT",
     "STOP_FULL",
+    "STOP_GROW",
     "STOP_LIMIT",
     "STOP_PYTHON",
     "STOP_REASONS",

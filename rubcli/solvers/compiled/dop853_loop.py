@@ -86,7 +86,7 @@ def _dop853_loop(accepted_step: Callable[..., tuple], dense_coefficients: Callab
     ) -> None:
         _dop853_dense_at(t, tau, c[4], y, m[2], row)
 
-    def commit(y: np.ndarray, y_new: np.ndarray, m: tuple) -> None:
+    def commit(y: np.ndarray, y_new: np.ndarray, regime: int, m: tuple) -> None:
         f, f_new = m[0], m[1]
         for i in range(4):
             y[i] = y_new[i]

@@ -57,7 +57,7 @@ PYTHON_LOCATES, PYTHON_APPLIES, LOOP_APPLIES = 0, 1, 2
 
 def event_loop(
     n_states: int, step: Callable[..., tuple], precheck: Callable[..., int],
-    locate: Callable[..., tuple], dense_at: Callable[..., None],
+    locate: Callable[..., tuple] | None, dense_at: Callable[..., None],
     project: Callable[..., None], commit: Callable[..., None],
     restart: Callable[..., tuple] | None, apply: Callable[..., tuple] | None,
 ) -> Callable[..., tuple]:  # fmt: skip
@@ -74,11 +74,13 @@ def event_loop(
       SCAN_PYTHON where the step goes to Python whole; else what the search must scan
       (the method's code);
     - ``locate(tau, t_new, y, ctx, regime, m, c, scan, starts, band) -> (tau, kind)``:
-      the earliest event in the step (kind -1: none);
+      the earliest event in the step (kind -1: none); None for a method whose runs all
+      hand every step that may hold an event to Python (the analytic methods' adaptive
+      slip steps): the loop does not compile the search;
     - ``dense_at(t, tau, t_new, y, m, c, row)``: the step's state at t into ``row``;
     - ``project(t, row, ctx)``: a state in stick onto the rolling constraint (samples in
       stick are reported projected);
-    - ``commit(y, y_new, m)``: the step committed (``y`` takes ``y_new``);
+    - ``commit(y, y_new, regime, m)``: the step committed (``y`` takes ``y_new``);
     - ``apply(kind, t, row, regime, ctx, m, events_tau, events_kind, events_state,
       events_regimes, n_events, y) -> (new regime, kind as recorded)``: the event's rule,
       its record as entry ``n_events`` and the state ``y`` the next segment starts from,
@@ -106,7 +108,9 @@ def event_loop(
     the step's own; ``at_event``: ``tau`` is the last event's time.
     """
     N = n_states
-    python_only = apply is None  # a closure constant: numba prunes the branch it decides
+    # closure constants: numba prunes the branches they decide
+    python_locates = locate is None
+    python_only = apply is None
 
     def loop(
         tau: float, y: np.ndarray, y_new: np.ndarray, t_end: float, ctx: Any, regime: int,
@@ -138,7 +142,7 @@ def event_loop(
             t_stop = t_new
             scan = precheck(tau, t_new, y, y_new, ctx, regime, m, c, starts, band)
             if scan != SCAN_NONE:
-                if scan == SCAN_PYTHON or events == PYTHON_LOCATES:
+                if python_locates or scan == SCAN_PYTHON or events == PYTHON_LOCATES:
                     return tau, t_new, k, steps, STOP_EVENT, regime, n_events, at_event, c
                 t_ev, kind = locate(tau, t_new, y, ctx, regime, m, c, scan, starts, band)
                 if kind >= 0:
@@ -153,7 +157,7 @@ def event_loop(
                 k += 1
             if kind < 0:
                 steps += 1
-                commit(y, y_new, m)
+                commit(y, y_new, regime, m)
                 tau = t_new
                 starts = (False, False, True)
                 continue

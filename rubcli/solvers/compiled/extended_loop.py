@@ -303,7 +303,7 @@ def step_loop(
     def sample_project(t: float, row: np.ndarray, ctx: Any) -> None:
         project(row, ctx)
 
-    def system_commit(y: np.ndarray, y_new: np.ndarray, m: tuple) -> None:
+    def system_commit(y: np.ndarray, y_new: np.ndarray, regime: int, m: tuple) -> None:
         for i in range(N):
             y[i] = y_new[i]
         commit(m[0])

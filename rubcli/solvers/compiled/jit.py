@@ -74,13 +74,14 @@ for _core in COMPILABLE_CORES:
     register_jitable(_core)
 
 
-# Why a kernel stopped (advance_contact, advance_contact_adaptive, advance_dop853).
+# Why a compiled loop stopped (event_loop.event_loop and its entry points).
 STOP_END = 0  # reached t_end
 STOP_EVENT = 1  # the next step may contain an event: Python takes it
 STOP_PYTHON = 2  # the next step needs Python (conditioning, singular system, non-finite)
 STOP_LIMIT = 3  # the step limit it was given is reached
 STOP_SMALL_STEP = 4  # DOP853: the step size fell below scipy's minimum (10 ulp of tau)
-STOP_FULL = 5  # DOP853: the kernel's event buffers are full
+STOP_FULL = 5  # the loop's event buffers are full
+STOP_GROW = 6  # the analytic methods: a step's scan grid needs larger buffers
 
 
 STOP_REASONS = {
@@ -90,6 +91,7 @@ STOP_REASONS = {
     STOP_LIMIT: "limit",
     STOP_SMALL_STEP: "small step",
     STOP_FULL: "event buffer full",
+    STOP_GROW: "scan buffers too small",
 }
 
 

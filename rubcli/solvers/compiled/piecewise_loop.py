@@ -1,15 +1,19 @@
-"""The compiled loop of the analytic methods (fixed steps): ``advance_piecewise``.
+"""The analytic methods' fixed-step loop: their parts in the one compiled event loop
+(``event_loop``) and its entry point ``advance_piecewise``.
 
 It advances ``analytic`` (Cartesian linearisation) and ``analytic-polar`` through every
-regime as ``analytic.PiecewiseStepper`` does in Python, advance for advance:
+regime as ``analytic.PiecewiseStepper`` does in Python, advance for advance. A step of
+the loop is, by regime:
 
-- free flight: no steps; the closed form (``piecewise._free_at``; on the general machine
-  the linear propagator, ``propagators.prepare_free_flight``) is scanned chunk by
-  chunk for the contact entry (intervals of 1/32 of the fastest period, ``FREE_FIRST_CHUNK``
-  of them in the first chunk, twice as many in each next, up to ``FREE_SCAN_CHUNK``);
-- slip: one linearised step of ``h`` (``propagators._prepare``); the conservative
-  pre-check (``precheck._step_may_have_event``) clears the steps with no possible event,
-  the others go to the event search;
+- free flight: a chunk of the closed form (``piecewise._free_at``; on the general
+  machine the linear propagator, ``propagators.prepare_free_flight``), which the flight
+  takes no steps of: the flight is prepared once, where it begins (``_begin_flight``),
+  and scanned chunk by chunk for the contact entry (intervals of 1/32 of the fastest
+  period, ``FREE_FIRST_CHUNK`` of them in the first chunk, twice as many in each next,
+  up to ``FREE_SCAN_CHUNK``), every chunk searched;
+- slip: one linearised step of ``h`` (``propagators._prepare``); its pre-check
+  (``contact.slip_scan``) clears the steps with no possible event, the others go to the
+  event search;
 - stick: one RK4 step of the rolling law (``piecewise.stick_prepare``); a pre-check
   like the slip step's (``_stick_may_have_event``) clears the steps with no possible
   event, the others go to the event search.
@@ -17,12 +21,13 @@ regime as ``analytic.PiecewiseStepper`` does in Python, advance for advance:
 Events are located by the one event search, ``events.event_search`` compiled over the
 propagator's ``ev`` function (``_locate_free``, ``_locate_stick``, ``_locate_contact``),
 on the scan grid the Python stepper builds (``np.linspace`` element for element), and
-applied by ``events.switch_regime`` (``roots._apply_event``); they are
-recorded in the caller's buffers, and the stepper records them in the run (with the
-storm guard). What the loop leaves to Python, before taking the step: an eigenbasis
-too ill-conditioned for the kernel (LAPACK's eig and the ``expm`` fallback), a singular
-system, a scan finer than ``MAX_SCAN_POINTS`` or a non-finite state on the grid (the
-Python step fails the run with its message).
+applied by the rotor's rule (``roots.rotor_apply``); they are recorded in the caller's
+buffers, and the stepper records them in the run (with the storm guard). What the loop
+leaves to Python, before taking the step: an eigenbasis too ill-conditioned for the
+kernel (LAPACK's eig and the ``expm`` fallback), a singular system, a scan finer than
+``MAX_SCAN_POINTS`` or a non-finite state (the Python step fails the run with its
+message). A step whose scan grid outgrows the buffers the loop was given returns too
+(``STOP_GROW``), before it is taken: the loop allocates nothing.
 """
 
 from __future__ import annotations
@@ -41,26 +46,20 @@ from rubcli.model import (
     P_MU,
     P_NU,
     P_PHI0,
-    P_RP,
     STICK,
     STICK_EXIT_MARGIN,
     friction_sign,
     is_general_record,
     is_paper_record,
-    rolling_velocity,
     stick_friction_record,
     stick_friction_value,
 )
-from rubcli.solvers.compiled.contact import (
-    _clear_by_bound,
-    _fill_grid,
-    _scan_buffers,
-    _scan_points,
-)
+from rubcli.solvers.compiled.contact import SCAN_GRID, scan_buffers, scan_points, slip_scan
+from rubcli.solvers.compiled.event_loop import LOOP_APPLIES, SCAN_NONE, STOP_NONE, event_loop
 
 # the ev functions are passed as piecewise.<name>: a dispatcher bound to a global name of
 # this module and passed as an argument makes numba refuse to cache the loop
-from rubcli.solvers.compiled.jit import STOP_END, STOP_FULL, STOP_LIMIT, STOP_PYTHON, jit
+from rubcli.solvers.compiled.jit import STOP_GROW, STOP_PYTHON, jit, jit_inline
 from rubcli.solvers.compiled.piecewise import (
     _free_at,
     _free_prepare,
@@ -72,19 +71,15 @@ from rubcli.solvers.compiled.piecewise import (
     stick_omega_max,
     stick_prepare,
 )
-from rubcli.solvers.compiled.precheck import (
-    _may_cross_relative,
-    _step_may_have_event,
-    _surface_may_cross,
-)
+from rubcli.solvers.compiled.precheck import _may_cross_relative, _surface_may_cross
 from rubcli.solvers.compiled.propagators import (
     _evaluate,
     _prepare,
     _workspace,
     prepare_free_flight,
 )
-from rubcli.solvers.compiled.roots import apply_and_record
-from rubcli.solvers.events import NO_EVENT, event_search, linspace_into, run_time, start_flags
+from rubcli.solvers.compiled.roots import rotor_apply, rotor_project
+from rubcli.solvers.events import event_search, linspace_into, run_time
 
 # The one event search (events.event_search), compiled over each kind of segment
 _locate_free, _ = event_search(free_ev, compile=jit)
@@ -102,226 +97,258 @@ PIECEWISE_COUNTS = {
     "n_compiled_steps": C_COMPILED,
 }
 
+# The parts. m = (setup, pars, ws, flight, stick, scan, counts): setup = (polar,
+# general, h, free scan fraction, contact scan fraction, first and largest free scan
+# chunk in intervals, cond_limit); ws the slip step's propagator; flight = (ff, wf), the
+# free flight in progress (``ff``: its start, ``_free_prepare``'s on the paper's machine,
+# (tau0, state) on the general one, whose propagator is ``wf``; ``ff[5]``: the intervals
+# of its next chunk); stick = (st, meta), the stick step (``stick_prepare``); scan
+# (``contact.scan_buffers``); counts the stats (``PIECEWISE_COUNTS``). c = (last, spacing,
+# cond, n, python, need): the regime of the call's last step (FREE before the first: a
+# slip step starts its eigensolver from the last one's eigenvalues only after a slip
+# step of its own regime), the free flight's scan spacing, the slip step's condition,
+# the step's scan intervals, a free flight that needs Python, the scan size a step
+# needs (STOP_GROW).
+
+
+@jit_inline
+def _step(
+    tau: float, y: np.ndarray, t_end: float, pars: np.ndarray, regime: int, m: tuple,
+    c: tuple, y_new: np.ndarray,
+) -> tuple:  # fmt: skip
+    """One step from (tau, y): a free flight's next chunk, a stick step or a slip step,
+    its scan grid prepared (filled in stick), its end into ``y_new``."""
+    setup, _, ws, flight, stick, scan, _ = m
+    polar, general, h, _, contact_frac, _, largest_chunk, cond_limit = setup
+    last, spacing, cond, n, python, need = c
+    grid, S, row, drow = scan[0], scan[1], scan[5], scan[6]
+    if regime == FREE:
+        if python:
+            return tau, STOP_PYTHON, c
+        ff, wf = flight
+        t_new = min(t_end, tau + ff[5] * spacing)
+        n = max(1, math.ceil((t_new - tau) / spacing))
+        if n >= grid.shape[0]:
+            return tau, STOP_GROW, (last, spacing, cond, n, python, n + 1)
+        ff[5] = min(2.0 * ff[5], largest_chunk)
+        linspace_into(grid, tau, t_new, n)
+        _flight_at(general, t_new, ff, pars, wf, y_new, drow)
+        return t_new, STOP_NONE, (FREE, spacing, cond, n, python, need)
+    t_new = min(t_end, tau + h)
+    if regime == STICK:
+        st, meta = stick
+        stick_prepare(tau, y, t_new - tau, pars, st, meta)
+        n = scan_points(tau, t_new, stick_omega_max(pars), contact_frac)
+        if n < 0:
+            return tau, STOP_PYTHON, c
+        if n >= grid.shape[0]:
+            return tau, STOP_GROW, (last, spacing, cond, n, python, n + 1)
+        linspace_into(grid, tau, t_new, n)
+        finite = True
+        for i in range(n + 1):
+            stick_at(grid[i], st, meta, row)
+            for j in range(4):
+                S[i, j] = row[j]
+                finite = finite and math.isfinite(row[j])
+        if not finite:
+            return tau, STOP_PYTHON, c
+        for j in range(4):
+            y_new[j] = S[n, j]
+        return t_new, STOP_NONE, (STICK, spacing, cond, n, python, need)
+    mu_c = pars[P_MU] * friction_sign(regime)
+    cond, omega = _prepare(polar, tau, y, pars, mu_c, ws, last == regime)
+    # Python uses the eigenbasis while cond2(V) <= cond_limit, and cond2 <= 4 cond1:
+    # proceed only where Python surely uses it too
+    if not 8.0 * cond <= cond_limit:
+        return tau, STOP_PYTHON, c
+    n = scan_points(tau, t_new, omega, contact_frac)
+    if n < 0:
+        return tau, STOP_PYTHON, c
+    if n >= grid.shape[0]:
+        return tau, STOP_GROW, (last, spacing, cond, n, python, n + 1)
+    _evaluate(polar, tau, t_new, pars, ws, y_new, drow)
+    return t_new, STOP_NONE, (regime, spacing, cond, n, python, need)
+
+
+@jit_inline
+def _precheck(
+    tau: float, t_new: float, y: np.ndarray, y_new: np.ndarray, pars: np.ndarray,
+    regime: int, m: tuple, c: tuple, starts: tuple[bool, bool, bool], band: float,
+) -> int:  # fmt: skip
+    """Every free-flight chunk is searched; a stick or slip step where an event may lie."""
+    if regime == FREE:
+        return SCAN_GRID
+    n = c[3]
+    scan = m[5]
+    if regime == STICK:
+        grid, S, W, hv, hd, row = scan[0], scan[1], scan[2], scan[3], scan[4], scan[5]
+        st, meta = m[4]
+        if _stick_may_have_event(grid, n, st, meta, pars, S, W, hv, hd, row, starts[0]):
+            return SCAN_GRID
+        return SCAN_NONE
+    return slip_scan(m[0][0], tau, t_new, n, pars, m[2], c[2], regime, starts, scan)
+
+
+@jit_inline
+def _locate(
+    tau: float, t_new: float, y: np.ndarray, pars: np.ndarray, regime: int, m: tuple,
+    c: tuple, scan: int, starts: tuple[bool, bool, bool], band: float,
+) -> tuple[float, int]:  # fmt: skip
+    """The earliest event on the step's scan grid."""
+    polar, general = m[0][0], m[0][1]
+    grid, _, _, hv, hd, row, drow = m[5]
+    n = c[3]
+    if regime == FREE:
+        ff, wf = m[3]
+        if general:  # the Cartesian propagator's ctx, its flag a run-time bool as the slip's
+            linear = (run_time(False), ff[0], pars, wf)
+            return _locate_contact(linear, regime, pars, grid, n, starts, band, hv, hd, row, drow)
+        return _locate_free((ff, pars), regime, pars, grid, n, starts, band, hv, hd, row, drow)
+    if regime == STICK:
+        st, meta = m[4]
+        ctx = (st, meta, pars)
+        return _locate_stick(ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow)
+    ctx = (polar, tau, pars, m[2])
+    return _locate_contact(ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow)
+
+
+@jit_inline
+def _state_at(
+    t: float, tau: float, t_new: float, y: np.ndarray, m: tuple, c: tuple, row: np.ndarray
+) -> None:
+    """The step's state at t, from the closed form of the step's regime (``c[0]``)."""
+    polar, general = m[0][0], m[0][1]
+    pars, drow = m[1], m[5][6]
+    if c[0] == FREE:
+        ff, wf = m[3]
+        _flight_at(general, t, ff, pars, wf, row, drow)
+    elif c[0] == STICK:
+        st, meta = m[4]
+        stick_at(t, st, meta, row)
+    else:
+        _evaluate(polar, tau, t, pars, m[2], row, drow)
+
+
+@jit_inline
+def _count(regime: int, counts: np.ndarray) -> None:
+    """A stick or slip step taken (a free flight counts once, where it begins)."""
+    if regime != FREE:
+        counts[C_STEPS] += 1
+        counts[C_STICK if regime == STICK else C_CONTACT] += 1
+        counts[C_COMPILED] += 1
+
+
+@jit_inline
+def _commit(y: np.ndarray, y_new: np.ndarray, regime: int, m: tuple) -> None:
+    for i in range(4):
+        y[i] = y_new[i]
+    _count(regime, m[6])
+
+
+@jit_inline
+def _apply(
+    kind: int, t: float, s: np.ndarray, regime: int, pars: np.ndarray, m: tuple,
+    events_tau: np.ndarray, events_kind: np.ndarray, events_state: np.ndarray,
+    events_regimes: np.ndarray, n_events: int, y: np.ndarray,
+) -> tuple[int, int]:  # fmt: skip
+    """The step up to its event counted, and the rotor's rule (``roots.rotor_apply``)."""
+    _count(regime, m[6])
+    return rotor_apply(kind, t, s, regime, pars, m, events_tau, events_kind, events_state,
+                       events_regimes, n_events, y)  # fmt: skip
+
+
+@jit_inline
+def _begin_flight(
+    tau: float, y: np.ndarray, pars: np.ndarray, m: tuple, c: tuple, new: bool
+) -> tuple:  # fmt: skip
+    """The free flight from (tau, y) prepared (``new``; counted as one step), or the one
+    in progress (``ff``) taken up again: its scan spacing into ``c``, or a flight that
+    needs Python (an eigenbasis too ill-conditioned for the kernel)."""
+    _, general, _, free_frac, _, first_chunk, _, cond_limit = m[0]
+    ff, wf = m[3]
+    if new:
+        if general:  # its start, from which prepare_free_flight solves it
+            ff[0] = tau
+            for j in range(4):
+                ff[1 + j] = y[j]
+        else:
+            _free_prepare(tau, y, pars, ff)
+        ff[5] = first_chunk
+    if general:  # the exact linear flight (analytic.LinearFreeFlight)
+        cond, omega = prepare_free_flight(ff[0], ff[1:5], pars, wf, run_time(False))
+        if not 8.0 * cond <= cond_limit:  # Python's eig (or expm) takes it
+            return c[0], c[1], c[2], c[3], run_time(True), c[5]
+    else:
+        omega = free_omega_max(pars)
+    if new:
+        counts = m[6]
+        counts[C_FREE] += 1
+        counts[C_STEPS] += 1
+    spacing = free_frac * 2.0 * math.pi / max(omega, 1e-300)
+    return c[0], spacing, c[2], c[3], run_time(False), c[5]
+
+
+@jit_inline
+def _restart(
+    tau: float, y: np.ndarray, t_end: float, pars: np.ndarray, regime: int, m: tuple,
+    c: tuple,
+) -> tuple:  # fmt: skip
+    """After an event: a free flight begins there."""
+    if regime == FREE:
+        return _begin_flight(tau, y, pars, m, c, run_time(True))
+    return c
+
+
+_loop = event_loop(4, _step, _precheck, _locate, _state_at, rotor_project, _commit, _restart,
+                   _apply)  # fmt: skip
+
 
 @jit
 def advance_piecewise(
     polar: bool, tau: float, state: np.ndarray, h: float, t_end: float, regime: int,
-    last_kind: int, pars: np.ndarray, t_eval: np.ndarray, out_states: np.ndarray,
-    out_regimes: np.ndarray, k: int, max_work: int, fractions: tuple[float, float, float, float],
-    cond_limit: float, band: float, ff: np.ndarray, free_active: bool, ev_tau: np.ndarray,
-    ev_kind: np.ndarray, ev_state: np.ndarray, ev_regimes: np.ndarray, counts: np.ndarray,
-) -> tuple[float, int, int, int, int, bool, int]:  # fmt: skip
+    starts: tuple[bool, bool, bool], pars: np.ndarray, t_eval: np.ndarray,
+    out_states: np.ndarray, out_regimes: np.ndarray, k: int, max_work: int,
+    fractions: tuple[float, float, float, float], cond_limit: float, band: float,
+    ff: np.ndarray, free_active: bool, size: int, ev_tau: np.ndarray, ev_kind: np.ndarray,
+    ev_state: np.ndarray, ev_regimes: np.ndarray, counts: np.ndarray,
+) -> tuple[float, int, int, int, bool, int, int]:  # fmt: skip
     """Advance the piecewise method from (tau, state) in ``regime`` (fixed steps ``h``).
 
-    ``last_kind``: the event that began the segment (``NO_EVENT`` if none);
-    ``fractions`` = (free scan fraction, contact scan fraction, first and largest free
-    scan chunk in intervals) (analytic.py's ``FREE_SCAN_FRACTION``,
+    ``starts``: the segment's start flags (``events.start_flags`` of the event that
+    began it); ``fractions`` = (free scan fraction, contact scan fraction, first and
+    largest free scan chunk in intervals) (analytic.py's ``FREE_SCAN_FRACTION``,
     ``CONTACT_SCAN_FRACTION``, ``FREE_FIRST_CHUNK``, ``FREE_SCAN_CHUNK``);
     ``cond_limit`` = ``EIGVEC_COND_LIMIT``; ``band`` the restart band of the event search
-    (``earliest_event``'s default, 1e-12). ``ff`` holds the free flight in progress
-    (``_free_prepare``; ``ff[5]``: the intervals of its next scan chunk); with
-    ``free_active`` the call continues it (a free flight the previous call left at its
-    work limit) instead of starting a new one. Samples ``t_eval[k:]`` go to
-    ``out_states``/``out_regimes`` (stick samples projected onto rolling), events to
-    ``ev_*``; ``counts`` (int64, ``N_COUNTS``) accumulates the stats. At most ``max_work``
-    steps and free-flight scan chunks.
+    (``earliest_event``'s default, 1e-12). ``ff`` (6) holds the free flight in progress;
+    with ``free_active`` the call takes it up (a free flight the previous call left)
+    instead of starting a new one. ``size``: the points of the scan buffers. Samples
+    ``t_eval[k:]`` go to ``out_states``/``out_regimes`` (stick samples projected onto
+    rolling), events to ``ev_*``; ``counts`` (int64, ``N_COUNTS``) accumulates the
+    stats. At most ``max_work`` steps and free-flight scan chunks.
 
-    ``state`` is updated in place. Returns ``(tau, regime, last_kind, k, n_events,
-    free_active, reason)``: reason END, LIMIT (work limit; possibly inside a free
-    flight, then ``free_active``), FULL (event buffers full, the state at the last
-    event) or PYTHON (the next step, from ``(tau, state)`` in ``regime``, needs Python).
+    ``state`` is updated in place. Returns ``(tau, k, regime, n_events, at_event,
+    reason, need)``: reason END, LIMIT (work limit; possibly inside a free flight, which
+    the next call takes up), FULL (event buffers full, the state at the last event, its
+    segment not begun), PYTHON or EVENT (the next step, from ``(tau, state)`` in
+    ``regime``, needs Python) or GROW (the next step needs ``need`` scan points);
+    ``at_event``: ``tau`` is the last event's time.
     """
-    free_frac, contact_frac, first_chunk, free_chunk = fractions
-    capacity = ev_tau.shape[0]
-    n_out = t_eval.shape[0]
-    spin = pars[P_RP] * pars[P_ETA]
-    check_slip = pars[P_MU] > 0.0
-    ws = _workspace()
-    general = is_general_record(pars)  # the free flight is then the linear propagator's
-    wf = _workspace() if general else ws  # (unused on the paper's machine)
-    st = np.empty((4, 4))
-    meta = np.empty(2)
-    row = np.empty(4)
-    drow = np.empty(4)
-    end = np.empty(4)
-    size = 2
-    grid, S, dS, hv, hd = _scan_buffers(run_time(size))
-    work = 0
-    n_events = 0
-    warm = False  # the eigensolver may start from the last slip step's eigenvalues
-    while True:
-        if tau >= t_end:
-            return tau, regime, last_kind, k, n_events, free_active, STOP_END
-        if work >= max_work:
-            return tau, regime, last_kind, k, n_events, free_active, STOP_LIMIT
-        starts = start_flags(last_kind)
-        kind = NO_EVENT
-        if regime == FREE:
-            warm = False
-            if not free_active:  # a new free flight (PiecewiseStepper._free_flight)
-                if general:  # its start, from which prepare_free_flight solves it
-                    ff[0] = tau
-                    for j in range(4):
-                        ff[1 + j] = state[j]
-                else:
-                    _free_prepare(tau, state, pars, ff)
-                ff[5] = first_chunk  # the next chunk's intervals
-                counts[C_FREE] += 1
-                counts[C_STEPS] += 1
-                free_active = True
-            if general:  # the exact linear flight (analytic.LinearFreeFlight)
-                cond, omega = prepare_free_flight(ff[0], ff[1:5], pars, wf, run_time(False))
-                if not 8.0 * cond <= cond_limit:  # Python's eig (or expm) takes it
-                    return tau, regime, last_kind, k, n_events, False, STOP_PYTHON
-            else:
-                omega = free_omega_max(pars)
-            spacing = free_frac * 2.0 * math.pi / max(omega, 1e-300)
-            tb = tau
-            ctx = (ff, pars)
-            # the Cartesian propagator's ctx, its flag through run_time: a literal False
-            # would compile the contact search a second time (beside the slip's bool)
-            linear = (run_time(False), ff[0], pars, wf)
-            while tb < t_end and work < max_work:
-                ta = tb
-                tb = min(t_end, tb + ff[5] * spacing)
-                ff[5] = min(2.0 * ff[5], free_chunk)
-                n = max(1, math.ceil((tb - ta) / spacing))
-                if size < n + 1:
-                    size = n + 1
-                    grid, S, dS, hv, hd = _scan_buffers(run_time(size))
-                linspace_into(grid, ta, tb, n)
-                if general:
-                    t_ev, kind = _locate_contact(
-                        linear, regime, pars, grid, n, starts, band, hv, hd, row, drow
-                    )
-                else:
-                    t_ev, kind = _locate_free(
-                        ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow
-                    )
-                work += 1
-                starts = start_flags(NO_EVENT)
-                last_kind = NO_EVENT
-                t_stop = t_ev if kind != NO_EVENT else tb
-                while k < n_out and t_eval[k] <= t_stop:
-                    _flight_at(general, t_eval[k], ff, pars, wf, row, drow)
-                    for j in range(4):
-                        out_states[k, j] = row[j]
-                    out_regimes[k] = regime
-                    k += 1
-                if kind != NO_EVENT:
-                    break
-            if kind == NO_EVENT:  # the end, or the work limit inside the free flight
-                _flight_at(general, tb, ff, pars, wf, row, drow)
-                for j in range(4):
-                    state[j] = row[j]
-                tau = tb
-                continue
-            free_active = False
-            _flight_at(general, t_ev, ff, pars, wf, row, drow)
-        elif regime == STICK:
-            warm = False
-            tb = min(t_end, tau + h)
-            stick_prepare(tau, state, tb - tau, pars, st, meta)
-            n = _scan_points(tau, tb, stick_omega_max(pars), contact_frac)
-            if n < 0:
-                return tau, regime, last_kind, k, n_events, free_active, STOP_PYTHON
-            if size < n + 1:
-                size = n + 1
-                grid, S, dS, hv, hd = _scan_buffers(run_time(size))
-            linspace_into(grid, tau, tb, n)
-            finite = True
-            for i in range(n + 1):
-                stick_at(grid[i], st, meta, row)
-                for j in range(4):
-                    S[i, j] = row[j]
-                    finite = finite and math.isfinite(row[j])
-            if not finite:
-                return tau, regime, last_kind, k, n_events, free_active, STOP_PYTHON
-            if _stick_may_have_event(grid, n, st, meta, pars, S, dS, hv, hd, row, starts[0]):
-                ctx = (st, meta, pars)
-                t_ev, kind = _locate_stick(
-                    ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow
-                )
-            counts[C_STEPS] += 1
-            counts[C_STICK] += 1
-            counts[C_COMPILED] += 1
-            work += 1
-            last_kind = NO_EVENT
-            t_stop = t_ev if kind != NO_EVENT else tb
-            while k < n_out and t_eval[k] <= t_stop:
-                stick_at(t_eval[k], st, meta, row)
-                row[2], row[3] = rolling_velocity(row[0], row[1], row[2], row[3], spin)
-                for j in range(4):
-                    out_states[k, j] = row[j]
-                out_regimes[k] = regime
-                k += 1
-            if kind == NO_EVENT:
-                stick_at(tb, st, meta, row)
-                for j in range(4):
-                    state[j] = row[j]
-                tau = tb
-                continue
-            stick_at(t_ev, st, meta, row)
-        else:  # slip: one linearised contact step
-            tb = min(t_end, tau + h)
-            mu_c = pars[P_MU] * friction_sign(regime)
-            cond, omega = _prepare(polar, tau, state, pars, mu_c, ws, run_time(warm))
-            # Python uses the eigenbasis while cond2(V) <= cond_limit, and cond2 <= 4
-            # cond1: proceed only where Python surely uses it too
-            if not 8.0 * cond <= cond_limit:
-                return tau, regime, last_kind, k, n_events, free_active, STOP_PYTHON
-            n = _scan_points(tau, tb, omega, contact_frac)
-            if n < 0:
-                return tau, regime, last_kind, k, n_events, free_active, STOP_PYTHON
-            sign = float(regime)
-            event_args = (sign, check_slip, spin, starts)
-            # the end state (into end): from the mode bounds alone, or the grid's last point
-            if not _clear_by_bound(polar, tau, tb, pars, ws, cond, event_args, end, drow):
-                if size < n + 1:
-                    size = n + 1
-                    grid, S, dS, hv, hd = _scan_buffers(run_time(size))
-                if not _fill_grid(polar, tau, tb, n, pars, ws, grid, S, dS, row, drow):
-                    return tau, regime, last_kind, k, n_events, free_active, STOP_PYTHON
-                if _step_may_have_event(
-                    grid, S, dS, n, sign, check_slip, spin, cond, hv, hd, starts
-                ):
-                    ctx = (polar, tau, pars, ws)
-                    t_ev, kind = _locate_contact(
-                        ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow
-                    )
-                for j in range(4):
-                    end[j] = S[n, j]
-            warm = True
-            counts[C_STEPS] += 1
-            counts[C_CONTACT] += 1
-            counts[C_COMPILED] += 1
-            work += 1
-            last_kind = NO_EVENT
-            t_stop = t_ev if kind != NO_EVENT else tb
-            while k < n_out and t_eval[k] <= t_stop:
-                _evaluate(polar, tau, t_eval[k], pars, ws, row, drow)
-                for j in range(4):
-                    out_states[k, j] = row[j]
-                out_regimes[k] = regime
-                k += 1
-            if kind == NO_EVENT:
-                for j in range(4):
-                    state[j] = end[j]
-                tau = tb
-                continue
-            _evaluate(polar, tau, t_ev, pars, ws, row, drow)
-        # the event located at t_ev, the state there in row: apply and record it
-        regime_before = regime
-        recorded = run_time(n_events)
-        regime, last_kind = apply_and_record(
-            kind, t_ev, row, regime, pars, ev_tau, ev_kind, ev_state, ev_regimes, recorded, state
-        )
-        n_events += 1
-        tau = t_ev
-        if regime != regime_before:
-            warm = False
-        if n_events == capacity:
-            return tau, regime, last_kind, k, n_events, free_active, STOP_FULL
+    free_frac, contact_frac, first_chunk, largest_chunk = fractions
+    setup = (
+        polar, is_general_record(pars), h, free_frac, contact_frac, first_chunk,
+        largest_chunk, cond_limit,
+    )  # fmt: skip
+    m = (setup, pars, _workspace(), (ff, _workspace()), (np.empty((4, 4)), np.empty(2)),
+         scan_buffers(size), counts)  # fmt: skip
+    c = (FREE, 0.0, 0.0, 0, run_time(False), 0)
+    if regime == FREE:
+        c = _begin_flight(tau, state, pars, m, c, not free_active)
+    tau, _, k, _, reason, regime, n_events, at_event, c = _loop(
+        tau, state, np.empty(4), t_end, pars, regime, t_eval, out_states, out_regimes, k,
+        max_work, starts, band, np.empty(2), ev_tau, ev_kind, ev_state, ev_regimes,
+        LOOP_APPLIES, np.empty(4), m, c,
+    )  # fmt: skip
+    return tau, k, regime, n_events, at_event, reason, c[5]
 
 
 @jit

@@ -1085,7 +1085,7 @@ def _state_at(
 
 
 @jit_inline
-def _commit(y: np.ndarray, y_new: np.ndarray, m: tuple) -> None:
+def _commit(y: np.ndarray, y_new: np.ndarray, regime: int, m: tuple) -> None:
     for i in range(4):
         y[i] = y_new[i]
 
