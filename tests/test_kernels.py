@@ -82,7 +82,7 @@ def test_kernel_step_data_agree_with_model(mu_c, fig3_params):
     pars = np.array(model.params_vector(p))
     s0 = np.array([1.02, -0.31, 0.4, 1.3])
     tau0 = 2.7
-    ws = propagators._workspace()
+    ws = propagators.workspace()
     propagators._prepare_polar(tau0, s0, pars, mu_c, ws, False)
     real, M = ws[5], ws[6]
     p0 = model.to_polar(s0)
@@ -171,7 +171,7 @@ def test_fingerprint_covers_every_file_compiled_into_the_kernels():
 
 
 def _eig(M):
-    ws = propagators._workspace()
+    ws = propagators.workspace()
     lam, V, _, _, _, _, Mw, B, Q, H, Z, scale, x, _, _, _ = ws
     Mw[:, :] = M
     ok = linalg._eig_small(Mw, lam, V, B, Q, H, Z, scale, x)
@@ -240,7 +240,7 @@ def test_eigensolver_random_and_defective_matrices():
         residual = np.abs(M @ V - V * lam).max()
         assert residual < 1e-12 * np.abs(M).sum(axis=0).max()
     jordan = np.diag(np.ones(3), 1)  # defective: no eigenbasis
-    ws = propagators._workspace()
+    ws = propagators.workspace()
     ws[6][:, :] = jordan
     assert not propagators._eigenbasis(ws, False) < 1e10  # handed to Python's expm fallback
 
@@ -422,7 +422,7 @@ def test_adaptive_kernel_hands_back_whole_pairs(fig3_params):
         result = compiled.advance_contact_adaptive(
             True, 0.0, state, h0, t_eval[-1], model.SLIP_POSITIVE, pars, t_eval, out,
             regimes, 1, pairs, analytic.CONTACT_SCAN_FRACTION, analytic.EIGVEC_COND_LIMIT,
-            (False, False, False), settings, size,
+            (False, False, False), settings, compiled.adaptive_work(size),
         )  # fmt: skip
         return state, regimes, result
 

@@ -23,7 +23,7 @@ FIG3 = {"nu": 0.009478, "eta": 0.7818, "e": 7.52, "Rp": 46.16}
 
 
 def _prepared(params, tau0, s0, mu_c):
-    ws = propagators._workspace()
+    ws = propagators.workspace()
     pars = np.array(model.params_vector(params))
     cond, _ = propagators._prepare_polar(tau0, np.asarray(s0, float), pars, mu_c, ws, False)
     return ws, cond

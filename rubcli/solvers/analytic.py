@@ -25,15 +25,16 @@ Stick (rolling, notes section 4) has no closed form in the paper: when v_r reach
 and the needed friction is within mu F_N, the rolling law is integrated by RK4 steps
 (``StickStep``) until it leaves the friction cone or contact ends.
 
-Compiled (``compiled=True``, the default). Fixed steps run in the compiled loop
-``kernels.advance_piecewise`` (compiled/piecewise_loop.py): free flight, slip and stick
+Compiled (``compiled=True``, the default). Fixed steps run in the one compiled event
+loop (``kernels.advance_piecewise``, compiled/piecewise_loop.py): free flight, slip and stick
 steps, the event search (``events.event_search``) and the switches, with the same propagators
 (compiled/propagators.py, compiled/piecewise.py) and the same scan grids as the Python
 code below; it hands back to the Python step only what it cannot do (an ill-conditioned
 eigenbasis: LAPACK or the ``expm`` fallback; a diverged linearisation: the failure
 message). Adaptive steps (``analytic_tol``): runs of slip steps in which no event can
 occur are taken by ``kernels.advance_contact_adaptive`` (the step doubling and control
-below, pair of half steps by pair); events, stick steps and free flights run in Python.
+below, pair of half steps by pair, in the same loop); events, stick steps and free
+flights run in Python.
 The paths agree to round-off (tests/test_kernels.py, tests/test_piecewise_loop.py).
 """
 
@@ -391,6 +392,7 @@ class PiecewiseStepper:
         self.adaptive_kernel = self.use_kernel and analytic_tol is not None
         self.python_next = False  # the loop handed the next step to Python
         self.scan_size = KERNEL_SCAN_POINTS  # the compiled loops' scan buffers (points)
+        self._allocate()
         if self.use_loop:
             self.free = np.empty(6)  # the free flight in progress (advance_piecewise's ff)
             self.free_active = False
@@ -465,7 +467,7 @@ class PiecewiseStepper:
             self.linearisation == "polar", run.tau, state, self.h, run.t_end, run.regime,
             self.pars, self.t_eval_c, run.states, run.regimes, run.k, pairs,
             CONTACT_SCAN_FRACTION, EIGVEC_COND_LIMIT, start_flags(run.last_kind),
-            self.control, self.scan_size,
+            self.control, self.work,
         )  # fmt: skip
         run.stats["n_rejected_steps"] += rejected
         run.tau, run.state, run.k = tau, state, k
@@ -483,6 +485,15 @@ class PiecewiseStepper:
     def _grow(self, need: int) -> None:
         """Scan buffers of at least ``need`` points for the compiled loops' next call."""
         self.scan_size = max(need, 2 * self.scan_size)
+        self._allocate()
+
+    def _allocate(self) -> None:
+        """The work arrays of the compiled loop this run calls, allocated once a run
+        (again for larger scan buffers)."""
+        if self.use_loop:
+            self.work = kernels.piecewise_work(self.scan_size)
+        elif self.adaptive_kernel:
+            self.work = kernels.adaptive_work(self.scan_size)
 
     def _contact_step(self, run: driver.Run):
         """One contact step in Python (fixed, or the next accepted adaptive half step)."""
@@ -526,7 +537,7 @@ class PiecewiseStepper:
             self.linearisation == "polar", run.tau, state, self.h, run.t_end, run.regime,
             start_flags(run.last_kind), self.pars, self.t_eval_c, run.states, run.regimes,
             run.k, min(KERNEL_CHUNK_STEPS, run.steps_left), fractions, EIGVEC_COND_LIMIT,
-            RESTART_BAND, self.free, self.free_active, self.scan_size, *self.events, counts,
+            RESTART_BAND, self.free, self.free_active, self.work, *self.events, counts,
         )  # fmt: skip
         stats = run.stats
         for key, i in kernels.PIECEWISE_COUNTS.items():

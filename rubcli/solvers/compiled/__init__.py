@@ -42,7 +42,7 @@ What the drivers call is re-exported here.
 """
 
 from rubcli.solvers.compiled.cache import ensure_fresh
-from rubcli.solvers.compiled.contact import advance_contact_adaptive
+from rubcli.solvers.compiled.contact import adaptive_work, advance_contact_adaptive
 from rubcli.solvers.compiled.dop853 import dop853_dense, dop853_dense_point, dop853_initial_step
 from rubcli.solvers.compiled.dop853_loop import advance_dop853, advance_paper_dop853
 from rubcli.solvers.compiled.jit import (
@@ -55,7 +55,12 @@ from rubcli.solvers.compiled.jit import (
     STOP_REASONS,
     STOP_SMALL_STEP,
 )
-from rubcli.solvers.compiled.piecewise_loop import N_COUNTS, PIECEWISE_COUNTS, advance_piecewise
+from rubcli.solvers.compiled.piecewise_loop import (
+    N_COUNTS,
+    PIECEWISE_COUNTS,
+    advance_piecewise,
+    piecewise_work,
+)
 from rubcli.solvers.compiled.rhs import rhs, rhs_columns, rhs_jacobian
 
 __all__ = [
@@ -67,10 +72,12 @@ __all__ = [
     "STOP_PYTHON",
     "STOP_REASONS",
     "STOP_SMALL_STEP",
+    "adaptive_work",
     "advance_contact_adaptive",
     "advance_dop853",
     "advance_paper_dop853",
     "advance_piecewise",
+    "piecewise_work",
     "N_COUNTS",
     "PIECEWISE_COUNTS",
     "dop853_dense",

@@ -36,9 +36,10 @@ from rubcli.solvers.compiled.jit import (
     STOP_PYTHON,
     jit,
     jit_inline,
+    jit_loop,
 )
 from rubcli.solvers.compiled.precheck import _step_may_have_event, polar_step_clear
-from rubcli.solvers.compiled.propagators import _evaluate, _prepare, _workspace
+from rubcli.solvers.compiled.propagators import _evaluate, _prepare, workspace
 from rubcli.solvers.compiled.roots import rotor_project
 from rubcli.solvers.control import doubling_error, next_step
 from rubcli.solvers.events import MAX_SCAN_POINTS, linspace_into, run_time
@@ -46,7 +47,6 @@ from rubcli.solvers.events import MAX_SCAN_POINTS, linspace_into, run_time
 SCAN_GRID = 1  # a pre-check's answer: an event may lie in the step, search its scan grid
 
 
-@jit
 def scan_buffers(size: int) -> tuple[np.ndarray, ...]:
     """(grid, S, dS, hv, hd, row, drow): a scan grid of ``size`` points, its states and
     rates, the search's work rows, and two state rows."""
@@ -208,16 +208,28 @@ def _pair_commit(y: np.ndarray, y_new: np.ndarray, regime: int, m: tuple) -> Non
 
 # every pair that may hold an event goes to Python: no search, no rule, no restart
 _adaptive_loop = event_loop(4, _pair, _pair_precheck, None, _pair_at, rotor_project,
-                            _pair_commit, None, None)  # fmt: skip
+                            _pair_commit, None, None, inline=True)  # fmt: skip
 
 
-@jit
+def adaptive_work(size: int) -> tuple:
+    """``advance_contact_adaptive``'s work arrays, numpy's (allocated in Python: nothing
+    to compile), with scan buffers of ``size``
+    points: the two propagators, the full step's and the mid-point's states, the scan
+    buffers, the loop's new state and sample row, and its (unused) event buffers."""
+    return (
+        workspace(), workspace(), np.empty(4), np.empty(4), scan_buffers(size),
+        np.empty(4), np.empty(4), np.empty(2), np.empty(0), np.empty(0, dtype=np.int64),
+        np.empty((0, 4)), np.empty((0, 2), dtype=np.int64),
+    )  # fmt: skip
+
+
+@jit_loop
 def advance_contact_adaptive(
     polar: bool, tau: float, y: np.ndarray, h: float, t_end: float, regime: int,
     pars: np.ndarray, t_eval: np.ndarray, out_states: np.ndarray, out_regimes: np.ndarray,
     k: int, max_pairs: int, scan_fraction: float, cond_limit: float,
     starts: tuple[bool, bool, bool],
-    control: tuple[float, float, float, float, float, float], size: int,
+    control: tuple[float, float, float, float, float, float], work: tuple,
 ) -> tuple[float, int, int, int, float, int, int]:  # fmt: skip
     """Adaptive (step-doubling) contact steps in one slip regime while no event can occur.
 
@@ -233,11 +245,12 @@ def advance_contact_adaptive(
     min_step); ``starts`` = (on the contact surface, on the slip surface, slip start
     immediate) of the first step (``events.start_flags``), ``scan_fraction`` and
     ``cond_limit`` analytic.py's ``CONTACT_SCAN_FRACTION`` and ``EIGVEC_COND_LIMIT``;
-    ``size`` the points of the scan buffers.
+    ``work`` the work arrays (``adaptive_work``, whose scan buffers' size bounds the
+    halves' scan grids).
 
     A pair is committed whole or not at all: if either half might hold an event
     (reason EVENT), needs Python (conditioning, scan size, non-finite states: EVENT or
-    PYTHON), or needs a scan grid of more than ``size`` points (GROW), the kernel
+    PYTHON), or needs a larger scan grid than ``work`` holds (GROW), the kernel
     returns *before* the pair, with the ``h`` it started the pair with, so Python's own
     adaptive loop recomputes that pair (its rejections included) exactly as it would
     have without the kernel. At most ``max_pairs`` pairs (LIMIT).
@@ -248,13 +261,12 @@ def advance_contact_adaptive(
     the controller's proposed next step, ``need`` the scan size a GROW asks for.
     """
     setup = (polar, pars[P_MU] * friction_sign(regime), control, scan_fraction, cond_limit)
-    m = (setup, pars, _workspace(), _workspace(), np.empty(4), np.empty(4),
-         scan_buffers(size))  # fmt: skip
+    ws1, ws2, full, mid, scan, y_new, row, found, ev_tau, ev_kind, ev_state, ev_regimes = work
+    m = (setup, pars, ws1, ws2, full, mid, scan)
     c = (h, 0, h, 0, run_time(False), tau, 0.0, 0.0, 0, 0, 0)
     tau, _, k, pairs, reason, _, _, _, c = _adaptive_loop(
-        tau, y, np.empty(4), t_end, pars, regime, t_eval, out_states, out_regimes, k,
-        max_pairs, starts, 0.0, np.empty(2), np.empty(0), np.empty(0, dtype=np.int64),
-        np.empty((0, 4)), np.empty((0, 2), dtype=np.int64), PYTHON_LOCATES, np.empty(4), m, c,
+        tau, y, y_new, t_end, pars, regime, t_eval, out_states, out_regimes, k, max_pairs,
+        starts, 0.0, found, ev_tau, ev_kind, ev_state, ev_regimes, PYTHON_LOCATES, row, m, c,
     )  # fmt: skip
     h, rejected, h_next, tries, need = c[0], c[1], c[2], c[3], c[10]
     if reason in (STOP_END, STOP_LIMIT):  # the last pair committed: its proposal

@@ -1,8 +1,10 @@
 """The compiled step-and-event loop, written once: ``event_loop`` builds it from a
-method's parts, for every compiled method that takes steps: ``dop853-jit``
-(``dop853_loop``: scipy's DOP853 step) and ``taylor`` (``taylor``: the Taylor series)
-on the rotor, and both on a system with more states (``extended_loop.step_loop``: the
-driven rotor, the two bodies, ``orbits``' variational flow).
+method's parts, for every compiled method: ``dop853-jit`` (``dop853_loop``: scipy's
+DOP853 step), ``taylor`` (``taylor``: the Taylor series) and the analytic methods
+(``piecewise_loop``: a free flight's scan chunks and the linearised slip and RK4 stick
+steps; ``contact``: the adaptive slip pairs) on the rotor, and ``dop853-jit`` and
+``taylor`` on a system with more states (``extended_loop.step_loop``: the driven rotor,
+the two bodies, ``orbits``' variational flow).
 
 The loop owns what every method does the same: the budgets (the end time, the step
 count, the event buffer's capacity), the check of the new state, the hand-back of a step
@@ -23,7 +25,8 @@ binds them anew on every step, and with reference counting each binding is an at
 increment and decrement that numba's pruning does not remove across the loop's blocks
 (a tenth of a ``dop853-jit`` step). So the loop allocates nothing; its entry point
 (``advance_dop853``, ``advance_taylor``, a system's ``advance``) allocates the method's
-work arrays and calls it.
+work arrays and calls it (a method whose work grows, the analytic methods' scan
+grids, has the loop return for larger arrays).
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ import math
 from collections.abc import Callable
 from typing import Any
 
+import numba
 import numpy as np
 
 from rubcli.solvers.compiled.jit import (
@@ -60,6 +64,7 @@ def event_loop(
     locate: Callable[..., tuple] | None, dense_at: Callable[..., None],
     project: Callable[..., None], commit: Callable[..., None],
     restart: Callable[..., tuple] | None, apply: Callable[..., tuple] | None,
+    inline: bool = False,
 ) -> Callable[..., tuple]:  # fmt: skip
     """The loop of one method on a system of ``n_states`` states (the first four the
     rotor's position and velocity), compiled with its parts (``jit_inline``; ``ctx`` the
@@ -106,11 +111,28 @@ def event_loop(
     pending, or with its event in ``found``), FULL (the event buffers are full; the state
     is at the last event, its segment not yet started), PYTHON (a non-finite state) or
     the step's own; ``at_event``: ``tau`` is the last event's time.
+
+    With ``inline`` the loop is built to be inlined into an entry point compiled as the
+    loop is (``jit.jit_loop``), whose caller allocates the work arrays: numba generates
+    each compiled function's code with its whole call tree, so an allocating entry that
+    calls a loop compiled alone compiles the loop's call tree twice. The parts are then
+    inlined into the entry after the loop, not into the loop (``_into_entry``): numba
+    copies an inlined function's IR block by block, each block with the function's whole
+    scope, so the loop is copied while it is small, and each part on its own.
     """
     N = n_states
     # closure constants: numba prunes the branches they decide
     python_locates = locate is None
     python_only = apply is None
+    if inline:
+
+        def into_entry(expr: Any, caller: Any, callee: Any) -> bool:
+            return caller.func_id.func is not loop
+
+        step, precheck, locate, dense_at, project, commit, restart, apply = (
+            _into_entry(part, into_entry)
+            for part in (step, precheck, locate, dense_at, project, commit, restart, apply)
+        )
 
     def loop(
         tau: float, y: np.ndarray, y_new: np.ndarray, t_end: float, ctx: Any, regime: int,
@@ -177,7 +199,15 @@ def event_loop(
                 return tau, tau, k, steps, STOP_FULL, regime, n_events, True, c
             c = restart(tau, y, t_end, ctx, regime, m, c)
 
-    return jit_loop(loop)
+    return jit_inline(loop) if inline else jit_loop(loop)
+
+
+def _into_entry(part: Any, where: Callable[..., bool]) -> Any:
+    """A part (a ``jit_inline`` dispatcher, or None) inlined only where ``where(expr,
+    caller IR, callee IR)`` allows (numba's inline cost model)."""
+    if part is None:
+        return None
+    return numba.njit(cache=True, nogil=True, inline=where)(part.py_func)
 
 
 @jit_inline

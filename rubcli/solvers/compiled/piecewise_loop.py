@@ -59,7 +59,7 @@ from rubcli.solvers.compiled.event_loop import LOOP_APPLIES, SCAN_NONE, STOP_NON
 
 # the ev functions are passed as piecewise.<name>: a dispatcher bound to a global name of
 # this module and passed as an argument makes numba refuse to cache the loop
-from rubcli.solvers.compiled.jit import STOP_GROW, STOP_PYTHON, jit, jit_inline
+from rubcli.solvers.compiled.jit import STOP_GROW, STOP_PYTHON, jit, jit_inline, jit_loop
 from rubcli.solvers.compiled.piecewise import (
     _free_at,
     _free_prepare,
@@ -75,8 +75,8 @@ from rubcli.solvers.compiled.precheck import _may_cross_relative, _surface_may_c
 from rubcli.solvers.compiled.propagators import (
     _evaluate,
     _prepare,
-    _workspace,
     prepare_free_flight,
+    workspace,
 )
 from rubcli.solvers.compiled.roots import rotor_apply, rotor_project
 from rubcli.solvers.events import event_search, linspace_into, run_time
@@ -300,16 +300,27 @@ def _restart(
 
 
 _loop = event_loop(4, _step, _precheck, _locate, _state_at, rotor_project, _commit, _restart,
-                   _apply)  # fmt: skip
+                   _apply, inline=True)  # fmt: skip
 
 
-@jit
+def piecewise_work(size: int) -> tuple:
+    """``advance_piecewise``'s work arrays, numpy's (allocated in Python: nothing to
+    compile), with scan buffers of ``size`` points: the slip step's and the general free
+    flight's propagators, the stick step, the scan buffers (``contact.scan_buffers``),
+    and the loop's new state, sample row and event."""
+    return (
+        workspace(), workspace(), (np.empty((4, 4)), np.empty(2)), scan_buffers(size),
+        np.empty(4), np.empty(4), np.empty(2),
+    )  # fmt: skip
+
+
+@jit_loop
 def advance_piecewise(
     polar: bool, tau: float, state: np.ndarray, h: float, t_end: float, regime: int,
     starts: tuple[bool, bool, bool], pars: np.ndarray, t_eval: np.ndarray,
     out_states: np.ndarray, out_regimes: np.ndarray, k: int, max_work: int,
     fractions: tuple[float, float, float, float], cond_limit: float, band: float,
-    ff: np.ndarray, free_active: bool, size: int, ev_tau: np.ndarray, ev_kind: np.ndarray,
+    ff: np.ndarray, free_active: bool, work: tuple, ev_tau: np.ndarray, ev_kind: np.ndarray,
     ev_state: np.ndarray, ev_regimes: np.ndarray, counts: np.ndarray,
 ) -> tuple[float, int, int, int, bool, int, int]:  # fmt: skip
     """Advance the piecewise method from (tau, state) in ``regime`` (fixed steps ``h``).
@@ -321,7 +332,8 @@ def advance_piecewise(
     ``cond_limit`` = ``EIGVEC_COND_LIMIT``; ``band`` the restart band of the event search
     (``earliest_event``'s default, 1e-12). ``ff`` (6) holds the free flight in progress;
     with ``free_active`` the call takes it up (a free flight the previous call left)
-    instead of starting a new one. ``size``: the points of the scan buffers. Samples
+    instead of starting a new one. ``work``: the work arrays (``piecewise_work``, whose
+    scan buffers' size bounds the steps' scan grids). Samples
     ``t_eval[k:]`` go to ``out_states``/``out_regimes`` (stick samples projected onto
     rolling), events to ``ev_*``; ``counts`` (int64, ``N_COUNTS``) accumulates the
     stats. At most ``max_work`` steps and free-flight scan chunks.
@@ -338,15 +350,15 @@ def advance_piecewise(
         polar, is_general_record(pars), h, free_frac, contact_frac, first_chunk,
         largest_chunk, cond_limit,
     )  # fmt: skip
-    m = (setup, pars, _workspace(), (ff, _workspace()), (np.empty((4, 4)), np.empty(2)),
-         scan_buffers(size), counts)  # fmt: skip
+    ws, wf, stick, scan, y_new, row, found = work
+    m = (setup, pars, ws, (ff, wf), stick, scan, counts)
     c = (FREE, 0.0, 0.0, 0, run_time(False), 0)
     if regime == FREE:
         c = _begin_flight(tau, state, pars, m, c, not free_active)
     tau, _, k, _, reason, regime, n_events, at_event, c = _loop(
-        tau, state, np.empty(4), t_end, pars, regime, t_eval, out_states, out_regimes, k,
-        max_work, starts, band, np.empty(2), ev_tau, ev_kind, ev_state, ev_regimes,
-        LOOP_APPLIES, np.empty(4), m, c,
+        tau, state, y_new, t_end, pars, regime, t_eval, out_states, out_regimes, k,
+        max_work, starts, band, found, ev_tau, ev_kind, ev_state, ev_regimes, LOOP_APPLIES,
+        row, m, c,
     )  # fmt: skip
     return tau, k, regime, n_events, at_event, reason, c[5]
 

@@ -1,6 +1,6 @@
 """The two linearised contact propagators of the analytic methods, compiled.
 
-A step's data live in the preallocated arrays of ``_workspace``: "prepare" fills them
+A step's data live in the preallocated arrays of ``workspace``: "prepare" fills them
 at (tau0, s0) as the Python propagators' ``__init__`` (``analytic.LinearisedContact``,
 ``analytic.PolarLinearisedContact``) do, "evaluate" writes the Cartesian state and its
 time derivative at tau0 + dt as their ``states`` and ``derivatives`` do.
@@ -51,9 +51,9 @@ def _phi12(z):
     return em1 * inv, (em1 - z) * inv * inv
 
 
-@jit
-def _workspace():
-    """(lam, V, LU, coef, piv, real, M, B, Q, H, Z, scale, x, P, dP, Vinv): a step's arrays."""
+def workspace() -> tuple[np.ndarray, ...]:
+    """(lam, V, LU, coef, piv, real, M, B, Q, H, Z, scale, x, P, dP, Vinv): a step's
+    arrays, allocated in Python (by the stepper, once a run) for the compiled loops."""
     return (
         np.empty(4, dtype=np.complex128),  # lam: eigenvalues
         np.empty((4, 4), dtype=np.complex128),  # V: unit eigenvectors
