@@ -32,7 +32,7 @@ contact exits and re-entries (about 4 events per forcing period after the tenth)
   the same process.
 
 Prints the tables and writes them to ``benchmarks/floor.md`` with the command, the
-machine and the date. Ratios are measured in one run on one machine.
+machine and its load. Ratios are measured in one run on one machine.
 """
 
 from __future__ import annotations

@@ -23,10 +23,11 @@ The parts are inlined into the loop in numba IR, and the loop is compiled withou
 numba's reference counting (``jit.jit_loop``): a part that takes the method's arrays
 binds them anew on every step, and with reference counting each binding is an atomic
 increment and decrement that numba's pruning does not remove across the loop's blocks
-(a tenth of a ``dop853-jit`` step). So the loop allocates nothing; its entry point
+(a tenth of a ``dop853-jit`` step). So the loop allocates nothing: its entry point
 (``advance_dop853``, ``advance_taylor``, a system's ``advance``) allocates the method's
-work arrays and calls it (a method whose work grows, the analytic methods' scan
-grids, has the loop return for larger arrays).
+work arrays and calls it, or, built with ``inline``, is compiled as the loop is, with the
+loop inlined and the work arrays from its caller (the analytic methods', whose scan grids
+grow: the loop returns for larger arrays).
 """
 
 from __future__ import annotations
