@@ -111,6 +111,8 @@ def system_precheck(
     has left the surface it began on (the loop searches a segment's first step
     whatever)."""
     N = n_states
+    if N < 6:  # the stick pre-check keeps the stick law's six values in a state's row
+        raise ValueError(f"a system of {N} states: the stick pre-check needs at least 6")
     law = stick_law(into)
 
     def slip_may_reverse(
@@ -196,7 +198,8 @@ def system_search(
     """The event search (``events.event_search``, the one definition every path runs)
     on a step's dense output ``dense_at(t, dense, row)`` of the system ``into``,
     compiled: ``locate(ctx, regime, pars, grid, n, starts, band, hv, hd, row, drow)``
-    with ``ctx = (dense, the system's records, regime)``. The surface speed is ``Rp w``,
+    with ``ctx = (dense, the system's records, regime, out)``, ``out`` a work row of the
+    system's states (the stick law's right-hand side). The surface speed is ``Rp w``,
     a state; the stick margin takes the system's stick friction. One per pair, so loops
     that share their dense output and their events' right-hand side (a system with and
     without its variational matrix) compile it once."""
@@ -209,7 +212,7 @@ def system_search(
     law = stick_law(into)
 
     def margin(ctx: Any, t: float, pars: np.ndarray, sign: float, row: np.ndarray) -> float:
-        T, limit = law(row, ctx[1], np.empty(row.shape[0]))
+        T, limit = law(row, ctx[1], ctx[3])
         return sign * T - limit * (1.0 + STICK_EXIT_MARGIN)
 
     return event_search(jit(ev), compile=jit, margin=jit(margin))[0]
@@ -291,8 +294,8 @@ def step_loop(
         tau: float, t_new: float, y: np.ndarray, ctx: Any, regime: int, m: tuple, c: tuple,
         scan: int, starts: tuple[bool, bool, bool], band: float,
     ) -> tuple[float, int]:  # fmt: skip
-        grid, hv, hd, row, drow = m[1][0], m[1][2], m[1][3], m[1][4], m[1][6]
-        return search((dense(tau, y, m[0], c), ctx, regime), regime, ctx[0], grid, scan,
+        grid, hv, hd, row, out, drow = m[1][0], m[1][2], m[1][3], m[1][4], m[1][5], m[1][6]
+        return search((dense(tau, y, m[0], c), ctx, regime, out), regime, ctx[0], grid, scan,
                       starts, band, hv, hd, row, drow)  # fmt: skip
 
     def state_at(
