@@ -540,6 +540,15 @@ class OutputSection(_Section):
 
     _plots_unique = field_validator("plots")(_unique)
 
+    @field_validator("dir")
+    @classmethod
+    def _no_nul(cls, value: str | None) -> str | None:
+        if value is not None and "\0" in value:
+            raise PydanticCustomError(
+                "nul_byte", "holds a NUL byte (\\0), which no file name may hold"
+            )
+        return value
+
 
 # ====================================================================== [forces_map]
 

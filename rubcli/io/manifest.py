@@ -24,6 +24,7 @@ since rubcli wrote it is not: rubcli never replaces or removes such a file witho
 from __future__ import annotations
 
 import contextlib
+import errno
 import functools
 import hashlib
 import hmac
@@ -104,21 +105,28 @@ def _read_key(path: Path) -> bytes | None:
 
 
 def _load_or_create(directory: Path) -> bytes:
+    if os.path.lexists(directory) and not os.path.isdir(directory):
+        raise ValueError(f"{directory}: not a directory")
     directory.mkdir(mode=0o700, parents=True, exist_ok=True)
     if not _private(os.lstat(directory), directory=True):
-        raise ValueError(f"{directory}: not a private directory of this user")
+        raise ValueError(f"{directory}: not a private directory of this user (a link, "
+                         "another user's, or open to others' writes)")  # fmt: skip
     path = directory / KEY_FILE
     key = _read_key(path)
     if key is not None:
         return key
     fd, tmp = tempfile.mkstemp(dir=directory, prefix=f".{KEY_FILE}.")  # mode 0600
     try:
-        os.write(fd, secrets.token_bytes(32))
+        if os.write(fd, secrets.token_bytes(32)) != 32:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), tmp)
         os.fsync(fd)
         os.close(fd)
+        fd = -1
         with contextlib.suppress(FileExistsError):
             os.link(tmp, path)  # never over a key another process made meanwhile
     finally:
+        if fd >= 0:
+            os.close(fd)
         os.unlink(tmp)
     key = _read_key(path)
     if key is None:
@@ -126,16 +134,47 @@ def _load_or_create(directory: Path) -> bytes:
     return key
 
 
+class KeyUnavailable(Exception):  # noqa: N818 - a state, reported to the user
+    """No private place can hold the manifest key; ``errno``: the failed write's, if any."""
+
+    def __init__(self, message: str, errno_: int | None):
+        super().__init__(message)
+        self.errno = errno_
+
+
+_KEY_PROBLEMS: list[tuple[Path, Exception]] = []  # why each state dir could not hold it
+
+
 @functools.cache
 def _key() -> tuple[bytes, str] | None:
-    """(key, key id), or None when no private place can hold a key."""
+    """(key, key id), or None when no private place can hold a key (``require_key``)."""
+    _KEY_PROBLEMS.clear()
     for directory in state_dirs():
         try:
             key = _load_or_create(directory)
-        except (OSError, ValueError):
+        except (OSError, ValueError) as exc:
+            _KEY_PROBLEMS.append((directory, exc))
             continue
         return key, hashlib.sha256(b"rubcli manifest key id\0" + key).hexdigest()[:16]
     return None
+
+
+def require_key() -> None:
+    """Raise ``KeyUnavailable`` saying why when no private place can hold the key: rubcli
+    then writes no output dir (an unsigned manifest would make the next command refuse
+    the dir as not rubcli's)."""
+    if _key() is not None:
+        return
+    why = "; ".join(
+        str(exc) if isinstance(exc, ValueError) or exc.filename else f"{where}: {exc}"
+        for where, exc in _KEY_PROBLEMS
+    )
+    codes = [exc.errno for _, exc in _KEY_PROBLEMS if isinstance(exc, OSError)]
+    raise KeyUnavailable(
+        f"no private place for the key that signs rubcli's output dirs ({why}); set "
+        f"{STATE_ENV} to a directory that only you can write (rubcli makes it, mode 0700)",
+        codes[-1] if codes else None,
+    )
 
 
 def _sign(body: dict) -> str | None:
@@ -146,12 +185,27 @@ def _sign(body: dict) -> str | None:
     return hmac.new(found[0], text, hashlib.sha256).hexdigest()
 
 
+def sign(body: dict) -> str | None:
+    """The HMAC-SHA256 of a JSON object with this user's key (None without a key)."""
+    return _sign(body)
+
+
+def signed(body: dict, signature: object) -> bool:
+    """Whether ``signature`` is this user's signature of ``body`` (``sign``)."""
+    expected = _sign(body)
+    return (
+        isinstance(signature, str)
+        and expected is not None
+        and (hmac.compare_digest(signature, expected))
+    )
+
+
 # ----------------------------------------------------------------------- writing
 
 
 def add_to_report(report: Path, files: dict[str, tuple[int, str]]) -> dict:
     """Append the signed manifest of ``files`` (name -> (size, sha256)) to the JSON object
-    in ``report`` (rewritten in place: it is a staged file); return the manifest."""
+    in ``report`` (a staged file, replaced by a new one); return the manifest."""
     text = report.read_text(encoding="utf-8")
     body = text.rstrip()
     if not body.endswith("}"):
@@ -167,7 +221,9 @@ def add_to_report(report: Path, files: dict[str, tuple[int, str]]) -> dict:
     }
     manifest["signature"] = _sign(manifest)
     block = json.dumps(manifest, indent=2).replace("\n", "\n  ")
-    report.write_text(prefix + _MARK + block + "\n}\n", encoding="utf-8", newline="")
+    from rubcli.io.files import write_text
+
+    write_text(report, prefix + _MARK + block + "\n}\n")  # a fresh file moved over it
     return manifest
 
 
@@ -238,7 +294,7 @@ def read(directory: Path) -> Manifest:
                                "or another machine)")  # fmt: skip
     body = {k: v for k, v in manifest.items() if k != "signature"}
     signature = manifest.get("signature")
-    if not isinstance(signature, str) or not hmac.compare_digest(signature, _sign(body) or ""):
+    if not signed(body, signature):
         return Manifest(reason="its manifest's signature does not match")
     at = text.rfind(_MARK)
     prefix_hash = hashlib.sha256(text[: max(at, 0)].encode("utf-8")).hexdigest()

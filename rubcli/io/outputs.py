@@ -56,7 +56,7 @@ from pathlib import Path
 
 from rubcli.io import manifest, signals
 from rubcli.io.files import atomic_path, json_text
-from rubcli.io.lock import Busy, DirLock
+from rubcli.io.lock import Busy, DirLock, NotALock
 
 REPORT_NAME = "report.json"
 STAGING_PREFIX = ".rubcli-staging-"
@@ -190,6 +190,9 @@ def _shorten(text: str, limit: int = 60) -> str:
 
 def _check_names(target: Path) -> None:
     """Every component of the path must fit the file system (else a clear message)."""
+    if "\0" in str(target):
+        raise OutputError(f"{_shorten(repr(str(target)), 120)}: the output dir's name holds a NUL "
+                          "byte (\\0), which no file name may hold")  # fmt: skip
     absolute = Path(os.path.abspath(target))
     base = absolute
     while not os.path.lexists(base) and base != base.parent:
@@ -241,8 +244,7 @@ def _make_dirs(target: Path, created: list[Path]) -> None:
         except FileExistsError:
             continue
         except OSError as exc:
-            raise OutputError(f"{target}: output dir is not writable ({directory}: "
-                              f"{_reason(exc)})") from None  # fmt: skip
+            raise _unwritable(target, exc, f"{directory}: ") from None
         created.append(directory)
 
 
@@ -263,6 +265,11 @@ def open_output_dir(
     """
     target = Path(target)
     _check_names(target)
+    try:
+        manifest.require_key()  # else its manifest would be unsigned, the dir not rubcli's
+    except manifest.KeyUnavailable as exc:
+        error = OutputWriteError if exc.errno in WRITE_ERRNOS else OutputError
+        raise error(f"{target}: {exc}") from None
     plan = OutputPlan(target=target, force=force)
     try:
         for attempt in range(100):
@@ -279,9 +286,10 @@ def open_output_dir(
                     f"{target}: output dir is in use by {exc.holder}; wait for it to finish, "
                     "or pass --wait to wait for it"
                 ) from None
+            except NotALock as exc:
+                raise OutputError(f"{target}: {exc}") from None
             except OSError as exc:
-                raise OutputError(f"{target}: output dir is not writable ({_reason(exc)})"
-                                  ) from None  # fmt: skip
+                raise _unwritable(target, exc) from None
             plan._lock = lock
             break
         _recover(plan)
@@ -291,6 +299,15 @@ def open_output_dir(
         plan.close()
         raise
     return plan
+
+
+def _unwritable(target: Path, exc: OSError, where: str = "") -> OutputError:
+    """The dir or its lock could not be made: exit 74 for the machine's reasons (a full
+    disk), 2 for the others (permissions, a file in the way)."""
+    if is_write_failure(exc):
+        return OutputWriteError(f"{target}: the output dir cannot be written ({where}"
+                                f"{_reason(exc)}); nothing was written")  # fmt: skip
+    return OutputError(f"{target}: output dir is not writable ({where}{_reason(exc)})")
 
 
 def _inspect(plan: OutputPlan) -> None:
@@ -321,6 +338,9 @@ def _listing(names: list[str], limit: int = 6) -> str:
 
 
 def _refuse(plan: OutputPlan, expected: list[str]) -> None:
+    folders = [n for n in expected if _is_folder(plan.target / n)]
+    if folders:
+        raise OutputError(_folder_message(plan.target, folders))
     if plan.force:
         return
     if plan.foreign and not plan.previous:
@@ -334,6 +354,20 @@ def _refuse(plan: OutputPlan, expected: list[str]) -> None:
     collide = [n for n in expected if n in plan.foreign]
     if collide:
         raise OutputError(_collision_message(plan, collide))
+
+
+def _is_folder(path: Path) -> bool:
+    return path.is_dir() and not path.is_symlink()
+
+
+def _folder_message(target: Path, names: list[str]) -> str:
+    one = len(names) == 1
+    return (
+        f"{target}: {_listing(names)} {'is a directory' if one else 'are directories'}, "
+        f"and this command writes a file of {'that name' if one else 'those names'}; rubcli "
+        f"never replaces or removes a directory (not with --force either): move "
+        f"{'it' if one else 'them'} away, or choose another output dir"
+    )
 
 
 def _collision_message(plan: OutputPlan, names: list[str]) -> str:
@@ -412,11 +446,9 @@ class StagedOutput:
             raise _write_error(target, exc) from None
         # Who may be replaced: rubcli's own unchanged files, anything with force.
         collide = [n for n in staged if os.path.lexists(target / n) and not plan.ours(n)]
-        folders = [n for n in collide if (target / n).is_dir() and not (target / n).is_symlink()]
+        folders = [n for n in collide if _is_folder(target / n)]
         if folders:
-            raise OutputError(f"{target}: {_listing(folders)} would be replaced by this "
-                              "command's files but is a directory; rubcli never replaces "
-                              "directories: move it away")  # fmt: skip
+            raise OutputError(_folder_message(target, folders))
         if collide and not plan.force:
             raise OutputError(_collision_message(plan, collide))
         stale = [n for n in plan.previous if n not in staged and plan.ours(n)]
@@ -427,7 +459,7 @@ class StagedOutput:
         out = [n for n in (*reversed(last), *staged, *stale)
                if os.path.lexists(target / n) and (n in staged or n in stale)]  # fmt: skip
         out = list(dict.fromkeys(out))
-        journal = {"pid": os.getpid(), "out": out, "in": staged}
+        journal = _signed_journal(self.staging, out, staged)
         try:
             _write_json(self.staging / JOURNAL_NAME, journal, sync=True)
             (self.staging / REPLACED_NAME).mkdir()
@@ -541,7 +573,14 @@ def is_write_failure(exc: BaseException) -> bool:
 
 
 def _recover(plan: OutputPlan) -> None:
-    """Under the lock: complete the commits of killed commands, remove their staging."""
+    """Under the lock: complete the commits of killed commands, remove their staging.
+
+    A staging dir without a journal (its command was killed before its commit) holds only
+    staged files: it is removed. A journal is acted on only when it is rubcli's: signed
+    with this user's key (``manifest.sign``) for this staging dir, and every file it would
+    move still the very file it recorded (device, inode, size, time). Any other journal is
+    refused and its staging dir left as it is: it may hold a user's files (or a commit of
+    another key's), and moving or removing them could lose them."""
     target = plan.target
     for path in sorted(target.glob(f"{STAGING_PREFIX}*")):
         try:
@@ -552,45 +591,98 @@ def _recover(plan: OutputPlan) -> None:
         if not stat.S_ISDIR(st.st_mode) or st.st_uid != uid:
             continue  # not ours to touch (it counts as foreign)
         with signals.deferred():
-            journal = _read_journal(path / JOURNAL_NAME)
-            if journal is not None and _roll_forward(target, path, journal):
-                plan.recovered.append(
-                    f"completed the interrupted commit of an earlier command (pid "
-                    f"{journal.get('pid')}): {', '.join(journal['in'])}"
-                )
-            else:
+            if not os.path.lexists(path / JOURNAL_NAME):
                 plan.recovered.append(f"removed {path.name}, left by an interrupted command")
+                shutil.rmtree(path, ignore_errors=True)
+                continue
+            journal = _read_journal(path)
+            if journal is None:
+                raise OutputError(
+                    f"{target}: {path.name} holds a commit journal that rubcli did not sign "
+                    "with your key: it is not acted on, nothing in the dir was moved or "
+                    f"removed; look at what it holds and remove it (rm -r '{path}')"
+                )
+            _roll_forward(target, path, journal)
+            plan.recovered.append(
+                f"completed the interrupted commit of an earlier command (pid "
+                f"{journal.get('pid')}): {', '.join(journal['in'])}"
+            )
             shutil.rmtree(path, ignore_errors=True)
 
 
-def _read_journal(path: Path) -> dict | None:
+def _identity(path: Path) -> list[int] | None:
+    """What a commit records of a file it moves (a rename keeps all four)."""
+    found = _signature(path)
+    return None if found is None else list(found[:4])
+
+
+def _signed_journal(staging: Path, out: list[str], staged: list[str]) -> dict:
+    """The journal of a commit: the files it moves out and in, each with its identity,
+    signed for this staging dir."""
+    target = staging.parent
+    journal = {
+        "journal": "rubcli commit",
+        "pid": os.getpid(),
+        "staging": staging.name,
+        "out": {n: _identity(target / n) for n in out},
+        "in": {n: _identity(staging / n) for n in staged},
+    }
+    return {**journal, "signature": manifest.sign(journal)}
+
+
+def _read_journal(staging: Path) -> dict | None:
+    """The journal in ``staging`` if rubcli signed it there with this user's key."""
     try:
-        journal = json.loads(path.read_text(encoding="utf-8"))
+        journal = json.loads((staging / JOURNAL_NAME).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
-    ok = (isinstance(journal, dict) and all(isinstance(journal.get(k), list) for k in ("in", "out"))
-          and all(isinstance(n, str) and Path(n).name == n and n not in ("", ".", "..")
-                  for n in journal["in"] + journal["out"]))  # fmt: skip
+    if not isinstance(journal, dict):
+        return None
+    body = {k: v for k, v in journal.items() if k != "signature"}
+    if not manifest.signed(body, journal.get("signature")) or body.get("staging") != staging.name:
+        return None
+    ok = all(isinstance(journal.get(k), dict) for k in ("in", "out")) and all(
+        Path(n).name == n and n not in ("", ".", "..") and not n.startswith(OWN_PREFIX)
+        for n in [*journal["in"], *journal["out"]]
+    )
     return journal if ok else None
 
 
-def _roll_forward(target: Path, staging: Path, journal: dict) -> bool:
+def _roll_forward(target: Path, staging: Path, journal: dict) -> None:
+    """Complete a journal's moves; first check that each is what the commit recorded (a
+    file changed or made since is never moved or replaced: OutputError, nothing moved)."""
+    moved_in = {n: ident[:2] for n, ident in journal["in"].items() if ident}
+    out, changed = [], []
+    for name, ident in journal["out"].items():
+        now = _identity(target / name)
+        if now is None or now[:2] == moved_in.get(name):
+            continue  # moved out already (and perhaps its new file in)
+        (out if now == ident else changed).append(name)
+    pending = [n for n in journal["in"] if os.path.lexists(staging / n)]
+    for name in pending:
+        if _identity(staging / name) != journal["in"][name]:
+            changed.append(name)
+        elif os.path.lexists(target / name) and name not in out:
+            changed.append(name)  # made since: it would be replaced
+    if changed:
+        raise OutputError(
+            f"{target}: the interrupted commit in {staging.name} cannot be completed: "
+            f"{_listing(sorted(set(changed)))} changed since it began; nothing was moved: "
+            f"move {'it' if len(set(changed)) == 1 else 'them'} away and run again"
+        )
     replaced = staging / REPLACED_NAME
     try:
         replaced.mkdir(exist_ok=True)
-        for name in journal["out"]:
-            # still the old file if its new one was not moved in yet (or it has none)
-            pending_new = (staging / name).exists() or name not in journal["in"]
-            if os.path.lexists(target / name) and not os.path.lexists(replaced / name) \
-                    and pending_new:  # fmt: skip
-                os.rename(target / name, replaced / name)
-        for name in journal["in"]:
-            if os.path.lexists(staging / name):
-                os.rename(staging / name, target / name)
-    except OSError:
-        return False
+        for name in out:
+            os.rename(target / name, replaced / name)
+        for name in pending:
+            os.rename(staging / name, target / name)
+    except OSError as exc:
+        raise OutputWriteError(
+            f"{target}: the interrupted commit in {staging.name} could not be completed "
+            f"({_reason(exc)}); the next rubcli command on this dir tries again"
+        ) from None
     _sync_dir(target)
-    return True
 
 
 # ------------------------------------------------------------------ the block
