@@ -14,7 +14,8 @@ A command that writes files::
         emit(report, json)                        # the JSON result with --json
 
 Exit codes of every command (README, "Exit codes"): 2 invalid input or an unusable output
-dir, 74 the outputs could not be written (disk full; nothing of the run is written), 75
+dir, 74 the outputs (or the output dir's lock) could not be written (disk full; nothing of
+the run is written), 75
 the output dir is in use by another rubcli command, 128 + N stopped by signal N.
 """
 
@@ -88,9 +89,9 @@ def prepare_output(
     target: Path, force: bool = False, wait: bool = False, expected: tuple[str, ...] = ()
 ) -> io.OutputPlan:
     """Lock and check the output dir before anything is computed (``io.open_output_dir``);
-    exit 2 if unusable, 75 if another command holds it (unless ``wait``). The lock is
-    released when the command ends (``close_outputs``). ``expected``: names the command
-    will write."""
+    exit 2 if unusable, 74 if it cannot be written (a full disk), 75 if another command
+    holds it (unless ``wait``). The lock is released when the command ends
+    (``close_outputs``). ``expected``: names the command will write."""
 
     def waiting(holder: str) -> None:
         console.warning(f"{target}: in use by {holder}; waiting for it (--wait)")
@@ -102,6 +103,9 @@ def prepare_output(
     except io.OutputBusy as exc:
         console.error(str(exc))
         raise typer.Exit(EXIT_BUSY) from None
+    except io.OutputWriteError as exc:  # no room even for its lock (or the manifest key)
+        console.error(str(exc))
+        raise typer.Exit(EXIT_WRITE) from None
     except io.OutputError as exc:
         console.error(str(exc))
         raise typer.Exit(EXIT_INVALID) from None

@@ -91,3 +91,34 @@ def test_a_full_stdout(run_cli, case_file, tmp_path):
         run = run_cli(*args, stdout="/dev/full")
         assert run.code == 74, (args, run.stderr)
         assert "cannot write to standard output: No space left on device" in run.stderr
+
+
+def test_a_disk_full_at_the_check_is_exit_74_and_leaves_no_lock(run_cli, case_file, out_dir):
+    """Not even the lock fits (every write fails): exit 74 before anything is computed,
+    and neither the lock nor the dir made for the command is left."""
+    run = run_cli("run", case_file(), "--out", out_dir, preexec=fsize_limit(0))
+    assert run.code == 74, run.stderr
+    assert f"{out_dir}: the output dir cannot be written (File too large)" in run.stderr
+    assert not out_dir.exists()
+    out_dir.mkdir()
+    run = run_cli("run", case_file(), "--out", out_dir, preexec=fsize_limit(0))
+    assert run.code == 74, run.stderr
+    assert _hidden(out_dir) == []
+
+
+def test_a_full_tmpfs_at_the_check(in_namespace, case_file):
+    """A file system with no room left at all (ENOSPC on the lock's first write): exit
+    74, no lock left."""
+    case = case_file()
+    script = f"""
+mkdir -p disk && mount -t tmpfs -o size=64k tmpfs disk || exit 99
+mkdir disk/out
+dd if=/dev/zero of=disk/fill bs=4k 2>/dev/null
+$RUBCLI run {case} --out disk/out
+echo "code=$?"
+ls -A disk/out > listing.txt
+"""
+    run = in_namespace(script)
+    assert "code=74" in run.stdout, (run.stdout, run.stderr)
+    assert "No space left on device" in run.stderr and "Traceback" not in run.stderr
+    assert (case.parent / "listing.txt").read_text() == ""

@@ -7,6 +7,7 @@ not list (8 of 8 trials of the audit), and two sweeps shared one store.
 from __future__ import annotations
 
 import json
+import os
 import signal
 
 import pytest
@@ -129,3 +130,34 @@ def test_waiting_is_interrupted_by_a_signal(run_cli, case_file, out_dir, tmp_pat
     finally:
         first.send_signal(signal.SIGTERM)
         finish(first)
+
+
+def test_a_hard_linked_lock_writes_nothing_outside_the_dir(run_cli, case_file, out_dir,
+                                                            tmp_path):  # fmt: skip
+    """`ln v.txt DIR/.rubcli.lock`: writing the lock would write v.txt, outside the dir;
+    the command refuses (exit 2, saying what the lock is) and v.txt is unchanged."""
+    outside = tmp_path / "v.txt"
+    outside.write_text("my own file\n")
+    out_dir.mkdir()
+    os.link(outside, out_dir / ".rubcli.lock")
+    run = run_cli("run", case_file(), "--out", out_dir)
+    assert run.code == 2, run.stderr
+    assert ".rubcli.lock is a hard link (one of 2 names of one file), not rubcli's lock" in (
+        run.stderr
+    )
+    assert "remove it" in run.stderr
+    assert outside.read_text() == "my own file\n"
+    assert visible(out_dir) == [] and os.path.exists(out_dir / ".rubcli.lock")
+
+
+def test_a_symlinked_lock_is_named_for_what_it_is(run_cli, case_file, out_dir, tmp_path):
+    outside = tmp_path / "v.txt"
+    outside.write_text("my own file\n")
+    out_dir.mkdir()
+    (out_dir / ".rubcli.lock").symlink_to(outside)
+    run = run_cli("run", case_file(), "--out", out_dir)
+    assert run.code == 2, run.stderr
+    assert ".rubcli.lock is a symbolic link, not rubcli's lock file" in run.stderr
+    assert "Too many levels" not in run.stderr
+    assert outside.read_text() == "my own file\n"
+    assert os.path.islink(out_dir / ".rubcli.lock")
