@@ -7,10 +7,11 @@ Writes ``sweep.nc``, ``sweep.csv``, ``bifurcation.png`` and ``summary.png`` (1-D
 sweeps), ``cascade.png`` (with ``spectrum = true``), ``map.png`` (2-D model sweeps),
 ``basins.png`` (initial-state grids) and ``report.json``.
 
-Finished points are kept in a hidden store beside the output dir
-(``.<dir name>.sweep-<digest>``) as they finish; running the same command again after an
+Finished points are kept in a hidden store inside the output dir
+(``.rubcli-sweep-<digest>``) as they finish; running the same command again after an
 interruption computes only the missing points. The outputs appear together, when every
-point is done; the store is then removed.
+point is done; the store is then removed, and so are the stores of earlier sweeps into
+the dir whose settings have changed since (named in a warning).
 
 Output dir: ``--out DIR``, else ``sweep/`` inside the case's output dir.
 
@@ -172,6 +173,7 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
                       "them")  # fmt: skip
         raise typer.Exit(EXIT_WRITE) from None
     engine.PointStore(store_dir, plan.digest()).remove()
+    _remove_stale_stores(target, plan)
     report_stale(output)
     emit(report, json)
     counts = (f"{where} in {wall:.1f} s ({stats.computed} computed, {stats.resumed} resumed, "
@@ -185,6 +187,21 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
         )
     files = report["files"]
     console.info(f"wrote {len(files)} files to {target}: {', '.join(files)}")
+
+
+def _remove_stale_stores(target: Path, plan) -> None:
+    """The sweep is written: the stores of earlier sweeps into this dir with other settings
+    are removed (if this user's own), and named."""
+    from rubcli.analysis import sweep as engine
+
+    for path in study.stale_stores(target, plan.digest()):
+        if engine.PointStore(path, "").remove():
+            console.warning(f"removed {path}: the finished points of an earlier sweep into "
+                            f"{target} whose settings have changed since")  # fmt: skip
+        else:
+            console.warning(f"{path}: a resume store of an earlier sweep into {target} whose "
+                            "settings have changed since; not this user's own, so left as it "
+                            "is: remove it if it is not needed")  # fmt: skip
 
 
 def _interrupted(exc: BaseException, store_dir: Path, plan) -> None:

@@ -1,6 +1,7 @@
 """The writing side of a parameter sweep (``rubcli sweep``): the files of a finished
 sweep in one atomic commit (``write_outputs``), what they are (``expected_files``), and
-where a sweep keeps its finished points until then (``store_dir_for``, ``kept_text``).
+where a sweep keeps its finished points until then (``store_dir_for``, ``kept_text``,
+``stale_stores``).
 
 The sweep itself is ``rubcli.sweep(case)`` (``rubcli.sweeps``: the plan of a case, the
 engine ``rubcli.analysis.sweep``); docs/sweeps.md.
@@ -8,6 +9,9 @@ engine ``rubcli.analysis.sweep``); docs/sweeps.md.
 
 from __future__ import annotations
 
+import glob
+import os
+import re
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -22,9 +26,42 @@ if TYPE_CHECKING:  # (the engine, xarray and Dask load only when a sweep runs)
     from rubcli.model import ModelParams
 
 
+STORE_PREFIX = ".rubcli-sweep-"  # rubcli's own hidden entry (``rubcli.io.outputs``)
+
+
 def store_dir_for(target: Path, digest: str) -> Path:
-    """The hidden store of finished points, beside the output dir."""
-    return target.parent / f".{target.name}.sweep-{digest}"
+    """The hidden store of finished points, inside the output dir (under its lock)."""
+    return Path(target) / f"{STORE_PREFIX}{digest}"
+
+
+_STORE_NAME = re.compile(r"^\.rubcli-sweep-[0-9a-f]{8,64}$")
+_STORE_FILE = re.compile(r"^(plan\.json|.+\.point|.+\.chunk|\..+\.tmp)$")
+
+
+def stale_stores(target: Path, digest: str) -> list[Path]:
+    """The stores of earlier sweeps into ``target`` whose case has changed since: inside
+    the dir, or beside it as older rubcli kept them (``.<dir name>.sweep-<digest>``); only
+    dirs that hold nothing but a store's files."""
+    target = Path(target)
+    found = [p for p in target.glob(f"{STORE_PREFIX}*")
+             if _STORE_NAME.match(p.name) and p.name != f"{STORE_PREFIX}{digest}"]  # fmt: skip
+    name = Path(os.path.abspath(target)).name
+    if name:
+        older = re.compile(rf"^\.{re.escape(name)}\.sweep-[0-9a-f]{{8,64}}$")
+        found += [p for p in target.parent.glob(f".{glob.escape(name)}.sweep-*")
+                  if older.match(p.name)]  # fmt: skip
+    return sorted(p for p in found if _only_store_files(p))
+
+
+def _only_store_files(path: Path) -> bool:
+    try:
+        return (
+            path.is_dir()
+            and not path.is_symlink()
+            and all(_STORE_FILE.match(p.name) and not p.is_dir() for p in path.iterdir())
+        )
+    except OSError:
+        return False
 
 
 def expected_files(plan: SweepPlan) -> tuple[str, ...]:

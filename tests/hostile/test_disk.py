@@ -12,7 +12,7 @@ from __future__ import annotations
 import json
 import sys
 
-from .conftest import LONG_CASE, SMALL_CASE, SWEEP_CASE, fsize_limit, snapshot
+from .conftest import LONG_CASE, SMALL_CASE, SWEEP_CASE, fsize_limit, snapshot, visible
 
 
 def _hidden(directory) -> list[str]:
@@ -48,7 +48,8 @@ def test_a_sweep_whose_netcdf_does_not_fit_keeps_its_points(run_cli, case_file, 
     assert run.code == 74, run.stderr
     assert "could not write the outputs" in run.stderr
     assert "5 of 5 points are kept in" in run.stderr and "run the same command" in (run.stderr)
-    assert not out_dir.exists()  # made for the sweep, removed again: nothing half-written
+    assert visible(out_dir) == []  # nothing half-written: only the store, hidden, inside
+    assert [p.name for p in out_dir.iterdir() if p.name.startswith(".rubcli-sweep-")]
     run = run_cli("sweep", case, "--out", out_dir, "--workers", "1")
     assert run.code == 0, run.stderr
     assert json.loads((out_dir / "report.json").read_text())["points_resumed"] == 5

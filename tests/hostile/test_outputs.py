@@ -22,7 +22,15 @@ import pytest
 from rubcli import io
 from rubcli.io import outputs, signals
 
-from .conftest import ORBITS_CASE, SMALL_CASE, SWEEP_CASE, snapshot, visible, wait_for
+from .conftest import (
+    ORBITS_CASE,
+    SMALL_CASE,
+    SWEEP_CASE,
+    fsize_limit,
+    snapshot,
+    visible,
+    wait_for,
+)
 
 GOOD = SMALL_CASE
 
@@ -254,10 +262,43 @@ def test_a_stopped_sweep_does_not_make_its_case_dir_foreign(run_cli, case_file, 
     proc.communicate(timeout=60)
     assert proc.returncode == 130
     case_dir = tmp_path / "out" / "free"
-    assert [p.name for p in case_dir.iterdir() if ".sweep-" in p.name]  # the store is there
+    stores = [p.name for p in (case_dir / "sweep").iterdir() if p.name.startswith(".rubcli-sweep-")]
+    assert stores  # the store is there, inside the sweep's dir
     run = run_cli("run", case, "--periods", "1")
     assert run.code == 0, run.stderr
     assert {"report.json", "rk45.csv"} <= set(visible(case_dir))
+
+
+def test_a_sweep_into_the_working_dir_resumes_from_its_own_store(run_cli, case_file, tmp_path):
+    """`rubcli sweep CASE --out .` keeps its store inside the dir, as rubcli's own: a
+    sweep cut by a full disk leaves only it, and the same command then resumes."""
+    case = case_file(SWEEP_CASE)
+    work = tmp_path / "work"
+    work.mkdir()
+    args = ("sweep", case, "--out", ".", "--workers", "1")
+    run = run_cli(*args, cwd=work, preexec=fsize_limit(16000))
+    assert run.code == 74, run.stderr
+    assert visible(work) == []
+    run = run_cli(*args, cwd=work)
+    assert run.code == 0, run.stderr
+    assert json.loads((work / "report.json").read_text())["points_resumed"] == 5
+    assert _hidden(work) == [] and _hidden(tmp_path) == []
+
+
+def test_the_store_of_a_changed_sweep_is_removed_and_named(run_cli, case_file, out_dir, tmp_path):
+    """A sweep cut by a full disk keeps its points; the case then changes and its sweep
+    completes: the earlier store, which no run will resume, is removed and named."""
+    first = case_file(SWEEP_CASE)
+    run = run_cli("sweep", first, "--out", out_dir, "--workers", "1",
+                  preexec=fsize_limit(16000))  # fmt: skip
+    assert run.code == 74, run.stderr
+    changed = SWEEP_CASE.replace("values = [0.5, 0.8, 1.0, 1.3, 2.0]", "values = [0.6, 1.1]")
+    run = run_cli("sweep", case_file(changed, "changed.toml"), "--out", out_dir, "--workers", "1")
+    assert run.code == 0, run.stderr
+    assert "the finished points of an earlier sweep into" in run.stderr
+    assert "whose settings have changed since" in run.stderr
+    assert _hidden(out_dir) == []
+    assert [p for p in os.listdir(tmp_path) if ".sweep-" in p] == []
 
 
 def test_every_command_takes_out_and_follows_the_dir_rule(run_cli, case_file, tmp_path):

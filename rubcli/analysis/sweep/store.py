@@ -31,6 +31,7 @@ import json
 import os
 import shutil
 import stat
+import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -201,21 +202,24 @@ class PointStore:
                 self.rejected.append(f"{key}{SUFFIX}")  # that point is computed again
         return out
 
-    def remove(self) -> None:
-        """Remove the store, only if it is this user's own."""
+    def remove(self) -> bool:
+        """Remove the store, only if it is this user's own; True if it was removed."""
         try:
             if not self.check():
-                return
+                return False
         except StoreError:
-            return
+            return False
         shutil.rmtree(self.directory, ignore_errors=True)
+        return not os.path.lexists(self.directory)
 
 
 def _atomic_bytes(path: Path, data: bytes) -> None:
-    """Write ``data`` to a temporary name in the same directory, then rename it over ``path``."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    """Write ``data`` to a new temporary file in the same directory (made here, never an
+    existing name or link), then rename it over ``path``."""
+    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    tmp = Path(name)
     try:
-        with open(tmp, "wb") as handle:
+        with os.fdopen(fd, "wb") as handle:
             handle.write(data)
         os.replace(tmp, path)
     except BaseException:
