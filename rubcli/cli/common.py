@@ -15,8 +15,8 @@ A command that writes files::
 
 Exit codes of every command (README, "Exit codes"): 2 invalid input or an unusable output
 dir, 74 the outputs (or the output dir's lock) could not be written (disk full; nothing of
-the run is written), 75
-the output dir is in use by another rubcli command, 128 + N stopped by signal N.
+the run is written), 75 the output dir is in use by another rubcli command, 128 + N
+stopped by signal N.
 """
 
 from __future__ import annotations

@@ -17,8 +17,11 @@ This is rubcli's one writer of output dirs. A command (or a library ``write(dire
 (``OutputBusy``) or waits (``wait=True``).
 
 **Check** (``open_output_dir``, before anything is computed): the dir must be a directory
-or creatable, and writable (tried: the dir and its lock file are made); every name in
-the path must fit the file system. The files in it are sorted into rubcli's own (listed,
+or creatable, and writable (tried: the dir and its lock file are made; a full disk is
+``OutputWriteError``, no lock left); every name in the path must fit the file system and
+hold no NUL byte; the manifest key must have a private place (``manifest.require_key``):
+rubcli writes no dir it could not sign. A name like an output's that is a directory is
+refused, also with ``force``. The files in it are sorted into rubcli's own (listed,
 byte for byte, by the signed manifest of its report.json: ``manifest``) and the others.
 A dir that holds other files and no valid manifest (``--out .``, a home dir, someone's
 data, a report.json typed by hand) is refused unless ``force``. A file rubcli did not
@@ -31,13 +34,16 @@ resume store (hidden names starting with ``.rubcli``, and older stores named
 **Staging and commit.** Files are written into ``DIR/.rubcli-staging-PID-XXXX`` (inside
 the target: one file system and one mount, so every move is a rename, also when the dir
 is a mount point or a bind mount). ``commit`` adds the signed manifest to report.json and
-writes a journal, then moves the replaced and stale files of the previous run into the
+writes a journal (signed for its staging dir, with the identity of each file it moves),
+then moves the replaced and stale files of the previous run into the
 staging dir and the new files in (report.json out first and in last: a dir whose
 report.json is present is complete), with termination signals held (``signals.deferred``).
 A move that fails (EXDEV, EIO, ...) rolls the moves back: nothing of the run is written,
 the previous outputs are unchanged. A process killed during the commit (SIGKILL, power)
 leaves the journal: the next command on the dir completes the commit before anything
-else; a staging dir without a journal (killed before its commit) is removed.
+else, if the journal is rubcli's and each file it moves unchanged (``_recover``; any other
+journal is refused and left alone); a staging dir without a journal (killed before its
+commit) is removed.
 """
 
 from __future__ import annotations
