@@ -318,7 +318,7 @@ def test_a_dask_basin_sweep_survives_a_killed_worker(tmp_path):
         )  # fmt: skip
         deadline = time.monotonic() + 240
         while time.monotonic() < deadline and sweep.poll() is None:
-            stores = list(tmp_path.glob(".out.sweep-*"))
+            stores = list((tmp_path / "out").glob(".rubcli-sweep-*"))
             if stores and len(list(stores[0].glob("chunk-*.chunk"))) >= 2:
                 break
             time.sleep(0.05)
@@ -394,7 +394,7 @@ def test_an_interrupted_basin_sweep_counts_the_starts_it_keeps(tmp_path):
                              text=True)  # fmt: skip
     deadline = time.monotonic() + 240
     while time.monotonic() < deadline and sweep.poll() is None:
-        stores = list(tmp_path.glob(".out.sweep-*"))
+        stores = list(out.glob(".rubcli-sweep-*"))
         if stores and len(list(stores[0].glob("chunk-*.chunk"))) >= 3:
             break
         time.sleep(0.05)
