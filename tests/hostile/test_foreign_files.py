@@ -14,7 +14,7 @@ import signal
 
 import pytest
 
-from .conftest import SMALL_CASE, snapshot
+from .conftest import SMALL_CASE, fsize_limit, snapshot
 
 STAGING = ".rubcli-staging-4242-planted"
 JOURNAL = ".rubcli-journal.json"
@@ -148,6 +148,18 @@ def test_no_private_place_for_the_key_is_refused_before_computing(
     assert "no private place for the key that signs rubcli's output dirs" in run.stderr
     assert str(state) in run.stderr and "RUBCLI_STATE_DIR" in run.stderr
     assert not out_dir.exists()
+
+
+def test_a_key_that_does_not_fit_on_its_disk_is_exit_74(run_cli, case_file, out_dir, tmp_path):
+    """A new state dir on a full disk: the key cannot be written; exit 74 naming it,
+    before anything is computed, and no output dir made."""
+    state = tmp_path / "state"
+    run = run_cli("run", case_file(), "--out", out_dir, env={"RUBCLI_STATE_DIR": str(state)},
+                  preexec=fsize_limit(0), fault=NO_SOLVE)  # fmt: skip
+    assert run.code == 74, run.stderr
+    assert "no private place for the key that signs rubcli's output dirs" in run.stderr
+    assert "File too large" in run.stderr
+    assert not out_dir.exists() and os.listdir(state) == []
 
 
 # --------------------------------------------------------------- the dir's name
