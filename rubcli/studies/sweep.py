@@ -45,10 +45,10 @@ def stale_stores(target: Path, digest: str) -> list[Path]:
     target = Path(target)
     found = [p for p in target.glob(f"{STORE_PREFIX}*")
              if _STORE_NAME.match(p.name) and p.name != f"{STORE_PREFIX}{digest}"]  # fmt: skip
-    name = Path(os.path.abspath(target)).name
-    if name:
-        older = re.compile(rf"^\.{re.escape(name)}\.sweep-[0-9a-f]{{8,64}}$")
-        found += [p for p in target.parent.glob(f".{glob.escape(name)}.sweep-*")
+    absolute = Path(os.path.abspath(target))
+    if absolute.name:
+        older = re.compile(rf"^\.{re.escape(absolute.name)}\.sweep-[0-9a-f]{{8,64}}$")
+        found += [p for p in absolute.parent.glob(f".{glob.escape(absolute.name)}.sweep-*")
                   if older.match(p.name)]  # fmt: skip
     return sorted(p for p in found if _only_store_files(p))
 

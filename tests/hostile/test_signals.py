@@ -192,7 +192,7 @@ def test_a_sweep_stops_cleanly_on_a_signal_and_keeps_its_points(run_cli, case_fi
     assert run.code == 130, run.stderr
     assert "1 of 5 points are kept in" in run.stderr
     assert visible(out_dir) == []
-    (store,) = out_dir.parent.glob(f".{out_dir.name}.sweep-*")
+    (store,) = out_dir.glob(".rubcli-sweep-*")
     assert len(list(store.glob("*.point"))) == 1
 
 
