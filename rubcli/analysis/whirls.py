@@ -49,12 +49,14 @@ located by Brent's method on their test functions.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from rubcli import model
+from rubcli.analysis.orbits import WallTimeBudgetError, check_deadline
 from rubcli.analysis.synchronous import rotating_frame_jacobian
 from rubcli.model import ModelParams
 
@@ -73,6 +75,7 @@ NONSMOOTH_FOLD, SLIP_ROLL, FOLD, HOPF, REAL_CROSSING, GRAZING, INFINITY = (
 EIGEN_TOL = 1e-9  # |eigenvalue| below this (x the largest) is the neutral turn
 S_EDGE = 1e-9  # s this close to 0 or 1 ends a branch (contact lost, radius unbounded)
 XTOL = 1e-13  # Brent on the segment fraction
+BUDGET_STOP = "wall-time budget exhausted"  # a direction's stop when the budget ran out
 
 
 class WhirlError(ValueError):
@@ -259,6 +262,7 @@ class WhirlSettings:
     newton_tol: float = 1e-12
     max_newton: int = 20
     locate: bool = True
+    max_wall_time_s: float | None = None  # the run's wall-time budget (None: unbounded)
 
     @property
     def scale(self) -> float:
@@ -317,6 +321,7 @@ class WhirlContinuation:
     branches: list[WhirlBranch]
     status: str = "ok"
     message: str = ""
+    budget_exhausted: bool = False  # the wall-time budget cut the run short
 
     @property
     def events(self) -> list[WhirlEvent]:
@@ -330,6 +335,7 @@ class WhirlContinuation:
             "parameter": self.parameter,
             "status": self.status,
             "message": self.message,
+            "wall_time_budget_exhausted": self.budget_exhausted,
             "start_whirls": [w.to_dict() for w in self.start_whirls],
             "branches": [b.to_dict() for b in self.branches],
             "events": [e.to_dict() for e in self.events],
@@ -339,8 +345,9 @@ class WhirlContinuation:
 class _Tracer:
     """Pseudo-arclength on one branch (module docstring)."""
 
-    def __init__(self, base: ModelParams, settings: WhirlSettings):
+    def __init__(self, base: ModelParams, settings: WhirlSettings, deadline: float | None = None):
         self.base, self.st = base, settings
+        self.deadline = deadline  # time.perf_counter() past which WallTimeBudgetError
 
     def params(self, q: float) -> ModelParams:
         return replace(self.base, **{self.st.parameter: q * self.st.scale})
@@ -371,6 +378,7 @@ class _Tracer:
         """Newton on F = 0 and normal . (X - anchor) = 0."""
         x = guess.copy()
         for it in range(1, self.st.max_newton + 1):
+            check_deadline(self.deadline)
             rhs = np.concatenate([self.f(mode, x), [float(normal @ (x - anchor))]])
             jac = np.vstack([self.full_jacobian(mode, x), normal])
             try:
@@ -430,10 +438,16 @@ def continue_whirls(
     params: ModelParams,
     settings: WhirlSettings,
     progress: Callable[[int], None] | None = None,
+    deadline: float | None = None,
 ) -> WhirlContinuation:
     """Every whirl of ``params`` continued in ``settings.parameter`` both ways; a start
     whirl already on an earlier branch (reached through a slip-roll point) is not traced
-    again."""
+    again.
+
+    The run ends by ``deadline`` (a ``time.perf_counter()`` value; default: now plus
+    ``settings.max_wall_time_s``), checked at every corrector iteration: the points traced
+    by then are kept, the direction under way says so in its stops, the directions not
+    begun are not traced, and ``budget_exhausted`` is set."""
     check_symmetric(params)
     if settings.parameter not in PARAMETERS:
         raise WhirlError(f"whirls are continued in one of {', '.join(PARAMETERS)}")
@@ -444,16 +458,23 @@ def continue_whirls(
         out.message = (f"no whirl in contact at {settings.parameter} = "
                        f"{getattr(params, settings.parameter):g}")  # fmt: skip
         return out
-    tracer = _Tracer(params, settings)
+    if deadline is None and settings.max_wall_time_s is not None:
+        deadline = time.perf_counter() + settings.max_wall_time_s
+    tracer = _Tracer(params, settings, deadline)
     done = 0
     for start in starts:
+        if out.budget_exhausted:
+            break
         q0 = getattr(params, settings.parameter) / settings.scale
         if any(_covers(b, start, q0, tracer) for b in out.branches):
             continue
         branch = WhirlBranch(len(out.branches), start)
         halves = []
         for direction in settings.directions:
+            if out.budget_exhausted:
+                break
             pts, events, stop = _trace(tracer, start, direction, branch.index)
+            out.budget_exhausted = stop.startswith(BUDGET_STOP)
             halves.append((direction, pts, events))
             branch.stops["up" if direction > 0 else "down"] = stop
             done += len(pts)
@@ -494,7 +515,21 @@ def _covers(branch: WhirlBranch, whirl: Whirl, q0: float, tracer: _Tracer) -> bo
 
 
 def _trace(tracer: _Tracer, start: Whirl, direction: int, index: int):
-    """Continue from ``start`` with the parameter moving by ``direction`` at first."""
+    """Continue from ``start`` with the parameter moving by ``direction`` at first: the
+    points, the events and why it stopped (the points traced when the budget ran out kept)."""
+    points: list[WhirlPoint] = []
+    events: list[WhirlEvent] = []
+    try:
+        stop = _walk(tracer, start, direction, index, points, events)
+    except WallTimeBudgetError:
+        budget = tracer.st.max_wall_time_s
+        stop = BUDGET_STOP + (f" (max_wall_time_s = {budget:g})" if budget is not None else "")
+    return points, events, stop
+
+
+def _walk(tracer: _Tracer, start: Whirl, direction: int, index: int,
+          points: list[WhirlPoint], events: list[WhirlEvent]) -> str:  # fmt: skip
+    """``_trace``'s loop: appends to ``points`` and ``events``, returns why it stopped."""
     st = tracer.st
     scale = st.scale
     mode = start.mode
@@ -503,8 +538,6 @@ def _trace(tracer: _Tracer, start: Whirl, direction: int, index: int):
     if t[2] * direction < 0.0:
         t = -t
     step = st.step / scale
-    points: list[WhirlPoint] = []
-    events: list[WhirlEvent] = []
     previous = start
     lo, hi = st.p_min / scale, st.p_max / scale
 
@@ -524,7 +557,7 @@ def _trace(tracer: _Tracer, start: Whirl, direction: int, index: int):
         if hit is None:
             step *= 0.5
             if step < st.min_step / scale:
-                return points, events, f"corrector failed at the minimum step near " \
+                return f"corrector failed at the minimum step near " \
                                        f"{st.parameter} = {x[2] * scale:.8g}"  # fmt: skip
             continue
         y, iterations = hit
@@ -534,7 +567,7 @@ def _trace(tracer: _Tracer, start: Whirl, direction: int, index: int):
             fixed = tracer.at_value(mode, y, bound)
             if fixed is not None and _valid(tracer, mode, fixed[0]):
                 points.append(point(fixed[0], "", fixed[1]))
-            return points, events, f"reached {st.parameter} = {bound * scale:g}"
+            return f"reached {st.parameter} = {bound * scale:g}"
         # the edges of s: contact lost, radius unbounded
         if not 0.0 < y[1 - 1] < 1.0:
             edge = 0.0 if y[0] <= 0.0 else 1.0
@@ -543,7 +576,7 @@ def _trace(tracer: _Tracer, start: Whirl, direction: int, index: int):
                 INFINITY, "the whirl radius grows without bound")  # fmt: skip
             if root is not None:
                 event(kind, root, what)
-            return points, events, f"{what} at {st.parameter} = {y[2] * scale:.8g}"
+            return f"{what} at {st.parameter} = {y[2] * scale:.8g}"
         # the mode's own validity
         if validity(mode, y[0], y[1], tracer.params(y[2])) < 0.0:
             root = tracer.locate(
@@ -551,7 +584,7 @@ def _trace(tracer: _Tracer, start: Whirl, direction: int, index: int):
             )
             if root is None:
                 where = f"{st.parameter} = {y[2] * scale:.8g}"
-                return points, events, f"could not locate where the {MODE_NAMES[mode]} " \
+                return f"could not locate where the {MODE_NAMES[mode]} " \
                                        f"whirl ends near {where}"  # fmt: skip
             new_mode = _other_mode(mode, root, tracer)
             new_t = tracer.tangent(new_mode, root, None)
@@ -588,7 +621,7 @@ def _trace(tracer: _Tracer, start: Whirl, direction: int, index: int):
             step = min(step * 1.5, st.max_step / scale)
         elif iterations >= 8:
             step = max(step * 0.6, st.min_step / scale)
-    return points, events, f"point budget ({st.max_points}) spent"
+    return f"point budget ({st.max_points}) spent"
 
 
 def _valid(tracer: _Tracer, mode: int, x: np.ndarray) -> bool:

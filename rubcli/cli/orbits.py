@@ -110,6 +110,9 @@ def command(
 ) -> None:
     """Periodic orbits, Floquet multipliers and continuation in one parameter (orbits table)."""
     case = load_or_exit(case_file)
+    if max_wall_time is not None and not (math.isfinite(max_wall_time) and max_wall_time > 0):
+        console.error(f"--max-wall-time: must be a finite number > 0 (got {max_wall_time!r})")
+        raise typer.Exit(EXIT_INVALID)
     if case.settings.orbits is not None and case.settings.orbits.kind == "whirl":
         from rubcli.cli import whirls
 
@@ -119,10 +122,8 @@ def command(
             )
             raise typer.Exit(EXIT_INVALID)
         target = command_dir(case, "orbits", out)
-        return whirls.run(case_file, case, target, force, wait, quick, json)
+        return whirls.run(case_file, case, target, force, wait, quick, json, max_wall_time)
     problems = study.check_case(case)
-    if max_wall_time is not None and not (math.isfinite(max_wall_time) and max_wall_time > 0):
-        problems.append(f"--max-wall-time: must be a finite number > 0 (got {max_wall_time!r})")
     overlay_data = None
     if not problems and overlay is not None:
         loaded = study.load_overlay(overlay, case.settings.orbits.parameter, overlay_var)

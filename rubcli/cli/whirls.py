@@ -13,7 +13,11 @@ are found in closed form and continued in the ``[orbits]`` parameter
 - ``report.json``: the case, the settings, the whirls at the case's parameters, every
   branch with why it stopped, every event located.
 
-Exit codes as ``rubcli orbits``: 0 done; 1 no whirl at the case's parameters; 2 invalid.
+``[orbits] max_wall_time_s`` (``--max-wall-time S``) bounds the run as it bounds a
+periodic-orbit branch: the whirls traced by then are written.
+
+Exit codes as ``rubcli orbits``: 0 done; 1 no whirl at the case's parameters, or the
+wall-time budget ran out (the whirls traced are written, the report says so); 2 invalid.
 """
 
 from __future__ import annotations
@@ -68,13 +72,18 @@ def check_case(case: Case) -> list[str]:
     return problems
 
 
-def settings_from_case(o: OrbitsSection, quick: bool) -> wh.WhirlSettings:
+def settings_from_case(
+    o: OrbitsSection, quick: bool, max_wall_time_s: float | None = None
+) -> wh.WhirlSettings:
+    """The whirl settings of an [orbits] table (``max_wall_time_s``: the command line's
+    budget instead of the table's)."""
     directions = {"both": (1, -1), "up": (1,), "down": (-1,)}[o.directions]
     return wh.WhirlSettings(
         parameter=o.parameter, p_min=o.min, p_max=o.max, step=o.step,
         min_step=o.resolved_min_step(), max_step=o.resolved_max_step(),
         max_points=min(o.max_points, QUICK_MAX_POINTS) if quick else o.max_points,
         directions=directions, newton_tol=min(o.newton_tol, 1e-10), locate=o.locate,
+        max_wall_time_s=o.max_wall_time_s if max_wall_time_s is None else max_wall_time_s,
     )  # fmt: skip
 
 
@@ -109,23 +118,33 @@ def write_branch_csv(path: Path, result: wh.WhirlContinuation) -> None:
 
 
 def run(
-    case_file: Path, case: Case, target: Path, force: bool, wait: bool, quick: bool, json: bool
+    case_file: Path,
+    case: Case,
+    target: Path,
+    force: bool,
+    wait: bool,
+    quick: bool,
+    json: bool,
+    max_wall_time: float | None = None,
 ) -> None:
-    """The whole command for a whirl case (inputs checked by the caller's schema)."""
+    """The whole command for a whirl case (inputs checked by the caller's schema;
+    ``max_wall_time``: the budget instead of the table's)."""
     problems = check_case(case)
     if problems:
         console.error_lines(f"cannot continue whirls of {case_file}", problems)
         raise typer.Exit(2)
     o = case.settings.orbits
-    settings = settings_from_case(o, quick)
+    settings = settings_from_case(o, quick, max_wall_time)
     plan = prepare_output(target, force, wait, EXPECTED_FILES)
     with console.machine_readable(json):
         t0 = time.perf_counter()
         total = float(settings.max_points * len(settings.directions) * 2)
         with progress.progress_bar(f"whirls in {o.parameter}", total=total) as update:
-            result = wh.continue_whirls(case.params, settings, progress=lambda n: update(n))
+            result = wh.continue_whirls(case.params, settings, progress=lambda n: update(n),
+                                        deadline=t0 + settings.max_wall_time_s)  # fmt: skip
         wall = time.perf_counter() - t0
-        command_line = {"case_file": str(case_file), "out": str(target), "quick": quick}
+        command_line = {"case_file": str(case_file), "out": str(target), "quick": quick,
+                        "max_wall_time": max_wall_time}  # fmt: skip
         report = {
             **io.report_envelope("orbits", command_line, case.to_dict()),
             "kind": "whirl",
@@ -150,6 +169,13 @@ def run(
         emit(report, json)
         if result.status != "ok":
             console.error(f"{case_file}: {result.message}; report.json written to {target}")
+            raise typer.Exit(EXIT_FAILED)
+        if result.budget_exhausted:
+            console.error(
+                f"{case_file}: stopped by the wall-time budget ({settings.max_wall_time_s:g} s): "
+                f"the {len(result.rows())} whirls traced are written to {target} "
+                "(--max-wall-time or [orbits] max_wall_time_s for more)"
+            )
             raise typer.Exit(EXIT_FAILED)
         for w in result.start_whirls:
             console.info(f"{wh.MODE_NAMES[w.mode]} whirl: r = {w.radius:.6g}, rate "

@@ -216,3 +216,41 @@ def test_forces_map_case_limit_follows_the_measured_cost(tmp_path):
     assert done.returncode == 2, done.stderr
     assert "forces_map.resolution: a 6688 x 6688 grid needs about 9.46 GiB" in done.stderr
     assert "at most 6120" in done.stderr
+
+
+def whirl_case(tmp_path: Path, **table) -> Path:
+    """The paper's whirl case (e = 0) with the keys of ``table`` set in [orbits]."""
+    text = (ROOT / "cases" / "paper" / "fig3-whirls.toml").read_text()
+    text = text.replace('dir = "out/fig3-whirls"', 'dir = "out"')
+    return case(tmp_path, text, **table)
+
+
+# Steps of 1e-7 in a window of 0.1: a million corrector solves, minutes without a budget.
+CRAWLING_WHIRLS = {"step": 1e-7, "min_step": 1e-9, "max_step": 1e-7, "max_points": 100000}
+
+
+@pytest.mark.parametrize("where", ["option", "table"])
+def test_whirls_end_within_their_wall_time_budget(tmp_path, where):
+    """``kind = "whirl"`` once ignored both the table's budget and --max-wall-time (still
+    tracing after 150 s with 3 s): now it stops at the budget like a periodic-orbit
+    branch, writes the whirls traced, says so and exits 1."""
+    if where == "option":
+        path, extra = whirl_case(tmp_path, **CRAWLING_WHIRLS), ["--max-wall-time", 2]
+    else:
+        path, extra = whirl_case(tmp_path, **CRAWLING_WHIRLS, max_wall_time_s=2.0), []
+    done = rubcli(tmp_path, "orbits", path, "--out", "out", *extra, timeout=60)
+    assert done.returncode == 1, done.stderr
+    assert "stopped by the wall-time budget (2 s)" in done.stderr
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["whirls"]["wall_time_budget_exhausted"] is True
+    assert report["continuation"]["max_wall_time_s"] == 2
+    stops = report["whirls"]["branches"][0]["stops"]
+    assert "wall-time budget exhausted (max_wall_time_s = 2)" in stops.values()
+    assert (tmp_path / "out" / "branch.csv").exists()
+
+
+def test_whirls_budget_is_checked_as_input(tmp_path):
+    done = rubcli(tmp_path, "orbits", whirl_case(tmp_path), "--out", "out",
+                  "--max-wall-time", "nan")  # fmt: skip
+    assert done.returncode == 2 and "--max-wall-time: must be a finite number > 0" in done.stderr
+    assert not (tmp_path / "out").exists()
