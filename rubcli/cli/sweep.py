@@ -19,9 +19,11 @@ A Dask sweep whose scheduler stays unreachable, or has no worker left, for
 ``[sweep] scheduler_lost_timeout_s`` stops with exit 69; the finished points are kept.
 
 Exit codes: 0 done (failed points are results); 2 invalid input or unreachable scheduler;
-69 the Dask scheduler or all its workers were lost mid-sweep (the finished points are
-kept); 74 the outputs could not be written (the finished points are kept); 75 the output
-dir is in use; 128 + N stopped by signal N (130 Ctrl-C; the finished points are kept).
+69 no Dask scheduler answered at the address within ``scheduler_timeout_s`` (another
+service, a silent listener), or the scheduler or all its workers were lost mid-sweep (the
+finished points are kept); 74 the outputs could not be written (the finished points are
+kept); 75 the output dir is in use; 128 + N stopped by signal N (130 Ctrl-C; the finished
+points are kept).
 """
 
 from __future__ import annotations
@@ -49,7 +51,7 @@ from rubcli.studies import sweep as study
 
 LOCAL_SCHEDULER = "local"
 EXIT_INTERRUPTED = 130  # Ctrl-C: the finished points are kept for the next run
-EXIT_LOST = 69  # EX_UNAVAILABLE: the Dask scheduler or its workers were lost mid-sweep
+EXIT_LOST = 69  # EX_UNAVAILABLE: no Dask scheduler answered, or it or its workers were lost
 CLOSE_TIMEOUT_S = 5.0  # bounded wait to close a Dask client (its scheduler may be gone)
 
 
@@ -114,7 +116,8 @@ def command(
         except engine.SchedulerError as exc:
             field = "--scheduler" if scheduler is not None else "sweep.scheduler"
             console.error(f"{case_file}: {field}: {exc}")
-            raise typer.Exit(EXIT_INVALID) from None
+            lost = isinstance(exc, engine.SchedulerUnavailableError)
+            raise typer.Exit(EXIT_LOST if lost else EXIT_INVALID) from None
 
     with console.machine_readable(json):
         _sweep(case_file, case, plan, target, output, client, cluster, workers, scheduler, out,

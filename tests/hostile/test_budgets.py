@@ -19,6 +19,8 @@ from pathlib import Path
 
 import pytest
 
+from .conftest import SWEEP_CASE
+
 ROOT = Path(__file__).resolve().parents[2]
 TIMEOUT_S = 120
 TRACEBACK = re.compile(r'Traceback|^\s*File "', re.M)
@@ -254,3 +256,64 @@ def test_whirls_budget_is_checked_as_input(tmp_path):
                   "--max-wall-time", "nan")  # fmt: skip
     assert done.returncode == 2 and "--max-wall-time: must be a finite number > 0" in done.stderr
     assert not (tmp_path / "out").exists()
+
+
+@pytest.fixture
+def wrong_service():
+    """``start(mode)``: a TCP server on 127.0.0.1 that is not a Dask scheduler and its
+    tcp:// address: ``silent`` accepts and says nothing, ``http`` answers like an HTTP
+    server, ``random`` sends random bytes first. Each serves in a daemon thread that stops
+    by itself after 90 s, or when the test ends."""
+    import socket
+    import threading
+
+    servers = []
+
+    def start(mode: str) -> str:
+        server = socket.create_server(("127.0.0.1", 0))
+        server.settimeout(1.0)
+        servers.append(server)
+        stop_at = time.monotonic() + 90
+
+        def serve() -> None:
+            held = []
+            while time.monotonic() < stop_at:
+                try:
+                    conn, _ = server.accept()
+                except TimeoutError:
+                    continue
+                except OSError:  # closed by the test's end
+                    break
+                held.append(conn)
+                if mode == "http":
+                    conn.sendall(b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n")
+                elif mode == "random":
+                    conn.sendall(os.urandom(4096))
+            for conn in held:
+                conn.close()
+
+        threading.Thread(target=serve, daemon=True).start()
+        return f"tcp://127.0.0.1:{server.getsockname()[1]}"
+
+    yield start
+    for server in servers:
+        server.close()
+
+
+@pytest.mark.parametrize("mode", ["silent", "http", "random"])
+def test_sweep_refuses_a_service_that_is_not_a_dask_scheduler(
+    run_cli, case_file, out_dir, wrong_service, mode
+):
+    """A listener that says nothing and an HTTP server once held ``--scheduler`` for
+    minutes whatever scheduler_timeout_s; random bytes first ended in a MemoryError of
+    exabytes. Each is now refused within the timeout: exit 69, the address named."""
+    pytest.importorskip("distributed")
+    address = wrong_service(mode)
+    path = case_file(SWEEP_CASE.replace("[sweep]", "[sweep]\nscheduler_timeout_s = 2"))
+    start = time.monotonic()
+    done = run_cli("sweep", path, "--out", out_dir, "--scheduler", address, timeout=60)
+    assert done.code == 69, done.stderr
+    assert f"--scheduler: no Dask scheduler answered at '{address}' within 2 s" in done.stderr
+    assert "MemoryError" not in done.stderr
+    assert not out_dir.exists()
+    assert time.monotonic() - start < 50  # 2 s and the start-up, not minutes

@@ -44,6 +44,7 @@ __all__ = [
     "StoreError",
     "RunStats",
     "SchedulerError",
+    "SchedulerUnavailableError",
     "SweepPlan",
     "dask_executor",
     "default_workers",
@@ -53,11 +54,16 @@ __all__ = [
 
 CONNECT_TIMEOUT_S = 10.0  # bounded wait for a Dask scheduler
 LOST_TIMEOUT_S = 60.0  # bounded wait for a lost scheduler, or for a worker when none is left
+MAX_GREETING_BYTES = 1 << 16  # a Dask handshake is a small dict: a longer one is not one
 MAX_BATCH = 8  # points per task at most: a Dask round trip costs milliseconds, a pool's ~0.1
 
 
 class SchedulerError(Exception):
     """The Dask scheduler cannot be reached (or Dask is not installed)."""
+
+
+class SchedulerUnavailableError(SchedulerError):
+    """Something answers at the scheduler's address, but no Dask scheduler in time."""
 
 
 def default_workers() -> int:
@@ -90,8 +96,15 @@ def check_workers(workers: int | None, *, oversubscribe: bool = False) -> int:
 
 def reachable_or_raise(address: str, timeout: float) -> None:
     """SchedulerError unless ``address`` is a tcp:// or tls:// address that accepts a
-    connection: checked before a ``Client`` is made, since a Client whose connection fails
-    prints a traceback from its finaliser some 20 s later."""
+    connection (checked before a ``Client`` is made, since a Client whose connection fails
+    prints a traceback from its finaliser some 20 s later); SchedulerUnavailableError
+    unless, on tcp://, what answers there greets as a Dask peer within ``timeout``.
+
+    A Dask peer writes its handshake as soon as a connection is made: an 8-byte length,
+    then that many bytes of msgpack frames holding a dict. The greeting is read here, on a
+    plain socket with a deadline, because ``distributed`` reads a peer's handshake without
+    one (a silent listener holds the Client for ever) and allocates whatever length the
+    first 8 bytes say (random bytes: exabytes, a MemoryError)."""
     import socket
 
     from distributed.comm.addressing import parse_address, parse_host_port
@@ -105,17 +118,71 @@ def reachable_or_raise(address: str, timeout: float) -> None:
         raise SchedulerError(
             f"{address!r}: a Dask scheduler speaks tcp:// or tls://, not {scheme}://"
         )
+    deadline = time.monotonic() + timeout
     try:
-        with socket.create_connection((host, port), timeout=timeout):
-            pass
+        sock = socket.create_connection((host, port), timeout=timeout)
     except OSError as exc:
         raise SchedulerError(
             f"cannot reach the Dask scheduler at {address!r} within {timeout:g} s: {exc}"
         ) from None
+    with sock:
+        # on tls:// the greeting comes after the TLS handshake: connect's deadline holds
+        problem = _greeting_problem(sock, deadline) if scheme == "tcp" else ""
+    if problem:
+        raise SchedulerUnavailableError(
+            f"no Dask scheduler answered at {address!r} within {timeout:g} s: {problem}"
+        )
+
+
+def _greeting_problem(sock, deadline: float) -> str:
+    """Why what ``sock`` sends first is not a Dask handshake ('' if it is)."""
+    import struct
+
+    header = _receive(sock, 8, deadline)
+    if len(header) < 8:
+        return "the handshake was cut short" if header else "the peer sent no handshake"
+    (length,) = struct.unpack("<Q", header)
+    if not 0 < length <= MAX_GREETING_BYTES:
+        return "the peer's first bytes are not a Dask handshake"
+    body = _receive(sock, length, deadline)
+    if len(body) < length:
+        return "the handshake was cut short"
+    try:
+        from distributed.protocol import loads
+        from distributed.protocol.utils import unpack_frames
+
+        greeting = loads(unpack_frames(body))
+    except Exception:  # any bytes may come: whatever fails to decode is not a handshake
+        greeting = None
+    return "" if isinstance(greeting, dict) else "the peer's first bytes are not a Dask handshake"
+
+
+def _receive(sock, n: int, deadline: float) -> bytes:
+    """Up to ``n`` bytes from ``sock``, fewer if it closes or ``deadline`` passes."""
+    out = bytearray()
+    while len(out) < n:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            break
+        sock.settimeout(left)
+        try:
+            chunk = sock.recv(n - len(out))
+        except OSError:  # the deadline passed, or the peer reset the connection
+            break
+        if not chunk:
+            break
+        out += chunk
+    return bytes(out)
 
 
 def connect(address: str, timeout: float = CONNECT_TIMEOUT_S) -> Client:
-    """A ``distributed.Client`` of the scheduler at ``address``; SchedulerError if not."""
+    """A ``distributed.Client`` of the scheduler at ``address`` within about ``timeout``
+    s; SchedulerError if it cannot be reached, SchedulerUnavailableError if no scheduler
+    answers there in time (a wrong service, a silent listener). The Client is made in a
+    thread with ``timeout`` of its own, and waited for at most twice that: no peer holds
+    the command longer."""
+    import threading
+
     try:
         from distributed import Client
     except ImportError:
@@ -123,12 +190,31 @@ def connect(address: str, timeout: float = CONNECT_TIMEOUT_S) -> Client:
             'Dask is not installed: pip install -e ".[dask]" (or "rubcli[dask]")'
         ) from None
     reachable_or_raise(address, timeout)
-    try:
-        return Client(address, timeout=timeout, set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as exc:
+    made: dict = {}
+
+    def make() -> None:
+        try:
+            made["client"] = Client(address, timeout=timeout, set_as_default=False)
+        except Exception as exc:  # raised again in the caller's thread, below
+            made["error"] = exc
+
+    thread = threading.Thread(target=make, name="rubcli-dask-connect", daemon=True)
+    thread.start()
+    thread.join(2.0 * timeout)
+    if thread.is_alive():
+        raise SchedulerUnavailableError(
+            f"no Dask scheduler answered at {address!r} within {timeout:g} s"
+        )
+    exc = made.get("error")
+    if isinstance(exc, (OSError, TimeoutError, ValueError)):
         raise SchedulerError(
             f"cannot reach the Dask scheduler at {address!r} within {timeout:g} s: {exc}"
-        ) from None
+        )
+    if exc is not None:
+        raise SchedulerUnavailableError(
+            f"no Dask scheduler answered at {address!r}: {type(exc).__name__}: {exc}"
+        )
+    return made["client"]
 
 
 @contextlib.contextmanager
