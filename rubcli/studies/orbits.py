@@ -150,16 +150,11 @@ def load_overlay(
     path: Path, parameter: str, variable: str | None
 ) -> tuple[np.ndarray, np.ndarray, str] | list[str]:
     """(parameter values, z values, label) of a sweep.nc, or a list of problems."""
-    try:
-        import xarray as xr
-    except ImportError:  # pragma: no cover - xarray is a dependency
-        return [f"{path}: --overlay needs xarray and h5netcdf (pip install xarray h5netcdf)"]
-    if not path.is_file():
-        return [f"{path}: --overlay: file not found"]
-    try:
-        ds = xr.open_dataset(path, engine="h5netcdf")
-    except Exception as exc:  # any unreadable file is bad input, not a crash
-        return [f"{path}: --overlay: not a readable NetCDF file ({type(exc).__name__}: {exc})"]
+    from rubcli.studies.sweep import open_overlay
+
+    ds = open_overlay(path)
+    if isinstance(ds, list):
+        return ds
     with ds:
         if parameter not in ds.coords and parameter not in ds.dims:
             return [f"{path}: --overlay: no coordinate {parameter!r} (the branch's parameter);"

@@ -170,6 +170,7 @@ def class_counts(ds: xr.Dataset) -> dict[str, int]:
     return {k: v for k, v in counts.items() if v}
 
 
+MAX_OVERLAY_BYTES = 8 << 30  # the largest --overlay file read
 UNCONFIRMED = "chaotic, unconfirmed (Birkhoff test only: no Lyapunov exponent computed)"
 
 
@@ -273,15 +274,40 @@ def local_cluster(workers: int | None) -> tuple[Any, Any]:
 
 
 def open_overlay(path: Path) -> xr.Dataset | list[str]:
-    """A sweep.nc given to ``--overlay`` (``rubcli chart``, ``rubcli run``), opened, or why
-    it cannot be read (bad input, never a crash)."""
+    """A sweep.nc given to ``--overlay`` (``rubcli chart``, ``rubcli run``, ``rubcli
+    orbits``), opened, or why it cannot be read (bad input, never a crash).
+
+    Only a regular file of at most MAX_OVERLAY_BYTES is read: the path is opened without
+    blocking (a FIFO or a device would hold the command for ever) and checked on the open
+    descriptor before xarray reads it from there."""
+    import os
+    import stat
+
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except FileNotFoundError:
+        return [f"{path}: --overlay: file not found"]
+    except OSError as exc:
+        return [f"{path}: --overlay: cannot be opened ({exc.strerror})"]
+    info = os.fstat(fd)
+    problem = ""
+    if not stat.S_ISREG(info.st_mode):
+        problem = "not a regular file (a sweep.nc is one)"
+    elif info.st_size > MAX_OVERLAY_BYTES:
+        problem = (
+            f"{info.st_size / 2**30:.3g} GiB, above the {MAX_OVERLAY_BYTES >> 30} GiB of a sweep.nc"
+        )
+    if problem:
+        os.close(fd)
+        return [f"{path}: --overlay: {problem}"]
+    os.set_blocking(fd, True)
+    handle = os.fdopen(fd, "rb")
     try:
         import xarray as xr
 
-        return xr.open_dataset(path, engine="h5netcdf")
-    except FileNotFoundError:
-        return [f"{path}: --overlay: file not found"]
+        return xr.open_dataset(handle, engine="h5netcdf")
     except Exception as exc:  # any unreadable file is bad input, not a crash
+        handle.close()
         return [f"{path}: --overlay: not a readable NetCDF file ({type(exc).__name__}: {exc})"]
 
 

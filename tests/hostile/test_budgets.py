@@ -317,3 +317,23 @@ def test_sweep_refuses_a_service_that_is_not_a_dask_scheduler(
     assert "MemoryError" not in done.stderr
     assert not out_dir.exists()
     assert time.monotonic() - start < 50  # 2 s and the start-up, not minutes
+
+
+@pytest.mark.parametrize(
+    ("command", "shipped"),
+    [("chart", "examples/mu-eta-map.toml"), ("run", "runup/driven-dry-whip.toml"),
+     ("orbits", None)],
+)  # fmt: skip
+def test_an_overlay_that_is_not_a_regular_file_is_refused_at_once(
+    run_cli, case_file, out_dir, tmp_path, command, shipped
+):
+    """``--overlay`` at a FIFO once blocked for ever in open(); now anything but a regular
+    file is refused before it is read: exit 2, the path named, nothing written."""
+    text = (ROOT / "cases" / shipped).read_text() if shipped else ORBITS_CASE
+    path = case_file(text)
+    fifo = tmp_path / "sweep.nc"
+    os.mkfifo(fifo)
+    done = run_cli(command, path, "--out", out_dir, "--overlay", fifo, timeout=60)
+    assert done.code == 2, done.stderr
+    assert f"{fifo}: --overlay: not a regular file" in done.stderr
+    assert not out_dir.exists()
