@@ -1107,6 +1107,7 @@ class ChartSection(_Section):
     x_spacing: Literal["linear", "log"] = "linear"  # of the grid values of x
     y_spacing: Literal["linear", "log"] = "linear"
     check_points: int = Field(default=0, ge=0, le=50)  # values of x checked by continuation
+    max_wall_time_s: float = Field(default=3600.0, gt=0)  # the run's budget, seconds
 
     @model_validator(mode="after")
     def _plane(self) -> ChartSection:

@@ -191,17 +191,22 @@ def closed_form_chart(
     ny: int = 61,
     x_spacing: str = "linear",
     y_spacing: str = "linear",
+    deadline: float | None = None,
 ) -> Chart:
     """Regions and curves in the plane (x_name, y_name) over the given ranges; every other
     parameter as in ``params``. Each curve's function is evaluated on the grid
     (``Chart.fields``), and its zeros are located by Brent between grid values of a sign
     change, along x at each grid value of y and along y at each grid value of x (a curve
-    that runs nearly parallel to one axis is found along the other)."""
+    that runs nearly parallel to one axis is found along the other). WallTimeBudgetError
+    once ``time.perf_counter()`` passes ``deadline`` (checked at every grid line)."""
+    from rubcli.analysis.orbits import check_deadline
+
     xs = _grid(x_range, nx, x_spacing)
     ys = _grid(y_range, ny, y_spacing)
     regions = np.zeros((ny, nx), dtype=int)
     fields = {k: np.full((ny, nx), math.nan) for k in CURVE_KINDS}
     for j, yv in enumerate(ys):
+        check_deadline(deadline)
         row = _with(params, **{y_name: yv})
         for i, xv in enumerate(xs):
             code, *values = point_values(_with(row, **{x_name: xv}))
@@ -213,11 +218,13 @@ def closed_form_chart(
         keep_x, keep_y = _keep(kind, params, x_name, y_name), _keep(kind, params, y_name, x_name)
         if nx > 1:  # along x, at each grid value of y
             for j, yv in enumerate(ys):
+                check_deadline(deadline)
                 for root in _roots_on_line(f, params, x_name, y_name, float(yv), xs,
                                            fields[kind][j], keep_x):  # fmt: skip
                     found[kind].add((root, float(yv)))
         if ny > 1:  # along y, at each grid value of x
             for i, xv in enumerate(xs):
+                check_deadline(deadline)
                 for root in _roots_on_line(f, params, y_name, x_name, float(xv), ys,
                                            fields[kind][:, i], keep_y):  # fmt: skip
                     found[kind].add((float(xv), root))
@@ -298,13 +305,17 @@ CONTINUED_KINDS = {"fold": RUB_FOLD, "neimark_sacker": RUB_STABILITY, "grazing":
 
 
 def continued_points(
-    params: ModelParams, chart: Chart, n: int, progress: Callable[[int], None] | None = None
-) -> list[ContinuedPoint]:
+    params: ModelParams, chart: Chart, n: int, progress: Callable[[int], None] | None = None,
+    deadline: float | None = None,
+) -> list[ContinuedPoint]:  # fmt: skip
     """At ``n`` values of x across the chart (its interior), the synchronous rub shot at the
     first grid value of y where it exists, continued in y over the chart's range both
     ways, and its located folds, Neimark-Sacker points and grazings: an independent check
-    of the closed-form curves (each point carries the closed form's y next to it)."""
+    of the closed-form curves (each point carries the closed form's y next to it).
+    WallTimeBudgetError once ``time.perf_counter()`` passes ``deadline``: a check cut
+    short is no check."""
     from rubcli.analysis import continuation as cn
+    from rubcli.analysis.orbits import check_deadline
 
     out: list[ContinuedPoint] = []
     lo, hi = float(chart.y[0]), float(chart.y[-1])
@@ -313,6 +324,7 @@ def continued_points(
     step, largest = ((0.1 * lo, (hi - lo) / 30.0) if chart.log_y else
                      ((hi - lo) / 30.0, (hi - lo) / 6.0))  # fmt: skip
     for i, xv in enumerate(_interior(chart.x, n)):
+        check_deadline(deadline)
         column = _with(params, **{chart.x_name: xv})
         start = next((yv for yv in chart.y if _forward_rub(_with(column, **{chart.y_name: yv}))),
                      None)  # fmt: skip
@@ -325,7 +337,10 @@ def continued_points(
                 max_step=largest, max_points=200,
                 rtol=1e-10, atol=1e-10, newton_tol=1e-9, max_wall_time_s=60.0,
             )  # fmt: skip
-            branch = cn.continue_branch(at, state, settings)
+            ends = cn.deadline_of(settings)  # each branch's own budget, within the run's
+            ends = ends if deadline is None else min(ends, deadline)
+            branch = cn.continue_branch(at, state, settings, deadline=ends)
+            check_deadline(deadline)  # a branch the run's budget cut short
             for b in branch.bifurcations:
                 kind = CONTINUED_KINDS.get(b.kind)
                 if kind is not None and b.located and not b.nonsmooth:

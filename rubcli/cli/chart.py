@@ -1,5 +1,5 @@
-"""``rubcli chart CASE [--out DIR] [--quick] [--overlay sweep.nc]``: the stability chart of a
-parameter plane.
+"""``rubcli chart CASE [--out DIR] [--quick] [--overlay sweep.nc] [--max-wall-time S]``: the
+stability chart of a parameter plane.
 
 Runs the case's ``[chart]`` table (``rubcli.analysis.charts``; docs/charts.md): on the
 isotropic machine the synchronous motions are known in closed form, so each point of the
@@ -14,12 +14,17 @@ that bound the regions are located without an integration. Writes
 - ``chart.nc``: the regions on the grid and each curve's function;
 - ``report.json``: the case, the plane, the share of each region, the points per curve.
 
-Exit codes: 0 done; 2 invalid input (nothing written).
+``[chart] max_wall_time_s`` (default 3600 s; ``--max-wall-time S``) bounds the whole
+chart, checked at every grid line and by each continuation check.
+
+Exit codes: 0 done; 1 the wall-time budget ran out (nothing written); 2 invalid input
+(nothing written).
 """
 
 from __future__ import annotations
 
 import contextlib
+import math
 from pathlib import Path
 from typing import Annotated
 
@@ -41,6 +46,7 @@ OutOption = Annotated[
     Path | None, typer.Option("--out", "-o", help="Output dir (default: <case dir>/chart).")
 ]
 QuickOption = Annotated[bool, typer.Option("--quick", help="CI mode: a 41 x 21 grid.")]
+EXIT_BUDGET = 1  # the wall-time budget ran out, as for rubcli orbits
 
 
 def command(
@@ -51,6 +57,14 @@ def command(
         Path | None,
         typer.Option("--overlay", help="A sweep.nc over the same plane, drawn beside it."),
     ] = None,
+    max_wall_time: Annotated[
+        float | None,
+        typer.Option(
+            "--max-wall-time",
+            metavar="S",
+            help="Wall-time budget in seconds instead of [chart] max_wall_time_s.",
+        ),
+    ] = None,  # fmt: skip
     json: JsonOption = False,
     force: ForceOption = False,
     wait: WaitOption = False,
@@ -61,6 +75,10 @@ def command(
     if c is None:
         console.error(f"{case.source}: chart: missing table [chart] (docs/charts.md)")
         raise typer.Exit(EXIT_INVALID)
+    if max_wall_time is not None and not (math.isfinite(max_wall_time) and max_wall_time > 0):
+        console.error(f"--max-wall-time: must be a finite number > 0 (got {max_wall_time!r})")
+        raise typer.Exit(EXIT_INVALID)
+    from rubcli.analysis.orbits import WallTimeBudgetError
     from rubcli.studies import chart as study  # (scipy: loaded by this command only)
 
     sweep = None
@@ -79,9 +97,18 @@ def command(
             if checks
             else contextlib.nullcontext(None) as update,
         ):
-            result = study.chart_of(case, quick=quick, progress=update, sweep=sweep)
+            try:
+                result = study.chart_of(case, quick=quick, progress=update, sweep=sweep,
+                                        max_wall_time_s=max_wall_time)  # fmt: skip
+            except WallTimeBudgetError:
+                budget = c.max_wall_time_s if max_wall_time is None else max_wall_time
+                console.error(f"{case_file}: stopped by the wall-time budget ({budget:g} s): "
+                              "nothing written (--max-wall-time or [chart] max_wall_time_s "
+                              "for more)")  # fmt: skip
+                raise typer.Exit(EXIT_BUDGET) from None
         command_line = {"case_file": str(case_file), "out": str(target), "quick": quick,
-                        "overlay": str(overlay) if overlay is not None else None}  # fmt: skip
+                        "overlay": str(overlay) if overlay is not None else None,
+                        "max_wall_time": max_wall_time}  # fmt: skip
         report = result.write(target, plan, command_line)
         report_stale(plan)
         emit(report, json)

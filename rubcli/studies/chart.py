@@ -211,23 +211,26 @@ class ChartResult:
 
 def chart_of(
     case: Case, *, quick: bool = False, progress: Callable[[int], None] | None = None,
-    sweep: SweepMap | None = None,
+    sweep: SweepMap | None = None, max_wall_time_s: float | None = None,
 ) -> ChartResult:  # fmt: skip
     """The regions and closed-form curves of the case's ``[chart]`` plane, checked by
     continuation at ``check_points`` values of x (``quick``: a grid of at most 41 x 21,
     at most 2 values checked; ``progress(n)``: values of x checked so far; ``sweep``: a
     sweep of the plane, ``load_sweep_map``, drawn beside the regions); ValueError if the
-    case has no ``[chart]`` table."""
+    case has no ``[chart]`` table. The whole chart is bounded by ``[chart]
+    max_wall_time_s`` (``max_wall_time_s``: a budget instead of the table's):
+    ``rubcli.analysis.orbits.WallTimeBudgetError`` once it is spent."""
     c = case.settings.chart
     if c is None:
         raise ValueError(f"{case.source}: chart: missing table [chart] (docs/charts.md)")
     nx, ny = (min(c.nx, QUICK_GRID[0]), min(c.ny, QUICK_GRID[1])) if quick else (c.nx, c.ny)
     started = time.perf_counter()
+    deadline = started + (c.max_wall_time_s if max_wall_time_s is None else max_wall_time_s)
     chart = ch.closed_form_chart(
         case.params, c.x, (c.x_min, c.x_max), c.y, (c.y_min, c.y_max), nx=nx, ny=ny,
-        x_spacing=c.x_spacing, y_spacing=c.y_spacing,
+        x_spacing=c.x_spacing, y_spacing=c.y_spacing, deadline=deadline,
     )  # fmt: skip
     n = min(c.check_points, QUICK_CHECK_POINTS) if quick else c.check_points
-    continued = ch.continued_points(case.params, chart, n, progress)
+    continued = ch.continued_points(case.params, chart, n, progress, deadline)
     wall = time.perf_counter() - started
     return ChartResult(case, c, chart, wall, quick, continued, sweep)

@@ -337,3 +337,34 @@ def test_an_overlay_that_is_not_a_regular_file_is_refused_at_once(
     assert done.code == 2, done.stderr
     assert f"{fifo}: --overlay: not a regular file" in done.stderr
     assert not out_dir.exists()
+
+
+def largest_chart(tmp_path: Path, extra: str = "") -> Path:
+    """The shipped mu-eta chart on the largest grid a case may ask for (2001 x 2001, once
+    8 minutes and more), with ``extra`` lines in its [chart] table."""
+    text = (ROOT / "cases" / "examples" / "mu-eta-map.toml").read_text()
+    path = tmp_path / "chart.toml"
+    path.write_text(text.replace("y_max = 0.3", f"y_max = 0.3\nnx = 2001\nny = 2001\n{extra}"))
+    return path
+
+
+@pytest.mark.parametrize("where", ["option", "table"])
+def test_chart_ends_within_its_wall_time_budget(tmp_path, where):
+    """``rubcli chart`` had no budget; now the largest grid stops at it: exit 1, one
+    message, nothing written."""
+    if where == "option":
+        path, extra = largest_chart(tmp_path), ["--max-wall-time", 2]
+    else:
+        path, extra = largest_chart(tmp_path, "max_wall_time_s = 2.0"), []
+    done = rubcli(tmp_path, "chart", path, "--out", "out", *extra, timeout=60)
+    assert done.returncode == 1, done.stderr
+    assert "chart.toml: stopped by the wall-time budget (2 s): nothing written" in done.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_chart_budget_is_checked_as_input(tmp_path):
+    done = rubcli(tmp_path, "chart", largest_chart(tmp_path), "--max-wall-time", "inf")
+    assert done.returncode == 2 and "--max-wall-time: must be a finite number > 0" in done.stderr
+    done = rubcli(tmp_path, "chart", largest_chart(tmp_path, "max_wall_time_s = 0.0"))
+    assert done.returncode == 2 and "chart.max_wall_time_s" in done.stderr
+    assert not (tmp_path / "out").exists()
