@@ -563,6 +563,7 @@ class ForcesMapSection(_Section):
     )
     deltas: list[PositiveFloat] | None = Field(default=None, min_length=1)
     K_values: list[PositiveFloat] | None = Field(default=None, min_length=1)
+    max_wall_time_s: float = Field(default=3600.0, gt=0)  # the run's budget, seconds
 
     _products_unique = field_validator("products")(_unique)
 

@@ -425,19 +425,27 @@ class EigenMap:
         )
 
 
-def eigen_map(params: ModelParams, mu_c: float, extent: float, resolution: int) -> EigenMap:
+def eigen_map(
+    params: ModelParams, mu_c: float, extent: float, resolution: int,
+    deadline: float | None = None,
+) -> EigenMap:  # fmt: skip
     """Eigenvalues of the linearised contact system at each contact point of the grid.
 
     The matrix is ``model.linearised_contact_system`` about the state ``(x0, y0, 0, 0)``
     (the velocity does not enter it); its eigenvalues come from ``damped_eigenvalues``
     applied to the stiffness block (after checking that the damping block is ``2 nu I``).
+    WallTimeBudgetError once ``time.perf_counter()`` passes ``deadline`` (checked at every
+    block of contact points).
     """
+    from rubcli.analysis.orbits import check_deadline
+
     axis, X, Y, in_contact = _contact_points(extent, resolution)
     shape = X.shape
     max_real = np.full(shape, np.nan)
     freq_1 = np.full(shape, np.nan)
     freq_2 = np.full(shape, np.nan)
     for iy, ix in _contact_blocks(in_contact):
+        check_deadline(deadline)
         stiffness = np.empty((iy.size, 2, 2))
         for n, (j, i) in enumerate(zip(iy, ix, strict=True)):
             A, _ = linearised_contact_system((X[j, i], Y[j, i], 0.0, 0.0), params, mu_c)

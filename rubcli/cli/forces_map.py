@@ -1,4 +1,5 @@
-"""``rubcli forces-map CASE [--out DIR]``: Figure 2, the Taylor error, contact eigenvalues.
+"""``rubcli forces-map CASE [--out DIR] [--max-wall-time S]``: Figure 2, the Taylor error,
+contact eigenvalues.
 
 The case's ``[forces_map]`` table (defaults when it is absent) says which products to make;
 only those are computed and written:
@@ -17,12 +18,17 @@ Everything is nondimensional (clearances, units of ``k_r * clearance``, of ``ome
 report gives the newtons per force unit when the case has a ``[physical]`` table.
 
 Output dir: ``--out DIR``, else ``forces-map/`` inside the case's output dir, so that the
-report of ``rubcli run`` on the same case is not overwritten. Exit 0 on success, 2 on
-invalid input (nothing written). Files are staged and moved in at the end.
+report of ``rubcli run`` on the same case is not overwritten. ``[forces_map]
+max_wall_time_s`` (default 3600 s; ``--max-wall-time S``) bounds the whole command,
+checked between products and at every block of rows of the eigenvalue map and the CSV
+tables. Exit 0 on success, 1 when the wall-time budget ran
+out (nothing written), 2 on invalid input (nothing written). Files are staged and moved
+in at the end.
 """
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -36,6 +42,7 @@ from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 from rubcli.studies import forces_map as study
 
 OUTPUT_SUBDIR = "forces-map"
+EXIT_BUDGET = 1  # the wall-time budget ran out, as for rubcli orbits and rubcli chart
 
 
 def output_dir(case: Case, out: Path | None) -> Path:
@@ -111,10 +118,21 @@ def command(
             help=f"Output dir (default: {OUTPUT_SUBDIR}/ inside the case's output dir).",
         ),
     ] = None,
+    max_wall_time: Annotated[
+        float | None,
+        typer.Option(
+            "--max-wall-time",
+            metavar="S",
+            help="Wall-time budget in seconds instead of [forces_map] max_wall_time_s.",
+        ),
+    ] = None,
     force: ForceOption = False,
     wait: WaitOption = False,
 ) -> None:
     """Contact force maps (paper Figure 2), Taylor error vs distance, contact eigenvalues."""
+    if max_wall_time is not None and not (math.isfinite(max_wall_time) and max_wall_time > 0):
+        console.error(f"--max-wall-time: must be a finite number > 0 (got {max_wall_time!r})")
+        raise typer.Exit(EXIT_INVALID)
     case = load_or_exit(case_file)
     target = output_dir(case, out)
     settings = case.settings.forces_map or ForcesMapSection()
@@ -127,8 +145,18 @@ def command(
         f"{case.name}: {', '.join(settings.products)} on a {settings.resolution}^2 grid, "
         f"extent {settings.extent:g} clearances; settings from {source}"
     )
-    command_line = {"case_file": str(case_file), "out": str(out) if out is not None else None}
-    report = study.write_forces_map(case, target, plan, command_line)
+    command_line = {"case_file": str(case_file), "out": str(out) if out is not None else None,
+                    "max_wall_time": max_wall_time}  # fmt: skip
+    from rubcli.analysis.orbits import WallTimeBudgetError
+
+    try:
+        report = study.write_forces_map(case, target, plan, command_line, max_wall_time)
+    except WallTimeBudgetError:
+        budget = settings.max_wall_time_s if max_wall_time is None else max_wall_time
+        console.error(f"{case_file}: stopped by the wall-time budget ({budget:g} s): "
+                      "nothing written (--max-wall-time or [forces_map] max_wall_time_s "
+                      "for more)")  # fmt: skip
+        raise typer.Exit(EXIT_BUDGET) from None
     report_stale(plan)
     _print_summary(report)
     console.info(f"wrote {len(report['files'])} files to {target}: {', '.join(report['files'])}")

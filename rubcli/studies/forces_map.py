@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import resource
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -21,6 +22,7 @@ import numpy as np
 
 from rubcli import io
 from rubcli.analysis import forces
+from rubcli.analysis.orbits import check_deadline
 from rubcli.case import Case, ForcesMapSection
 
 FORCES_COLUMNS = ("x", "y", "Fx_exact", "Fy_exact", "Fx_taylor", "Fy_taylor", "Fx_diff", "Fy_diff")
@@ -34,37 +36,43 @@ GRID_BLOCK_ROWS = 65_536
 
 
 def grid_blocks(
-    x: np.ndarray, y: np.ndarray, fields: list[np.ndarray], rows: int = GRID_BLOCK_ROWS
-) -> Iterator[list[np.ndarray]]:
+    x: np.ndarray, y: np.ndarray, fields: list[np.ndarray], rows: int = GRID_BLOCK_ROWS,
+    deadline: float | None = None,
+) -> Iterator[list[np.ndarray]]:  # fmt: skip
     """The grid table in blocks of ``rows`` rows, one row per grid point (y outer, x
     inner): x, y, then each field (indexed ``[iy, ix]``); nothing of the size of the grid
-    is allocated."""
+    is allocated. WallTimeBudgetError before a block once ``deadline`` has passed."""
     n = x.size
     flat = [f.reshape(-1) for f in fields]
     for start in range(0, n * y.size, rows):
+        check_deadline(deadline)
         index = np.arange(start, min(start + rows, n * y.size))
         yield [x[index % n], y[index // n], *(f[start : start + index.size] for f in flat)]
 
 
 def write_grid_csv(
-    path: Path, columns: tuple[str, ...], x: np.ndarray, y: np.ndarray, fields: list[np.ndarray]
-) -> Path:
+    path: Path, columns: tuple[str, ...], x: np.ndarray, y: np.ndarray,
+    fields: list[np.ndarray], deadline: float | None = None,
+) -> Path:  # fmt: skip
     """Numeric CSV of a grid, shortest round-trip repr of each float, NaN an empty field,
-    formatted and written block by block (``grid_blocks``). Atomic."""
-    return io.write_csv(path, columns, grid_blocks(x, y, fields), nonfinite="")
+    formatted and written block by block (``grid_blocks``, ``deadline`` its budget). Atomic."""
+    blocks = grid_blocks(x, y, fields, deadline=deadline)
+    return io.write_csv(path, columns, blocks, nonfinite="")
 
 
 def write_taylor_csv(path: Path, error: forces.TaylorError) -> Path:
     return io.write_rows_csv(path, TAYLOR_COLUMNS, error.rows(), nonfinite="")
 
 
-def _forces_product(case: Case, settings: ForcesMapSection, title: str, staged) -> dict:
+def _forces_product(
+    case: Case, settings: ForcesMapSection, title: str, staged, deadline: float | None
+) -> dict:
     from rubcli.plotting import forces as plots
 
     p = case.params
     fm = forces.force_map(p.K, p.mu, settings.extent, settings.resolution)
     fields = [fm.Fx_exact, fm.Fy_exact, fm.Fx_taylor, fm.Fy_taylor, fm.Fx_diff, fm.Fy_diff]
-    write_grid_csv(staged.path("forces_map.csv"), FORCES_COLUMNS, fm.x, fm.y, fields)
+    write_grid_csv(staged.path("forces_map.csv"), FORCES_COLUMNS, fm.x, fm.y, fields, deadline)
     del fields  # (the differences, made for the table)
     io.save_figure(plots.forces_map_figure(fm, title), staged.path("forces_map.png"))
     return {
@@ -81,7 +89,9 @@ def _forces_product(case: Case, settings: ForcesMapSection, title: str, staged) 
     }
 
 
-def _taylor_product(case: Case, settings: ForcesMapSection, title: str, staged) -> dict:
+def _taylor_product(
+    case: Case, settings: ForcesMapSection, title: str, staged, deadline: float | None
+) -> dict:
     from rubcli.plotting import forces as plots
 
     mu = case.params.mu
@@ -113,14 +123,16 @@ def _taylor_product(case: Case, settings: ForcesMapSection, title: str, staged) 
     }
 
 
-def _eigen_product(case: Case, settings: ForcesMapSection, title: str, staged) -> dict:
+def _eigen_product(
+    case: Case, settings: ForcesMapSection, title: str, staged, deadline: float | None
+) -> dict:
     from rubcli.plotting import forces as plots
 
     p = case.params
-    em = forces.eigen_map(p, p.mu, settings.extent, settings.resolution)
+    em = forces.eigen_map(p, p.mu, settings.extent, settings.resolution, deadline)
     flutter = forces.friction_flutter_radius(p.mu)
     fields = [em.max_real, em.freq_1, em.freq_2]
-    write_grid_csv(staged.path("eigen_map.csv"), EIGEN_COLUMNS, em.x, em.y, fields)
+    write_grid_csv(staged.path("eigen_map.csv"), EIGEN_COLUMNS, em.x, em.y, fields, deadline)
     if not p.is_paper_machine:  # the map is the paper machine's linearisation: said so
         title += f"\n{PAPER_MACHINE_EIGEN}"
     figure = plots.eigen_map_figure(em, title, flutter_radius=flutter)
@@ -165,20 +177,25 @@ def expected_files(settings: ForcesMapSection) -> tuple[str, ...]:
 
 def write_forces_map(
     case: Case, target: str | Path, plan: io.OutputPlan | None = None,
-    command_line: dict[str, Any] | None = None,
+    command_line: dict[str, Any] | None = None, max_wall_time_s: float | None = None,
 ) -> dict[str, Any]:  # fmt: skip
     """Compute the requested products, write them and report.json into ``target`` in one
     commit (``plan``: the dir as the caller opened and checked it; without one it is
-    opened here); returns the report."""
+    opened here); returns the report. The whole is bounded by ``[forces_map]
+    max_wall_time_s`` (``max_wall_time_s``: a budget instead of the table's):
+    ``rubcli.analysis.orbits.WallTimeBudgetError`` once it is spent, nothing written."""
+    deadline = time.perf_counter()
     command_line = command_line or {"out": str(target)}
     settings = case.settings.forces_map or ForcesMapSection()
+    deadline += settings.max_wall_time_s if max_wall_time_s is None else max_wall_time_s
     p = case.params
     title = f"{case.name}: nu={p.nu:g}, eta={p.eta:g}, K={p.K:g}, mu={p.mu:g}"
     results: dict[str, Any] = {}
     files: list[str] = []
     with io.staged_output_dir(target, plan) as staged:
         for product in settings.products:
-            results[product] = PRODUCTS[product](case, settings, title, staged)
+            check_deadline(deadline)
+            results[product] = PRODUCTS[product](case, settings, title, staged, deadline)
             files.extend(results[product]["files"])
         files.append("report.json")
         report = {

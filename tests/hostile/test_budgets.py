@@ -368,3 +368,19 @@ def test_chart_budget_is_checked_as_input(tmp_path):
     done = rubcli(tmp_path, "chart", largest_chart(tmp_path, "max_wall_time_s = 0.0"))
     assert done.returncode == 2 and "chart.max_wall_time_s" in done.stderr
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("where", ["option", "table"])
+def test_forces_map_ends_within_its_wall_time_budget(tmp_path, where):
+    """``rubcli forces-map`` had no wall-time budget (the largest grid a case may ask for
+    runs for many minutes); now it stops at one: exit 1, one message, nothing written."""
+    table = FORCES_CASE.format(resolution=2000)
+    if where == "table":
+        table += "max_wall_time_s = 1.0\n"
+    path = tmp_path / "case.toml"
+    path.write_text(table)
+    extra = ["--max-wall-time", 1] if where == "option" else []
+    done = rubcli(tmp_path, "forces-map", path, "--out", "out", *extra, timeout=60)
+    assert done.returncode == 1, done.stderr
+    assert "case.toml: stopped by the wall-time budget (1 s): nothing written" in done.stderr
+    assert not (tmp_path / "out").exists()
