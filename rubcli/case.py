@@ -724,6 +724,7 @@ class SweepSection(_Section):
     lyapunov: bool = False  # largest Lyapunov exponent of every point (costly)
     lyapunov_periods: int = Field(default=100, gt=0)
     max_points: int = Field(default=DEFAULT_SWEEP_MAX_POINTS, ge=1)  # budget
+    max_wall_time_s: float | None = Field(default=None, gt=0)  # the run's budget (None: none)
     scheduler: str | None = Field(default=None, min_length=1)  # Dask scheduler address
     scheduler_timeout_s: float = Field(default=10.0, gt=0, le=600)  # bounded connect wait
     # how long a Dask sweep waits for a lost scheduler, or for a worker when none is left

@@ -18,7 +18,12 @@ Output dir: ``--out DIR``, else ``sweep/`` inside the case's output dir.
 A Dask sweep whose scheduler stays unreachable, or has no worker left, for
 ``[sweep] scheduler_lost_timeout_s`` stops with exit 69; the finished points are kept.
 
-Exit codes: 0 done (failed points are results); 2 invalid input or unreachable scheduler;
+``[sweep] max_wall_time_s`` (default: none; ``--max-wall-time S``) bounds the whole sweep,
+looked at every few seconds between points: past it the sweep stops with exit 1, the
+finished points kept for the next run.
+
+Exit codes: 0 done (failed points are results); 1 the wall-time budget ran out (the
+finished points are kept); 2 invalid input or unreachable scheduler;
 69 no Dask scheduler answered at the address within ``scheduler_timeout_s`` (another
 service, a silent listener), or the scheduler or all its workers were lost mid-sweep (the
 finished points are kept); 74 the outputs could not be written (the finished points are
@@ -28,6 +33,7 @@ points are kept).
 
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 from typing import Annotated
@@ -50,6 +56,7 @@ from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 from rubcli.studies import sweep as study
 
 LOCAL_SCHEDULER = "local"
+EXIT_BUDGET = 1  # the wall-time budget ran out (the finished points are kept), as for orbits
 EXIT_INTERRUPTED = 130  # Ctrl-C: the finished points are kept for the next run
 EXIT_LOST = 69  # EX_UNAVAILABLE: no Dask scheduler answered, or it or its workers were lost
 CLOSE_TIMEOUT_S = 5.0  # bounded wait to close a Dask client (its scheduler may be gone)
@@ -83,11 +90,22 @@ def command(
         bool,
         typer.Option("--oversubscribe", help="Allow more --workers than this machine's cores."),
     ] = False,
+    max_wall_time: Annotated[
+        float | None,
+        typer.Option(
+            "--max-wall-time",
+            metavar="S",
+            help="Wall-time budget in seconds instead of [sweep] max_wall_time_s.",
+        ),
+    ] = None,
     json: JsonOption = False,
     force: ForceOption = False,
     wait: WaitOption = False,
 ) -> None:
     """Sweep parameters: bifurcation diagrams, run-up/run-down, 2-D maps, basins."""
+    if max_wall_time is not None and not (math.isfinite(max_wall_time) and max_wall_time > 0):
+        console.error(f"--max-wall-time: must be a finite number > 0 (got {max_wall_time!r})")
+        raise typer.Exit(EXIT_INVALID)
     case = load_or_exit(case_file)
     cfg = case.settings.sweep
     if cfg is None:
@@ -121,17 +139,18 @@ def command(
 
     with console.machine_readable(json):
         _sweep(case_file, case, plan, target, output, client, cluster, workers, scheduler, out,
-               quick, json)  # fmt: skip
+               quick, json, max_wall_time)  # fmt: skip
 
 
 def _sweep(case_file, case, plan, target, output, client, cluster, workers, scheduler, out,
-           quick, json) -> None:  # fmt: skip
+           quick, json, max_wall_time=None) -> None:  # fmt: skip
     """The sweep itself, once its inputs, output dir and executor are checked."""
     from rubcli.analysis import sweep as engine
 
     store_dir = study.store_dir_for(target, plan.digest())
     console.info(study.describe(case, plan, quick))
     started = time.perf_counter()
+    budget = case.settings.sweep.max_wall_time_s if max_wall_time is None else max_wall_time
     try:
         with progress.count_bar("sweep points", total=plan.n_points) as bar:
             results, stats, where = engine.execute(
@@ -142,6 +161,7 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
                 oversubscribe=True,  # the command checked --workers against the cores
                 progress=lambda done, total: bar(done),
                 lost_timeout_s=case.settings.sweep.scheduler_lost_timeout_s,
+                deadline=None if budget is None else started + budget,
             )
     except engine.StoreError as exc:
         console.error(str(exc))
@@ -151,6 +171,11 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
         console.error(f"{case_file}: {exc}: {kept}; run the same command again once the "
                       "cluster is back (or with --workers to run here)")  # fmt: skip
         raise typer.Exit(EXIT_LOST) from None
+    except engine.SweepBudgetError:
+        kept = study.kept_text(store_dir, plan)
+        console.error(f"{case_file}: stopped by the wall-time budget ({budget:g} s): {kept}; "
+                      "run the same command again to compute only the others")  # fmt: skip
+        raise typer.Exit(EXIT_BUDGET) from None
     except (KeyboardInterrupt, io.Terminated) as exc:
         _interrupted(exc, store_dir, plan)
     finally:
@@ -160,7 +185,8 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
             cluster.close()
     wall = time.perf_counter() - started
     command_line = {"case_file": str(case_file), "out": str(out) if out else None,
-                    "workers": workers, "scheduler": scheduler, "quick": quick}  # fmt: skip
+                    "workers": workers, "scheduler": scheduler, "quick": quick,
+                    "max_wall_time": max_wall_time}  # fmt: skip
     try:
         ds = study.dataset(case, plan, results)
         report = study.write_outputs(case, plan, ds, results, stats, where, wall, target,

@@ -384,3 +384,20 @@ def test_forces_map_ends_within_its_wall_time_budget(tmp_path, where):
     assert done.returncode == 1, done.stderr
     assert "case.toml: stopped by the wall-time budget (1 s): nothing written" in done.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_sweep_ends_within_its_wall_time_budget(run_cli, case_file, out_dir):
+    """``rubcli sweep`` had no budget of its own (only each point's); now it stops at one,
+    exit 1, keeping the finished points for the next run, its outputs not written."""
+    # 40 points of 5000 periods each: half a minute or more without a budget
+    long_points = SWEEP_CASE.replace("transient_periods = 20", "transient_periods = 5000")
+    long_points = long_points.replace("values = [0.5, 0.8, 1.0, 1.3, 2.0]",
+                                      "start = 0.5\nstop = 2.0\nnum = 40")  # fmt: skip
+    path = case_file(long_points.replace("[sweep]", "[sweep]\nmax_wall_time_s = 2.0"))
+    done = run_cli("sweep", path, "--out", out_dir, "--workers", 1, timeout=90)
+    assert done.code == 1, done.stderr
+    assert "case.toml: stopped by the wall-time budget (2 s): " in done.stderr
+    assert "run the same command again to compute only the others" in done.stderr
+    assert not (out_dir / "sweep.nc").exists()
+    done = run_cli("sweep", path, "--out", out_dir, "--max-wall-time", "nan")
+    assert done.code == 2 and "--max-wall-time: must be a finite number > 0" in done.stderr

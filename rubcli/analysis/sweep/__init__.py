@@ -45,6 +45,7 @@ __all__ = [
     "RunStats",
     "SchedulerError",
     "SchedulerUnavailableError",
+    "SweepBudgetError",
     "SweepPlan",
     "dask_executor",
     "default_workers",
@@ -60,6 +61,10 @@ MAX_BATCH = 8  # points per task at most: a Dask round trip costs milliseconds, 
 
 class SchedulerError(Exception):
     """The Dask scheduler cannot be reached (or Dask is not installed)."""
+
+
+class SweepBudgetError(Exception):
+    """The sweep's wall-time budget is spent (the points finished so far are in the store)."""
 
 
 class SchedulerUnavailableError(SchedulerError):
@@ -302,6 +307,23 @@ def quiet_dask_client() -> Iterator[None]:
             logger.setLevel(level)
 
 
+def budget_watch(
+    deadline: float | None, inner: Callable[[], None] | None = None
+) -> Callable[[], None] | None:
+    """A ``run_plan`` watch: ``inner()``, then ``SweepBudgetError`` once
+    ``time.perf_counter()`` has passed ``deadline`` (``inner`` alone without a deadline)."""
+    if deadline is None:
+        return inner
+
+    def watch() -> None:
+        if inner is not None:
+            inner()
+        if time.perf_counter() > deadline:
+            raise SweepBudgetError("wall-time budget exhausted")
+
+    return watch
+
+
 def _run(plan: SweepPlan, executor: cf.Executor, *, store, workers: int = 1, batch: int = 1,
          progress=None, rebuild=None, watch=None):  # fmt: skip
     """``engine.run_plan``, or ``basins.run_basins`` for a grid with recognition."""
@@ -327,6 +349,7 @@ def execute(
     progress: Callable[[int, int], None] | None = None,
     oversubscribe: bool = False,
     lost_timeout_s: float = LOST_TIMEOUT_S,
+    deadline: float | None = None,
 ) -> tuple[dict[str, PointResult] | BasinResult, RunStats, str]:
     """Run ``plan``; returns ``(results by point key, RunStats, executor description)``;
     for a basin grid with recognition, the results are a ``basins.BasinResult``.
@@ -337,6 +360,8 @@ def execute(
     ``oversubscribe`` allows more local processes than cores (``check_workers``).
     On Dask, ``ExecutorLostError`` once the scheduler has been unreachable, or has had no
     worker, for ``lost_timeout_s`` (the finished points are in the store).
+    ``SweepBudgetError`` once ``time.perf_counter()`` passes ``deadline`` (looked at every
+    few seconds between points; the finished points are in the store).
     """
     if client is None and scheduler is None:
         n = check_workers(workers, oversubscribe=oversubscribe)
@@ -356,7 +381,7 @@ def execute(
                 results, stats = _run(
                     plan, executor, store=store, workers=n, progress=progress,
                     batch=task_batch(plan.n_points, n, plan.n_chains),
-                    watch=dask_watch(client, lost_timeout_s),
+                    watch=budget_watch(deadline, dask_watch(client, lost_timeout_s)),
                 )  # fmt: skip
             return (
                 results,
@@ -367,7 +392,8 @@ def execute(
                 ),
             )
         if n == 1:
-            results, stats = _run(plan, InProcessExecutor(), store=store, progress=progress)
+            results, stats = _run(plan, InProcessExecutor(), store=store, progress=progress,
+                                  watch=budget_watch(deadline))  # fmt: skip
             return results, stats, "this process (1 worker)"
         pools: list[cf.ProcessPoolExecutor] = []
 
@@ -378,7 +404,7 @@ def execute(
         try:
             results, stats = _run(
                 plan, rebuild(), store=store, workers=n, progress=progress, rebuild=rebuild,
-                batch=task_batch(plan.n_points, n, plan.n_chains),
+                batch=task_batch(plan.n_points, n, plan.n_chains), watch=budget_watch(deadline),
             )  # fmt: skip
         finally:
             for pool in pools:
