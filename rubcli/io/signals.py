@@ -77,6 +77,7 @@ class _State:
         self.pending: int | None = None  # the first termination signal received
         self.raised = False  # Terminated was raised for it
         self.deferred = 0  # depth of deferred() blocks in the main thread
+        self.pid = os.getpid()  # the process that installed the handlers
 
 
 _state = _State()
@@ -106,6 +107,8 @@ def _raise() -> None:
 
 
 def _handler(signum: int, frame) -> None:
+    if os.getpid() != _state.pid:
+        return  # a forked worker before its initializer: the signal is its parent's
     if signum != getattr(signal, "SIGALRM", None) and _state.pending is None:
         _state.pending = signum
     if _state.pending is None or _state.raised or _state.deferred:

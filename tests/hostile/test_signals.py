@@ -9,18 +9,25 @@ commit (the commit is finished first).
 
 from __future__ import annotations
 
+import fcntl
 import json
+import os
 import random
 import signal
+import subprocess
+import sys
 import time
 
 import pytest
+
+from rubcli.io.lock import LOCK_NAME
 
 from .conftest import (
     LONG_CASE,
     ORBITS_CASE,
     SMALL_CASE,
     SWEEP_CASE,
+    _child_environment,
     finish,
     snapshot,
     visible,
@@ -208,3 +215,98 @@ def test_start_up_loop_of_real_sigint(run_cli, case_file, out_dir):
         assert run.code in (0, 130), (delay, run.stderr)
         if run.code == 130:
             assert "terminated by SIGINT" in run.stderr
+
+
+# A basin grid of 141 x 141 starts on two workers: after the seed, every chunk's task
+# carries the basin cells learned so far (a few hundred KB, more than a pipe holds), so
+# that at any moment a task may be half-written into a worker's pipe and a result
+# half-written back. A short budget keeps the seed to a few seconds.
+BASIN_GRID = """\
+[case]
+name = "basins"
+[model]
+nu = 0.05
+eta = 2.0
+e = 0.3
+K = 10.0
+mu = 0.02
+Rp = 5.0
+[initial]
+x = 0.0
+y = 0.0
+[time]
+periods = 50
+samples_per_period = 32
+[solver]
+methods = ["dop853-jit"]
+rtol = 1e-8
+atol = 1e-10
+[sweep]
+direction = "independent"
+transient_periods = 40
+record_periods = 16
+[sweep.recognition]
+seed_points = 16
+[[sweep.axes]]
+parameter = "x"
+start = -1.5
+stop = 1.5
+num = 141
+[[sweep.axes]]
+parameter = "y"
+start = -1.5
+stop = 1.5
+num = 141
+"""
+
+
+def _group_gone(pgid: int, timeout: float = 10.0) -> bool:
+    """Whether every process of the group has ended (within ``timeout``)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            os.killpg(pgid, 0)
+        except ProcessLookupError:
+            return True
+        time.sleep(0.05)
+    return False
+
+
+@pytest.mark.parametrize("signum", [INT, TERM])
+def test_a_signal_to_the_process_group_stops_a_pooled_basin_sweep(
+    state_dir, case_file, out_dir, signum
+):
+    """Ctrl-C (SIGINT to the whole process group, as a terminal sends it) or SIGTERM to
+    the group while two workers compute basin chunks: the command exits with its
+    signal's code within seconds, whatever the pipes between the workers and the parent
+    hold; no worker is left, the output dir is unlocked and empty, and the finished
+    chunks are kept for the next run."""
+    case = case_file(BASIN_GRID)
+    env = {**_child_environment(), "RUBCLI_STATE_DIR": str(state_dir)}
+    command = [sys.executable, "-m", "rubcli", "sweep", str(case), "--workers", "2",
+               "--out", str(out_dir)]  # fmt: skip
+    proc = subprocess.Popen(command, cwd=out_dir.parent, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)  # fmt: skip
+    try:
+        # the first round's 4 chunks and one of the second's stored: the second round's
+        # other 7 chunks submitted, 3 of them in the pipes or the workers
+        deadline = time.monotonic() + 120
+        while len(list(out_dir.parent.glob(f".{out_dir.name}.sweep-*/chunk-*"))) < 5:
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() < deadline, "no chunk of the second round stored"
+            time.sleep(0.01)
+        time.sleep(0.3)
+        os.killpg(proc.pid, signum)
+        run = finish(proc, timeout=30)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+    assert run.code == 128 + signum, run.stderr
+    assert "points are kept in" in run.stderr
+    assert _group_gone(proc.pid), "a worker outlived the command"
+    assert visible(out_dir) == []
+    lock = out_dir / LOCK_NAME
+    if lock.exists():
+        with open(lock) as handle:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)  # BlockingIOError: still held
