@@ -31,11 +31,13 @@ import errno
 import importlib
 import json
 import os
-import signal
 import sys
 import threading
 import time
 
+# POSIX numbers: the signal module is not imported here, so that a fault may be set at
+# its import by the command line
+SIGKILL, SIGTERM = 9, 15
 FAULT = json.loads(os.environ.get("RUBCLI_HOSTILE_FAULT", "{}"))
 
 
@@ -46,11 +48,11 @@ def _reached() -> None:
             handle.write(str(os.getpid()))
     action = FAULT.get("do", "signal")
     if action == "kill":
-        os.kill(os.getpid(), signal.SIGKILL)
+        os.kill(os.getpid(), SIGKILL)
     elif action == "hold":
         time.sleep(float(FAULT.get("hold", 1.0)))
     elif action == "signal":
-        signum, delay = int(FAULT.get("signal", signal.SIGTERM)), float(FAULT.get("delay", 0))
+        signum, delay = int(FAULT.get("signal", SIGTERM)), float(FAULT.get("delay", 0))
         if delay > 0:
             timer = threading.Timer(delay, os.kill, args=(os.getpid(), signum))
             timer.daemon = True

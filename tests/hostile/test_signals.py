@@ -310,3 +310,20 @@ def test_a_signal_to_the_process_group_stops_a_pooled_basin_sweep(
     if lock.exists():
         with open(lock) as handle:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)  # BlockingIOError: still held
+
+
+def test_a_ctrl_c_from_the_entry_points_first_moments_exits_cleanly(run_cli, case_file, out_dir):
+    """SIGINT at the entry point's first moments: as it imports the ``signal`` module,
+    and 1 to 80 ms after it is called (its imports, typer's, numpy's): every time exit
+    130 with one line, never a ``KeyboardInterrupt`` traceback."""
+    case = case_file()
+    moments = [{"at": "import:signal"}] + [
+        {"at": "call:rubcli.cli.entry:main", "delay": delay}
+        for delay in (0.001, 0.005, 0.01, 0.02, 0.04, 0.08)
+    ]  # fmt: skip
+    for moment in moments:
+        run = run_cli("run", case, "--out", out_dir, fault={**moment, "do": "signal",
+                                                            "signal": INT})  # fmt: skip
+        assert run.code == 130, (moment, run.code, run.stderr)
+        assert run.stderr.count("\n") == 1 and "terminated by SIGINT" in run.stderr, moment
+        assert not out_dir.exists()
