@@ -44,6 +44,7 @@ class RubcliGroup(TyperGroup):
     def invoke(self, ctx: typer.Context) -> Any:
         io.outputs.COMMITTED.clear()
         try:
+            console.require_stdout()  # no stdout at all (>&-): refused before anything runs
             result = super().invoke(ctx)
             console.flush_stdout()  # a full stdout fails here, not at the interpreter's exit
             return result
@@ -58,10 +59,7 @@ class RubcliGroup(TyperGroup):
         except io.OutputError as exc:
             _leave(str(exc), EXIT_INVALID)
         except console.StdoutError as exc:
-            _silence_stdout()
-            if exc.errno == errno.EPIPE:  # a reader that stopped reading (| head): no message
-                raise typer.Exit(128 + 13) from None
-            _leave(f"cannot write to standard output: {exc}", EXIT_WRITE)
+            _stdout_failed(exc)
         except Exception as exc:
             if signals.pending() is not None:  # what a signal left behind
                 _leave(signals.stop_message(signals.pending()), 128 + signals.pending())
@@ -76,6 +74,13 @@ class RubcliGroup(TyperGroup):
 def _leave(message: str, code: int):
     console.error(message)
     raise typer.Exit(code) from None
+
+
+def _stdout_failed(exc: console.StdoutError):
+    _silence_stdout()
+    if exc.errno == errno.EPIPE:  # a reader that stopped reading (| head): no message
+        raise typer.Exit(128 + 13) from None
+    _leave(f"cannot write to standard output: {exc}", EXIT_WRITE)
 
 
 def _silence_stdout() -> None:
@@ -135,7 +140,10 @@ app.command("chart")(chart.command)
 
 def _version(value: bool) -> None:
     if value:
-        console.info(f"rubcli {__version__}")
+        try:
+            console.info(f"rubcli {__version__}")
+        except console.StdoutError as exc:
+            _stdout_failed(exc)
         raise typer.Exit()
 
 

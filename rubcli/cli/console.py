@@ -10,12 +10,15 @@ result (``json_result``); text, tables and progress bars are not shown; warnings
 errors still go to stderr. Python warnings (e.g. numpy's "invalid value encountered")
 are shown as one formatted ``warning:`` line (``show_python_warning``), never raw.
 
-A failure to write stdout (``> /dev/full``, a closed pipe) raises ``StdoutError``, which
-the command line turns into a message on stderr and exit code 74 (141 for a closed pipe).
+A failure to write stdout (``> /dev/full``, a closed pipe, no stdout at all: ``>&-``)
+raises ``StdoutError``, which the command line turns into a message on stderr and exit
+code 74 (141 for a closed pipe). Without a stderr (``2>&-``) diagnostics are dropped.
 """
 
 from __future__ import annotations
 
+import errno
+import io
 import sys
 import threading
 import warnings
@@ -44,10 +47,17 @@ def writing_stdout() -> Iterator[None]:
         raise StdoutError(exc) from None
 
 
+def require_stdout() -> TextIO:
+    """``sys.stdout``; ``StdoutError`` if the process has none (started with it closed)."""
+    if sys.stdout is None:
+        raise StdoutError(OSError(errno.EBADF, "it is closed"))
+    return sys.stdout
+
+
 def flush_stdout() -> None:
     """Flush stdout now (a write error then surfaces as ``StdoutError``, not at exit)."""
     with writing_stdout():
-        sys.stdout.flush()
+        require_stdout().flush()
 
 
 _machine = [False]  # --json: stdout carries only the JSON result
@@ -56,7 +66,7 @@ MAX_VALUE_CHARS = 200  # longer user values are shortened in messages (shorten()
 
 def stdout_console() -> Console:
     """The console of results (stdout, followed at each call)."""
-    return Console(file=sys.stdout, highlight=False)
+    return Console(file=require_stdout(), highlight=False)
 
 
 @contextmanager
@@ -77,8 +87,9 @@ def is_machine_readable() -> bool:
 def json_result(text: str) -> None:
     """The JSON result of a command (``--json``): on stdout, exactly as given."""
     with writing_stdout():
-        sys.stdout.write(text)
-        sys.stdout.flush()
+        stdout = require_stdout()
+        stdout.write(text)
+        stdout.flush()
 
 
 def shorten(text: str, limit: int = MAX_VALUE_CHARS) -> str:
@@ -111,15 +122,17 @@ def formatted_python_warnings() -> Iterator[None]:
 
 
 def stderr_console() -> Console:
-    """The console of diagnostics and progress (stderr, followed at each call)."""
-    return Console(file=sys.stderr, highlight=False)
+    """The console of diagnostics and progress (stderr, followed at each call; a process
+    without a stderr drops them, where rich would print them on stdout)."""
+    return Console(file=sys.stderr if sys.stderr is not None else io.StringIO(), highlight=False)
 
 
 def raw(text: str) -> None:
     """Print text exactly as it is (no markup, no wrapping), e.g. a sample case file."""
     with writing_stdout():
-        sys.stdout.write(text)
-        sys.stdout.flush()
+        stdout = require_stdout()
+        stdout.write(text)
+        stdout.flush()
 
 
 def info(message: str) -> None:

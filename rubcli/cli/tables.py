@@ -5,14 +5,18 @@ numbers and names are never cut. Nothing is printed in machine-readable mode
 from __future__ import annotations
 
 import os
-import sys
 from collections.abc import Sequence
 
 from rich import box
 from rich.console import Console
 from rich.table import Table
 
-from rubcli.cli.console import is_machine_readable, stdout_console, writing_stdout
+from rubcli.cli.console import (
+    is_machine_readable,
+    require_stdout,
+    stdout_console,
+    writing_stdout,
+)
 
 
 def table(
@@ -45,7 +49,7 @@ def table(
         out.add_row(*row)
     width = max(output_width(), fixed)
     with writing_stdout():
-        Console(file=sys.stdout, highlight=False, width=width).print(out)
+        Console(file=require_stdout(), highlight=False, width=width).print(out)
 
 
 DEFAULT_WIDTH = 100  # text width when stdout is not a terminal and COLUMNS is not set

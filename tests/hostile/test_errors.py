@@ -1,0 +1,57 @@
+"""What should end in a message ends in one, and what failed does not report success.
+
+Every test runs the command line as a user would (``run_cli``) and checks the exit code
+(README, "Exit codes"), the message on stderr, that no traceback is shown and that nothing
+is written by a command that refuses.
+"""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from .conftest import SMALL_CASE, visible
+
+# ------------------------------------------------------------------ no stdout at all
+
+
+def _closed(*fds: int):
+    """A ``preexec`` that starts the command with these file descriptors closed (``>&-``)."""
+
+    def close() -> None:
+        for fd in fds:
+            os.close(fd)
+
+    return close
+
+
+COMMANDS = {
+    "init": ["init", "new.toml"],
+    "validate": ["validate", "case.toml"],
+    "run": ["run", "case.toml", "--out", "out"],
+    "forces-map": ["forces-map", "case.toml", "--out", "out"],
+    "compare": ["compare", "case.toml", "--out", "out"],
+    "stress": ["stress", "--out", "out"],
+    "sweep": ["sweep", "case.toml", "--out", "out"],
+    "orbits": ["orbits", "case.toml", "--out", "out"],
+    "ensemble": ["ensemble", "case.toml", "--out", "out"],
+    "chart": ["chart", "case.toml", "--out", "out"],
+    "--version": ["--version"],
+}
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_a_closed_stdout_is_an_io_error_before_anything_runs(run_cli, case_file, command):
+    case = case_file(SMALL_CASE)
+    run = run_cli(*COMMANDS[command], cwd=case.parent, preexec=_closed(1))
+    assert run.code == 74, run.stderr
+    assert run.stderr.strip() == "error: cannot write to standard output: it is closed"
+    assert visible(case.parent) == ["case.toml"]  # nothing written
+
+
+def test_a_closed_stdout_and_stderr_exit_74_silently(run_cli, case_file):
+    case = case_file(SMALL_CASE)
+    run = run_cli("validate", case, preexec=_closed(1, 2))
+    assert run.code == 74
+    assert run.stderr == ""
