@@ -28,12 +28,13 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
-import numba
 import numpy as np
 from llvmlite import ir
 from numba.core import types
 from numba.cpython.unsafe.numbers import leading_zeros
 from numba.extending import intrinsic
+
+from rubcli.cached_jit import njit
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
@@ -43,7 +44,7 @@ if TYPE_CHECKING:
 
     from rubcli.io.tables import Labels
 
-jit = numba.njit(cache=True, nogil=True)  # formats beside the figures (io.Background)
+jit = njit(nogil=True)  # formats beside the figures (io.Background)
 
 FLOAT_WIDTH = 24  # longest repr of a double: '-2.2250738585072014e-308'
 INT_WIDTH = 20  # longest int64: '-9223372036854775808'

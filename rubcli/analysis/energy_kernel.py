@@ -14,10 +14,10 @@ operation by operation, so the two agree to round-off (tests/test_energy.py chec
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 from rubcli import model
+from rubcli.cached_jit import njit
 from rubcli.model import (
     N_PARAMS,
     P_DXX,
@@ -37,10 +37,10 @@ from rubcli.model import (
     P_SYY,
 )
 
-jit = numba.njit(cache=True, nogil=True)  # runs beside the CSV thread (io.Background)
+jit = njit(nogil=True)  # runs beside the CSV thread (io.Background)
 # The per-node helpers are inlined in numba's IR: called, each would count references to
 # every array it is handed (atomic increments and decrements, most of a node's cost).
-jit_inline = numba.njit(cache=True, nogil=True, inline="always")
+jit_inline = njit(nogil=True, inline="always")
 
 _stick_friction = jit(model.stick_friction_record)
 _friction_sign = jit(model.friction_sign)

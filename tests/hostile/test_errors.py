@@ -55,3 +55,28 @@ def test_a_closed_stdout_and_stderr_exit_74_silently(run_cli, case_file):
     run = run_cli("validate", case, preexec=_closed(1, 2))
     assert run.code == 74
     assert run.stderr == ""
+
+
+# ------------------------------------------------------------------ no numba cache
+
+
+def test_a_read_only_install_without_a_writable_home_runs_uncached(in_namespace, case_file):
+    """A system-wide install: numba can write neither the package's __pycache__ nor a user
+    cache dir (the package is a read-only mount, and so is HOME). The kernels are compiled
+    uncached, with a note, where numba refused to make them. forces-map compiles few."""
+    case = case_file(SMALL_CASE)
+    run = in_namespace(
+        f"""
+        set -e
+        pkg=$(python -c "import os, rubcli; print(os.path.dirname(rubcli.__file__))")
+        mount --bind "$pkg" "$pkg"
+        mount -o remount,bind,ro "$pkg"
+        unset NUMBA_CACHE_DIR XDG_CACHE_HOME
+        export HOME="$pkg" MPLCONFIGDIR="{case.parent}"
+        $RUBCLI forces-map {case} --out {case.parent / "out"}
+        """
+    )
+    assert run.code == 0, run.stderr
+    assert "Traceback" not in run.stderr
+    assert "the kernels are compiled uncached" in run.stderr
+    assert "report.json" in visible(case.parent / "out")

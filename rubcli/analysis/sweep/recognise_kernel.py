@@ -9,10 +9,11 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
-jit = numba.njit(cache=True, nogil=True)
+from rubcli.cached_jit import njit
+
+jit = njit(nogil=True)
 
 # the scan's state, carried from block to block (``Recogniser``'s fields)
 LABEL, RUN, RUN_START, BASIN_LABEL, BASIN_RUN, BASIN_ETA = range(6)

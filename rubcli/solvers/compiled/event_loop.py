@@ -36,9 +36,9 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-import numba
 import numpy as np
 
+from rubcli.cached_jit import njit
 from rubcli.solvers.compiled.jit import (
     STOP_END,
     STOP_EVENT,
@@ -208,7 +208,7 @@ def _into_entry(part: Any, where: Callable[..., bool]) -> Any:
     caller IR, callee IR)`` allows (numba's inline cost model)."""
     if part is None:
         return None
-    return numba.njit(cache=True, nogil=True, inline=where)(part.py_func)
+    return njit(nogil=True, inline=where)(part.py_func)
 
 
 @jit_inline

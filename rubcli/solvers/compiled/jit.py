@@ -9,11 +9,11 @@ calls the very functions the Python paths call.
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 from numba.extending import register_jitable
 
 from rubcli import drive, model, stator
+from rubcli.cached_jit import njit
 from rubcli.solvers import control, events
 
 # The model's compilable cores, registered so that compiled code calls the same functions.
@@ -101,15 +101,15 @@ EPS = np.finfo(float).eps
 # solve, see rubcli/io/background.py ``Background``).
 # _nrt set, not left to its default: a kernel inherits an unset flag from its caller,
 # and the event loop (``jit_loop``) is compiled without reference counting
-jit = numba.njit(cache=True, nogil=True, _nrt=True)
+jit = njit(nogil=True, _nrt=True)
 # inlined in numba IR into its caller (and compiled with the caller's flags): no call, so
 # the arrays it takes are not passed and reference-counted again (taylor's pre-checks and
 # the event search's pointwise evaluation)
-jit_inline = numba.njit(cache=True, nogil=True, inline="always")
+jit_inline = njit(nogil=True, inline="always")
 # compiled without numba's reference counting: the step-and-event loop
 # (``event_loop.event_loop``), whose plugged-in parts bind the method's arrays on every
 # step; it allocates nothing (its entry point does), and what it calls counts its own
-jit_loop = numba.njit(cache=True, nogil=True, _nrt=False)
+jit_loop = njit(nogil=True, _nrt=False)
 # No fastmath but one flag in one place: every kernel rounds as IEEE arithmetic in source
 # order, the same on every machine, except taylor's free-flight and slip series
 # (``jit_fused``), whose products and sums may fuse into FMA instructions where the host
@@ -120,4 +120,4 @@ jit_loop = numba.njit(cache=True, nogil=True, _nrt=False)
 # (taylor's series once allowed reassociation, which vectorised their short sums: on an
 # AMD EPYC (Zen 4) host that was 7-16 % slower per run, and its rounding followed the
 # host's vector width.)
-jit_fused = numba.njit(cache=True, nogil=True, _nrt=True, fastmath={"contract"})
+jit_fused = njit(nogil=True, _nrt=True, fastmath={"contract"})
