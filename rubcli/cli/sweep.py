@@ -22,13 +22,13 @@ A Dask sweep whose scheduler stays unreachable, or has no worker left, for
 looked at every few seconds between points: past it the sweep stops with exit 1, the
 finished points kept for the next run.
 
-Exit codes: 0 done (failed points are results); 1 the wall-time budget ran out (the
-finished points are kept); 2 invalid input or unreachable scheduler;
-69 no Dask scheduler answered at the address within ``scheduler_timeout_s`` (another
-service, a silent listener), or the scheduler or all its workers were lost mid-sweep (the
-finished points are kept); 74 the outputs could not be written (the finished points are
-kept); 75 the output dir is in use; 128 + N stopped by signal N (130 Ctrl-C; the finished
-points are kept).
+Exit codes: 0 done (failed points are results); 1 every point failed (the outputs are
+written), or the wall-time budget ran out (the finished points are kept); 2 invalid input
+or unreachable scheduler; 69 no Dask scheduler answered at the address within
+``scheduler_timeout_s`` (another service, a silent listener), or the scheduler or all its
+workers were lost mid-sweep (the finished points are kept); 74 the outputs could not be
+written (the finished points are kept); 75 the output dir is in use; 128 + N stopped by
+signal N (130 Ctrl-C; the finished points are kept).
 """
 
 from __future__ import annotations
@@ -216,6 +216,11 @@ def _sweep(case_file, case, plan, target, output, client, cluster, workers, sche
         )
     files = report["files"]
     console.info(f"wrote {len(files)} files to {target}: {', '.join(files)}")
+    if report["points_failed"] == plan.n_points:
+        first = (report.get("failed") or [{}])[0].get("message")
+        why = f" (the first: {first})" if first else ""
+        console.error(f"{case_file}: every point failed{why}; see {target}/report.json")
+        raise typer.Exit(1)
 
 
 def _remove_stale_stores(target: Path, plan) -> None:

@@ -221,7 +221,8 @@ def summary_figure(ds: xr.Dataset, title: str) -> Figure:
         axes[4].set_ylabel("largest Lyapunov exponent (1/tau)")
     for ax in axes:
         ax.grid(True, alpha=0.3)
-        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+        if ax.get_legend_handles_labels()[0]:  # a panel of failed points only has none
+            ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     axes[-1].set_xlabel(_label(dim))
     fig.suptitle(title, fontsize=10)
     return fig

@@ -11,7 +11,7 @@ import os
 
 import pytest
 
-from .conftest import SMALL_CASE, visible
+from .conftest import SMALL_CASE, SWEEP_CASE, visible
 
 # ------------------------------------------------------------------ no stdout at all
 
@@ -80,3 +80,18 @@ def test_a_read_only_install_without_a_writable_home_runs_uncached(in_namespace,
     assert "Traceback" not in run.stderr
     assert "the kernels are compiled uncached" in run.stderr
     assert "report.json" in visible(case.parent / "out")
+
+
+# ------------------------------------------------------------------ failures as failures
+
+ALL_FAIL_SWEEP = SWEEP_CASE.replace("[sweep]", "[solver]\nmax_steps = 1\n[sweep]").replace(
+    "values = [0.5, 0.8, 1.0, 1.3, 2.0]", "values = [0.5, 0.8]"
+)
+
+
+def test_a_sweep_whose_every_point_failed_exits_1(run_cli, case_file, out_dir):
+    run = run_cli("sweep", case_file(ALL_FAIL_SWEEP), "--out", out_dir, "--workers", "1")
+    assert run.code == 1, run.stderr
+    assert "every point failed (the first: transient:" in run.stderr
+    assert "warning" not in run.stderr  # no stray warning of an empty figure's legend
+    assert "report.json" in visible(out_dir)  # the failures are recorded
