@@ -3,7 +3,9 @@
 Results and plain text go to stdout, diagnostics (errors, warnings) to stderr. The rich
 consoles follow ``sys.stdout``/``sys.stderr`` at the time of each call, so output can be
 captured (typer's ``CliRunner``, pytest's capsys). Markup is off for text that comes from
-users or exceptions, so square brackets in ``[model]`` are printed as they are.
+users or exceptions, so square brackets in ``[model]`` are printed as they are, and
+control characters in it (an escape sequence in a case's description, name or path, which
+would retitle or reprogram the terminal) are printed escaped (``printable``).
 
 Machine-readable mode (``--json``, ``machine_readable()``): stdout carries only the JSON
 result (``json_result``); text, tables and progress bars are not shown; warnings and
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import errno
 import io
+import re
 import sys
 import threading
 import warnings
@@ -92,6 +95,16 @@ def json_result(text: str) -> None:
         stdout.flush()
 
 
+# C0 and C1 controls but newline and tab, DEL, and the invisible bidirectional overrides
+_CONTROL = re.compile("[\x00-\x08\x0b-\x1f\x7f-\x9f\u200e\u200f\u202a-\u202e\u2066-\u2069]")
+
+
+def printable(text: str) -> str:
+    """``text`` with its control characters written as escapes (``\\x1b``): a value from a
+    case file or a path cannot drive the terminal it is printed on."""
+    return _CONTROL.sub(lambda m: repr(m.group())[1:-1], text)
+
+
 def shorten(text: str, limit: int = MAX_VALUE_CHARS) -> str:
     """``text`` cut to ``limit`` characters, saying how long it was."""
     if len(text) <= limit:
@@ -138,7 +151,7 @@ def raw(text: str) -> None:
 def info(message: str) -> None:
     if not _machine[0]:
         with writing_stdout():
-            stdout_console().print(message, markup=False, soft_wrap=True)
+            stdout_console().print(printable(message), markup=False, soft_wrap=True)
 
 
 @contextmanager
@@ -159,24 +172,26 @@ def notice_if_slow(message: str, after_s: float = 3.0) -> Iterator[None]:
 def success(message: str) -> None:
     if not _machine[0]:
         with writing_stdout():
-            stdout_console().print(message, style="green", markup=False, soft_wrap=True)
+            stdout_console().print(printable(message), style="green", markup=False, soft_wrap=True)
 
 
 def warning(message: str) -> None:
-    stderr_console().print(f"warning: {message}", style="yellow", markup=False, soft_wrap=True)
+    text = f"warning: {printable(message)}"
+    stderr_console().print(text, style="yellow", markup=False, soft_wrap=True)
 
 
 def error(message: str) -> None:
     """An error for the user; each line of ``message`` printed as it is."""
-    stderr_console().print(f"error: {message}", style="bold red", markup=False, soft_wrap=True)
+    text = f"error: {printable(message)}"
+    stderr_console().print(text, style="bold red", markup=False, soft_wrap=True)
 
 
 def error_lines(header: str, lines: Sequence[str]) -> None:
     """An error with one line per problem (e.g. every invalid field of a case file)."""
     console = stderr_console()
-    console.print(f"error: {header}", style="bold red", markup=False, soft_wrap=True)
+    console.print(f"error: {printable(header)}", style="bold red", markup=False, soft_wrap=True)
     for line in lines:
-        console.print(f"  {line}", style="red", markup=False, soft_wrap=True)
+        console.print(f"  {printable(line)}", style="red", markup=False, soft_wrap=True)
 
 
 def exception(exc: BaseException) -> None:

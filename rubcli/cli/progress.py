@@ -19,7 +19,7 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 
-from rubcli.cli.console import is_machine_readable, stderr_console
+from rubcli.cli.console import is_machine_readable, printable, stderr_console
 
 
 @contextmanager
@@ -39,7 +39,7 @@ def progress_bar(description: str, total: float) -> Iterator[Callable[[float], N
         disable=is_machine_readable() or not console.is_terminal,
         transient=False,
     )
-    task = bar.add_task(description, total=total)
+    task = bar.add_task(printable(description), total=total)
     stride = total / 200.0 if total > 0 else 0.0
     last = [-float("inf")]
 
@@ -72,7 +72,7 @@ def count_bar(description: str, total: int) -> Iterator[Callable[[int], None]]:
         disable=not console.is_terminal,
         transient=False,
     )
-    task = bar.add_task(description, total=total, rate="")
+    task = bar.add_task(printable(description), total=total, rate="")
     started: list = [None]
 
     def update(done: int) -> None:
@@ -99,7 +99,7 @@ def progress_lines(status: Callable[[], str], every_s: float = 10.0) -> Iterator
     done = threading.Event()
 
     def line() -> None:
-        stderr_console().print(f"progress: {status()}", markup=False, soft_wrap=True)
+        stderr_console().print(f"progress: {printable(status())}", markup=False, soft_wrap=True)
 
     def beat() -> None:
         while not done.wait(every_s):

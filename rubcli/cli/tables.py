@@ -13,6 +13,7 @@ from rich.table import Table
 
 from rubcli.cli.console import (
     is_machine_readable,
+    printable,
     require_stdout,
     stdout_console,
     writing_stdout,
@@ -29,6 +30,8 @@ def table(
     printed wider (a cut number would be a wrong number)."""
     if is_machine_readable():
         return
+    title, caption = printable(title), caption and printable(caption)
+    rows = [[printable(str(cell)) for cell in row] for row in rows]
     out = Table(
         title=title, title_justify="left", box=box.SIMPLE_HEAD, caption=caption,
         caption_justify="left", pad_edge=False, collapse_padding=True,

@@ -95,3 +95,24 @@ def test_a_sweep_whose_every_point_failed_exits_1(run_cli, case_file, out_dir):
     assert "every point failed (the first: transient:" in run.stderr
     assert "warning" not in run.stderr  # no stray warning of an empty figure's legend
     assert "report.json" in visible(out_dir)  # the failures are recorded
+
+
+# ------------------------------------------------------------------ terminal escapes
+
+
+def test_control_characters_from_a_case_file_are_printed_escaped(run_cli, case_file):
+    """A description, a name and a file name holding terminal escapes (a window title
+    change, a bidirectional override): validate prints them escaped, never raw."""
+    text = SMALL_CASE.replace(
+        'name = "small"', 'name = "small"\ndescription = "x\\u001b]0;pwned\\u0007y"'
+    )
+    case = case_file(text, name="case\x1b[2J\u202e.toml")
+    run = run_cli("validate", case)
+    assert run.code == 0, run.stderr
+    assert "x\\x1b]0;pwned\\x07y" in run.stdout
+    assert "case\\x1b[2J\\u202e.toml" in run.stdout
+    assert not any(c in run.stdout + run.stderr for c in "\x1b\x07\u202e")
+    bad = case_file(text.replace("K = 17.6", "K = -1"), name="bad\x1b[2J.toml")
+    run = run_cli("validate", bad)
+    assert run.code == 2
+    assert "bad\\x1b[2J.toml" in run.stderr and "\x1b" not in run.stderr
