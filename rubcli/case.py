@@ -638,6 +638,16 @@ SweepParameter = Literal[
     "offset", "offset_x", "offset_y", "load", "load_x", "load_y", "k_xx", "k_xy", "k_yx",
     "k_yy", "cross_coupling", "stator_mass", "stator_k_x", "stator_k_y",
 ]  # fmt: skip
+# Pairs of sweep axes that set the same entry of the machine (model.with_value): a point
+# of both would hold only the later one's value, so one axis would change nothing.
+OVERLAPPING_AXES = {
+    ("offset", "offset_x"): "the offset's c_x",
+    ("offset", "offset_y"): "the offset's c_y",
+    ("load", "load_x"): "the load's g_x",
+    ("load", "load_y"): "the load's g_y",
+    ("cross_coupling", "k_xy"): "the support stiffness k_xy",
+    ("cross_coupling", "k_yx"): "the support stiffness k_yx",
+}
 SWEEP_MODEL_PARAMETERS: tuple[str, ...] = ("nu", "eta", "e", "K", "mu", "Rp", "phi0")
 SWEEP_INITIAL_PARAMETERS: tuple[str, ...] = ("x", "y", "vx", "vy")
 SweepDirection = Literal["up", "down", "both", "independent"]
@@ -754,6 +764,14 @@ class SweepSection(_Section):
         names = [a.parameter for a in axes]
         if len(set(names)) != len(names):
             raise PydanticCustomError("sweep_axes", "the two axes sweep the same parameter")
+        for a, b in OVERLAPPING_AXES:
+            if {a, b} <= set(names):
+                raise PydanticCustomError(
+                    "sweep_axes",
+                    f"the axes {a} and {b} both set {OVERLAPPING_AXES[a, b]}, so the one "
+                    "applied later overrides the other; sweep the components together or "
+                    "one of them alone",
+                )
         initial = [n in SWEEP_INITIAL_PARAMETERS for n in names]
         if any(initial) and not all(initial):
             raise PydanticCustomError(

@@ -438,3 +438,35 @@ def test_physical_table_converting_beyond_the_domain_names_the_value(tmp_path):
 def test_start_state_beyond_the_domain_is_refused(tmp_path):
     problems = problems_of(tmp_path, replace(MINIMAL, "x = 0.88544", "x = 1e150"))
     assert any(": initial.x: must be at most 1e+100" in line for line in problems), problems
+
+
+def _two_axes(first: str, second: str) -> str:
+    return (
+        MINIMAL
+        + f"""
+[[sweep.axes]]
+parameter = "{first}"
+values = [0.1, 0.2]
+[[sweep.axes]]
+parameter = "{second}"
+values = [0.3, 0.4]
+"""
+    )
+
+
+@pytest.mark.parametrize(
+    ("first", "second"),
+    [
+        ("offset", "offset_x"),
+        ("offset_y", "offset"),
+        ("load", "load_y"),
+        ("k_xy", "cross_coupling"),
+    ],
+)
+def test_sweep_axes_that_set_the_same_entry_are_refused(tmp_path, first, second):
+    """offset and offset_x together: offset_x overrides the offset's c_x at every point,
+    so the offset axis would change nothing (identical rows). Two components are not an
+    overlap."""
+    (line,) = problems_of(tmp_path, _two_axes(first, second))
+    assert "sweep" in line and first in line and second in line and "overrides" in line
+    assert load_case(write(tmp_path, _two_axes("offset_x", "offset_y"))).settings.sweep
