@@ -1743,6 +1743,18 @@ def _with_stator_start(
     return dataclasses.replace(problem, stator_initial=state)
 
 
+def paper_machine_problem(case: Case, what: str, why: str) -> str | None:
+    """Why ``what`` (a field, an analysis of the paper's machine alone, for ``why``) cannot
+    take the case's general machine, naming what makes it general; None on the paper's."""
+    p = case.params
+    if p.is_paper_machine:
+        return None
+    return (
+        f"{case.source}: {what} holds on the paper's machine only ({why}); model: "
+        f"{'; '.join(p.machine_lines())} makes this machine general (docs/machines.md)"
+    )
+
+
 def _check_machine(settings: CaseFile, values: dict[str, Any], source: str) -> None:
     """The general machine's checks that need the whole machine: its converted values
     (with [physical]), the methods that run it (the registry's ``GENERAL_MACHINE``), and

@@ -575,11 +575,11 @@ def test_a_shortened_problem_keeps_the_rings_start():
     assert short.stator_initial == (0.1, 0.0, 0.0, 0.3) and short.t_eval.size < 30
 
 
-def test_forces_map_says_its_eigenvalues_are_the_paper_machines(tmp_path):
+def test_forces_map_refuses_the_eigen_map_of_a_moving_stator(tmp_path):
     case = tmp_path / "ring.toml"
     case.write_text(CASE + '[forces_map]\nresolution = 21\nproducts = ["eigen"]\n')
     out = tmp_path / "out"
     result = CliRunner().invoke(app, ["forces-map", str(case), "--out", str(out)])
-    assert result.exit_code == 0, result.output
-    report = json.loads((out / "report.json").read_text())
-    assert "paper's machine" in report["products"]["eigen"]["machine_note"]
+    assert result.exit_code == 2, result.output
+    assert '"eigen"' in result.output and "stator" in result.output
+    assert not out.exists()

@@ -40,7 +40,7 @@ from rubcli.cli.common import (
     prepare_output,
     report_stale,
 )
-from rubcli.cli.validate import EXIT_INVALID, load_or_exit
+from rubcli.cli.validate import EXIT_INVALID, load_or_exit, paper_machine_or_exit
 
 OutOption = Annotated[
     Path | None, typer.Option("--out", "-o", help="Output dir (default: <case dir>/chart).")
@@ -75,6 +75,9 @@ def command(
     if c is None:
         console.error(f"{case.source}: chart: missing table [chart] (docs/charts.md)")
         raise typer.Exit(EXIT_INVALID)
+    paper_machine_or_exit(case, "chart", "its regions are the closed forms of the synchronous "
+                          "motions, on a concentric rigid stator and an isotropic support "
+                          "without load")  # fmt: skip
     if max_wall_time is not None and not (math.isfinite(max_wall_time) and max_wall_time > 0):
         console.error(f"--max-wall-time: must be a finite number > 0 (got {max_wall_time!r})")
         raise typer.Exit(EXIT_INVALID)

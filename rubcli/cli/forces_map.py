@@ -38,7 +38,7 @@ from rubcli import case as case_module
 from rubcli.case import Case, ForcesMapSection
 from rubcli.cli import console, tables
 from rubcli.cli.common import ForceOption, WaitOption, command_dir, prepare_output, report_stale
-from rubcli.cli.validate import EXIT_INVALID, load_or_exit
+from rubcli.cli.validate import EXIT_INVALID, load_or_exit, paper_machine_or_exit
 from rubcli.studies import forces_map as study
 
 OUTPUT_SUBDIR = "forces-map"
@@ -136,6 +136,10 @@ def command(
     case = load_or_exit(case_file)
     target = output_dir(case, out)
     settings = case.settings.forces_map or ForcesMapSection()
+    if "eigen" in settings.products:
+        paper_machine_or_exit(case, 'forces_map.products: "eigen"', "it linearises the "
+                              "contact of a concentric rigid stator on an isotropic support; "
+                              "leave it out to map the forces")  # fmt: skip
     _check_memory(case_file, settings.resolution)
     plan = prepare_output(target, force, wait, study.expected_files(settings))
     source = (

@@ -14,7 +14,7 @@ from typing import Annotated
 import typer
 
 from rubcli import io
-from rubcli.case import Case, CaseError, load_case
+from rubcli.case import Case, CaseError, load_case, paper_machine_problem
 from rubcli.cli import console
 from rubcli.cli.common import EXIT_INVALID, JsonOption, emit
 from rubcli.problem import Problem
@@ -29,6 +29,15 @@ def load_or_exit(path: Path) -> Case:
     except CaseError as exc:
         console.error_lines(f"invalid case file {path}", exc.problems)
         raise typer.Exit(EXIT_INVALID) from None
+
+
+def paper_machine_or_exit(case: Case, what: str, why: str) -> None:
+    """Exit 2 if the case's machine is general, where ``what`` holds on the paper's machine
+    only, for ``why`` (``case.paper_machine_problem``)."""
+    problem = paper_machine_problem(case, what, why)
+    if problem is not None:
+        console.error(problem)
+        raise typer.Exit(EXIT_INVALID)
 
 
 def _time_line(problem: Problem) -> str:

@@ -31,7 +31,7 @@ import typer
 
 from rubcli import io
 from rubcli.analysis import whirls as wh
-from rubcli.case import Case, OrbitsSection
+from rubcli.case import Case, OrbitsSection, paper_machine_problem
 from rubcli.cli import console, progress, tables
 from rubcli.cli.common import emit, prepare_output, report_stale
 from rubcli.studies.orbits import CSV_COLUMNS as ORBIT_COLUMNS
@@ -57,6 +57,11 @@ def check_case(case: Case) -> list[str]:
             f'{src}: orbits.kind: "whirl" needs the symmetric machine, e = 0 (the case has '
             f"e = {case.params.e:g}): with unbalance a whirl is not a relative equilibrium"
         )
+    general = paper_machine_problem(case, 'orbits.kind: "whirl"', "a circular whirl is a "
+                                    "relative equilibrium of a rotationally symmetric machine "
+                                    "alone")  # fmt: skip
+    if general is not None:
+        problems.append(general)
     if o.parameter not in wh.PARAMETERS:
         problems.append(
             f"{src}: orbits.parameter: whirls are continued in {', '.join(wh.PARAMETERS)} "

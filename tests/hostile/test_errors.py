@@ -116,3 +116,40 @@ def test_control_characters_from_a_case_file_are_printed_escaped(run_cli, case_f
     run = run_cli("validate", bad)
     assert run.code == 2
     assert "bad\\x1b[2J.toml" in run.stderr and "\x1b" not in run.stderr
+
+
+# ------------------------------------------------------------------ the paper's machine only
+
+CHART = '\n[chart]\nx = "eta"\nx_min = 0.5\nx_max = 1.5\ny = "mu"\ny_min = 0.0\ny_max = 0.1\n'
+WHIRL = '\n[orbits]\nkind = "whirl"\nparameter = "mu"\nmin = 0.0\nmax = 0.1\nstep = 0.01\n'
+
+
+@pytest.mark.parametrize(
+    ("command", "general", "table", "named", "analysis"),
+    [
+        ("chart", "offset = [0.3, 0.0]", CHART, "offset=[0.3, 0]", "chart"),
+        ("chart", "stiffness = [[1.0, 0.0], [0.0, 1.5]]", CHART, "stiffness=", "chart"),
+        ("orbits", "load = [0.0, -0.2]", WHIRL, "load=[0, -0.2]", 'orbits.kind: "whirl"'),
+        (
+            "forces-map",
+            "offset = [0.3, 0.0]",
+            "",
+            "offset=[0.3, 0]",
+            'forces_map.products: "eigen"',
+        ),
+    ],
+    ids=["chart-offset", "chart-stiffness", "whirl-load", "eigen-offset"],
+)
+def test_analyses_of_the_paper_machine_refuse_a_general_machine(
+    run_cli, case_file, out_dir, command, general, table, named, analysis
+):
+    """The chart's closed forms, the whirls of unknown rate and the contact eigen map hold
+    on the paper's machine: on a general one each refuses, naming what makes it general."""
+    text = SMALL_CASE.replace("Rp = 46.16", f"Rp = 46.16\n{general}") + table
+    if command == "orbits":
+        text = text.replace("e = 7.52", "e = 0.0")  # a whirl needs e = 0
+    run = run_cli(command, case_file(text), "--out", out_dir)
+    assert run.code == 2, run.stderr
+    assert f"case.toml: {analysis}" in run.stderr and "paper's machine only" in run.stderr
+    assert f"model: {named}" in run.stderr and "makes this machine general" in run.stderr
+    assert not out_dir.exists()
