@@ -74,8 +74,14 @@ MAX_OUTPUT_SAMPLES = 10_000_000
 #   a 25 % margin. At run time it must also fit in the memory the process may take.
 MAX_CASE_MEMORY_BYTES = 8 * 1024**3
 RUN_BYTES_PER_SAMPLE = 600
+RUN_BASE_BYTES = 640 * 1024**2  # a small run's own address space (609 MiB measured)
 FORCES_MAP_BYTES_PER_POINT = 215
 FORCES_MAP_BASE_BYTES = 512 * 1024**2
+
+
+def run_memory_bytes(n_samples: int, n_methods: int) -> int:
+    """The peak memory of ``rubcli run`` keeping ``n_samples`` output samples per method."""
+    return RUN_BASE_BYTES + RUN_BYTES_PER_SAMPLE * n_samples * n_methods
 
 
 def forces_map_memory_bytes(resolution: int) -> int:

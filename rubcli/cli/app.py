@@ -60,6 +60,9 @@ class RubcliGroup(TyperGroup):
             _leave(str(exc), EXIT_INVALID)
         except console.StdoutError as exc:
             _stdout_failed(exc)
+        except MemoryError:
+            _leave("out of memory: the command needed more memory than this process may "
+                   "take (a smaller case, or more memory)", EXIT_INVALID)  # fmt: skip
         except Exception as exc:
             if signals.pending() is not None:  # what a signal left behind
                 _leave(signals.stop_message(signals.pending()), 128 + signals.pending())

@@ -95,6 +95,8 @@ def solve_method(
                 **case.options_for(name),
                 progress=lambda tau: update(tau - t0),
             )
+        except MemoryError:  # not the method's failure: the run cannot go on
+            raise
         except Exception as exc:  # noqa: BLE001 - reported to on_error, the run goes on
             io.checkpoint()  # a termination signal is never taken for a solver's failure
             if on_error is not None:

@@ -12,7 +12,7 @@ Used by the hostile tests (``conftest.run_cli(..., fault=...)``); run as
      "within": "module:attr",              # count only calls made inside this call
      "frame": "callee",                    # the fault runs as if in the callee's own
                                            # source file (numba's, say)
-     "do": "signal" | "kill" | "hold" | "exdev",
+     "do": "signal" | "kill" | "hold" | "exdev" | "nomemory",
      "signal": 15, "delay": 0.0,           # "signal": this signal, after delay seconds
      "hold": 1.0,                          # "hold": sleep this long (signal from outside)
      "marker": "/path/file"}               # made when the point is reached
@@ -20,7 +20,8 @@ Used by the hostile tests (``conftest.run_cli(..., fault=...)``); run as
 ``signal`` sends a real signal to this process (from a timer thread after ``delay``, so
 that it lands inside the call, compiled code included; at once if 0); ``kill`` sends
 SIGKILL; ``hold`` waits, so that the test can signal from outside once the marker exists;
-``exdev`` fails the rename as between file systems. ``move`` points act after the rename
+``exdev`` fails the rename as between file systems; ``nomemory`` raises MemoryError from
+the call. ``move`` points act after the rename
 (``exdev``: instead of it). Works with the rubcli of any version (its entry point is
 ``rubcli.cli.entry.main`` or, before that, ``rubcli.cli.app.main``).
 """
@@ -51,6 +52,8 @@ def _reached() -> None:
         os.kill(os.getpid(), SIGKILL)
     elif action == "hold":
         time.sleep(float(FAULT.get("hold", 1.0)))
+    elif action == "nomemory":
+        raise MemoryError
     elif action == "signal":
         signum, delay = int(FAULT.get("signal", SIGTERM)), float(FAULT.get("delay", 0))
         if delay > 0:

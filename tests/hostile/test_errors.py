@@ -8,10 +8,11 @@ is written by a command that refuses.
 from __future__ import annotations
 
 import os
+import resource
 
 import pytest
 
-from .conftest import SMALL_CASE, SWEEP_CASE, visible
+from .conftest import SMALL_CASE, SWEEP_CASE, snapshot, visible
 
 # ------------------------------------------------------------------ no stdout at all
 
@@ -153,3 +154,36 @@ def test_analyses_of_the_paper_machine_refuse_a_general_machine(
     assert f"case.toml: {analysis}" in run.stderr and "paper's machine only" in run.stderr
     assert f"model: {named}" in run.stderr and "makes this machine general" in run.stderr
     assert not out_dir.exists()
+
+
+# ------------------------------------------------------------------ memory
+
+# 10,000,001 output samples: valid (within the case's own 8 GiB bound), but more than a
+# process limited to 3 GiB of address space can hold
+BIG_RUN = SMALL_CASE.replace("periods = 2", "periods = 1000").replace(
+    "samples_per_period = 20", "samples_per_period = 10000"
+)
+
+
+def _address_space(n_bytes: int):
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (n_bytes, n_bytes))
+
+    return limit
+
+
+def test_a_run_that_cannot_fit_in_memory_is_refused_before_solving(run_cli, case_file, out_dir):
+    run = run_cli("run", case_file(BIG_RUN), "--out", out_dir, preexec=_address_space(3 * 1024**3))
+    assert run.code == 2, run.stderr
+    assert "time.periods, time.samples_per_period: 10,000,001 output samples" in run.stderr
+    assert "GiB of memory, and this process may take 3 GiB" in run.stderr
+    assert not out_dir.exists()
+
+
+def test_running_out_of_memory_is_a_message(run_cli, case_file, out_dir, previous):
+    before = previous(out_dir)
+    fault = {"at": "call:rubcli.solvers:solve", "nth": 2, "do": "nomemory"}  # 1: start-up
+    run = run_cli("run", case_file(), "--out", out_dir, fault=fault)
+    assert run.code == 2, run.stderr
+    assert run.stderr.strip().startswith("error: out of memory:"), run.stderr
+    assert snapshot(out_dir) == before  # the previous outputs kept
