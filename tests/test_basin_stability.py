@@ -345,3 +345,15 @@ def test_a_single_ensemble_can_draw_its_starts_from_a_box(tmp_path):
     assert all(0.0 <= d <= 1.0 for d in offsets) and len(set(offsets)) == 3
     first_uniform = np.random.default_rng(5).random(4)[0]
     assert offsets[0] == pytest.approx(abs(-1.0 + 2.0 * first_uniform), rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    "general",
+    [{"offset": (0.3, 0.0)}, {"load": (0.0, -0.2)}, {"stiffness": ((1.0, 0.0), (0.0, 1.5))}],
+)
+def test_the_minimal_perturbation_is_not_computed_on_a_general_machine(general):
+    """Its origin is the paper machine's free whirl (a closed form): on a general machine
+    it says why instead of perturbing a state that is not the free whirl."""
+    params = ModelParams(nu=0.05, eta=0.7, e=0.1, K=20.0, mu=0.1, Rp=10.0, **general)
+    why = bs.perturbation_status(params, [])
+    assert why is not None and "general machine" in why and "paper's machine only" in why

@@ -318,6 +318,9 @@ def perturbation_status(params: ModelParams, members: Sequence[en.MemberResult])
     from rubcli.analysis.charts import free_radius
     from rubcli.analysis.synchronous import synchronous_rubs
 
+    if not params.is_paper_machine:  # its start is the paper machine's free whirl
+        return ("a general machine: the free whirl's closed form (the perturbation's origin) "
+                "holds on the paper's machine only")  # fmt: skip
     radius = free_radius(params)
     if not radius < 1.0:
         return f"no free whirl: its closed-form amplitude |W| = {radius:.4g} reaches the stator"
