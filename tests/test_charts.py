@@ -261,6 +261,10 @@ def test_chart_study_from_python(tmp_path):
     assert {p.name for p in (tmp_path / "chart").iterdir()} == set(FILES)
     with pytest.raises(ValueError, match="missing table \\[chart\\]"):
         chart_of(load_case(REPO / "cases" / "paper" / "fig3a.toml"))
+    general = tmp_path / "general.toml"  # the same chart on a machine with an offset stator
+    general.write_text(path.read_text().replace("[model]\n", "[model]\noffset = [0.3, 0.0]\n"))
+    with pytest.raises(ValueError, match="offset.*makes this machine general"):
+        chart_of(load_case(general), quick=True)
 
 
 def test_a_log_spaced_axis_spans_decades(tmp_path):

@@ -75,14 +75,13 @@ def command(
     if c is None:
         console.error(f"{case.source}: chart: missing table [chart] (docs/charts.md)")
         raise typer.Exit(EXIT_INVALID)
-    paper_machine_or_exit(case, "chart", "its regions are the closed forms of the synchronous "
-                          "motions, on a concentric rigid stator and an isotropic support "
-                          "without load")  # fmt: skip
     if max_wall_time is not None and not (math.isfinite(max_wall_time) and max_wall_time > 0):
         console.error(f"--max-wall-time: must be a finite number > 0 (got {max_wall_time!r})")
         raise typer.Exit(EXIT_INVALID)
     from rubcli.analysis.orbits import WallTimeBudgetError
     from rubcli.studies import chart as study  # (scipy: loaded by this command only)
+
+    paper_machine_or_exit(case, "chart", study.PAPER_MACHINE_ONLY)
 
     sweep = None
     if overlay is not None:

@@ -17,7 +17,7 @@ import numpy as np
 
 from rubcli import io
 from rubcli.analysis import charts as ch
-from rubcli.case import Case, ChartSection
+from rubcli.case import Case, ChartSection, paper_machine_problem
 
 if TYPE_CHECKING:
     from rubcli.model import ModelParams
@@ -28,6 +28,9 @@ SWEEP_REGIMES = ("free whirl", "synchronous rub", "modulated full rub", "partial
                  "dry whip", "dry whirl", "no result")  # fmt: skip
 QUICK_GRID = (41, 21)  # quick: at most this many grid values of x and y
 QUICK_CHECK_POINTS = 2  # quick: at most this many values of x checked by continuation
+# Why a chart holds on the paper's machine alone (a general machine is refused).
+PAPER_MACHINE_ONLY = ("its regions are the closed forms of the synchronous motions, on a "
+                      "concentric rigid stator and an isotropic support without load")  # fmt: skip
 CSV_COLUMNS_TAIL = ("kind", "source", "distance_to_closed_form")
 
 
@@ -217,12 +220,16 @@ def chart_of(
     continuation at ``check_points`` values of x (``quick``: a grid of at most 41 x 21,
     at most 2 values checked; ``progress(n)``: values of x checked so far; ``sweep``: a
     sweep of the plane, ``load_sweep_map``, drawn beside the regions); ValueError if the
-    case has no ``[chart]`` table. The whole chart is bounded by ``[chart]
-    max_wall_time_s`` (``max_wall_time_s``: a budget instead of the table's):
+    case has no ``[chart]`` table or its machine is not the paper's. The whole chart is
+    bounded by ``[chart] max_wall_time_s`` (``max_wall_time_s``: a budget instead of the
+    table's):
     ``rubcli.analysis.orbits.WallTimeBudgetError`` once it is spent."""
     c = case.settings.chart
     if c is None:
         raise ValueError(f"{case.source}: chart: missing table [chart] (docs/charts.md)")
+    general = paper_machine_problem(case, "chart", PAPER_MACHINE_ONLY)
+    if general is not None:
+        raise ValueError(general)
     nx, ny = (min(c.nx, QUICK_GRID[0]), min(c.ny, QUICK_GRID[1])) if quick else (c.nx, c.ny)
     started = time.perf_counter()
     deadline = started + (c.max_wall_time_s if max_wall_time_s is None else max_wall_time_s)
