@@ -518,8 +518,8 @@ class SolverSection(_Section):
     """[solver]: which methods run and their settings (each method takes the ones it uses)."""
 
     methods: list[MethodName] = Field(default_factory=lambda: ["analytic", "rk45"], min_length=1)
-    rtol: float = Field(default=1e-8, gt=0, lt=1)  # scipy methods
-    atol: float = Field(default=1e-10, gt=0)  # scipy methods
+    rtol: float = Field(default=1e-8, ge=registry.MIN_RTOL, lt=1)  # scipy methods
+    atol: float = Field(default=1e-10, ge=registry.MIN_ATOL)  # scipy methods
     steps_per_period: int = Field(default=400, gt=0)  # analytic: step = period / this
     # analytic methods: adaptive steps (step doubling) with this local error tolerance;
     # steps_per_period then sets the first step

@@ -90,10 +90,16 @@ def parameter_problem(name: str, value: float) -> str | None:
 
 def real_number(owner: str, name: str, value: object) -> float:
     """``value`` as a float; TypeError naming ``owner.name`` if it is not a real number
-    (a bool, a string, None, an array are refused)."""
+    (a bool, a string, None, an array are refused), ValueError if it is too large for a
+    float (an int such as 10**400)."""
     if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):
         raise TypeError(f"{owner}: {name} must be a real number, got {type(value).__name__}")
-    return float(value)
+    try:
+        return float(value)
+    except OverflowError:  # an int (or a Fraction) beyond the largest double
+        raise ValueError(
+            f"{owner}: {name} must be finite (got a number beyond the largest double)"
+        ) from None
 
 
 @dataclass(frozen=True)

@@ -78,7 +78,8 @@ class Problem:
         samples_per_period: int = 100,
         name: str = "problem",
     ) -> Problem:
-        """Sample ``periods`` forcing periods from tau = 0 at ``samples_per_period``."""
+        """Sample ``periods`` forcing periods from tau = 0 at ``samples_per_period``: at
+        most ``rubcli.case.MAX_OUTPUT_SAMPLES`` samples, as in a case file."""
         if not isinstance(params, ModelParams):
             raise TypeError(f"Problem: params must be a ModelParams, got {_kind(params)}")
         periods = real_number("Problem.from_periods", "periods", periods)
@@ -96,6 +97,15 @@ class Problem:
         if samples_per_period <= 0:
             raise ValueError(
                 f"Problem.from_periods: samples_per_period must be > 0 (got {samples_per_period})"
+            )
+        from rubcli.case import MAX_OUTPUT_SAMPLES  # on use: rubcli.case imports this module
+
+        # bounded as a case file's [time] table (compared so that no int overflows a float)
+        if samples_per_period > MAX_OUTPUT_SAMPLES / periods:
+            raise ValueError(
+                f"Problem.from_periods: periods * samples_per_period is more than "
+                f"{MAX_OUTPUT_SAMPLES:,} samples (periods = {periods:.6g}, samples_per_period "
+                f"= {samples_per_period!r})"
             )
         t_end = periods * params.period
         if not t_end <= MAX_MAGNITUDE:

@@ -31,6 +31,13 @@ from collections.abc import Callable
 from dataclasses import dataclass, fields
 
 RTOL, STEPS_PER_PERIOD = "rtol", "steps_per_period"
+# The smallest tolerances a method takes. Below MIN_RTOL a step's relative error is
+# round-off (scipy raises its rtol to 100 eps, 2.2e-14, itself; [orbits] rtol has the
+# same floor). Below MIN_ATOL the error norms divide by a scale that underflows (atol =
+# 5e-324: a ZeroDivisionError in dop853-jit, radau's error norm infinite, lsoda stuck at
+# its first step): 1 / atol stays within the model's domain, 1e100, as 1 / eta does.
+MIN_RTOL = 1e-14
+MIN_ATOL = 1e-100
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -302,6 +309,13 @@ def _is_bool(value) -> bool:
     return isinstance(value, bool) or type(value).__name__ in ("bool", "bool_")
 
 
+def _finite(value: float) -> bool:
+    try:
+        return math.isfinite(value)
+    except OverflowError:  # an int beyond the largest double
+        return False
+
+
 def option_problem(name: str, value: object) -> tuple[type[Exception], str] | None:
     """(exception class, why) if ``value`` is not valid for the option ``name``."""
     if name in ("rtol", "analytic_tol"):
@@ -309,13 +323,23 @@ def option_problem(name: str, value: object) -> tuple[type[Exception], str] | No
             return None
         if not _is_real(value):
             return TypeError, f"must be a real number, got {type(value).__name__}"
-        if not (math.isfinite(value) and 0.0 < value < 1.0):
+        if not (_finite(value) and 0.0 < value < 1.0):
             return ValueError, f"must satisfy 0 < {name} < 1 (got {value!r})"
+        if name == "rtol" and value < MIN_RTOL:
+            return ValueError, (
+                f"must be at least {MIN_RTOL:g} (got {value!r}): below, a step's relative "
+                "error is round-off"
+            )
     elif name == "atol":
         if not _is_real(value):
             return TypeError, f"must be a real number, got {type(value).__name__}"
-        if not (math.isfinite(value) and value > 0.0):
+        if not (_finite(value) and value > 0.0):
             return ValueError, f"must be finite and > 0 (got {value!r})"
+        if value < MIN_ATOL:
+            return ValueError, (
+                f"must be at least {MIN_ATOL:g} (got {value!r}): a smaller one underflows the "
+                "error norms"
+            )
     elif name in ("max_steps", "steps_per_period"):
         if not _is_int(value):
             return TypeError, f"must be an int, got {type(value).__name__} {value!r}"
@@ -324,7 +348,7 @@ def option_problem(name: str, value: object) -> tuple[type[Exception], str] | No
     elif name == "max_wall_time_s":
         if not _is_real(value):
             return TypeError, f"must be a real number, got {type(value).__name__}"
-        if not (math.isfinite(value) and value > 0.0):
+        if not (_finite(value) and value > 0.0):
             return ValueError, f"must be finite and > 0 seconds (got {value!r})"
     elif name in ("compiled", "compiled_events"):
         if not _is_bool(value):

@@ -62,6 +62,7 @@ def problem() -> Problem:
         ({"K": "17.6"}, TypeError, "K must be a real number, got str"),
         ({"K": None}, TypeError, "K must be a real number, got NoneType"),
         ({"K": np.array([1.0, 2.0])}, TypeError, "K must be a real number, got ndarray"),
+        ({"K": 10**400}, ValueError, "K must be finite"),  # once an OverflowError
     ],
 )
 def test_model_params_refuse_values_outside_the_domain(change, error, words):
@@ -124,6 +125,17 @@ def test_problem_refuses_what_is_not_a_problem():
         Problem.from_periods(ModelParams(**FIG3), START, 1, 0)
 
 
+@pytest.mark.parametrize(
+    ("periods", "samples"), [(10**12, 100), (1e6, 11), (1, 10**400), (10**400, 100)]
+)
+def test_problem_from_periods_is_bounded_as_a_case_file(periods, samples):
+    """10**12 periods once allocated a time grid of 1e14 samples (a MemoryError at best);
+    10**400 periods ended in an OverflowError."""
+    with pytest.raises(ValueError, match=r"Problem.from_periods: (periods \* samples_per_period is "
+                       r"more than 10,000,000 samples|periods must be finite)"):  # fmt: skip
+        Problem.from_periods(ModelParams(**FIG3), START, periods, samples)
+
+
 def test_problem_refuses_a_stator_its_span_cannot_resolve():
     """K = 1e60: a contact oscillation of period 8e-30 at tau ~ 8, below 1e4 doubles."""
     with pytest.raises(ValueError, match=r"Problem: params.K = 1e\+60: a contact oscillation"):
@@ -146,6 +158,13 @@ def test_problem_refuses_a_stator_its_span_cannot_resolve():
         (("P", "rk45"), {"rtol": -1.0}, ValueError, "option rtol must satisfy 0 < rtol < 1"),
         (("P", "rk45"), {"atol": INF}, ValueError, "option atol must be finite and > 0"),
         (("P", "rk45"), {"atol": 0.0}, ValueError, "option atol must be finite and > 0"),
+        # a ZeroDivisionError in dop853-jit, an error norm of inf in radau, lsoda stuck
+        (("P", "dop853-jit"), {"atol": 5e-324}, ValueError, "option atol must be at least 1e-100"),
+        (("P", "radau"), {"atol": 1e-300}, ValueError, "option atol must be at least 1e-100"),
+        (("P", "lsoda"), {"atol": 1e-300}, ValueError, "option atol must be at least 1e-100"),
+        (("P", "taylor"), {"rtol": 1e-300}, ValueError, "option rtol must be at least 1e-14"),
+        (("P", "rk45"), {"rtol": 1e-20}, ValueError, "option rtol must be at least 1e-14"),
+        (("P", "rk45"), {"max_wall_time_s": 10**400}, ValueError, "option max_wall_time_s must"),
         (("P", "rk45"), {"max_steps": 2.5}, TypeError, "option max_steps must be an int"),
         (("P", "rk45"), {"max_steps": 0}, ValueError, "option max_steps must be > 0"),
         (("P", "rk45"), {"max_steps": True}, TypeError, "option max_steps must be an int"),
