@@ -167,25 +167,35 @@ def _initial_state(initial, field: str = "initial") -> tuple[float, float, float
     """``initial`` (the field ``field``) checked: 4 finite real numbers of at most
     MAX_MAGNITUDE in size."""
     names = ("x", "y", "vx", "vy") if field == "initial" else ("u", "v", "u'", "v'")
+    return state_values("Problem", field, initial, names)
+
+
+def state_values(owner: str, field: str, value, names: Sequence[str]) -> tuple[float, ...]:
+    """``value`` (the argument ``field`` of ``owner``) checked as a state: one finite real
+    number of at most MAX_MAGNITUDE in size for each of ``names``; a TypeError or
+    ValueError naming ``owner: field``."""
     order = ", ".join(names)
     try:
-        if isinstance(initial, str | bytes):
+        if isinstance(value, str | bytes | dict):
             raise TypeError
-        values = list(initial)
+        values = list(value)
     except TypeError:
         raise TypeError(
-            f"Problem: {field} must be a sequence of 4 numbers ({order}), got {_kind(initial)}"
+            f"{owner}: {field} must be a sequence of {len(names)} numbers ({order}), got "
+            f"{_kind(value)}"
         ) from None
-    if len(values) != 4:
-        raise ValueError(f"Problem: {field} must hold 4 numbers ({order}), got {len(values)}")
+    if len(values) != len(names):
+        raise ValueError(
+            f"{owner}: {field} must hold {len(names)} numbers ({order}), got {len(values)}"
+        )
     out = []
-    for name, value in zip(names, values, strict=True):
-        v = real_number("Problem", f"{field} {name}", value)
+    for name, entry in zip(names, values, strict=True):
+        v = real_number(owner, f"{field} {name}", entry)
         if not math.isfinite(v):
-            raise ValueError(f"Problem: {field} {name} must be finite (got {v!r})")
+            raise ValueError(f"{owner}: {field} {name} must be finite (got {v!r})")
         if abs(v) > MAX_MAGNITUDE:
             raise ValueError(
-                f"Problem: {field} {name} must be at most {MAX_MAGNITUDE:g} in size (got {v!r}): "
+                f"{owner}: {field} {name} must be at most {MAX_MAGNITUDE:g} in size (got {v!r}): "
                 "the model's domain (docs/cases.md)"
             )
         out.append(v)

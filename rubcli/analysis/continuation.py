@@ -27,7 +27,6 @@ by Brent's method on the continuous test functions, by bisection on the counts.
 from __future__ import annotations
 
 import math
-import numbers
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -37,7 +36,7 @@ import numpy as np
 
 from rubcli import model
 from rubcli.analysis import orbits as ob
-from rubcli.model import PARAMETER_SIGNS, ModelParams
+from rubcli.model import ModelParams
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
@@ -56,6 +55,9 @@ COMPLEX_PAIR_TOL = 1e-6
 BISECTION_TOL = 1e-7
 # A bifurcation bracketed this tightly (relative, in the parameter) counts as located.
 LOCATED_WIDTH = 1e-6
+# The smallest Brent tolerance on the segment fraction of a located bifurcation: a few
+# doubles of the fraction (its relative tolerance is 1e-14 anyway).
+MIN_LOCATE_XTOL = 1e-15
 # Step halvings of the damped Newton corrector.
 MAX_HALVINGS = 4
 # The parameter offsets (scaled, relative) tried past a corner of the branch.
@@ -73,7 +75,9 @@ class ContinuationSettings:
         ContinuationSettings(parameter="mu", p_min=0.0, p_max=0.06, step=0.002)
 
     ``min_step`` defaults to step / 1000 and ``max_step`` to 5 step, as in a case file.
-    Every field is checked on construction: a ValueError naming it."""
+    Every field is checked on construction as the [orbits] key it stands for
+    (``orbits.orbits_setting``: ``k`` is ``period``, ``p_min``/``p_max`` ``min``/``max``
+    in the parameter's domain): a TypeError or ValueError naming it."""
 
     parameter: str
     p_min: float
@@ -90,51 +94,82 @@ class ContinuationSettings:
     atol: float = ob.ATOL
     locate: bool = True
     locate_xtol: float = 1e-12  # Brent tolerance on the segment fraction
-    max_wall_time_s: float | None = None  # the run's wall-time budget (None: unbounded)
+    max_wall_time_s: float | None = None  # the run's wall-time budget (None: [orbits]'s, 3600 s)
 
     def __post_init__(self) -> None:
-        if self.min_step is None:
-            object.__setattr__(self, "min_step", self.step / 1000.0)
-        if self.max_step is None:
-            object.__setattr__(self, "max_step", 5.0 * self.step)
-        problem = self._problem()
-        if problem:
-            raise ValueError(f"ContinuationSettings: {problem}")
-
-    def _problem(self) -> str | None:
-        if self.parameter not in PARAMETER_SIGNS:
-            return f"parameter {self.parameter!r} is not one of {', '.join(PARAMETER_SIGNS)}"
-        reals = ("p_min", "p_max", "step", "min_step", "max_step", "newton_tol", "rtol", "atol")
-        for name in reals:
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, numbers.Real):
-                return f"{name} must be a real number (got {value!r})"
-            if not math.isfinite(value):
-                return f"{name} must be finite (got {value!r})"
-        if not self.p_min < self.p_max:
-            return f"p_min must be below p_max (got {self.p_min!r} >= {self.p_max!r})"
-        if not 0.0 < self.min_step <= self.step <= self.max_step:
-            return (
-                f"steps must satisfy 0 < min_step <= step <= max_step (got {self.min_step!r},"
-                f" {self.step!r}, {self.max_step!r})"
+        owner = "ContinuationSettings"
+        if not isinstance(self.parameter, str) or self.parameter not in ob.PARAMETERS:
+            raise ValueError(
+                f"{owner}: parameter {self.parameter!r} is not one of {', '.join(ob.PARAMETERS)}"
             )
-        for name in ("max_points", "k", "max_newton"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
-                return f"{name} must be an int >= 1 (got {value!r})"
-        if not self.directions or any(d not in (1, -1) for d in self.directions):
-            return f"directions must hold 1 and/or -1 (got {self.directions!r})"
-        for name in ("newton_tol", "rtol"):
-            if not 0.0 < getattr(self, name) < 1.0:
-                return f"{name} must satisfy 0 < {name} < 1 (got {getattr(self, name)!r})"
-        if not self.atol > 0.0:
-            return f"atol must be > 0 (got {self.atol!r})"
-        budget = self.max_wall_time_s
-        if budget is not None and not (
-            isinstance(budget, numbers.Real) and math.isfinite(budget) and budget > 0
+        for name in ("p_min", "p_max"):
+            value = model.real_number(owner, name, getattr(self, name))
+            why = model.parameter_problem(self.parameter, value)
+            if why:
+                raise ValueError(f"{owner}: {name}: {self.parameter} {why} (got {value!r})")
+            object.__setattr__(self, name, value)
+        if not self.p_min < self.p_max:
+            raise ValueError(
+                f"{owner}: p_min must be below p_max (got {self.p_min!r} >= {self.p_max!r})"
+            )
+        step = ob.orbits_setting(owner, "step", self.step, "step")
+        if self.min_step is None:
+            object.__setattr__(self, "min_step", step / 1000.0)
+        if self.max_step is None:
+            object.__setattr__(self, "max_step", 5.0 * step)
+        keys = {"step": "step", "min_step": "min_step", "max_step": "max_step",
+                "max_points": "max_points", "k": "period", "newton_tol": "newton_tol",
+                "max_newton": "max_newton"}  # fmt: skip
+        for name, key in keys.items():
+            integer = name in ("max_points", "k", "max_newton")
+            value = ob.orbits_setting(owner, name, getattr(self, name), key, integer)
+            object.__setattr__(self, name, value)
+        rtol, atol = ob.tolerances(owner, self.rtol, self.atol)
+        object.__setattr__(self, "rtol", rtol)
+        object.__setattr__(self, "atol", atol)
+        budget = ob.orbits_budget(owner, self.max_wall_time_s)
+        object.__setattr__(self, "max_wall_time_s", budget)
+        self._check_steps(owner)
+        if (
+            not isinstance(self.directions, tuple | list)
+            or not self.directions
+            or any(isinstance(d, bool) or d not in (1, -1) for d in self.directions)
         ):
-            return f"max_wall_time_s must be finite and > 0 seconds, or None (got {budget!r})"
-        return None
+            raise ValueError(f"{owner}: directions must hold 1 and/or -1 (got {self.directions!r})")
+        object.__setattr__(self, "directions", tuple(int(d) for d in self.directions))
+        if not isinstance(self.locate, bool):
+            raise TypeError(
+                f"{owner}: locate must be True or False, got {type(self.locate).__name__}"
+            )
+        xtol = model.real_number(owner, "locate_xtol", self.locate_xtol)
+        if not (math.isfinite(xtol) and MIN_LOCATE_XTOL <= xtol < 1.0):
+            raise ValueError(
+                f"{owner}: locate_xtol must satisfy {MIN_LOCATE_XTOL:g} <= locate_xtol < 1 "
+                f"(a fraction of the segment; got {xtol!r})"
+            )
+        object.__setattr__(self, "locate_xtol", xtol)
+
+    def _check_steps(self, owner: str) -> None:
+        """The steps against the window, as [orbits]: ``min_step <= step <= max_step``,
+        ``step`` within the window, ``min_step`` a resolvable fraction of it."""
+        from rubcli.case import MIN_ORBIT_STEP_FRACTION
+
+        width = self.p_max - self.p_min
+        if not self.min_step <= self.step <= self.max_step:
+            raise ValueError(
+                f"{owner}: steps must satisfy 0 < min_step <= step <= max_step (got "
+                f"{self.min_step!r}, {self.step!r}, {self.max_step!r})"
+            )
+        if self.step > width:
+            raise ValueError(
+                f"{owner}: step {self.step!r} is wider than the window p_max - p_min = {width:g}"
+            )
+        if self.min_step < MIN_ORBIT_STEP_FRACTION * width:
+            raise ValueError(
+                f"{owner}: min_step {self.min_step:g} is below {MIN_ORBIT_STEP_FRACTION:g} of "
+                f"the window p_max - p_min = {width:g}: so small a step does not move the "
+                "parameter by a resolvable amount"
+            )
 
     @property
     def scale(self) -> float:
@@ -472,11 +507,9 @@ class _Problem:
 # --------------------------------------------------------------------- continuation
 
 
-def deadline_of(settings: ContinuationSettings, start: float | None = None) -> float | None:
+def deadline_of(settings: ContinuationSettings, start: float | None = None) -> float:
     """The ``time.perf_counter()`` at which ``settings.max_wall_time_s`` runs out, counted
-    from ``start`` (default: now); None without a budget."""
-    if settings.max_wall_time_s is None:
-        return None
+    from ``start`` (default: now)."""
     return (time.perf_counter() if start is None else start) + settings.max_wall_time_s
 
 
@@ -498,19 +531,41 @@ def continue_branch(
     ``settings.max_wall_time_s``): what is computed by then is kept, the direction under
     way stops with the reason, bifurcations not yet located are reported unlocated, and
     ``budget_exhausted`` is set.
+
+    A TypeError or ValueError names a bad argument: ``params`` not a ModelParams, its
+    value of the parameter outside ``[p_min, p_max]``, ``start_state`` not the section's
+    state (``orbits.section_state``), ``settings`` not a ContinuationSettings, ``progress``
+    neither callable nor None.
     """
+    owner = "continue_branch()"
+    start_state = ob.section_state(owner, "start_state", start_state, params)
+    if not isinstance(settings, ContinuationSettings):
+        raise TypeError(
+            f"{owner}: settings must be a ContinuationSettings (made by keyword), got "
+            f"{type(settings).__name__}"
+        )
+    if progress is not None and not callable(progress):
+        raise TypeError(
+            f"{owner}: progress must be a callable of the points so far (or None), got "
+            f"{type(progress).__name__}"
+        )
     s = settings
+    value = getattr(params, s.parameter)
+    if not s.p_min <= value <= s.p_max:
+        raise ValueError(
+            f"{owner}: params.{s.parameter} = {value!r} lies outside the window [p_min, "
+            f"p_max] = [{s.p_min!r}, {s.p_max!r}]: the start must lie in it"
+        )
+    deadline = ob.check_deadline_value(owner, deadline)
     if deadline is None:
         deadline = deadline_of(s)
     prob = _Problem(params, s, deadline=deadline)
     p0 = float(getattr(params, s.parameter))
-    budget = "wall-time budget exhausted" + (
-        f" (max_wall_time_s = {s.max_wall_time_s:g})" if s.max_wall_time_s is not None else ""
-    )
+    budget = f"wall-time budget exhausted (max_wall_time_s = {s.max_wall_time_s:g})"
     try:
         orbit = ob.shoot(
             params, start_state, s.k, tol=s.newton_tol, max_iter=s.max_newton,
-            rtol=s.rtol, atol=s.atol, deadline=deadline,
+            rtol=s.rtol, atol=s.atol, deadline=deadline, max_wall_time_s=s.max_wall_time_s,
         )  # fmt: skip
     except ob.NewtonError as exc:
         return Branch(s.parameter, s, [], [], {}, 0, "failed", f"no starting orbit: {exc}")

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
+import operator
 import time
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -113,6 +115,86 @@ def with_parameter(params: ModelParams, name: str, value: float) -> ModelParams:
         return dataclasses.replace(params, **{name: float(value)})
     except ValueError as exc:
         raise OrbitError(f"{name} = {value:.6g} leaves the model's domain ({exc})") from None
+
+
+# ------------------------------------------------------------- the API's arguments
+
+ROTOR_STATE = ("x", "y", "vx", "vy")
+TWO_BODY_STATE = (*ROTOR_STATE, "u", "v", "u'", "v'")
+_BOUNDS = (("gt", operator.gt, ">"), ("ge", operator.ge, ">="), ("lt", operator.lt, "<"),
+           ("le", operator.le, "<="))  # fmt: skip
+
+
+def orbits_setting(owner: str, name: str, value: object, key: str, integer: bool = False):
+    """``value`` of the argument ``name`` of ``owner``, checked as the [orbits] table's
+    ``key`` is in a case file: an int (``integer``) or a finite real number, within the
+    bounds of ``rubcli.case.OrbitsSection`` (the one source of them); a TypeError or
+    ValueError naming ``owner: name``."""
+    from rubcli.case import OrbitsSection  # on use: the case schema loads pydantic
+
+    if integer:
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+            raise TypeError(f"{owner}: {name} must be an int, got {type(value).__name__}")
+        value = int(value)
+    else:
+        value = model.real_number(owner, name, value)
+        if not math.isfinite(value):
+            raise ValueError(f"{owner}: {name} must be finite (got {value!r})")
+    for bound in OrbitsSection.model_fields[key].metadata:
+        for attr, holds, word in _BOUNDS:
+            limit = getattr(bound, attr, None)
+            if limit is not None and not holds(value, limit):
+                raise ValueError(
+                    f"{owner}: {name} must be {word} {limit:g} (got {value!r}), as [orbits] "
+                    f"{key} in a case file"
+                )
+    return value
+
+
+def orbits_budget(owner: str, max_wall_time_s: object) -> float:
+    """The wall-time budget ``max_wall_time_s`` checked as [orbits] max_wall_time_s (None:
+    that key's default)."""
+    if max_wall_time_s is None:
+        from rubcli.case import OrbitsSection
+
+        return OrbitsSection.model_fields["max_wall_time_s"].default
+    return orbits_setting(owner, "max_wall_time_s", max_wall_time_s, "max_wall_time_s")
+
+
+def tolerances(owner: str, rtol: object, atol: object) -> tuple[float, float]:
+    """The map's tolerances checked as [orbits] rtol and atol and as the options of the
+    method that integrates it (``registry.option_problem``)."""
+    from rubcli.solvers.registry import option_problem
+
+    out = []
+    for name, value in (("rtol", rtol), ("atol", atol)):
+        value = orbits_setting(owner, name, value, name)
+        found = option_problem(name, value)
+        if found is not None:
+            raise found[0](f"{owner}: {name} {found[1]}")
+        out.append(value)
+    return out[0], out[1]
+
+
+def section_state(owner: str, name: str, value: object, params: object) -> np.ndarray:
+    """``value`` checked as a state on the section of ``params`` (a ModelParams): the
+    rotor's four entries, with a stator of its own mass the ring's four too."""
+    from rubcli.problem import state_values
+
+    if not isinstance(params, ModelParams):
+        raise TypeError(f"{owner}: params must be a ModelParams, got {type(params).__name__}")
+    names = ROTOR_STATE if params.stator is None else TWO_BODY_STATE
+    return np.array(state_values(owner, name, value, names))
+
+
+def check_deadline_value(owner: str, deadline: object) -> float | None:
+    """``deadline`` checked: None or a finite ``time.perf_counter()`` value."""
+    if deadline is None:
+        return None
+    value = model.real_number(owner, "deadline", deadline)
+    if not math.isfinite(value):
+        raise ValueError(f"{owner}: deadline must be finite (got {value!r})")
+    return value
 
 
 # ------------------------------------------------------------------------- the flow
@@ -414,14 +496,29 @@ def shoot(
     rtol: float = RTOL,
     atol: float = ATOL,
     deadline: float | None = None,
+    max_wall_time_s: float | None = None,
 ) -> PeriodicOrbit:
     """Newton on G(x0) = P^k(x0) - x0 with the Jacobian Phi - I.
 
     Converged when ``|G|_inf <= tol * max(1, |x0|_inf)``. Raises NewtonError with the
     reason (no convergence within ``max_iter``, a singular Jacobian, a failed map), and
-    WallTimeBudgetError past ``deadline``.
+    WallTimeBudgetError once ``max_wall_time_s`` seconds have passed (default: [orbits]
+    max_wall_time_s's, 3600) or past ``deadline`` (a ``time.perf_counter()`` value).
+
+    The arguments are checked as a case file's [orbits] table (``k`` as ``period``,
+    ``tol`` as ``newton_tol``, ``max_iter`` as ``max_newton``, ``rtol``, ``atol``): a
+    TypeError or ValueError naming the argument; ``guess`` holds the section's state
+    (``x, y, vx, vy``, with a stator of its own mass the ring's ``u, v, u', v'`` too).
     """
-    x = np.asarray(guess, dtype=float).copy()
+    owner = "shoot()"
+    x = section_state(owner, "guess", guess, params)
+    k = orbits_setting(owner, "k", k, "period", integer=True)
+    tol = orbits_setting(owner, "tol", tol, "newton_tol")
+    max_iter = orbits_setting(owner, "max_iter", max_iter, "max_newton", integer=True)
+    rtol, atol = tolerances(owner, rtol, atol)
+    budget = time.perf_counter() + orbits_budget(owner, max_wall_time_s)
+    deadline = check_deadline_value(owner, deadline)
+    deadline = budget if deadline is None else min(deadline, budget)
     res = math.inf
     for it in range(max_iter + 1):
         try:

@@ -22,6 +22,7 @@ import pytest
 
 from rubcli import model
 from rubcli.analysis import continuation as cn
+from rubcli.analysis import orbits as ob
 from rubcli.case import CaseError, load_case
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
@@ -158,10 +159,9 @@ def test_problem_refuses_a_stator_its_span_cannot_resolve():
         (("P", "rk45"), {"rtol": -1.0}, ValueError, "option rtol must satisfy 0 < rtol < 1"),
         (("P", "rk45"), {"atol": INF}, ValueError, "option atol must be finite and > 0"),
         (("P", "rk45"), {"atol": 0.0}, ValueError, "option atol must be finite and > 0"),
-        # a ZeroDivisionError in dop853-jit, an error norm of inf in radau, lsoda stuck
+        # a ZeroDivisionError in dop853-jit, an error norm of inf in radau
         (("P", "dop853-jit"), {"atol": 5e-324}, ValueError, "option atol must be at least 1e-100"),
         (("P", "radau"), {"atol": 1e-300}, ValueError, "option atol must be at least 1e-100"),
-        (("P", "lsoda"), {"atol": 1e-300}, ValueError, "option atol must be at least 1e-100"),
         (("P", "taylor"), {"rtol": 1e-300}, ValueError, "option rtol must be at least 1e-14"),
         (("P", "rk45"), {"rtol": 1e-20}, ValueError, "option rtol must be at least 1e-14"),
         (("P", "rk45"), {"max_wall_time_s": 10**400}, ValueError, "option max_wall_time_s must"),
@@ -230,7 +230,7 @@ def test_continuation_step_past_the_domain_stops_the_branch_with_a_message():
     w, v = model.free_steady_state(0.0, p)
     settings = cn.ContinuationSettings(
         parameter="eta",
-        p_min=-0.5,
+        p_min=1e-3,
         p_max=0.5,
         step=0.1,
         min_step=0.06,
@@ -242,7 +242,105 @@ def test_continuation_step_past_the_domain_stops_the_branch_with_a_message():
     )
     branch = cn.continue_branch(p, (w.real, w.imag, v.real, v.imag), settings)
     assert branch.status == "ok" and len(branch.points) == 1
-    assert "eta = -0.0499949 leaves the model's domain" in branch.stops["backward"]
+    assert re.search(r"eta = -0.0499\d* leaves the model.s domain", branch.stops["backward"])
+
+
+FREE = ModelParams(nu=0.05, eta=0.5, e=0.1, K=10.0)  # a free whirl: the map is cheap
+ORBIT_START = (0.0, 0.0, 0.0, 0.0)
+
+
+@pytest.mark.parametrize(
+    ("args", "options", "error", "words"),
+    [
+        ((FIG3, START), {}, TypeError, "params must be a ModelParams, got dict"),
+        ((FREE, (1.0, 2.0, 3.0)), {}, ValueError, "guess must hold 4 numbers"),  # IndexError
+        ((FREE, "0000"), {}, TypeError, "guess must be a sequence of 4 numbers"),
+        ((FREE, (0.0, NAN, 0.0, 0.0)), {}, ValueError, "guess y must be finite"),
+        ((FREE, START, 0), {}, ValueError, "k must be >= 1"),
+        ((FREE, START, -1), {}, ValueError, "k must be >= 1"),
+        ((FREE, START, 1.5), {}, TypeError, "k must be an int, got float"),
+        ((FREE, START, 10**6), {}, ValueError, "k must be <= 64"),  # 14.5 GiB of samples
+        ((FREE, START), {"tol": NAN}, ValueError, "tol must be finite"),
+        ((FREE, START), {"tol": -1.0}, ValueError, "tol must be > 0"),
+        ((FREE, START), {"tol": 0.0}, ValueError, "tol must be > 0"),  # never met: for ever
+        ((FREE, START), {"max_iter": -1}, ValueError, "max_iter must be >= 1"),
+        ((FREE, START), {"max_iter": 10**9}, ValueError, "max_iter must be <= 100"),
+        ((FREE, START), {"rtol": 0.0}, ValueError, "rtol must be >= 1e-14"),
+        ((FREE, START), {"atol": 5e-324}, ValueError, "atol must be at least 1e-100"),
+        ((FREE, START), {"max_wall_time_s": INF}, ValueError, "max_wall_time_s must be finite"),
+        ((FREE, START), {"max_wall_time_s": 0}, ValueError, "max_wall_time_s must be > 0"),
+        ((FREE, START), {"deadline": "soon"}, TypeError, "deadline must be a real number"),
+    ],
+)
+def test_shoot_refuses_bad_arguments_naming_them(args, options, error, words):
+    """Each once raised deep inside the flow (an IndexError), allocated without bound
+    (k = 10**6), or ran for ever (tol = 0: a residual that is never met)."""
+    with pytest.raises(error, match=re.escape(f"shoot(): {words}")):
+        ob.shoot(*args, **options)
+
+
+def test_shoot_honours_its_wall_time_budget():
+    """Without a budget, Newton with a tolerance it cannot meet ran as long as max_iter
+    let it; a budget ends it with the orbits' budget exception."""
+    guess = (0.9, -0.8, 0.0, 0.0)  # the Figure 3 machine: rubbing, each map costs
+    with pytest.raises(ob.WallTimeBudgetError):
+        ob.shoot(ModelParams(**FIG3), guess, tol=1e-20, max_iter=100, max_wall_time_s=0.5)
+
+
+SETTINGS = {"parameter": "eta", "p_min": 0.45, "p_max": 0.55, "step": 0.02}
+
+
+@pytest.mark.parametrize(
+    ("change", "error", "words"),
+    [
+        ({"p_min": -0.5}, ValueError, "p_min: eta must be > 0"),
+        ({"parameter": "mu", "p_min": -0.1, "p_max": 0.1}, ValueError, "p_min: mu must be >= 0"),
+        ({"p_max": 1e200}, ValueError, "p_max: eta must be at most 1e+100"),
+        ({"parameter": "phi0"}, ValueError, "parameter 'phi0' is not one of"),
+        ({"min_step": 1e-300}, ValueError, "min_step 1e-300 is below 1e-12 of the window"),
+        ({"step": 1.0, "max_step": 2.0}, ValueError, "step 1.0 is wider than the window"),
+        ({"locate_xtol": NAN}, ValueError, "locate_xtol must satisfy"),
+        ({"locate_xtol": 0.0}, ValueError, "locate_xtol must satisfy"),
+        ({"locate": "no"}, TypeError, "locate must be True or False"),
+        ({"k": 10**6}, ValueError, "k must be <= 64"),
+        ({"max_points": 10**9}, ValueError, "max_points must be <= 100000"),
+        ({"max_newton": 0}, ValueError, "max_newton must be >= 1"),
+        ({"rtol": 1e-20}, ValueError, "rtol must be >= 1e-14"),
+        ({"atol": 1e-300}, ValueError, "atol must be at least 1e-100"),
+        ({"max_wall_time_s": INF}, ValueError, "max_wall_time_s must be finite"),
+        ({"step": "0.02"}, TypeError, "step must be a real number, got str"),
+        ({"directions": (True,)}, ValueError, "directions must hold 1 and/or -1"),
+    ],
+)
+def test_continuation_settings_are_checked_as_the_orbits_table(change, error, words):
+    """Each was once accepted (an eta window below 0, a step of 1e-300 that never moves the
+    parameter, a Brent tolerance of nan) and failed later or ran for ever."""
+    with pytest.raises(error, match=re.escape(f"ContinuationSettings: {words}")):
+        cn.ContinuationSettings(**{**SETTINGS, **change})
+
+
+def test_continuation_settings_have_a_wall_time_budget_by_default():
+    assert cn.ContinuationSettings(**SETTINGS).max_wall_time_s == 3600.0
+
+
+@pytest.mark.parametrize(
+    ("args", "error", "words"),
+    [
+        ((FREE, ORBIT_START, SETTINGS), TypeError, "settings must be a ContinuationSettings"),
+        ((FREE, (0.0, 0.0), "S"), ValueError, "start_state must hold 4 numbers"),
+        ((FREE, ORBIT_START, "S", 3), TypeError, "progress must be a callable"),
+        ((FIG3, ORBIT_START, "S"), TypeError, "params must be a ModelParams, got dict"),
+        ((ModelParams(nu=0.05, eta=0.7, e=0.1, K=10.0), ORBIT_START, "S"), ValueError,
+         "params.eta = 0.7 lies outside the window [p_min, p_max] = [0.45, 0.55]"),
+    ],
+)  # fmt: skip
+def test_continue_branch_refuses_bad_arguments_naming_them(args, error, words):
+    """A start outside the window once returned a branch with status "ok"; a dict for the
+    settings or a 2-value start failed deep inside."""
+    settings = cn.ContinuationSettings(**SETTINGS, max_points=2, directions=(1,))
+    args = tuple(settings if a == "S" else a for a in args)
+    with pytest.raises(error, match=re.escape(f"continue_branch(): {words}")):
+        cn.continue_branch(*args)
 
 
 # ------------------------------------------------------------ the command line
