@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -102,6 +103,31 @@ def case_attrs(case: case_module.Case) -> dict:
     }
 
 
+def _check_arguments(client, scheduler, quick, store_dir, oversubscribe) -> None:
+    """TypeError naming the first of ``sweep``'s arguments of the wrong type."""
+    for name, value in (("quick", quick), ("oversubscribe", oversubscribe)):
+        if not isinstance(value, bool | np.bool_):
+            raise TypeError(f"sweep(): {name} must be True or False, got {type(value).__name__}")
+    if store_dir is not None and not isinstance(store_dir, str | os.PathLike):
+        raise TypeError(
+            f"sweep(): store_dir must be a path (a str or a Path) or None, got "
+            f"{type(store_dir).__name__}"
+        )
+    if scheduler is not None and not isinstance(scheduler, str):
+        raise TypeError(
+            f"sweep(): scheduler must be an address (a str) or None, got {type(scheduler).__name__}"
+        )
+    if client is not None:
+        try:
+            from distributed import Client
+        except ImportError:
+            Client = ()  # noqa: N806 (without distributed nothing is a Client)
+        if not isinstance(client, Client):
+            raise TypeError(
+                f"sweep(): client must be a distributed.Client or None, got {type(client).__name__}"
+            )
+
+
 def sweep(
     case: str | Path | case_module.Case,
     *,
@@ -119,10 +145,12 @@ def sweep(
     ``workers`` local processes (default all cores, 1 = in this process), or a Dask
     ``client`` / ``scheduler`` address (default: ``[sweep] scheduler``). ``store_dir``
     keeps finished points for resumption (none by default: the Python call is one run).
-    More ``workers`` than cores is a ValueError unless ``oversubscribe``.
+    More ``workers`` than cores is a ValueError unless ``oversubscribe``. An argument of
+    the wrong type (``quick="no"``, ``store_dir=5``) is a TypeError naming it.
     """
     from rubcli.analysis.sweep.dataset import build_dataset
 
+    _check_arguments(client, scheduler, quick, store_dir, oversubscribe)
     if not isinstance(case, case_module.Case):
         case = case_module.load_case(case)
     plan = plan_from_case(case, quick)

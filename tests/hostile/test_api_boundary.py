@@ -343,6 +343,24 @@ def test_continue_branch_refuses_bad_arguments_naming_them(args, error, words):
         cn.continue_branch(*args)
 
 
+@pytest.mark.parametrize(
+    ("options", "words"),
+    [
+        ({"client": object()}, "client must be a distributed.Client or None, got object"),
+        ({"store_dir": 5}, "store_dir must be a path (a str or a Path) or None, got int"),
+        ({"quick": "no"}, "quick must be True or False, got str"),  # once taken as true
+        ({"oversubscribe": 1}, "oversubscribe must be True or False, got int"),
+        ({"scheduler": 8786}, "scheduler must be an address (a str) or None, got int"),
+    ],
+)
+def test_sweep_refuses_arguments_of_the_wrong_type_before_reading_the_case(tmp_path, options,
+                                                                            words):  # fmt: skip
+    from rubcli.sweeps import sweep
+
+    with pytest.raises(TypeError, match=re.escape(f"sweep(): {words}")):
+        sweep(tmp_path / "missing.toml", **options)
+
+
 # ------------------------------------------------------------ the command line
 
 CASE = """\
