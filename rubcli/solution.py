@@ -142,7 +142,14 @@ class Events(Sequence[SwitchEvent]):
         return np.asarray(KIND_NAMES)[self.kind_code]
 
     def is_kind(self, *names: str) -> np.ndarray:
-        """Boolean mask of the events of any of the kinds ``names`` (from ``KIND_NAMES``)."""
+        """Boolean mask of the events of any of the kinds ``names`` (from ``KIND_NAMES``;
+        another name is a ValueError naming it)."""
+        unknown = [name for name in names if name not in KIND_NAMES]
+        if unknown:
+            raise ValueError(
+                f"Events.is_kind: unknown kind(s) {', '.join(map(repr, unknown))}; the kinds "
+                f"are {', '.join(KIND_NAMES)}"
+            )
         return np.isin(self.kind_code, [KIND_NAMES.index(name) for name in names])
 
     def until(self, tau: float) -> Events:

@@ -249,7 +249,13 @@ def unsupported(method: str, feature: str) -> str | None:
 
 
 def spec(name: str) -> MethodSpec:
-    """The spec of a method; ValueError naming the known ones if there is none."""
+    """The spec of a method; ValueError naming the known ones if there is none (a
+    TypeError if ``name`` is no str)."""
+    if not isinstance(name, str):
+        raise TypeError(
+            f"method must be a method name (a str), got {type(name).__name__}; choose from "
+            f"{', '.join(NAMES)}"
+        )
     try:
         return SPECS[name]
     except KeyError:

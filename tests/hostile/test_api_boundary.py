@@ -188,6 +188,17 @@ def test_solve_refuses_bad_arguments_naming_them(problem, args, options, error, 
         solve(*args, **options)
 
 
+def test_options_for_and_event_kinds_name_what_they_refuse():
+    """A list for the method once ended in "unhashable type: 'list'", an unknown event
+    kind in "'contact' is not in list"."""
+    from rubcli.solution import Events
+
+    with pytest.raises(TypeError, match=re.escape("method must be a method name (a str)")):
+        options_for(["rk45"], {})
+    with pytest.raises(ValueError, match=re.escape("Events.is_kind: unknown kind(s) 'contact'")):
+        Events.empty().is_kind("contact")
+
+
 def test_a_shared_settings_dict_goes_through_options_for(problem):
     settings = {"rtol": 1e-8, "atol": 1e-10, "steps_per_period": 200, "max_steps": 10_000}
     for method in ("analytic", "rk45", "dop853-jit"):
@@ -353,8 +364,8 @@ def test_continue_branch_refuses_bad_arguments_naming_them(args, error, words):
         ({"scheduler": 8786}, "scheduler must be an address (a str) or None, got int"),
     ],
 )
-def test_sweep_refuses_arguments_of_the_wrong_type_before_reading_the_case(tmp_path, options,
-                                                                            words):  # fmt: skip
+def test_sweep_refuses_arguments_of_the_wrong_type(tmp_path, options, words):
+    """Checked before the case is read (here a file that does not exist)."""
     from rubcli.sweeps import sweep
 
     with pytest.raises(TypeError, match=re.escape(f"sweep(): {words}")):
