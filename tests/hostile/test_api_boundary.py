@@ -443,6 +443,17 @@ def test_model_table_is_checked_like_the_physical_one(tmp_path, line, field):
     assert sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith(".")) == ["case.toml"]
 
 
+@pytest.mark.parametrize(("line", "field"), [("atol = 1e-300", "solver.atol"),
+                                             ("rtol = 1e-20", "solver.rtol")])  # fmt: skip
+def test_solver_tolerances_are_bounded_as_solve_bounds_them(tmp_path, line, field):
+    """atol = 1e-300 once passed validation and failed in dop853-jit and radau."""
+    path = tmp_path / "case.toml"
+    path.write_text(with_line(CASE, "solver", line))
+    done = rubcli(tmp_path, "validate", path)
+    assert done.returncode == 2, done.stderr
+    assert f"case.toml: {field}: " in done.stderr
+
+
 def test_physical_table_converting_beyond_the_domain_names_the_value(tmp_path):
     physical = CASE.replace(
         "[model]\nnu = 0.009478\neta = 0.7818\ne = 7.52\nK = 17.6\nmu = 0.03\nRp = 46.16",
