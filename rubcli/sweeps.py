@@ -103,8 +103,11 @@ def case_attrs(case: case_module.Case) -> dict:
     }
 
 
-def _check_arguments(client, scheduler, quick, store_dir, oversubscribe) -> None:
-    """TypeError naming the first of ``sweep``'s arguments of the wrong type."""
+def _check_arguments(workers, client, scheduler, quick, store_dir, oversubscribe) -> None:
+    """TypeError naming the first of ``sweep``'s arguments of the wrong type (the value of
+    ``workers`` is checked where the processes start, ``check_workers``)."""
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)):
+        raise TypeError(f"sweep(): workers must be an int or None, got {type(workers).__name__}")
     for name, value in (("quick", quick), ("oversubscribe", oversubscribe)):
         if not isinstance(value, bool | np.bool_):
             raise TypeError(f"sweep(): {name} must be True or False, got {type(value).__name__}")
@@ -150,7 +153,7 @@ def sweep(
     """
     from rubcli.analysis.sweep.dataset import build_dataset
 
-    _check_arguments(client, scheduler, quick, store_dir, oversubscribe)
+    _check_arguments(workers, client, scheduler, quick, store_dir, oversubscribe)
     if not isinstance(case, case_module.Case):
         case = case_module.load_case(case)
     plan = plan_from_case(case, quick)

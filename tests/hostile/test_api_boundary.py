@@ -357,6 +357,7 @@ def test_continue_branch_refuses_bad_arguments_naming_them(args, error, words):
     ("options", "words"),
     [
         ({"client": object()}, "client must be a distributed.Client or None, got object"),
+        ({"workers": 2.0}, "workers must be an int or None, got float"),
         ({"store_dir": 5}, "store_dir must be a path (a str or a Path) or None, got int"),
         ({"quick": "no"}, "quick must be True or False, got str"),  # once taken as true
         ({"oversubscribe": 1}, "oversubscribe must be True or False, got int"),
