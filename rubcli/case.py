@@ -870,7 +870,7 @@ class OrbitsSection(_Section):
     newton_tol: float = Field(default=1e-10, gt=0, lt=1)
     max_newton: int = Field(default=10, ge=1, le=100)
     rtol: float = Field(default=1e-12, ge=1e-14, lt=1e-3)  # integration of the map
-    atol: float = Field(default=1e-12, gt=0, lt=1e-3)
+    atol: float = Field(default=1e-12, ge=registry.MIN_ATOL, lt=1e-3)
     locate: bool = True  # locate each detected bifurcation on its test function
     max_wall_time_s: float = Field(default=3600.0, gt=0)  # the run's budget, seconds
     # each located fold, period doubling, Neimark-Sacker point and grazing continued in a

@@ -443,12 +443,21 @@ def test_model_table_is_checked_like_the_physical_one(tmp_path, line, field):
     assert sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith(".")) == ["case.toml"]
 
 
-@pytest.mark.parametrize(("line", "field"), [("atol = 1e-300", "solver.atol"),
-                                             ("rtol = 1e-20", "solver.rtol")])  # fmt: skip
-def test_solver_tolerances_are_bounded_as_solve_bounds_them(tmp_path, line, field):
+ORBITS = '[orbits]\nparameter = "mu"\nmin = 0.0\nmax = 0.06\nstep = 0.002\n'
+
+
+@pytest.mark.parametrize(
+    ("table", "line", "field"),
+    [
+        ("solver", "atol = 1e-300", "solver.atol"),
+        ("solver", "rtol = 1e-20", "solver.rtol"),
+        ("orbits", "atol = 1e-300", "orbits.atol"),
+    ],
+)
+def test_tolerances_are_bounded_as_solve_bounds_them(tmp_path, table, line, field):
     """atol = 1e-300 once passed validation and failed in dop853-jit and radau."""
     path = tmp_path / "case.toml"
-    path.write_text(with_line(CASE, "solver", line))
+    path.write_text(with_line(CASE + "\n" + ORBITS, table, line))
     done = rubcli(tmp_path, "validate", path)
     assert done.returncode == 2, done.stderr
     assert f"case.toml: {field}: " in done.stderr
