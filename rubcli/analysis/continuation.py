@@ -119,14 +119,11 @@ class ContinuationSettings:
             object.__setattr__(self, "max_step", 5.0 * step)
         keys = {"step": "step", "min_step": "min_step", "max_step": "max_step",
                 "max_points": "max_points", "k": "period", "newton_tol": "newton_tol",
-                "max_newton": "max_newton"}  # fmt: skip
+                "max_newton": "max_newton", "rtol": "rtol", "atol": "atol"}  # fmt: skip
         for name, key in keys.items():
             integer = name in ("max_points", "k", "max_newton")
             value = ob.orbits_setting(owner, name, getattr(self, name), key, integer)
             object.__setattr__(self, name, value)
-        rtol, atol = ob.tolerances(owner, self.rtol, self.atol)
-        object.__setattr__(self, "rtol", rtol)
-        object.__setattr__(self, "atol", atol)
         budget = ob.orbits_budget(owner, self.max_wall_time_s)
         object.__setattr__(self, "max_wall_time_s", budget)
         self._check_steps(owner)

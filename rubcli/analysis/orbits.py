@@ -161,21 +161,6 @@ def orbits_budget(owner: str, max_wall_time_s: object) -> float:
     return orbits_setting(owner, "max_wall_time_s", max_wall_time_s, "max_wall_time_s")
 
 
-def tolerances(owner: str, rtol: object, atol: object) -> tuple[float, float]:
-    """The map's tolerances checked as [orbits] rtol and atol and as the options of the
-    method that integrates it (``registry.option_problem``)."""
-    from rubcli.solvers.registry import option_problem
-
-    out = []
-    for name, value in (("rtol", rtol), ("atol", atol)):
-        value = orbits_setting(owner, name, value, name)
-        found = option_problem(name, value)
-        if found is not None:
-            raise found[0](f"{owner}: {name} {found[1]}")
-        out.append(value)
-    return out[0], out[1]
-
-
 def section_state(owner: str, name: str, value: object, params: object) -> np.ndarray:
     """``value`` checked as a state on the section of ``params`` (a ModelParams): the
     rotor's four entries, with a stator of its own mass the ring's four too."""
@@ -515,7 +500,8 @@ def shoot(
     k = orbits_setting(owner, "k", k, "period", integer=True)
     tol = orbits_setting(owner, "tol", tol, "newton_tol")
     max_iter = orbits_setting(owner, "max_iter", max_iter, "max_newton", integer=True)
-    rtol, atol = tolerances(owner, rtol, atol)
+    rtol = orbits_setting(owner, "rtol", rtol, "rtol")
+    atol = orbits_setting(owner, "atol", atol, "atol")
     budget = time.perf_counter() + orbits_budget(owner, max_wall_time_s)
     deadline = check_deadline_value(owner, deadline)
     deadline = budget if deadline is None else min(deadline, budget)
