@@ -526,12 +526,14 @@ class SolverSection(_Section):
     analytic_tol: float | None = Field(default=None, gt=0, lt=1)
     max_steps: int = Field(default=5_000_000, gt=0)
     max_wall_time_s: float = Field(default=600.0, gt=0)
+    # the whole of `rubcli run`, every method's solve with it (None: none)
+    total_wall_time_s: float | None = Field(default=None, gt=0)
 
     _methods_unique = field_validator("methods")(_unique)
 
     def options(self) -> dict[str, Any]:
         """The settings as keyword options (``Case.options_for`` picks one method's)."""
-        return self.model_dump(exclude={"methods"})
+        return self.model_dump(exclude={"methods", "total_wall_time_s"})
 
 
 # ========================================================================== [output]
@@ -617,6 +619,7 @@ class CompareSection(_Section):
     horizon_periods: float | None = Field(default=None, gt=0)  # default [time] periods
     reference_threshold: float = Field(default=1e-6, gt=0)  # predictability horizon
     max_wall_time_s: float = Field(default=120.0, gt=0)  # per solve; tighter settings skipped
+    total_wall_time_s: float | None = Field(default=None, gt=0)  # the run's budget (None: none)
     work_precision: bool = True  # run the ladders (false: sweep/orbits only)
     mu: list[NonNegativeFloat] | None = Field(default=None, min_length=1, max_length=12)
 
@@ -1008,6 +1011,7 @@ class EnsembleSection(_Section):
     lyapunov: bool = True  # compute the exponent where the section map does not decide
     lyapunov_periods: int = Field(default=300, gt=0)
     settle_tolerance: float = Field(default=0.05, gt=0, lt=1)  # reached: closer than this
+    max_wall_time_s: float | None = Field(default=None, gt=0)  # the run's budget (None: none)
 
     _methods_unique = field_validator("methods")(_unique)
     _values_unique = field_validator("values")(_unique)

@@ -1,4 +1,5 @@
-"""``rubcli run CASE [--method NAME]... [--out DIR] [--periods P] [--force] [--json]``.
+"""``rubcli run CASE [--method NAME]... [--out DIR] [--periods P] [--max-wall-time S]
+[--force] [--json]``.
 
 Each method of the case (or of ``--method``) is solved and only the products the case asks
 for are written into the output dir (``rubcli.studies.run``, whose docstring lists them).
@@ -7,19 +8,25 @@ The output dir is locked and checked before anything is solved, and all files ar
 committed as a whole at the end (``rubcli.io.open_output_dir``; docs/cases.md, "Output
 dirs").
 
+``[solver] total_wall_time_s`` (default none; ``--max-wall-time S``) bounds the whole
+run beside each method's ``[solver] max_wall_time_s``: checked between the methods, each
+solve getting at most the time left.
+
 Exit codes: 0 success; 2 invalid input or unusable output dir (nothing is solved or
 written); 1 if any method failed (its failure is in report.json; the outputs of the run
-are still written); 3 if every method finished but one or more failed a plausibility
-check (``status: warning`` in report.json: e.g. a tolerance so loose that the orbit ends
-deep inside the stator): the files are written, but the result must not be trusted;
-74 the outputs could not be written (nothing of this run is); 75 the output dir is in use
-(``--wait`` waits); 128 + N when stopped by signal N.
+are still written), or the run's wall-time budget ran out (nothing written); 3 if every
+method finished but one or more failed a plausibility check (``status: warning`` in
+report.json: e.g. a tolerance so loose that the orbit ends deep inside the stator): the
+files are written, but the result must not be trusted; 74 the outputs could not be
+written (nothing of this run is); 75 the output dir is in use (``--wait`` waits); 128 + N
+when stopped by signal N.
 """
 
 from __future__ import annotations
 
 import gc
 import math
+import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -120,11 +127,23 @@ def command(
             "of the same machine (its sweep.nc) under the Bode plot.",
         ),
     ] = None,
+    max_wall_time: Annotated[
+        float | None,
+        typer.Option(
+            "--max-wall-time",
+            metavar="S",
+            help="Wall-time budget of the whole run in seconds instead of [solver] "
+            "total_wall_time_s.",
+        ),
+    ] = None,
     force: ForceOption = False,
     wait: WaitOption = False,
     json: JsonOption = False,
 ) -> None:
     """Solve a case with each of its methods and write CSVs, plots and report.json."""
+    if max_wall_time is not None and not (math.isfinite(max_wall_time) and max_wall_time > 0):
+        console.error(f"--max-wall-time: must be a finite number > 0 (got {max_wall_time!r})")
+        raise typer.Exit(EXIT_INVALID)
     case = load_or_exit(case_file)
     case = _apply_overrides(case, _check_methods(method), out, periods)
     target = case.output_dir
@@ -140,7 +159,7 @@ def command(
     plan = prepare_output(target, force, wait, study.expected_files(case))
 
     with machine_readable(json):
-        report = _run(case, case_file, method, out, periods, plan, steady)
+        report = _run(case, case_file, method, out, periods, plan, steady, max_wall_time)
     emit(report, json)
     entries = report["methods"]
     failed = {n: e for n, e in entries.items() if e["status"] not in ("success", WARNING)}
@@ -158,23 +177,40 @@ def command(
 def _run(
     case: Case, case_file: Path, method: list[str] | None, out: Path | None,
     periods: float | None, plan: io.OutputPlan, steady: SteadyStates | None = None,
+    max_wall_time: float | None = None,
 ) -> dict[str, Any]:  # fmt: skip
     console.info(
         f"{case.name}: {summary.span_text(case.problem)}, methods {', '.join(case.methods)}"
     )
     command_line = {"case_file": str(case_file), "methods": method or None,
-                    "out": str(out) if out is not None else None, "periods": periods}  # fmt: skip
+                    "out": str(out) if out is not None else None, "periods": periods,
+                    "max_wall_time": max_wall_time}  # fmt: skip
     # Solved first, every method alone (its timing its own), then written
     # (``RunResult.write``). What the imports made lives as long as the process: frozen
     # out of the cyclic collector's passes, and not unfrozen (the last collection at exit
     # would walk it all).
     gc.freeze()
-    with console.notice_if_slow(COMPILING_NOTICE, START_UP_NOTICE_S):
-        startup = study.start_up(case)
-    if startup > 0.05:
-        console.info(f"start-up (compiled kernels loaded or compiled): {startup:.2f} s")
-    result = study.run_case(case, progress_bar=progress.progress_bar, on_error=console.exception,
-                            startup_s=startup)  # fmt: skip
+    from rubcli import solvers
+    from rubcli.analysis.orbits import WallTimeBudgetError
+
+    budget = case.settings.solver.total_wall_time_s if max_wall_time is None else max_wall_time
+    deadline = None if budget is None else time.perf_counter() + budget  # the warm-up's too
+    try:
+        with (console.notice_if_slow(COMPILING_NOTICE, START_UP_NOTICE_S),
+              solvers.wall_time_budget(deadline)):  # fmt: skip
+            startup = study.start_up(case)
+        if startup > 0.05:
+            console.info(f"start-up (compiled kernels loaded or compiled): {startup:.2f} s")
+        left = None if deadline is None else max(deadline - time.perf_counter(),
+                                                 solvers.LAST_SOLVE_S)  # fmt: skip
+        result = study.run_case(case, progress_bar=progress.progress_bar,
+                                on_error=console.exception, startup_s=startup,
+                                max_wall_time_s=left)  # fmt: skip
+    except WallTimeBudgetError:
+        console.error(f"{case_file}: stopped by the wall-time budget ({budget:g} s): "
+                      "nothing written (--max-wall-time or [solver] total_wall_time_s "
+                      "for more)")  # fmt: skip
+        raise typer.Exit(EXIT_FAILED) from None
     report = result.write(case.output_dir, plan, command_line, progress.progress_bar, steady)
     entries = report["methods"]
     report_stale(plan)

@@ -9,9 +9,12 @@ so that ``rubcli.solvers.registry`` (used by the case schema) stays light.
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import importlib
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextvars import ContextVar
 from functools import partial
 from typing import TYPE_CHECKING, Any
 
@@ -26,6 +29,7 @@ from rubcli.solvers.registry import (  # noqa: F401
     SPEED_PROFILE,
     Options,
     method_options,
+    option_problem,
     options_for,
     unsupported,
 )
@@ -125,6 +129,11 @@ def solve(problem: Problem, method: str, *, watch: Watch | None = None, **option
         from rubcli.solvers.two_body import solve_two_body
 
         methods = {method: partial(solve_two_body, name=method)}
+    deadline = DEADLINE.get()
+    if deadline is not None:  # a command's budget: this solve gets at most what is left
+        left = max(deadline - time.perf_counter(), LAST_SOLVE_S)
+        if left < typed.max_wall_time_s:
+            typed = dataclasses.replace(typed, max_wall_time_s=left)
     start = time.perf_counter()
     if watch is None:
         solution = methods[method](problem, typed)
@@ -140,6 +149,40 @@ def solve(problem: Problem, method: str, *, watch: Watch | None = None, **option
             WATCH.reset(token)
     solution.wall_time_s = time.perf_counter() - start
     return solution
+
+
+# The deadline (``time.perf_counter()``) of the command whose solves run in this context
+# (``wall_time_budget``): every ``solve`` takes the earlier of its own budget and it.
+DEADLINE: ContextVar[float | None] = ContextVar("rubcli_deadline", default=None)
+# The budget of a solve started at or past the deadline: it stops at its first check.
+LAST_SOLVE_S = 1e-3
+
+
+def wall_time_deadline(name: str, max_wall_time_s: object) -> float | None:
+    """The ``time.perf_counter()`` at which a budget of ``max_wall_time_s`` seconds from now
+    runs out (None for None: no budget); a TypeError or ValueError naming ``name`` for a
+    value that is not a finite number > 0, as ``solve`` checks its own."""
+    if max_wall_time_s is None:
+        return None
+    found = option_problem("max_wall_time_s", max_wall_time_s)
+    if found is not None:
+        kind, why = found
+        raise kind(f"{name}: max_wall_time_s {why}")
+    return time.perf_counter() + float(max_wall_time_s)  # type: ignore[arg-type]
+
+
+@contextlib.contextmanager
+def wall_time_budget(deadline: float | None) -> Iterator[None]:
+    """Within: every ``solve`` of this context ends by ``deadline`` (``time.perf_counter()``;
+    None: no deadline), its ``max_wall_time_s`` cut to the time left (at least
+    ``LAST_SOLVE_S``). The caller checks the deadline between its solves
+    (``rubcli.analysis.orbits.check_deadline``): a solve cut short fails as on its own
+    budget."""
+    token = DEADLINE.set(deadline)
+    try:
+        yield
+    finally:
+        DEADLINE.reset(token)
 
 
 # Bounds of a warm-up solve (``warm_up_options``): enough to load or compile every kernel

@@ -163,19 +163,35 @@ def run_case(
     progress_bar: ProgressFactory = no_progress,
     on_error: Callable[[BaseException], None] | None = None,
     startup_s: float | None = None,
+    max_wall_time_s: float | None = None,
 ) -> RunResult:
     """Solve the case with each of its methods, each alone and timed, after the warm-up
     (``start_up``; ``startup_s``: its seconds, if the caller ran it). ``progress_bar`` as
-    ``rubcli.cli.progress.progress_bar``; ``on_error(exc)`` for a solver that raised."""
-    if startup_s is None:
-        startup_s = start_up(case)
+    ``rubcli.cli.progress.progress_bar``; ``on_error(exc)`` for a solver that raised.
+
+    The whole is bounded by ``[solver] total_wall_time_s`` (``max_wall_time_s``: a budget
+    instead of the table's; None in both: no budget but each method's): checked between
+    the methods, each solve getting at most the time left;
+    ``rubcli.analysis.orbits.WallTimeBudgetError`` once it is spent (TypeError or
+    ValueError naming ``max_wall_time_s`` for a budget that is not a number > 0)."""
+    from rubcli.analysis.orbits import check_deadline
+    from rubcli.solvers import wall_time_budget, wall_time_deadline
+
+    if max_wall_time_s is None:
+        max_wall_time_s = case.settings.solver.total_wall_time_s
+    deadline = wall_time_deadline("run_case()", max_wall_time_s)
     solutions, failures = [], {}
-    for name in case.methods:
-        solution, failure = solve_method(case, name, progress_bar, on_error)
-        if solution is None:
-            failures[name] = failure
-        else:
-            solutions.append(solution)
+    with wall_time_budget(deadline):
+        if startup_s is None:
+            startup_s = start_up(case)
+        for name in case.methods:
+            check_deadline(deadline)
+            solution, failure = solve_method(case, name, progress_bar, on_error)
+            if solution is None:
+                failures[name] = failure
+            else:
+                solutions.append(solution)
+    check_deadline(deadline)  # (a solve the budget cut short is no result of the method)
     return RunResult(case, solutions, failures, startup_s)
 
 

@@ -401,3 +401,22 @@ def test_sweep_ends_within_its_wall_time_budget(run_cli, case_file, out_dir):
     assert not (out_dir / "sweep.nc").exists()
     done = run_cli("sweep", path, "--out", out_dir, "--max-wall-time", "nan")
     assert done.code == 2 and "--max-wall-time: must be a finite number > 0" in done.stderr
+
+
+@pytest.mark.parametrize("where", ["option", "table"])
+def test_run_ends_within_its_wall_time_budget(tmp_path, where):
+    """``rubcli run`` was bounded only by each method's budget (600 s apiece); now the
+    whole run stops at its own: exit 1, one message, nothing written."""
+    text = RUN_CASE + '\n[solver]\nmethods = ["rk45", "lsoda"]\n'
+    if where == "table":
+        text += "total_wall_time_s = 2.0\n"
+    path = tmp_path / "case.toml"
+    path.write_text(text)
+    extra = ["--max-wall-time", 2] if where == "option" else []
+    done = rubcli(tmp_path, "run", path, "--out", "out", "--periods", 100000, *extra,
+                  timeout=60)  # fmt: skip
+    assert done.returncode == 1, done.stderr
+    assert "case.toml: stopped by the wall-time budget (2 s): nothing written" in done.stderr
+    assert not (tmp_path / "out").exists()
+    done = rubcli(tmp_path, "run", path, "--out", "out", "--max-wall-time", "-1")
+    assert done.returncode == 2 and "--max-wall-time: must be a finite number > 0" in done.stderr
