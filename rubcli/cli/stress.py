@@ -1,4 +1,5 @@
-"""``rubcli stress [--out DIR] [--quick]``: the built-in suite of extreme cases.
+"""``rubcli stress [--out DIR] [--quick] [--max-wall-time S]``: the built-in suite of
+extreme cases.
 
 Runs every case of ``rubcli.analysis.stress.stress_cases`` with every method (or the
 ``--case`` / ``--method`` subsets), each within its budget, and writes into ``DIR``
@@ -14,7 +15,9 @@ Runs every case of ``rubcli.analysis.stress.stress_cases`` with every method (or
 ``--json`` prints the report on stdout only. ``--quick`` shortens every horizon and
 budget (about a minute in all: the test suite runs it). Exit 0 when every run ended
 cleanly (``success``, or ``failed`` with a reason such as an exhausted budget, and no
-non-finite state); 1 if a solver raised or produced a non-finite state; 2 on invalid
+non-finite state); 1 if a solver raised or produced a non-finite state, or the
+suite's wall-time budget ran out (``--max-wall-time S``, default none: checked after
+every run, each solve getting at most the time left; nothing written); 2 on invalid
 options or an unusable output dir. Warnings (a success whose energy balance or exact
 error says the orbit is wrong) are findings, shown in the table and in stress.md; they
 do not change the exit code. Files are staged and moved in at the end.
@@ -22,6 +25,7 @@ do not change the exit code. Files are staged and moved in at the end.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated
 
@@ -62,12 +66,24 @@ def command(
         list[str] | None,
         typer.Option("--method", "-m", metavar="NAME", help="Run only this method (repeatable)."),
     ] = None,
+    max_wall_time: Annotated[
+        float | None,
+        typer.Option(
+            "--max-wall-time",
+            metavar="S",
+            help="Wall-time budget of the whole suite in seconds (default none).",
+        ),
+    ] = None,  # fmt: skip
     force: ForceOption = False,
     wait: WaitOption = False,
     json: JsonOption = False,
 ) -> None:
     """Run the built-in suite of extreme cases with every method; write stress.csv and .md."""
     from rubcli.solvers import METHODS
+
+    if max_wall_time is not None and not (math.isfinite(max_wall_time) and max_wall_time > 0):
+        console.error(f"--max-wall-time: must be a finite number > 0 (got {max_wall_time!r})")
+        raise typer.Exit(EXIT_INVALID)
 
     cases = stress.stress_cases()
     names = [c.name for c in cases]
@@ -89,7 +105,7 @@ def command(
     target = out if out is not None else Path("out/stress-quick" if quick else "out/stress")
     plan = prepare_output(target, force, wait, study.FILES)
     with machine_readable(json):
-        runs, report = _stress(cases, methods, quick, target, plan, case, method)
+        runs, report = _stress(cases, methods, quick, target, plan, case, method, max_wall_time)
     emit(report, json)
     bad = [r for r in runs if not stress.clean(r)]
     for r in bad:
@@ -107,7 +123,10 @@ def _stress(
     plan: io.OutputPlan,
     case: list[str] | None,
     method: list[str] | None,
+    max_wall_time: float | None = None,
 ) -> tuple[list[stress.StressRun], dict]:
+    from rubcli.analysis.orbits import WallTimeBudgetError
+
     console.info(
         f"stress ({'quick' if quick else 'full'}): {len(cases)} cases x {len(methods)} methods"
     )
@@ -123,11 +142,20 @@ def _stress(
                 + ("" if run.status == "success" else f"  {run.message}")
             )
 
-        result = study.run_stress(cases, methods, quick=quick, on_run=on_run)
+        try:
+            result = study.run_stress(cases, methods, quick=quick, on_run=on_run,
+                                      max_wall_time_s=max_wall_time)  # fmt: skip
+        except WallTimeBudgetError:
+            console.error(f"stress: stopped by the wall-time budget ({max_wall_time:g} s) "
+                          f"after {done[0]} of {total} runs: nothing written "
+                          "(--max-wall-time for more)")  # fmt: skip
+            raise typer.Exit(EXIT_FAILED) from None
 
     parts = ["rubcli stress"] + (["--quick"] if quick else [])
     parts += [f"--case {c}" for c in case or []] + [f"--method {m}" for m in method or []]
-    command_line = {"quick": quick, "cases": case or None, "methods": method or None}
+    parts += [f"--max-wall-time {max_wall_time:g}"] if max_wall_time is not None else []
+    command_line = {"quick": quick, "cases": case or None, "methods": method or None,
+                    "max_wall_time": max_wall_time}  # fmt: skip
     report = result.write(target, plan, command_line, " ".join(parts))
     report_stale(plan)
     runs = result.runs

@@ -124,12 +124,28 @@ def run_stress(
     *,
     quick: bool = False,
     on_run: Callable[[stress.StressRun], None] | None = None,
+    max_wall_time_s: float | None = None,
 ) -> StressResult:
     """Every case (default: all of ``stress.stress_cases()``) with every method (default:
-    all registered), ``on_run(run)`` after each; ``quick``: short horizons and budgets."""
-    from rubcli.solvers import METHODS
+    all registered), ``on_run(run)`` after each; ``quick``: short horizons and budgets.
 
+    ``max_wall_time_s`` (None: no budget but each run's) bounds the whole suite: checked
+    after every run, each solve getting at most the time left;
+    ``rubcli.analysis.orbits.WallTimeBudgetError`` once it is spent (TypeError or
+    ValueError naming ``max_wall_time_s`` for a budget that is not a number > 0)."""
+    from rubcli.analysis.orbits import check_deadline
+    from rubcli.solvers import METHODS, wall_time_budget, wall_time_deadline
+
+    deadline = wall_time_deadline("run_stress()", max_wall_time_s)
     cases = stress.stress_cases() if cases is None else cases
     methods = list(METHODS) if methods is None else methods
-    runs = stress.run_suite(cases, methods, quick=quick, on_run=on_run)
+
+    def after(run: stress.StressRun) -> None:
+        if on_run is not None:
+            on_run(run)
+        check_deadline(deadline)
+
+    with wall_time_budget(deadline):
+        runs = stress.run_suite(cases, methods, quick=quick, on_run=after)
+    check_deadline(deadline)  # (a reference the budget cut short)
     return StressResult(runs, cases, quick)

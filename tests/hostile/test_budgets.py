@@ -420,3 +420,16 @@ def test_run_ends_within_its_wall_time_budget(tmp_path, where):
     assert not (tmp_path / "out").exists()
     done = rubcli(tmp_path, "run", path, "--out", "out", "--max-wall-time", "-1")
     assert done.returncode == 2 and "--max-wall-time: must be a finite number > 0" in done.stderr
+
+
+def test_stress_ends_within_its_wall_time_budget(tmp_path):
+    """``rubcli stress`` (the full suite runs for many minutes) was bounded only by each
+    run's budget; now the whole suite stops at its own: exit 1, one message, nothing
+    written."""
+    done = rubcli(tmp_path, "stress", "--out", "out", "--max-wall-time", 2, timeout=60)
+    assert done.returncode == 1, done.stderr
+    assert "stress: stopped by the wall-time budget (2 s) after " in done.stderr
+    assert "nothing written" in done.stderr
+    assert not (tmp_path / "out").exists()
+    done = rubcli(tmp_path, "stress", "--out", "out", "--max-wall-time", "nan")
+    assert done.returncode == 2 and "--max-wall-time: must be a finite number > 0" in done.stderr
