@@ -484,7 +484,11 @@ def minimal_perturbations(
     """The minimal perturbation at each of ``values`` (module docstring): ``templates[i]``
     gives the parameters and run settings at value ``i`` (its start is replaced; no Lyapunov
     runs), ``members[i]`` the ensemble's runs there (a rub found by them counts as a rub).
-    ``progress(n)``: directions finished (those of a value not computable count at once)."""
+    ``progress(n)``: directions finished (those of a value not computable count at once).
+    ``rubcli.analysis.orbits.WallTimeBudgetError`` after a direction once the templates'
+    deadline (``MemberTask.deadline``) has passed."""
+    from rubcli.analysis.orbits import check_deadline
+
     directions = settings.directions()
     out: list[MinimalPerturbation] = []
     tasks: list[DirectionTask] = []
@@ -506,14 +510,16 @@ def minimal_perturbations(
     if progress is not None:
         progress(skipped)
     results: list[DirectionResult] = []
+    deadline = templates[0].deadline if templates else None
     if workers <= 1 or len(tasks) <= 1:
         for task in tasks:
             results.append(bisect_direction(task))
             if progress is not None:
                 progress(skipped + len(results))
+            check_deadline(deadline)
     else:
         with local_pool(min(workers, len(tasks))) as pool:
-            for r in pool.map(bisect_direction, tasks):
+            for r in en.within_deadline(pool, pool.map(bisect_direction, tasks), deadline):
                 results.append(r)
                 if progress is not None:
                     progress(skipped + len(results))

@@ -34,14 +34,17 @@ gives the median without assuming a law.
 from __future__ import annotations
 
 import math
+import time
 from collections import Counter
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field
+from typing import TypeVar
 
 import numpy as np
 
 from rubcli import model
 from rubcli.analysis import response as rsp
+from rubcli.analysis.orbits import check_deadline
 from rubcli.analysis.processes import local_pool
 from rubcli.analysis.sweep.attractors import normalised
 from rubcli.model import ModelParams
@@ -69,6 +72,9 @@ class MemberTask:
     lyapunov: bool
     lyapunov_periods: int
     settle_tolerance: float
+    # the command's deadline (``time.perf_counter()``, the machine's monotonic clock, the
+    # same in a worker process): the run's solves get at most the time left
+    deadline: float | None = None
 
 
 @dataclass
@@ -126,7 +132,15 @@ def settle_period(sections: np.ndarray, final: np.ndarray, weights: np.ndarray,
 
 
 def run_member(task: MemberTask) -> MemberResult:
-    """Solve one run and analyse its end; a failure is a result, never raised."""
+    """Solve one run and analyse its end; a failure is a result, never raised. Its solves
+    end by ``task.deadline`` (a run cut short fails as on its own budget)."""
+    from rubcli.solvers import wall_time_budget
+
+    with wall_time_budget(task.deadline):
+        return _member(task)
+
+
+def _member(task: MemberTask) -> MemberResult:
     from rubcli.solvers import solve
 
     rtol = task.options.get("rtol")
@@ -352,10 +366,12 @@ def member_tasks(
     lyapunov_periods: int,
     settle_tolerance: float,
     starts: np.ndarray | None = None,
+    deadline: float | None = None,
 ) -> list[MemberTask]:
     """The runs: ``runs`` starts (the first the case's own) at every (method, rtol);
     ``starts`` (an array ``(n, 4)``) replaces that cloud by these starts (``runs`` and
-    ``spread`` unused), each with its distance from ``start`` as its offset."""
+    ``spread`` unused), each with its distance from ``start`` as its offset; ``deadline``:
+    the command's (``MemberTask.deadline``)."""
     from rubcli.solvers import options_for
 
     base = np.asarray(start, dtype=float)
@@ -382,8 +398,22 @@ def member_tasks(
             for s, offset in cloud:
                 tasks.append(MemberTask(len(tasks), params, s, offset, method, opts, periods,
                                         samples_per_period, record_periods, lyapunov,
-                                        lyapunov_periods, settle_tolerance))  # fmt: skip
+                                        lyapunov_periods, settle_tolerance,
+                                        deadline))  # fmt: skip
     return tasks
+
+
+T = TypeVar("T")
+
+
+def within_deadline(pool, results: Iterator[T], deadline: float | None) -> Iterator[T]:
+    """The results of ``pool.map``, then WallTimeBudgetError after one once ``deadline`` has
+    passed, the tasks not started cancelled (those running end by the deadline too)."""
+    for result in results:
+        yield result
+        if deadline is not None and time.perf_counter() > deadline:
+            pool.shutdown(wait=False, cancel_futures=True)
+            check_deadline(deadline)
 
 
 def _warm_up(tasks: list[MemberTask]) -> None:
@@ -401,17 +431,21 @@ def run_ensemble(
     progress: Callable[[int], None] | None = None,
     settings: dict | None = None,
 ) -> EnsembleResult:
-    """Every task, in this process (``workers = 1``) or on a local process pool."""
+    """Every task, in this process (``workers = 1``) or on a local process pool.
+    ``rubcli.analysis.orbits.WallTimeBudgetError`` after a run once the tasks' deadline
+    has passed (the runs not started are dropped)."""
     results: list[MemberResult] = []
+    deadline = tasks[0].deadline if tasks else None
     if workers <= 1:
         for task in tasks:
             results.append(run_member(task))
             if progress is not None:
                 progress(len(results))
+            check_deadline(deadline)
     else:
         _warm_up(tasks)  # compile or load the kernels once, before the workers fork
         with local_pool(workers) as pool:
-            for result in pool.map(run_member, tasks):
+            for result in within_deadline(pool, pool.map(run_member, tasks), deadline):
                 results.append(result)
                 if progress is not None:
                     progress(len(results))

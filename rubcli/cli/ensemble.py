@@ -1,4 +1,5 @@
-"""``rubcli ensemble CASE [--out DIR] [--workers N] [--quick]``: a fragile outcome in numbers.
+"""``rubcli ensemble CASE [--out DIR] [--workers N] [--quick] [--max-wall-time S]``: a fragile
+outcome in numbers.
 
 Runs the case's ``[ensemble]`` table (``rubcli.studies.ensemble``; docs/reproduction.md):
 the case from a cloud of starts (or a box of them, ``starts = "box"``) at every setting of
@@ -18,11 +19,19 @@ attractors followed from value to value, and writes ``basin_stability.csv`` (per
 attractor: count, runs, fraction, 95 % interval), ``basin_stability.png`` and
 ``report.json`` (with the minimal perturbation off the free whirl, where asked).
 
-Exit codes: 0 done; 1 every run failed; 2 invalid input (nothing written).
+``[ensemble] max_wall_time_s`` (default none; ``--max-wall-time S``) bounds the whole
+command, the minimal perturbations too: checked after every run, each solve getting at
+most the time left.
+
+Exit codes: 0 done; 1 every run failed, or the wall-time budget ran out (nothing
+written); 2 invalid input (nothing written).
 """
 
 from __future__ import annotations
 
+import contextlib
+import math
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -54,6 +63,11 @@ QuickOption = Annotated[
     typer.Option("--quick", help="CI mode: 4 runs of 300 periods (along a parameter: 12 runs "
                  "at 3 values)."),
 ]  # fmt: skip
+MaxWallTimeOption = Annotated[
+    float | None,
+    typer.Option("--max-wall-time", metavar="S",
+                 help="Wall-time budget in seconds instead of [ensemble] max_wall_time_s."),
+]  # fmt: skip
 
 
 def command(
@@ -61,15 +75,19 @@ def command(
     out: OutOption = None,
     workers: WorkersOption = None,
     quick: QuickOption = False,
+    max_wall_time: MaxWallTimeOption = None,
     json: JsonOption = False,
     force: ForceOption = False,
     wait: WaitOption = False,
 ) -> None:
     """Attractor fractions and escape times over a cloud of starts (the ensemble table)."""
+    if max_wall_time is not None and not (math.isfinite(max_wall_time) and max_wall_time > 0):
+        console.error(f"--max-wall-time: must be a finite number > 0 (got {max_wall_time!r})")
+        raise typer.Exit(EXIT_INVALID)
     case = load_or_exit(case_file)
     e = case.settings.ensemble
     if e is not None and e.parameter is not None:
-        _basin_stability(case_file, case, out, workers, quick, json, force, wait)
+        _basin_stability(case_file, case, out, workers, quick, json, force, wait, max_wall_time)
         return
     from rubcli.studies import ensemble as study
 
@@ -78,10 +96,12 @@ def command(
     plan = prepare_output(target, force, wait, study.FILES)
     with console.machine_readable(json):
         runs = study.run_count(s)
-        with progress.progress_bar(f"ensemble of {runs} runs", total=runs) as update:
-            found = study.ensemble_of(case, quick=quick, workers=workers, progress=update)
+        with (progress.progress_bar(f"ensemble of {runs} runs", total=runs) as update,
+              _budget(case_file, study.budget_of(case, max_wall_time))):  # fmt: skip
+            found = study.ensemble_of(case, quick=quick, workers=workers, progress=update,
+                                      max_wall_time_s=max_wall_time)  # fmt: skip
         command_line = {"case_file": str(case_file), "out": str(target), "quick": quick,
-                        "workers": workers}  # fmt: skip
+                        "workers": workers, "max_wall_time": max_wall_time}  # fmt: skip
         report = found.write(target, plan, command_line)
         report_stale(plan)
         emit(report, json)
@@ -100,9 +120,11 @@ def command(
         console.success(f"wrote {', '.join(report['files'])} to {target}")
 
 
-def _basin_stability(case_file, case, out, workers, quick, json, force, wait) -> None:
+def _basin_stability(case_file, case, out, workers, quick, json, force, wait,
+                     max_wall_time) -> None:  # fmt: skip
     """``[ensemble] parameter``: the basin stability along it (rubcli.studies.basin_stability)."""
     from rubcli.studies import basin_stability as study
+    from rubcli.studies.ensemble import budget_of
 
     s, workers = _checked(case_file, *study.settings_of(case, quick), workers)
     target = command_dir(case, "ensemble", out)
@@ -110,12 +132,14 @@ def _basin_stability(case_file, case, out, workers, quick, json, force, wait) ->
     with console.machine_readable(json):
         n = len(s["values"])
         bar = f"basin stability: {n} values of {s['parameter']}"
-        with progress.progress_bar(bar, total=1.0) as update:
+        with (progress.progress_bar(bar, total=1.0) as update,
+              _budget(case_file, budget_of(case, max_wall_time))):  # fmt: skip
             result = study.basin_stability_of(
-                case, quick=quick, workers=workers, progress=lambda done, n: update(done / n)
-            )
+                case, quick=quick, workers=workers, progress=lambda done, n: update(done / n),
+                max_wall_time_s=max_wall_time,
+            )  # fmt: skip
         command_line = {"case_file": str(case_file), "out": str(target), "quick": quick,
-                        "workers": workers}  # fmt: skip
+                        "workers": workers, "max_wall_time": max_wall_time}  # fmt: skip
         report = result.write(target, plan, command_line)
         report_stale(plan)
         emit(report, json)
@@ -142,6 +166,20 @@ def _basin_stability(case_file, case, out, workers, quick, json, force, wait) ->
                 console.info(f"{basin.parameter} = {p.value:g}: minimal perturbation {why}: "
                              f"{p.reason}")  # fmt: skip
         console.success(f"wrote {', '.join(report['files'])} to {target}")
+
+
+@contextlib.contextmanager
+def _budget(case_file: Path, budget: float | None) -> Iterator[None]:
+    """Exit 1 with one message if the wall-time budget ran out within."""
+    from rubcli.analysis.orbits import WallTimeBudgetError
+
+    try:
+        yield
+    except WallTimeBudgetError:
+        console.error(f"{case_file}: stopped by the wall-time budget ({budget:g} s): "
+                      "nothing written (--max-wall-time or [ensemble] max_wall_time_s "
+                      "for more)")  # fmt: skip
+        raise typer.Exit(1) from None
 
 
 def _checked(

@@ -19,6 +19,8 @@ from rubcli import io
 from rubcli.analysis import basin_stability as bs
 from rubcli.analysis import ensemble as en
 from rubcli.case import Case
+from rubcli.solvers import wall_time_deadline
+from rubcli.studies import ensemble as en_study
 
 FILES = ("basin_stability.csv", "basin_stability.png", "report.json")
 CSV_COLUMNS_TAIL = ("attractor", "count", "runs", "fraction", "ci_low", "ci_high")
@@ -154,14 +156,23 @@ def basin_stability_of(
     quick: bool = False,
     workers: int = 1,
     progress: Callable[[int, int], None] | None = None,
+    max_wall_time_s: float | None = None,
 ) -> BasinStabilityResult:
     """The basin stability along the case's ``[ensemble] parameter`` (``quick``: the first,
     middle and last values, at most 12 runs of 300 periods each, the minimal perturbation
     along the axes only); ``progress(done, total)``. ValueError if the table cannot be
-    run (its message names the file and the field)."""
+    run (its message names the file and the field).
+
+    The whole, the minimal perturbations too, is bounded by ``[ensemble] max_wall_time_s``
+    (``max_wall_time_s``: a budget instead of the table's; None in both: no budget but
+    each run's): checked after every run and every direction, each solve getting at most
+    the time left; ``rubcli.analysis.orbits.WallTimeBudgetError`` once it is spent
+    (TypeError or ValueError naming ``max_wall_time_s`` for a budget that is not a
+    number > 0)."""
     s, problems = settings_of(case, quick)
     if problems:
         raise ValueError("\n".join(problems))
+    deadline = wall_time_deadline("basin_stability_of()", en_study.budget_of(case, max_wall_time_s))
     started = time.perf_counter()
     e = case.settings.ensemble
     start = case.problem.initial
@@ -178,5 +189,6 @@ def basin_stability_of(
         periods=s["periods"], samples_per_period=case.settings.time.samples_per_period,
         record_periods=s["record_periods"], lyapunov=s["lyapunov"],
         lyapunov_periods=s["lyapunov_periods"], settle_tolerance=s["settle_tolerance"],
+        deadline=deadline,
     )  # fmt: skip
     return BasinStabilityResult(case, s, basin, time.perf_counter() - started, quick)

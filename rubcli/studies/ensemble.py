@@ -18,6 +18,7 @@ import numpy as np
 from rubcli import io
 from rubcli.analysis import ensemble as en
 from rubcli.case import Case
+from rubcli.solvers import wall_time_deadline
 
 FILES = ("ensemble.csv", "ensemble.png", "report.json")
 # --quick: a CI run of a few seconds
@@ -110,14 +111,22 @@ def ensemble_of(
     quick: bool = False,
     workers: int = 1,
     progress: Callable[[int], None] | None = None,
+    max_wall_time_s: float | None = None,
 ) -> EnsembleStudy:
     """The case's ``[ensemble]``: its runs from a cloud (or a box) of starts at every
     setting of its tolerance ladder, each end classified and named (``quick``: at most 4
     runs of 300 periods); ``progress(done)`` after each run. ValueError if the table
-    cannot be run (its message names the file and the field)."""
+    cannot be run (its message names the file and the field).
+
+    The whole is bounded by ``[ensemble] max_wall_time_s`` (``max_wall_time_s``: a budget
+    instead of the table's; None in both: no budget but each run's): checked after every
+    run, each solve getting at most the time left;
+    ``rubcli.analysis.orbits.WallTimeBudgetError`` once it is spent (TypeError or
+    ValueError naming ``max_wall_time_s`` for a budget that is not a number > 0)."""
     s, problems = settings_of(case, quick)
     if problems:
         raise ValueError("\n".join(problems))
+    deadline = wall_time_deadline("ensemble_of()", budget_of(case, max_wall_time_s))
     started = time.perf_counter()
     e = case.settings.ensemble
     starts = (en.box_starts(case.problem.initial, e.box(), s["runs"], s["seed"])
@@ -128,11 +137,18 @@ def ensemble_of(
         periods=s["periods"], samples_per_period=case.settings.time.samples_per_period,
         record_periods=s["record_periods"], lyapunov=s["lyapunov"],
         lyapunov_periods=s["lyapunov_periods"], settle_tolerance=s["settle_tolerance"],
-        starts=starts,
+        starts=starts, deadline=deadline,
     )  # fmt: skip
     result = en.run_ensemble(tasks, workers=max(1, min(workers, len(tasks))), progress=progress,
                              settings=s)  # fmt: skip
     return EnsembleStudy(case, s, starts, result, time.perf_counter() - started)
+
+
+def budget_of(case: Case, max_wall_time_s: float | None = None) -> float | None:
+    """The ensemble's wall-time budget: ``max_wall_time_s``, else ``[ensemble]
+    max_wall_time_s`` (None: none)."""
+    e = case.settings.ensemble
+    return e.max_wall_time_s if max_wall_time_s is None and e is not None else max_wall_time_s
 
 
 def run_count(settings: dict) -> int:

@@ -433,3 +433,54 @@ def test_stress_ends_within_its_wall_time_budget(tmp_path):
     assert not (tmp_path / "out").exists()
     done = rubcli(tmp_path, "stress", "--out", "out", "--max-wall-time", "nan")
     assert done.returncode == 2 and "--max-wall-time: must be a finite number > 0" in done.stderr
+
+
+def ensemble_case(tmp_path: Path, shipped: str, budget: str = "", **changes: str) -> Path:
+    """A shipped ensemble case, each ``key = value`` line of ``changes`` replaced, and
+    ``budget`` added to its [ensemble] table."""
+    lines = (ROOT / "cases" / shipped).read_text().splitlines()
+    lines = [f"{ln.split(' = ')[0]} = {changes[ln.split(' = ')[0]]}"
+             if ln.split(" = ")[0] in changes else ln for ln in lines]  # fmt: skip
+    path = tmp_path / "case.toml"
+    lines.insert(lines.index("[ensemble]") + 1, budget)
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+# The basin stability of two values, two starts each, then the minimal perturbation along
+# a thousand directions: the budget runs out in the bisections.
+PERTURBATIONS = {"start": "1.8", "stop": "1.9", "num": "2", "runs": "2",
+                 "perturbation_directions": "1000"}  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("shipped", "changes", "budget", "extra"),
+    [("paper/fig3-ensemble.toml", {}, "", ["--max-wall-time", 3, "--workers", 2]),
+     ("paper/fig3-ensemble.toml", {}, "max_wall_time_s = 3.0", ["--workers", 1]),
+     ("examples/basin-stability.toml", {}, "max_wall_time_s = 3.0", ["--workers", 2]),
+     ("examples/basin-stability.toml", PERTURBATIONS, "", ["--max-wall-time", 6,
+                                                          "--workers", 1])],
+    ids=["cloud-option", "cloud-table", "basin-table", "perturbation-option"],
+)  # fmt: skip
+def test_ensemble_ends_within_its_wall_time_budget(tmp_path, shipped, changes, budget, extra):
+    """``rubcli ensemble`` (a cloud of runs, the basin stability along a parameter and its
+    minimal perturbations: minutes to hours) was bounded only by each run's budget; now
+    the whole command stops at its own: exit 1, one message, nothing written."""
+    path = ensemble_case(tmp_path, shipped, budget, **changes)
+    done = rubcli(tmp_path, "ensemble", path, "--out", "out", *extra, timeout=60)
+    assert done.returncode == 1, done.stderr
+    seconds = 6 if "perturbation_directions" in changes else 3
+    assert f"case.toml: stopped by the wall-time budget ({seconds} s): nothing written" in (
+        done.stderr
+    )
+    assert not (tmp_path / "out").exists()
+
+
+def test_ensemble_budget_is_checked_as_input(tmp_path):
+    path = ensemble_case(tmp_path, "paper/fig3-ensemble.toml")
+    done = rubcli(tmp_path, "ensemble", path, "--out", "out", "--max-wall-time", "0")
+    assert done.returncode == 2 and "--max-wall-time: must be a finite number > 0" in done.stderr
+    path = ensemble_case(tmp_path, "paper/fig3-ensemble.toml", "max_wall_time_s = -1.0")
+    done = rubcli(tmp_path, "ensemble", path, "--out", "out")
+    assert done.returncode == 2 and "ensemble.max_wall_time_s" in done.stderr
+    assert not (tmp_path / "out").exists()
