@@ -1,4 +1,5 @@
-"""``rubcli compare CASE [--out DIR] [--quick]``: reference, error against run time, orbits.
+"""``rubcli compare CASE [--out DIR] [--quick] [--max-wall-time S]``: reference, error
+against run time, orbits.
 
 What it does, in order (docs/compare.md):
 
@@ -31,13 +32,19 @@ ladders (rtol 1e-3, 1e-6, 1e-9; steps_per_period 25, 100, 400), runs each settin
 caps the work-precision horizon at 5 periods, the orbit runs at 150 periods (a transient
 longer than the run is cut to 2/3 of it) and the Lyapunov run at 30 periods.
 
+``[compare] total_wall_time_s`` (default none; ``--max-wall-time S``) bounds the whole
+command beside each solve's ``[compare] max_wall_time_s``: checked after the ladders and
+after each orbit panel, every solve getting at most the time left.
+
 Exit codes: 0 done (failed settings are results, listed in the report); 2 invalid input or
 unusable output dir (checked before anything is computed, ``rubcli.io.open_output_dir``);
-1 if no reference could be built; 128 + N when stopped by signal N.
+1 if no reference could be built, or the wall-time budget ran out (nothing written);
+128 + N when stopped by signal N.
 """
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -73,11 +80,23 @@ def command(
         ),
     ] = None,  # fmt: skip
     quick: Annotated[bool, typer.Option("--quick", help=QUICK_HELP)] = False,
+    max_wall_time: Annotated[
+        float | None,
+        typer.Option(
+            "--max-wall-time",
+            metavar="S",
+            help="Wall-time budget of the whole command in seconds instead of [compare] "
+            "total_wall_time_s.",
+        ),
+    ] = None,
     force: ForceOption = False,
     wait: WaitOption = False,
     json: JsonOption = False,
 ) -> None:
     """Reference solution, error against run time per method, orbits and response classes."""
+    if max_wall_time is not None and not (math.isfinite(max_wall_time) and max_wall_time > 0):
+        console.error(f"--max-wall-time: must be a finite number > 0 (got {max_wall_time!r})")
+        raise typer.Exit(EXIT_INVALID)
     case = load_or_exit(case_file)
     cfg = case.settings.compare or CompareSection()
     from rubcli import solvers
@@ -90,7 +109,7 @@ def command(
     target = command_dir(case, "compare", out)
     plan = prepare_output(target, force, wait, study.expected_files(case, cfg))
     command_line = {"case_file": str(case_file), "out": str(out) if out else None,
-                    "quick": quick}  # fmt: skip
+                    "quick": quick, "max_wall_time": max_wall_time}  # fmt: skip
     with machine_readable(json):
         report = _compare(case, cfg, methods, quick, target, plan, command_line)
     emit(report, json)
@@ -106,10 +125,20 @@ def _compare(
     command_line: dict[str, Any],
 ) -> dict[str, Any]:
     console.info(f"{case.name}: compare {', '.join(methods)}" + (" (quick)" if quick else ""))
+    from rubcli.analysis.orbits import WallTimeBudgetError
+
+    max_wall_time = command_line["max_wall_time"]
     try:
-        result = study.compare_case(case, quick=quick, progress_bar=progress.progress_bar)
+        result = study.compare_case(case, quick=quick, progress_bar=progress.progress_bar,
+                                    max_wall_time_s=max_wall_time)  # fmt: skip
     except ReferenceError as exc:
         console.error(f"no reference solution: {exc}")
+        raise typer.Exit(EXIT_FAILED) from None
+    except WallTimeBudgetError:
+        budget = cfg.total_wall_time_s if max_wall_time is None else max_wall_time
+        console.error(f"{command_line['case_file']}: stopped by the wall-time budget "
+                      f"({budget:g} s): nothing written (--max-wall-time or [compare] "
+                      "total_wall_time_s for more)")  # fmt: skip
         raise typer.Exit(EXIT_FAILED) from None
     report = result.write(target, plan, command_line)
     report_stale(plan)

@@ -21,7 +21,7 @@ from rubcli import io
 from rubcli.analysis import panels as panel_study
 from rubcli.analysis import work_precision as wpm
 from rubcli.analysis.panels import OrbitPanel, ProgressFactory, no_progress, response_settings
-from rubcli.analysis.reference import Reference
+from rubcli.analysis.reference import Reference, ReferenceError
 from rubcli.case import AnalysisSection, Case, CompareSection
 from rubcli.problem import Problem
 from rubcli.solvers.registry import SPECS, STEPS_PER_PERIOD
@@ -424,13 +424,42 @@ class CompareResult:
 
 
 def compare_case(
-    case: Case, *, quick: bool = False, progress_bar: ProgressFactory = no_progress
-) -> CompareResult:
+    case: Case, *, quick: bool = False, progress_bar: ProgressFactory = no_progress,
+    max_wall_time_s: float | None = None,
+) -> CompareResult:  # fmt: skip
     """The reference and work-precision ladders (unless ``[compare] work_precision =
     false``), then the orbit panel of each mu; ``quick``: the CI settings (``QUICK_TEXT``).
-    Raises ``rubcli.analysis.reference.ReferenceError`` if no reference can be built."""
+    Raises ``rubcli.analysis.reference.ReferenceError`` if no reference can be built.
+
+    The whole is bounded by ``[compare] total_wall_time_s`` (``max_wall_time_s``: a budget
+    instead of the table's; None in both: no budget but each solve's ``[compare]
+    max_wall_time_s``): checked after the ladders and after each panel, every solve
+    getting at most the time left; ``rubcli.analysis.orbits.WallTimeBudgetError`` once it
+    is spent (TypeError or ValueError naming ``max_wall_time_s`` for a budget that is not
+    a number > 0)."""
+    from rubcli.analysis.orbits import check_deadline
+    from rubcli.solvers import wall_time_budget, wall_time_deadline
+
     started = time.perf_counter()
     cfg = case.settings.compare or CompareSection()
+    budget = cfg.total_wall_time_s if max_wall_time_s is None else max_wall_time_s
+    deadline = wall_time_deadline("compare_case()", budget)
+    try:
+        with wall_time_budget(deadline):
+            wp, panels = _compare(case, cfg, quick, progress_bar, deadline)
+    except ReferenceError:
+        check_deadline(deadline)  # a reference the budget cut short: the budget's stop
+        raise
+    check_deadline(deadline)
+    return CompareResult(case, cfg, quick, wp, panels, time.perf_counter() - started)
+
+
+def _compare(
+    case: Case, cfg: CompareSection, quick: bool, progress_bar: ProgressFactory,
+    deadline: float | None,
+) -> tuple[wpm.WorkPrecision | None, list[OrbitPanel]]:  # fmt: skip
+    from rubcli.analysis.orbits import check_deadline
+
     threshold = cfg.reference_threshold
     analysis = case.settings.analysis
     wp = work_precision(case, cfg, quick, threshold, progress_bar) if cfg.work_precision else None
@@ -442,12 +471,13 @@ def compare_case(
         wp is not None and cfg.mu is None
         and math.isclose(wp.reference.problem.periods, orbit_periods)
     )  # fmt: skip
-    panels = [
-        orbit_panel(case, mu, list(case.methods), threshold, analysis, quick,
-                    reference=wp.reference if same else None, progress_bar=progress_bar)
-        for mu in mus
-    ]  # fmt: skip
-    return CompareResult(case, cfg, quick, wp, panels, time.perf_counter() - started)
+    panels = []
+    for mu in mus:
+        check_deadline(deadline)
+        panels.append(orbit_panel(case, mu, list(case.methods), threshold, analysis, quick,
+                                  reference=wp.reference if same else None,
+                                  progress_bar=progress_bar))  # fmt: skip
+    return wp, panels
 
 
 def _work_precision_json(wp: wpm.WorkPrecision) -> dict[str, Any]:

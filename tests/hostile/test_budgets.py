@@ -484,3 +484,23 @@ def test_ensemble_budget_is_checked_as_input(tmp_path):
     done = rubcli(tmp_path, "ensemble", path, "--out", "out")
     assert done.returncode == 2 and "ensemble.max_wall_time_s" in done.stderr
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("where", ["option", "table"])
+def test_compare_ends_within_its_wall_time_budget(tmp_path, where):
+    """``rubcli compare`` (a reference, then every method at nine tolerances, three times
+    each, then the orbits: here minutes) was bounded only by each solve's budget; now the
+    whole command stops at its own: exit 1, one message, nothing written."""
+    text = RUN_CASE.replace("periods = 50", "periods = 2000")
+    text += '\n[solver]\nmethods = ["rk45", "lsoda"]\n\n[compare]\nmu = [0.0, 0.01, 0.02]\n'
+    if where == "table":
+        text += "total_wall_time_s = 3.0\n"
+    path = tmp_path / "case.toml"
+    path.write_text(text)
+    extra = ["--max-wall-time", 3] if where == "option" else []
+    done = rubcli(tmp_path, "compare", path, "--out", "out", *extra, timeout=60)
+    assert done.returncode == 1, done.stderr
+    assert "case.toml: stopped by the wall-time budget (3 s): nothing written" in done.stderr
+    assert not (tmp_path / "out").exists()
+    done = rubcli(tmp_path, "compare", path, "--out", "out", "--max-wall-time", "inf")
+    assert done.returncode == 2 and "--max-wall-time: must be a finite number > 0" in done.stderr
