@@ -9,6 +9,7 @@ to seconds with small budgets (``--max-wall-time``, ``--periods``, ``--quick``).
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import resource
@@ -504,3 +505,28 @@ def test_compare_ends_within_its_wall_time_budget(tmp_path, where):
     assert not (tmp_path / "out").exists()
     done = rubcli(tmp_path, "compare", path, "--out", "out", "--max-wall-time", "inf")
     assert done.returncode == 2 and "--max-wall-time: must be a finite number > 0" in done.stderr
+
+
+@pytest.mark.parametrize(
+    ("entry", "shipped"),
+    [("run.run_case", None), ("compare.compare_case", None), ("stress.run_stress", None),
+     ("ensemble.ensemble_of", "paper/fig3-ensemble.toml"),
+     ("basin_stability.basin_stability_of", "examples/basin-stability.toml")],
+)  # fmt: skip
+def test_study_entries_check_their_wall_time_budget(tmp_path, entry, shipped):
+    """The library functions behind run, compare, stress and ensemble take the command's
+    budget, checked as ``solve`` checks its own: the function and the argument named."""
+    import importlib
+
+    from rubcli import load_case
+
+    module, name = entry.split(".")
+    function = getattr(importlib.import_module(f"rubcli.studies.{module}"), name)
+    path = tmp_path / "case.toml"
+    path.write_text((ROOT / "cases" / shipped).read_text() if shipped else RUN_CASE)
+    args = () if module == "stress" else (load_case(path),)
+    for bad in (math.nan, -1.0, 0.0):
+        with pytest.raises(ValueError, match=rf"^{name}\(\): max_wall_time_s must be finite"):
+            function(*args, max_wall_time_s=bad)
+    with pytest.raises(TypeError, match=rf"^{name}\(\): max_wall_time_s must be a real number"):
+        function(*args, max_wall_time_s="3")
