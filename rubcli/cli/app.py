@@ -41,6 +41,19 @@ class RubcliGroup(TyperGroup):
     that cannot be written end it with a message on stderr and its exit code, never a
     traceback (README, "Exit codes")."""
 
+    def make_context(self, info_name, args, parent=None, **extra) -> typer.Context:
+        # The group's own help (--help, or no arguments) is printed while its arguments are
+        # parsed, before invoke: a stdout that is missing or cannot be written ends it too.
+        try:
+            console.require_stdout()
+            return super().make_context(info_name, args, parent, **extra)
+        except console.StdoutError as exc:
+            _stdout_failed(exc)
+        except OSError as exc:
+            if not io.is_write_failure(exc):
+                raise
+            _stdout_failed(console.StdoutError(exc))
+
     def invoke(self, ctx: typer.Context) -> Any:
         io.outputs.COMMITTED.clear()
         try:

@@ -12,6 +12,8 @@ from __future__ import annotations
 import json
 import sys
 
+import pytest
+
 from .conftest import LONG_CASE, SMALL_CASE, SWEEP_CASE, fsize_limit, snapshot, visible
 
 
@@ -92,6 +94,14 @@ def test_a_full_stdout(run_cli, case_file, tmp_path):
         run = run_cli(*args, stdout="/dev/full")
         assert run.code == 74, (args, run.stderr)
         assert "cannot write to standard output: No space left on device" in run.stderr
+
+
+@pytest.mark.parametrize("args", [["--help"], []])
+def test_the_help_to_a_full_stdout(run_cli, args):
+    """The help (also the group's, printed while its arguments are parsed): exit 74."""
+    run = run_cli(*args, stdout="/dev/full")
+    assert run.code == 74, run.stderr
+    assert "No space left on device" in run.stderr
 
 
 def test_a_disk_full_at_the_check_is_exit_74_and_leaves_no_lock(run_cli, case_file, out_dir):

@@ -39,6 +39,8 @@ COMMANDS = {
     "ensemble": ["ensemble", "case.toml", "--out", "out"],
     "chart": ["chart", "case.toml", "--out", "out"],
     "--version": ["--version"],
+    "--help": ["--help"],
+    "no arguments": [],
 }
 
 
