@@ -16,6 +16,11 @@ The handler records the signal and raises ``Terminated`` in the main thread, exc
   then waits for ever). A timer (``SIGALRM``, every 10 ms) then tries again, until the
   main thread is in a frame where raising is safe.
 
+Where Python cannot pass an exception on (an at-fork hook such as logging's, run as a
+pool forks a worker; a ``__del__``; a weakref callback) it prints ``Terminated`` as
+"Exception ignored" and drops it: ``install`` also hooks ``sys.unraisablehook``, which
+takes such a ``Terminated`` back and raises it again at the next try of the timer.
+
 ``Terminated`` is raised once per process; ``checkpoint()`` (called where a long loop
 reports progress) raises it again if something swallowed it, and ``pending()`` lets a
 last-resort handler tell that an exception is the consequence of a signal.
@@ -83,6 +88,7 @@ class _State:
 _state = _State()
 _RETRY_SIGNAL = (signal.SIGALRM,) if hasattr(signal, "setitimer") else ()
 _installed: dict[int, object] = {}  # signal -> the handler it replaced
+_unraisable_hook: list = []  # the sys.unraisablehook that install replaced
 
 
 def _safe(frame) -> bool:
@@ -119,6 +125,17 @@ def _handler(signum: int, frame) -> None:
     _raise()
 
 
+def _unraisable(unraisable) -> None:
+    """A ``Terminated`` that Python dropped is raised again (by the timer, or at the next
+    ``checkpoint``), without the "Exception ignored" lines; anything else goes to the
+    hook this one replaced."""
+    if isinstance(unraisable.exc_value, Terminated):
+        _state.raised = False
+        _retry_soon()
+        return
+    (_unraisable_hook or [sys.__unraisablehook__])[0](unraisable)
+
+
 def install(received: int | None = None) -> bool:
     """Handle the termination signals as described above (main thread only; a no-op
     elsewhere or when already installed). Returns whether this call installed them.
@@ -130,6 +147,8 @@ def install(received: int | None = None) -> bool:
     _state.reset()
     for sig in (*TERMINATION_SIGNALS, *_RETRY_SIGNAL):
         _installed[sig] = signal.signal(sig, _handler)
+    _unraisable_hook[:] = [sys.unraisablehook]
+    sys.unraisablehook = _unraisable
     if received is not None:
         _state.pending = received
         _state.raised = True
@@ -144,6 +163,8 @@ def uninstall() -> None:
     for sig, old in _installed.items():
         signal.signal(sig, old)
     _installed.clear()
+    if _unraisable_hook:
+        sys.unraisablehook = _unraisable_hook.pop()
     _state.reset()
 
 

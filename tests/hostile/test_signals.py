@@ -327,3 +327,38 @@ def test_a_ctrl_c_from_the_entry_points_first_moments_exits_cleanly(run_cli, cas
         assert run.code == 130, (moment, run.code, run.stderr)
         assert run.stderr.count("\n") == 1 and "terminated by SIGINT" in run.stderr, moment
         assert not out_dir.exists()
+
+
+DROPPED_IN_A_FORK_HOOK = """
+import os, signal, sys, time
+from rubcli.io import signals
+
+def hook():  # as logging's lock release after a fork: Python ignores what it raises
+    os.kill(os.getpid(), signal.SIGTERM)
+    for _ in range(10**5):
+        pass
+
+signals.install()
+os.register_at_fork(after_in_parent=hook)
+try:
+    child = os.fork()
+    if child == 0:
+        os._exit(0)
+    os.waitpid(child, 0)
+    for _ in range(500):
+        time.sleep(0.002)
+except signals.Terminated as exc:
+    sys.exit(exc.exit_code)
+sys.exit(signals.finish() or 0)
+"""
+
+
+def test_a_signal_python_drops_in_a_fork_hook_still_stops_the_command(tmp_path):
+    """A pool forking its workers runs logging's at-fork hook; a signal handled in it was
+    printed as "Exception ignored" and lost, and the sweep went on to exit 0."""
+    done = subprocess.run([sys.executable, "-c", DROPPED_IN_A_FORK_HOOK], cwd=tmp_path,
+                          env=_child_environment(), capture_output=True, text=True,
+                          timeout=60)  # fmt: skip
+    assert done.returncode == 128 + TERM, done.stderr
+    assert "Exception ignored" not in done.stderr
+    assert "Traceback" not in done.stderr
