@@ -1860,6 +1860,8 @@ def load_case(path: str | Path) -> Case:
     is not a path)."""
     if not isinstance(path, str | os.PathLike):
         raise TypeError(f"load_case(): path must be a str or a path, got {type(path).__name__}")
+    if "\0" in str(path):
+        raise ValueError("load_case(): path holds a NUL byte (\\0), which no file name may hold")
     raw = read_case_file(path)
     return assemble_case(validate_case(raw, str(path)), path)
 

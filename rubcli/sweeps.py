@@ -116,6 +116,8 @@ def _check_arguments(workers, client, scheduler, quick, store_dir, oversubscribe
             f"sweep(): store_dir must be a path (a str or a Path) or None, got "
             f"{type(store_dir).__name__}"
         )
+    if store_dir is not None and "\0" in str(store_dir):
+        raise ValueError("sweep(): store_dir holds a NUL byte (\\0), which no file name may hold")
     if scheduler is not None and not isinstance(scheduler, str):
         raise TypeError(
             f"sweep(): scheduler must be an address (a str) or None, got {type(scheduler).__name__}"

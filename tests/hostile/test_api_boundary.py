@@ -231,6 +231,15 @@ def test_load_case_refuses_what_is_not_a_case_file(tmp_path):
         load_case(None)
 
 
+def test_a_nul_byte_in_a_path_argument_is_named(tmp_path):
+    from rubcli.sweeps import sweep
+
+    with pytest.raises(ValueError, match=re.escape("load_case(): path holds a NUL byte")):
+        load_case(f"{tmp_path}/a\0b.toml")
+    with pytest.raises(ValueError, match=re.escape("sweep(): store_dir holds a NUL byte")):
+        sweep(tmp_path / "missing.toml", store_dir=f"{tmp_path}/a\0b")
+
+
 # ----------------------------------------------------------------- continuation
 
 
