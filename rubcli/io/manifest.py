@@ -78,7 +78,8 @@ def state_dirs() -> list[Path]:
         with contextlib.suppress(RuntimeError):  # no home directory
             dirs.append(Path.home() / ".local" / "state" / "rubcli")
     uid = os.geteuid() if hasattr(os, "geteuid") else 0
-    dirs.append(Path(tempfile.gettempdir()) / f"rubcli-{uid}")
+    with contextlib.suppress(OSError):  # no usable temporary dir at all (a full disk)
+        dirs.append(Path(tempfile.gettempdir()) / f"rubcli-{uid}")
     return dirs
 
 

@@ -104,9 +104,11 @@ def test_the_help_to_a_full_stdout(run_cli, args):
     assert "No space left on device" in run.stderr
 
 
-def test_a_disk_full_at_the_check_is_exit_74_and_leaves_no_lock(run_cli, case_file, out_dir):
+def test_a_disk_full_at_the_check_is_exit_74_and_leaves_no_lock(run_cli, case_file, out_dir,
+                                                                previous, tmp_path):  # fmt: skip
     """Not even the lock fits (every write fails): exit 74 before anything is computed,
     and neither the lock nor the dir made for the command is left."""
+    previous(tmp_path / "earlier")  # the session's key is made (no write of it could be)
     run = run_cli("run", case_file(), "--out", out_dir, preexec=fsize_limit(0))
     assert run.code == 74, run.stderr
     assert f"{out_dir}: the output dir cannot be written (File too large)" in run.stderr
@@ -115,6 +117,19 @@ def test_a_disk_full_at_the_check_is_exit_74_and_leaves_no_lock(run_cli, case_fi
     run = run_cli("run", case_file(), "--out", out_dir, preexec=fsize_limit(0))
     assert run.code == 74, run.stderr
     assert _hidden(out_dir) == []
+
+
+def test_a_disk_full_everywhere_with_the_key_at_home_is_exit_74(run_cli, case_file, out_dir,
+                                                               tmp_path):  # fmt: skip
+    """No RUBCLI_STATE_DIR, the key in its home place, and no temporary dir usable (every
+    write fails): the key is read from home and the check says the dir cannot be written,
+    where looking for a temporary dir as the key's last place ended in a traceback."""
+    env = {"RUBCLI_STATE_DIR": "", "XDG_STATE_HOME": str(tmp_path / "state")}
+    assert run_cli("run", case_file(), "--out", tmp_path / "first", env=env).code == 0
+    run = run_cli("run", case_file(), "--out", out_dir, env=env, preexec=fsize_limit(0))
+    assert run.code == 74, run.stderr
+    assert f"{out_dir}: the output dir cannot be written (File too large)" in run.stderr
+    assert not out_dir.exists()
 
 
 def test_a_full_tmpfs_at_the_check(in_namespace, case_file):
