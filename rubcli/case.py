@@ -41,9 +41,14 @@ from pydantic import (
 from pydantic_core import PydanticCustomError
 
 from rubcli import model, units
+from rubcli.analysis.orbit_bounds import (
+    MIN_ORBIT_STEP_FRACTION,
+    ORBITS_BOUNDS,
+    ORBITS_WALL_TIME_S,
+)
 from rubcli.drive import Drive
 from rubcli.model import ModelParams
-from rubcli.problem import Problem, resolution_problem
+from rubcli.problem import MAX_OUTPUT_SAMPLES, Problem, resolution_problem
 from rubcli.solvers import registry
 from rubcli.speed import SpeedProfile
 from rubcli.stator import Stator
@@ -61,9 +66,6 @@ ForcesMapProduct = Literal["forces", "taylor_error", "eigen"]
 DEFAULT_FORCES_MAP_DELTAS: tuple[float, ...] = tuple(float(d) for d in np.logspace(-6, -1, 11))
 DEFAULT_FORCES_MAP_K_VALUES: tuple[float, ...] = (17.6, 1.76e3, 1.76e5, 1.75e6)
 
-# A run keeps every output sample in memory (8 floats of state per sample and method,
-# plus the CSV columns); beyond this many samples a case is refused as a likely typo.
-MAX_OUTPUT_SAMPLES = 10_000_000
 # Every size a case can set is bounded by a memory estimate, refused at validation:
 # - a run holds, per method and output sample, t, the state, the regime and the arrays of
 #   its report (energy balance, regimes): about RUN_BYTES_PER_SAMPLE bytes (measured: 580
@@ -849,7 +851,6 @@ OrbitParameter = Literal["eta", "mu", "K", "e", "nu", "Rp"]
 # The smallest continuation step, as a fraction of the window: a step of 1e-300 once left
 # the parameter where it was and ran for ever. 1e-12 of the window still spans thousands
 # of doubles and allows 1e12 steps across it.
-MIN_ORBIT_STEP_FRACTION = 1e-12
 OrbitStart = Literal["initial", "transient", "synchronous_rub"]
 OrbitDirections = Literal["both", "up", "down"]
 OrbitKind = Literal["periodic", "whirl"]
@@ -862,20 +863,22 @@ class OrbitsSection(_Section):
     parameter: OrbitParameter
     min: float  # parameter window; the case's value must lie in it
     max: float
-    step: float = Field(gt=0)  # first step, parameter units
-    min_step: float | None = Field(default=None, gt=0)  # default step / 1000
-    max_step: float | None = Field(default=None, gt=0)  # default 5 step
-    max_points: int = Field(default=200, ge=1, le=100_000)  # per direction
+    step: float = Field(**ORBITS_BOUNDS["step"])  # first step, parameter units
+    min_step: float | None = Field(default=None, **ORBITS_BOUNDS["min_step"])  # step / 1000
+    max_step: float | None = Field(default=None, **ORBITS_BOUNDS["max_step"])  # 5 step
+    max_points: int = Field(default=200, **ORBITS_BOUNDS["max_points"])  # per direction
     directions: OrbitDirections = "both"
-    period: int = Field(default=1, ge=1, le=64)  # k: orbits of k forcing periods
+    period: int = Field(default=1, **ORBITS_BOUNDS["period"])  # k: orbits of k periods
     start: OrbitStart = "initial"  # guess: [initial], after a transient, or the exact rub
     transient_periods: int = Field(default=0, ge=0, le=100_000)  # with start = "transient"
-    newton_tol: float = Field(default=1e-10, gt=0, lt=1)
-    max_newton: int = Field(default=10, ge=1, le=100)
-    rtol: float = Field(default=1e-12, ge=1e-14, lt=1e-3)  # integration of the map
-    atol: float = Field(default=1e-12, ge=registry.MIN_ATOL, lt=1e-3)
+    newton_tol: float = Field(default=1e-10, **ORBITS_BOUNDS["newton_tol"])
+    max_newton: int = Field(default=10, **ORBITS_BOUNDS["max_newton"])
+    rtol: float = Field(default=1e-12, **ORBITS_BOUNDS["rtol"])  # integration of the map
+    atol: float = Field(default=1e-12, **ORBITS_BOUNDS["atol"])
     locate: bool = True  # locate each detected bifurcation on its test function
-    max_wall_time_s: float = Field(default=3600.0, gt=0)  # the run's budget, seconds
+    max_wall_time_s: float = Field(  # the run's budget, seconds
+        default=ORBITS_WALL_TIME_S, **ORBITS_BOUNDS["max_wall_time_s"]
+    )
     # each located fold, period doubling, Neimark-Sacker point and grazing continued in a
     # second parameter over [second_min, second_max] (docs/orbits.md, "Two parameters")
     second_parameter: OrbitParameter | None = None

@@ -21,6 +21,10 @@ if TYPE_CHECKING:
 # of it then still spans 500 doubles, so that rounding tau costs less than 0.2 % of a
 # step. Beyond, no method can resolve contact (docs/cases.md, "The model's domain").
 RESOLUTION_ULPS = 1e4
+# A run keeps every output sample in memory (8 floats of state per sample and method,
+# plus the CSV columns); beyond this many samples a problem (or a case) is refused as a
+# likely typo.
+MAX_OUTPUT_SAMPLES = 10_000_000
 
 
 @dataclass(frozen=True)
@@ -79,7 +83,7 @@ class Problem:
         name: str = "problem",
     ) -> Problem:
         """Sample ``periods`` forcing periods from tau = 0 at ``samples_per_period``: at
-        most ``rubcli.case.MAX_OUTPUT_SAMPLES`` samples, as in a case file."""
+        most ``MAX_OUTPUT_SAMPLES`` samples, as in a case file."""
         if not isinstance(params, ModelParams):
             raise TypeError(f"Problem: params must be a ModelParams, got {_kind(params)}")
         periods = real_number("Problem.from_periods", "periods", periods)
@@ -98,7 +102,6 @@ class Problem:
             raise ValueError(
                 f"Problem.from_periods: samples_per_period must be > 0 (got {samples_per_period})"
             )
-        from rubcli.case import MAX_OUTPUT_SAMPLES  # on use: rubcli.case imports this module
 
         # bounded as a case file's [time] table (compared so that no int overflows a float)
         if samples_per_period > MAX_OUTPUT_SAMPLES / periods:
@@ -170,7 +173,7 @@ def _initial_state(initial, field: str = "initial") -> tuple[float, float, float
     return state_values("Problem", field, initial, names)
 
 
-def state_values(owner: str, field: str, value, names: Sequence[str]) -> tuple[float, ...]:
+def state_values(owner: str, field: str, value: object, names: Sequence[str]) -> tuple[float, ...]:
     """``value`` (the argument ``field`` of ``owner``) checked as a state: one finite real
     number of at most MAX_MAGNITUDE in size for each of ``names``; a TypeError or
     ValueError naming ``owner: field``."""

@@ -36,6 +36,7 @@ import numpy as np
 
 from rubcli import model
 from rubcli.analysis import orbits as ob
+from rubcli.analysis.orbit_bounds import MIN_ORBIT_STEP_FRACTION
 from rubcli.model import ModelParams
 
 if TYPE_CHECKING:
@@ -149,8 +150,6 @@ class ContinuationSettings:
     def _check_steps(self, owner: str) -> None:
         """The steps against the window, as [orbits]: ``min_step <= step <= max_step``,
         ``step`` within the window, ``min_step`` a resolvable fraction of it."""
-        from rubcli.case import MIN_ORBIT_STEP_FRACTION
-
         width = self.p_max - self.p_min
         if not self.min_step <= self.step <= self.max_step:
             raise ValueError(

@@ -37,6 +37,7 @@ import math
 import time
 from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import Executor
 from dataclasses import asdict, dataclass, field
 from typing import TypeVar
 
@@ -406,7 +407,7 @@ def member_tasks(
 T = TypeVar("T")
 
 
-def within_deadline(pool, results: Iterator[T], deadline: float | None) -> Iterator[T]:
+def within_deadline(pool: Executor, results: Iterator[T], deadline: float | None) -> Iterator[T]:
     """The results of ``pool.map``, then WallTimeBudgetError after one once ``deadline`` has
     passed, the tasks not started cancelled (those running end by the deadline too)."""
     for result in results:

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rubcli import model
+from rubcli.analysis.orbit_bounds import ORBITS_BOUNDS, ORBITS_WALL_TIME_S
 from rubcli.analysis.regimes import time_in_regimes
 from rubcli.model import ModelParams
 from rubcli.solvers import events as ev
@@ -125,13 +126,13 @@ _BOUNDS = (("gt", operator.gt, ">"), ("ge", operator.ge, ">="), ("lt", operator.
            ("le", operator.le, "<="))  # fmt: skip
 
 
-def orbits_setting(owner: str, name: str, value: object, key: str, integer: bool = False):
+def orbits_setting(
+    owner: str, name: str, value: object, key: str, integer: bool = False
+) -> float | int:
     """``value`` of the argument ``name`` of ``owner``, checked as the [orbits] table's
     ``key`` is in a case file: an int (``integer``) or a finite real number, within the
-    bounds of ``rubcli.case.OrbitsSection`` (the one source of them); a TypeError or
-    ValueError naming ``owner: name``."""
-    from rubcli.case import OrbitsSection  # on use: the case schema loads pydantic
-
+    bounds of ``orbit_bounds.ORBITS_BOUNDS`` (the one source of them, the case schema's
+    too); a TypeError or ValueError naming ``owner: name``."""
     if integer:
         if isinstance(value, bool) or not isinstance(value, numbers.Integral):
             raise TypeError(f"{owner}: {name} must be an int, got {type(value).__name__}")
@@ -140,14 +141,14 @@ def orbits_setting(owner: str, name: str, value: object, key: str, integer: bool
         value = model.real_number(owner, name, value)
         if not math.isfinite(value):
             raise ValueError(f"{owner}: {name} must be finite (got {value!r})")
-    for bound in OrbitsSection.model_fields[key].metadata:
-        for attr, holds, word in _BOUNDS:
-            limit = getattr(bound, attr, None)
-            if limit is not None and not holds(value, limit):
-                raise ValueError(
-                    f"{owner}: {name} must be {word} {limit:g} (got {value!r}), as [orbits] "
-                    f"{key} in a case file"
-                )
+    bounds = ORBITS_BOUNDS[key]
+    for attr, holds, word in _BOUNDS:
+        limit = bounds.get(attr)
+        if limit is not None and not holds(value, limit):
+            raise ValueError(
+                f"{owner}: {name} must be {word} {limit:g} (got {value!r}), as [orbits] "
+                f"{key} in a case file"
+            )
     return value
 
 
@@ -155,9 +156,7 @@ def orbits_budget(owner: str, max_wall_time_s: object) -> float:
     """The wall-time budget ``max_wall_time_s`` checked as [orbits] max_wall_time_s (None:
     that key's default)."""
     if max_wall_time_s is None:
-        from rubcli.case import OrbitsSection
-
-        return OrbitsSection.model_fields["max_wall_time_s"].default
+        return ORBITS_WALL_TIME_S
     return orbits_setting(owner, "max_wall_time_s", max_wall_time_s, "max_wall_time_s")
 
 

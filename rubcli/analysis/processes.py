@@ -22,6 +22,8 @@ import multiprocessing.connection
 import os
 import signal
 import sys
+from collections.abc import Callable
+from typing import Any
 
 from rubcli.io.signals import deferred
 
@@ -80,7 +82,7 @@ class LocalPool(cf.ProcessPoolExecutor):
     def __init__(self, workers: int) -> None:
         super().__init__(max_workers=workers, initializer=start_worker, initargs=(os.getpid(),))
 
-    def submit(self, fn, /, *args, **kwargs) -> cf.Future:
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> cf.Future:
         inner = super().submit(fn, *args, **kwargs)
         outer: cf.Future = cf.Future()
         outer.set_running_or_notify_cancel()  # cancel() is now a no-op

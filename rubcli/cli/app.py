@@ -41,7 +41,9 @@ class RubcliGroup(TyperGroup):
     that cannot be written end it with a message on stderr and its exit code, never a
     traceback (README, "Exit codes")."""
 
-    def make_context(self, info_name, args, parent=None, **extra) -> typer.Context:
+    def make_context(
+        self, info_name: str | None, args: list[str], parent: Any = None, **extra: Any
+    ) -> typer.Context:
         # The group's own help (--help, or no arguments) is printed while its arguments are
         # parsed, before invoke: a stdout that is missing or cannot be written ends it too.
         try:

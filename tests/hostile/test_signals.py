@@ -291,7 +291,7 @@ def test_a_signal_to_the_process_group_stops_a_pooled_basin_sweep(
         # the first round's 4 chunks and one of the second's stored: the second round's
         # other 7 chunks submitted, 3 of them in the pipes or the workers
         deadline = time.monotonic() + 120
-        while len(list(out_dir.parent.glob(f".{out_dir.name}.sweep-*/chunk-*"))) < 5:
+        while len(list(out_dir.glob(".rubcli-sweep-*/chunk-*"))) < 5:
             assert proc.poll() is None, proc.communicate()
             assert time.monotonic() < deadline, "no chunk of the second round stored"
             time.sleep(0.01)
