@@ -41,6 +41,7 @@ __all__ = [
     "ForceOption",
     "JsonOption",
     "WaitOption",
+    "check_memory",
     "close_outputs",
     "command_dir",
     "emit",
@@ -77,6 +78,26 @@ WaitOption = Annotated[
         "(without: stop at once, exit 75).",
     ),
 ]
+
+
+def check_memory(case_file: Path, samples: int, methods: int) -> None:
+    """Exit 2 if ``samples`` output samples for each of ``methods`` solutions held at once
+    will not fit in the memory this process may take (``case.run_memory_bytes``, the
+    estimate of ``rubcli run``; the case's own check bounds them by 8 GiB on any machine)."""
+    from rubcli import case as case_module
+    from rubcli.studies.forces_map import available_memory_bytes
+
+    need = case_module.run_memory_bytes(samples, methods)
+    have = available_memory_bytes()
+    if have is None or need <= have:
+        return
+    per = f"{methods} method" + ("s" if methods > 1 else "")
+    console.error(
+        f"{case_file}: time.periods, time.samples_per_period: {samples:,} output samples x "
+        f"{per} need about {need / 1024**3:.3g} GiB of memory, and this process may take "
+        f"{have / 1024**3:.3g} GiB; shorten the run or take fewer samples per period"
+    )
+    raise typer.Exit(EXIT_INVALID)
 
 
 def command_dir(case: Case, command: str, out: Path | None) -> Path:

@@ -58,6 +58,7 @@ from rubcli.cli.common import (
     ForceOption,
     JsonOption,
     WaitOption,
+    check_memory,
     command_dir,
     emit,
     machine_readable,
@@ -106,6 +107,7 @@ def command(
     if unavailable:
         console.error(f"{case_file}: methods not available: {', '.join(unavailable)}")
         raise typer.Exit(EXIT_INVALID)
+    check_memory(case_file, *study.samples_in_memory(case, cfg, quick))
     target = command_dir(case, "compare", out)
     plan = prepare_output(target, force, wait, study.expected_files(case, cfg))
     command_line = {"case_file": str(case_file), "out": str(out) if out else None,

@@ -32,7 +32,6 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from rubcli import case as case_module
 from rubcli import io
 from rubcli.analysis.checks import WARNING
 from rubcli.case import KNOWN_METHODS, Case, CaseError
@@ -41,6 +40,7 @@ from rubcli.cli.common import (
     ForceOption,
     JsonOption,
     WaitOption,
+    check_memory,
     emit,
     machine_readable,
     prepare_output,
@@ -155,7 +155,7 @@ def command(
         console.error(f"{case_file}: solver.methods: not available: {', '.join(unavailable)}")
         raise typer.Exit(EXIT_INVALID)
     steady = _steady_or_exit(case, overlay)
-    _check_memory(case_file, case)
+    check_memory(case_file, case.problem.t_eval.size, len(case.methods))
     plan = prepare_output(target, force, wait, study.expected_files(case))
 
     with machine_readable(json):
@@ -223,25 +223,6 @@ def _run(
     files = report["files"]
     console.info(f"wrote {len(files)} files to {case.output_dir}: {', '.join(files)}")
     return report
-
-
-def _check_memory(case_file: Path, case: Case) -> None:
-    """Exit 2 if the run's output samples will not fit in the memory this process may take
-    (the case's own check bounds them by 8 GiB on any machine)."""
-    from rubcli.studies.forces_map import available_memory_bytes
-
-    samples, methods = case.problem.t_eval.size, len(case.methods)
-    need = case_module.run_memory_bytes(samples, methods)
-    have = available_memory_bytes()
-    if have is None or need <= have:
-        return
-    per = f"{methods} method" + ("s" if methods > 1 else "")
-    console.error(
-        f"{case_file}: time.periods, time.samples_per_period: {samples:,} output samples x "
-        f"{per} need about {need / 1024**3:.3g} GiB of memory, and this process may take "
-        f"{have / 1024**3:.3g} GiB; shorten the run or take fewer samples per period"
-    )
-    raise typer.Exit(EXIT_INVALID)
 
 
 def _steady_or_exit(case: Case, overlay: Path | None) -> SteadyStates | None:

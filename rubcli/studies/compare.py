@@ -53,6 +53,22 @@ def case_periods(case: Case) -> float:
     return case.problem.periods
 
 
+def samples_in_memory(case: Case, cfg: CompareSection, quick: bool) -> tuple[int, int]:
+    """The output samples of the longest span ``compare_case`` holds and how many solutions
+    over it are held at once: the orbit panel's runs (one per method, beside their
+    reference) over the case's span, or the work-precision reference and one ladder solve
+    over its horizon (the case's sampling over either)."""
+    periods = case_periods(case)
+    orbit = min(periods, QUICK_ORBIT_PERIODS) if quick else periods
+    spans = [(orbit, len(case.methods) + 1)]
+    if cfg.work_precision:
+        horizon = cfg.horizon_periods or periods
+        spans.append((min(horizon, QUICK_HORIZON_PERIODS) if quick else horizon, 2))
+    per_period = (case.problem.t_eval.size - 1) / periods
+    span, held = max(spans, key=lambda s: s[0] * s[1])
+    return math.ceil(span * per_period) + 1, held
+
+
 def _problem(case: Case, periods: float, mu: float | None = None) -> Problem:
     params = case.params if mu is None else dataclasses.replace(case.params, mu=float(mu))
     if case.problem.speed is not None:  # the first ``periods`` revolutions of the profile

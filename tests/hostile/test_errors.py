@@ -182,6 +182,17 @@ def test_a_run_that_cannot_fit_in_memory_is_refused_before_solving(run_cli, case
     assert not out_dir.exists()
 
 
+def test_a_compare_that_cannot_fit_in_memory_is_refused_before_solving(run_cli, case_file, out_dir):
+    # the orbit panel holds the run of each method and their reference over [time] periods
+    run = run_cli(
+        "compare", case_file(BIG_RUN), "--out", out_dir, preexec=_address_space(3 * 1024**3)
+    )
+    assert run.code == 2, run.stderr
+    assert "time.periods, time.samples_per_period: 10,000,001 output samples x 2" in run.stderr
+    assert "GiB of memory, and this process may take" in run.stderr
+    assert not out_dir.exists()
+
+
 def test_running_out_of_memory_is_a_message(run_cli, case_file, out_dir, previous):
     before = previous(out_dir)
     fault = {"at": "call:rubcli.solvers:solve", "nth": 2, "do": "nomemory"}  # 1: start-up
