@@ -132,7 +132,36 @@ def _flags_show_no_type() -> None:
     option.display_type_rich = display_type_rich
 
 
+def _help_to_a_closed_pipe_is_a_stdout_error() -> None:
+    """typer prints the help through a rich console of its own, whose closed pipe (``rubcli
+    --help | head -1``) is rich's silent exit 1: there it raises ``StdoutError``, so that
+    the help ends as a command's output to a closed pipe does (exit 141). A no-op where
+    typer prints no rich help."""
+    try:
+        from typer import rich_utils
+    except ImportError:
+        return
+    made = getattr(rich_utils, "_get_rich_console", None)
+    if made is None or getattr(made, "_rubcli_pipe", False):
+        return
+
+    def _get_rich_console(stderr: bool = False) -> Any:
+        help_console = made(stderr=stderr)
+        if not stderr:
+
+            def on_broken_pipe() -> None:
+                help_console.quiet = True
+                raise console.StdoutError(OSError(errno.EPIPE, os.strerror(errno.EPIPE)))
+
+            help_console.on_broken_pipe = on_broken_pipe
+        return help_console
+
+    _get_rich_console._rubcli_pipe = True
+    rich_utils._get_rich_console = _get_rich_console
+
+
 _flags_show_no_type()
+_help_to_a_closed_pipe_is_a_stdout_error()
 
 app = typer.Typer(
     name="rubcli",

@@ -10,6 +10,7 @@ namespaces are permitted, with a small tmpfs (ENOSPC).
 from __future__ import annotations
 
 import json
+import os
 import sys
 
 import pytest
@@ -102,6 +103,24 @@ def test_the_help_to_a_full_stdout(run_cli, args):
     run = run_cli(*args, stdout="/dev/full")
     assert run.code == 74, run.stderr
     assert "No space left on device" in run.stderr
+
+
+def _stdout_a_pipe_nobody_reads() -> None:
+    """In the child: stdout is a pipe whose reading end is closed (`| head -1` once head
+    has left), so that every write to it fails with EPIPE."""
+    read, write = os.pipe()
+    os.dup2(write, 1)
+    os.close(read)
+    os.close(write)
+
+
+@pytest.mark.parametrize("args", [["--help"], [], ["run", "--help"]])
+def test_the_help_to_a_closed_pipe(run_cli, args):
+    """The help (also the group's): the closed pipe's exit 141, silently, as a command's
+    output to it, where rich's own handling exited 1."""
+    run = run_cli(*args, preexec=_stdout_a_pipe_nobody_reads)
+    assert run.code == 141, run.stderr
+    assert run.stderr == ""
 
 
 def test_a_disk_full_at_the_check_is_exit_74_and_leaves_no_lock(run_cli, case_file, out_dir,
