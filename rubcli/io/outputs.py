@@ -67,6 +67,7 @@ from rubcli.io.lock import Busy, DirLock, NotALock
 REPORT_NAME = "report.json"
 STAGING_PREFIX = ".rubcli-staging-"
 JOURNAL_NAME = ".rubcli-journal.json"
+MARK_NAME = ".rubcli-staged.json"  # in a staging dir: signed by the command that made it
 REPLACED_NAME = ".rubcli-replaced"  # in a staging dir: the files a commit moved out
 OWN_PREFIX = ".rubcli"  # every hidden entry rubcli makes starts so (lock, staging, stores)
 # A sweep's resume store of finished points beside its output dir, as older rubcli named
@@ -404,6 +405,7 @@ class StagedOutput:
         prefix = f"{STAGING_PREFIX}{os.getpid()}-"
         try:
             self.staging = Path(tempfile.mkdtemp(dir=self.target, prefix=prefix))
+            _write_json(self.staging / MARK_NAME, _signed_mark(self.staging))
         except OSError as exc:
             raise _write_error(self.target, exc) from None
         self.committed: list[Path] = []
@@ -581,8 +583,9 @@ def is_write_failure(exc: BaseException) -> bool:
 def _recover(plan: OutputPlan) -> None:
     """Under the lock: complete the commits of killed commands, remove their staging.
 
-    A staging dir without a journal (its command was killed before its commit) holds only
-    staged files: it is removed. A journal is acted on only when it is rubcli's: signed
+    A staging dir without a journal (its command was killed before its commit) is removed
+    when rubcli can show it made it (``_remove_staging``); any other is refused, left as
+    it is. A journal is acted on only when it is rubcli's: signed
     with this user's key (``manifest.sign``) for this staging dir, and every file it would
     move still the very file it recorded (device, inode, size, time). Any other journal is
     refused and its staging dir left as it is: it may hold a user's files (or a commit of
@@ -598,8 +601,8 @@ def _recover(plan: OutputPlan) -> None:
             continue  # not ours to touch (it counts as foreign)
         with signals.deferred():
             if not os.path.lexists(path / JOURNAL_NAME):
+                _remove_staging(target, path)
                 plan.recovered.append(f"removed {path.name}, left by an interrupted command")
-                shutil.rmtree(path, ignore_errors=True)
                 continue
             journal = _read_journal(path)
             if journal is None:
@@ -614,6 +617,53 @@ def _recover(plan: OutputPlan) -> None:
                 f"{journal.get('pid')}): {', '.join(journal['in'])}"
             )
             shutil.rmtree(path, ignore_errors=True)
+
+
+def _signed_mark(staging: Path) -> dict:
+    """The mark a command leaves in the staging dir it made: the dir's name and identity
+    (device, inode), signed, so that a mark copied into another dir is not valid."""
+    st = os.lstat(staging)
+    mark = {"staging": staging.name, "dir": [st.st_dev, st.st_ino], "pid": os.getpid()}
+    return {**mark, "signature": manifest.sign(mark)}
+
+
+def _remove_staging(target: Path, staging: Path) -> None:
+    """Remove a staging dir left without a journal, if rubcli can show it made it and it
+    holds only what a command stages: an empty dir (killed as it was made), or a dir with
+    a valid mark (``_signed_mark``) and nothing but regular files (staged outputs and
+    their temporary files). Anything else (no mark, another dir's or key's mark, a
+    subdirectory, a link) is refused with nothing removed: the files may be anyone's."""
+    try:
+        entries = list(os.scandir(staging))
+        st = os.lstat(staging)
+        mark = json.loads((staging / MARK_NAME).read_text(encoding="utf-8")) if entries else {}
+    except (OSError, ValueError):
+        entries, mark = [], None
+        ours = False
+    else:
+        ours = not entries
+    if isinstance(mark, dict) and entries:
+        body = {k: v for k, v in mark.items() if k != "signature"}
+        ours = (
+            manifest.signed(body, mark.get("signature"))
+            and body.get("staging") == staging.name
+            and body.get("dir") == [st.st_dev, st.st_ino]
+            and all(e.is_file(follow_symlinks=False) for e in entries)
+        )
+    if not ours:
+        raise OutputError(
+            f"{target}: {staging.name} is a staging dir that rubcli cannot show it made "
+            "(no mark signed with your key for it, or it holds more than staged files): it "
+            f"is left as it is, nothing in the dir was moved or removed; look at what it "
+            f"holds and remove it (rm -r '{staging}')"
+        )
+    with contextlib.suppress(OSError):  # what cannot be removed is left (it is ours)
+        for entry in entries:
+            if entry.name != MARK_NAME:
+                os.unlink(entry.path)
+        if entries:
+            os.unlink(staging / MARK_NAME)
+        os.rmdir(staging)
 
 
 def _identity(path: Path) -> list[int] | None:

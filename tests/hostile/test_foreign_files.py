@@ -60,6 +60,40 @@ def test_a_planted_commit_journal_moves_nothing(run_cli, case_file, out_dir, jou
     assert _hidden(out_dir) == [STAGING]
 
 
+@pytest.mark.parametrize("kind", ["no-mark", "mark-of-another-dir", "a-subdir"])
+def test_a_staging_dir_rubcli_did_not_make_is_not_removed(
+    run_cli, case_file, out_dir, previous, kind
+):
+    """A staging dir without a journal is removed only when its mark shows rubcli made
+    it and it holds only staged files: a planted one, one holding a mark copied from
+    another staging dir, or one holding more than files, is refused (exit 2, naming it)
+    with everything in it kept."""
+    case = case_file()
+    previous(out_dir)
+    staging = out_dir / STAGING
+    if kind == "no-mark":
+        staging.mkdir()
+    else:
+        fault = {"at": "call:rubcli.io:write_solution_csv", "do": "kill"}
+        assert run_cli("run", case, "--out", out_dir, fault=fault).code == -signal.SIGKILL
+        (made,) = [p for p in out_dir.iterdir() if p.name.startswith(".rubcli-staging-")]
+        if kind == "a-subdir":
+            made.rename(staging)
+            (staging / "chapter").mkdir()
+        else:
+            staging.mkdir()
+            os.rename(made / ".rubcli-staged.json", staging / ".rubcli-staged.json")
+            made.rmdir()
+    (staging / "thesis.tex").write_text("my thesis\n")
+    left = snapshot(out_dir)
+    held = sorted(os.listdir(staging))
+    run = run_cli("run", case, "--out", out_dir, fault=NO_SOLVE)
+    assert run.code == 2, run.stderr
+    assert f"{STAGING} is a staging dir that rubcli cannot show it made" in run.stderr
+    assert snapshot(out_dir) == left
+    assert sorted(os.listdir(staging)) == held
+
+
 def test_a_genuine_journal_moved_to_another_staging_dir_is_refused(
     run_cli, case_file, out_dir, previous
 ):
