@@ -80,10 +80,11 @@ WaitOption = Annotated[
 ]
 
 
-def check_memory(case_file: Path, samples: int, methods: int) -> None:
+def check_memory(case_file: Path, samples: int, methods: int, fields: str = "time.periods") -> None:
     """Exit 2 if ``samples`` output samples for each of ``methods`` solutions held at once
     will not fit in the memory this process may take (``case.run_memory_bytes``, the
-    estimate of ``rubcli run``; the case's own check bounds them by 8 GiB on any machine)."""
+    estimate of ``rubcli run``; the case's own check bounds them by 8 GiB on any machine);
+    ``fields``: the entry that sets the span, named in the message."""
     from rubcli import case as case_module
     from rubcli.studies.forces_map import available_memory_bytes
 
@@ -93,7 +94,7 @@ def check_memory(case_file: Path, samples: int, methods: int) -> None:
         return
     per = f"{methods} method" + ("s" if methods > 1 else "")
     console.error(
-        f"{case_file}: time.periods, time.samples_per_period: {samples:,} output samples x "
+        f"{case_file}: {fields}, time.samples_per_period: {samples:,} output samples x "
         f"{per} need about {need / 1024**3:.3g} GiB of memory, and this process may take "
         f"{have / 1024**3:.3g} GiB; shorten the run or take fewer samples per period"
     )

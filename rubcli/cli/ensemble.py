@@ -42,6 +42,7 @@ from rubcli.cli.common import (
     ForceOption,
     JsonOption,
     WaitOption,
+    check_memory,
     command_dir,
     emit,
     prepare_output,
@@ -50,7 +51,7 @@ from rubcli.cli.common import (
 from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 
 if TYPE_CHECKING:
-    pass
+    from rubcli.case import Case
 
 OutOption = Annotated[
     Path | None, typer.Option("--out", "-o", help="Output dir (default: <case dir>/ensemble).")
@@ -92,6 +93,7 @@ def command(
     from rubcli.studies import ensemble as study
 
     s, workers = _checked(case_file, *study.settings_of(case, quick), workers)
+    _check_run_memory(case_file, case, s)
     target = command_dir(case, "ensemble", out)
     plan = prepare_output(target, force, wait, study.FILES)
     with console.machine_readable(json):
@@ -127,6 +129,7 @@ def _basin_stability(case_file, case, out, workers, quick, json, force, wait,
     from rubcli.studies.ensemble import budget_of
 
     s, workers = _checked(case_file, *study.settings_of(case, quick), workers)
+    _check_run_memory(case_file, case, s)
     target = command_dir(case, "ensemble", out)
     plan = prepare_output(target, force, wait, study.FILES)
     with console.machine_readable(json):
@@ -180,6 +183,13 @@ def _budget(case_file: Path, budget: float | None) -> Iterator[None]:
                       "nothing written (--max-wall-time or [ensemble] max_wall_time_s "
                       "for more)")  # fmt: skip
         raise typer.Exit(1) from None
+
+
+def _check_run_memory(case_file: Path, case: Case, settings: dict) -> None:
+    """Exit 2 if one run's samples will not fit in a process (each process, a worker or
+    this one, holds one run at a time)."""
+    samples = settings["periods"] * case.settings.time.samples_per_period + 1
+    check_memory(case_file, samples, 1, fields="ensemble.periods (default time.periods)")
 
 
 def _checked(

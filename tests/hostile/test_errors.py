@@ -193,6 +193,20 @@ def test_a_compare_that_cannot_fit_in_memory_is_refused_before_solving(run_cli, 
     assert not out_dir.exists()
 
 
+def test_an_ensemble_whose_runs_cannot_fit_in_memory_is_refused_before_solving(
+    run_cli, case_file, out_dir
+):
+    # each process holds one run of [ensemble] periods (default [time] periods) at a time
+    case = case_file(BIG_RUN + "\n[ensemble]\nruns = 2\n")
+    run = run_cli("ensemble", case, "--out", out_dir, preexec=_address_space(3 * 1024**3))
+    assert run.code == 2, run.stderr
+    assert "ensemble.periods (default time.periods), time.samples_per_period: 10,000,001" in (
+        run.stderr
+    )
+    assert "GiB of memory, and this process may take" in run.stderr
+    assert not out_dir.exists()
+
+
 def test_running_out_of_memory_is_a_message(run_cli, case_file, out_dir, previous):
     before = previous(out_dir)
     fault = {"at": "call:rubcli.solvers:solve", "nth": 2, "do": "nomemory"}  # 1: start-up
