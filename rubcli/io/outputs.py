@@ -405,8 +405,12 @@ class StagedOutput:
         prefix = f"{STAGING_PREFIX}{os.getpid()}-"
         try:
             self.staging = Path(tempfile.mkdtemp(dir=self.target, prefix=prefix))
+        except OSError as exc:
+            raise _write_error(self.target, exc) from None
+        try:
             _write_json(self.staging / MARK_NAME, _signed_mark(self.staging))
         except OSError as exc:
+            shutil.rmtree(self.staging, ignore_errors=True)  # just made: nothing else in it
             raise _write_error(self.target, exc) from None
         self.committed: list[Path] = []
         self._report: dict | None = None
