@@ -714,6 +714,14 @@ def test_a_dropped_task_goes_back_once_the_executor_is_well(fig3_params):
     }
 
 
+def _wait_for_cluster(address: str, timeout: float = 120.0) -> None:
+    """Until the scheduler at ``address`` answers and has a worker (bounded)."""
+    from distributed import Client
+
+    with Client(address, timeout=timeout, set_as_default=False) as client:
+        client.wait_for_workers(1, timeout=timeout)
+
+
 def _free_port() -> int:
     import socket
 
@@ -746,6 +754,7 @@ def test_a_dask_sweep_that_loses_its_cluster_stops_with_its_points_kept(tmp_path
     )  # fmt: skip
     sweep = None
     try:
+        _wait_for_cluster(address)  # the sweep is started on a cluster that is up
         sweep = _run_cli(["sweep", str(case), "--out", str(out), "--scheduler", address])
         store = None
         deadline = time.monotonic() + 240
@@ -755,7 +764,8 @@ def test_a_dask_sweep_that_loses_its_cluster_stops_with_its_points_kept(tmp_path
                 store = stores[0]
                 break
             time.sleep(0.1)
-        assert store is not None, "the sweep never stored a point"
+        ended = sweep.communicate()[1] if sweep.poll() is not None else ""
+        assert store is not None, f"the sweep never stored a point: {ended}"
         (scheduler if lost == "scheduler" else worker).kill()
         killed = time.monotonic()
         _stdout, stderr = sweep.communicate(timeout=120)
