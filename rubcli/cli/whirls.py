@@ -168,7 +168,7 @@ def run(
                                   if k not in (o.parameter, "phi0"))  # fmt: skip
                 title = f"{case.name}: whirls continued in {o.parameter}\n{fixed}"
                 io.save_figure(whirl_figure(result, title), staged.path("branch.png"))
-            report["files"] = sorted(p.name for p in staged.staging.iterdir()) + ["report.json"]
+            report["files"] = staged.names() + ["report.json"]
             staged.write_report(report)
         report_stale(plan)
         emit(report, json)

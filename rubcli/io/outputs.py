@@ -427,6 +427,12 @@ class StagedOutput:
             raise ValueError(f"output names are plain file names, not {name!r}")
         return self.staging / name
 
+    def names(self) -> list[str]:
+        """The outputs staged so far, sorted (what the commit moves in; not the staging
+        dir's own hidden entries)."""
+        return sorted(p.name for p in self.staging.iterdir()
+                      if p.is_file() and not p.name.startswith("."))  # fmt: skip
+
     def commit(self, last: tuple[str, ...] = (REPORT_NAME,)) -> list[Path]:
         """Move every staged file into the target, as a whole (see the module docstring);
         the names in ``last`` go in last. Then the stale files of the previous run are
@@ -442,8 +448,7 @@ class StagedOutput:
     def _commit(self, last: tuple[str, ...]) -> None:
         plan, target = self.plan, self.target
         try:
-            staged = sorted(p.name for p in self.staging.iterdir()
-                            if p.is_file() and not p.name.startswith("."))  # fmt: skip
+            staged = self.names()
             if REPORT_NAME not in staged:
                 from rubcli.io.files import report_envelope
 

@@ -145,7 +145,7 @@ class BasinStabilityResult:
             spans = both_spans(case, basin.parameter, basin.values)
             io.save_figure(basin_stability_figure(basin, title, spans),
                            staged.path("basin_stability.png"))  # fmt: skip
-            report["files"] = sorted(f.name for f in staged.staging.iterdir()) + ["report.json"]
+            report["files"] = staged.names() + ["report.json"]
             staged.write_report(report)
         return report
 

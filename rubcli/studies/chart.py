@@ -207,7 +207,7 @@ class ChartResult:
             here = (getattr(case.params, c.x), getattr(case.params, c.y))
             figure = chart_figure(chart, title, here, self.continued, self.sweep)
             io.save_figure(figure, staged.path("chart.png"))
-            report["files"] = sorted(f.name for f in staged.staging.iterdir()) + ["report.json"]
+            report["files"] = staged.names() + ["report.json"]
             staged.write_report(report)
         return report
 

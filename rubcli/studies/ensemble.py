@@ -100,7 +100,7 @@ class EnsembleStudy:
 
                 io.save_figure(ensemble_figure(self.result, self.title()),
                                staged.path("ensemble.png"))  # fmt: skip
-            report["files"] = sorted(f.name for f in staged.staging.iterdir()) + ["report.json"]
+            report["files"] = staged.names() + ["report.json"]
             staged.write_report(report)
         return report
 

@@ -247,7 +247,7 @@ class OrbitsResult:
                 io.save_figure(multipliers_figure(branch, title), staged.path("multipliers.png"))
                 if self.case.settings.orbits.second_parameter:
                     self.write_curves(staged)
-            report["files"] = sorted(p.name for p in staged.staging.iterdir()) + ["report.json"]
+            report["files"] = staged.names() + ["report.json"]
             staged.write_report(report)
         return report
 
