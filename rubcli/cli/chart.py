@@ -24,7 +24,6 @@ Exit codes: 0 done; 1 the wall-time budget ran out (nothing written); 2 invalid 
 from __future__ import annotations
 
 import contextlib
-import math
 from pathlib import Path
 from typing import Annotated
 
@@ -35,6 +34,7 @@ from rubcli.cli.common import (
     ForceOption,
     JsonOption,
     WaitOption,
+    check_max_wall_time,
     command_dir,
     emit,
     prepare_output,
@@ -75,9 +75,7 @@ def command(
     if c is None:
         console.error(f"{case.source}: chart: missing table [chart] (docs/charts.md)")
         raise typer.Exit(EXIT_INVALID)
-    if max_wall_time is not None and not (math.isfinite(max_wall_time) and max_wall_time > 0):
-        console.error(f"--max-wall-time: must be a finite number > 0 (got {max_wall_time!r})")
-        raise typer.Exit(EXIT_INVALID)
+    check_max_wall_time(max_wall_time)
     from rubcli.analysis.orbits import WallTimeBudgetError
     from rubcli.studies import chart as study  # (scipy: loaded by this command only)
 

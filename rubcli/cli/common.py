@@ -22,6 +22,7 @@ stopped by signal N.
 from __future__ import annotations
 
 import atexit
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -41,6 +42,7 @@ __all__ = [
     "ForceOption",
     "JsonOption",
     "WaitOption",
+    "check_max_wall_time",
     "check_memory",
     "close_outputs",
     "command_dir",
@@ -53,6 +55,14 @@ __all__ = [
 EXIT_INVALID = 2
 EXIT_WRITE = 74  # sysexits' EX_IOERR: the outputs could not be written
 EXIT_BUSY = 75  # sysexits' EX_TEMPFAIL: the output dir is in use; try again (or --wait)
+
+
+def check_max_wall_time(max_wall_time: float | None) -> None:
+    """``--max-wall-time``, if given, must be a finite number > 0 (else exit 2)."""
+    if max_wall_time is not None and not (math.isfinite(max_wall_time) and max_wall_time > 0):
+        console.error(f"--max-wall-time: must be a finite number > 0 (got {max_wall_time!r})")
+        raise typer.Exit(EXIT_INVALID)
+
 
 JsonOption = Annotated[
     bool,

@@ -44,7 +44,6 @@ unusable output dir (checked before anything is computed, ``rubcli.io.open_outpu
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -58,6 +57,7 @@ from rubcli.cli.common import (
     ForceOption,
     JsonOption,
     WaitOption,
+    check_max_wall_time,
     check_memory,
     command_dir,
     emit,
@@ -95,9 +95,7 @@ def command(
     json: JsonOption = False,
 ) -> None:
     """Reference solution, error against run time per method, orbits and response classes."""
-    if max_wall_time is not None and not (math.isfinite(max_wall_time) and max_wall_time > 0):
-        console.error(f"--max-wall-time: must be a finite number > 0 (got {max_wall_time!r})")
-        raise typer.Exit(EXIT_INVALID)
+    check_max_wall_time(max_wall_time)
     case = load_or_exit(case_file)
     cfg = case.settings.compare or CompareSection()
     from rubcli import solvers

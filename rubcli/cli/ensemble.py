@@ -30,7 +30,6 @@ written); 2 invalid input (nothing written).
 from __future__ import annotations
 
 import contextlib
-import math
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
@@ -42,6 +41,7 @@ from rubcli.cli.common import (
     ForceOption,
     JsonOption,
     WaitOption,
+    check_max_wall_time,
     check_memory,
     command_dir,
     emit,
@@ -82,9 +82,7 @@ def command(
     wait: WaitOption = False,
 ) -> None:
     """Attractor fractions and escape times over a cloud of starts (the ensemble table)."""
-    if max_wall_time is not None and not (math.isfinite(max_wall_time) and max_wall_time > 0):
-        console.error(f"--max-wall-time: must be a finite number > 0 (got {max_wall_time!r})")
-        raise typer.Exit(EXIT_INVALID)
+    check_max_wall_time(max_wall_time)
     case = load_or_exit(case_file)
     e = case.settings.ensemble
     if e is not None and e.parameter is not None:

@@ -28,7 +28,6 @@ in at the end.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -37,7 +36,14 @@ import typer
 from rubcli import case as case_module
 from rubcli.case import Case, ForcesMapSection
 from rubcli.cli import console, tables
-from rubcli.cli.common import ForceOption, WaitOption, command_dir, prepare_output, report_stale
+from rubcli.cli.common import (
+    ForceOption,
+    WaitOption,
+    check_max_wall_time,
+    command_dir,
+    prepare_output,
+    report_stale,
+)
 from rubcli.cli.validate import EXIT_INVALID, load_or_exit, paper_machine_or_exit
 from rubcli.studies import forces_map as study
 
@@ -130,9 +136,7 @@ def command(
     wait: WaitOption = False,
 ) -> None:
     """Contact force maps (paper Figure 2), Taylor error vs distance, contact eigenvalues."""
-    if max_wall_time is not None and not (math.isfinite(max_wall_time) and max_wall_time > 0):
-        console.error(f"--max-wall-time: must be a finite number > 0 (got {max_wall_time!r})")
-        raise typer.Exit(EXIT_INVALID)
+    check_max_wall_time(max_wall_time)
     case = load_or_exit(case_file)
     target = output_dir(case, out)
     settings = case.settings.forces_map or ForcesMapSection()

@@ -27,7 +27,6 @@ wall-time budget ran out (the orbits computed are written, the report says so).
 
 from __future__ import annotations
 
-import math
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
@@ -40,6 +39,7 @@ from rubcli.cli.common import (
     ForceOption,
     JsonOption,
     WaitOption,
+    check_max_wall_time,
     command_dir,
     emit,
     prepare_output,
@@ -110,9 +110,7 @@ def command(
 ) -> None:
     """Periodic orbits, Floquet multipliers and continuation in one parameter (orbits table)."""
     case = load_or_exit(case_file)
-    if max_wall_time is not None and not (math.isfinite(max_wall_time) and max_wall_time > 0):
-        console.error(f"--max-wall-time: must be a finite number > 0 (got {max_wall_time!r})")
-        raise typer.Exit(EXIT_INVALID)
+    check_max_wall_time(max_wall_time)
     if case.settings.orbits is not None and case.settings.orbits.kind == "whirl":
         from rubcli.cli import whirls
 

@@ -40,6 +40,7 @@ from rubcli.cli.common import (
     ForceOption,
     JsonOption,
     WaitOption,
+    check_max_wall_time,
     check_memory,
     emit,
     machine_readable,
@@ -141,9 +142,7 @@ def command(
     json: JsonOption = False,
 ) -> None:
     """Solve a case with each of its methods and write CSVs, plots and report.json."""
-    if max_wall_time is not None and not (math.isfinite(max_wall_time) and max_wall_time > 0):
-        console.error(f"--max-wall-time: must be a finite number > 0 (got {max_wall_time!r})")
-        raise typer.Exit(EXIT_INVALID)
+    check_max_wall_time(max_wall_time)
     case = load_or_exit(case_file)
     case = _apply_overrides(case, _check_methods(method), out, periods)
     target = case.output_dir

@@ -25,7 +25,6 @@ do not change the exit code. Files are staged and moved in at the end.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Annotated
 
@@ -38,6 +37,7 @@ from rubcli.cli.common import (
     ForceOption,
     JsonOption,
     WaitOption,
+    check_max_wall_time,
     emit,
     machine_readable,
     prepare_output,
@@ -81,9 +81,7 @@ def command(
     """Run the built-in suite of extreme cases with every method; write stress.csv and .md."""
     from rubcli.solvers import METHODS
 
-    if max_wall_time is not None and not (math.isfinite(max_wall_time) and max_wall_time > 0):
-        console.error(f"--max-wall-time: must be a finite number > 0 (got {max_wall_time!r})")
-        raise typer.Exit(EXIT_INVALID)
+    check_max_wall_time(max_wall_time)
 
     cases = stress.stress_cases()
     names = [c.name for c in cases]

@@ -33,7 +33,6 @@ signal N (130 Ctrl-C; the finished points are kept).
 
 from __future__ import annotations
 
-import math
 import time
 from pathlib import Path
 from typing import Annotated
@@ -47,6 +46,7 @@ from rubcli.cli.common import (
     ForceOption,
     JsonOption,
     WaitOption,
+    check_max_wall_time,
     command_dir,
     emit,
     prepare_output,
@@ -103,9 +103,7 @@ def command(
     wait: WaitOption = False,
 ) -> None:
     """Sweep parameters: bifurcation diagrams, run-up/run-down, 2-D maps, basins."""
-    if max_wall_time is not None and not (math.isfinite(max_wall_time) and max_wall_time > 0):
-        console.error(f"--max-wall-time: must be a finite number > 0 (got {max_wall_time!r})")
-        raise typer.Exit(EXIT_INVALID)
+    check_max_wall_time(max_wall_time)
     case = load_or_exit(case_file)
     cfg = case.settings.sweep
     if cfg is None:
