@@ -34,6 +34,7 @@ from rubcli.cli.common import (
     ForceOption,
     JsonOption,
     WaitOption,
+    budget_spent,
     check_max_wall_time,
     command_dir,
     emit,
@@ -46,7 +47,6 @@ OutOption = Annotated[
     Path | None, typer.Option("--out", "-o", help="Output dir (default: <case dir>/chart).")
 ]
 QuickOption = Annotated[bool, typer.Option("--quick", help="CI mode: a 41 x 21 grid.")]
-EXIT_BUDGET = 1  # the wall-time budget ran out, as for rubcli orbits
 
 
 def command(
@@ -102,10 +102,7 @@ def command(
                                         max_wall_time_s=max_wall_time)  # fmt: skip
             except WallTimeBudgetError:
                 budget = c.max_wall_time_s if max_wall_time is None else max_wall_time
-                console.error(f"{case_file}: stopped by the wall-time budget ({budget:g} s): "
-                              "nothing written (--max-wall-time or [chart] max_wall_time_s "
-                              "for more)")  # fmt: skip
-                raise typer.Exit(EXIT_BUDGET) from None
+                raise budget_spent(case_file, budget, "[chart] max_wall_time_s") from None
         command_line = {"case_file": str(case_file), "out": str(target), "quick": quick,
                         "overlay": str(overlay) if overlay is not None else None,
                         "max_wall_time": max_wall_time}  # fmt: skip

@@ -42,6 +42,7 @@ __all__ = [
     "ForceOption",
     "JsonOption",
     "WaitOption",
+    "budget_spent",
     "check_max_wall_time",
     "check_memory",
     "close_outputs",
@@ -55,6 +56,14 @@ __all__ = [
 EXIT_INVALID = 2
 EXIT_WRITE = 74  # sysexits' EX_IOERR: the outputs could not be written
 EXIT_BUSY = 75  # sysexits' EX_TEMPFAIL: the output dir is in use; try again (or --wait)
+
+
+def budget_spent(case_file: object, budget: float, field: str) -> typer.Exit:
+    """A command stopped by its wall-time budget before writing anything: the message, and
+    the exit (1) for the caller to raise; ``field`` is the case's key of that budget."""
+    console.error(f"{case_file}: stopped by the wall-time budget ({budget:g} s): nothing "
+                  f"written (--max-wall-time or {field} for more)")  # fmt: skip
+    return typer.Exit(1)
 
 
 def check_max_wall_time(max_wall_time: float | None) -> None:

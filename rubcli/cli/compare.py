@@ -57,6 +57,7 @@ from rubcli.cli.common import (
     ForceOption,
     JsonOption,
     WaitOption,
+    budget_spent,
     check_max_wall_time,
     check_memory,
     command_dir,
@@ -136,10 +137,9 @@ def _compare(
         raise typer.Exit(EXIT_FAILED) from None
     except WallTimeBudgetError:
         budget = cfg.total_wall_time_s if max_wall_time is None else max_wall_time
-        console.error(f"{command_line['case_file']}: stopped by the wall-time budget "
-                      f"({budget:g} s): nothing written (--max-wall-time or [compare] "
-                      "total_wall_time_s for more)")  # fmt: skip
-        raise typer.Exit(EXIT_FAILED) from None
+        raise budget_spent(
+            command_line["case_file"], budget, "[compare] total_wall_time_s"
+        ) from None
     report = result.write(target, plan, command_line)
     report_stale(plan)
     wp, panels, files = result.wp, result.panels, report["files"]

@@ -41,6 +41,7 @@ from rubcli.cli.common import (
     ForceOption,
     JsonOption,
     WaitOption,
+    budget_spent,
     check_max_wall_time,
     check_memory,
     command_dir,
@@ -177,10 +178,7 @@ def _budget(case_file: Path, budget: float | None) -> Iterator[None]:
     try:
         yield
     except WallTimeBudgetError:
-        console.error(f"{case_file}: stopped by the wall-time budget ({budget:g} s): "
-                      "nothing written (--max-wall-time or [ensemble] max_wall_time_s "
-                      "for more)")  # fmt: skip
-        raise typer.Exit(1) from None
+        raise budget_spent(case_file, budget, "[ensemble] max_wall_time_s") from None
 
 
 def _check_run_memory(case_file: Path, case: Case, settings: dict) -> None:

@@ -39,6 +39,7 @@ from rubcli.cli import console, tables
 from rubcli.cli.common import (
     ForceOption,
     WaitOption,
+    budget_spent,
     check_max_wall_time,
     command_dir,
     prepare_output,
@@ -48,7 +49,6 @@ from rubcli.cli.validate import EXIT_INVALID, load_or_exit, paper_machine_or_exi
 from rubcli.studies import forces_map as study
 
 OUTPUT_SUBDIR = "forces-map"
-EXIT_BUDGET = 1  # the wall-time budget ran out, as for rubcli orbits and rubcli chart
 
 
 def output_dir(case: Case, out: Path | None) -> Path:
@@ -161,10 +161,7 @@ def command(
         report = study.write_forces_map(case, target, plan, command_line, max_wall_time)
     except WallTimeBudgetError:
         budget = settings.max_wall_time_s if max_wall_time is None else max_wall_time
-        console.error(f"{case_file}: stopped by the wall-time budget ({budget:g} s): "
-                      "nothing written (--max-wall-time or [forces_map] max_wall_time_s "
-                      "for more)")  # fmt: skip
-        raise typer.Exit(EXIT_BUDGET) from None
+        raise budget_spent(case_file, budget, "[forces_map] max_wall_time_s") from None
     report_stale(plan)
     _print_summary(report)
     console.info(f"wrote {len(report['files'])} files to {target}: {', '.join(report['files'])}")

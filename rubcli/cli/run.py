@@ -40,6 +40,7 @@ from rubcli.cli.common import (
     ForceOption,
     JsonOption,
     WaitOption,
+    budget_spent,
     check_max_wall_time,
     check_memory,
     emit,
@@ -206,10 +207,7 @@ def _run(
                                 on_error=console.exception, startup_s=startup,
                                 max_wall_time_s=left)  # fmt: skip
     except WallTimeBudgetError:
-        console.error(f"{case_file}: stopped by the wall-time budget ({budget:g} s): "
-                      "nothing written (--max-wall-time or [solver] total_wall_time_s "
-                      "for more)")  # fmt: skip
-        raise typer.Exit(EXIT_FAILED) from None
+        raise budget_spent(case_file, budget, "[solver] total_wall_time_s") from None
     report = result.write(case.output_dir, plan, command_line, progress.progress_bar, steady)
     entries = report["methods"]
     report_stale(plan)
