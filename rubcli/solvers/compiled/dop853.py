@@ -59,7 +59,8 @@ def dop853_step(
     The right-hand side is a closure constant (as in ``events.event_search``), so the
     three functions are compiled once per right-hand side and stay cachable; the state
     count is a compile-time constant, so the four-state loops compile as when it was
-    written out."""
+    written out; ``n_states = 0`` takes the state's size at run time (the composed
+    machine's system, ``rubcli.system``)."""
     N = n_states
 
     def initial_step(
@@ -67,24 +68,25 @@ def dop853_step(
         rtol: float, atol: float,
     ) -> float:  # fmt: skip
         """scipy's ``select_initial_step`` (Hairer, Norsett, Wanner II.4), order 7."""
+        n = N if N > 0 else y0.shape[0]
         interval = abs(t_bound - t0)
         if interval == 0.0:
             return 0.0
-        scaled = np.empty(N)
-        for i in range(N):
+        scaled = np.empty(n)
+        for i in range(n):
             scaled[i] = y0[i] / (atol + abs(y0[i]) * rtol)
         d0 = _rms_norm(scaled)
-        for i in range(N):
+        for i in range(n):
             scaled[i] = f0[i] / (atol + abs(y0[i]) * rtol)
         d1 = _rms_norm(scaled)
         h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
         h0 = min(h0, interval)
-        y1 = np.empty(N)
-        for i in range(N):
+        y1 = np.empty(n)
+        for i in range(n):
             y1[i] = y0[i] + h0 * f0[i]
-        f1 = np.empty(N)
+        f1 = np.empty(n)
         rhs_into(t0 + h0, y1, ctx, regime, f1)
-        for i in range(N):
+        for i in range(n):
             scaled[i] = (f1[i] - f0[i]) / (atol + abs(y0[i]) * rtol)
         d2 = _rms_norm(scaled) / h0
         if d1 <= 1e-15 and d2 <= 1e-15:
@@ -101,14 +103,15 @@ def dop853_step(
         y_new: np.ndarray, tmp: np.ndarray,
     ) -> None:  # fmt: skip
         """One step of length h from (t, y) with Kst[0] = f(t, y): y_new, Kst[1:13]."""
+        n = N if N > 0 else y.shape[0]
         for s in range(1, DOP_STAGES):
-            for i in range(N):
+            for i in range(n):
                 acc = 0.0
                 for j in range(s):
                     acc += DOP_A[s, j] * Kst[j, i]
                 tmp[i] = y[i] + h * acc
             rhs_into(t + DOP_C[s] * h, tmp, ctx, regime, Kst[s])
-        for i in range(N):
+        for i in range(n):
             acc = 0.0
             for j in range(DOP_STAGES):
                 acc += DOP_B[j] * Kst[j, i]
@@ -119,9 +122,10 @@ def dop853_step(
         Kst: np.ndarray, h: float, y: np.ndarray, y_new: np.ndarray, rtol: float, atol: float
     ) -> float:
         """scipy's DOP853._estimate_error_norm (the 5th/3rd-order blend)."""
+        n = N if N > 0 else y.shape[0]
         e5 = 0.0
         e3 = 0.0
-        for i in range(N):
+        for i in range(n):
             scale = atol + max(abs(y[i]), abs(y_new[i])) * rtol
             a5 = 0.0
             a3 = 0.0
@@ -132,7 +136,7 @@ def dop853_step(
             e3 += (a3 / scale) ** 2
         if e5 == 0.0 and e3 == 0.0:
             return 0.0
-        return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * N)
+        return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * n)
 
     def accepted_step(
         tau: float, y: np.ndarray, f: np.ndarray, h_abs: float, t_end: float, ctx: Any,
@@ -143,6 +147,7 @@ def dop853_step(
         and rejects until a step is accepted. Returns ``(t_new, h, h_abs, nfev)``: the
         accepted step to t_new, of length h, in y_new with the stages in Kst, and the
         next proposal; h = 0 if the step fell below scipy's minimum (10 ulp of tau)."""
+        n = N if N > 0 else y.shape[0]
         min_step = 10.0 * abs(np.nextafter(tau, np.inf) - tau)
         h_abs = max(h_abs, min_step)
         rejected = False
@@ -153,7 +158,7 @@ def dop853_step(
             t_new = min(tau + h_abs, t_end)
             h = t_new - tau
             h_abs = abs(h)
-            for i in range(N):
+            for i in range(n):
                 Kst[0, i] = f[i]
             attempt(tau, y, h, ctx, regime, Kst, y_new, tmp)
             nfev += DOP_STAGES
@@ -178,14 +183,15 @@ def dop853_step(
     ) -> int:  # fmt: skip
         """The 7th-order dense output of an accepted step (scipy's Dop853DenseOutput F);
         returns the evaluations of the right-hand side it took."""
+        n = N if N > 0 else y_old.shape[0]
         for s in range(DOP_STAGES + 1, Kst.shape[0]):
-            for i in range(N):
+            for i in range(n):
                 acc = 0.0
                 for j in range(s):
                     acc += DOP_A[s, j] * Kst[j, i]
                 tmp[i] = y_old[i] + h * acc
             rhs_into(t_old + DOP_C[s] * h, tmp, ctx, regime, Kst[s])
-        for i in range(N):
+        for i in range(n):
             delta = y_new[i] - y_old[i]
             F[0, i] = delta
             F[1, i] = h * Kst[0, i] - delta

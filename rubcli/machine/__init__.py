@@ -1,0 +1,17 @@
+"""The composed machine: a linear structure of any size, unbalances, contact stations with
+their contact law, and a speed (``docs/machine.md``). Data only, checked once on
+construction; ``rubcli.system`` builds the one system every method runs from it."""
+
+from rubcli.machine.contact import ContactLaw
+from rubcli.machine.jeffcott import jeffcott_machine
+from rubcli.machine.machine import Machine, Speed, Station, Structure, Unbalance
+
+__all__ = [
+    "ContactLaw",
+    "Machine",
+    "Speed",
+    "Station",
+    "Structure",
+    "Unbalance",
+    "jeffcott_machine",
+]

@@ -1,0 +1,312 @@
+"""The composed machine's system, compiled: its right-hand side, station forces, stick
+forces, projection onto rolling, energy rate and event functions, written once for every
+machine (``docs/machine.md``, "What is then written once").
+
+The state is ``y = (q, v, W)``: the structure's ``n`` coordinates, their velocities, and
+the work ``W`` done on the structure by everything but its conservative forces (so that
+``E(t) - E(0) - W(t)`` is the energy balance's residual, ``rubcli.system.energy``).
+Regimes per station (``model.FREE``, ``SLIP_POSITIVE``, ``SLIP_NEGATIVE``, ``STICK``) are
+part of the context ``ctx`` (``SystemArrays.context``), so a DOP853 step sees the system
+through ``rhs_into(t, y, ctx, regime, out)`` as every compiled system of rubcli does.
+
+At a station, ``d = q[rotor] - q[stator] - offset`` (a rigid stator: ``q[stator] = 0``),
+``z = |d|``, ``n = d / z``, ``t = J n``, ``d' = a n + b t``; penetration ``delta = z -
+clearance``; slip ``v_r = radius Omega + b``; the force on the rotor point ``-F_N n - F_T
+t`` (its reaction on the stator point), ``F_N`` the contact law's (``machine.contact``),
+``F_T = mu sign(v_r) F_N`` while slipping. Stations in stick hold ``v_r = 0``: their
+tangential forces ``T`` solve the small system of mobilities
+``sum_s m_rs T_s = radius_r Omega' + g_r . a_free - a_r b_r / z_r``, ``m_rs = g_r^T M^-1
+g_s`` with ``g_s = W_s t_s``, and the velocities are held on the rolling constraint by
+the least change of kinetic energy, ``v + M^-1 sum_s g_s lambda_s`` with ``m lambda =
+-v_r`` (the same mobilities).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba.extending import register_jitable
+
+from rubcli.machine import contact
+from rubcli.model import FREE, SLIP_POSITIVE, STICK, STICK_EXIT_MARGIN
+from rubcli.solvers.compiled.jit import jit
+
+for _core in (contact.elastic_force, contact.normal_force, contact.stored_energy):
+    register_jitable(_core)
+
+# columns of a station's parameters (``SystemArrays.station_parameters``)
+S_CX, S_CY, S_CLEARANCE, S_MU, S_RADIUS, S_LAW = 0, 1, 2, 3, 4, 5
+# columns of a station's geometry (``_geometry``)
+G_Z, G_NX, G_NY, G_TX, G_TY, G_A, G_B = 0, 1, 2, 3, 4, 5, 6
+GEOMETRY_SIZE = 7
+# columns of a station's values (``evaluate``'s ``vals``)
+V_PENETRATION, V_SLIP, V_NORMAL, V_TANGENTIAL = 0, 1, 2, 3
+VALUES_SIZE = 4
+# rows of the work buffer before the stick stations' mobility vectors
+W_VELOCITY, W_ACCELERATION, W_FORCE = 0, 1, 2
+WORK_ROWS = 3
+# positions in the context tuple (``SystemArrays.context``)
+C_PARAMETERS, C_REGIMES, C_VALUES = 10, 12, 19
+# evaluate's status
+OK, SINGULAR = 0, 1
+
+
+@jit
+def speed_at(knots, t):
+    """``(Omega, Omega', angle)`` at t of the piecewise-linear profile ``knots`` (rows
+    time, speed, angle integral_0^t Omega at the knot), held outside its knots."""
+    last = knots.shape[0] - 1
+    if t <= knots[0, 0] or last == 0:
+        return knots[0, 1], 0.0, knots[0, 2] + knots[0, 1] * (t - knots[0, 0])
+    if t >= knots[last, 0]:
+        return knots[last, 1], 0.0, knots[last, 2] + knots[last, 1] * (t - knots[last, 0])
+    k = 0
+    while knots[k + 1, 0] < t:
+        k += 1
+    dt = t - knots[k, 0]
+    rate = (knots[k + 1, 1] - knots[k, 1]) / (knots[k + 1, 0] - knots[k, 0])
+    return knots[k, 1] + rate * dt, rate, knots[k, 2] + knots[k, 1] * dt + 0.5 * rate * dt * dt
+
+
+@jit
+def _geometry(q, v, idx, par, s, geo):
+    """Station s's relative position and velocity (``G_*`` columns of ``geo[s]``)."""
+    dx = q[idx[s, 0]] - par[s, S_CX]
+    dy = q[idx[s, 1]] - par[s, S_CY]
+    wx = v[idx[s, 0]]
+    wy = v[idx[s, 1]]
+    if idx[s, 2] >= 0:
+        dx -= q[idx[s, 2]]
+        dy -= q[idx[s, 3]]
+        wx -= v[idx[s, 2]]
+        wy -= v[idx[s, 3]]
+    z = math.hypot(dx, dy)
+    if z > 0.0:
+        nx, ny = dx / z, dy / z
+    else:
+        nx, ny = 1.0, 0.0
+    geo[s, G_Z] = z
+    geo[s, G_NX] = nx
+    geo[s, G_NY] = ny
+    geo[s, G_TX] = -ny
+    geo[s, G_TY] = nx
+    geo[s, G_A] = wx * nx + wy * ny
+    geo[s, G_B] = -wx * ny + wy * nx
+
+
+@jit
+def _add_plane(vec, Minv, idx, s, fx, fy, into):
+    """``into += Minv W_s (fx, fy)`` (``Minv`` None-like when ``vec`` is False: the
+    plane force added to the coordinates themselves)."""
+    ix, iy, jx, jy = idx[s, 0], idx[s, 1], idx[s, 2], idx[s, 3]
+    n = into.shape[0]
+    if vec:
+        for i in range(n):
+            acc = Minv[i, ix] * fx + Minv[i, iy] * fy
+            if jx >= 0:
+                acc -= Minv[i, jx] * fx + Minv[i, jy] * fy
+            into[i] += acc
+    else:
+        into[ix] += fx
+        into[iy] += fy
+        if jx >= 0:
+            into[jx] -= fx
+            into[jy] -= fy
+
+
+@jit
+def _tangential_of(vec, idx, s, geo):
+    """``g_s . vec = t_s . (W_s^T vec)``: the tangential part of station s's relative
+    component of ``vec``."""
+    ix, iy, jx, jy = idx[s, 0], idx[s, 1], idx[s, 2], idx[s, 3]
+    wx, wy = vec[ix], vec[iy]
+    if jx >= 0:
+        wx -= vec[jx]
+        wy -= vec[jy]
+    return geo[s, G_TX] * wx + geo[s, G_TY] * wy
+
+
+@jit
+def _solve_small(A, b, k):
+    """Solves ``A[:k, :k] x = b[:k]`` in place (x in b) by Gaussian elimination with
+    partial pivoting; False if A is singular to working precision."""
+    for c in range(k):
+        p = c
+        for r in range(c + 1, k):
+            if abs(A[r, c]) > abs(A[p, c]):
+                p = r
+        if not abs(A[p, c]) > 0.0:
+            return False
+        if p != c:
+            for j in range(k):
+                A[c, j], A[p, j] = A[p, j], A[c, j]
+            b[c], b[p] = b[p], b[c]
+        for r in range(c + 1, k):
+            factor = A[r, c] / A[c, c]
+            for j in range(c, k):
+                A[r, j] -= factor * A[c, j]
+            b[r] -= factor * b[c]
+    for c in range(k - 1, -1, -1):
+        acc = b[c]
+        for j in range(c + 1, k):
+            acc -= A[c, j] * b[j]
+        b[c] = acc / A[c, c]
+    return True
+
+
+@jit
+def _stick_mobilities(Minv, idx, geo, regimes, work, stuck, mob):
+    """The stick stations (into ``stuck``, their count returned), their mobility vectors
+    ``M^-1 g_s`` (work rows from ``WORK_ROWS``) and mobilities ``mob``."""
+    k = 0
+    for s in range(regimes.shape[0]):
+        if regimes[s] == STICK:
+            stuck[k] = s
+            k += 1
+    for a in range(k):
+        h = work[WORK_ROWS + a]
+        h[:] = 0.0
+        s = stuck[a]
+        _add_plane(True, Minv, idx, s, geo[s, G_TX], geo[s, G_TY], h)
+    for a in range(k):
+        for c in range(k):
+            mob[a, c] = _tangential_of(work[WORK_ROWS + c], idx, stuck[a], geo)
+    return k
+
+
+@jit
+def evaluate(t, y, ctx, out, vals):
+    """The derivative of ``y = (q, v, W)`` into ``out`` and each station's penetration,
+    slip, normal and tangential force into ``vals`` (``V_*``); returns ``OK`` or
+    ``SINGULAR`` (the stick stations' mobilities are singular)."""
+    (Minv, MinvK, MinvC, MinvG, C, G, Kanti, facc, unb, idx, par, knots, regimes, work,
+     geo, mob, lhs, rhs, stuck, _) = ctx  # fmt: skip
+    n = Minv.shape[0]
+    S = idx.shape[0]
+    omega, omega_rate, angle = speed_at(knots, t)
+    q = y[:n]
+    v = work[W_VELOCITY]
+    for i in range(n):
+        v[i] = y[n + i]
+    for s in range(S):
+        _geometry(q, v, idx, par, s, geo)
+    k = _stick_mobilities(Minv, idx, geo, regimes, work, stuck, mob)
+    if k > 0:  # the velocities onto rolling: m lambda = -v_r
+        for a in range(k):
+            s = stuck[a]
+            rhs[a] = -(par[s, S_RADIUS] * omega + geo[s, G_B])
+            for c in range(k):
+                lhs[a, c] = mob[a, c]
+        if not _solve_small(lhs, rhs, k):
+            return SINGULAR
+        for a in range(k):
+            h = work[WORK_ROWS + a]
+            for i in range(n):
+                v[i] += rhs[a] * h[i]
+        for s in range(S):
+            _geometry(q, v, idx, par, s, geo)
+    # the linear structure and the unbalances
+    force = work[W_FORCE]
+    force[:] = 0.0
+    for u in range(unb.shape[0]):
+        p = unb[u, 3] + angle
+        c, sn = math.cos(p), math.sin(p)
+        scale = unb[u, 2]
+        force[int(unb[u, 0])] += scale * (omega * omega * c + omega_rate * sn)
+        force[int(unb[u, 1])] += scale * (omega * omega * sn - omega_rate * c)
+    acc = work[W_ACCELERATION]
+    power = 0.0
+    for i in range(n):
+        a_i = facc[i]
+        p_i = force[i]
+        for j in range(n):
+            a_i += Minv[i, j] * force[j] - MinvK[i, j] * q[j]
+            a_i -= (MinvC[i, j] + omega * MinvG[i, j]) * v[j]
+            p_i -= (C[i, j] + omega * G[i, j]) * v[j] + Kanti[i, j] * q[j]
+        acc[i] = a_i
+        power += v[i] * p_i
+    # the stations' normal forces and slip friction
+    for s in range(S):
+        pen = geo[s, G_Z] - par[s, S_CLEARANCE]
+        slip = par[s, S_RADIUS] * omega + geo[s, G_B]
+        vals[s, V_PENETRATION] = pen
+        vals[s, V_SLIP] = slip
+        vals[s, V_NORMAL] = 0.0
+        vals[s, V_TANGENTIAL] = 0.0
+        if regimes[s] == FREE:
+            continue
+        law = par[s, S_LAW:]
+        normal = contact.normal_force(law, pen, geo[s, G_A]) if pen > 0.0 else 0.0
+        tangential = 0.0
+        if regimes[s] != STICK:
+            tangential = par[s, S_MU] * normal * (1.0 if regimes[s] == SLIP_POSITIVE else -1.0)
+        fx = -normal * geo[s, G_NX] - tangential * geo[s, G_TX]
+        fy = -normal * geo[s, G_NY] - tangential * geo[s, G_TY]
+        _add_plane(True, Minv, idx, s, fx, fy, acc)
+        elastic = contact.elastic_force(law, pen) if pen > 0.0 else 0.0
+        power -= (normal - elastic) * geo[s, G_A] + tangential * geo[s, G_B]
+        vals[s, V_NORMAL] = normal
+        vals[s, V_TANGENTIAL] = tangential
+    if k > 0:  # the stick forces: m T = radius Omega' + g . a - a b / z
+        for a in range(k):
+            s = stuck[a]
+            rhs[a] = (
+                par[s, S_RADIUS] * omega_rate
+                + _tangential_of(acc, idx, s, geo)
+                - geo[s, G_A] * geo[s, G_B] / geo[s, G_Z]
+            )
+            for c in range(k):
+                lhs[a, c] = mob[a, c]
+        if not _solve_small(lhs, rhs, k):
+            return SINGULAR
+        for a in range(k):
+            s = stuck[a]
+            h = work[WORK_ROWS + a]
+            for i in range(n):
+                acc[i] -= rhs[a] * h[i]
+            power -= rhs[a] * geo[s, G_B]
+            vals[s, V_TANGENTIAL] = rhs[a]
+    for i in range(n):
+        out[i] = v[i]
+        out[n + i] = acc[i]
+    out[2 * n] = power
+    return OK
+
+
+@jit
+def rhs_into(t, y, ctx, regime, out):
+    """``evaluate`` as DOP853's steps take a right-hand side (the station values into
+    the context's last buffer; ``regime`` unused: the regimes are in ``ctx``). A singular
+    stick system gives nan, which the step control rejects."""
+    if evaluate(t, y, ctx, out, ctx[C_VALUES]) != OK:
+        out[:] = np.nan
+
+
+@jit
+def event_functions(t, y, ctx, out, vals, g):
+    """Each station's two event functions into ``g`` (S, 2), positive while its regime
+    holds: free ``clearance - z`` and 1; slipping ``z - clearance`` and ``sign v_r``
+    (1 without friction); in stick ``z - clearance`` and the friction cone's margin
+    ``mu F_N (1 + STICK_EXIT_MARGIN) - |T|``. Returns ``evaluate``'s status."""
+    status = evaluate(t, y, ctx, out, vals)
+    regimes = ctx[C_REGIMES]
+    par = ctx[C_PARAMETERS]
+    for s in range(regimes.shape[0]):
+        r = regimes[s]
+        pen = vals[s, V_PENETRATION]
+        if r == FREE:
+            g[s, 0] = -pen
+            g[s, 1] = 1.0
+        elif r == STICK:
+            g[s, 0] = pen
+            g[s, 1] = par[s, S_MU] * vals[s, V_NORMAL] * (1.0 + STICK_EXIT_MARGIN) - abs(
+                vals[s, V_TANGENTIAL]
+            )
+        else:
+            g[s, 0] = pen
+            if par[s, S_MU] > 0.0:
+                g[s, 1] = vals[s, V_SLIP] * (1.0 if r == SLIP_POSITIVE else -1.0)
+            else:
+                g[s, 1] = 1.0
+    return status
