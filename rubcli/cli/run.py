@@ -3,6 +3,8 @@
 
 Each method of the case (or of ``--method``) is solved and only the products the case asks
 for are written into the output dir (``rubcli.studies.run``, whose docstring lists them).
+A case whose machine is given as matrices (``[rotor] matrices``) runs through
+``rubcli.cli.rotor``.
 
 The output dir is locked and checked before anything is solved, and all files are
 committed as a whole at the end (``rubcli.io.open_output_dir``; docs/cases.md, "Output
@@ -144,6 +146,12 @@ def command(
 ) -> None:
     """Solve a case with each of its methods and write CSVs, plots and report.json."""
     check_max_wall_time(max_wall_time)
+    from rubcli.cli import rotor
+
+    matrices_case = rotor.rotor_case_or_none(case_file)
+    if matrices_case is not None:
+        rotor.run(matrices_case, case_file, method, out, periods, max_wall_time, force, wait, json)
+        return
     case = load_or_exit(case_file)
     case = _apply_overrides(case, _check_methods(method), out, periods)
     target = case.output_dir

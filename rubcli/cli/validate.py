@@ -96,6 +96,12 @@ def command(
     json: JsonOption = False,
 ) -> None:
     """Validate a case file; exit 0 if valid, 2 with one line per problem if not."""
+    from rubcli.cli import rotor
+
+    matrices_case = rotor.rotor_case_or_none(case_file, json)
+    if matrices_case is not None:
+        rotor.validate(matrices_case, case_file, json)
+        return
     if json:
         try:
             case = load_case(case_file)

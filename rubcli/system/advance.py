@@ -11,8 +11,6 @@ Python can check the run's wall-time budget between calls).
 
 from __future__ import annotations
 
-import numpy as np
-
 from rubcli.solvers.compiled.dop853 import DOP_STAGES, _dop853_dense_at, dop853_step
 from rubcli.solvers.compiled.jit import jit
 from rubcli.system.kernels import OK, event_functions, rhs_into
@@ -22,6 +20,15 @@ initial_step, accepted_step, dense_coefficients = dop853_step(rhs_into, 0)
 SCAN_POINTS = 4  # the scan grid of a step: its quarters, as the rotor's dop853-jit
 # why advance returned
 END, EVENT, LIMIT, SMALL_STEP, SINGULAR_STICK = 0, 1, 2, 3, 4
+
+
+@jit
+def first_step(t, y, f, t_end, ctx, rtol, atol):
+    """``f = f(t, y)`` and Hairer's initial step from (t, y) (a function of this module,
+    so that its compiled code is cached with it: the step factory's own ``initial_step``
+    is shared by every system's closure, and its cache entry with them)."""
+    rhs_into(t, y, ctx, 0, f)
+    return initial_step(t, y, f, t_end, ctx, 0, rtol, atol)
 
 
 @jit
@@ -86,5 +93,3 @@ def advance(
         t = t_new
     return LIMIT, t, h_abs, k, steps, nfev, t, 0.0, 0
 
-
-_ = np

@@ -206,8 +206,7 @@ class _Run:
         y = y.copy()
         m = y.size
         f = np.empty(m)
-        rhs_into(t, y, self.ctx, 0, f)
-        h_abs = adv.initial_step(t, y, f, t_end, self.ctx, 0, self.rtol, self.atol)
+        h_abs = adv.first_step(t, y, f, t_end, self.ctx, self.rtol, self.atol)
         Kst = np.empty((16, m))
         y_new, tmp, F = np.empty(m), np.empty(m), np.empty((7, m))
         while True:

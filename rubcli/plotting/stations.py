@@ -1,0 +1,68 @@
+"""The orbit at each contact station of a machine given as matrices (SI): the rotor
+point's position relative to the stator's centre, in micrometres, inside its clearance
+circle; the start faint, the last revolutions (the steady state, if the run reached one)
+drawn strong, the samples in contact marked. One panel per station, on one scale each
+(its own clearance), so a reader sees at a glance where and how deep it rubs."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+MICRO = 1e6
+LAST_SHARE = 0.25  # the last quarter of the run is drawn as its steady part
+
+
+@dataclass(frozen=True)
+class StationOrbit:
+    """One station's relative orbit (k, 2) in m, its clearance (m), which samples are in
+    contact (k,), and its label."""
+
+    label: str
+    relative: np.ndarray
+    clearance: float
+    contact: np.ndarray
+
+
+def station_orbits_figure(
+    title: str, orbits: Sequence[StationOrbit], t: np.ndarray, revolutions: float
+) -> Figure:
+    """The orbit of every station, side by side."""
+    count = len(orbits)
+    fig = Figure(figsize=(4.8 * count + 0.6, 6.0), layout="constrained")
+    FigureCanvasAgg(fig)
+    fig.suptitle(title)
+    last = max(1, int(round(LAST_SHARE * t.size)))
+    start_s = float(t[-last]) if t.size else 0.0
+    last_revolutions = revolutions * LAST_SHARE
+    for i, orbit in enumerate(orbits):
+        ax = fig.add_subplot(1, count, i + 1)
+        xy = orbit.relative * MICRO
+        c = orbit.clearance * MICRO
+        circle = np.linspace(0.0, 2.0 * np.pi, 361)
+        ax.plot(c * np.cos(circle), c * np.sin(circle), color="0.3", linestyle="--",
+                linewidth=1.0, label="clearance circle")  # fmt: skip
+        ax.plot(xy[:-last, 0], xy[:-last, 1], color="tab:blue", alpha=0.25, linewidth=0.6,
+                label=f"start (t < {start_s:.3g} s)")  # fmt: skip
+        ax.plot(xy[-last:, 0], xy[-last:, 1], color="tab:blue", linewidth=1.2,
+                label=f"last {last_revolutions:.3g} revolutions")  # fmt: skip
+        touching = np.zeros(len(xy), dtype=bool)
+        touching[-last:] = orbit.contact[-last:]
+        share = float(np.mean(orbit.contact[-last:]))
+        ax.plot(xy[touching, 0], xy[touching, 1], linestyle="none", marker="o",
+                markersize=2.0, color="tab:red", label="in contact")  # fmt: skip
+        reach = max(1.15 * c, 1.05 * float(np.max(np.hypot(xy[:, 0], xy[:, 1]), initial=0.0)))
+        ax.set_xlim(-reach, reach)
+        ax.set_ylim(-reach, reach)
+        ax.set_aspect("equal")
+        ax.set_title(f"{orbit.label}\nclearance {c:.4g} µm; in contact {100 * share:.3g} % of the "
+                     f"last {last_revolutions:.3g} revolutions", fontsize="medium")  # fmt: skip
+        ax.set_xlabel("x relative to the stator's centre (µm)")
+        ax.set_ylabel("y relative to the stator's centre (µm)")
+        ax.grid(True, linewidth=0.3)
+    fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", ncol=4)
+    return fig

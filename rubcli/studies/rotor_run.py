@@ -1,0 +1,193 @@
+"""``rubcli run`` on a machine given as matrices (``rubcli.rotor_case``), in SI.
+
+Each method of the case runs the composed machine's system (``rubcli.system.simulate``);
+then, into the output dir as one commit:
+
+- ``<method>.csv``: the time ``t_s`` (s); every station's node (and its stator's, when it
+  is a node of the structure) as ``x_<node>``, ``y_<node>`` (m); per station ``<name>_``
+  ``penetration_m`` (``z - clearance``, negative when free), ``clearances`` (``z`` over
+  the clearance), ``regime`` (free, slip+, slip-, stick), ``normal_N``, ``friction_N``
+  (the tangential force on the rotor against the slip, in stick the force that holds it)
+  and ``slip_m_s`` (``v_r``);
+- ``orbit.png``: every station's orbit inside its clearance circle (the first method's);
+- ``report.json``: per method its status, statistics, wall time and energy balance, and
+  per station its contact share, stick share, deepest penetration, largest forces and
+  events by kind.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rubcli import io
+from rubcli.model import REGIME_NAMES, STICK
+from rubcli.rotor_case import RotorCase
+from rubcli.system import KIND_NAMES, MachineSolution, simulate
+from rubcli.system.series import energy, station_series
+
+ORBIT_FIGURE = "orbit.png"
+
+
+def expected_files(case: RotorCase) -> tuple[str, ...]:
+    names = [f"{m}.csv" for m in case.methods] if case.settings.output.csv else []
+    if "orbit" in case.settings.output.plots:
+        names.append(ORBIT_FIGURE)
+    return (*names, io.REPORT_NAME)
+
+
+def run_rotor_case(
+    case: RotorCase,
+    max_wall_time_s: float | None = None,
+    on_method: Callable[[str], None] | None = None,
+) -> list[MachineSolution]:
+    """Every method of the case, one after the other, each within ``[solver]
+    max_wall_time_s`` and all within ``max_wall_time_s`` (None: no whole budget)."""
+    solver = case.settings.solver
+    deadline = None if max_wall_time_s is None else time.perf_counter() + max_wall_time_s
+    solutions = []
+    for method in case.methods:
+        if on_method is not None:
+            on_method(method)
+        budget = solver.max_wall_time_s
+        if deadline is not None:
+            left = max(deadline - time.perf_counter(), 1e-3)
+            budget = left if budget is None else min(budget, left)
+        solutions.append(
+            simulate(
+                case.machine, case.t_eval, method=method, rtol=solver.rtol, atol=solver.atol,
+                max_steps=solver.max_steps, max_wall_time_s=budget,
+            )  # fmt: skip
+        )
+    return solutions
+
+
+def relative_orbit(case: RotorCase, solution: MachineSolution, s: int) -> np.ndarray:
+    """Station s's rotor point relative to its stator's centre (k, 2), m."""
+    station = case.machine.stations[s]
+    d = solution.coordinates(station.rotor) - np.array(station.offset)
+    if station.stator is not None:
+        d = d - solution.coordinates(station.stator)
+    return d
+
+
+def csv_columns(case: RotorCase, solution: MachineSolution) -> tuple[list[str], list]:
+    """The CSV's header and columns (module docstring)."""
+    header, columns = ["t_s"], [solution.t]
+    structure = case.machine.structure
+    for node in case.nodes:
+        ix, iy = structure.lateral(node)
+        header += [f"x_{node}", f"y_{node}"]
+        columns += [solution.states[:, ix], solution.states[:, iy]]
+    values = station_series(solution)
+    for s, name in enumerate(case.station_names):
+        station = case.machine.stations[s]
+        z = np.hypot(*relative_orbit(case, solution, s).T)
+        labels = [REGIME_NAMES[r] for r in solution.regimes[:, s].tolist()]
+        header += [f"{name}_{c}" for c in ("penetration_m", "clearances", "regime",
+                                           "normal_N", "friction_N", "slip_m_s")]  # fmt: skip
+        columns += [values[:, s, 0], z / station.clearance, labels, values[:, s, 2],
+                    values[:, s, 3], values[:, s, 1]]  # fmt: skip
+    return header, columns
+
+
+def method_entry(case: RotorCase, solution: MachineSolution) -> dict[str, Any]:
+    """The report's entry of one method."""
+    values = station_series(solution)
+    E = energy(solution, values[:, :, 0])
+    residual = E - E[0] - (solution.work - solution.work[0])
+    scale = max(float(np.max(np.abs(E))), float(np.max(np.abs(solution.work))), 1e-300)
+    stations = {}
+    for s, name in enumerate(case.station_names):
+        regimes = solution.regimes[:, s]
+        events = solution.events.at_station(s)
+        rotor_node, stator_node = case.station_nodes[s]
+        stations[name] = {
+            "node": rotor_node,
+            "stator_node": stator_node,
+            "contact_share": float(np.mean(regimes != 0)),
+            "stick_share": float(np.mean(regimes == STICK)),
+            "max_penetration_m": float(np.max(values[:, s, 0])),
+            "max_normal_N": float(np.max(values[:, s, 2])),
+            "max_friction_N": float(np.max(np.abs(values[:, s, 3]))),
+            "events": dict(Counter(KIND_NAMES[k] for k in events.kind.tolist())),
+        }
+    return {
+        "status": solution.status,
+        "message": solution.message,
+        "wall_time_s": solution.wall_time_s,
+        "stats": solution.stats,
+        "samples": int(solution.t.size),
+        "energy_residual_J": float(np.max(np.abs(residual))),
+        "energy_residual_relative": float(np.max(np.abs(residual)) / scale),
+        "stations": stations,
+    }
+
+
+def write_rotor_outputs(
+    case: RotorCase,
+    solutions: list[MachineSolution],
+    plan: io.OutputPlan,
+    command_line: dict[str, Any],
+) -> dict[str, Any]:
+    """Writes the case's products (module docstring) as one commit; returns the report."""
+    with io.staged_output_dir(case.output_dir, plan) as staged:
+        entries = {}
+        for solution in solutions:
+            entries[solution.method] = method_entry(case, solution)
+            if case.settings.output.csv:
+                header, columns = csv_columns(case, solution)
+                io.write_csv(staged.path(f"{solution.method}.csv"), header, [columns])
+        if "orbit" in case.settings.output.plots and solutions:
+            _write_orbits(case, solutions[0], staged.path(ORBIT_FIGURE))
+        report = {
+            **io.report_envelope("run", command_line, case.to_dict()),
+            "machine": machine_summary(case),
+            "methods": entries,
+            "files": [*staged.names(), io.REPORT_NAME],
+        }
+        staged.write_report(report)
+    return report
+
+
+def machine_summary(case: RotorCase) -> dict[str, Any]:
+    machine = case.machine
+    return {
+        "coordinates": machine.size,
+        "nodes": machine.structure.nodes,
+        "number_dof": machine.structure.dof_per_node,
+        "speed_rad_s": machine.speed.values[0],
+        "stations": [
+            {"name": name, "law": station.law.text(), "clearance_m": station.clearance}
+            for name, station in zip(case.station_names, machine.stations, strict=True)
+        ],
+    }
+
+
+def _write_orbits(case: RotorCase, solution: MachineSolution, path: Path) -> None:
+    from rubcli.plotting.stations import StationOrbit, station_orbits_figure
+
+    orbits = []
+    for s, name in enumerate(case.station_names):
+        station = case.machine.stations[s]
+        rotor, stator = case.station_nodes[s]
+        where = f"node {rotor}" + (f" on node {stator}" if stator is not None else "")
+        orbits.append(
+            StationOrbit(
+                label=f"station {name} ({where}), mu = {station.mu:g}",
+                relative=relative_orbit(case, solution, s),
+                clearance=station.clearance,
+                contact=solution.regimes[:, s] != 0,
+            )
+        )
+    revolutions = float(solution.t[-1] - solution.t[0]) * case.machine.speed.values[0] / (2 * np.pi)
+    title = (
+        f"{case.name}: orbits at the contact stations ({solution.method}, "
+        f"{case.settings.rotor.speed:g} rpm)"
+    )
+    io.save_figure(station_orbits_figure(title, orbits, solution.t, revolutions), path)
