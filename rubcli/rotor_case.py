@@ -241,8 +241,10 @@ def read_matrices(path: Path, where: str) -> dict[str, np.ndarray]:
             raise CaseError([f"{shown}: is not a regular file"])
         if info.st_size > MAX_MATRICES_BYTES:
             raise CaseError(
-                [f"{shown}: is larger than {MAX_MATRICES_BYTES // 1024**3} GiB, the most a "
-                 "matrices file may hold"]  # fmt: skip
+                [
+                    f"{shown}: is larger than {MAX_MATRICES_BYTES // 1024**3} GiB, the most a "
+                    "matrices file may hold"
+                ]  # fmt: skip
             )
         try:
             archive = zipfile.ZipFile(handle)
@@ -260,8 +262,10 @@ def _arrays(archive: zipfile.ZipFile, shown: str) -> dict[str, np.ndarray]:
     if missing:
         have = ", ".join(sorted(members)) or "none"
         raise CaseError(
-            [f"{shown}: has no matrix {', '.join(missing)} (it needs M, K and C, optionally "
-             f"G and number_dof; it holds: {have})"]  # fmt: skip
+            [
+                f"{shown}: has no matrix {', '.join(missing)} (it needs M, K and C, optionally "
+                f"G and number_dof; it holds: {have})"
+            ]  # fmt: skip
         )
     out: dict[str, np.ndarray] = {}
     for name in (*MATRIX_NAMES, "number_dof"):
@@ -283,8 +287,10 @@ def _arrays(archive: zipfile.ZipFile, shown: str) -> dict[str, np.ndarray]:
                     raise CaseError([f"{shown}: {name} must be a square matrix (got {shape})"])
                 elif shape[0] > MAX_COORDINATES:
                     raise CaseError(
-                        [f"{shown}: {name} has {shape[0]} coordinates, more than "
-                         f"{MAX_COORDINATES} (reduce the model)"]  # fmt: skip
+                        [
+                            f"{shown}: {name} has {shape[0]} coordinates, more than "
+                            f"{MAX_COORDINATES} (reduce the model)"
+                        ]  # fmt: skip
                     )
             with archive.open(members[name]) as member:
                 out[name] = np.lib.format.read_array(member, allow_pickle=False)
@@ -307,8 +313,10 @@ def _structure(arrays: dict[str, np.ndarray], settings: RotorCaseFile, source: s
     if per_node is None:
         if n != 2:
             raise CaseError(
-                [f"{source}: rotor.number_dof: give the coordinates a node (the matrices file "
-                 "has no number_dof)"]  # fmt: skip
+                [
+                    f"{source}: rotor.number_dof: give the coordinates a node (the matrices file "
+                    "has no number_dof)"
+                ]  # fmt: skip
             )
         per_node = 2
     try:
@@ -368,8 +376,10 @@ def _time_grid(settings: RotorCaseFile, source: str) -> np.ndarray:
     samples = revolutions * settings.time.samples_per_revolution
     if not samples <= MAX_OUTPUT_SAMPLES:
         raise CaseError(
-            [f"{source}: time: {samples:.3g} samples ({revolutions:.6g} revolutions at "
-             f"{settings.time.samples_per_revolution} a revolution), more than "
-             f"{MAX_OUTPUT_SAMPLES:,}"]  # fmt: skip
+            [
+                f"{source}: time: {samples:.3g} samples ({revolutions:.6g} revolutions at "
+                f"{settings.time.samples_per_revolution} a revolution), more than "
+                f"{MAX_OUTPUT_SAMPLES:,}"
+            ]  # fmt: skip
         )
     return np.linspace(0.0, settings.time.end, max(2, int(round(samples)) + 1))

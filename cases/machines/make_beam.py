@@ -33,16 +33,38 @@ def beam_matrices() -> dict[str, np.ndarray]:
     L = LENGTH / ELEMENTS
     area = np.pi * DIAMETER**2 / 4.0
     EI = YOUNG * np.pi * DIAMETER**4 / 64.0
-    k = EI / L**3 * np.array([[12, 6 * L, -12, 6 * L], [6 * L, 4 * L * L, -6 * L, 2 * L * L],
-                              [-12, -6 * L, 12, -6 * L], [6 * L, 2 * L * L, -6 * L, 4 * L * L]])
-    m = DENSITY * area * L / 420.0 * np.array(
-        [[156, 22 * L, 54, -13 * L], [22 * L, 4 * L * L, 13 * L, -3 * L * L],
-         [54, 13 * L, 156, -22 * L], [-13 * L, -3 * L * L, -22 * L, 4 * L * L]])
+    k = (
+        EI
+        / L**3
+        * np.array(
+            [
+                [12, 6 * L, -12, 6 * L],
+                [6 * L, 4 * L * L, -6 * L, 2 * L * L],
+                [-12, -6 * L, 12, -6 * L],
+                [6 * L, 2 * L * L, -6 * L, 4 * L * L],
+            ]
+        )
+    )
+    m = (
+        DENSITY
+        * area
+        * L
+        / 420.0
+        * np.array(
+            [
+                [156, 22 * L, 54, -13 * L],
+                [22 * L, 4 * L * L, 13 * L, -3 * L * L],
+                [54, 13 * L, 156, -22 * L],
+                [-13 * L, -3 * L * L, -22 * L, 4 * L * L],
+            ]
+        )
+    )
     for e in range(ELEMENTS):
         a, b = DOF * e, DOF * (e + 1)
         for plane in ((0, 3), (1, 2)):  # x with beta, y with alpha
             idx = [a + plane[0], a + plane[1], b + plane[0], b + plane[1]]
-            sign = np.array([1.0, 1.0, 1.0, 1.0]) if plane == (0, 3) else np.array([1.0, -1.0, 1.0, -1.0])
+            flip = 1.0 if plane == (0, 3) else -1.0  # alpha turns against the y plane's slope
+            sign = np.array([1.0, flip, 1.0, flip])
             K[np.ix_(idx, idx)] += k * np.outer(sign, sign)
             M[np.ix_(idx, idx)] += m * np.outer(sign, sign)
     d = DOF * DISK_NODE

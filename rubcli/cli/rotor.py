@@ -109,7 +109,8 @@ def run(
         solver = case.settings.solver.model_copy(update={"methods": list(dict.fromkeys(methods))})
         case = _with_settings(case, solver=solver)
     if out is not None:
-        case = _with_settings(case, output=case.settings.output.model_copy(update={"dir": str(out)}))
+        output = case.settings.output.model_copy(update={"dir": str(out)})
+        case = _with_settings(case, output=output)
     plan = prepare_output(case.output_dir, force, wait, rotor_run.expected_files(case))
     command_line = {"case_file": str(case_file), "methods": methods or None,
                     "out": str(out) if out is not None else None,

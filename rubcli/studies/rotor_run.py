@@ -60,8 +60,13 @@ def run_rotor_case(
             budget = left if budget is None else min(budget, left)
         solutions.append(
             simulate(
-                case.machine, case.t_eval, method=method, rtol=solver.rtol, atol=solver.atol,
-                max_steps=solver.max_steps, max_wall_time_s=budget,
+                case.machine,
+                case.t_eval,
+                method=method,
+                rtol=solver.rtol,
+                atol=solver.atol,
+                max_steps=solver.max_steps,
+                max_wall_time_s=budget,
             )  # fmt: skip
         )
     return solutions

@@ -92,4 +92,3 @@ def advance(
         f[:] = Kst[DOP_STAGES]
         t = t_new
     return LIMIT, t, h_abs, k, steps, nfev, t, 0.0, 0
-
