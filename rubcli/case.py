@@ -1539,8 +1539,17 @@ def parse_case_text(data: str | bytes, source: str = "<case>") -> dict[str, Any]
         ) from None
 
 
+# What a case with [rotor] (a machine given as matrices, rubcli.rotor_case) runs with.
+MATRICES_CASE_COMMANDS = (
+    "a machine given as matrices runs with `rubcli validate` and `rubcli run` (the other "
+    "commands take the Jeffcott rotor's [model] or [physical])"
+)
+
+
 def validate_case(raw: dict[str, Any], source: str = "<case>") -> CaseFile:
     """Step 2: validate a parsed case against the schema. Raises CaseError."""
+    if "rotor" in raw:  # a machine given as matrices: rubcli.rotor_case
+        raise CaseError([f"{source}: rotor: {MATRICES_CASE_COMMANDS}"])
     problems: list[str] = []
     has_model, has_physical = "model" in raw, "physical" in raw
     if has_model and has_physical:

@@ -235,10 +235,12 @@ def read_matrices(path: Path, where: str) -> dict[str, np.ndarray]:
         raise CaseError([f"{shown}: is a directory, not a matrices file"]) from None
     except OSError as exc:
         raise CaseError([f"{shown}: cannot read: {exc.strerror or exc}"]) from None
+    info = os.fstat(fd)
+    if not stat.S_ISREG(info.st_mode):
+        os.close(fd)
+        what = "a directory" if stat.S_ISDIR(info.st_mode) else "not a regular file"
+        raise CaseError([f"{shown}: is {what}, not a matrices file"])
     with os.fdopen(fd, "rb") as handle:
-        info = os.fstat(handle.fileno())
-        if not stat.S_ISREG(info.st_mode):
-            raise CaseError([f"{shown}: is not a regular file"])
         if info.st_size > MAX_MATRICES_BYTES:
             raise CaseError(
                 [

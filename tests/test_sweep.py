@@ -15,6 +15,7 @@ import signal
 import subprocess
 import sys
 import time
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -32,7 +33,9 @@ from rubcli.sweeps import plan_from_case
 
 REPO = Path(__file__).resolve().parents[1]
 SWEEP_CASES = sorted(
-    p for p in (REPO / "cases").rglob("*.toml") if load_case(p).settings.sweep is not None
+    p
+    for p in (REPO / "cases").rglob("*.toml")
+    if "rotor" not in tomllib.loads(p.read_text()) and load_case(p).settings.sweep is not None
 )
 
 FREE_CASE = """

@@ -310,3 +310,23 @@ def event_functions(t, y, ctx, out, vals, g):
             else:
                 g[s, 1] = 1.0
     return status
+
+
+@jit
+def jacobian_into(t, y, ctx, scale, jac, shifted, f_plus, f_minus):
+    """Central differences of the right-hand side (m, m) into ``jac``, for the implicit
+    methods: column j with the step ``1e-6 max(|y_j|, scale[j])`` (``scale``: a typical
+    size of each state). The work ``W`` is a state nothing depends on: its column is 0."""
+    m = y.shape[0]
+    for i in range(m):
+        shifted[i] = y[i]
+    jac[:, :] = 0.0
+    for j in range(m - 1):
+        h = 1e-6 * max(abs(y[j]), scale[j])
+        shifted[j] = y[j] + h
+        rhs_into(t, shifted, ctx, 0, f_plus)
+        shifted[j] = y[j] - h
+        rhs_into(t, shifted, ctx, 0, f_minus)
+        shifted[j] = y[j]
+        for i in range(m):
+            jac[i, j] = (f_plus[i] - f_minus[i]) / (2.0 * h)

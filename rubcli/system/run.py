@@ -36,12 +36,14 @@ from rubcli.system import advance as adv
 from rubcli.system.arrays import SystemArrays
 from rubcli.system.kernels import (
     OK,
+    S_MU,
     V_NORMAL,
     V_SLIP,
     V_TANGENTIAL,
     W_VELOCITY,
     evaluate,
     event_functions,
+    jacobian_into,
     rhs_into,
 )
 from rubcli.system.solution import (
@@ -58,6 +60,7 @@ from rubcli.system.solution import (
 
 SCIPY_METHODS = {"rk45": RK45, "dop853": DOP853, "radau": Radau, "bdf": BDF, "lsoda": LSODA}
 METHODS = ("dop853-jit", *SCIPY_METHODS)
+IMPLICIT = ("radau", "bdf", "lsoda")
 STORM_EVENTS = 200  # events in a row at one instant: a storm
 CHUNK_STEPS = 20_000  # dop853-jit's steps between two checks of the wall-time budget
 
@@ -247,7 +250,20 @@ class _Run:
             rhs_into(tau, np.ascontiguousarray(state, dtype=float), ctx, 0, out)
             return out
 
-        solver = SCIPY_METHODS[self.method](fun, t, y.copy(), t_end, rtol=self.rtol, atol=self.atol)
+        options = {}
+        if self.method in IMPLICIT:
+            scale = self._state_scale()
+            buffers = [np.empty((m, m)), np.empty(m), np.empty(m), np.empty(m)]
+
+            def jac(tau, state):
+                state = np.ascontiguousarray(state, dtype=float)
+                jacobian_into(tau, state, ctx, scale, *buffers)
+                return buffers[0].copy()
+
+            options["jac"] = jac
+        solver = SCIPY_METHODS[self.method](
+            fun, t, y.copy(), t_end, rtol=self.rtol, atol=self.atol, **options
+        )
         while True:
             if self.steps >= max_steps:
                 raise _RunError(f"more than max_steps = {max_steps} steps by t = {solver.t:.9g}")
@@ -272,6 +288,15 @@ class _Run:
             self.nfev = solver.nfev
             if solver.status == "finished":
                 return None
+
+    def _state_scale(self) -> np.ndarray:
+        """A typical size of each state, for the Jacobian's differences: the smallest
+        clearance for positions, it times the fastest spin speed for velocities."""
+        clearance = float(np.min(self.arrays.parameters[:, 2]))
+        speed = float(np.max(self.arrays.knots[:, 1]))
+        return np.concatenate(
+            [np.full(self.n, clearance), np.full(self.n, clearance * max(speed, 1.0)), [1.0]]
+        )
 
     def _locate(self, t_old: float, h: float, j: int, dense: Callable):
         """The earliest event in the scan interval j of the step (t_old, h)."""
@@ -316,7 +341,7 @@ class _Run:
         self.regimes[s] = SLIP_POSITIVE
         self._evaluate(t, y)
         slip = self.vals[s, V_SLIP]
-        if slip == 0.0 and self._try_stick(t, y, s):
+        if slip == 0.0 and self.arrays.parameters[s, S_MU] > 0.0 and self._try_stick(t, y, s):
             return STICK_ENTRY
         self.regimes[s] = SLIP_POSITIVE if slip >= 0.0 else SLIP_NEGATIVE
         return ENTRY
@@ -327,7 +352,7 @@ class _Run:
         self.regimes[s] = STICK
         self._evaluate(t, y)
         needed = self.vals[s, V_TANGENTIAL]
-        mu = self.arrays.parameters[s, 3]
+        mu = self.arrays.parameters[s, S_MU]
         if abs(needed) <= mu * self.vals[s, V_NORMAL]:
             y[self.n : 2 * self.n] = self.ctx[13][W_VELOCITY]
             return True

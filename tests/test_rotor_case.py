@@ -1,0 +1,229 @@
+"""Cases whose machine is given as matrices (``[rotor] matrices``): every shipped one runs,
+its outputs hold what docs/machine.md says, and a bad matrices file or table is refused
+with exit 2 naming the file, the field and the problem, nothing written."""
+
+from __future__ import annotations
+
+import csv
+import importlib.util
+import json
+import shutil
+import tomllib
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from rubcli.cli.app import app
+from rubcli.rotor_case import load_rotor_case
+from rubcli.system import simulate
+
+REPO = Path(__file__).resolve().parents[1]
+MATRICES_CASES = sorted(
+    p for p in (REPO / "cases").rglob("*.toml") if "rotor" in tomllib.loads(p.read_text())
+)
+runner = CliRunner()
+
+
+def test_there_are_matrices_cases():
+    assert REPO / "cases" / "machines" / "two-seals.toml" in MATRICES_CASES
+
+
+def test_the_beam_file_is_what_its_script_makes():
+    script = REPO / "cases" / "machines" / "make_beam.py"
+    spec = importlib.util.spec_from_file_location("make_beam", script)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    made = module.beam_matrices()
+    with np.load(REPO / "cases" / "machines" / "beam.npz") as shipped:
+        assert sorted(shipped.files) == sorted(made)
+        for name, array in made.items():
+            np.testing.assert_allclose(shipped[name], array, rtol=1e-15, atol=0)
+
+
+@pytest.mark.parametrize("path", MATRICES_CASES, ids=lambda p: p.name)
+def test_matrices_case_runs(path, tmp_path):
+    out = tmp_path / "out"
+    result = runner.invoke(app, ["run", str(path), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    case = load_rotor_case(path)
+    expected = {"report.json", "orbit.png"} | {f"{m}.csv" for m in case.methods}
+    assert {p.name for p in out.iterdir()} == expected
+    report = json.loads((out / "report.json").read_text())
+    assert report["machine"]["coordinates"] == case.machine.size
+    # an independent integration of the same machine: radau, tight
+    reference = simulate(case.machine, case.t_eval, method="radau", rtol=1e-10, atol=1e-15)
+    assert reference.success
+    for method, entry in report["methods"].items():
+        assert entry["status"] == "success", entry["message"]
+        assert entry["energy_residual_relative"] < 1e-6
+        assert set(entry["stations"]) == set(case.station_names)
+        with open(out / f"{method}.csv", newline="") as handle:
+            rows = list(csv.DictReader(handle))
+        assert len(rows) == case.t_eval.size
+        for s, name in enumerate(case.station_names):
+            station = entry["stations"][name]
+            events = reference.events.at_station(s)
+            assert sum(station["events"].values()) == len(events)
+            node = case.station_nodes[s][0]
+            ix, iy = case.machine.structure.lateral(node)
+            last = rows[-1]
+            clearance = case.machine.stations[s].clearance
+            assert abs(float(last[f"x_{node}"]) - reference.states[-1, ix]) < 1e-3 * clearance
+            assert abs(float(last[f"y_{node}"]) - reference.states[-1, iy]) < 1e-3 * clearance
+            regimes = {row[f"{name}_regime"] for row in rows}
+            assert regimes <= {"free", "slip+", "slip-", "stick"} and "free" in regimes
+            touching = [float(r[f"{name}_normal_N"]) for r in rows if r[f"{name}_regime"] != "free"]
+            assert touching and min(touching) >= 0.0
+
+
+@pytest.fixture
+def case_dir(tmp_path):
+    """A copy of the two-seal case and its beam, to break."""
+    for name in ("two-seals.toml", "beam.npz"):
+        shutil.copy(REPO / "cases" / "machines" / name, tmp_path / name)
+    return tmp_path
+
+
+def _save(path: Path, **arrays) -> None:
+    with open(path, "wb") as handle:
+        np.savez(handle, **arrays)
+
+
+def _beam(case_dir: Path) -> dict[str, np.ndarray]:
+    with np.load(case_dir / "beam.npz") as data:
+        return {k: data[k] for k in data.files}
+
+
+def _huge_header(path: Path) -> None:
+    """An .npz whose M declares 50000 x 50000 (20 GB) in its header, with no data."""
+    with zipfile.ZipFile(path, "w") as archive:
+        for name in ("M", "K", "C"):
+            with archive.open(f"{name}.npy", "w") as member:
+                header = {"descr": "<f8", "fortran_order": False, "shape": (50000, 50000)}
+                np.lib.format.write_array_header_1_0(member, header)
+
+
+BROKEN = {
+    "missing": (lambda d: (d / "beam.npz").unlink(), "beam.npz: file not found"),
+    "not a zip": (lambda d: (d / "beam.npz").write_text("M = 1"), "not an .npz file"),
+    "a directory": (
+        lambda d: ((d / "beam.npz").unlink(), (d / "beam.npz").mkdir()),
+        "is a directory",
+    ),  # fmt: skip
+    "no C": (
+        lambda d: _save(d / "beam.npz", **{k: v for k, v in _beam(d).items() if k != "C"}),
+        "has no matrix C",
+    ),  # fmt: skip
+    "not square": (
+        lambda d: _save(d / "beam.npz", **{**_beam(d), "K": np.ones((24, 23))}),
+        "K must be a square matrix",
+    ),  # fmt: skip
+    "wrong size": (
+        lambda d: _save(d / "beam.npz", **{**_beam(d), "C": np.eye(12)}),
+        "C must be 24 x 24",
+    ),  # fmt: skip
+    "not symmetric": (
+        lambda d: _save(
+            d / "beam.npz", **{**_beam(d), "M": _beam(d)["M"] + np.triu(np.ones((24, 24)), 1)}
+        ),
+        "M must be symmetric",
+    ),  # fmt: skip
+    "not definite": (
+        lambda d: _save(d / "beam.npz", **{**_beam(d), "M": -_beam(d)["M"]}),
+        "M must be positive definite",
+    ),  # fmt: skip
+    "nan": (
+        lambda d: _save(d / "beam.npz", **{**_beam(d), "K": _beam(d)["K"] * np.nan}),
+        "K must be finite",
+    ),  # fmt: skip
+    "objects": (
+        lambda d: _save(d / "beam.npz", **{**_beam(d), "G": np.array([None, 1])}),
+        "G must hold plain numbers",
+    ),  # fmt: skip
+    "huge": (lambda d: _huge_header(d / "beam.npz"), "more than 2000"),
+    "no number_dof": (
+        lambda d: _save(d / "beam.npz", **{k: v for k, v in _beam(d).items() if k != "number_dof"}),
+        "rotor.number_dof: give the coordinates a node",
+    ),  # fmt: skip
+    "bad number_dof": (
+        lambda d: _save(d / "beam.npz", **{**_beam(d), "number_dof": np.array(5)}),
+        "dof_per_node = 5 must be >= 2 and divide the 24",
+    ),  # fmt: skip
+}
+
+
+@pytest.mark.parametrize("kind", list(BROKEN))
+def test_a_bad_matrices_file_is_refused_naming_it(case_dir, kind, tmp_path):
+    breaks, message = BROKEN[kind]
+    breaks(case_dir)
+    out = tmp_path / "out"
+    for command in (["validate"], ["run", "--out", str(out)]):
+        result = runner.invoke(app, [command[0], str(case_dir / "two-seals.toml"), *command[1:]])
+        assert result.exit_code == 2, result.output
+        assert "rotor.matrices" in result.output or "rotor.number_dof" in result.output
+        assert message in " ".join(result.output.split()), result.output
+        assert "Traceback" not in result.output
+    assert not out.exists()
+
+
+TABLE_ERRORS = {
+    "node beyond": (
+        "node = 4\nclearance = 1.5e-5",
+        "node = 9\nclearance = 1.5e-5",
+        "station[1].node: node 9 does not exist (the matrices have 6 nodes",
+    ),  # fmt: skip
+    "unknown key": (
+        "offset = [5e-6, 0.0]",
+        "offset = [5e-6, 0.0]\nmue = 1",
+        "station[1].mue: unknown key",
+    ),  # fmt: skip
+    "no radius": (
+        "radius = 0.02                  # m\noffset",
+        "offset",
+        "station[1].radius: missing required key",
+    ),  # fmt: skip
+    "bad speed": ("speed = 2500.0", "speed = -1.0", "rotor.speed: Input should be greater than 0"),
+    "bad method": (
+        'methods = ["dop853-jit"]',
+        'methods = ["analytic"]',
+        "'analytic' cannot run a machine given as matrices",
+    ),  # fmt: skip
+    "same node": (
+        "offset = [5e-6, 0.0]",
+        "offset = [5e-6, 0.0]\nstator_node = 4",
+        "station[1].stator_node: the station's own node",
+    ),  # fmt: skip
+}
+
+
+@pytest.mark.parametrize("kind", list(TABLE_ERRORS))
+def test_a_bad_table_is_refused_naming_its_field(case_dir, kind):
+    old, new, message = TABLE_ERRORS[kind]
+    path = case_dir / "two-seals.toml"
+    text = path.read_text()
+    assert old in text
+    path.write_text(text.replace(old, new, 1))
+    result = runner.invoke(app, ["validate", str(path)])
+    assert result.exit_code == 2, result.output
+    assert message in " ".join(result.output.split()), result.output
+
+
+def test_validate_json_and_the_other_commands(case_dir):
+    path = case_dir / "two-seals.toml"
+    result = runner.invoke(app, ["validate", str(path), "--json"])
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.output)["valid"] is True
+    result = runner.invoke(app, ["compare", str(path)])
+    assert result.exit_code == 2
+    assert "runs with `rubcli validate` and `rubcli run`" in " ".join(result.output.split())
+    result = runner.invoke(app, ["run", str(path), "--periods", "3"])
+    assert result.exit_code == 2 and "[time] end" in result.output
+    result = runner.invoke(app, ["run", str(path), "--method", "taylor"])
+    assert result.exit_code == 2 and "cannot run a machine given as matrices" in result.output
+    (case_dir / "beam.npz").write_text("x")
+    result = runner.invoke(app, ["validate", str(path), "--json"])
+    assert result.exit_code == 2
+    assert json.loads(result.output)["valid"] is False
