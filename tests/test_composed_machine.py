@@ -328,3 +328,12 @@ def test_a_run_stops_at_its_step_budget_with_the_samples_so_far():
     solution = simulate(jeffcott_machine(PAPER), t, max_steps=50)
     assert not solution.success and "max_steps" in solution.message
     assert 1 < solution.t.size < t.size
+
+
+def test_the_docs_example_runs(capsys):
+    """The Python example of docs/composed-machine.md, as written."""
+    text = (Path(__file__).resolve().parents[1] / "docs" / "composed-machine.md").read_text()
+    code = text.split("```python\n", 1)[1].split("```", 1)[0]
+    exec(compile(code, "docs/composed-machine.md", "exec"), {})
+    status, events, residual = capsys.readouterr().out.split()
+    assert status == "success" and int(events) > 10 and float(residual) < 1e-7

@@ -1,5 +1,5 @@
 """Cases whose machine is given as matrices (``[rotor] matrices``): every shipped one runs,
-its outputs hold what docs/machine.md says, and a bad matrices file or table is refused
+its outputs hold what docs/composed-machine.md says, and a bad matrices file or table is refused
 with exit 2 naming the file, the field and the problem, nothing written."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """The composed machine: a linear structure of any size, unbalances, contact stations with
-their contact law, and a speed (``docs/machine.md``). Data only, checked once on
+their contact law, and a speed (``docs/composed-machine.md``). Data only, checked once on
 construction; ``rubcli.system`` builds the one system every method runs from it."""
 
 from rubcli.machine.contact import ContactLaw

@@ -2,7 +2,7 @@
 
     M v' + (C + Omega G) v + K q = f_static + f_unbalance(t) + sum_s W_s F_s
 
-(``docs/machine.md``). Every field is checked once, here, on construction: a TypeError or
+(``docs/composed-machine.md``). Every field is checked once, here, on construction: a TypeError or
 ValueError naming the owner and the field. The system built from a machine
 (``rubcli.system``) trusts it.
 

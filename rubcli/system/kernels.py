@@ -1,6 +1,6 @@
 """The composed machine's system, compiled: its right-hand side, station forces, stick
 forces, projection onto rolling, energy rate and event functions, written once for every
-machine (``docs/machine.md``, "What is then written once").
+machine (``docs/composed-machine.md``, "What is then written once").
 
 The state is ``y = (q, v, W)``: the structure's ``n`` coordinates, their velocities, and
 the work ``W`` done on the structure by everything but its conservative forces (so that
