@@ -161,11 +161,13 @@ def test_two_uncoupled_rotors_are_two_runs_of_one():
     first = simulate(jeffcott_machine(PAPER), t, rtol=1e-11, atol=1e-13)
     second = simulate(jeffcott_machine(other), t, rtol=1e-11, atol=1e-13)
     assert both.success
+    # the pair's steps are not each rotor's own; their difference is amplified as in
+    # test_jeffcott_machines_agree_with_the_rotor_solvers
     for s, alone in enumerate((first, second)):
         assert both.events.at_station(s).kinds() == alone.events.kinds()
-        np.testing.assert_allclose(both.events.at_station(s).t, alone.events.t, atol=1e-7)
+        np.testing.assert_allclose(both.events.at_station(s).t, alone.events.t, atol=2e-5)
         got = both.states[:, [2 * s, 2 * s + 1, 4 + 2 * s, 5 + 2 * s]]
-        assert np.max(np.abs(got - alone.states)) < 1e-6
+        assert np.max(np.abs(got - alone.states)) < 2e-5
 
 
 @pytest.mark.parametrize("method", ["dop853-jit", "radau"])

@@ -21,9 +21,10 @@ class SystemArrays:
     MinvK: np.ndarray
     MinvC: np.ndarray
     MinvG: np.ndarray
-    C: np.ndarray
-    G: np.ndarray
-    Kanti: np.ndarray
+    Dsym: np.ndarray  # the damping's symmetric part (C's, and Omega G's at a constant speed)
+    Gsym: np.ndarray  # G's symmetric part, apart (a speed that changes)
+    Kanti: np.ndarray  # K's antisymmetric part
+    flags: np.ndarray  # kernels.F_*: which of the terms above are there
     facc: np.ndarray
     unbalances: np.ndarray  # (U, 4): x coordinate, y coordinate, m e, phase
     indices: np.ndarray  # (S, 4) int64: rotor x, y; stator x, y (-1: rigid)
@@ -51,15 +52,24 @@ class SystemArrays:
                 station.radius,
             )
             parameters[s, S_LAW:] = station.law.record()
+        constant = machine.speed.is_constant
+        omega = machine.speed.values[0]
+        # at a constant speed Omega G joins C (one product less a step)
+        C = st.C + omega * st.G if constant else st.C
+        G = np.zeros_like(st.G) if constant else st.G
+        Gsym = 0.5 * (G + G.T)
+        Kanti = 0.5 * (st.K - st.K.T)
+        flags = np.array([np.any(G != 0.0), np.any(Gsym != 0.0), np.any(Kanti != 0.0)])
         return cls(
             machine=machine,
             Minv=Minv,
             MinvK=Minv @ st.K,
-            MinvC=Minv @ st.C,
-            MinvG=Minv @ st.G,
-            C=np.ascontiguousarray(st.C),
-            G=np.ascontiguousarray(st.G),
-            Kanti=0.5 * (st.K - st.K.T),
+            MinvC=Minv @ C,
+            MinvG=Minv @ G,
+            Dsym=0.5 * (C + C.T),
+            Gsym=Gsym,
+            Kanti=Kanti,
+            flags=flags,
             facc=Minv @ st.static,
             unbalances=unb,
             indices=indices,
@@ -83,8 +93,8 @@ class SystemArrays:
             self.MinvK,
             self.MinvC,
             self.MinvG,
-            self.C,
-            self.G,
+            self.Dsym,
+            self.Gsym,
             self.Kanti,
             self.facc,
             self.unbalances,
@@ -99,4 +109,5 @@ class SystemArrays:
             np.zeros(S),
             np.zeros(S, dtype=np.int64),
             np.zeros((S, VALUES_SIZE)),
+            self.flags,
         )

@@ -44,10 +44,13 @@ GEOMETRY_SIZE = 7
 V_PENETRATION, V_SLIP, V_NORMAL, V_TANGENTIAL = 0, 1, 2, 3
 VALUES_SIZE = 4
 # rows of the work buffer before the stick stations' mobility vectors
-W_VELOCITY, W_ACCELERATION, W_FORCE = 0, 1, 2
-WORK_ROWS = 3
+W_VELOCITY, W_ACCELERATION = 0, 1
+WORK_ROWS = 2
 # positions in the context tuple (``SystemArrays.context``)
 C_PARAMETERS, C_REGIMES, C_VALUES = 10, 12, 19
+# the structure's flags (``SystemArrays.flags``): G apart from C (a speed that changes);
+# G not skew (it then does work); K not symmetric (cross-coupling)
+F_GYROSCOPIC, F_GYROSCOPIC_WORK, F_CROSS_COUPLED = 0, 1, 2
 # evaluate's status
 OK, SINGULAR = 0, 1
 
@@ -180,8 +183,8 @@ def evaluate(t, y, ctx, out, vals):
     """The derivative of ``y = (q, v, W)`` into ``out`` and each station's penetration,
     slip, normal and tangential force into ``vals`` (``V_*``); returns ``OK`` or
     ``SINGULAR`` (the stick stations' mobilities are singular)."""
-    (Minv, MinvK, MinvC, MinvG, C, G, Kanti, facc, unb, idx, par, knots, regimes, work,
-     geo, mob, lhs, rhs, stuck, _) = ctx  # fmt: skip
+    (Minv, MinvK, MinvC, MinvG, Dsym, Gsym, Kanti, facc, unb, idx, par, knots, regimes, work,
+     geo, mob, lhs, rhs, stuck, _, flags) = ctx  # fmt: skip
     n = Minv.shape[0]
     S = idx.shape[0]
     omega, omega_rate, angle = speed_at(knots, t)
@@ -206,26 +209,43 @@ def evaluate(t, y, ctx, out, vals):
                 v[i] += rhs[a] * h[i]
         for s in range(S):
             _geometry(q, v, idx, par, s, geo)
-    # the linear structure and the unbalances
-    force = work[W_FORCE]
-    force[:] = 0.0
-    for u in range(unb.shape[0]):
-        p = unb[u, 3] + angle
-        c, sn = math.cos(p), math.sin(p)
-        scale = unb[u, 2]
-        force[int(unb[u, 0])] += scale * (omega * omega * c + omega_rate * sn)
-        force[int(unb[u, 1])] += scale * (omega * omega * sn - omega_rate * c)
+    # the linear structure and the unbalances (their forces on two coordinates each)
     acc = work[W_ACCELERATION]
     power = 0.0
     for i in range(n):
         a_i = facc[i]
-        p_i = force[i]
         for j in range(n):
-            a_i += Minv[i, j] * force[j] - MinvK[i, j] * q[j]
-            a_i -= (MinvC[i, j] + omega * MinvG[i, j]) * v[j]
-            p_i -= (C[i, j] + omega * G[i, j]) * v[j] + Kanti[i, j] * q[j]
+            a_i -= MinvK[i, j] * q[j] + MinvC[i, j] * v[j]
         acc[i] = a_i
-        power += v[i] * p_i
+    if flags[F_GYROSCOPIC]:  # a speed that changes: Omega G apart from C
+        for i in range(n):
+            a_i = 0.0
+            for j in range(n):
+                a_i += MinvG[i, j] * v[j]
+            acc[i] -= omega * a_i
+    for u in range(unb.shape[0]):
+        p = unb[u, 3] + angle
+        c, sn = math.cos(p), math.sin(p)
+        scale = unb[u, 2]
+        ix, iy = int(unb[u, 0]), int(unb[u, 1])
+        fx = scale * (omega * omega * c + omega_rate * sn)
+        fy = scale * (omega * omega * sn - omega_rate * c)
+        for i in range(n):
+            acc[i] += Minv[i, ix] * fx + Minv[i, iy] * fy
+        power += v[ix] * fx + v[iy] * fy
+    # the power of the damping (C's symmetric part, and G's if it is not skew) and of
+    # the cross-coupling (K's antisymmetric part)
+    for i in range(n):
+        p_i = 0.0
+        for j in range(n):
+            p_i += Dsym[i, j] * v[j]
+        if flags[F_GYROSCOPIC_WORK]:
+            for j in range(n):
+                p_i += omega * Gsym[i, j] * v[j]
+        if flags[F_CROSS_COUPLED]:
+            for j in range(n):
+                p_i += Kanti[i, j] * q[j]
+        power -= v[i] * p_i
     # the stations' normal forces and slip friction
     for s in range(S):
         pen = geo[s, G_Z] - par[s, S_CLEARANCE]
