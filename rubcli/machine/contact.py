@@ -1,8 +1,10 @@
 """The contact law of a station: the normal force of a penetration, in one module.
 
 A law is the few numbers ``ContactLaw.record()`` packs (``LAW_SIZE`` of them), read by its
-compilable cores: ``normal_force`` (the force along the normal, never pulling) and
-``stored_energy`` (the elastic part's potential, for the energy balance). The system
+compilable cores from row ``s`` of a table, from column ``first`` on (the system keeps
+each station's law in its parameters' row): ``normal_force`` (the force along the normal,
+never pulling), ``elastic_force`` and ``stored_energy`` (the elastic part and its
+potential, for the energy balance). The system
 (``rubcli.system``) calls nothing else of a law, so a new law is a change here only.
 
 The law: ``F_N = max(0, k delta^p + c z')`` while the station is in contact (``delta =
@@ -60,22 +62,23 @@ class ContactLaw:
         return f"F_N = {elastic}{damped} (k = {self.stiffness:.6g})"
 
 
-def elastic_force(law: np.ndarray, penetration: float) -> float:
+def elastic_force(table: np.ndarray, s: int, first: int, penetration: float) -> float:
     """The elastic part ``k delta^p`` at a penetration ``delta >= 0`` (compilable core)."""
-    if law[2] == 1.0:
-        return law[0] * penetration
-    return law[0] * penetration ** law[2]
+    k, p = table[s, first], table[s, first + 2]
+    if p == 1.0:
+        return k * penetration
+    return k * penetration**p
 
 
-def normal_force(law: np.ndarray, penetration: float, rate: float) -> float:
+def normal_force(table: np.ndarray, s: int, first: int, penetration: float, rate: float) -> float:
     """``max(0, k delta^p + c z')`` (compilable core): the contact pushes, never pulls."""
-    force = elastic_force(law, penetration) + law[1] * rate
+    force = elastic_force(table, s, first, penetration) + table[s, first + 1] * rate
     return force if force > 0.0 else 0.0
 
 
-def stored_energy(law: np.ndarray, penetration: float) -> float:
+def stored_energy(table: np.ndarray, s: int, first: int, penetration: float) -> float:
     """The elastic part's potential ``k delta^(p + 1) / (p + 1)`` (0 out of contact)."""
     if penetration <= 0.0:
         return 0.0
-    p = law[2]
-    return law[0] * penetration ** (p + 1.0) / (p + 1.0)
+    k, p = table[s, first], table[s, first + 2]
+    return k * penetration ** (p + 1.0) / (p + 1.0)

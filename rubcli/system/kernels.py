@@ -28,9 +28,13 @@ import math
 import numpy as np
 from numba.extending import register_jitable
 
+from rubcli.cached_jit import njit
 from rubcli.machine import contact
 from rubcli.model import FREE, SLIP_POSITIVE, STICK, STICK_EXIT_MARGIN
-from rubcli.solvers.compiled.jit import jit
+from rubcli.solvers.compiled.jit import jit_loop as jit
+
+# the small helpers, inlined into their callers in numba's IR (no call, no arrays passed)
+inline = njit(nogil=True, _nrt=False, inline="always")
 
 for _core in (contact.elastic_force, contact.normal_force, contact.stored_energy):
     register_jitable(_core)
@@ -55,7 +59,7 @@ F_GYROSCOPIC, F_GYROSCOPIC_WORK, F_CROSS_COUPLED = 0, 1, 2
 OK, SINGULAR = 0, 1
 
 
-@jit
+@inline
 def speed_at(knots, t):
     """``(Omega, Omega', angle)`` at t of the piecewise-linear profile ``knots`` (rows
     time, speed, angle integral_0^t Omega at the knot), held outside its knots."""
@@ -72,7 +76,7 @@ def speed_at(knots, t):
     return knots[k, 1] + rate * dt, rate, knots[k, 2] + knots[k, 1] * dt + 0.5 * rate * dt * dt
 
 
-@jit
+@inline
 def _geometry(q, v, idx, par, s, geo):
     """Station s's relative position and velocity (``G_*`` columns of ``geo[s]``)."""
     dx = q[idx[s, 0]] - par[s, S_CX]
@@ -98,7 +102,7 @@ def _geometry(q, v, idx, par, s, geo):
     geo[s, G_B] = -wx * ny + wy * nx
 
 
-@jit
+@inline
 def _add_plane(vec, Minv, idx, s, fx, fy, into):
     """``into += Minv W_s (fx, fy)`` (``Minv`` None-like when ``vec`` is False: the
     plane force added to the coordinates themselves)."""
@@ -118,7 +122,7 @@ def _add_plane(vec, Minv, idx, s, fx, fy, into):
             into[jy] -= fy
 
 
-@jit
+@inline
 def _tangential_of(vec, idx, s, geo):
     """``g_s . vec = t_s . (W_s^T vec)``: the tangential part of station s's relative
     component of ``vec``."""
@@ -130,7 +134,7 @@ def _tangential_of(vec, idx, s, geo):
     return geo[s, G_TX] * wx + geo[s, G_TY] * wy
 
 
-@jit
+@inline
 def _solve_small(A, b, k):
     """Solves ``A[:k, :k] x = b[:k]`` in place (x in b) by Gaussian elimination with
     partial pivoting; False if A is singular to working precision."""
@@ -158,7 +162,7 @@ def _solve_small(A, b, k):
     return True
 
 
-@jit
+@inline
 def _stick_mobilities(Minv, idx, geo, regimes, work, stuck, mob):
     """The stick stations (into ``stuck``, their count returned), their mobility vectors
     ``M^-1 g_s`` (work rows from ``WORK_ROWS``) and mobilities ``mob``."""
@@ -256,15 +260,14 @@ def evaluate(t, y, ctx, out, vals):
         vals[s, V_TANGENTIAL] = 0.0
         if regimes[s] == FREE:
             continue
-        law = par[s, S_LAW:]
-        normal = contact.normal_force(law, pen, geo[s, G_A]) if pen > 0.0 else 0.0
+        normal = contact.normal_force(par, s, S_LAW, pen, geo[s, G_A]) if pen > 0.0 else 0.0
         tangential = 0.0
         if regimes[s] != STICK:
             tangential = par[s, S_MU] * normal * (1.0 if regimes[s] == SLIP_POSITIVE else -1.0)
         fx = -normal * geo[s, G_NX] - tangential * geo[s, G_TX]
         fy = -normal * geo[s, G_NY] - tangential * geo[s, G_TY]
         _add_plane(True, Minv, idx, s, fx, fy, acc)
-        elastic = contact.elastic_force(law, pen) if pen > 0.0 else 0.0
+        elastic = contact.elastic_force(par, s, S_LAW, pen) if pen > 0.0 else 0.0
         power -= (normal - elastic) * geo[s, G_A] + tangential * geo[s, G_B]
         vals[s, V_NORMAL] = normal
         vals[s, V_TANGENTIAL] = tangential

@@ -237,7 +237,11 @@ class _Run:
                     adv.dense_point(tau, t_old, h, y_old, coeffs, out)
                     return out
 
-                return self._locate(t_old, h, j, dense)
+                root, s, i = adv.locate(
+                    t_old, h, j, y_old, coeffs, self.ctx, self.g_prev, self.out, self.vals,
+                    self.g, self.point,
+                )  # fmt: skip
+                return root, self.point.copy(), s, i, dense
             if deadline is not None and time.perf_counter() > deadline:
                 raise _RunError(f"the wall-time budget ran out at t = {t:.9g}")
 

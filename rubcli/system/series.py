@@ -53,8 +53,8 @@ def energy(solution: MachineSolution, penetration: np.ndarray | None = None) -> 
     if penetration is None:
         penetration = station_series(solution)[:, :, 0]
     for s, station in enumerate(machine.stations):
-        law = station.law.record()
-        E += np.array([stored_energy(law, p) for p in penetration[:, s]])
+        law = station.law.record()[None, :]
+        E += np.array([stored_energy(law, 0, 0, p) for p in penetration[:, s]])
     return E
 
 

@@ -19,6 +19,7 @@ import numpy as np
 from rubcli.solvers import dop853_coefficients as _dop
 from rubcli.solvers.compiled.jit import (
     jit,
+    jit_loop,
 )
 from rubcli.solvers.compiled.rhs import (
     _rhs_into,
@@ -51,7 +52,7 @@ def _rms_norm(v):
 
 
 def dop853_step(
-    rhs_into: Callable[..., None], n_states: int
+    rhs_into: Callable[..., None], n_states: int, counted: bool = True
 ) -> tuple[Callable[..., float], Callable[..., tuple], Callable[..., int]]:
     """scipy's DOP853 on the right-hand side ``rhs_into(t, y, ctx, regime, out)`` of
     ``n_states`` states, compiled: ``(initial_step, accepted_step, dense_coefficients)``.
@@ -60,8 +61,12 @@ def dop853_step(
     three functions are compiled once per right-hand side and stay cachable; the state
     count is a compile-time constant, so the four-state loops compile as when it was
     written out; ``n_states = 0`` takes the state's size at run time (the composed
-    machine's system, ``rubcli.system``)."""
+    machine's system, ``rubcli.system``). ``counted = False`` compiles the step, its
+    attempt, error norm and dense output without numba's reference counting (they
+    allocate nothing): a system whose context is a tuple of many arrays then does not
+    count references to each of them at every stage."""
     N = n_states
+    step_jit = jit if counted else jit_loop
 
     def initial_step(
         t0: float, y0: np.ndarray, f0: np.ndarray, t_bound: float, ctx: Any, regime: int,
@@ -203,9 +208,9 @@ def dop853_step(
                 F[3 + r, i] = h * acc
         return Kst.shape[0] - DOP_STAGES - 1
 
-    attempt = jit(attempt)
-    error_norm = jit(error_norm)
-    return jit(initial_step), jit(accepted_step), jit(dense_coefficients)
+    attempt = step_jit(attempt)
+    error_norm = step_jit(error_norm)
+    return jit(initial_step), step_jit(accepted_step), step_jit(dense_coefficients)
 
 
 # the rotor's four states (``dop853-jit``; ctx = the parameter record): any machine, and
