@@ -339,3 +339,27 @@ def test_the_docs_example_runs(capsys):
     exec(compile(code, "docs/composed-machine.md", "exec"), {})
     status, events, residual = capsys.readouterr().out.split()
     assert status == "success" and int(events) > 10 and float(residual) < 1e-7
+
+
+def test_a_rotor_touching_a_ring_that_touches_a_casing():
+    """Two stations in a chain: the rotor against a ring (a pair of the structure's
+    coordinates) and the ring against a rigid casing. Without damping, friction and
+    forcing the energy is conserved; both stations make contact, and the ring's
+    reaction pushes it into the casing."""
+    M = np.diag([1.0, 1.0, 0.5, 0.5])
+    K = np.diag([1.0, 1.0, 2.0, 2.0])
+    stations = (
+        Station((0, 1), 1.0, ContactLaw(30.0), stator=(2, 3), name="rotor-ring"),
+        Station((2, 3), 0.3, ContactLaw(80.0), name="ring-casing"),
+    )
+    machine = Machine(Structure(M=M, K=K), stations, Speed.constant(1.0))
+    t = np.linspace(0.0, 40.0, 801)
+    run = simulate(machine, t, initial=[0.0, 0.0, 0.0, 0.0, 2.0, 0.5, 0.0, 0.0],
+                   rtol=1e-12, atol=1e-14)  # fmt: skip
+    assert run.success, run.message
+    for s in (0, 1):
+        assert "contact_entry" in run.events.at_station(s).kinds()
+    E0 = 0.5 * (2.0**2 + 0.5**2)
+    assert np.max(np.abs(energy_residual(run))) < 1e-9 * E0
+    first_ring = run.events.at_station(1).t[0]
+    assert first_ring > run.events.at_station(0).t[0]  # pushed by the rotor
