@@ -67,7 +67,7 @@ def paper_rows() -> list[str]:
         e_new = np.max(np.abs(new.states[:, :2] - reference.states[:, :2]))
         rows.append(
             f"| {rtol:g} | {1e3 * t_old:.1f} ms ({e_old:.1e}) | {1e3 * t_new:.1f} ms "
-            f"({e_new:.1e}) | {t_new / t_old:.2f} | {new.stats['steps']} / {old.stats['steps']} |"
+            f"({e_new:.1e}) | {t_new / t_old:.2f} | {new.stats['steps']} / {old.stats['nsteps']} |"
         )
     return rows
 
