@@ -25,7 +25,9 @@ END, EVENT, LIMIT, SMALL_STEP, SINGULAR_STICK = 0, 1, 2, 3, 4
 
 
 @jit
-def first_step(t, y, f, t_end, ctx, rtol, atol):
+def first_step(
+    t: float, y: np.ndarray, f: np.ndarray, t_end: float, ctx: tuple, rtol: float, atol: float
+) -> float:
     """``f = f(t, y)`` and Hairer's initial step from (t, y) (a function of this module,
     so that its compiled code is cached with it: the step factory's own ``initial_step``
     is shared by every system's closure, and its cache entry with them)."""
@@ -34,16 +36,21 @@ def first_step(t, y, f, t_end, ctx, rtol, atol):
 
 
 @jit_loop
-def dense_point(t, t_old, h, y_old, F, out):
+def dense_point(
+    t: float, t_old: float, h: float, y_old: np.ndarray, F: np.ndarray, out: np.ndarray
+) -> None:
     """The step's dense output at t into out."""
     _dop853_dense_at(t, t_old, h, y_old, F, out)
 
 
 @jit_loop
 def advance(
-    t, y, f, h_abs, t_end, ctx, rtol, atol, t_eval, k, samples, sample_regimes, max_steps,
-    Kst, y_new, tmp, F, g_prev, g, vals, out, point,
-):  # fmt: skip
+    t: float, y: np.ndarray, f: np.ndarray, h_abs: float, t_end: float, ctx: tuple,
+    rtol: float, atol: float, t_eval: np.ndarray, k: int, samples: np.ndarray,
+    sample_regimes: np.ndarray, max_steps: int, Kst: np.ndarray, y_new: np.ndarray,
+    tmp: np.ndarray, F: np.ndarray, g_prev: np.ndarray, g: np.ndarray, vals: np.ndarray,
+    out: np.ndarray, point: np.ndarray,
+) -> tuple[int, float, float, int, int, int, float, float, int]:  # fmt: skip
     """Steps from ``(t, y)`` (``f = f(t, y)``, proposal ``h_abs``), writing the samples
     ``t_eval[k:]`` passed, until an event, the end or ``max_steps`` steps.
 
@@ -110,7 +117,10 @@ def _g_at(t, t_old, h, y_old, F, ctx, out, vals, g, point, s, i):
 
 
 @jit
-def locate(t_old, h, j, y_old, F, ctx, g_prev, out, vals, g, point):
+def locate(
+    t_old: float, h: float, j: int, y_old: np.ndarray, F: np.ndarray, ctx: tuple,
+    g_prev: np.ndarray, out: np.ndarray, vals: np.ndarray, g: np.ndarray, point: np.ndarray,
+) -> tuple[float, int, int]:  # fmt: skip
     """The earliest event in the scan interval j of the step ``(t_old, h)`` (dense output
     ``F`` from ``y_old``): every function above 0 at the interval's start (``g_prev``)
     and at or below 0 at its end, its crossing bracketed by the Illinois method to 4 ulp

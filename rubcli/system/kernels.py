@@ -60,7 +60,7 @@ OK, SINGULAR = 0, 1
 
 
 @inline
-def speed_at(knots, t):
+def speed_at(knots: np.ndarray, t: float) -> tuple[float, float, float]:
     """``(Omega, Omega', angle)`` at t of the piecewise-linear profile ``knots`` (rows
     time, speed, angle integral_0^t Omega at the knot), held outside its knots."""
     last = knots.shape[0] - 1
@@ -183,7 +183,7 @@ def _stick_mobilities(Minv, idx, geo, regimes, work, stuck, mob):
 
 
 @jit
-def evaluate(t, y, ctx, out, vals):
+def evaluate(t: float, y: np.ndarray, ctx: tuple, out: np.ndarray, vals: np.ndarray) -> int:
     """The derivative of ``y = (q, v, W)`` into ``out`` and each station's penetration,
     slip, normal and tangential force into ``vals`` (``V_*``); returns ``OK`` or
     ``SINGULAR`` (the stick stations' mobilities are singular)."""
@@ -298,7 +298,7 @@ def evaluate(t, y, ctx, out, vals):
 
 
 @jit
-def rhs_into(t, y, ctx, regime, out):
+def rhs_into(t: float, y: np.ndarray, ctx: tuple, regime: int, out: np.ndarray) -> None:
     """``evaluate`` as DOP853's steps take a right-hand side (the station values into
     the context's last buffer; ``regime`` unused: the regimes are in ``ctx``). A singular
     stick system gives nan, which the step control rejects."""
@@ -307,7 +307,9 @@ def rhs_into(t, y, ctx, regime, out):
 
 
 @jit
-def event_functions(t, y, ctx, out, vals, g):
+def event_functions(
+    t: float, y: np.ndarray, ctx: tuple, out: np.ndarray, vals: np.ndarray, g: np.ndarray
+) -> int:
     """Each station's two event functions into ``g`` (S, 2), positive while its regime
     holds: free ``clearance - z`` and 1; slipping ``z - clearance`` and ``sign v_r``
     (1 without friction); in stick ``z - clearance`` and the friction cone's margin
@@ -336,7 +338,10 @@ def event_functions(t, y, ctx, out, vals, g):
 
 
 @jit
-def jacobian_into(t, y, ctx, scale, jac, shifted, f_plus, f_minus):
+def jacobian_into(
+    t: float, y: np.ndarray, ctx: tuple, scale: np.ndarray, jac: np.ndarray,
+    shifted: np.ndarray, f_plus: np.ndarray, f_minus: np.ndarray,
+) -> None:  # fmt: skip
     """Central differences of the right-hand side (m, m) into ``jac``, for the implicit
     methods: column j with the step ``1e-6 max(|y_j|, scale[j])`` (``scale``: a typical
     size of each state). The work ``W`` is a state nothing depends on: its column is 0."""

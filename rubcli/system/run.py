@@ -163,7 +163,7 @@ class _Run:
         return self.g
 
     # -- the loop -----------------------------------------------------------------------
-    def go(self, y0: np.ndarray, max_steps: int, max_events: int, deadline) -> None:
+    def go(self, y0: np.ndarray, max_steps: int, max_events: int, deadline: float | None) -> None:
         t = float(self.t_eval[0])
         t_end = float(self.t_eval[-1])
         y = y0.copy()
@@ -232,7 +232,10 @@ class _Run:
             if stop == adv.EVENT:
                 y_old, coeffs = y.copy(), F.copy()
 
-                def dense(tau, t_old=t_old, h=h, y_old=y_old, coeffs=coeffs):
+                def dense(
+                    tau: float, t_old: float = t_old, h: float = h, y_old: np.ndarray = y_old,
+                    coeffs: np.ndarray = coeffs,
+                ) -> np.ndarray:  # fmt: skip
                     out = np.empty(m)
                     adv.dense_point(tau, t_old, h, y_old, coeffs, out)
                     return out
@@ -249,7 +252,7 @@ class _Run:
         m = y.size
         ctx = self.ctx
 
-        def fun(tau, state):
+        def fun(tau: float, state: np.ndarray) -> np.ndarray:
             out = np.empty(m)
             rhs_into(tau, np.ascontiguousarray(state, dtype=float), ctx, 0, out)
             return out
@@ -259,7 +262,7 @@ class _Run:
             scale = self._state_scale()
             buffers = [np.empty((m, m)), np.empty(m), np.empty(m), np.empty(m)]
 
-            def jac(tau, state):
+            def jac(tau: float, state: np.ndarray) -> np.ndarray:
                 state = np.ascontiguousarray(state, dtype=float)
                 jacobian_into(tau, state, ctx, scale, *buffers)
                 return buffers[0].copy()
@@ -314,7 +317,7 @@ class _Run:
                 root = ta
             else:
 
-                def value(tau, s=s, i=i):
+                def value(tau: float, s: int = s, i: int = i) -> float:
                     return self._g(tau, dense(tau))[s, i]
 
                 root = brentq(value, ta, tb, xtol=4.0 * math.ulp(max(abs(ta), abs(tb), 1.0)))
