@@ -11,8 +11,7 @@ from __future__ import annotations
 import hashlib
 import math
 import threading
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import replace as _replace
 from pathlib import Path
 from typing import Any
@@ -22,6 +21,7 @@ import numpy as np
 from rubcli import units
 from rubcli.io.background import Cancelled
 from rubcli.io.files import atomic_path, remember_digest
+from rubcli.labels import Labels
 from rubcli.model import REGIME_NAMES
 from rubcli.solution import Solution
 
@@ -142,21 +142,6 @@ def solution_columns(
             unit = scale.k_r * scale.clearance**2
             columns.update({f"{name}_Nm": value * unit for name, value in torques.items()})
     return columns
-
-
-@dataclass(frozen=True)
-class Labels:
-    """A text column given as integer codes and the text of each code (a solution CSV's
-    regime names): the compiled formatter writes it with no Python string per row."""
-
-    codes: np.ndarray
-    names: Mapping[int, str]
-
-    def __len__(self) -> int:
-        return len(self.codes)
-
-    def tolist(self) -> list[str]:
-        return [self.names[code] for code in np.asarray(self.codes).tolist()]
 
 
 def _regime_names(regimes: np.ndarray) -> Labels:
