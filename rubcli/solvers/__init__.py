@@ -2,9 +2,10 @@
 
 The methods are described as data in ``registry.py`` (name, family, knob, typed options,
 order); each family's module registers its solver functions, ``fn(problem, options)``
-with the method's typed options, against those names with ``register``. A family is
-imported when one of its methods first runs (every family on first use of ``METHODS``),
-so that ``rubcli.solvers.registry`` (used by the case schema) stays light.
+with the method's typed options, against those names with ``registry.register`` (the
+table of registered functions is the registry's, so a family does not import ``solve``).
+A family is imported when one of its methods first runs (every family on first use of
+``METHODS``), so that ``rubcli.solvers.registry`` (used by the case schema) stays light.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import contextlib
 import dataclasses
 import importlib
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextvars import ContextVar
 from functools import partial
 from typing import TYPE_CHECKING, Any
@@ -25,32 +26,19 @@ from rubcli.solvers.registry import (  # noqa: F401
     FAMILY_MODULES,
     GENERAL_MACHINE,
     MOVING_STATOR,
+    REGISTERED,
     SPECS,
     SPEED_PROFILE,
-    Options,
+    SolverFn,
     method_options,
     option_problem,
     options_for,
+    register,
     unsupported,
 )
 
 if TYPE_CHECKING:
     from rubcli.solvers.driver import Watch
-
-SolverFn = Callable[[Problem, Options], Solution]
-_METHODS: dict[str, SolverFn] = {}
-
-
-def register(name: str) -> Callable[[SolverFn], SolverFn]:
-    """Register the solver function of the method ``name`` (which must have a spec)."""
-    if name not in SPECS:
-        raise ValueError(f"method {name!r} has no spec in rubcli/solvers/registry.py")
-
-    def deco(fn: SolverFn) -> SolverFn:
-        _METHODS[name] = fn
-        return fn
-
-    return deco
 
 
 def _methods(family: str | None = None) -> dict[str, SolverFn]:
@@ -58,7 +46,7 @@ def _methods(family: str | None = None) -> dict[str, SolverFn]:
     family if None; imported once, a no-op afterwards)."""
     for name in FAMILY_MODULES if family is None else (family,):
         importlib.import_module(FAMILY_MODULES[name])
-    return _METHODS
+    return REGISTERED
 
 
 def __getattr__(name: str) -> Any:

@@ -34,12 +34,12 @@ from rubcli import model
 from rubcli.problem import Problem
 from rubcli.solution import Solution
 from rubcli.solvers import compiled as kernels
-from rubcli.solvers import driver, register
+from rubcli.solvers import driver
 from rubcli.solvers.events import (
     NO_EVENT,
     start_flags,
 )
-from rubcli.solvers.registry import CompiledOptions, ToleranceOptions
+from rubcli.solvers.registry import CompiledOptions, ToleranceOptions, register
 from rubcli.solvers.shared import (
     EVENT_BUFFER,
     RESTART_BAND_FLOOR,
