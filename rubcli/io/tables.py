@@ -24,6 +24,7 @@ from rubcli.io.files import atomic_path, remember_digest
 from rubcli.labels import Labels
 from rubcli.model import REGIME_NAMES
 from rubcli.solution import Solution
+from rubcli.solvers import rub
 
 # Columns of a solution CSV, in order. Nondimensional first (clearances, tau, units of
 # k_r * clearance for forces); the physical ones follow when the case has a scale.
@@ -84,6 +85,7 @@ def solution_columns(
 ) -> dict[str, np.ndarray | Labels]:
     """The CSV columns of a solution, in order (``CSV_COLUMNS`` + physical ones if scaled);
     ``regime_name`` as ``Labels`` (the regime codes and their names)."""
+    normal, friction = rub.normal_force(solution), rub.friction_force(solution)
     columns: dict[str, np.ndarray] = {
         "tau": solution.t,
         "x": solution.x,
@@ -94,9 +96,9 @@ def solution_columns(
         "contact": solution.contact,
         "regime": np.asarray(solution.regimes, dtype=int),
         "regime_name": _regime_names(solution.regimes),
-        "v_r": solution.slip_velocity,
-        "normal_force": solution.normal_force,
-        "friction_force": solution.friction_force,
+        "v_r": rub.slip_velocity(solution),
+        "normal_force": normal,
+        "friction_force": friction,
     }
     if scale is not None:
         columns.update(
@@ -106,8 +108,8 @@ def solution_columns(
                 "y_m": units.metres(solution.y, scale),
                 "vx_m_s": units.metres_per_second(solution.vx, scale),
                 "vy_m_s": units.metres_per_second(solution.vy, scale),
-                "normal_force_N": units.newtons(solution.normal_force, scale),
-                "friction_force_N": units.newtons(solution.friction_force, scale),
+                "normal_force_N": units.newtons(normal, scale),
+                "friction_force_N": units.newtons(friction, scale),
             }
         )
     cx, cy = solution.problem.params.offset
@@ -136,7 +138,7 @@ def solution_columns(
     drive = solution.problem.drive
     if drive is not None:
         torques = {"drive_torque": drive.shaft_torque(eta),
-                   "rub_torque": -solution.problem.params.Rp * solution.friction_force}  # fmt: skip
+                   "rub_torque": -solution.problem.params.Rp * friction}  # fmt: skip
         columns.update(torques)
         if scale is not None:  # the torque unit k_r gamma^2 (N m)
             unit = scale.k_r * scale.clearance**2
