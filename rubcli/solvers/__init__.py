@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import importlib
 import time
 from collections.abc import Iterator
 from contextvars import ContextVar
@@ -26,14 +25,13 @@ from rubcli.solvers.registry import (  # noqa: F401
     FAMILY_MODULES,
     GENERAL_MACHINE,
     MOVING_STATOR,
-    REGISTERED,
     SPECS,
     SPEED_PROFILE,
-    SolverFn,
     method_options,
     option_problem,
     options_for,
     register,
+    registered,
     unsupported,
 )
 
@@ -41,17 +39,9 @@ if TYPE_CHECKING:
     from rubcli.solvers.driver import Watch
 
 
-def _methods(family: str | None = None) -> dict[str, SolverFn]:
-    """The registered solver functions, after importing the modules of ``family`` (every
-    family if None; imported once, a no-op afterwards)."""
-    for name in FAMILY_MODULES if family is None else (family,):
-        importlib.import_module(FAMILY_MODULES[name])
-    return REGISTERED
-
-
 def __getattr__(name: str) -> Any:
     if name == "METHODS":  # the registered solver functions, by method name
-        return _methods()
+        return registered()
     raise AttributeError(f"module 'rubcli.solvers' has no attribute {name!r}")
 
 
@@ -108,7 +98,7 @@ def solve(problem: Problem, method: str, *, watch: Watch | None = None, **option
             "solve(): a stator with its own mass runs at a constant speed only (its "
             "equations, rubcli.stator, carry the speed as a constant state)"
         )
-    methods = _methods(SPECS[method].family)
+    methods = registered(SPECS[method].family)
     if problem.drive is not None:
         from rubcli.solvers.driven import solve_driven
 

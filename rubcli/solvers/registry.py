@@ -26,6 +26,7 @@ plugs in"), and register the solver function under the same name.
 from __future__ import annotations
 
 import difflib
+import importlib
 import math
 import numbers
 from collections.abc import Callable
@@ -247,6 +248,14 @@ def register(name: str) -> Callable[[SolverFn], SolverFn]:
         return fn
 
     return deco
+
+
+def registered(family: str | None = None) -> dict[str, SolverFn]:
+    """The registered solver functions, after importing the modules of ``family`` (every
+    family if None; imported once, a no-op afterwards)."""
+    for name in FAMILY_MODULES if family is None else (family,):
+        importlib.import_module(FAMILY_MODULES[name])
+    return REGISTERED
 
 
 def method_table() -> str:
