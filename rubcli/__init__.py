@@ -18,9 +18,9 @@ core (``rubcli.model``) does not load the solvers.
 
 from __future__ import annotations
 
-TYPE_CHECKING = False  # (typing itself is not imported: ``import rubcli`` stays light)
+from rubcli.version import __version__
 
-__version__ = "0.1.0"
+TYPE_CHECKING = False  # (typing itself is not imported: ``import rubcli`` stays light)
 
 __all__ = [
     "METHODS",

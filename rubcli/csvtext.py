@@ -42,7 +42,7 @@ if TYPE_CHECKING:
     from numba.core.base import BaseContext
     from numba.core.typing.templates import Signature
 
-    from rubcli.io.tables import Labels
+    from rubcli.labels import Labels
 
 jit = njit(nogil=True)  # formats beside the figures (io.Background)
 

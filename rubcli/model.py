@@ -37,8 +37,6 @@ if TYPE_CHECKING:
 
     from numpy.typing import ArrayLike
 
-    from rubcli.stator import Stator
-
 # What the cores that work "from scalars or arrays" take and give: a float or an array
 FloatOrArray = float | np.ndarray
 ComplexOrArray = complex | np.ndarray
@@ -100,6 +98,67 @@ def real_number(owner: str, name: str, value: object) -> float:
         raise ValueError(
             f"{owner}: {name} must be finite (got a number beyond the largest double)"
         ) from None
+
+
+# The stator's record for the compiled cores: one float64 array, read by these names.
+STATOR_RECORD = ("inverse_mass", "k_x", "k_y", "n_x", "n_y")
+S_INV_MASS, S_KX, S_KY, S_NX, S_NY = range(len(STATOR_RECORD))
+
+
+@dataclass(frozen=True)
+class Stator:
+    """A stator with its own mass (its equations: ``rubcli.stator``): its mass ratio,
+    support stiffness ratios and damping, nondimensional, checked on construction:
+    ValueError naming the field."""
+
+    mass: float  # m_s = M_s / m
+    stiffness: tuple[float, float]  # (k_sx, k_sy) over k_r
+    damping: tuple[float, float] = (0.0, 0.0)  # (n_sx, n_sy): forces 2 n_s s'
+
+    def __post_init__(self) -> None:
+        mass = _stator_number("mass", self.mass)
+        if not mass > 0.0:
+            raise ValueError(f"stator: mass must be > 0 (got {self.mass!r})")
+        object.__setattr__(self, "mass", mass)
+        for name, low in (("stiffness", "> 0"), ("damping", ">= 0")):
+            pair = getattr(self, name)
+            if isinstance(pair, str) or not hasattr(pair, "__len__") or len(pair) != 2:
+                raise TypeError(f"stator: {name} must be a pair [x, y] of real numbers")
+            values = tuple(_stator_number(f"{name}[{i}]", v) for i, v in enumerate(pair))
+            for i, v in enumerate(values):
+                if not (v > 0.0 if low == "> 0" else v >= 0.0):
+                    raise ValueError(f"stator: {name}[{i}] must be {low} (got {v!r})")
+            object.__setattr__(self, name, values)
+
+    def record(self) -> np.ndarray:
+        """The stator as the compiled cores take it (``STATOR_RECORD``)."""
+        (kx, ky), (nx, ny) = self.stiffness, self.damping
+        return np.array([1.0 / self.mass, kx, ky, nx, ny])
+
+    def as_dict(self) -> dict[str, object]:
+        """The stator as a case file's ``[stator]`` table holds it."""
+        return {"mass": self.mass, "stiffness": list(self.stiffness),
+                "damping": list(self.damping)}  # fmt: skip
+
+    def text(self) -> str:
+        """The stator in a few words (titles, ``validate``)."""
+        (kx, ky), (nx, ny) = self.stiffness, self.damping
+        return f"stator mass {self.mass:g}, stiffness [{kx:g}, {ky:g}], damping [{nx:g}, {ny:g}]"
+
+    def natural_frequencies(self) -> tuple[float, float]:
+        """The stator's own undamped natural frequencies along x and y, sqrt(k_s / m_s)
+        (in units of the rotor's omega)."""
+        kx, ky = self.stiffness
+        return math.sqrt(kx / self.mass), math.sqrt(ky / self.mass)
+
+
+def _stator_number(name: str, value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise TypeError(f"stator: {name} must be a real number (got {value!r})")
+    value = float(value)
+    if not (math.isfinite(value) and abs(value) <= MAX_MAGNITUDE):
+        raise ValueError(f"stator: {name} must be a finite number (got {value!r})")
+    return value
 
 
 @dataclass(frozen=True)
@@ -165,8 +224,6 @@ class ModelParams:
                 object.__setattr__(self, "nu", dxx)
                 damping = None
             object.__setattr__(self, "damping", damping)
-        from rubcli.stator import Stator
-
         if self.stator is not None and not isinstance(self.stator, Stator):
             raise TypeError(f"ModelParams: stator must be a rubcli.stator.Stator or None, got "
                             f"{type(self.stator).__name__}")  # fmt: skip

@@ -276,46 +276,6 @@ class Solution:
         return np.asarray(speed.phase(self.t, p.phi0), dtype=float)
 
     @property
-    def slip_velocity(self) -> np.ndarray:
-        p = self.problem.params
-        eta = p.eta if self.problem.speed is None and self.drive_states is None else self.speed
-        return model.slip_velocity(self.x, self.y, self.vx, self.vy, p.Rp, eta)
-
-    @property
-    def normal_force(self) -> np.ndarray:
-        """K (z - 1) in contact regimes, 0 in free flight (nondimensional)."""
-        return np.where(self.contact == 1, self.problem.params.K * (self.z - 1.0), 0.0)
-
-    @property
-    def friction_force(self) -> np.ndarray:
-        """Signed tangential force (positive opposes positive slip): mu_c K (z - 1) when
-        slipping, the rolling friction in stick, 0 in free flight (model.tangential_force;
-        a driven rotor's from its own equations, ``rubcli.drive``)."""
-        if self.problem.drive is not None:
-            from rubcli.solvers.driven import rub_force
-
-            return rub_force(self)
-        if self.stator_states is not None:
-            from rubcli.solvers.two_body import sample_derivatives
-
-            return sample_derivatives(self)[1]
-        if self.problem.speed is None:
-            return model.tangential_force(
-                self.t, self.x, self.y, self.vx, self.vy, self.problem.params, self.regimes
-            )
-        out = np.zeros(self.t.size)  # leg by leg: each leg's line of speed
-        legs = self.problem.legs()
-        for i, (start, params) in enumerate(legs):
-            end = legs[i + 1][0] if i + 1 < len(legs) else np.inf
-            on = (self.t >= start) & (self.t < end) if i else self.t < end
-            if np.any(on):
-                out[on] = model.tangential_force(
-                    self.t[on], self.x[on], self.y[on], self.vx[on], self.vy[on], params,
-                    self.regimes[on],
-                )  # fmt: skip
-        return out
-
-    @property
     def n_contact_switches(self) -> int:
         return int(np.count_nonzero(self.events.is_kind("contact_entry", "contact_exit")))
 

@@ -37,13 +37,11 @@ friction's on the relative motion ``T d' . t`` (``analysis.two_body_energy``).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from rubcli.model import (
     FREE,
-    MAX_MAGNITUDE,
     P_DXX,
     P_DXY,
     P_DYX,
@@ -59,69 +57,20 @@ from rubcli.model import (
     P_SXY,
     P_SYX,
     P_SYY,
+    S_INV_MASS,
+    S_KX,
+    S_KY,
+    S_NX,
+    S_NY,
     STICK,
     friction_sign,
 )
 
-# The stator's record for the compiled cores: one float64 array, read by these names.
-STATOR_RECORD = ("inverse_mass", "k_x", "k_y", "n_x", "n_y")
-S_INV_MASS, S_KX, S_KY, S_NX, S_NY = range(len(STATOR_RECORD))
+# The stator's data (``model.Stator``, which ``ModelParams.stator`` holds), with its equations
+from rubcli.model import STATOR_RECORD as STATOR_RECORD
+from rubcli.model import Stator as Stator
+
 N_STATES = 10  # x, y, vx, vy (relative), p, w, u, v, u', v'
-
-
-@dataclass(frozen=True)
-class Stator:
-    """The stator's mass ratio, support stiffness ratios and damping (module docstring),
-    nondimensional, checked on construction: ValueError naming the field."""
-
-    mass: float  # m_s = M_s / m
-    stiffness: tuple[float, float]  # (k_sx, k_sy) over k_r
-    damping: tuple[float, float] = (0.0, 0.0)  # (n_sx, n_sy): forces 2 n_s s'
-
-    def __post_init__(self) -> None:
-        mass = _finite("mass", self.mass)
-        if not mass > 0.0:
-            raise ValueError(f"stator: mass must be > 0 (got {self.mass!r})")
-        object.__setattr__(self, "mass", mass)
-        for name, low in (("stiffness", "> 0"), ("damping", ">= 0")):
-            pair = getattr(self, name)
-            if isinstance(pair, str) or not hasattr(pair, "__len__") or len(pair) != 2:
-                raise TypeError(f"stator: {name} must be a pair [x, y] of real numbers")
-            values = tuple(_finite(f"{name}[{i}]", v) for i, v in enumerate(pair))
-            for i, v in enumerate(values):
-                if not (v > 0.0 if low == "> 0" else v >= 0.0):
-                    raise ValueError(f"stator: {name}[{i}] must be {low} (got {v!r})")
-            object.__setattr__(self, name, values)
-
-    def record(self) -> np.ndarray:
-        """The stator as the compiled cores take it (``STATOR_RECORD``)."""
-        (kx, ky), (nx, ny) = self.stiffness, self.damping
-        return np.array([1.0 / self.mass, kx, ky, nx, ny])
-
-    def as_dict(self) -> dict[str, object]:
-        """The stator as a case file's ``[stator]`` table holds it."""
-        return {"mass": self.mass, "stiffness": list(self.stiffness),
-                "damping": list(self.damping)}  # fmt: skip
-
-    def text(self) -> str:
-        """The stator in a few words (titles, ``validate``)."""
-        (kx, ky), (nx, ny) = self.stiffness, self.damping
-        return f"stator mass {self.mass:g}, stiffness [{kx:g}, {ky:g}], damping [{nx:g}, {ny:g}]"
-
-    def natural_frequencies(self) -> tuple[float, float]:
-        """The stator's own undamped natural frequencies along x and y, sqrt(k_s / m_s)
-        (in units of the rotor's omega)."""
-        kx, ky = self.stiffness
-        return math.sqrt(kx / self.mass), math.sqrt(ky / self.mass)
-
-
-def _finite(name: str, value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise TypeError(f"stator: {name} must be a real number (got {value!r})")
-    value = float(value)
-    if not (math.isfinite(value) and abs(value) <= MAX_MAGNITUDE):
-        raise ValueError(f"stator: {name} must be a finite number (got {value!r})")
-    return value
 
 
 # ------------------------------------------------------------------ compilable cores

@@ -33,6 +33,7 @@ from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.samples import SAMPLE_CASE, SAMPLE_PHYSICAL_CASE
 from rubcli.solution import Solution
+from rubcli.solvers.rub import slip_velocity
 
 ROOT = Path(__file__).resolve().parents[1]
 runner = CliRunner()
@@ -555,7 +556,7 @@ def test_solution_csv_is_streamed_in_blocks_and_exact(tmp_path, monkeypatch):
                          encoding="utf-8")  # fmt: skip
     sol = _long_solution(60_000)
     np.testing.assert_array_equal(data["x"], sol.x)  # round-trip exact
-    np.testing.assert_array_equal(data["v_r"], sol.slip_velocity)
+    np.testing.assert_array_equal(data["v_r"], slip_velocity(sol))
     assert set(data["regime_name"]) == {"free"}
 
 

@@ -29,6 +29,7 @@ import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -395,3 +396,36 @@ def closed_form_root(
 
     roots = _roots_along(g, values, lambda v: True)
     return min(roots, key=lambda r: abs(r - near)) if roots else math.nan
+
+
+# ------------------------------------------------- a sweep beside the regions
+
+# What a sweep's point settled on (``analysis.ensemble.regime_of``), drawn beside the regions
+SWEEP_REGIMES = ("free whirl", "synchronous rub", "modulated full rub", "partial rub",
+                 "dry whip", "dry whirl", "no result")  # fmt: skip
+
+
+@dataclass
+class SweepMap:
+    """A ``rubcli sweep`` over the chart's two parameters: what each point settled on."""
+
+    path: Path
+    direction: str  # the sweep direction shown ("up", "down" or "independent")
+    x: np.ndarray  # (nx,) the sweep's values of the chart's x
+    y: np.ndarray  # (ny,)
+    regimes: np.ndarray  # (ny, nx) indices into SWEEP_REGIMES
+    names: tuple[str, str]  # the chart's (x, y) parameters
+    labels: tuple[str, ...] = SWEEP_REGIMES  # the name of each regime index
+
+    def cross_table(self, params: ModelParams) -> dict[str, dict[str, int]]:
+        """How many sweep points of each regime lie in each closed-form region."""
+        table: dict[str, dict[str, int]] = {}
+        for j, yv in enumerate(self.y):
+            for i, xv in enumerate(self.x):
+                at = dataclasses.replace(params, **{self.names[0]: float(xv),
+                                                    self.names[1]: float(yv)})  # fmt: skip
+                code = region(at)
+                row = table.setdefault(REGIONS[code], {})
+                name = self.labels[self.regimes[j, i]]
+                row[name] = row.get(name, 0) + 1
+        return table

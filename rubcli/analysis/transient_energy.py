@@ -41,13 +41,14 @@ from rubcli import model
 from rubcli.drive import energy_value
 from rubcli.problem import Problem
 from rubcli.solution import Solution
+from rubcli.solvers.rub import friction_force, slip_velocity
 
 
 def drive_powers(solution: Solution) -> dict[str, np.ndarray]:
     """The powers at the samples: motor, drag, damping and rub (dissipations positive)."""
     p, drive = solution.problem.params, solution.problem.drive
     w = solution.speed
-    rub = solution.friction_force * solution.slip_velocity
+    rub = friction_force(solution) * slip_velocity(solution)
     rub = np.where(solution.regimes == model.STICK, 0.0, rub)
     return {
         "motor": drive.motor_torque(w) * w,

@@ -137,7 +137,7 @@ def report_envelope(
 
 
 def _version() -> str:
-    from rubcli import __version__
+    from rubcli.version import __version__
 
     return __version__
 
@@ -148,7 +148,7 @@ def environment_info() -> dict[str, str]:
 
     import scipy
 
-    from rubcli import __version__
+    from rubcli.version import __version__
 
     return {
         "rubcli": __version__,

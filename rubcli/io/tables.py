@@ -11,8 +11,7 @@ from __future__ import annotations
 import hashlib
 import math
 import threading
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import replace as _replace
 from pathlib import Path
 from typing import Any
@@ -22,8 +21,10 @@ import numpy as np
 from rubcli import units
 from rubcli.io.background import Cancelled
 from rubcli.io.files import atomic_path, remember_digest
+from rubcli.labels import Labels
 from rubcli.model import REGIME_NAMES
 from rubcli.solution import Solution
+from rubcli.solvers import rub
 
 # Columns of a solution CSV, in order. Nondimensional first (clearances, tau, units of
 # k_r * clearance for forces); the physical ones follow when the case has a scale.
@@ -84,6 +85,7 @@ def solution_columns(
 ) -> dict[str, np.ndarray | Labels]:
     """The CSV columns of a solution, in order (``CSV_COLUMNS`` + physical ones if scaled);
     ``regime_name`` as ``Labels`` (the regime codes and their names)."""
+    normal, friction = rub.normal_force(solution), rub.friction_force(solution)
     columns: dict[str, np.ndarray] = {
         "tau": solution.t,
         "x": solution.x,
@@ -94,9 +96,9 @@ def solution_columns(
         "contact": solution.contact,
         "regime": np.asarray(solution.regimes, dtype=int),
         "regime_name": _regime_names(solution.regimes),
-        "v_r": solution.slip_velocity,
-        "normal_force": solution.normal_force,
-        "friction_force": solution.friction_force,
+        "v_r": rub.slip_velocity(solution),
+        "normal_force": normal,
+        "friction_force": friction,
     }
     if scale is not None:
         columns.update(
@@ -106,8 +108,8 @@ def solution_columns(
                 "y_m": units.metres(solution.y, scale),
                 "vx_m_s": units.metres_per_second(solution.vx, scale),
                 "vy_m_s": units.metres_per_second(solution.vy, scale),
-                "normal_force_N": units.newtons(solution.normal_force, scale),
-                "friction_force_N": units.newtons(solution.friction_force, scale),
+                "normal_force_N": units.newtons(normal, scale),
+                "friction_force_N": units.newtons(friction, scale),
             }
         )
     cx, cy = solution.problem.params.offset
@@ -136,27 +138,12 @@ def solution_columns(
     drive = solution.problem.drive
     if drive is not None:
         torques = {"drive_torque": drive.shaft_torque(eta),
-                   "rub_torque": -solution.problem.params.Rp * solution.friction_force}  # fmt: skip
+                   "rub_torque": -solution.problem.params.Rp * friction}  # fmt: skip
         columns.update(torques)
         if scale is not None:  # the torque unit k_r gamma^2 (N m)
             unit = scale.k_r * scale.clearance**2
             columns.update({f"{name}_Nm": value * unit for name, value in torques.items()})
     return columns
-
-
-@dataclass(frozen=True)
-class Labels:
-    """A text column given as integer codes and the text of each code (a solution CSV's
-    regime names): the compiled formatter writes it with no Python string per row."""
-
-    codes: np.ndarray
-    names: Mapping[int, str]
-
-    def __len__(self) -> int:
-        return len(self.codes)
-
-    def tolist(self) -> list[str]:
-        return [self.names[code] for code in np.asarray(self.codes).tolist()]
 
 
 def _regime_names(regimes: np.ndarray) -> Labels:

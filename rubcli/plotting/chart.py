@@ -23,7 +23,6 @@ from rubcli.analysis import charts as ch
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
-    from rubcli.studies.chart import SweepMap
 
 REGION_COLOURS = {
     ch.NEITHER: "#d9d9d9",
@@ -61,12 +60,12 @@ def _label(name: str) -> str:
 
 def chart_figure(
     chart: ch.Chart, title: str, here: tuple[float, float] | None = None,
-    continued: Sequence[ch.ContinuedPoint] = (), sweep: SweepMap | None = None,
+    continued: Sequence[ch.ContinuedPoint] = (), sweep: ch.SweepMap | None = None,
 ) -> Figure:  # fmt: skip
     """The chart's regions and closed-form curves; ``here``: the case's own (x, y), marked
     where it lies in the plane; ``continued``: the points located by continuation
     (``charts.ContinuedPoint``), drawn on the curves as open markers; ``sweep``: a sweep
-    of the plane (``studies.chart.SweepMap``), what each of its points settled on drawn
+    of the plane (``analysis.charts.SweepMap``), what each of its points settled on drawn
     in a second panel under the same curves, on the same axes."""
     fig = Figure(figsize=(16.0, 6.8) if sweep is not None else (10.0, 6.5),
                  layout="constrained")  # fmt: skip

@@ -2,18 +2,18 @@
 
 The methods are described as data in ``registry.py`` (name, family, knob, typed options,
 order); each family's module registers its solver functions, ``fn(problem, options)``
-with the method's typed options, against those names with ``register``. A family is
-imported when one of its methods first runs (every family on first use of ``METHODS``),
-so that ``rubcli.solvers.registry`` (used by the case schema) stays light.
+with the method's typed options, against those names with ``registry.register`` (the
+table of registered functions is the registry's, so a family does not import ``solve``).
+A family is imported when one of its methods first runs (every family on first use of
+``METHODS``), so that ``rubcli.solvers.registry`` (used by the case schema) stays light.
 """
 
 from __future__ import annotations
 
 import contextlib
 import dataclasses
-import importlib
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextvars import ContextVar
 from functools import partial
 from typing import TYPE_CHECKING, Any
@@ -27,43 +27,21 @@ from rubcli.solvers.registry import (  # noqa: F401
     MOVING_STATOR,
     SPECS,
     SPEED_PROFILE,
-    Options,
     method_options,
     option_problem,
     options_for,
+    register,
+    registered,
     unsupported,
 )
 
 if TYPE_CHECKING:
     from rubcli.solvers.driver import Watch
 
-SolverFn = Callable[[Problem, Options], Solution]
-_METHODS: dict[str, SolverFn] = {}
-
-
-def register(name: str) -> Callable[[SolverFn], SolverFn]:
-    """Register the solver function of the method ``name`` (which must have a spec)."""
-    if name not in SPECS:
-        raise ValueError(f"method {name!r} has no spec in rubcli/solvers/registry.py")
-
-    def deco(fn: SolverFn) -> SolverFn:
-        _METHODS[name] = fn
-        return fn
-
-    return deco
-
-
-def _methods(family: str | None = None) -> dict[str, SolverFn]:
-    """The registered solver functions, after importing the modules of ``family`` (every
-    family if None; imported once, a no-op afterwards)."""
-    for name in FAMILY_MODULES if family is None else (family,):
-        importlib.import_module(FAMILY_MODULES[name])
-    return _METHODS
-
 
 def __getattr__(name: str) -> Any:
     if name == "METHODS":  # the registered solver functions, by method name
-        return _methods()
+        return registered()
     raise AttributeError(f"module 'rubcli.solvers' has no attribute {name!r}")
 
 
@@ -120,7 +98,7 @@ def solve(problem: Problem, method: str, *, watch: Watch | None = None, **option
             "solve(): a stator with its own mass runs at a constant speed only (its "
             "equations, rubcli.stator, carry the speed as a constant state)"
         )
-    methods = _methods(SPECS[method].family)
+    methods = registered(SPECS[method].family)
     if problem.drive is not None:
         from rubcli.solvers.driven import solve_driven
 

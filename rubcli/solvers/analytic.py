@@ -49,7 +49,7 @@ from rubcli import model
 from rubcli.problem import Problem
 from rubcli.solution import Solution
 from rubcli.solvers import compiled as kernels
-from rubcli.solvers import control, driver, register
+from rubcli.solvers import control, driver
 from rubcli.solvers.compiled import piecewise
 from rubcli.solvers.events import (
     MAX_SCAN_POINTS,
@@ -58,7 +58,7 @@ from rubcli.solvers.events import (
     scan_spacing,
     start_flags,
 )
-from rubcli.solvers.registry import StepOptions
+from rubcli.solvers.registry import StepOptions, register
 from rubcli.solvers.shared import EVENT_BUFFER
 
 if TYPE_CHECKING:

@@ -34,12 +34,12 @@ from rubcli import model
 from rubcli.problem import Problem
 from rubcli.solution import Solution
 from rubcli.solvers import compiled as kernels
-from rubcli.solvers import driver, register
+from rubcli.solvers import driver
 from rubcli.solvers.events import (
     NO_EVENT,
     start_flags,
 )
-from rubcli.solvers.registry import CompiledOptions, ToleranceOptions
+from rubcli.solvers.registry import CompiledOptions, ToleranceOptions, register, registered
 from rubcli.solvers.shared import (
     EVENT_BUFFER,
     RESTART_BAND_FLOOR,
@@ -158,10 +158,10 @@ def solve_dop853_jit(problem: Problem, options: CompiledOptions) -> Solution:
     o = options
     if not (o.compiled and kernels.ensure_fresh()):
         # the same algorithm, run by scipy (kernels unusable or compiled=False)
-        from rubcli.solvers import METHODS
-
         scipy_options = {f: getattr(o, f) for f in ToleranceOptions.names()}
-        sol = METHODS["dop853"](problem, ToleranceOptions(**{**scipy_options, "compiled": False}))
+        sol = registered("scipy")["dop853"](
+            problem, ToleranceOptions(**{**scipy_options, "compiled": False})
+        )
         sol.method = "dop853-jit"
         return sol
     run = driver.Run(

@@ -15,8 +15,9 @@ the method table of docs/solvers.md (tests/test_registry.py).
 
 This module is data only: it imports nothing heavy, so that the case schema can use it
 without loading numba or scipy. The solver functions register themselves against these
-names in ``rubcli.solvers`` (``register``); a name registered without a spec, or a spec
-without a solver, is an error found by tests/test_case.py.
+names here (``register``, into ``REGISTERED``), apart from ``rubcli.solvers.solve``, which
+runs them; a name registered without a spec, or a spec without a solver, is an error
+found by tests/test_case.py.
 
 To add a method: add its spec here, write its stepper (docs/solvers.md, "How a method
 plugs in"), and register the solver function under the same name.
@@ -25,10 +26,16 @@ plugs in"), and register the solver function under the same name.
 from __future__ import annotations
 
 import difflib
+import importlib
 import math
 import numbers
 from collections.abc import Callable
 from dataclasses import dataclass, fields
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from rubcli.problem import Problem
+    from rubcli.solution import Solution
 
 RTOL, STEPS_PER_PERIOD = "rtol", "steps_per_period"
 # The smallest tolerances a method takes. Below MIN_RTOL a step's relative error is
@@ -109,7 +116,7 @@ class MethodSpec:
         return self.options.names()
 
 
-# The module of each family: it registers the family's solver functions (rubcli.solvers).
+# The module of each family: it registers the family's solver functions (``register``).
 FAMILY_MODULES = {
     "analytic": "rubcli.solvers.analytic",
     "scipy": "rubcli.solvers.scipy_ivp",
@@ -222,6 +229,33 @@ SPECS: dict[str, MethodSpec] = {
 }
 NAMES: tuple[str, ...] = tuple(SPECS)
 ALL_OPTIONS: tuple[str, ...] = tuple(dict.fromkeys(o for s in SPECS.values() for o in s.takes))
+
+
+# The solver function of each method, ``fn(problem, options)`` with the method's typed
+# options, by name: filled by ``register`` as each family's module is imported (``solve``
+# imports the family of the method it runs; ``rubcli.solvers.METHODS``, every family).
+SolverFn = Callable[["Problem", Options], "Solution"]
+REGISTERED: dict[str, SolverFn] = {}
+
+
+def register(name: str) -> Callable[[SolverFn], SolverFn]:
+    """Register the solver function of the method ``name`` (which must have a spec)."""
+    if name not in SPECS:
+        raise ValueError(f"method {name!r} has no spec in rubcli/solvers/registry.py")
+
+    def deco(fn: SolverFn) -> SolverFn:
+        REGISTERED[name] = fn
+        return fn
+
+    return deco
+
+
+def registered(family: str | None = None) -> dict[str, SolverFn]:
+    """The registered solver functions, after importing the modules of ``family`` (every
+    family if None; imported once, a no-op afterwards)."""
+    for name in FAMILY_MODULES if family is None else (family,):
+        importlib.import_module(FAMILY_MODULES[name])
+    return REGISTERED
 
 
 def method_table() -> str:

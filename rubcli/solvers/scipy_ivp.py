@@ -37,12 +37,12 @@ import numpy as np
 from rubcli import model
 from rubcli.problem import Problem
 from rubcli.solution import Solution
-from rubcli.solvers import driver, register
+from rubcli.solvers import driver
 from rubcli.solvers.events import (
     NO_EVENT,
     earliest_event,
 )
-from rubcli.solvers.registry import SPECS, ToleranceOptions
+from rubcli.solvers.registry import SPECS, ToleranceOptions, register
 from rubcli.solvers.shared import (
     SCAN_POINTS,
     SCIPY_CLASSES,

@@ -33,10 +33,10 @@ from rubcli import model
 from rubcli.problem import Problem
 from rubcli.solution import Solution
 from rubcli.solvers import compiled as kernels
-from rubcli.solvers import driver, register
+from rubcli.solvers import driver
 from rubcli.solvers.compiled import taylor as taylor_kernels
 from rubcli.solvers.events import NO_EVENT, start_flags
-from rubcli.solvers.registry import CompiledOptions
+from rubcli.solvers.registry import CompiledOptions, register
 from rubcli.solvers.shared import RESTART_BAND_FLOOR, kernel_failure, locate_in_python
 
 # steps per kernel call, with budget and progress checks between: 20,000 steps are 5-20

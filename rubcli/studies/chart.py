@@ -5,7 +5,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from collections.abc import Callable
@@ -17,47 +16,19 @@ import numpy as np
 
 from rubcli import io
 from rubcli.analysis import charts as ch
+from rubcli.analysis.charts import SWEEP_REGIMES, SweepMap
 from rubcli.case import Case, ChartSection, paper_machine_problem
 
 if TYPE_CHECKING:
     from rubcli.model import ModelParams
 
 FILES = ("chart.png", "curve.csv", "chart.nc", "report.json")
-# What a sweep's point settled on (``analysis.ensemble.regime_of``), drawn beside the regions
-SWEEP_REGIMES = ("free whirl", "synchronous rub", "modulated full rub", "partial rub",
-                 "dry whip", "dry whirl", "no result")  # fmt: skip
 QUICK_GRID = (41, 21)  # quick: at most this many grid values of x and y
 QUICK_CHECK_POINTS = 2  # quick: at most this many values of x checked by continuation
 # Why a chart holds on the paper's machine alone (a general machine is refused).
 PAPER_MACHINE_ONLY = ("its regions are the closed forms of the synchronous motions, on a "
                       "concentric rigid stator and an isotropic support without load")  # fmt: skip
 CSV_COLUMNS_TAIL = ("kind", "source", "distance_to_closed_form")
-
-
-@dataclass
-class SweepMap:
-    """A ``rubcli sweep`` over the chart's two parameters: what each point settled on."""
-
-    path: Path
-    direction: str  # the sweep direction shown ("up", "down" or "independent")
-    x: np.ndarray  # (nx,) the sweep's values of the chart's x
-    y: np.ndarray  # (ny,)
-    regimes: np.ndarray  # (ny, nx) indices into SWEEP_REGIMES
-    names: tuple[str, str]  # the chart's (x, y) parameters
-    labels: tuple[str, ...] = SWEEP_REGIMES  # the name of each regime index
-
-    def cross_table(self, params: ModelParams) -> dict[str, dict[str, int]]:
-        """How many sweep points of each regime lie in each closed-form region."""
-        table: dict[str, dict[str, int]] = {}
-        for j, yv in enumerate(self.y):
-            for i, xv in enumerate(self.x):
-                at = dataclasses.replace(params, **{self.names[0]: float(xv),
-                                                    self.names[1]: float(yv)})  # fmt: skip
-                code = ch.region(at)
-                row = table.setdefault(ch.REGIONS[code], {})
-                name = self.labels[self.regimes[j, i]]
-                row[name] = row.get(name, 0) + 1
-        return table
 
 
 def contradictions(table: dict[str, dict[str, int]]) -> int:

@@ -504,17 +504,6 @@ def run_basins(
     return result
 
 
-def warm_up() -> None:
-    """Compile (or load from numba's cache) the recognition kernel here, before workers
-    start, as ``engine.warm_up`` does for the solver's kernels."""
-    from rubcli.analysis.sweep import recognise_kernel as kernel
-
-    state = np.zeros(6, np.int64)
-    kernel.scan(np.zeros((1, 4)), 1, np.zeros((1, 4)), np.array([0, 1]), np.ones(1), 1,
-                np.zeros(1, np.int64), np.zeros(1, np.int16), np.zeros(1, np.int32), 0.05,
-                1, 1e3, state)  # fmt: skip
-
-
 # ------------------------------------------------------------------ measures
 
 

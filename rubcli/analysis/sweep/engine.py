@@ -93,9 +93,9 @@ def warm_up(method: str, options: dict, recognition: bool = False) -> None:
     problem = Problem.from_periods(params, (0.9, 0.0, 0.0, 0.0), 2, 8)
     solve(problem, method, **options)
     if recognition:
-        from rubcli.analysis.sweep import basins
+        from rubcli.analysis.sweep import recognise_kernel
 
-        basins.warm_up()
+        recognise_kernel.warm_up()
 
 
 @dataclass

@@ -219,7 +219,7 @@ class SweepPlan:
 
     def digest(self) -> str:
         """A hash of everything that changes the numbers: the key of the resumable store."""
-        from rubcli import __version__
+        from rubcli.version import __version__
 
         text = json.dumps({"plan": self.to_dict(), "rubcli": __version__}, sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]

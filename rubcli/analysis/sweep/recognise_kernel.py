@@ -97,3 +97,12 @@ def scan(
         if state[BASIN_RUN] >= basin_hits:
             return i, cell, HOW_BASIN, state[BASIN_ETA]
     return -1, NONE, 0, 0
+
+
+def warm_up() -> None:
+    """Compile (or load from numba's cache) the scan here, before workers start, as
+    ``engine.warm_up`` does for the solver's kernels."""
+    state = np.zeros(6, np.int64)
+    scan(np.zeros((1, 4)), 1, np.zeros((1, 4)), np.array([0, 1]), np.ones(1), 1,
+         np.zeros(1, np.int64), np.zeros(1, np.int16), np.zeros(1, np.int32), 0.05, 1, 1e3,
+         state)  # fmt: skip
