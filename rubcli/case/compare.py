@@ -1,6 +1,6 @@
 """[compare] and [analysis]: `rubcli compare` and the response analysis (docs/compare.md).
 
-Defaults of the ladders live in rubcli.analysis.work_precision; None means "use that
+Defaults of the ladders live in rubcli.analysis.accuracy.work_precision; None means "use that
 default".
 """
 

@@ -21,7 +21,7 @@ class EnsembleSection(_Section):
     """[ensemble]: the runs of `rubcli ensemble` and how each run's end is analysed.
 
     With ``parameter`` (and ``values`` or start/stop/num) the same starts are run at every
-    value: the basin stability along the parameter (``rubcli.analysis.basin_stability``).
+    value: the basin stability along the parameter (``rubcli.analysis.ensembles.basin_stability``).
     ``starts = "box"`` draws the starts uniformly over a box of the state space instead of
     the cloud within ``spread`` of the case's start.
     """

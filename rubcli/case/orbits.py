@@ -9,7 +9,7 @@ from pydantic import Field, model_validator
 from pydantic_core import PydanticCustomError
 
 from rubcli import model
-from rubcli.analysis.orbit_bounds import (
+from rubcli.analysis.orbits.bounds import (
     MIN_ORBIT_STEP_FRACTION,
     ORBITS_BOUNDS,
     ORBITS_WALL_TIME_S,

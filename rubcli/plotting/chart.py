@@ -18,7 +18,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from rubcli.analysis import charts as ch
+from rubcli.analysis.charts import stability as ch
 
 if TYPE_CHECKING:
     from collections.abc import Sequence

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rubcli import io
-from rubcli.analysis import charts as ch
+from rubcli.analysis.charts import stability as ch
 from rubcli.case import Case, ChartSection, paper_machine_problem
 
 if TYPE_CHECKING:
@@ -109,8 +109,8 @@ def load_sweep_map(path: Path, table: ChartSection, params: ModelParams) -> Swee
         period = np.asarray(one["response_period"].values, dtype=float)
         x = np.asarray(one[table.x].values, dtype=float)
         y = np.asarray(one[table.y].values, dtype=float)
-    from rubcli.analysis.ensemble import regime_of
-    from rubcli.analysis.response import CONVERGING, KINDS, PERIODIC
+    from rubcli.analysis.ensembles.ensemble import regime_of
+    from rubcli.analysis.response.classification import CONVERGING, KINDS, PERIODIC
 
     # a forward whirl in contact all round is the synchronous rub only when it repeats
     # every forcing period (or converges to such an orbit); else it is modulated (a torus)

@@ -7,10 +7,10 @@ translation::
 
     d/dtau E = f_u(tau) . v - 2 nu |v|^2 - T r theta'
 
-(``analysis.energy``'s balance with ``E (cos p, sin p)`` replaced by ``f_u``; the motor
+(``analysis.energy.balance``'s balance with ``E (cos p, sin p)`` replaced by ``f_u``; the motor
 holding the prescribed speed supplies ``T Rp eta(tau)`` of the friction's power, reported
 as ``spin_drive_work``, and the contact dissipates ``T v_r``). The powers are integrated
-piece by piece between the located events (``analysis.regimes.solution_pieces``: a
+piece by piece between the located events (``analysis.energy.regimes.solution_pieces``: a
 slip reversal flips the friction), on each leg of the profile with that leg's line of
 speed, by the trapezoid rule (``profile_energy_summary``).
 
@@ -79,9 +79,9 @@ def _coarse(t: np.ndarray, P: np.ndarray) -> float:
 def profile_powers(
     problem: Problem, tau: np.ndarray, states: np.ndarray, regime: int
 ) -> np.ndarray:
-    """``analysis.energy.powers`` at the nodes ``tau`` (states (n, 4)) of one piece in
+    """``analysis.energy.balance.powers`` at the nodes ``tau`` (states (n, 4)) of one piece in
     ``regime``, each node on its leg of the profile: array (n, ``energy.N_TERMS``)."""
-    from rubcli.analysis.energy import N_TERMS, powers
+    from rubcli.analysis.energy.balance import N_TERMS, powers
 
     legs = problem.legs()
     starts = np.array([start for start, _ in legs])
@@ -96,9 +96,9 @@ def profile_powers(
 
 def profile_energy_summary(solution: Solution) -> dict[str, float]:
     """A prescribed speed's balance over the run, for report.json (module docstring):
-    the keys of ``analysis.energy``'s summary."""
-    from rubcli.analysis import energy as en
-    from rubcli.analysis.regimes import solution_pieces
+    the keys of ``analysis.energy.balance``'s summary."""
+    from rubcli.analysis.energy import balance as en
+    from rubcli.analysis.energy.regimes import solution_pieces
 
     if solution.t.size < 3:
         return {"energy_residual": 0.0, "energy_quadrature_error": 0.0}

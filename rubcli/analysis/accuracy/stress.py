@@ -9,7 +9,7 @@ adaptive steps, ``analytic_tol = 1e-6``), under a per-run budget (``max_wall_tim
 ``max_steps``), and measures each run against the best available reference:
 
 - **exact** where the case has one: the free flight in closed form
-  (``analysis.reference.exact_reference``), including a free orbit that only *touches*
+  (``analysis.accuracy.reference.exact_reference``), including a free orbit that only *touches*
   the clearance (penetration below the grazing tolerance, so no contact force ever acts),
   and the synchronous full annular rub started on its orbit;
 - otherwise **numerical**: DOP853 at ``rtol = atol = 1e-12`` under the same budget (run
@@ -20,7 +20,7 @@ adaptive steps, ``analytic_tol = 1e-6``), under a per-run budget (``max_wall_tim
   or lsoda at the suite's rtol 1e-8) agrees with it within ``CONFIRM_ERROR`` = 1e-4: the
   horizon is then inside the horizon of predictability and the reference is trusted.
 
-Each run also gets its energy residual (``analysis.energy``), its largest penetration
+Each run also gets its energy residual (``analysis.energy.balance``), its largest penetration
 and a check for non-finite values. A run that reports success is given a *warning* when
 its energy balance fails by more than 1e-2 of the throughput or it is more than 1e-2
 clearances from an exact or a confirmed reference: a wrong orbit must not pass
@@ -45,9 +45,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rubcli import model
-from rubcli.analysis.energy import energy_balance
-from rubcli.analysis.reference import EXACT_FREE_FLIGHT, exact_reference
-from rubcli.analysis.regimes import time_in_regimes
+from rubcli.analysis.accuracy.reference import EXACT_FREE_FLIGHT, exact_reference
+from rubcli.analysis.energy.balance import energy_balance
+from rubcli.analysis.energy.regimes import time_in_regimes
 from rubcli.drive import Drive
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
@@ -526,12 +526,12 @@ def measure_run(case: StressCase, solution: Solution, target_periods: float) -> 
     finite = bool(np.all(np.isfinite(solution.states)))
     residual = quadrature = None
     if finite and solution.problem.changes_speed:
-        from rubcli.analysis.transient_energy import speed_energy_summary
+        from rubcli.analysis.energy.transient import speed_energy_summary
 
         summary = speed_energy_summary(solution)
         residual, quadrature = summary["energy_residual"], summary["energy_quadrature_error"]
     elif finite and solution.stator_states is not None:
-        from rubcli.analysis.two_body_energy import two_body_energy_summary
+        from rubcli.analysis.energy.two_body import two_body_energy_summary
 
         summary = two_body_energy_summary(solution)
         residual, quadrature = summary["energy_residual"], summary["energy_quadrature_error"]

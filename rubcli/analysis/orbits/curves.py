@@ -12,7 +12,7 @@ equations in the six unknowns ``Z = (x0, q1, q2)``, ``q_i = p_i / (max_i - min_i
 curve in the plane of the two parameters, followed by pseudo-arclength continuation
 (predictor along the null vector of the 5 x 6 Jacobian, corrector Newton with the
 arclength condition). The Jacobian is ``[Phi - I, dP/dq1, dP/dq2]`` above ``grad T``:
-``Phi`` from the variational equations (``analysis.orbits``), the rest by differences of
+``Phi`` from the variational equations (``analysis.orbits.periodic``), the rest by differences of
 the map (central for ``dP/dq``, forward with relative step 1e-6 for ``grad T``; for a
 grazing, whose ``max z`` has a kink in the start of a trajectory, ``T`` is differenced
 along the family of orbits in the parameters alone).
@@ -35,13 +35,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rubcli import model
-from rubcli.analysis import continuation as cn
-from rubcli.analysis import orbits as ob
+from rubcli.analysis.orbits import continuation as cn
+from rubcli.analysis.orbits import periodic as ob
 from rubcli.model import ModelParams
 
 # The kinds of point a curve follows (the nonsmooth folds at a grazing follow its curve).
 CURVE_KINDS = (cn.FOLD, cn.FLIP, cn.NEIMARK_SACKER, cn.GRAZING)
-# The closed-form curve (analysis.charts) each kind lies on for synchronous orbits (k = 1)
+# The closed-form curve (analysis.charts.stability) each kind lies on for synchronous orbits (k = 1)
 # of the isotropic machine: the free whirl's grazing; the full annular rub's fold and its
 # stability boundary.
 CLOSED_FORMS = {cn.GRAZING: "free_grazing", cn.FOLD: "rub_fold",

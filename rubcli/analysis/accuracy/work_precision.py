@@ -7,7 +7,7 @@ start-up (first calls into scipy, caches, any compilation); its time is reported
 as ``startup_s`` and is not in any row. A run that takes longer than
 ``repeat_below_s`` is not repeated (its single time is reported, ``repeats = 1``).
 
-The errors are against a ``Reference`` (``analysis.reference``) on the same samples and
+The errors are against a ``Reference`` (``analysis.accuracy.reference``) on the same samples and
 only over its trusted span: ``error_max = max_k |w_k - w_ref,k|`` and
 ``error_final = |w - w_ref|`` at the last trusted sample. The problem is truncated to the
 trusted span before it is solved, so time and error cover the same interval.
@@ -32,7 +32,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from rubcli.analysis.reference import Reference, position_errors, truncate_problem
+from rubcli.analysis.accuracy.reference import Reference, position_errors, truncate_problem
 from rubcli.problem import Problem
 from rubcli.solvers.registry import SPECS, STEPS_PER_PERIOD
 

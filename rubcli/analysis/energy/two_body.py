@@ -13,7 +13,7 @@ zero in free flight, ``d' . t = -Rp eta`` in stick.
 
 The friction's power jumps at a slip reversal and where stick begins or ends, so every
 power is integrated piece by piece between the located events (each event's full state
-is the run's, ``Solution.stator_events``), by the rule of ``analysis.energy``: the cubic
+is the run's, ``Solution.stator_events``), by the rule of ``analysis.energy.balance``: the cubic
 Hermite interpolant of each power between two nodes, ``h/2 (P_k + P_k+1) + h^2/12 (P'_k
 - P'_k+1)``, order 4. A power is a function of the state alone (the phase is a state),
 so its rate is its derivative along the flow, a central difference of step ``RATE_STEP``

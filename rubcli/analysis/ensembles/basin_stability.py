@@ -56,8 +56,8 @@ from typing import Any
 import numpy as np
 
 from rubcli import model
-from rubcli.analysis import ensemble as en
-from rubcli.analysis.processes import local_pool
+from rubcli.analysis.ensembles import ensemble as en
+from rubcli.analysis.runs.processes import local_pool
 from rubcli.model import ModelParams
 
 FREE_WHIRL = "free whirl"
@@ -315,8 +315,8 @@ def free_whirl_point(params: ModelParams) -> tuple[float, float, float, float]:
 def perturbation_status(params: ModelParams, members: Sequence[en.MemberResult]) -> str | None:
     """Why the minimal perturbation cannot be computed at these parameters (None: it can):
     the free whirl must clear the stator and a rub must exist (module docstring)."""
-    from rubcli.analysis.charts import free_radius
-    from rubcli.analysis.synchronous import synchronous_rubs
+    from rubcli.analysis.charts.stability import free_radius
+    from rubcli.analysis.orbits.synchronous import synchronous_rubs
 
     if not params.is_paper_machine:  # its start is the paper machine's free whirl
         return ("a general machine: the free whirl's closed form (the perturbation's origin) "
@@ -485,9 +485,9 @@ def minimal_perturbations(
     gives the parameters and run settings at value ``i`` (its start is replaced; no Lyapunov
     runs), ``members[i]`` the ensemble's runs there (a rub found by them counts as a rub).
     ``progress(n)``: directions finished (those of a value not computable count at once).
-    ``rubcli.analysis.orbits.WallTimeBudgetError`` after a direction once the templates'
+    ``rubcli.analysis.orbits.periodic.WallTimeBudgetError`` after a direction once the templates'
     deadline (``MemberTask.deadline``) has passed."""
-    from rubcli.analysis.orbits import check_deadline
+    from rubcli.analysis.orbits.periodic import check_deadline
 
     directions = settings.directions()
     out: list[MinimalPerturbation] = []

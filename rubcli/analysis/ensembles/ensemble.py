@@ -6,8 +6,8 @@ draw; the statements that hold are statistical. ``run_ensemble`` solves the case
 cloud of starts (the case's own and ``runs - 1`` others at a distance ``spread`` in a
 random direction) at every setting of a ladder (methods x rtols), and for each run:
 
-- classifies the last ``record_periods`` (``analysis.response``, with its evidence) and
-  names the attractor by its contact regime: *free whirl* (no contact), *dry whip*
+- classifies the last ``record_periods`` (``analysis.response.classification``, with its
+  evidence) and names the attractor by its contact regime: *free whirl* (no contact), *dry whip*
   (rolling, stick > 99 % of the window), *dry whirl* (backward whirl in permanent
   contact), *synchronous rub* (forward, permanent contact), *partial rub* otherwise. A
   window whose last quarter is in another regime is cut to that quarter; a run whose
@@ -44,9 +44,9 @@ from typing import TypeVar
 import numpy as np
 
 from rubcli import model
-from rubcli.analysis import response as rsp
-from rubcli.analysis.orbits import check_deadline
-from rubcli.analysis.processes import local_pool
+from rubcli.analysis.orbits.periodic import check_deadline
+from rubcli.analysis.response import classification as rsp
+from rubcli.analysis.runs.processes import local_pool
 from rubcli.analysis.sweep.attractors import normalised
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
@@ -199,7 +199,7 @@ def _member(task: MemberTask) -> MemberResult:
 
 
 def _order(sol, task: MemberTask, periods: int) -> float:
-    from rubcli.analysis.spectrum import full_spectrum
+    from rubcli.analysis.response.spectrum import full_spectrum
 
     window = slice((task.periods - periods) * task.samples_per_period, None)
     return full_spectrum(sol.t[window][:-1], sol.w[window][:-1], task.params.eta).dominant_order
@@ -433,7 +433,7 @@ def run_ensemble(
     settings: dict | None = None,
 ) -> EnsembleResult:
     """Every task, in this process (``workers = 1``) or on a local process pool.
-    ``rubcli.analysis.orbits.WallTimeBudgetError`` after a run once the tasks' deadline
+    ``rubcli.analysis.orbits.periodic.WallTimeBudgetError`` after a run once the tasks' deadline
     has passed (the runs not started are dropped)."""
     results: list[MemberResult] = []
     deadline = tasks[0].deadline if tasks else None

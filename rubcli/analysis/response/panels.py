@@ -1,7 +1,7 @@
 """Orbit panels (one per mu) and response runs: the domain work of `compare` and `run`.
 
 - ``response_of(solution, settings)``: the class of a solution's steady response
-  (``analysis.response.classify_solution`` after the transient) and its stroboscopic
+  (``analysis.response.classification.classify_solution`` after the transient) and its stroboscopic
   section; ``run_responses`` does it for several solutions, ``response_summary`` gives
   the top-level ``response`` of a report.
 - ``orbit_panel(problem, methods, options, ...)``: each method at the given settings over
@@ -25,10 +25,10 @@ from typing import Any
 
 import numpy as np
 
-from rubcli.analysis import response as rsp
-from rubcli.analysis.reference import Reference, position_errors, reference_solution
-from rubcli.analysis.spectrum import FullSpectrum, steady_spectrum
-from rubcli.analysis.synchronous import synchronous_rubs
+from rubcli.analysis.accuracy.reference import Reference, position_errors, reference_solution
+from rubcli.analysis.orbits.synchronous import synchronous_rubs
+from rubcli.analysis.response import classification as rsp
+from rubcli.analysis.response.spectrum import FullSpectrum, steady_spectrum
 from rubcli.problem import Problem
 from rubcli.solution import Solution
 

@@ -1,6 +1,6 @@
-"""The compiled one-pass core of the energy balance (``analysis.energy``).
+"""The compiled one-pass core of the energy balance (``analysis.energy.balance``).
 
-``balance_pass`` walks the nodes of every smooth piece (``analysis.regimes.piece_bounds``)
+``balance_pass`` walks the nodes of every smooth piece (``analysis.energy.regimes.piece_bounds``)
 over the solution's own arrays, without copying them, and computes, node by node, what
 ``energy._interval_integrals`` and ``energy._coarse_estimate`` compute on whole arrays:
 the powers, their central-difference rates along the motion, the corrected trapezoid

@@ -27,8 +27,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rubcli import model
-from rubcli.analysis.orbit_bounds import ORBITS_BOUNDS, ORBITS_WALL_TIME_S
-from rubcli.analysis.regimes import time_in_regimes
+from rubcli.analysis.energy.regimes import time_in_regimes
+from rubcli.analysis.orbits.bounds import ORBITS_BOUNDS, ORBITS_WALL_TIME_S
 from rubcli.model import ModelParams
 from rubcli.solvers import events as ev
 

@@ -56,7 +56,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.interpolate import CubicSpline
 
-from rubcli.analysis.spectrum import hann
+from rubcli.analysis.response.spectrum import hann
 from rubcli.model import FREE, REGIME_NAMES
 
 MIN_SAMPLES_PER_REVOLUTION = 8  # the fit has three unknowns; fewer samples are a sampling error

@@ -437,7 +437,7 @@ def eigen_map(
     WallTimeBudgetError once ``time.perf_counter()`` passes ``deadline`` (checked at every
     block of contact points).
     """
-    from rubcli.analysis.orbits import check_deadline
+    from rubcli.analysis.orbits.periodic import check_deadline
 
     axis, X, Y, in_contact = _contact_points(extent, resolution)
     shape = X.shape

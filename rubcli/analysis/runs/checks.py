@@ -7,7 +7,7 @@ the orbit is nonsense (``rtol = 0.999999, atol = 1e300`` ends 1e19 clearances de
 the stator). Three checks that need no reference decide it:
 
 1. **Non-finite states**: any NaN or infinity among the samples.
-2. **Energy balance**: the residual of the energy balance (``analysis.energy``) above
+2. **Energy balance**: the residual of the energy balance (``analysis.energy.balance``) above
    ``ENERGY_RESIDUAL_LIMIT`` (1e-2 of the energy throughput) *and* above
    ``QUADRATURE_FACTOR`` times its own quadrature floor (below the floor the residual
    says nothing, docs/stability.md).
@@ -109,14 +109,14 @@ def plausibility_warnings(
 def method_summary(solution: Solution, balance: Any = None) -> dict[str, Any]:
     """The report.json entry of one method, with its plausibility warnings.
 
-    ``time_in_regime`` comes from the located switch times (``analysis.regimes``);
-    ``energy_residual`` and ``energy`` from the energy balance (``analysis.energy``):
+    ``time_in_regime`` comes from the located switch times (``analysis.energy.regimes``);
+    ``energy_residual`` and ``energy`` from the energy balance (``analysis.energy.balance``):
     ``balance`` if given (an ``EnergyBalance`` or ``EnergyTotals`` of this solution,
     computed once for the energy figure too), else its totals (``energy_totals``: one
     compiled pass, no per-sample arrays).
     """
-    from rubcli.analysis.energy import energy_totals
-    from rubcli.analysis.regimes import time_in_regimes
+    from rubcli.analysis.energy.balance import energy_totals
+    from rubcli.analysis.energy.regimes import time_in_regimes
 
     t_end = float(solution.t[-1]) if solution.t.size else None
     finite = bool(np.all(np.isfinite(solution.states)))
@@ -124,11 +124,11 @@ def method_summary(solution: Solution, balance: Any = None) -> dict[str, Any]:
         if not finite:
             energy = None
         elif solution.problem.changes_speed:
-            from rubcli.analysis.transient_energy import speed_energy_summary
+            from rubcli.analysis.energy.transient import speed_energy_summary
 
             energy = speed_energy_summary(solution)
         elif solution.stator_states is not None:
-            from rubcli.analysis.two_body_energy import two_body_energy_summary
+            from rubcli.analysis.energy.two_body import two_body_energy_summary
 
             energy = two_body_energy_summary(solution)
         elif balance is not None:

@@ -10,7 +10,7 @@ Three kinds, tried in this order (``reference_solution``):
 2. **Synchronous full annular rub, exact**: the start lies on the orbit
    ``w = A exp(i eta tau)`` of ``model.synchronous_rub`` (relative 1e-12) with forward
    slip. The orbit is exact whether or not it is stable; its stability
-   (``analysis.synchronous``) is reported beside it, since numerical solutions of an
+   (``analysis.orbits.synchronous``) is reported beside it, since numerical solutions of an
    unstable orbit depart from it at the rate of the unstable eigenvalue.
 3. **Numerical** otherwise: DOP853 at rtol = atol = 1e-12 with event restarts
    (``rubcli.solvers.solve``; run as ``dop853-jit``, which takes scipy's DOP853 steps
@@ -45,7 +45,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rubcli import model
-from rubcli.analysis.synchronous import SynchronousRub, started_on_synchronous_rub
+from rubcli.analysis.orbits.synchronous import SynchronousRub, started_on_synchronous_rub
 from rubcli.problem import Problem
 
 if TYPE_CHECKING:

@@ -13,7 +13,7 @@ integration:
   quadratic has a double root ``r_f = K (a + mu b) / (a^2 + b^2) > 1`` (discriminant
   ``K^2 (a + mu b)^2 - (a^2 + b^2) (K^2 (1 + mu^2) - E^2) = 0``); its **stability** is that
   of the equilibrium in the frame turning with the forcing
-  (``rubcli.analysis.synchronous``), and its **stability boundary** is where the largest
+  (``rubcli.analysis.orbits.synchronous``), and its **stability boundary** is where the largest
   real part of those eigenvalues crosses zero (a Neimark-Sacker point of the stroboscopic
   map when the crossing pair is complex).
 
@@ -35,7 +35,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from rubcli import model
-from rubcli.analysis.synchronous import synchronous_rubs
+from rubcli.analysis.orbits.synchronous import synchronous_rubs
 from rubcli.model import ModelParams
 
 if TYPE_CHECKING:
@@ -199,7 +199,7 @@ def closed_form_chart(
     change, along x at each grid value of y and along y at each grid value of x (a curve
     that runs nearly parallel to one axis is found along the other). WallTimeBudgetError
     once ``time.perf_counter()`` passes ``deadline`` (checked at every grid line)."""
-    from rubcli.analysis.orbits import check_deadline
+    from rubcli.analysis.orbits.periodic import check_deadline
 
     xs = _grid(x_range, nx, x_spacing)
     ys = _grid(y_range, ny, y_spacing)
@@ -286,7 +286,7 @@ def chart_dataset(chart: Chart, params: ModelParams) -> xr.Dataset:
 @dataclass(frozen=True)
 class ContinuedPoint:
     """A bifurcation of the synchronous rub located by shooting and continuation
-    (``rubcli.analysis.continuation``) at a fixed x, and the closed-form curve's y there."""
+    (``rubcli.analysis.orbits.continuation``) at a fixed x, and the closed-form curve's y there."""
 
     x: float
     y: float
@@ -314,8 +314,8 @@ def continued_points(
     of the closed-form curves (each point carries the closed form's y next to it).
     WallTimeBudgetError once ``time.perf_counter()`` passes ``deadline``: a check cut
     short is no check."""
-    from rubcli.analysis import continuation as cn
-    from rubcli.analysis.orbits import check_deadline
+    from rubcli.analysis.orbits import continuation as cn
+    from rubcli.analysis.orbits.periodic import check_deadline
 
     out: list[ContinuedPoint] = []
     lo, hi = float(chart.y[0]), float(chart.y[-1])

@@ -28,7 +28,7 @@ whirl (dry whip) the spinning surface pumps energy into the whirl. Both shares a
 reported (``contact_dissipation``, ``spin_drive``).
 
 **Quadrature.** The integrals are taken piece by piece between the solution's located
-events (``analysis.regimes.solution_pieces``), so the kinks of the contact force at a
+events (``analysis.energy.regimes.solution_pieces``), so the kinks of the contact force at a
 switch never fall inside a quadrature interval. On each interval between two nodes
 (samples, or event states) the state is the cubic Hermite interpolant of the positions
 (from positions and velocities) and of the velocities (from velocities and
@@ -55,7 +55,7 @@ raise ``samples_per_period``), both are large and the residual says nothing abou
 solver.
 
 **Cost.** ``energy_balance`` and ``energy_totals`` run in one compiled pass over the
-nodes (``analysis.energy_kernel``), with the arithmetic of the whole-array numpy path
+nodes (``analysis.energy.kernel``), with the arithmetic of the whole-array numpy path
 ``energy_balance_numpy`` (kept as the tests' reference); ``energy_totals``, all a report
 needs, keeps no per-sample array.
 """
@@ -68,7 +68,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rubcli import model
-from rubcli.analysis.regimes import Piece, solution_pieces
+from rubcli.analysis.energy.regimes import Piece, solution_pieces
 from rubcli.solution import Solution
 
 if TYPE_CHECKING:
@@ -83,7 +83,7 @@ SMALL_SHIFT = 1e-4  # phase shifts below this: cos and sin by their Taylor serie
 # Columns of the power array: unbalance, damping, friction on the translation
 # (-T r theta'), contact dissipation (T v_r), spin drive (T Rp eta), |P_in|, |T r theta'|,
 # and on the general machine the cross-coupled stiffness's work on the rotor
-# (-w'^T S_anti w) and its magnitude (also analysis.transient_energy's columns).
+# (-w'^T S_anti w) and its magnitude (also analysis.energy.transient's columns).
 W_IN, W_DAMP, W_FRIC, W_SLIP, W_SPIN, W_ABS_IN, W_ABS_FRIC, W_CROSS, W_ABS_CROSS = range(9)
 N_TERMS = 9
 
@@ -349,7 +349,7 @@ def _balance_combination(integrals: np.ndarray) -> np.ndarray:
 
 
 def _kernel_inputs(solution: Solution):
-    from rubcli.analysis.regimes import piece_bounds
+    from rubcli.analysis.energy.regimes import piece_bounds
     from rubcli.solvers.compiled import ensure_fresh
 
     ensure_fresh()  # the kernel's cached copy follows model.py's record
@@ -365,7 +365,7 @@ def _kernel_inputs(solution: Solution):
 
 
 def _pass(solution: Solution, cum: np.ndarray, energies: np.ndarray):
-    from rubcli.analysis.energy_kernel import balance_pass
+    from rubcli.analysis.energy.kernel import balance_pass
 
     bounds, args = _kernel_inputs(solution)
     running, quad_sum, first, last, largest = balance_pass(*args, cum, energies)
@@ -448,7 +448,7 @@ def energy_totals(solution: Solution) -> EnergyTotals:
 def energy_balance(solution: Solution) -> EnergyBalance:
     """The energy balance of a solution, integrated piecewise between its events.
 
-    One compiled pass (``analysis.energy_kernel``); the series take 10 floats per node.
+    One compiled pass (``analysis.energy.kernel``); the series take 10 floats per node.
     For the totals alone, ``energy_totals`` keeps none.
     """
     if solution.t.size == 0:
@@ -460,7 +460,7 @@ def energy_balance(solution: Solution) -> EnergyBalance:
     nodes = bounds.n_nodes
     cum = np.empty((nodes, N_TERMS))
     energies = np.empty((nodes, 3))
-    from rubcli.analysis.energy_kernel import balance_pass
+    from rubcli.analysis.energy.kernel import balance_pass
 
     running, quad_sum, _, _, largest = balance_pass(*args, cum, energies)
     throughput = float(

@@ -5,7 +5,7 @@ Unknowns ``X = (x0, q)``: the state on the section and the continued parameter s
 parameter alike). A branch point solves ``G(x0, p) = P^k(x0; p) - x0 = 0`` and the
 pseudo-arclength condition ``t . (X - X_pred) = 0`` by Newton with the bordered Jacobian
 ``[[Phi - I, dP/dq], [t^T]]``; ``Phi`` comes from the variational equations through every
-switch (``rubcli.analysis.orbits``), ``dP/dq`` from central differences of the map. Steps
+switch (``rubcli.analysis.orbits.periodic``), ``dP/dq`` from central differences of the map. Steps
 grow after easy corrections and halve after failed ones, within ``[min_step, max_step]``.
 
 Between two consecutive points the test functions are compared:
@@ -35,8 +35,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rubcli import model
-from rubcli.analysis import orbits as ob
-from rubcli.analysis.orbit_bounds import MIN_ORBIT_STEP_FRACTION
+from rubcli.analysis.orbits import periodic as ob
+from rubcli.analysis.orbits.bounds import MIN_ORBIT_STEP_FRACTION
 from rubcli.model import ModelParams
 
 if TYPE_CHECKING:

@@ -14,7 +14,7 @@ tests run in this order:
    distance between the cycle's own points, so that a small section turning by about
    360/p degrees a period is not taken for a p-cycle. The smallest such p is reported,
    with the contraction still measured on it, if any.
-3. **the section map's linear regime** (``analysis.section_map.linear_fit``): for
+3. **the section map's linear regime** (``analysis.response.section_map.linear_fit``): for
    p = 1 ... ``max_period`` the steps of the section are fitted by ``d_{k+p} = A d_k``;
    where the fit is linear (relative residual <= ``LINEAR_TOL``) and its leading
    multiplier has the same modulus in both halves of the record, the modulus decides:
@@ -28,7 +28,7 @@ tests run in this order:
    torus's neutral direction (slow when the next exponent is close to zero, as on the dry
    whip, where it is -nu).
 4. otherwise the **largest Lyapunov exponent** (when computed) and the **refined
-   frequencies** of the section (``analysis.section_map.section_frequencies``: NAFF,
+   frequencies** of the section (``analysis.response.section_map.section_frequencies``: NAFF,
    Laskar 1993, on each half of the record) decide:
    - **chaotic**: the exponent is positive beyond ``LYAPUNOV_SIGMAS`` standard errors
      and beyond ``LYAPUNOV_FLOOR``;
@@ -65,7 +65,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rubcli.analysis.section_map import (
+from rubcli.analysis.response.section_map import (
     LINEAR_TOL,
     MARGINAL_RATE,
     Frequencies,

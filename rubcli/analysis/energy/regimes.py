@@ -43,7 +43,7 @@ class PieceBounds:
     Piece ``p`` runs from ``start_tau[p]`` (state ``start_state[p]``) through the samples
     ``t[lo[p]:hi[p]]`` to ``end_tau[p]`` (state ``end_state[p]``), in regime
     ``regime[p]``; ``solution_pieces`` assembles the same nodes into arrays. Compiled
-    code walks these bounds over the solution's own arrays (``analysis.energy``).
+    code walks these bounds over the solution's own arrays (``analysis.energy.balance``).
     """
 
     regime: np.ndarray  # (m,) int64

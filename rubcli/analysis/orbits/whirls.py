@@ -56,8 +56,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from rubcli import model
-from rubcli.analysis.orbits import WallTimeBudgetError, check_deadline
-from rubcli.analysis.synchronous import rotating_frame_jacobian
+from rubcli.analysis.orbits.periodic import WallTimeBudgetError, check_deadline
+from rubcli.analysis.orbits.synchronous import rotating_frame_jacobian
 from rubcli.model import ModelParams
 
 SLIP_POSITIVE, SLIP_NEGATIVE, ROLLING = model.SLIP_POSITIVE, model.SLIP_NEGATIVE, model.STICK

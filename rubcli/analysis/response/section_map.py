@@ -1,6 +1,6 @@
 """Evidence read from a stroboscopic section: linear contraction and refined frequencies.
 
-Two measurements that ``analysis.response`` uses to decide what a section is.
+Two measurements that ``analysis.response.classification`` uses to decide what a section is.
 
 **Contraction (``linear_fit``).** Near a periodic orbit of period p the p-th iterate of
 the stroboscopic map is linear to first order, so the steps ``d_k = P[k+p] - P[k]`` of
