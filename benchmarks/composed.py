@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 from machine import describe
 
+from rubcli.case.rotor import load_rotor_case
 from rubcli.machine import (
     ContactLaw,
     Machine,
@@ -34,7 +35,6 @@ from rubcli.machine import (
 )
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
-from rubcli.rotor_case import load_rotor_case
 from rubcli.solvers import solve
 from rubcli.system import simulate
 

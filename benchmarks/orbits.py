@@ -9,7 +9,7 @@ Run from the repository root:
 1. **Monodromy matrix** of one forcing period, two ways, in one process: the variational
    equations integrated with the trajectory (the variational mode of
    ``rubcli.solvers.variational``: 6 + 16 equations in ``dop853-jit``'s compiled loop,
-   saltation matrices at the switches; ``rubcli.analysis.orbits.stroboscopic_map``)
+   saltation matrices at the switches; ``rubcli.analysis.orbits.periodic.stroboscopic_map``)
    against central differences of the map (8 plain integrations of 6 equations), at the
    same tolerances (1e-12). Cases: the paper's
    synchronous rub (mu = 0.02, no switch) and a transient with contact entry, exit and a
@@ -31,8 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from rubcli import model
-from rubcli.analysis import continuation as cn
-from rubcli.analysis import orbits as ob
+from rubcli.analysis.orbits import continuation as cn
+from rubcli.analysis.orbits import periodic as ob
 from rubcli.case import load_case
 from rubcli.model import ModelParams
 from rubcli.studies.orbits import settings_from_case, start_guess

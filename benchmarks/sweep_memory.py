@@ -9,7 +9,7 @@ of the process drops out.
 
     python benchmarks/sweep_memory.py
 
-``rubcli.case.SWEEP_BYTES_PER_POINT`` (per recorded period of a point) and
+``rubcli.case.sweep.SWEEP_POINT_BYTES``, ``SWEEP_PERIOD_BYTES`` (per recorded period of a point) and
 ``BASIN_BYTES_PER_START`` are set from what this writes, with a margin (see there).
 Writes ``benchmarks/sweep_memory.md``.
 """

@@ -7,10 +7,10 @@ Run from the repository root:
     python benchmarks/work_precision.py --quick    # short horizons and ladders
     python benchmarks/work_precision.py --K 1.75e6 --start near-rub --tag stiff  # a subset
 
-For each case it builds the reference (``rubcli.analysis.reference``: exact where the
+For each case it builds the reference (``rubcli.analysis.accuracy.reference``: exact where the
 case has one, otherwise DOP853 at 1e-12 checked against LSODA at 1e-12, errors only over
 the span where the reference is trusted), runs each method over its ladder of settings
-(``rubcli.analysis.work_precision``: median of repeats for short runs, one-off start-up
+(``rubcli.analysis.accuracy.work_precision``: median of repeats for short runs, one-off start-up
 such as numba compilation measured apart), and reports for each target error the
 cheapest setting of each method. Speed-ups are ratios of times measured in this one run
 on this machine, never absolute limits. It also measures the throughput (forcing periods
@@ -34,8 +34,8 @@ from pathlib import Path
 
 from machine import describe
 
-from rubcli.analysis import work_precision as wpm
-from rubcli.analysis.reference import reference_solution
+from rubcli.analysis.accuracy import work_precision as wpm
+from rubcli.analysis.accuracy.reference import reference_solution
 from rubcli.model import ModelParams, synchronous_rub, synchronous_rub_radii
 from rubcli.problem import Problem
 

@@ -21,9 +21,9 @@ import time
 import numpy as np
 
 from rubcli import model
-from rubcli.analysis import response as rsp
-from rubcli.analysis.spectrum import full_spectrum
-from rubcli.analysis.synchronous import synchronous_rubs
+from rubcli.analysis.orbits.synchronous import synchronous_rubs
+from rubcli.analysis.response import classification as rsp
+from rubcli.analysis.response.spectrum import full_spectrum
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solvers import solve

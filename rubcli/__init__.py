@@ -47,10 +47,10 @@ _LAZY = {
     "Solution": "rubcli.solution",
     "Events": "rubcli.solution",
     "SwitchEvent": "rubcli.solution",
-    "shoot": "rubcli.analysis.orbits",
-    "PeriodicOrbit": "rubcli.analysis.orbits",
-    "continue_branch": "rubcli.analysis.continuation",
-    "ContinuationSettings": "rubcli.analysis.continuation",
+    "shoot": "rubcli.analysis.orbits.periodic",
+    "PeriodicOrbit": "rubcli.analysis.orbits.periodic",
+    "continue_branch": "rubcli.analysis.orbits.continuation",
+    "ContinuationSettings": "rubcli.analysis.orbits.continuation",
     "solve": "rubcli.solvers",
     "METHODS": "rubcli.solvers",
     "load_case": "rubcli.case",
@@ -62,8 +62,8 @@ _LAZY = {
 if TYPE_CHECKING:
     from typing import Any
 
-    from rubcli.analysis.continuation import ContinuationSettings, continue_branch
-    from rubcli.analysis.orbits import PeriodicOrbit, shoot
+    from rubcli.analysis.orbits.continuation import ContinuationSettings, continue_branch
+    from rubcli.analysis.orbits.periodic import PeriodicOrbit, shoot
     from rubcli.case import Case, CaseError, load_case
     from rubcli.model import ModelParams
     from rubcli.problem import Problem

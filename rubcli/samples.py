@@ -1,7 +1,7 @@
 """The commented sample case files that ``rubcli init`` prints: ``sample_case``.
 
 The samples are tested to validate, to name every method and every table of the schema
-(tests/test_cli.py); keep them in step with ``rubcli/case.py`` and ``docs/cases.md``.
+(tests/test_cli.py); keep them in step with ``rubcli/case/`` and ``docs/cases.md``.
 """
 
 from __future__ import annotations

@@ -31,7 +31,7 @@ stator (``two_body_projection``).
 Energy ``|w'|^2/2 + w^T S_sym w/2 - g . w + m_s |s'|^2/2 + s^T diag(k_s) s/2 + K (z-1)^2/2``
 (``w`` from the support's centre); its rate is the unbalance's power, less the
 damping's (rotor and stator), plus the cross-coupling's ``-w'^T S_anti w``, less the
-friction's on the relative motion ``T d' . t`` (``analysis.two_body_energy``).
+friction's on the relative motion ``T d' . t`` (``analysis.energy.two_body``).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Basin stability along a parameter (analysis/basin_stability.py, `rubcli ensemble` with
+"""Basin stability along a parameter (analysis/ensembles/basin_stability.py, `rubcli ensemble` with
 `[ensemble] parameter`): intervals against their closed form, the attractor labels on
 synthetic input, the rotor where the closed forms leave one attractor, the bracket of the
 minimal perturbation checked by independent runs, the case table's checks, the files."""
@@ -14,8 +14,8 @@ import pytest
 from typer.testing import CliRunner
 
 from rubcli import model, solvers
-from rubcli.analysis import basin_stability as bs
-from rubcli.analysis import ensemble as en
+from rubcli.analysis.ensembles import basin_stability as bs
+from rubcli.analysis.ensembles import ensemble as en
 from rubcli.cli.app import app
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
@@ -314,7 +314,7 @@ def test_the_shaded_band_runs_from_the_free_whirls_grazing_to_the_rubs_fold():
     e^2 eta^4 = (1 - eta^2)^2 + 4 nu^2 eta^2) to the double root of the rub's quadratic."""
     from scipy.optimize import brentq
 
-    from rubcli.analysis.charts import rub_fold_discriminant
+    from rubcli.analysis.charts.stability import rub_fold_discriminant
     from rubcli.case import load_case
     from rubcli.studies.basin_stability import both_spans
 

@@ -214,7 +214,7 @@ def test_start_up_warm_up_has_budgets_of_its_own(tmp_path, monkeypatch):
     solve) is bounded by its own small budgets, never the run's: ``K = 1e300 -m lsoda``
     once spent its 5e6-step budget there before the timed run spent it again."""
     from rubcli import solvers
-    from rubcli.analysis import work_precision
+    from rubcli.analysis.accuracy import work_precision
     from rubcli.studies import run
 
     path = tmp_path / "case.toml"

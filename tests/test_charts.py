@@ -1,4 +1,4 @@
-"""Closed-form charts of the synchronous motions (rubcli.analysis.charts).
+"""Closed-form charts of the synchronous motions (rubcli.analysis.charts.stability).
 
 Each located curve point is checked by a different route than the one that located it:
 the grazing speeds (roots of a quadratic in eta^2) against the free whirl's amplitude from
@@ -19,8 +19,8 @@ import pytest
 from typer.testing import CliRunner
 
 from rubcli import model
-from rubcli.analysis import charts as ch
-from rubcli.analysis.synchronous import synchronous_rubs
+from rubcli.analysis.charts import stability as ch
+from rubcli.analysis.orbits.synchronous import synchronous_rubs
 from rubcli.case import load_case
 from rubcli.cli.app import app
 from rubcli.model import ModelParams
@@ -159,7 +159,7 @@ def quick_map_sweep(tmp_path_factory) -> Path:
 def test_chart_with_a_sweep_beside_it(quick_map_sweep, tmp_path):
     """What each point of the sweep settled on agrees with the closed forms: a point on
     the free whirl where the free whirl exists (|W| < 1, model.free_steady_state), one on
-    the synchronous rub where a stable rub exists (analysis.synchronous)."""
+    the synchronous rub where a stable rub exists (analysis.orbits.synchronous)."""
     out = tmp_path / "chart"
     case = REPO / "cases/examples/mu-eta-map.toml"
     result = CliRunner().invoke(app, ["chart", str(case), "--quick", "--out", str(out),

@@ -6,7 +6,7 @@ Each case is a short run whose answer is known independently:
   multiplier of the synchronous rub turns 51.75 degrees a period, about 360/7, so a
   section that spirals slowly returns close to itself after 7 periods. Its modulus is
   ``exp(g T)`` with ``g`` the largest real part of the rotating-frame eigenvalues
-  (``analysis.synchronous``): the section must be "converging" (|multiplier| < 1) or
+  (``analysis.orbits.synchronous``): the section must be "converging" (|multiplier| < 1) or
   "leaving" (> 1) at that rate, never "period 7" or a torus;
 - on the paper's machine with a small unbalance (e = 0.05) and no friction, every
   rotating-frame eigenvalue of the synchronous rub has real part -nu, and the free whirl
@@ -24,8 +24,8 @@ import numpy as np
 import pytest
 
 from rubcli import model
-from rubcli.analysis import response as rsp
-from rubcli.analysis.synchronous import synchronous_rubs
+from rubcli.analysis.orbits.synchronous import synchronous_rubs
+from rubcli.analysis.response import classification as rsp
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solvers import solve

@@ -19,7 +19,7 @@ import pytest
 from typer.testing import CliRunner
 
 from rubcli import solvers
-from rubcli.analysis import stress
+from rubcli.analysis.accuracy import stress
 from rubcli.cli.app import app
 
 FREE_CASE = """\

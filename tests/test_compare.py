@@ -16,9 +16,9 @@ import pytest
 from typer.testing import CliRunner
 
 from rubcli import model
-from rubcli.analysis import reference as refm
-from rubcli.analysis import work_precision as wpm
-from rubcli.analysis.synchronous import started_on_synchronous_rub, synchronous_rubs
+from rubcli.analysis.accuracy import reference as refm
+from rubcli.analysis.accuracy import work_precision as wpm
+from rubcli.analysis.orbits.synchronous import started_on_synchronous_rub, synchronous_rubs
 from rubcli.cli.app import app
 from rubcli.model import ModelParams
 from rubcli.problem import Problem

@@ -1,7 +1,8 @@
-"""Bifurcations continued in a second parameter (rubcli.analysis.curves, [orbits]
+"""Bifurcations continued in a second parameter (rubcli.analysis.orbits.curves, [orbits]
 second_parameter): each continued point checked against the closed forms of the isotropic
-machine (model notes 5; rubcli.analysis.charts and analysis.synchronous, which compute
-them without integrating), the curves' stops, the case table's checks and the files."""
+machine (model notes 5; rubcli.analysis.charts.stability and analysis.orbits.synchronous,
+which compute them without integrating), the curves' stops, the case table's checks and the
+files."""
 
 from __future__ import annotations
 
@@ -15,9 +16,9 @@ import pytest
 from typer.testing import CliRunner
 
 from rubcli import model
-from rubcli.analysis import charts
-from rubcli.analysis import continuation as cn
-from rubcli.analysis import curves as cv
+from rubcli.analysis.charts import stability as charts
+from rubcli.analysis.orbits import continuation as cn
+from rubcli.analysis.orbits import curves as cv
 from rubcli.cli.app import app
 from rubcli.model import ModelParams
 

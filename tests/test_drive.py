@@ -16,9 +16,9 @@ from scipy.optimize import brentq
 from typer.testing import CliRunner
 
 from rubcli import model
-from rubcli.analysis.drive_torques import revolution_means, sample_torques
-from rubcli.analysis.reference import truncate_problem
-from rubcli.analysis.transient_energy import drive_energy, drive_energy_summary
+from rubcli.analysis.accuracy.reference import truncate_problem
+from rubcli.analysis.energy.drive_torques import revolution_means, sample_torques
+from rubcli.analysis.energy.transient import drive_energy, drive_energy_summary
 from rubcli.case import CaseError, load_case, load_case_text
 from rubcli.cli.app import app
 from rubcli.drive import Drive

@@ -1,4 +1,5 @@
-"""Energy balance (rubcli.analysis.energy) and regime pieces (rubcli.analysis.regimes).
+"""Energy balance (rubcli.analysis.energy.balance) and regime pieces
+(rubcli.analysis.energy.regimes).
 
 Reference numbers come from exact solutions (model notes 5 and the rolling whirl of
 section 4), on which every term of the balance has a closed form, and from independent
@@ -12,14 +13,14 @@ import numpy as np
 import pytest
 
 from rubcli import model
-from rubcli.analysis.energy import (
+from rubcli.analysis.energy.balance import (
     accelerations,
     energy_balance,
     energy_balance_numpy,
     energy_totals,
     powers,
 )
-from rubcli.analysis.regimes import solution_pieces, time_in_regimes
+from rubcli.analysis.energy.regimes import solution_pieces, time_in_regimes
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solution import SUCCESS, Solution

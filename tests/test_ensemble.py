@@ -1,5 +1,5 @@
-"""Ensembles (analysis/ensemble.py, `rubcli ensemble`): the statistics on samples whose law
-is known, and the rotor where every run must reach the same attractor."""
+"""Ensembles (analysis/ensembles/ensemble.py, `rubcli ensemble`): the statistics on samples
+whose law is known, and the rotor where every run must reach the same attractor."""
 
 import csv
 import json
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from rubcli.analysis import ensemble as en
+from rubcli.analysis.ensembles import ensemble as en
 from rubcli.cli.app import app
 from rubcli.model import ModelParams
 

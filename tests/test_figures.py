@@ -16,9 +16,13 @@ from matplotlib.colors import rgb_to_hsv, to_rgba
 from matplotlib.text import Text
 
 from rubcli import model
-from rubcli.analysis.forces import eigen_map, friction_flutter_radius, friction_flutter_threshold
-from rubcli.analysis.response import PoincareSection, Response
-from rubcli.analysis.spectrum import steady_spectrum
+from rubcli.analysis.charts.forces_map import (
+    eigen_map,
+    friction_flutter_radius,
+    friction_flutter_threshold,
+)
+from rubcli.analysis.response.classification import PoincareSection, Response
+from rubcli.analysis.response.spectrum import steady_spectrum
 from rubcli.plotting import axes as ax_tools
 from rubcli.plotting import display
 from rubcli.plotting.compare import orbits_figure, poincare_figure, shared_radii

@@ -1,4 +1,4 @@
-"""Force maps, Taylor error and contact eigenvalues (rubcli.analysis.forces).
+"""Force maps, Taylor error and contact eigenvalues (rubcli.analysis.charts.forces_map).
 
 Reference numbers come from hand calculations (stated beside them), from central finite
 differences of the exact force, or from numpy on matrices assembled here from the paper's
@@ -19,7 +19,7 @@ from scipy.optimize import minimize_scalar
 from typer.testing import CliRunner
 
 from rubcli import model
-from rubcli.analysis.forces import (
+from rubcli.analysis.charts.forces_map import (
     DIRECTIONS,
     band_radii,
     damped_eigenvalues,

@@ -23,7 +23,7 @@ import pytest
 from scipy.optimize import brentq
 
 from rubcli import model
-from rubcli.analysis.stress import steady_unit_whirl, touching_start
+from rubcli.analysis.accuracy.stress import steady_unit_whirl, touching_start
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solution import SUCCESS

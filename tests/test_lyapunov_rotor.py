@@ -1,8 +1,9 @@
-"""The rotor-level Lyapunov estimate (analysis/response.py: ``rotor_propagator`` and the
-Lyapunov branch of ``classify_solution``) against independent expectations.
+"""The rotor-level Lyapunov estimate (analysis/response/classification.py:
+``rotor_propagator`` and the Lyapunov branch of ``classify_solution``) against independent
+expectations.
 
 - On the stable synchronous full annular rub with mu = 0 every rotating-frame eigenvalue
-  has real part -nu (checked first with ``analysis.synchronous``): a perturbation decays
+  has real part -nu (checked first with ``analysis.orbits.synchronous``): a perturbation decays
   like exp(-nu tau) times a bounded rotation, so the largest exponent is exactly -nu.
 - On a quasi-periodic torus (Figure 3 at mu = 0.02, docs/reproduction.md) the largest
   exponent is zero: a shift along the torus neither grows nor decays.
@@ -19,8 +20,8 @@ import numpy as np
 import pytest
 
 from rubcli import model
-from rubcli.analysis import response as rsp
-from rubcli.analysis.synchronous import synchronous_rubs
+from rubcli.analysis.orbits.synchronous import synchronous_rubs
+from rubcli.analysis.response import classification as rsp
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solvers import solve

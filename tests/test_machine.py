@@ -17,7 +17,7 @@ import pytest
 from typer.testing import CliRunner
 
 from rubcli import model
-from rubcli.analysis.energy import energy_balance, energy_totals, mechanical_energy
+from rubcli.analysis.energy.balance import energy_balance, energy_totals, mechanical_energy
 from rubcli.case import CaseError, load_case_text
 from rubcli.cli.app import app
 from rubcli.model import ModelParams

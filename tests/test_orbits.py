@@ -1,7 +1,7 @@
 """Periodic orbits, monodromy matrices through switches, continuation and `rubcli orbits`.
 
 Reference numbers come from independent determinations: the rotating-frame linearisation
-of the synchronous rub (analysis/synchronous.py), the closed-form multipliers of the free
+of the synchronous rub (analysis/orbits/synchronous.py), the closed-form multipliers of the free
 Jeffcott rotor, central finite differences of the stroboscopic map, the closed-form free
 whirl radius and the discriminant of the synchronous-rub quadratic (model notes 5).
 """
@@ -18,9 +18,9 @@ from scipy.optimize import brentq
 from typer.testing import CliRunner
 
 from rubcli import model
-from rubcli.analysis import continuation as cn
-from rubcli.analysis import orbits as ob
-from rubcli.analysis.synchronous import synchronous_rubs
+from rubcli.analysis.orbits import continuation as cn
+from rubcli.analysis.orbits import periodic as ob
+from rubcli.analysis.orbits.synchronous import synchronous_rubs
 from rubcli.cli.app import app
 from rubcli.model import ModelParams
 from rubcli.solvers import variational

@@ -1,4 +1,4 @@
-"""Order tracking of a run whose speed changes (analysis/order_tracking.py) and its
+"""Order tracking of a run whose speed changes (analysis/response/order_tracking.py) and its
 figures (plotting/transient.py), on synthetic signals whose 1X vectors are known exactly:
 constant-speed sums of whirls, and linear run-ups ``eta = eta0 + a tau`` with the exact
 phase ``eta0 tau + a tau^2 / 2`` and the free whirl's closed-form amplitude
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from rubcli import model
-from rubcli.analysis.order_tracking import (
+from rubcli.analysis.response.order_tracking import (
     analyse_transient,
     order_cascade,
     order_track,

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from rubcli import model
-from rubcli.analysis import stress
+from rubcli.analysis.accuracy import stress
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solvers import analytic, solve

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from rubcli import model, units
-from rubcli.analysis.spectrum import BACKWARD, FORWARD, steady_spectrum
+from rubcli.analysis.response.spectrum import BACKWARD, FORWARD, steady_spectrum
 from rubcli.case import load_case
 from rubcli.plotting import display
 from rubcli.plotting.energy import RESIDUAL_BOTTOM, residual_limits
@@ -357,7 +357,7 @@ def test_energy_figure_keeps_the_spin_drive_off_the_work_of_the_unbalance():
     """With friction the spin drive (its own right-hand axis) rises about like W_in; on an
     axis of its own range the two curves coincided. Its axis spans 1.8 times its range:
     its curve ends near the middle of the panel while W_in's reaches the top."""
-    from rubcli.analysis.energy import energy_balance
+    from rubcli.analysis.energy.balance import energy_balance
     from rubcli.plotting.energy import energy_figure
     from rubcli.solvers import solve
 

@@ -2,7 +2,7 @@
 
 import pytest
 
-from rubcli.analysis.work_precision import ladder
+from rubcli.analysis.accuracy.work_precision import ladder
 from rubcli.case import KNOWN_METHODS
 from rubcli.model import ModelParams
 from rubcli.problem import Problem

@@ -269,7 +269,7 @@ def test_loose_tolerance_nonsense_is_a_warning_not_a_success(tmp_path):
 
 
 def test_plausibility_checks_on_known_solutions():
-    from rubcli.analysis import checks
+    from rubcli.analysis.runs import checks
 
     params = ModelParams(nu=0.009478, eta=0.7818, e=7.52, K=17.6, mu=0.0, Rp=46.16)
     start = model.synchronous_rub(np.array([0.0]), params)[:, 0]
@@ -295,7 +295,7 @@ def test_plausibility_checks_on_known_solutions():
 
 
 def test_penetration_bound_covers_the_rolling_whirl():
-    from rubcli.analysis import checks
+    from rubcli.analysis.runs import checks
 
     params = ModelParams(nu=0.01, eta=0.79, e=1.25, K=10.0, mu=0.1, Rp=250.0)
     problem = Problem.from_periods(params, (0.0, 0.0, 0.0, 0.0), 1, 10)

@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rubcli.analysis.response import PERIODIC, classify_solution
-from rubcli.analysis.synchronous import synchronous_rubs
+from rubcli.analysis.orbits.synchronous import synchronous_rubs
+from rubcli.analysis.response.classification import PERIODIC, classify_solution
 from rubcli.case import load_case
 from rubcli.solvers import solve
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from rubcli.analysis import response as rsp
+from rubcli.analysis.response import classification as rsp
 
 PERIOD = 2.0 * math.pi  # forcing period of the constructed signals (forcing frequency 1)
 TIME = np.linspace(0.0, 300 * PERIOD, 300 * 50 + 1)
@@ -298,7 +298,7 @@ def test_refined_frequencies_locate_lines_far_below_the_fourier_resolution():
     """NAFF (Laskar 1993) on 64 samples of three lines: each within 1e-5 of the truth,
     where the FFT's bins are 1/64 apart (the error left is the lines' leakage into one
     another through the window)."""
-    from rubcli.analysis.section_map import refined_frequencies
+    from rubcli.analysis.response.section_map import refined_frequencies
 
     k = np.arange(64)
     truth = [(0.1234567, 1.0), (-0.3141593, 0.5), (0.4142136, 0.25)]

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from rubcli.case.rotor import load_rotor_case
 from rubcli.cli.app import app
-from rubcli.rotor_case import load_rotor_case
 from rubcli.system import simulate
 
 REPO = Path(__file__).resolve().parents[1]

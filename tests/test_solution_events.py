@@ -4,7 +4,7 @@
 iteration, equality with a list); the driver's batch record (``record_kernel_events``)
 must give exactly the records a per-event loop gives, with the same storm guard; and the
 analyses that now read the columns vectorised (``Solution.n_contact_switches``,
-``Solution.contact_fraction``, ``analysis.regimes.piece_bounds`` and
+``Solution.contact_fraction``, ``analysis.energy.regimes.piece_bounds`` and
 ``time_in_regimes``) must give exactly what their per-event loops gave, written out here
 as the reference.
 """
@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from rubcli import model
-from rubcli.analysis.regimes import piece_bounds, time_in_regimes
+from rubcli.analysis.energy.regimes import piece_bounds, time_in_regimes
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solution import KIND_NAMES, Events, Solution, SwitchEvent

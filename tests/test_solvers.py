@@ -300,7 +300,7 @@ def test_diverged_linearisation_with_nan_fails_cleanly(fig3_params):
     """K = 1.75e6, mu = 0.03 from the Figure 3 start at 25 steps per period: the polar
     linearisation of a violent bounce diverges to NaN inside a step. The run must end
     as a clean failure that says so (it raised ValueError from the root finder before)."""
-    from rubcli.analysis.reference import truncate_problem
+    from rubcli.analysis.accuracy.reference import truncate_problem
 
     p = fig3_params(0.03, K=1.75e6)
     prob = truncate_problem(Problem.from_periods(p, (0.88544, -0.8039, 0.0, 0.0), 2, 50), 1.0)

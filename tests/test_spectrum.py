@@ -1,4 +1,5 @@
-"""Full spectrum of the whirl (rubcli.analysis.spectrum) against exact signals and orbits."""
+"""Full spectrum of the whirl (rubcli.analysis.response.spectrum) against exact signals and
+orbits."""
 
 import math
 
@@ -6,7 +7,7 @@ import numpy as np
 import pytest
 
 from rubcli import model
-from rubcli.analysis.spectrum import (
+from rubcli.analysis.response.spectrum import (
     BACKWARD,
     FORWARD,
     STATIC,

@@ -18,7 +18,7 @@ from scipy.integrate import solve_ivp
 from typer.testing import CliRunner
 
 from rubcli import model
-from rubcli.analysis.order_tracking import analyse_transient
+from rubcli.analysis.response.order_tracking import analyse_transient
 from rubcli.case import CaseError, load_case_text
 from rubcli.cli.app import app
 from rubcli.problem import Problem
@@ -374,7 +374,7 @@ def test_the_energy_balance_of_a_ramp_holds_with_the_tangential_inertia_term():
     work with its tangential term e eta' (sin p, -cos p); the residual falls as the
     trapezoid rule's h^2 (observed order 2) and ends far below that term's work, which
     a balance without it would miss."""
-    from rubcli.analysis.transient_energy import profile_energy_summary
+    from rubcli.analysis.energy.transient import profile_energy_summary
 
     p = model.ModelParams(nu=0.0, eta=0.5, e=0.05, K=10.0)
     profile = SpeedProfile.ramp(0.5, 1.5, 0.05)

@@ -20,8 +20,8 @@ from scipy.optimize import fsolve
 from typer.testing import CliRunner
 
 from rubcli import model
-from rubcli.analysis import orbits
-from rubcli.analysis.two_body_energy import energy_at, two_body_energy_summary
+from rubcli.analysis.energy.two_body import energy_at, two_body_energy_summary
+from rubcli.analysis.orbits import periodic as orbits
 from rubcli.case import CaseError, load_case, load_case_text
 from rubcli.cli.app import app
 from rubcli.model import ModelParams
@@ -568,7 +568,7 @@ def test_orbits_continues_the_ring_branch(tmp_path):
 
 
 def test_a_shortened_problem_keeps_the_rings_start():
-    from rubcli.analysis.reference import truncate_problem
+    from rubcli.analysis.accuracy.reference import truncate_problem
 
     problem = Problem.from_periods(ring_machine(), (-0.3, 0.0, 0.0, 0.0), 4, 20)
     problem = dataclasses.replace(problem, stator_initial=(0.1, 0.0, 0.0, 0.3))

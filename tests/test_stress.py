@@ -16,7 +16,7 @@ import pytest
 from typer.testing import CliRunner
 
 from rubcli import model
-from rubcli.analysis import stress
+from rubcli.analysis.accuracy import stress
 from rubcli.cli.app import app
 from rubcli.solvers import METHODS, registry
 

@@ -16,7 +16,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from rubcli import model
-from rubcli.analysis.stress import touching_start
+from rubcli.analysis.accuracy.stress import touching_start
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solution import FAILED, SUCCESS

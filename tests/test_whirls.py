@@ -1,4 +1,4 @@
-"""Whirls of unknown rate on the symmetric machine (analysis/whirls.py, `[orbits] kind =
+"""Whirls of unknown rate on the symmetric machine (analysis/orbits/whirls.py, `[orbits] kind =
 "whirl"`), against closed forms and direct integration.
 
 The paper's machine without unbalance (Figure 3 caption values, e = 0) at mu = 0.05 has
@@ -20,7 +20,7 @@ import pytest
 from typer.testing import CliRunner
 
 from rubcli import model
-from rubcli.analysis import whirls as wh
+from rubcli.analysis.orbits import whirls as wh
 from rubcli.cli.app import app
 from rubcli.model import ModelParams
 from rubcli.problem import Problem

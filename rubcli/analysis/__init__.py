@@ -1,13 +1,20 @@
 """Analyses of solutions: functions of arrays and Solutions, no I/O, no plotting.
 
-- ``response``: stroboscopic Poincare sections, response classification (periodic,
-  quasi-periodic, chaotic, unbounded) and the largest Lyapunov exponent (Benettin).
-- ``reference``: the reference solution of a Problem (exact where the case has one),
-  with an honest estimate of its own error and, for chaotic cases, its horizon.
-- ``work_precision``: error against run time over ladders of solver settings.
-- ``synchronous``: existence and stability of the synchronous full annular rub.
-- ``orbits``: orbit panels (each method on one mu, errors, agreement, synchronous rubs)
-  and response runs, typed, with progress callbacks (`rubcli compare` and `rubcli run`).
-- ``checks``: the report entry of one method and its plausibility warnings (non-finite
-  states, energy balance against its floor, penetration against a static bound).
+One sub-package per concern:
+
+- ``energy``: energy balances (the rigid stator's, a run whose speed changes, a stator
+  with its own mass) and a solution cut into its smooth pieces between events.
+- ``orbits``: periodic orbits, their Floquet multipliers, the synchronous full annular
+  rub in closed form, pseudo-arclength continuation in one parameter and bifurcations in
+  a second, whirls of unknown rate.
+- ``response``: response classification from stroboscopic sections (periodic,
+  quasi-periodic, chaotic, unbounded) with the largest Lyapunov exponent (Benettin), the
+  spectrum, order tracking, and the orbit panels and response runs of `compare` and `run`.
+- ``charts``: stability charts in a parameter plane (closed form) and contact-force maps.
+- ``accuracy``: the reference solution of a Problem with an honest estimate of its own
+  error, work-precision ladders and the stress suite.
+- ``ensembles``: ensembles of runs and basin stability along a parameter.
+- ``runs``: a method's report entry with its plausibility warnings, and local worker
+  processes.
+- ``sweep``: parameter sweeps, maps and basins.
 """

@@ -1,7 +1,7 @@
 """``rubcli chart CASE [--out DIR] [--quick] [--overlay sweep.nc] [--max-wall-time S]``: the
 stability chart of a parameter plane.
 
-Runs the case's ``[chart]`` table (``rubcli.analysis.charts``; docs/charts.md): on the
+Runs the case's ``[chart]`` table (``rubcli.analysis.charts.stability``; docs/charts.md): on the
 isotropic machine the synchronous motions are known in closed form, so each point of the
 plane is put in its region (free whirl, synchronous rub, both, or neither) and the curves
 that bound the regions are located without an integration. Writes
@@ -76,7 +76,7 @@ def command(
         console.error(f"{case.source}: chart: missing table [chart] (docs/charts.md)")
         raise typer.Exit(EXIT_INVALID)
     check_max_wall_time(max_wall_time)
-    from rubcli.analysis.orbits import WallTimeBudgetError
+    from rubcli.analysis.orbits.periodic import WallTimeBudgetError
     from rubcli.studies import chart as study  # (scipy: loaded by this command only)
 
     paper_machine_or_exit(case, "chart", study.PAPER_MACHINE_ONLY)

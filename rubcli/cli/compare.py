@@ -6,11 +6,11 @@ What it does, in order (docs/compare.md):
 1. **Reference** for the work-precision problem (``[compare] horizon_periods``, default
    the case's ``[time] periods``): exact where the case has one, otherwise DOP853 at 1e-12
    checked against LSODA at 1e-12, with its predictability horizon
-   (``rubcli.analysis.reference``).
+   (``rubcli.analysis.accuracy.reference``).
 2. **Work-precision** (unless ``[compare] work_precision = false``): each method of
    ``[compare] methods`` (default ``[solver] methods``) over its ladder, timed (median of
    ``repeats``; start-up apart) and measured against the reference
-   (``rubcli.analysis.work_precision``). Writes ``work_precision.csv``,
+   (``rubcli.analysis.accuracy.work_precision``). Writes ``work_precision.csv``,
    ``work_precision.png`` and ``error_growth.png``.
 3. **Orbits**: for the case's mu, or for each value of ``[compare] mu`` (the paper's
    Figure 3 is ``mu = [0, 0.01, ..., 0.05]``), each method at the case's ``[solver]``
@@ -20,13 +20,13 @@ What it does, in order (docs/compare.md):
    spectrum of x + i y over the steady span, per mu; its dominant line in report.json)
    (both at a constant speed only: with ``[speed]`` their keyphasor and orders have no
    one period) and, with a mu list, ``sweep.csv``. The synchronous full annular rub of each mu is
-   reported with its stability (``rubcli.analysis.synchronous``).
+   reported with its stability (``rubcli.analysis.orbits.synchronous``).
 4. **Response** (only with ``[analysis] response = true``): the class of each method's
    steady response from the stroboscopic section after ``transient_periods``, backed by
    the largest Lyapunov exponent; ``poincare.png``.
 
 ``report.md`` and ``report.json`` summarise everything (``--json``: the report on stdout
-only). The study is ``rubcli.studies.compare`` (on ``rubcli.analysis.work_precision``
+only). The study is ``rubcli.studies.compare`` (on ``rubcli.analysis.accuracy.work_precision``
 and ``panels``); this module parses, calls and prints. ``--quick`` (for CI) shortens the
 ladders (rtol 1e-3, 1e-6, 1e-9; steps_per_period 25, 100, 400), runs each setting once,
 caps the work-precision horizon at 5 periods, the orbit runs at 150 periods (a transient
@@ -50,7 +50,7 @@ from typing import Annotated, Any
 import typer
 
 from rubcli import io
-from rubcli.analysis.reference import ReferenceError
+from rubcli.analysis.accuracy.reference import ReferenceError
 from rubcli.case import Case, CompareSection
 from rubcli.cli import console, progress, tables
 from rubcli.cli.common import (
@@ -126,7 +126,7 @@ def _compare(
     command_line: dict[str, Any],
 ) -> dict[str, Any]:
     console.info(f"{case.name}: compare {', '.join(methods)}" + (" (quick)" if quick else ""))
-    from rubcli.analysis.orbits import WallTimeBudgetError
+    from rubcli.analysis.orbits.periodic import WallTimeBudgetError
 
     max_wall_time = command_line["max_wall_time"]
     try:

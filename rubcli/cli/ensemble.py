@@ -173,7 +173,7 @@ def _basin_stability(case_file, case, out, workers, quick, json, force, wait,
 @contextlib.contextmanager
 def _budget(case_file: Path, budget: float | None) -> Iterator[None]:
     """Exit 1 with one message if the wall-time budget ran out within."""
-    from rubcli.analysis.orbits import WallTimeBudgetError
+    from rubcli.analysis.orbits.periodic import WallTimeBudgetError
 
     try:
         yield

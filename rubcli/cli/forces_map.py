@@ -155,7 +155,7 @@ def command(
     )
     command_line = {"case_file": str(case_file), "out": str(out) if out is not None else None,
                     "max_wall_time": max_wall_time}  # fmt: skip
-    from rubcli.analysis.orbits import WallTimeBudgetError
+    from rubcli.analysis.orbits.periodic import WallTimeBudgetError
 
     try:
         report = study.write_forces_map(case, target, plan, command_line, max_wall_time)

@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from rubcli.analysis import continuation as cn
+from rubcli.analysis.orbits import continuation as cn
 from rubcli.cli import console, progress, tables
 from rubcli.cli.common import (
     ForceOption,
@@ -49,7 +49,7 @@ from rubcli.cli.validate import EXIT_INVALID, load_or_exit
 from rubcli.studies import orbits as study
 
 if TYPE_CHECKING:
-    from rubcli.analysis.curves import Curve
+    from rubcli.analysis.orbits.curves import Curve
 
 EXIT_FAILED = 1
 

@@ -1,5 +1,5 @@
 """``rubcli run`` and ``rubcli validate`` on a case whose machine is given as matrices
-(``[rotor] matrices``, ``rubcli.rotor_case``; ``rubcli.studies.rotor_run`` writes it).
+(``[rotor] matrices``, ``rubcli.case.rotor``; ``rubcli.studies.rotor_run`` writes it).
 
 The exit codes are ``run``'s: 0, 1 (a method failed: its failure is in report.json, the
 outputs are still written), 2 (invalid input, nothing solved or written), 74, 75.
@@ -13,6 +13,7 @@ from typing import Any
 import typer
 
 from rubcli.case import CaseError, read_case_file
+from rubcli.case.rotor import RotorCase, assemble_rotor_case, is_rotor_case
 from rubcli.cli import console, tables
 from rubcli.cli.common import (
     EXIT_INVALID,
@@ -21,7 +22,6 @@ from rubcli.cli.common import (
     prepare_output,
     report_stale,
 )
-from rubcli.rotor_case import RotorCase, assemble_rotor_case, is_rotor_case
 from rubcli.system import METHODS
 
 

@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from rubcli import io
-from rubcli.analysis.checks import WARNING
+from rubcli.analysis.runs.checks import WARNING
 from rubcli.case import KNOWN_METHODS, Case, CaseError
 from rubcli.cli import console, progress, tables
 from rubcli.cli.common import (
@@ -199,7 +199,7 @@ def _run(
     # would walk it all).
     gc.freeze()
     from rubcli import solvers
-    from rubcli.analysis.orbits import WallTimeBudgetError
+    from rubcli.analysis.orbits.periodic import WallTimeBudgetError
 
     budget = case.settings.solver.total_wall_time_s if max_wall_time is None else max_wall_time
     deadline = None if budget is None else time.perf_counter() + budget  # the warm-up's too

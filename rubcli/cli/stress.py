@@ -1,7 +1,7 @@
 """``rubcli stress [--out DIR] [--quick] [--max-wall-time S]``: the built-in suite of
 extreme cases.
 
-Runs every case of ``rubcli.analysis.stress.stress_cases`` with every method (or the
+Runs every case of ``rubcli.analysis.accuracy.stress.stress_cases`` with every method (or the
 ``--case`` / ``--method`` subsets), each within its budget, and writes into ``DIR``
 (default ``out/stress``, or ``out/stress-quick`` with ``--quick``):
 
@@ -31,7 +31,7 @@ from typing import Annotated
 import typer
 
 from rubcli import io
-from rubcli.analysis import stress
+from rubcli.analysis.accuracy import stress
 from rubcli.cli import console, progress, tables
 from rubcli.cli.common import (
     ForceOption,
@@ -123,7 +123,7 @@ def _stress(
     method: list[str] | None,
     max_wall_time: float | None = None,
 ) -> tuple[list[stress.StressRun], dict]:
-    from rubcli.analysis.orbits import WallTimeBudgetError
+    from rubcli.analysis.orbits.periodic import WallTimeBudgetError
 
     console.info(
         f"stress ({'quick' if quick else 'full'}): {len(cases)} cases x {len(methods)} methods"

@@ -2,7 +2,7 @@
 
 On the symmetric machine (``e = 0``) the circular whirls in contact, slipping or rolling,
 are found in closed form and continued in the ``[orbits]`` parameter
-(``rubcli.analysis.whirls``, docs/orbits.md). Writes
+(``rubcli.analysis.orbits.whirls``, docs/orbits.md). Writes
 
 - ``branch.csv``: one row per whirl in branch order, the columns of a periodic-orbit
   branch (the state at tau = 0, ``max_z = min_z = radius``, stability, the multipliers
@@ -30,7 +30,7 @@ import numpy as np
 import typer
 
 from rubcli import io
-from rubcli.analysis import whirls as wh
+from rubcli.analysis.orbits import whirls as wh
 from rubcli.case import Case, OrbitsSection, paper_machine_problem
 from rubcli.cli import console, progress, tables
 from rubcli.cli.common import emit, prepare_output, report_stale

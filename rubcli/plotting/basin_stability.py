@@ -21,7 +21,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from rubcli.analysis.basin_stability import FREE_WHIRL, UNDECIDED, BasinStability
+from rubcli.analysis.ensembles.basin_stability import FREE_WHIRL, UNDECIDED, BasinStability
 from rubcli.plotting.chart import SYMBOLS
 
 COLOURS = {FREE_WHIRL: "#1f77b4", "synchronous rub": "#d62728", "dry whip": "#2ca02c",

@@ -1,6 +1,6 @@
 """Figure of a stability chart: regions of the synchronous motions in a parameter plane.
 
-The regions (``analysis.charts``: free whirl only, synchronous rub only, both, neither)
+The regions (``analysis.charts.stability``: free whirl only, synchronous rub only, both, neither)
 fill the plane as an image in four fixed colours; the closed-form curves that bound them
 (the free whirl's grazing, the rub's fold, the rub's stability boundary) are drawn as the
 zero level of each curve's function on the chart's grid, one colour and dash per kind.
@@ -18,7 +18,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from rubcli.analysis import charts as ch
+from rubcli.analysis.charts import stability as ch
 
 if TYPE_CHECKING:
     from collections.abc import Sequence

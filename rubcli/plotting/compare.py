@@ -13,8 +13,8 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
-from rubcli.analysis.response import PoincareSection, Response
-from rubcli.analysis.work_precision import Row, WorkPrecision
+from rubcli.analysis.accuracy.work_precision import Row, WorkPrecision
+from rubcli.analysis.response.classification import PoincareSection, Response
 from rubcli.plotting import display
 from rubcli.plotting.display import CLEARANCE_STYLE
 from rubcli.plotting.run import _line_style, _new_figure, failure_message

@@ -34,8 +34,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from rubcli.analysis.response import section_from_solution
-from rubcli.analysis.spectrum import default_transient
+from rubcli.analysis.response.classification import section_from_solution
+from rubcli.analysis.response.spectrum import default_transient
 from rubcli.solution import Solution
 
 ENVELOPE_BINS = 2000  # time plots: at most 2 * ENVELOPE_BINS points per trace
@@ -154,7 +154,7 @@ def steady_start(solution: Solution, transient_periods: float | None = None) -> 
 
     ``transient_periods`` after the problem's start when given and shorter than the
     record; otherwise half the recorded span, rounded down to whole forcing periods
-    (``analysis.spectrum.default_transient``, the rule of the report's spectrum).
+    (``analysis.response.spectrum.default_transient``, the rule of the report's spectrum).
     """
     period = solution.problem.params.period
     t0 = float(solution.problem.t_eval[0])
@@ -164,9 +164,9 @@ def steady_start(solution: Solution, transient_periods: float | None = None) -> 
 def keyphasor(solution: Solution, transient_periods: float | None = None) -> np.ndarray:
     """Positions (k, 2) once per forcing period from ``steady_start`` to the end.
 
-    These are the stroboscopic section's points (``analysis.response``): one dot for a
-    periodic orbit of period one, p dots for period p, a closed curve for a quasi-periodic
-    orbit. Only the finite samples are used.
+    These are the stroboscopic section's points (``analysis.response.classification``): one
+    dot for a periodic orbit of period one, p dots for period p, a closed curve for a
+    quasi-periodic orbit. Only the finite samples are used.
     """
     n = finite_length(solution)
     if n < 2:

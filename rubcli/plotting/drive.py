@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-from rubcli.analysis.drive_torques import DriveTorques
+from rubcli.analysis.energy.drive_torques import DriveTorques
 from rubcli.plotting.run import _new_figure
 from rubcli.plotting.transient import RUB_SHADE, SpeedAxis
 

@@ -1,7 +1,7 @@
 """The energy-balance figure of a run (``plots = ["energy"]``): terms and residual vs tau.
 
 One row per method: on the left the change of mechanical energy and the cumulative work
-and dissipation terms (``rubcli.analysis.energy``); on the right the residual of the
+and dissipation terms (``rubcli.analysis.energy.balance``); on the right the residual of the
 balance relative to the throughput, on a log scale from a decade below the estimated
 quadrature floor (drawn), so the part of the residual that carries information is readable.
 Draws given balances only; it never solves.
@@ -15,7 +15,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from rubcli import units
-from rubcli.analysis.energy import EnergyBalance
+from rubcli.analysis.energy.balance import EnergyBalance
 from rubcli.plotting import display
 from rubcli.plotting.run import _message_box, _new_figure
 from rubcli.solution import Solution

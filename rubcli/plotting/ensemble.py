@@ -12,7 +12,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from rubcli.analysis.ensemble import EnsembleResult
+from rubcli.analysis.ensembles.ensemble import EnsembleResult
 
 
 def ensemble_figure(result: EnsembleResult, title: str) -> Figure:

@@ -1,7 +1,7 @@
 """Figures of ``rubcli forces-map``: Figure 2 of the paper, the Taylor error, the eigenvalue map.
 
 Built on matplotlib's Agg canvas (``Figure`` + ``FigureCanvasAgg``, no pyplot), from the
-results of ``rubcli.analysis.forces``; nothing is computed here beyond what is drawn.
+results of ``rubcli.analysis.charts.forces_map``; nothing is computed here beyond what is drawn.
 Save the figures with ``rubcli.io.save_figure``.
 
 Units: positions in clearances; forces nondimensional, in units of ``k_r * clearance``;
@@ -18,7 +18,12 @@ from matplotlib.colors import LogNorm, TwoSlopeNorm
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
-from rubcli.analysis.forces import EigenMap, ForceMap, TaylorError, friction_flutter_threshold
+from rubcli.analysis.charts.forces_map import (
+    EigenMap,
+    ForceMap,
+    TaylorError,
+    friction_flutter_threshold,
+)
 
 SIGN_CONVENTION = (
     "F = force of the stator on the rotor = -K f (z > 1), 0 inside the clearance; "
@@ -171,7 +176,7 @@ def _growth_panel(fig, ax, em: EigenMap, extent, X, Y) -> None:
     decays at exactly -nu, as it does at every point short of the radius where friction
     merges the two contact modes), a map of one colour would say nothing: the panel then
     states that value and colours each point by the friction coefficient at which its
-    modes would merge (``analysis.forces.friction_flutter_threshold``, log scale), with
+    modes would merge (``analysis.charts.forces_map.friction_flutter_threshold``, log scale), with
     the case's own mu_c marked where the map reaches it: the margin to instability."""
     finite = em.max_real[np.isfinite(em.max_real)]
     spread = float(np.ptp(finite)) if finite.size else 0.0

@@ -18,12 +18,12 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from rubcli.analysis.continuation import Branch
+from rubcli.analysis.orbits.continuation import Branch
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
-    from rubcli.analysis.charts import Chart
+    from rubcli.analysis.charts.stability import Chart
 
 MARKERS = {
     "fold": "s",
@@ -284,10 +284,10 @@ def curves_figure(
     title: str,
     closed_form: Chart | None = None,
 ) -> Figure:
-    """Bifurcations continued in two parameters (``analysis.curves.Curve``): each curve in
+    """Bifurcations continued in two parameters (``analysis.orbits.curves.Curve``): each curve in
     its kind's colour as a wide translucent line through its computed points, its start
     (the point located on the branch) in its kind's marker; the branch itself as a dashed
-    line at ``p2 = branch_at``; ``closed_form`` (an ``analysis.charts.Chart`` of the same
+    line at ``p2 = branch_at``; ``closed_form`` (an ``analysis.charts.stability.Chart`` of the same
     plane), its curves as thin dark lines on top, so that a continued curve lying on its
     closed form shows as a dark line inside a coloured band."""
     from rubcli.plotting.chart import CURVE_LABELS, CURVE_STYLES, SYMBOLS
@@ -342,6 +342,6 @@ def curves_figure(
 
 def curve_kind_present(curves: Sequence, closed_kind: str) -> bool:
     """Whether a continued curve of the kind that ``closed_kind`` checks is drawn."""
-    from rubcli.analysis.curves import CLOSED_FORMS
+    from rubcli.analysis.orbits.curves import CLOSED_FORMS
 
     return any(CLOSED_FORMS.get(c.kind) == closed_kind and c.points for c in curves)

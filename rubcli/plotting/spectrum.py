@@ -1,6 +1,6 @@
 """The full-spectrum figure (spectrum.png): whirl amplitude against frequency, both signs.
 
-One panel per spectrum (``analysis.spectrum.FullSpectrum``, the FFT of w = x + i y over
+One panel per spectrum (``analysis.response.spectrum.FullSpectrum``, the FFT of w = x + i y over
 the steady span): positive frequencies are forward whirl (with the spin), negative ones
 backward whirl, drawn left of zero on a shaded half. The frequency axis is in orders of
 the running speed (1X = synchronous), with rad/s on the top axis for a ``[physical]``
@@ -20,7 +20,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from rubcli import units
-from rubcli.analysis.spectrum import STATIC, FullSpectrum
+from rubcli.analysis.response.spectrum import STATIC, FullSpectrum
 from rubcli.plotting import display
 from rubcli.plotting.run import _message_box, _new_figure
 

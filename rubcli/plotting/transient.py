@@ -7,7 +7,7 @@
   orders 1X, 2X, 1/2X, -1X, the free whirl and the dry-whip line marked;
 - ``orbit_snapshots_figure`` (orbits.png): one revolution of the orbit at a few speeds.
 
-They only draw what ``rubcli.analysis.order_tracking`` computed (Agg canvas, no pyplot;
+They only draw what ``rubcli.analysis.response.order_tracking`` computed (Agg canvas, no pyplot;
 save with ``rubcli.io.save_figure``). Speeds are ``eta = Omega / omega``, or rpm when
 ``speed_unit="rpm"`` with ``rpm_per_eta`` (``order_tracking.rpm_per_eta``); lengths are
 in clearances.
@@ -30,7 +30,7 @@ from matplotlib.ticker import MaxNLocator
 from numpy.typing import ArrayLike
 
 from rubcli import model
-from rubcli.analysis.order_tracking import OrderCascade, Revolutions, RubEvents
+from rubcli.analysis.response.order_tracking import OrderCascade, Revolutions, RubEvents
 from rubcli.plotting import display
 from rubcli.plotting.cascade import CMAP, DYNAMIC_RANGE_DB, LARGE, SMALL, cascade_points
 from rubcli.plotting.run import _new_figure

@@ -14,7 +14,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import NullFormatter, ScalarFormatter
 
-from rubcli.analysis.whirls import MODE_NAMES, WhirlContinuation
+from rubcli.analysis.orbits.whirls import MODE_NAMES, WhirlContinuation
 
 MODE_COLOURS = {"rolling": "tab:purple", "slip+": "tab:red", "slip-": "tab:orange"}
 EVENT_MARKERS = {"nonsmooth_fold": "s", "slip_roll_transition": "D", "fold": "s",

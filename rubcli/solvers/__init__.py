@@ -154,7 +154,7 @@ def wall_time_budget(deadline: float | None) -> Iterator[None]:
     """Within: every ``solve`` of this context ends by ``deadline`` (``time.perf_counter()``;
     None: no deadline), its ``max_wall_time_s`` cut to the time left (at least
     ``LAST_SOLVE_S``). The caller checks the deadline between its solves
-    (``rubcli.analysis.orbits.check_deadline``): a solve cut short fails as on its own
+    (``rubcli.analysis.orbits.periodic.check_deadline``): a solve cut short fails as on its own
     budget."""
     token = DEADLINE.set(deadline)
     try:

@@ -109,7 +109,7 @@ class ExtendedRun(driver.Run):
         self.state = np.array(state, dtype=float)
         self.states = np.empty((self.t_eval.size, self.system.size))
         # locked: the run stays in this regime, with no event (the smooth extension of a
-        # flow across its surfaces: ``analysis.orbits`` locates grazing with it)
+        # flow across its surfaces: ``analysis.orbits.periodic`` locates grazing with it)
         self.locked = locked
         self.regime = regime_of(self.state, self) if locked is None else int(locked)
         self.states[0], self.regimes[0] = self.state, self.regime

@@ -7,7 +7,7 @@ its typed options (``StepOptions``, ``ToleranceOptions``, ``CompiledOptions``: e
 checked on construction), its order, whether it uses the Jacobian, and a one-line summary.
 Everything that needs to know about methods derives from this table: the case schema's
 list of method names (``rubcli.case``), the family module ``solve`` imports, the
-work-precision ladders (``analysis.work_precision.ladder``), the stress suite's variants,
+work-precision ladders (``analysis.accuracy.work_precision.ladder``), the stress suite's variants,
 the scipy methods' Jacobian, ``solve``'s options (``method_options``: an option the
 method does not take is a ``TypeError`` naming it; a value out of its domain a
 ``ValueError``), ``options_for`` (a settings dict cut down to one method's options) and

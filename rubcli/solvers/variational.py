@@ -1,4 +1,4 @@
-"""The flows ``analysis.orbits`` integrates for its stroboscopic map, monodromy matrix
+"""The flows ``analysis.orbits.periodic`` integrates for its stroboscopic map, monodromy matrix
 and shooting (docs/orbits.md): the rotor at a constant speed, and the two bodies of a
 stator with its own mass, in the event loop of ``solvers.extended``, with or without
 their variational equations.

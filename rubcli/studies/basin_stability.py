@@ -2,7 +2,7 @@
 a library study: ``basin_stability_of(case)`` returns a ``BasinStabilityResult``, whose
 ``write(directory)`` writes ``basin_stability.csv``, ``basin_stability.png`` and
 ``report.json`` in one atomic commit (``rubcli.io``). The numerics are
-``rubcli.analysis.basin_stability``; the table is the case's ``[ensemble]``
+``rubcli.analysis.ensembles.basin_stability``; the table is the case's ``[ensemble]``
 (docs/cases.md)."""
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ from typing import Any
 import numpy as np
 
 from rubcli import io
-from rubcli.analysis import basin_stability as bs
-from rubcli.analysis import ensemble as en
+from rubcli.analysis.ensembles import basin_stability as bs
+from rubcli.analysis.ensembles import ensemble as en
 from rubcli.case import Case
 from rubcli.solvers import wall_time_deadline
 from rubcli.studies import ensemble as en_study
@@ -62,11 +62,11 @@ def settings_of(case: Case, quick: bool = False) -> tuple[dict, list[str]]:
 
 def both_spans(case: Case, parameter: str, values: list[float]) -> list[tuple[float, float]]:
     """The ranges of ``parameter`` within the values where the closed forms give both the
-    free whirl and a stable synchronous rub (``analysis.charts``, region "both"), each edge
-    between two grid values located by bisection to 1e-9 of the range."""
+    free whirl and a stable synchronous rub (``analysis.charts.stability``, region "both"),
+    each edge between two grid values located by bisection to 1e-9 of the range."""
     import dataclasses
 
-    from rubcli.analysis import charts as ch
+    from rubcli.analysis.charts import stability as ch
 
     def both(v: float) -> bool:
         return ch.region(dataclasses.replace(case.params, **{parameter: float(v)})) == ch.BOTH
@@ -166,7 +166,7 @@ def basin_stability_of(
     The whole, the minimal perturbations too, is bounded by ``[ensemble] max_wall_time_s``
     (``max_wall_time_s``: a budget instead of the table's; None in both: no budget but
     each run's): checked after every run and every direction, each solve getting at most
-    the time left; ``rubcli.analysis.orbits.WallTimeBudgetError`` once it is spent
+    the time left; ``rubcli.analysis.orbits.periodic.WallTimeBudgetError`` once it is spent
     (TypeError or ValueError naming ``max_wall_time_s`` for a budget that is not a
     number > 0)."""
     s, problems = settings_of(case, quick)

@@ -15,8 +15,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rubcli import io
-from rubcli.analysis import charts as ch
-from rubcli.analysis.charts import SWEEP_REGIMES, SweepMap
+from rubcli.analysis.charts import stability as ch
+from rubcli.analysis.charts.stability import SWEEP_REGIMES, SweepMap
 from rubcli.case import Case, ChartSection, paper_machine_problem
 
 if TYPE_CHECKING:
@@ -80,8 +80,8 @@ def load_sweep_map(path: Path, table: ChartSection, params: ModelParams) -> Swee
         period = np.asarray(one["response_period"].values, dtype=float)
         x = np.asarray(one[table.x].values, dtype=float)
         y = np.asarray(one[table.y].values, dtype=float)
-    from rubcli.analysis.ensemble import regime_of
-    from rubcli.analysis.response import CONVERGING, KINDS, PERIODIC
+    from rubcli.analysis.ensembles.ensemble import regime_of
+    from rubcli.analysis.response.classification import CONVERGING, KINDS, PERIODIC
 
     # a forward whirl in contact all round is the synchronous rub only when it repeats
     # every forcing period (or converges to such an orbit); else it is modulated (a torus)
@@ -194,7 +194,7 @@ def chart_of(
     case has no ``[chart]`` table or its machine is not the paper's. The whole chart is
     bounded by ``[chart] max_wall_time_s`` (``max_wall_time_s``: a budget instead of the
     table's):
-    ``rubcli.analysis.orbits.WallTimeBudgetError`` once it is spent."""
+    ``rubcli.analysis.orbits.periodic.WallTimeBudgetError`` once it is spent."""
     c = case.settings.chart
     if c is None:
         raise ValueError(f"{case.source}: chart: missing table [chart] (docs/charts.md)")

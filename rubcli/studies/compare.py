@@ -2,8 +2,8 @@
 library study: ``compare_case(case)`` returns a ``CompareResult``, whose
 ``write(directory)`` writes its files, ``report.md`` and ``report.json`` in one atomic
 commit (``rubcli.io``). The steps (docs/compare.md): the reference, the work-precision
-ladders (``rubcli.analysis.work_precision``), the orbit panels of each mu with their
-references and response classes (``rubcli.analysis.panels``).
+ladders (``rubcli.analysis.accuracy.work_precision``), the orbit panels of each mu with their
+references and response classes (``rubcli.analysis.response.panels``).
 """
 
 from __future__ import annotations
@@ -18,10 +18,15 @@ from typing import Any
 import numpy as np
 
 from rubcli import io
-from rubcli.analysis import panels as panel_study
-from rubcli.analysis import work_precision as wpm
-from rubcli.analysis.panels import OrbitPanel, ProgressFactory, no_progress, response_settings
-from rubcli.analysis.reference import Reference, ReferenceError
+from rubcli.analysis.accuracy import work_precision as wpm
+from rubcli.analysis.accuracy.reference import Reference, ReferenceError
+from rubcli.analysis.response import panels as panel_study
+from rubcli.analysis.response.panels import (
+    OrbitPanel,
+    ProgressFactory,
+    no_progress,
+    response_settings,
+)
 from rubcli.case import AnalysisSection, Case, CompareSection
 from rubcli.problem import Problem
 from rubcli.solvers.registry import SPECS, STEPS_PER_PERIOD
@@ -72,7 +77,7 @@ def samples_in_memory(case: Case, cfg: CompareSection, quick: bool) -> tuple[int
 def _problem(case: Case, periods: float, mu: float | None = None) -> Problem:
     params = case.params if mu is None else dataclasses.replace(case.params, mu=float(mu))
     if case.problem.speed is not None:  # the first ``periods`` revolutions of the profile
-        from rubcli.analysis.reference import truncate_problem
+        from rubcli.analysis.accuracy.reference import truncate_problem
 
         t = case.problem.t_eval
         turns = (case.problem.speed.phase(t, 0.0) - case.problem.speed.phase(t[0], 0.0)) / (
@@ -81,7 +86,7 @@ def _problem(case: Case, periods: float, mu: float | None = None) -> Problem:
         whole = dataclasses.replace(case.problem, params=params)
         return truncate_problem(whole, float(np.interp(periods, turns, t)))
     if case.problem.drive is not None:  # periods at the start speed
-        from rubcli.analysis.reference import truncate_problem
+        from rubcli.analysis.accuracy.reference import truncate_problem
 
         whole = dataclasses.replace(case.problem, params=params)
         return truncate_problem(whole, periods * params.period)
@@ -157,7 +162,7 @@ def orbit_panel(
     reference: Reference | None = None,
     progress_bar: ProgressFactory = no_progress,
 ) -> OrbitPanel:
-    """One mu (``rubcli.analysis.panels.orbit_panel`` on the case's problem of that mu)."""
+    """One mu (``rubcli.analysis.response.panels.orbit_panel`` on the case's problem of that mu)."""
     periods = case_periods(case)
     if quick:
         periods = min(periods, QUICK_ORBIT_PERIODS)
@@ -445,15 +450,15 @@ def compare_case(
 ) -> CompareResult:  # fmt: skip
     """The reference and work-precision ladders (unless ``[compare] work_precision =
     false``), then the orbit panel of each mu; ``quick``: the CI settings (``QUICK_TEXT``).
-    Raises ``rubcli.analysis.reference.ReferenceError`` if no reference can be built.
+    Raises ``rubcli.analysis.accuracy.reference.ReferenceError`` if no reference can be built.
 
     The whole is bounded by ``[compare] total_wall_time_s`` (``max_wall_time_s``: a budget
     instead of the table's; None in both: no budget but each solve's ``[compare]
     max_wall_time_s``): checked after the ladders and after each panel, every solve
-    getting at most the time left; ``rubcli.analysis.orbits.WallTimeBudgetError`` once it
+    getting at most the time left; ``rubcli.analysis.orbits.periodic.WallTimeBudgetError`` once it
     is spent (TypeError or ValueError naming ``max_wall_time_s`` for a budget that is not
     a number > 0)."""
-    from rubcli.analysis.orbits import check_deadline
+    from rubcli.analysis.orbits.periodic import check_deadline
     from rubcli.solvers import wall_time_budget, wall_time_deadline
 
     started = time.perf_counter()
@@ -474,7 +479,7 @@ def _compare(
     case: Case, cfg: CompareSection, quick: bool, progress_bar: ProgressFactory,
     deadline: float | None,
 ) -> tuple[wpm.WorkPrecision | None, list[OrbitPanel]]:  # fmt: skip
-    from rubcli.analysis.orbits import check_deadline
+    from rubcli.analysis.orbits.periodic import check_deadline
 
     threshold = cfg.reference_threshold
     analysis = case.settings.analysis

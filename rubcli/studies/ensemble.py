@@ -1,7 +1,7 @@
 """An ensemble of runs (``rubcli ensemble``), as a library study: ``ensemble_of(case)``
 returns an ``EnsembleStudy``, whose ``write(directory)`` writes ``ensemble.csv``,
 ``ensemble.png`` and ``report.json`` in one atomic commit (``rubcli.io``). The numerics
-are ``rubcli.analysis.ensemble``; the table is the case's ``[ensemble]``
+are ``rubcli.analysis.ensembles.ensemble``; the table is the case's ``[ensemble]``
 (docs/reproduction.md). Along ``[ensemble] parameter`` the study is
 ``rubcli.studies.basin_stability``'s."""
 
@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from rubcli import io
-from rubcli.analysis import ensemble as en
+from rubcli.analysis.ensembles import ensemble as en
 from rubcli.case import Case
 from rubcli.solvers import wall_time_deadline
 
@@ -121,7 +121,7 @@ def ensemble_of(
     The whole is bounded by ``[ensemble] max_wall_time_s`` (``max_wall_time_s``: a budget
     instead of the table's; None in both: no budget but each run's): checked after every
     run, each solve getting at most the time left;
-    ``rubcli.analysis.orbits.WallTimeBudgetError`` once it is spent (TypeError or
+    ``rubcli.analysis.orbits.periodic.WallTimeBudgetError`` once it is spent (TypeError or
     ValueError naming ``max_wall_time_s`` for a budget that is not a number > 0)."""
     s, problems = settings_of(case, quick)
     if problems:

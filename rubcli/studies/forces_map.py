@@ -21,8 +21,8 @@ from typing import Any
 import numpy as np
 
 from rubcli import io
-from rubcli.analysis import forces
-from rubcli.analysis.orbits import check_deadline
+from rubcli.analysis.charts import forces_map as forces
+from rubcli.analysis.orbits.periodic import check_deadline
 from rubcli.case import Case, ForcesMapSection
 
 FORCES_COLUMNS = ("x", "y", "Fx_exact", "Fy_exact", "Fx_taylor", "Fy_taylor", "Fx_diff", "Fy_diff")
@@ -183,7 +183,7 @@ def write_forces_map(
     commit (``plan``: the dir as the caller opened and checked it; without one it is
     opened here); returns the report. The whole is bounded by ``[forces_map]
     max_wall_time_s`` (``max_wall_time_s``: a budget instead of the table's):
-    ``rubcli.analysis.orbits.WallTimeBudgetError`` once it is spent, nothing written."""
+    ``rubcli.analysis.orbits.periodic.WallTimeBudgetError`` once it is spent, nothing written."""
     deadline = time.perf_counter()
     command_line = command_line or {"out": str(target)}
     settings = case.settings.forces_map or ForcesMapSection()

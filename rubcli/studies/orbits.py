@@ -20,9 +20,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rubcli import __version__, io, model
-from rubcli.analysis import continuation as cn
-from rubcli.analysis import curves as cv
-from rubcli.analysis import orbits as ob
+from rubcli.analysis.orbits import continuation as cn
+from rubcli.analysis.orbits import curves as cv
+from rubcli.analysis.orbits import periodic as ob
 from rubcli.case import Case, OrbitsSection
 
 if TYPE_CHECKING:
@@ -274,7 +274,7 @@ class OrbitsResult:
         windows = ((o.min, o.max), (o.second_min, o.second_max))
         closed = None
         if o.period == 1:  # the synchronous motions' closed-form curves, as a check
-            from rubcli.analysis import charts
+            from rubcli.analysis.charts import stability as charts
 
             closed = charts.closed_form_chart(self.case.params, o.parameter, windows[0],
                                               o.second_parameter, windows[1], 121, 81)  # fmt: skip
@@ -293,7 +293,7 @@ def closed_form_distances(curve: cv.Curve, case: Case) -> list[float]:
     """Each point's distance in the second parameter from the closed-form curve of its
     kind at its first parameter (nan where no closed form applies: k > 1, a period
     doubling, a fold or Neimark-Sacker point of an orbit not in contact all round)."""
-    from rubcli.analysis import charts
+    from rubcli.analysis.charts import stability as charts
 
     o = case.settings.orbits
     kind = cv.CLOSED_FORMS.get(curve.kind)

@@ -1,4 +1,4 @@
-"""``rubcli run`` on a machine given as matrices (``rubcli.rotor_case``), in SI.
+"""``rubcli run`` on a machine given as matrices (``rubcli.case.rotor``), in SI.
 
 Each method of the case runs the composed machine's system (``rubcli.system.simulate``);
 then, into the output dir as one commit:
@@ -26,8 +26,8 @@ from typing import Any
 import numpy as np
 
 from rubcli import io
+from rubcli.case.rotor import RotorCase
 from rubcli.model import REGIME_NAMES, STICK
-from rubcli.rotor_case import RotorCase
 from rubcli.system import KIND_NAMES, MachineSolution, simulate
 from rubcli.system.series import energy, station_series
 

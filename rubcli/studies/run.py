@@ -14,8 +14,8 @@ The products, each only where the case asks for it:
 - ``report.json`` always: the case echoed, and per method its status, message, wall time,
   step/evaluation counts, contact switches, contact fraction, max penetration, the time
   spent in each regime (from the located switch times), the energy balance with its
-  ``energy_residual`` (``rubcli.analysis.energy``, docs/stability.md), its plausibility
-  ``warnings`` (``rubcli.analysis.checks``) and the dominant line of the full spectrum
+  ``energy_residual`` (``rubcli.analysis.energy.balance``, docs/stability.md), its plausibility
+  ``warnings`` (``rubcli.analysis.runs.checks``) and the dominant line of the full spectrum
   over the steady span (``spectrum``: order, direction). Its ``files`` list is the run's
   manifest.
 
@@ -38,9 +38,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rubcli import io
-from rubcli.analysis import panels
-from rubcli.analysis.checks import method_summary
-from rubcli.analysis.panels import ProgressFactory, no_progress
+from rubcli.analysis.response import panels
+from rubcli.analysis.response.panels import ProgressFactory, no_progress
+from rubcli.analysis.runs.checks import method_summary
 from rubcli.case import Case
 from rubcli.solution import Solution
 from rubcli.studies.compare import response_settings
@@ -62,7 +62,7 @@ def start_up(case: Case) -> float:
     again. Returns the seconds it took.
     """
     from rubcli import solvers
-    from rubcli.analysis.reference import truncate_problem
+    from rubcli.analysis.accuracy.reference import truncate_problem
 
     t0 = case.problem.t_span[0]
     short = truncate_problem(case.problem, t0 + case.params.period / 20.0)
@@ -172,9 +172,9 @@ def run_case(
     The whole is bounded by ``[solver] total_wall_time_s`` (``max_wall_time_s``: a budget
     instead of the table's; None in both: no budget but each method's): checked between
     the methods, each solve getting at most the time left;
-    ``rubcli.analysis.orbits.WallTimeBudgetError`` once it is spent (TypeError or
+    ``rubcli.analysis.orbits.periodic.WallTimeBudgetError`` once it is spent (TypeError or
     ValueError naming ``max_wall_time_s`` for a budget that is not a number > 0)."""
-    from rubcli.analysis.orbits import check_deadline
+    from rubcli.analysis.orbits.periodic import check_deadline
     from rubcli.solvers import wall_time_budget, wall_time_deadline
 
     if max_wall_time_s is None:
@@ -211,10 +211,10 @@ def method_entry(
 
 def _balance_or_none(solution: Solution):
     """The energy balance with its series (None if a state is not finite)."""
-    from rubcli.analysis.energy import energy_balance
+    from rubcli.analysis.energy.balance import energy_balance
 
     if not np.all(np.isfinite(solution.states)) or solution.stator_states is not None:
-        return None  # (a moving stator's balance: analysis.two_body_energy, no figure)
+        return None  # (a moving stator's balance: analysis.energy.two_body, no figure)
     with np.errstate(all="ignore"):
         return energy_balance(solution)
 
@@ -353,7 +353,7 @@ def _poincare_figure(case: Case, results: list[panels.MethodResponse]):
 def _energy_figure(solutions: list[Solution], title: str, scale=None, balances=None):
     """energy.png: the energy balance of every method (``plots = ["energy"]``), reusing
     the balances computed for the report (``balances``, by method) where there are."""
-    from rubcli.analysis.energy import energy_balance
+    from rubcli.analysis.energy.balance import energy_balance
     from rubcli.plotting.energy import energy_figure
 
     balances = balances or {}
@@ -362,12 +362,12 @@ def _energy_figure(solutions: list[Solution], title: str, scale=None, balances=N
 
 
 def _spectra(case: Case, solutions: list[Solution], entries: dict, transient: float | None):
-    """Full spectrum of each solution over its steady span (``analysis.spectrum``).
+    """Full spectrum of each solution over its steady span (``analysis.response.spectrum``).
 
     Adds ``entries[method]["spectrum"]`` (dominant whirl order, direction, amplitude; rad/s
     for a [physical] case; null for a failed run) and returns the figure's panels.
     """
-    from rubcli.analysis.spectrum import steady_spectrum
+    from rubcli.analysis.response.spectrum import steady_spectrum
 
     omega_scale = None if case.scale is None else case.scale.omega
     panels = []

@@ -2,7 +2,7 @@
 ``run_stress(cases, methods)`` runs every case with every method within its budget and
 returns a ``StressResult``, whose ``write(directory)`` writes ``stress.csv``,
 ``stress.md`` and ``report.json`` in one atomic commit (``rubcli.io``). The cases and the
-checks of each run are ``rubcli.analysis.stress``'s (docs/stability.md).
+checks of each run are ``rubcli.analysis.accuracy.stress``'s (docs/stability.md).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from rubcli import __version__, io
-from rubcli.analysis import stress
+from rubcli.analysis.accuracy import stress
 
 FILES = ("stress.csv", "stress.md", io.REPORT_NAME)
 
@@ -131,9 +131,9 @@ def run_stress(
 
     ``max_wall_time_s`` (None: no budget but each run's) bounds the whole suite: checked
     after every run, each solve getting at most the time left;
-    ``rubcli.analysis.orbits.WallTimeBudgetError`` once it is spent (TypeError or
+    ``rubcli.analysis.orbits.periodic.WallTimeBudgetError`` once it is spent (TypeError or
     ValueError naming ``max_wall_time_s`` for a budget that is not a number > 0)."""
-    from rubcli.analysis.orbits import check_deadline
+    from rubcli.analysis.orbits.periodic import check_deadline
     from rubcli.solvers import METHODS, wall_time_budget, wall_time_deadline
 
     deadline = wall_time_deadline("run_stress()", max_wall_time_s)

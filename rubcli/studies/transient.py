@@ -1,6 +1,6 @@
 """The products of a run whose speed changes (``rubcli run`` on a case with [speed]):
 order tracking per revolution, the rub's onset and end, the full-spectrum cascade
-(``analysis.order_tracking``), and the figures engineers read from a run-up or a
+(``analysis.response.order_tracking``), and the figures engineers read from a run-up or a
 coast-down (``plotting.transient``): bode.png, polar.png, cascade.png, orbits.png.
 Speeds are drawn in rpm for a [physical] case.
 """
@@ -14,8 +14,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rubcli.analysis import order_tracking as ot
-from rubcli.analysis.drive_torques import DriveTorques, drive_summary, revolution_means
+from rubcli.analysis.energy.drive_torques import DriveTorques, drive_summary, revolution_means
+from rubcli.analysis.response import order_tracking as ot
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

@@ -13,7 +13,7 @@ change there is a change of the numbers every method produces).
 from __future__ import annotations
 
 from rubcli import model
-from rubcli.analysis import stress
+from rubcli.analysis.accuracy import stress
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 from rubcli.solvers.registry import SPECS

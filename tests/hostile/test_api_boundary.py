@@ -21,8 +21,8 @@ import numpy as np
 import pytest
 
 from rubcli import model
-from rubcli.analysis import continuation as cn
-from rubcli.analysis import orbits as ob
+from rubcli.analysis.orbits import continuation as cn
+from rubcli.analysis.orbits import periodic as ob
 from rubcli.case import CaseError, load_case
 from rubcli.model import ModelParams
 from rubcli.problem import Problem

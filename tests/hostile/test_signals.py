@@ -74,7 +74,7 @@ PHASES = {
     # the timed solve (the first call is the start-up's warm-up)
     "solve": {"at": "call:rubcli.solvers:solve", "nth": 2, "delay": 0.05},
     # inside the compiled energy balance (it runs 10 ms)
-    "energy balance": {"at": "call:rubcli.analysis.energy_kernel:balance_pass", "delay": 0.003},
+    "energy balance": {"at": "call:rubcli.analysis.energy.kernel:balance_pass", "delay": 0.003},
     # the audit's case, made certain: the signal is handled while the compiled energy
     # balance has called back into numba's Python code (it unpickles a constant); a
     # handler raising there was lost by numba's dispatcher ("SystemError:
@@ -82,7 +82,7 @@ PHASES = {
     "energy balance, in numba's code": {
         "at": "call:numba.core.serialize:_numba_unpickle",
         "frame": "callee",
-        "within": "rubcli.analysis.energy_kernel:balance_pass",
+        "within": "rubcli.analysis.energy.kernel:balance_pass",
     },
     "csv": {"at": "call:rubcli.io:write_solution_csv", "delay": 0.02},
     "figure": {"at": "call:rubcli.io:save_figure", "delay": 0.01},
@@ -171,7 +171,7 @@ COMMANDS = {
     "stress": (None, ["stress", "--quick", "--case", "grazing-touch", "--method", "rk45"],
                "call:rubcli.io:write_rows_csv"),
     "orbits": (ORBITS_CASE, ["orbits", "{case}"],
-               "call:rubcli.analysis.continuation:continue_branch"),
+               "call:rubcli.analysis.orbits.continuation:continue_branch"),
 }  # fmt: skip
 
 

@@ -20,7 +20,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from rubcli.analysis.processes import local_pool
+from rubcli.analysis.runs.processes import local_pool
 from rubcli.analysis.sweep.engine import (
     ExecutorLostError,
     InProcessExecutor,

@@ -23,8 +23,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rubcli.analysis import response as rsp
-from rubcli.analysis.spectrum import BACKWARD, FORWARD, full_spectrum
+from rubcli.analysis.response import classification as rsp
+from rubcli.analysis.response.spectrum import BACKWARD, FORWARD, full_spectrum
 from rubcli.model import ModelParams
 from rubcli.problem import Problem
 
@@ -159,8 +159,8 @@ def _last_state(sol) -> tuple[float, ...]:
 
 
 def _compute(task: PointTask) -> PointResult:
-    from rubcli.analysis.energy import energy_balance
-    from rubcli.analysis.regimes import time_in_regimes
+    from rubcli.analysis.energy.balance import energy_balance
+    from rubcli.analysis.energy.regimes import time_in_regimes
 
     p, spp, record = task.params, task.samples_per_period, task.record_periods
     state = task.start
@@ -209,7 +209,7 @@ def _compute(task: PointTask) -> PointResult:
         "nsteps": float(nsteps),
     }
     if task.energy and sol.stator_states is not None:
-        from rubcli.analysis.two_body_energy import two_body_energy_summary
+        from rubcli.analysis.energy.two_body import two_body_energy_summary
 
         scalars["energy_residual"] = float(two_body_energy_summary(sol)["energy_residual"])
     elif task.energy:

@@ -46,7 +46,7 @@ from rubcli.solvers.events import start_flags, switch_regime
 # record (a cached copy would keep the record's old layout). A change to any of them
 # recompiles every kernel once. The fingerprint of the sources the cache was built
 # from is kept in FINGERPRINT.
-ENERGY_KERNEL = Path(__file__).parents[2] / "analysis" / "energy_kernel.py"
+ENERGY_KERNEL = Path(__file__).parents[2] / "analysis" / "energy" / "kernel.py"
 CORE_FILES = (
     Path(model.__file__),
     Path(events.__file__),
@@ -200,7 +200,7 @@ def _store_fingerprint(fingerprint: str) -> None:
 def _dispatchers() -> list:
     """Every compiled function of the sub-package (the kernels and the probe) and of the
     energy balance's kernel."""
-    from rubcli.analysis import energy_kernel
+    from rubcli.analysis.energy import kernel as energy_kernel
     from rubcli.solvers.compiled import (
         contact,
         dop853,
