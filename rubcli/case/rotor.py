@@ -164,11 +164,6 @@ class RotorCase:
         return self.settings.model_dump(mode="json")
 
 
-def is_rotor_case(raw: dict[str, Any]) -> bool:
-    """Whether a parsed case gives its machine as matrices (a ``[rotor]`` table)."""
-    return "rotor" in raw
-
-
 def load_rotor_case(path: str | Path) -> RotorCase:
     """Read, validate and assemble a matrices case; CaseError naming file and field."""
     raw = read_case_file(path)
