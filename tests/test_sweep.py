@@ -794,3 +794,21 @@ def test_a_dask_sweep_that_loses_its_cluster_stops_with_its_points_kept(tmp_path
     assert resumed.returncode == 0, resumed.stderr
     report = json.loads((out / "report.json").read_text())
     assert report["points_resumed"] == kept and report["points_failed"] == 0
+
+
+def test_a_sweep_on_dask_shows_none_of_distributeds_logs():
+    """While a sweep runs on Dask, no record of distributed's reaches its stderr handler:
+    among them the INFO record with a traceback that ``distributed.batched`` writes when
+    the connection to a killed scheduler closes in the middle of a write (the sweep says
+    in one line that its scheduler is lost); their levels are restored afterwards."""
+    pytest.importorskip("distributed")
+    import logging
+
+    from rubcli.analysis.sweep import quiet_dask_client
+
+    names = ["distributed.batched", "distributed.core", "distributed.client", "tornado.application"]
+    before = [logging.getLogger(name).getEffectiveLevel() for name in names]
+    with quiet_dask_client():
+        for name in names:
+            assert not logging.getLogger(name).isEnabledFor(logging.ERROR), name
+    assert [logging.getLogger(name).getEffectiveLevel() for name in names] == before
