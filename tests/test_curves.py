@@ -78,6 +78,7 @@ def run_up_curves() -> list[cv.Curve]:
     return cv.continue_curves(RUN_UP, branch, settings)
 
 
+@pytest.mark.slow
 def test_grazings_of_the_free_whirl_are_one_curve_on_the_closed_form(run_up_curves):
     grazings = [c for c in run_up_curves if c.kind == cn.GRAZING]
     assert [c.status for c in grazings] == ["ok", "same curve"]  # the two are one curve
@@ -154,6 +155,7 @@ def test_bad_second_parameter_tables_exit_2_and_write_nothing(tmp_path, extra, m
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_shipped_curves_case_quick_writes_the_curves(tmp_path):
     out = tmp_path / "out"
     case = ROOT / "cases/examples/run-up-curves.toml"

@@ -266,6 +266,7 @@ def test_chaotic_case_with_many_switches(method, fig3_params):
     assert_same_solution(compiled, python, state_tol=1e-9, time_tol=1e-10)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ANALYTIC)
 def test_stick_slip_case(method):
     r = model.rolling_whirl_radius(FORCED)
@@ -325,6 +326,7 @@ def assert_same_steps(compiled, python):
     assert compiled.stats["n_expm_fallbacks"] == python.stats["n_expm_fallbacks"] == 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("tol", ADAPTIVE_TOLS)
 @pytest.mark.parametrize("method", ANALYTIC)
 @pytest.mark.parametrize("perturbation", [0.0, 0.3])
@@ -344,6 +346,7 @@ def test_adaptive_steps_compiled_on_the_synchronous_rub(perturbation, method, to
     assert_same_solution(compiled, python)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("tol", ADAPTIVE_TOLS)
 @pytest.mark.parametrize("method", ANALYTIC)
 def test_adaptive_steps_compiled_on_the_paper_case(method, tol, fig3_params):
@@ -444,6 +447,7 @@ def test_adaptive_kernel_hands_back_whole_pairs(fig3_params):
 # ------------------------------------------------------------------ scipy right-hand sides
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["rk45", "radau"])
 def test_scipy_compiled_rhs_gives_the_same_solution(method, fig3_params):
     prob = Problem.from_periods(fig3_params(0.02), FIG3_INITIAL, 2, 50)
@@ -467,6 +471,7 @@ def _closure_dispatchers(fn, seen=None):
     return seen
 
 
+@pytest.mark.slow
 def test_event_search_compiles_each_function_once(fig3_params):
     """numba compiles a callee once for every distinct constant argument it is handed:
     the event search passes its kinds and flags as run-time values (``events.run_time``),

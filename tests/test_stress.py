@@ -34,6 +34,7 @@ def quick_run(tmp_path_factory):
     return result, out, rows
 
 
+@pytest.mark.slow
 def test_quick_suite_ends_cleanly_everywhere(quick_run):
     result, out, rows = quick_run
     assert result.exit_code == 0, result.output
