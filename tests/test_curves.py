@@ -93,6 +93,7 @@ def test_grazings_of_the_free_whirl_are_one_curve_on_the_closed_form(run_up_curv
     assert 0.0 <= lowest - 2 * RUN_UP.nu * math.sqrt(1 - RUN_UP.nu**2) < 1e-3
 
 
+@pytest.mark.slow
 def test_fold_of_the_rub_continued_in_e_lies_on_the_double_root(run_up_curves):
     (curve,) = [c for c in run_up_curves if c.kind == cn.FOLD]
     assert curve.status == "ok" and len(curve.points) >= 3
