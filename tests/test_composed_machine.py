@@ -68,6 +68,7 @@ def _reference_states(solution, params: ModelParams) -> np.ndarray:
                       solution.states[:, 2:] + ring[:, 2:], ring[:, 2:]])  # fmt: skip
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["paper", "general", "snubber"])
 @pytest.mark.parametrize("method", ["dop853-jit", "dop853", "radau"])
 def test_jeffcott_machines_agree_with_the_rotor_solvers(name, method):

@@ -291,6 +291,7 @@ def test_exact_synchronous_rub_at_stiff_stator(fig3_params):
     assert_same_solution(compiled, python, state_tol=1e-11)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ANALYTIC)
 def test_ill_conditioned_steps_are_left_to_python(method, fig3_params, monkeypatch):
     """With a condition limit of 1 every eigenbasis is 'ill-conditioned': the kernel hands
@@ -387,6 +388,7 @@ def test_adaptive_step_budget_stops_both_paths_at_the_same_step(max_steps, fig3_
     assert_same_solution(compiled, python)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ANALYTIC)
 def test_ill_conditioned_adaptive_steps_are_left_to_python(method, fig3_params, monkeypatch):
     monkeypatch.setattr(analytic, "EIGVEC_COND_LIMIT", 1.0)
