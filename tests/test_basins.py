@@ -347,6 +347,7 @@ def test_a_dask_basin_sweep_survives_a_killed_worker(tmp_path):
     np.testing.assert_array_equal(labels, alone.label)
 
 
+@pytest.mark.slow
 def test_a_chunk_that_kills_dask_workers_is_failed_and_a_dropped_one_run_again():
     """Dask's KilledWorker (the chunk killed every worker Dask gave it) fails the chunk's
     starts; a cancelled task (its scheduler connection dropped) is submitted again."""

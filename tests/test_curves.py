@@ -36,6 +36,7 @@ def _paper_ns() -> cn.Branch:
     return cn.continue_branch(PAPER, s0[:, 0], settings)
 
 
+@pytest.mark.slow
 def test_neimark_sacker_of_the_paper_rub_continued_in_eta_lies_on_the_stability_boundary():
     branch = _paper_ns()
     (ns,) = [b for b in branch.bifurcations if b.kind == cn.NEIMARK_SACKER]

@@ -120,6 +120,7 @@ def test_a_weak_drive_is_captured_where_the_torques_balance():
     assert fast.contact[-200:].max() == 0
 
 
+@pytest.mark.slow
 def test_a_dry_whip_brakes_the_drive_and_rolls_in_stick():
     case = load_case(CASES / "driven-dry-whip.toml")
     sol = solve(case.problem, "dop853", rtol=1e-9, atol=1e-11)

@@ -419,6 +419,7 @@ def test_init_help_shows_the_physical_table():
     assert "[physical]" in result.stdout
 
 
+@pytest.mark.slow
 def test_long_values_are_shortened_in_messages(tmp_path):
     huge = "x" * 5_000_000
     path = write_case(

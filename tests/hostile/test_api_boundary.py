@@ -457,6 +457,7 @@ def test_model_table_is_checked_like_the_physical_one(tmp_path, line, field):
 ORBITS = '[orbits]\nparameter = "mu"\nmin = 0.0\nmax = 0.06\nstep = 0.002\n'
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("table", "line", "field"),
     [
@@ -474,6 +475,7 @@ def test_tolerances_are_bounded_as_solve_bounds_them(tmp_path, table, line, fiel
     assert f"case.toml: {field}: " in done.stderr
 
 
+@pytest.mark.slow
 def test_physical_table_converting_beyond_the_domain_names_the_value(tmp_path):
     physical = CASE.replace(
         "[model]\nnu = 0.009478\neta = 0.7818\ne = 7.52\nK = 17.6\nmu = 0.03\nRp = 46.16",

@@ -215,6 +215,7 @@ def test_forces_map_refuses_a_grid_that_will_not_fit_in_memory(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_forces_map_case_limit_follows_the_measured_cost(tmp_path):
     """The largest grid a case may ask for (8 GiB) follows the measured cost per point:
     6688, which the old estimate of 192 bytes per point accepted, needs about 9.5 GiB."""

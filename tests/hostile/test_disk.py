@@ -159,6 +159,7 @@ def test_a_disk_full_everywhere_with_the_key_at_home_is_exit_74(run_cli, case_fi
     assert not out_dir.exists()
 
 
+@pytest.mark.slow
 def test_a_full_tmpfs_at_the_check(in_namespace, case_file):
     """A file system with no room left at all (ENOSPC on the lock's first write): exit
     74, no lock left."""

@@ -138,6 +138,7 @@ def test_waiting_is_interrupted_by_a_signal(run_cli, case_file, out_dir, tmp_pat
         finish(first)
 
 
+@pytest.mark.slow
 def test_a_hard_linked_lock_writes_nothing_outside_the_dir(run_cli, case_file, out_dir,
                                                             tmp_path):  # fmt: skip
     """`ln v.txt DIR/.rubcli.lock`: writing the lock would write v.txt, outside the dir;
