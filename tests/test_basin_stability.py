@@ -185,6 +185,7 @@ def _ends_on(params: ModelParams, start, periods: int = 300) -> str:
     return "?"
 
 
+@pytest.mark.slow
 def test_the_minimal_perturbation_brackets_the_edge_of_the_free_whirls_basin():
     """At eta = 2 (both motions stable: |W| = 0.40, a stable rub at r = 1.59) the bound
     found along the axes is bracketed: a start at that size along that direction ends on
@@ -274,6 +275,7 @@ def test_bad_parameter_or_box_exits_2_naming_the_field(tmp_path, table, message)
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_quick_run_of_the_shipped_case_writes_every_file(tmp_path):
     """cases/examples/basin-stability.toml --quick: eta = 1.0, 2.2, 3.4. At 1.0 the free
     whirl would reach 3 clearances (e eta^2 / (2 nu eta) = 3): every run ends on the rub

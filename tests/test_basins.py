@@ -145,6 +145,7 @@ def test_rounds_and_seed_depend_on_the_grid_alone():
     assert set(rows.tolist()) == set(cols.tolist()) == {0, 4, 9, 13, 17, 21, 26, 30}
 
 
+@pytest.mark.slow
 def test_recognised_labels_agree_with_integrating_every_start_to_its_budget():
     plan = _plan(15)
     result = run_basins(plan, plan.recognition, InProcessExecutor())
@@ -172,6 +173,7 @@ def test_recognised_labels_agree_with_integrating_every_start_to_its_budget():
             assert result.label[i, j] == int(np.argmin(gaps)), (x, y)
 
 
+@pytest.mark.slow
 def test_labels_do_not_depend_on_workers_and_survive_a_tampered_store(tmp_path):
     plan = _plan(21)
     alone, _, where = execute(plan, workers=1)
@@ -208,6 +210,7 @@ def _dying_chunk(task):
     return _DIE["real"](task)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("always", [False, True])
 def test_a_chunk_whose_worker_dies_is_run_again_or_failed(tmp_path, monkeypatch, always):
     """A worker that dies breaks the pool: its chunks run again on a new pool (the labels
@@ -272,6 +275,8 @@ num = 61
 """
 
 
+@pytest.mark.serial
+@pytest.mark.slow
 def test_a_dask_basin_sweep_survives_a_killed_worker(tmp_path):
     """A real scheduler and two workers; one worker is killed mid-sweep: Dask runs its
     chunks on the other, and the labels equal those of this process."""
@@ -342,6 +347,7 @@ def test_a_dask_basin_sweep_survives_a_killed_worker(tmp_path):
     np.testing.assert_array_equal(labels, alone.label)
 
 
+@pytest.mark.slow
 def test_a_chunk_that_kills_dask_workers_is_failed_and_a_dropped_one_run_again():
     """Dask's KilledWorker (the chunk killed every worker Dask gave it) fails the chunk's
     starts; a cancelled task (its scheduler connection dropped) is submitted again."""
@@ -376,6 +382,7 @@ def test_a_chunk_that_kills_dask_workers_is_failed_and_a_dropped_one_run_again()
     assert dropping.calls > 2
 
 
+@pytest.mark.slow
 def test_an_interrupted_basin_sweep_counts_the_starts_it_keeps(tmp_path):
     """SIGINT during a basin sweep: the message counts the starts in the stored chunks,
     and the same command resumes them."""

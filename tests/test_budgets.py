@@ -164,6 +164,7 @@ def test_report_has_time_in_regimes_and_energy_residual(tmp_path):
     assert "energy.png" not in {p.name for p in out.iterdir()}  # not by default
 
 
+@pytest.mark.slow
 def test_energy_plot_when_asked(tmp_path):
     result, out, report = run(tmp_path, output='plots = ["energy"]\n', methods=["dop853", "rk45"])
     assert result.exit_code == 0, result.output
@@ -195,6 +196,7 @@ def test_absurd_magnitudes_are_refused_at_the_boundary(label):
         ModelParams(**{"nu": 0.009478, "eta": 0.7818, "e": 7.52, "Rp": 46.16, **values})
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", sorted(ALL_METHODS))
 @pytest.mark.parametrize("label", list(EDGE))
 def test_magnitudes_at_the_edge_of_the_domain_fail_cleanly_within_the_budget(method, label):

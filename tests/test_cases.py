@@ -49,6 +49,7 @@ def test_there_are_cases():
     assert any(name.startswith("paper/variants/") for name in names)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", CASES, ids=lambda p: p.relative_to(REPO / "cases").as_posix())
 def test_case_runs(path, tmp_path):
     label = path.relative_to(REPO / "cases").as_posix()

@@ -95,6 +95,7 @@ REPO = Path(__file__).resolve().parents[1]
 CHART_CASES = ("paper/fig3-chart.toml", "examples/run-up-chart.toml", "examples/mu-eta-map.toml")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", CHART_CASES)
 def test_chart_command_on_the_shipped_cases(name, tmp_path):
     """Every curve point it writes lies on its curve by an independent route: the free
@@ -156,6 +157,7 @@ def quick_map_sweep(tmp_path_factory) -> Path:
     return out / "sweep.nc"
 
 
+@pytest.mark.slow
 def test_chart_with_a_sweep_beside_it(quick_map_sweep, tmp_path):
     """What each point of the sweep settled on agrees with the closed forms: a point on
     the free whirl where the free whirl exists (|W| < 1, model.free_steady_state), one on

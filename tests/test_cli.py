@@ -403,6 +403,7 @@ def test_interrupted_run_writes_nothing(tmp_path, monkeypatch):
     assert files_in(tmp_path) == {"case.toml"}
 
 
+@pytest.mark.slow
 def test_a_run_of_a_compiled_method_loads_no_scipy_integrator(tmp_path):
     """`rubcli run` imports scipy's integrators only for a scipy method (they cost about
     0.3 s of every run's start): the registry, the analysis modules and the CLI import

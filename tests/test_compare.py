@@ -217,6 +217,7 @@ steps_per_period = 100
 """
 
 
+@pytest.mark.slow
 def test_cli_compare_quick_writes_consistent_outputs(tmp_path):
     params = fig3_params(0.0)
     start = model.synchronous_rub(np.array([0.0]), params)[:, 0]
@@ -250,6 +251,7 @@ def test_cli_compare_quick_writes_consistent_outputs(tmp_path):
         assert float(row["error_final"]) == pytest.approx(err[-1], rel=1e-6, abs=1e-15)
 
 
+@pytest.mark.slow
 def test_cli_compare_response_and_mu_sweep(tmp_path):
     params = fig3_params(0.0)
     start = model.synchronous_rub(np.array([0.0]), params)[:, 0]
@@ -312,6 +314,7 @@ def test_observed_order_of_a_known_power_law():
     assert wpm.observed_order(rows) == pytest.approx(2.0)
 
 
+@pytest.mark.slow
 def test_run_with_analysis_response_reports_the_class(tmp_path):
     params = fig3_params(0.0)
     start = model.synchronous_rub(np.array([0.0]), params)[:, 0]

@@ -68,6 +68,7 @@ def _reference_states(solution, params: ModelParams) -> np.ndarray:
                       solution.states[:, 2:] + ring[:, 2:], ring[:, 2:]])  # fmt: skip
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["paper", "general", "snubber"])
 @pytest.mark.parametrize("method", ["dop853-jit", "dop853", "radau"])
 def test_jeffcott_machines_agree_with_the_rotor_solvers(name, method):
@@ -91,6 +92,7 @@ def test_jeffcott_machines_agree_with_the_rotor_solvers(name, method):
     assert np.max(np.abs(energy_residual(solution))) < 1e-6
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", METHODS)
 def test_every_method_holds_the_exact_rolling_whirl(method):
     """Stick on a circle of radius r whirling backward at Rp eta / r (test_stick)."""
@@ -170,6 +172,7 @@ def test_two_uncoupled_rotors_are_two_runs_of_one():
         assert np.max(np.abs(got - alone.states)) < 2e-5
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["dop853-jit", "radau"])
 def test_two_coupled_stations_in_stick_together(method):
     """Coupled through the mass matrix, the two stations' mobilities are a full 2 x 2

@@ -37,6 +37,7 @@ def _paper_ns() -> cn.Branch:
     return cn.continue_branch(PAPER, s0[:, 0], settings)
 
 
+@pytest.mark.slow
 def test_neimark_sacker_of_the_paper_rub_continued_in_eta_lies_on_the_stability_boundary():
     branch = _paper_ns()
     (ns,) = [b for b in branch.bifurcations if b.kind == cn.NEIMARK_SACKER]
@@ -79,6 +80,7 @@ def run_up_curves() -> list[cv.Curve]:
     return cv.continue_curves(RUN_UP, branch, settings)
 
 
+@pytest.mark.slow
 def test_grazings_of_the_free_whirl_are_one_curve_on_the_closed_form(run_up_curves):
     grazings = [c for c in run_up_curves if c.kind == cn.GRAZING]
     assert [c.status for c in grazings] == ["ok", "same curve"]  # the two are one curve
@@ -93,6 +95,7 @@ def test_grazings_of_the_free_whirl_are_one_curve_on_the_closed_form(run_up_curv
     assert 0.0 <= lowest - 2 * RUN_UP.nu * math.sqrt(1 - RUN_UP.nu**2) < 1e-3
 
 
+@pytest.mark.slow
 def test_fold_of_the_rub_continued_in_e_lies_on_the_double_root(run_up_curves):
     (curve,) = [c for c in run_up_curves if c.kind == cn.FOLD]
     assert curve.status == "ok" and len(curve.points) >= 3
@@ -155,6 +158,7 @@ def test_bad_second_parameter_tables_exit_2_and_write_nothing(tmp_path, extra, m
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_shipped_curves_case_quick_writes_the_curves(tmp_path):
     out = tmp_path / "out"
     case = ROOT / "cases/examples/run-up-curves.toml"

@@ -43,6 +43,7 @@ def idle_motor(inertia: float, start: float) -> Drive:
     return Drive(inertia=inertia, start=start, stall_torque=1.0, no_load_speed=start)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["dop853", "rk45", "radau", "taylor"])
 def test_energy_changes_by_the_motors_work_exactly(method):
     """mu = 0, nu = 0 and a constant motor torque T: the energy of the Lagrangian changes
@@ -97,6 +98,7 @@ def _captured_speed(params: model.ModelParams, drive: Drive) -> float:
     return brentq(imbalance, 1.5, 3.0, xtol=1e-12)
 
 
+@pytest.mark.slow
 def test_a_weak_drive_is_captured_where_the_torques_balance():
     """The Sommerfeld effect on the rub branch: the weak motor of driven-captured.toml
     stays at the speed where its torque equals the steady synchronous rub's (closed
@@ -119,6 +121,7 @@ def test_a_weak_drive_is_captured_where_the_torques_balance():
     assert fast.contact[-200:].max() == 0
 
 
+@pytest.mark.slow
 def test_a_dry_whip_brakes_the_drive_and_rolls_in_stick():
     case = load_case(CASES / "driven-dry-whip.toml")
     sol = solve(case.problem, "dop853", rtol=1e-9, atol=1e-11)
@@ -133,6 +136,7 @@ def test_a_dry_whip_brakes_the_drive_and_rolls_in_stick():
     assert means.rub[-1] < -1.0 and means.motor[-1] > 1.0
 
 
+@pytest.mark.slow
 def test_the_energy_balance_holds_with_friction_and_the_motor():
     """With damping, friction, stick and the linear motor the report's balance closes
     to its quadrature error (the trapezoid on the samples)."""
@@ -159,6 +163,7 @@ def test_the_interpreters_drive_is_the_compiled_one():
 FIG3 = {"nu": 0.009478, "eta": 0.7818, "e": 7.52, "Rp": 46.16}
 
 
+@pytest.mark.slow
 def test_a_bouncing_heavy_rotor_runs_as_at_constant_speed():
     """The paper's start, already inside a stiff stator (K = 1.76e3, mu = 0.05): 79
     contacts and slips in three revolutions, some 0.0025 apart, inside one scan interval
@@ -193,6 +198,7 @@ def test_a_start_on_the_clearance_moving_out_is_a_contact_at_once(method):
     assert sol.regimes[1] != model.FREE
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["radau", "bdf", "lsoda"])
 def test_the_implicit_methods_roll_a_driven_rotor(method):
     """A driven rotor rolling on the stator all the way (e = 0: the angle does not enter
@@ -212,6 +218,7 @@ def test_the_implicit_methods_roll_a_driven_rotor(method):
     assert np.max(np.abs(slip_velocity(sol))) < 1e-9
 
 
+@pytest.mark.slow
 def test_the_methods_agree_on_a_driven_stick_slip():
     """The rolling whirl with a little unbalance sticks and slips twice a period while a
     weak motor holds the speed: three scipy methods, the compiled DOP853 and
@@ -246,6 +253,7 @@ def test_a_rotor_that_stops_ends_the_run_with_a_message(method):
     assert sol.t[-1] == pytest.approx(1.9) and np.all(sol.speed > 0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "case", ["driven-dry-whip", "driven-captured", "driven-through", "driven-physical"]
 )
@@ -422,6 +430,7 @@ def test_a_physical_drive_converts_once_at_the_edge():
     assert f"motor {stall:g} N m stall, {free:g} rpm no-load" in case.speed_text()
 
 
+@pytest.mark.slow
 def test_run_on_a_driven_rotor_writes_its_products(tmp_path):
     case = tmp_path / "drive.toml"
     case.write_text("".join(f"[{name}]\n{body}\n" for name, body in DRIVEN_TABLES.items()))

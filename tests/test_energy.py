@@ -263,6 +263,7 @@ def test_energy_totals_need_no_memory_that_grows_with_the_samples():
     assert peaks[200_000] < 8 * 200_000  # less than one float per sample
 
 
+@pytest.mark.slow
 def test_work_of_the_unbalance_late_in_a_long_run_uses_exact_power_rates():
     """W_in over 300 forcing periods of the Figure 3 machine with friction (rubbing,
     tau up to ~2400) against the same corrected trapezoid with the power's rate written

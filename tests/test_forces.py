@@ -423,6 +423,7 @@ def test_cli_writes_only_the_eigen_map_when_only_it_is_asked(tmp_path):
     assert report["case"]["settings"]["forces_map"]["products"] == ["eigen"]
 
 
+@pytest.mark.slow
 def test_cli_writes_every_product_with_the_requested_columns(tmp_path):
     case = write_small_case(
         tmp_path,
@@ -510,6 +511,7 @@ def test_cli_rejects_an_output_path_that_is_a_file(tmp_path):
     assert "not a directory" in result.output
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["paper/fig2.toml", "examples/eigen-only.toml"])
 def test_shipped_forces_map_cases_run_at_a_small_resolution(tmp_path, name):
     case = load_case(REPO / "cases" / name)

@@ -103,6 +103,7 @@ def test_single_tangential_touch(method, K):
     assert np.max(np.abs(sol.states - exact)) < 1e-7
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("K", [17.6, 1.75e6])
 @pytest.mark.parametrize("method", ALL)
 def test_start_at_the_apex_of_a_touch(method, K):
@@ -124,6 +125,7 @@ def test_start_at_the_apex_of_a_touch(method, K):
 # events.first_crossing, the free segment started at that apex read its round-off rate
 # as outward and entered again at once, the contact read it as inward and left at once:
 # a switch storm at tau = offset in analytic-polar and radau.
+@pytest.mark.slow
 @pytest.mark.parametrize("offset", [1e-9, 1e-8])
 @pytest.mark.parametrize("K", [17.6, 1.75e6])
 @pytest.mark.parametrize("method", ALL)

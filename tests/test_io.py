@@ -120,6 +120,7 @@ def _awkward_floats(n: int, seed: int = 3) -> np.ndarray:
     return np.concatenate([edges, bits, spread, powers, decimals, integers, boundaries])
 
 
+@pytest.mark.slow
 def test_compiled_csv_fields_are_exactly_pythons_repr():
     """Every float field of the compiled formatter (Schubfach digits in repr's layout) is
     ``repr(value)``; integers are ``str``; texts the caller's."""

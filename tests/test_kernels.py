@@ -266,6 +266,7 @@ def test_chaotic_case_with_many_switches(method, fig3_params):
     assert_same_solution(compiled, python, state_tol=1e-9, time_tol=1e-10)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ANALYTIC)
 def test_stick_slip_case(method):
     r = model.rolling_whirl_radius(FORCED)
@@ -290,6 +291,7 @@ def test_exact_synchronous_rub_at_stiff_stator(fig3_params):
     assert_same_solution(compiled, python, state_tol=1e-11)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ANALYTIC)
 def test_ill_conditioned_steps_are_left_to_python(method, fig3_params, monkeypatch):
     """With a condition limit of 1 every eigenbasis is 'ill-conditioned': the kernel hands
@@ -325,6 +327,7 @@ def assert_same_steps(compiled, python):
     assert compiled.stats["n_expm_fallbacks"] == python.stats["n_expm_fallbacks"] == 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("tol", ADAPTIVE_TOLS)
 @pytest.mark.parametrize("method", ANALYTIC)
 @pytest.mark.parametrize("perturbation", [0.0, 0.3])
@@ -344,6 +347,7 @@ def test_adaptive_steps_compiled_on_the_synchronous_rub(perturbation, method, to
     assert_same_solution(compiled, python)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("tol", ADAPTIVE_TOLS)
 @pytest.mark.parametrize("method", ANALYTIC)
 def test_adaptive_steps_compiled_on_the_paper_case(method, tol, fig3_params):
@@ -384,6 +388,7 @@ def test_adaptive_step_budget_stops_both_paths_at_the_same_step(max_steps, fig3_
     assert_same_solution(compiled, python)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ANALYTIC)
 def test_ill_conditioned_adaptive_steps_are_left_to_python(method, fig3_params, monkeypatch):
     monkeypatch.setattr(analytic, "EIGVEC_COND_LIMIT", 1.0)
@@ -444,6 +449,7 @@ def test_adaptive_kernel_hands_back_whole_pairs(fig3_params):
 # ------------------------------------------------------------------ scipy right-hand sides
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["rk45", "radau"])
 def test_scipy_compiled_rhs_gives_the_same_solution(method, fig3_params):
     prob = Problem.from_periods(fig3_params(0.02), FIG3_INITIAL, 2, 50)
@@ -467,6 +473,7 @@ def _closure_dispatchers(fn, seen=None):
     return seen
 
 
+@pytest.mark.slow
 def test_event_search_compiles_each_function_once(fig3_params):
     """numba compiles a callee once for every distinct constant argument it is handed:
     the event search passes its kinds and flags as run-time values (``events.run_time``),

@@ -187,6 +187,7 @@ def rubbing_cases() -> dict[str, ModelParams]:
     }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["slow", "fast"])
 def test_the_methods_agree_with_a_tight_reference_on_a_rub_with_stick(name):
     """Every integrator that runs the general machine finds the events of DOP853 at 1e-13
@@ -389,6 +390,7 @@ def test_orbits_shoots_and_continues_on_the_general_machine(tmp_path):
     assert np.hypot(branch["x"][at] - end[0], branch["y"][at] - end[1]) < 1e-6
 
 
+@pytest.mark.slow
 def test_compare_measures_every_method_against_a_numerical_reference(tmp_path):
     """The paper machine's exact references (free flight, synchronous rub) are not the
     general machine's: compare takes the numerical one, and each method's error falls as

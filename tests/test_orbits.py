@@ -301,6 +301,7 @@ def test_stiff_stator_free_branch_continues_through_grazing_onto_the_rub():
     assert branch.points[-1].stable  # the rub born at the lower grazing is stable
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("side", ["unstable rub", "free whirl"])
 def test_stiff_stator_nonsmooth_fold_at_the_upper_grazing_from_either_side(side):
     """Down the unstable rub to r = 1, where the branch turns back up as the free whirl; or

@@ -194,6 +194,7 @@ def test_snapshots_pick_resonance_rub_onset_and_largest_z():
     assert [abs(r.eta[k] - v) < 0.01 for (k, _), v in zip(asked, [0.7, 1.2], strict=True)]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("speed_unit", ["eta", "rpm"])
 def test_figures_render_with_their_labels(tmp_path, speed_unit):
     tau, eta, phase, w = run_up()

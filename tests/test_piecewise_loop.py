@@ -203,6 +203,7 @@ def test_loop_chunks_and_event_buffer_do_not_change_the_run(method, monkeypatch)
     assert_same(chunked, whole, 1e-12, 1e-12)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ANALYTIC)
 @pytest.mark.parametrize("analytic_tol", [None, 1e-8])
 @pytest.mark.parametrize("start", ["rest", "rolling"])

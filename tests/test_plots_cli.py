@@ -54,6 +54,7 @@ def is_png(path: Path) -> bool:
     return path.is_file() and path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("physical", [False, True], ids=["model", "physical"])
 def test_run_writes_spectrum_png_and_the_dominant_whirl(tmp_path, physical):
     text = CASE.format(section="physical" if physical else "model",

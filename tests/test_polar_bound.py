@@ -39,6 +39,7 @@ def _polar_samples(ws, h, n=4001):
     return P
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("K", [17.6, 1.76e4, 1.75e6])
 @pytest.mark.parametrize("mu", [0.0, 0.05])
 def test_component_ranges_hold_on_the_whole_step(K, mu):
@@ -72,6 +73,7 @@ def test_component_ranges_hold_on_the_whole_step(K, mu):
     assert tighter  # the oscillation form of a mode (not the integral bound alone) was used
 
 
+@pytest.mark.slow
 def test_clearance_implies_no_event_anywhere_in_the_step():
     """Wherever the bound clears a step, r > 1 and sign v_r > 0 on the dense samples
     (with a small rotor radius, so that v_r = Rp eta + r theta' takes either sign)."""

@@ -195,6 +195,7 @@ main()
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
 def test_signal_during_writing_removes_staging_and_keeps_earlier_outputs(tmp_path, signum):
     out = tmp_path / "out"
@@ -363,6 +364,7 @@ OLD_PHYSICAL_SAMPLE = (
 )
 
 
+@pytest.mark.slow
 def test_no_raw_numpy_warning_reaches_the_console(tmp_path):
     """The former physical sample: starts at x = y = 0 and sticks (0/0 in the stick force
     of the first sample); every stderr line is a formatted rubcli message. In a real
@@ -418,6 +420,7 @@ def test_init_help_shows_the_physical_table():
     assert "[physical]" in result.stdout
 
 
+@pytest.mark.slow
 def test_long_values_are_shortened_in_messages(tmp_path):
     huge = "x" * 5_000_000
     path = write_case(
@@ -541,6 +544,7 @@ def _long_solution(n: int) -> Solution:
     return Solution(problem, "exact", t, states, np.zeros(n, dtype=np.int64))
 
 
+@pytest.mark.slow
 def test_solution_csv_is_streamed_in_blocks_and_exact(tmp_path, monkeypatch):
     monkeypatch.setattr(io.tables, "CSV_BLOCK_ROWS", 1000)
     peaks = {}

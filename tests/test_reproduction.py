@@ -22,6 +22,7 @@ CASES = Path(__file__).resolve().parent.parent / "cases" / "paper"
 R_SYNC_MU0 = 1.23389475778  # model notes, section 5
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["analytic", "rk45"])
 def test_mu0_is_period_one_on_the_synchronous_rub(method):
     case = load_case(CASES / "fig3a.toml").with_overrides(periods=240)
@@ -33,6 +34,7 @@ def test_mu0_is_period_one_on_the_synchronous_rub(method):
     assert np.max(np.abs(tail - R_SYNC_MU0)) < 1e-4
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["fig3a", "fig3b"])
 def test_analytic_and_ode45_agree_for_small_friction(name):
     case = load_case(CASES / f"{name}.toml")

@@ -108,6 +108,7 @@ def lorenz(t, s, sigma=10.0, rho=28.0, beta=8.0 / 3.0):
     return np.array([sigma * (s[1] - s[0]), s[0] * (rho - s[2]) - s[1], s[0] * s[1] - beta * s[2]])
 
 
+@pytest.mark.slow
 def test_lorenz_largest_lyapunov_exponent_matches_the_published_value():
     # J. C. Sprott, Chaos and Time-Series Analysis (Oxford, 2003), Table A.1 / sec. 5.6:
     # the Lorenz system (sigma = 10, rho = 28, beta = 8/3) has lambda_1 = 0.9056.

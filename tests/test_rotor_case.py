@@ -43,6 +43,7 @@ def test_the_beam_file_is_what_its_script_makes():
             np.testing.assert_allclose(shipped[name], array, rtol=1e-15, atol=0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", MATRICES_CASES, ids=lambda p: p.name)
 def test_matrices_case_runs(path, tmp_path):
     out = tmp_path / "out"

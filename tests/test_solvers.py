@@ -28,6 +28,7 @@ def test_registry_has_every_method():
         solve(Problem.from_periods(ModelParams(0.1, 0.5, 0.1, 1.0), (0, 0, 0, 0), 1), "euler")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ALL)
 @pytest.mark.parametrize("nu", [0.009478, 0.0, 1.5])
 def test_free_flight_matches_closed_form(method, nu):
@@ -45,6 +46,7 @@ def test_free_flight_matches_closed_form(method, nu):
         assert err.max() / (1e-12 + 1e-9 * np.abs(exact).max()) < 200
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ALL)
 @pytest.mark.parametrize("mu", [0.0, 0.01])
 def test_stays_on_synchronous_full_annular_rub(method, mu, fig3_params):
@@ -91,6 +93,7 @@ def test_analytic_order_on_exact_rub(fig3_params):
     assert slope == pytest.approx(SPECS[method].order, abs=0.2)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ALL)
 def test_switch_times_lie_on_the_surface(method, fig3_params):
     p = fig3_params(0.0)
@@ -134,6 +137,7 @@ def test_brief_contacts_inside_one_step_are_not_missed(method, options):
         assert np.all(durations < SHORT_CONTACTS.period / 4 / 10)  # the step is period / 4
 
 
+@pytest.mark.slow
 def test_methods_agree_on_paper_case(fig3_params):
     p = fig3_params(0.02)
     prob = Problem.from_periods(p, (0.88544, -0.8039, 0.0, 0.0), 5, 20)
@@ -224,6 +228,7 @@ def test_polar_error_does_not_grow_with_stiffness(fig3_params):
     assert cartesian[1] > 5 * cartesian[0] and cartesian[2] > 5 * cartesian[1]
 
 
+@pytest.mark.slow
 def test_polar_error_does_not_grow_with_stiffness_off_the_exact_orbit(fig3_params):
     """Started off the orbit (a radial offset that excites the fast contact mode), against
     a tight dop853 reference: at a fixed step the polar position error does not grow

@@ -117,6 +117,7 @@ def test_the_taylor_series_of_the_unbalance_force_on_a_ramp():
     assert error(20, 0.4) < 2e-15 and error(20, 0.05) < 2e-15  # the force is ~0.6
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["dop853-jit", "taylor", "rk45", "radau"])
 def test_a_linear_ramp_without_contact_against_an_independent_integration(method):
     p = model.ModelParams(nu=0.05, eta=0.3, e=0.05, K=10.0, phi0=0.2)
@@ -190,6 +191,7 @@ def test_a_run_up_follows_the_steady_rub_and_drops_off_past_its_fold():
     assert errors[2] < errors[1] < errors[0] and errors[2] < 0.03
 
 
+@pytest.mark.slow
 def test_the_compiled_and_the_python_event_code_agree_on_a_ramp_with_rubbing():
     prof = SpeedProfile.ramp(0.5, 4.0, 0.01)
     t = np.linspace(0.0, prof.end, 3501)
@@ -293,6 +295,7 @@ def test_a_bad_speed_table_is_refused_naming_the_field(change, message):
         load_case_text(text, "ramp.toml")
 
 
+@pytest.mark.slow
 def test_run_on_a_ramp_writes_the_transient_products(tmp_path):
     case = tmp_path / "ramp.toml"
     case.write_text(
@@ -317,6 +320,7 @@ def test_run_on_a_ramp_writes_the_transient_products(tmp_path):
     assert report["case"]["nondimensional"]["speed"]["profile"] == "ramp"
 
 
+@pytest.mark.slow
 def test_compare_measures_error_against_run_time_on_a_ramp(tmp_path):
     """The reference of a changing speed is numerical (the closed forms are constant-speed
     ones): dop853-jit against lsoda; the error falls with the tolerance."""
@@ -333,6 +337,7 @@ def test_compare_measures_error_against_run_time_on_a_ramp(tmp_path):
     assert not (out / "orbits.png").exists() and not (out / "spectrum.png").exists()
 
 
+@pytest.mark.slow
 def test_run_overlays_a_sweep_of_the_same_machine_under_the_bode_plot(tmp_path):
     root = __import__("pathlib").Path(__file__).resolve().parents[1]
     runner = CliRunner()

@@ -203,6 +203,7 @@ def test_stick_on_a_moving_ring_holds_the_rolling_constraint():
     assert np.all(np.abs(T) <= 0.5 * normal_force(sol)[stick] * (1.0 + 1e-9))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("machine", ["ring", "stick"])
 def test_every_method_agrees_with_a_tight_reference(machine):
     p = ring_machine() if machine == "ring" else _stick_machine()
@@ -230,6 +231,7 @@ def _errors(problem: Problem, ref, **options) -> tuple[float, object]:
     return float(error), sol
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("machine", ["ring", "stick"])
 def test_analytic_converges_at_order_two_on_the_two_bodies(machine):
     # the paper's scheme on eight states: exact free flights, slip linearised each step
@@ -264,6 +266,7 @@ def test_analytic_free_flight_of_the_two_bodies_is_exact():
     assert error < 1e-10 and sol.stats["n_free_segments"] == 1
 
 
+@pytest.mark.slow
 def test_analytic_step_doubling_follows_its_tolerance():
     problem = Problem.from_periods(ring_machine(), (-0.3, 0.0, 0.0, 0.0), 4, 20)
     ref = solve(problem, "dop853-jit", rtol=1e-12, atol=1e-14)
@@ -369,6 +372,7 @@ samples_per_period = 20
     assert p.stator.damping == pytest.approx((0.01, 0.02), rel=1e-3)  # over 2 sqrt(k_r m)
 
 
+@pytest.mark.slow
 def test_run_writes_the_ring_columns(tmp_path):
     out = tmp_path / "out"
     result = CliRunner().invoke(
@@ -387,6 +391,7 @@ def test_run_writes_the_ring_columns(tmp_path):
     assert energy["energy_residual"] < 3.0 * energy["energy_quadrature_error"] + 1e-9
 
 
+@pytest.mark.slow
 def test_compare_runs_the_ring(tmp_path):
     out = tmp_path / "out"
     case = REPO / "cases" / "machines" / "snubber.toml"
@@ -492,6 +497,7 @@ def _multipliers_match(a: np.ndarray, b: np.ndarray, tol: float) -> bool:
     return not left
 
 
+@pytest.mark.slow
 def test_the_two_body_monodromy_without_contact_is_the_exponential():
     """Without contact the two bodies are linear and apart: the multipliers of the
     flow's monodromy (one smooth segment's differences) are those of exp(A T) of each
@@ -554,6 +560,7 @@ def test_the_two_body_monodromy_across_rubs_keeps_liouvilles_determinant():
     assert np.max(np.abs(back - orbit.state)) < 1e-8
 
 
+@pytest.mark.slow
 def test_orbits_continues_the_ring_branch(tmp_path):
     out = tmp_path / "out"
     case = REPO / "cases" / "machines" / "snubber.toml"

@@ -51,6 +51,7 @@ def test_stick_law_holds_slip_constant():
         assert abs(v_r_rate) < 1e-12
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ALL)
 def test_stays_on_exact_rolling_whirl(method):
     p = ModelParams(nu=0.01, eta=1.0, e=0.0, K=100.0, mu=0.3, Rp=2.0)
@@ -80,6 +81,7 @@ def test_leaves_stick_when_friction_is_too_weak(method):
 FORCED = ModelParams(nu=0.01, eta=1.0, e=0.05, K=100.0, mu=0.02, Rp=2.0)
 
 
+@pytest.mark.slow
 def test_stick_slip_cycle_agrees_across_methods():
     """The unbalance makes the needed friction oscillate across the cone edge.
 

@@ -34,6 +34,7 @@ def quick_run(tmp_path_factory):
     return result, out, rows
 
 
+@pytest.mark.slow
 def test_quick_suite_ends_cleanly_everywhere(quick_run):
     result, out, rows = quick_run
     assert result.exit_code == 0, result.output
@@ -84,6 +85,7 @@ WRONG_BUT_SUCCESSFUL = {
 LOOSE = {("stiff-ring", "bdf"): 1e-2, ("stiff-ring", "analytic tol=1e-06"): 1e-2}
 
 
+@pytest.mark.slow
 def test_quick_suite_is_accurate_or_warns(quick_run):
     """Every quick case is short enough to be predictable: its reference is exact or
     confirmed by another method to 1e-4. Against it every run is within 1e-3 clearances
@@ -109,6 +111,7 @@ def test_quick_suite_is_accurate_or_warns(quick_run):
             assert float(row["error"]) > (1e-3 if "energy" in expected else 1e-2), where
 
 
+@pytest.mark.slow
 def test_quick_suite_measures_every_case_against_a_reference(quick_run):
     _, _, rows = quick_run
     by_case: dict[str, list[dict]] = {}
@@ -133,6 +136,7 @@ def test_quick_suite_measures_every_case_against_a_reference(quick_run):
         assert float(row["error"]) < 1e-5, row["case"]
 
 
+@pytest.mark.slow
 def test_quick_suite_writes_a_readable_table(quick_run):
     _, out, rows = quick_run
     text = (out / "stress.md").read_text()

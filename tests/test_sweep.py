@@ -136,6 +136,8 @@ def _small_plan(fig3_params) -> SweepPlan:
     )  # fmt: skip
 
 
+@pytest.mark.serial
+@pytest.mark.slow
 def test_results_do_not_depend_on_the_executor(fig3_params):
     """1 worker, 2 local processes, a real 2-worker Dask LocalCluster (processes, loopback)
     and points batched into tasks: identical numbers."""
@@ -293,6 +295,7 @@ def _run_cli(args: list[str]) -> subprocess.Popen:
     )  # fmt: skip
 
 
+@pytest.mark.slow
 def test_a_killed_sweep_resumes_to_the_same_files(tmp_path):
     """SIGKILL part way, run again: only the missing points are computed, and the files
     are identical to an uninterrupted run's."""
@@ -412,6 +415,7 @@ def test_plan_chains_and_quick_mode():
     assert point.start == (-1.5, 1.5, 0.0, 0.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", SWEEP_CASES, ids=lambda p: p.name)
 def test_shipped_sweep_cases_run_quick(path, tmp_path):
     """Every case with a [sweep] table runs `rubcli sweep --quick` and writes its files."""
@@ -565,6 +569,8 @@ def _running(pid: int) -> bool:
     return state != "Z"
 
 
+@pytest.mark.serial
+@pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's")
 def test_local_workers_die_with_a_killed_sweep(tmp_path):
     # SIGKILL gives the parent no chance to stop its pool: the workers must not live on
@@ -616,6 +622,7 @@ def test_a_task_batch_never_puts_the_work_of_all_workers_into_one_task(fig3_para
     assert task_batch(1000, 2, 1000) == 8 and task_batch(10, 2, 10) == 1
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("address", "says"),
     [("garbage!!", "not a scheduler address"), ("", "not a scheduler address"),
@@ -680,6 +687,7 @@ class _DroppingExecutor(cf.Executor):
         return future
 
 
+@pytest.mark.slow
 def test_a_dropped_task_is_never_stored_as_a_result(fig3_params, tmp_path):
     """Cancelled tasks (a lost scheduler) are held, not recorded as failed points; the
     watch stops the run with the finished points stored and nothing else."""
@@ -733,6 +741,8 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
+@pytest.mark.serial
+@pytest.mark.slow
 @pytest.mark.parametrize("lost", ["scheduler", "workers"])
 def test_a_dask_sweep_that_loses_its_cluster_stops_with_its_points_kept(tmp_path, lost):
     """A real scheduler and worker; one of them is killed mid-sweep: the sweep stops in
@@ -794,3 +804,21 @@ def test_a_dask_sweep_that_loses_its_cluster_stops_with_its_points_kept(tmp_path
     assert resumed.returncode == 0, resumed.stderr
     report = json.loads((out / "report.json").read_text())
     assert report["points_resumed"] == kept and report["points_failed"] == 0
+
+
+def test_a_sweep_on_dask_shows_none_of_distributeds_logs():
+    """While a sweep runs on Dask, no record of distributed's reaches its stderr handler:
+    among them the INFO record with a traceback that ``distributed.batched`` writes when
+    the connection to a killed scheduler closes in the middle of a write (the sweep says
+    in one line that its scheduler is lost); their levels are restored afterwards."""
+    pytest.importorskip("distributed")
+    import logging
+
+    from rubcli.analysis.sweep import quiet_dask_client
+
+    names = ["distributed.batched", "distributed.core", "distributed.client", "tornado.application"]
+    before = [logging.getLogger(name).getEffectiveLevel() for name in names]
+    with quiet_dask_client():
+        for name in names:
+            assert not logging.getLogger(name).isEnabledFor(logging.ERROR), name
+    assert [logging.getLogger(name).getEffectiveLevel() for name in names] == before

@@ -83,6 +83,7 @@ def exact_cases():
     ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", exact_cases(), ids=lambda c: c[0])
 @pytest.mark.parametrize("order", [6, 10])
 def test_series_local_error_has_order_n_plus_1(case, order):
@@ -363,6 +364,7 @@ def _scan_step(pars, regime, s0, rtol, starts, band, n=64):
     return scan, kind
 
 
+@pytest.mark.slow
 def test_start_precheck_clears_only_steps_without_events():
     """Steps that start on the contact surface (after an exit, in free flight; after an
     entry, in slip), from states on z = 1 with radial rates from clearly inward to
@@ -448,6 +450,7 @@ def _walk_steps(p, regime, s0, rtol, n_steps):
     return pars, order, steps
 
 
+@pytest.mark.slow
 def test_step_clear_clears_only_what_step_events_clears():
     """step_clear (the O(N) pre-check inlined into the step loop) against step_events (the
     full pre-check): on free-flight, slip and stick steps and every start flag, a step it
@@ -482,6 +485,7 @@ def test_step_clear_clears_only_what_step_events_clears():
             assert np.mean(flags) > 0.5, (regime, np.mean(flags))
 
 
+@pytest.mark.slow
 def test_taylor_fill_equals_the_event_functions_point_by_point():
     """_taylor_fill (the scan grid of locate in one call) gives, bit for bit, the event
     functions of events.event_search (sign (z^2 - 1), -sign v_r, the stick margin) and

@@ -243,6 +243,7 @@ def test_a_nul_byte_in_a_path_argument_is_named(tmp_path):
 # ----------------------------------------------------------------- continuation
 
 
+@pytest.mark.slow
 def test_continuation_step_past_the_domain_stops_the_branch_with_a_message():
     """A corrector step to eta < 0 once ended in a TypeError traceback (_refine_extreme on
     an empty span); the direction now stops and says why."""
@@ -432,6 +433,7 @@ def with_line(text: str, table: str, line: str) -> str:
     return "\n".join(lines).replace(f"[{table}]", f"[{table}]\n{line}") + "\n"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("line", "field"),
     [
@@ -455,6 +457,7 @@ def test_model_table_is_checked_like_the_physical_one(tmp_path, line, field):
 ORBITS = '[orbits]\nparameter = "mu"\nmin = 0.0\nmax = 0.06\nstep = 0.002\n'
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("table", "line", "field"),
     [
@@ -472,6 +475,7 @@ def test_tolerances_are_bounded_as_solve_bounds_them(tmp_path, table, line, fiel
     assert f"case.toml: {field}: " in done.stderr
 
 
+@pytest.mark.slow
 def test_physical_table_converting_beyond_the_domain_names_the_value(tmp_path):
     physical = CASE.replace(
         "[model]\nnu = 0.009478\neta = 0.7818\ne = 7.52\nK = 17.6\nmu = 0.03\nRp = 46.16",
@@ -485,6 +489,7 @@ def test_physical_table_converting_beyond_the_domain_names_the_value(tmp_path):
     assert "case.toml: physical: converts to K = 2e+196: must be at most 1e+100" in done.stderr
 
 
+@pytest.mark.slow
 def test_validate_refuses_special_files_at_once(tmp_path):
     """A FIFO once hung ``rubcli validate`` until killed; /dev/zero ended in a MemoryError
     after 5.3 GB (here the child's memory is capped at 2 GiB: reading it would fail)."""
@@ -496,6 +501,7 @@ def test_validate_refuses_special_files_at_once(tmp_path):
         assert f"{path}: is not a regular file ({words}), not a case file" in done.stderr
 
 
+@pytest.mark.slow
 def test_validate_refuses_deep_nesting_and_huge_files(tmp_path):
     """A deeply nested TOML once ended in a RecursionError traceback."""
     deep = tmp_path / "deep.toml"
@@ -508,6 +514,7 @@ def test_validate_refuses_deep_nesting_and_huge_files(tmp_path):
         assert words in done.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("table", "words"),
     [

@@ -78,6 +78,7 @@ def case(tmp_path: Path, text: str, **table) -> Path:
     return path
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "table",
     [
@@ -101,6 +102,7 @@ def test_orbits_ends_within_its_wall_time_budget_with_a_message(tmp_path, table)
     assert elapsed < TIMEOUT_S  # (the subprocess timeout is the real guard)
 
 
+@pytest.mark.slow
 def test_orbits_prints_progress_where_no_bar_shows(tmp_path):
     """On a non-terminal (a log, CI) orbits once printed nothing until the end."""
     path = case(tmp_path, ORBITS_CASE, max_points=3)
@@ -111,6 +113,7 @@ def test_orbits_prints_progress_where_no_bar_shows(tmp_path):
     )
 
 
+@pytest.mark.slow
 def test_orbits_budget_is_checked_as_input(tmp_path):
     path = case(tmp_path, ORBITS_CASE)
     done = rubcli(tmp_path, "orbits", path, "--out", "out", "--max-wall-time", "nan")
@@ -150,6 +153,7 @@ samples_per_period = 20
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("change", "field"),
     [("K = 1e300", "model.K"), ("e = 1e308", "model.e"), ("eta = 1e-300", "model.eta"),
@@ -169,6 +173,7 @@ def test_run_refuses_magnitudes_that_once_ran_for_minutes(tmp_path, change, fiel
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_run_at_the_edge_of_the_domain_fails_within_its_budget(tmp_path):
     """K = 1e19 (in the domain, not integrable in a small budget): every method fails with
     its reason within [solver] max_steps, exit 1, outputs written."""
@@ -210,6 +215,7 @@ def test_forces_map_refuses_a_grid_that_will_not_fit_in_memory(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_forces_map_case_limit_follows_the_measured_cost(tmp_path):
     """The largest grid a case may ask for (8 GiB) follows the measured cost per point:
     6688, which the old estimate of 192 bytes per point accepted, needs about 9.5 GiB."""
@@ -232,6 +238,7 @@ def whirl_case(tmp_path: Path, **table) -> Path:
 CRAWLING_WHIRLS = {"step": 1e-7, "min_step": 1e-9, "max_step": 1e-7, "max_points": 100000}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("where", ["option", "table"])
 def test_whirls_end_within_their_wall_time_budget(tmp_path, where):
     """``kind = "whirl"`` once ignored both the table's budget and --max-wall-time (still
@@ -301,6 +308,8 @@ def wrong_service():
         server.close()
 
 
+@pytest.mark.serial
+@pytest.mark.slow
 @pytest.mark.parametrize("mode", ["silent", "http", "random"])
 def test_sweep_refuses_a_service_that_is_not_a_dask_scheduler(
     run_cli, case_file, out_dir, wrong_service, mode
@@ -320,6 +329,7 @@ def test_sweep_refuses_a_service_that_is_not_a_dask_scheduler(
     assert time.monotonic() - start < 50  # 2 s and the start-up, not minutes
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("command", "shipped"),
     [("chart", "examples/mu-eta-map.toml"), ("run", "runup/driven-dry-whip.toml"),
@@ -349,6 +359,7 @@ def largest_chart(tmp_path: Path, extra: str = "") -> Path:
     return path
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("where", ["option", "table"])
 def test_chart_ends_within_its_wall_time_budget(tmp_path, where):
     """``rubcli chart`` had no budget; now the largest grid stops at it: exit 1, one
@@ -363,6 +374,7 @@ def test_chart_ends_within_its_wall_time_budget(tmp_path, where):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_chart_budget_is_checked_as_input(tmp_path):
     done = rubcli(tmp_path, "chart", largest_chart(tmp_path), "--max-wall-time", "inf")
     assert done.returncode == 2 and "--max-wall-time: must be a finite number > 0" in done.stderr
@@ -371,6 +383,7 @@ def test_chart_budget_is_checked_as_input(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("where", ["option", "table"])
 def test_forces_map_ends_within_its_wall_time_budget(tmp_path, where):
     """``rubcli forces-map`` had no wall-time budget (the largest grid a case may ask for
@@ -387,6 +400,7 @@ def test_forces_map_ends_within_its_wall_time_budget(tmp_path, where):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_sweep_ends_within_its_wall_time_budget(run_cli, case_file, out_dir):
     """``rubcli sweep`` had no budget of its own (only each point's); now it stops at one,
     exit 1, keeping the finished points for the next run, its outputs not written."""
@@ -404,6 +418,7 @@ def test_sweep_ends_within_its_wall_time_budget(run_cli, case_file, out_dir):
     assert done.code == 2 and "--max-wall-time: must be a finite number > 0" in done.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("where", ["option", "table"])
 def test_run_ends_within_its_wall_time_budget(tmp_path, where):
     """``rubcli run`` was bounded only by each method's budget (600 s apiece); now the
@@ -423,6 +438,7 @@ def test_run_ends_within_its_wall_time_budget(tmp_path, where):
     assert done.returncode == 2 and "--max-wall-time: must be a finite number > 0" in done.stderr
 
 
+@pytest.mark.slow
 def test_stress_ends_within_its_wall_time_budget(tmp_path):
     """``rubcli stress`` (the full suite runs for many minutes) was bounded only by each
     run's budget; now the whole suite stops at its own: exit 1, one message, nothing
@@ -454,6 +470,7 @@ PERTURBATIONS = {"start": "1.8", "stop": "1.9", "num": "2", "runs": "2",
                  "perturbation_directions": "1000"}  # fmt: skip
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("shipped", "changes", "budget", "extra"),
     [("paper/fig3-ensemble.toml", {}, "", ["--max-wall-time", 3, "--workers", 2]),
@@ -477,6 +494,7 @@ def test_ensemble_ends_within_its_wall_time_budget(tmp_path, shipped, changes, b
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_ensemble_budget_is_checked_as_input(tmp_path):
     path = ensemble_case(tmp_path, "paper/fig3-ensemble.toml")
     done = rubcli(tmp_path, "ensemble", path, "--out", "out", "--max-wall-time", "0")
@@ -487,6 +505,7 @@ def test_ensemble_budget_is_checked_as_input(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("where", ["option", "table"])
 def test_compare_ends_within_its_wall_time_budget(tmp_path, where):
     """``rubcli compare`` (a reference, then every method at nine tolerances, three times

@@ -22,6 +22,7 @@ def _hidden(directory) -> list[str]:
     return sorted(p.name for p in directory.iterdir() if p.name.startswith("."))
 
 
+@pytest.mark.slow
 def test_a_csv_past_the_file_size_limit(run_cli, case_file, out_dir, previous):
     before = previous(out_dir)
     run = run_cli("run", case_file(LONG_CASE), "--out", out_dir,
@@ -32,6 +33,7 @@ def test_a_csv_past_the_file_size_limit(run_cli, case_file, out_dir, previous):
     assert snapshot(out_dir) == before and _hidden(out_dir) == []
 
 
+@pytest.mark.slow
 def test_a_report_past_the_file_size_limit(run_cli, case_file, out_dir, previous):
     """The report alone (no CSV, no figure) does not fit: the same."""
     before = previous(out_dir)
@@ -42,6 +44,7 @@ def test_a_report_past_the_file_size_limit(run_cli, case_file, out_dir, previous
     assert snapshot(out_dir) == before and _hidden(out_dir) == []
 
 
+@pytest.mark.slow
 def test_a_sweep_whose_netcdf_does_not_fit_keeps_its_points(run_cli, case_file, out_dir):
     """sweep.nc past the limit: exit 74, the computed points kept in the store (named in
     the message), nothing half-written; run again with room: the points are resumed."""
@@ -58,6 +61,7 @@ def test_a_sweep_whose_netcdf_does_not_fit_keeps_its_points(run_cli, case_file, 
     assert json.loads((out_dir / "report.json").read_text())["points_resumed"] == 5
 
 
+@pytest.mark.slow
 def test_a_full_tmpfs(in_namespace, case_file):
     """A real full file system (a 400 kB tmpfs): the first run fits, the second does not
     (ENOSPC): exit 74, the first run's files as they were."""
@@ -79,6 +83,7 @@ ls -A disk > listing.txt
     assert (here / "listing.txt").read_text().split() == ["out"]
 
 
+@pytest.mark.slow
 def test_an_output_name_longer_than_the_file_system_allows(run_cli, case_file, tmp_path):
     name = "x" * 300
     run = run_cli("run", case_file(), "--out", tmp_path / name / "out")
@@ -87,6 +92,7 @@ def test_an_output_name_longer_than_the_file_system_allows(run_cli, case_file, t
     assert sorted(p.name for p in tmp_path.iterdir()) == ["case.toml"]
 
 
+@pytest.mark.slow
 def test_a_full_stdout(run_cli, case_file, tmp_path):
     """`init > /dev/full`, `--json > /dev/full`: a message on stderr, exit 74."""
     case = case_file()
@@ -123,6 +129,7 @@ def test_the_help_to_a_closed_pipe(run_cli, args):
     assert run.stderr == ""
 
 
+@pytest.mark.slow
 def test_a_disk_full_at_the_check_is_exit_74_and_leaves_no_lock(run_cli, case_file, out_dir,
                                                                 previous, tmp_path):  # fmt: skip
     """Not even the lock fits (every write fails): exit 74 before anything is computed,
@@ -138,6 +145,7 @@ def test_a_disk_full_at_the_check_is_exit_74_and_leaves_no_lock(run_cli, case_fi
     assert _hidden(out_dir) == []
 
 
+@pytest.mark.slow
 def test_a_disk_full_everywhere_with_the_key_at_home_is_exit_74(run_cli, case_file, out_dir,
                                                                tmp_path):  # fmt: skip
     """No RUBCLI_STATE_DIR, the key in its home place, and no temporary dir usable (every
@@ -151,6 +159,7 @@ def test_a_disk_full_everywhere_with_the_key_at_home_is_exit_74(run_cli, case_fi
     assert not out_dir.exists()
 
 
+@pytest.mark.slow
 def test_a_full_tmpfs_at_the_check(in_namespace, case_file):
     """A file system with no room left at all (ENOSPC on the lock's first write): exit
     74, no lock left."""

@@ -44,6 +44,7 @@ COMMANDS = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("command", COMMANDS)
 def test_a_closed_stdout_is_an_io_error_before_anything_runs(run_cli, case_file, command):
     case = case_file(SMALL_CASE)
@@ -63,6 +64,7 @@ def test_a_closed_stdout_and_stderr_exit_74_silently(run_cli, case_file):
 # ------------------------------------------------------------------ no numba cache
 
 
+@pytest.mark.slow
 def test_a_read_only_install_without_a_writable_home_runs_uncached(in_namespace, case_file):
     """A system-wide install: numba can write neither the package's __pycache__ nor a user
     cache dir (the package is a read-only mount, and so is HOME). The kernels are compiled
@@ -92,6 +94,7 @@ ALL_FAIL_SWEEP = SWEEP_CASE.replace("[sweep]", "[solver]\nmax_steps = 1\n[sweep]
 )
 
 
+@pytest.mark.slow
 def test_a_sweep_whose_every_point_failed_exits_1(run_cli, case_file, out_dir):
     run = run_cli("sweep", case_file(ALL_FAIL_SWEEP), "--out", out_dir, "--workers", "1")
     assert run.code == 1, run.stderr
@@ -103,6 +106,7 @@ def test_a_sweep_whose_every_point_failed_exits_1(run_cli, case_file, out_dir):
 # ------------------------------------------------------------------ terminal escapes
 
 
+@pytest.mark.slow
 def test_control_characters_from_a_case_file_are_printed_escaped(run_cli, case_file):
     """A description, a name and a file name holding terminal escapes (a window title
     change, a bidirectional override): validate prints them escaped, never raw."""
@@ -127,6 +131,7 @@ CHART = '\n[chart]\nx = "eta"\nx_min = 0.5\nx_max = 1.5\ny = "mu"\ny_min = 0.0\n
 WHIRL = '\n[orbits]\nkind = "whirl"\nparameter = "mu"\nmin = 0.0\nmax = 0.1\nstep = 0.01\n'
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("command", "general", "table", "named", "analysis"),
     [
@@ -174,6 +179,7 @@ def _address_space(n_bytes: int):
     return limit
 
 
+@pytest.mark.slow
 def test_a_run_that_cannot_fit_in_memory_is_refused_before_solving(run_cli, case_file, out_dir):
     run = run_cli("run", case_file(BIG_RUN), "--out", out_dir, preexec=_address_space(3 * 1024**3))
     assert run.code == 2, run.stderr
@@ -182,6 +188,7 @@ def test_a_run_that_cannot_fit_in_memory_is_refused_before_solving(run_cli, case
     assert not out_dir.exists()
 
 
+@pytest.mark.slow
 def test_a_compare_that_cannot_fit_in_memory_is_refused_before_solving(run_cli, case_file, out_dir):
     # the orbit panel holds the run of each method and their reference over [time] periods
     run = run_cli(
@@ -193,6 +200,7 @@ def test_a_compare_that_cannot_fit_in_memory_is_refused_before_solving(run_cli, 
     assert not out_dir.exists()
 
 
+@pytest.mark.slow
 def test_an_ensemble_whose_runs_cannot_fit_in_memory_is_refused_before_solving(
     run_cli, case_file, out_dir
 ):
@@ -207,6 +215,7 @@ def test_an_ensemble_whose_runs_cannot_fit_in_memory_is_refused_before_solving(
     assert not out_dir.exists()
 
 
+@pytest.mark.slow
 def test_running_out_of_memory_is_a_message(run_cli, case_file, out_dir, previous):
     before = previous(out_dir)
     fault = {"at": "call:rubcli.solvers:solve", "nth": 2, "do": "nomemory"}  # 1: start-up

@@ -33,6 +33,7 @@ def _users_files(out_dir) -> dict[str, bytes]:
     return snapshot(out_dir)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "journal",
     [
@@ -60,6 +61,7 @@ def test_a_planted_commit_journal_moves_nothing(run_cli, case_file, out_dir, jou
     assert _hidden(out_dir) == [STAGING]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["no-mark", "mark-of-another-dir", "a-subdir"])
 def test_a_staging_dir_rubcli_did_not_make_is_not_removed(
     run_cli, case_file, out_dir, previous, kind
@@ -94,6 +96,7 @@ def test_a_staging_dir_rubcli_did_not_make_is_not_removed(
     assert sorted(os.listdir(staging)) == held
 
 
+@pytest.mark.slow
 def test_a_genuine_journal_moved_to_another_staging_dir_is_refused(
     run_cli, case_file, out_dir, previous
 ):
@@ -113,6 +116,7 @@ def test_a_genuine_journal_moved_to_another_staging_dir_is_refused(
     assert snapshot(out_dir) == left
 
 
+@pytest.mark.slow
 def test_a_file_made_since_an_interrupted_commit_is_never_moved(
     run_cli, case_file, out_dir, previous
 ):
@@ -139,6 +143,7 @@ def test_a_file_made_since_an_interrupted_commit_is_never_moved(
 # ------------------------------------------------------- a directory in the way
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("force", [False, True], ids=["plain", "force"])
 def test_a_directory_named_like_an_output_is_refused_up_front(
     run_cli, case_file, out_dir, previous, force
@@ -163,6 +168,7 @@ def test_a_directory_named_like_an_output_is_refused_up_front(
 # ----------------------------------------------------------- the manifest key
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["world-writable", "a-file"])
 def test_no_private_place_for_the_key_is_refused_before_computing(
     run_cli, case_file, out_dir, tmp_path, kind
@@ -184,6 +190,7 @@ def test_no_private_place_for_the_key_is_refused_before_computing(
     assert not out_dir.exists()
 
 
+@pytest.mark.slow
 def test_a_key_that_does_not_fit_on_its_disk_is_exit_74(run_cli, case_file, out_dir, tmp_path):
     """A new state dir on a full disk: the key cannot be written; exit 74 naming it,
     before anything is computed, and no output dir made."""
@@ -199,6 +206,7 @@ def test_a_key_that_does_not_fit_on_its_disk_is_exit_74(run_cli, case_file, out_
 # --------------------------------------------------------------- the dir's name
 
 
+@pytest.mark.slow
 def test_a_nul_byte_in_the_output_dir_is_refused(run_cli, case_file):
     """`[output] dir` with a NUL byte: validate and run refuse it (exit 2, the field)."""
     case = case_file(SMALL_CASE.replace("plots = []", 'plots = []\ndir = "out\\u0000x"'))

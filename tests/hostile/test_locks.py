@@ -26,6 +26,7 @@ def _held_run(run_cli, case, out_dir, marker, *args):
     return proc
 
 
+@pytest.mark.slow
 def test_a_second_command_on_a_busy_dir_is_refused(run_cli, case_file, out_dir, tmp_path):
     case = case_file()
     first = _held_run(run_cli, case, out_dir, tmp_path / "held")
@@ -43,6 +44,7 @@ def test_a_second_command_on_a_busy_dir_is_refused(run_cli, case_file, out_dir, 
     assert visible(out_dir) == []
 
 
+@pytest.mark.slow
 def test_wait_waits_for_the_first_then_runs(run_cli, case_file, out_dir, tmp_path):
     case = case_file()
     first = run_cli("run", case, "--out", out_dir, "-m", "rk45", background=True,
@@ -58,6 +60,7 @@ def test_wait_waits_for_the_first_then_runs(run_cli, case_file, out_dir, tmp_pat
     assert visible(out_dir) == ["dop853.csv", "report.json"]
 
 
+@pytest.mark.slow
 def test_concurrent_runs_never_leave_a_csv_the_report_does_not_list(run_cli, case_file, out_dir):
     """The audit's race, twice: two runs with different methods started together into
     one dir (with --wait): the last to commit wins whole."""
@@ -71,6 +74,7 @@ def test_concurrent_runs_never_leave_a_csv_the_report_does_not_list(run_cli, cas
         assert len(report["methods"]) == 1
 
 
+@pytest.mark.slow
 def test_the_lock_of_a_killed_command_is_free(run_cli, case_file, out_dir, tmp_path):
     """SIGKILL releases the OS lock: the next command is not refused."""
     case = case_file()
@@ -81,6 +85,7 @@ def test_the_lock_of_a_killed_command_is_free(run_cli, case_file, out_dir, tmp_p
     assert run.code == 0, run.stderr
 
 
+@pytest.mark.slow
 def test_a_sweep_holds_its_output_dir(run_cli, case_file, out_dir, tmp_path):
     """Two sweeps into one dir shared one store and the second crashed: now the second is
     refused while the first runs."""
@@ -114,6 +119,7 @@ def test_lock_in_process(tmp_path):
     assert not target.exists()
 
 
+@pytest.mark.slow
 def test_waiting_is_interrupted_by_a_signal(run_cli, case_file, out_dir, tmp_path):
     """A command waiting with --wait stops cleanly on Ctrl-C (exit 130, nothing written)."""
     case = case_file()
@@ -132,6 +138,7 @@ def test_waiting_is_interrupted_by_a_signal(run_cli, case_file, out_dir, tmp_pat
         finish(first)
 
 
+@pytest.mark.slow
 def test_a_hard_linked_lock_writes_nothing_outside_the_dir(run_cli, case_file, out_dir,
                                                             tmp_path):  # fmt: skip
     """`ln v.txt DIR/.rubcli.lock`: writing the lock would write v.txt, outside the dir;
@@ -150,6 +157,7 @@ def test_a_hard_linked_lock_writes_nothing_outside_the_dir(run_cli, case_file, o
     assert visible(out_dir) == [] and os.path.exists(out_dir / ".rubcli.lock")
 
 
+@pytest.mark.slow
 def test_a_symlinked_lock_is_named_for_what_it_is(run_cli, case_file, out_dir, tmp_path):
     outside = tmp_path / "v.txt"
     outside.write_text("my own file\n")

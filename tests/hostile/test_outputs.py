@@ -48,6 +48,7 @@ def _consistent(directory) -> dict:
 # ------------------------------------------------------------------ manifests
 
 
+@pytest.mark.slow
 def test_a_hand_made_report_json_deletes_nothing(run_cli, case_file, out_dir):
     """The audit's forgery: a report.json naming thesis.tex made a plain run delete it."""
     out_dir.mkdir()
@@ -63,6 +64,7 @@ def test_a_hand_made_report_json_deletes_nothing(run_cli, case_file, out_dir):
     assert visible(out_dir) == ["report.json", "rk45.csv", "thesis.tex"]
 
 
+@pytest.mark.slow
 def test_a_manifest_edited_to_list_a_users_file_is_not_believed(
     run_cli, case_file, out_dir, previous
 ):
@@ -83,6 +85,7 @@ def test_a_manifest_edited_to_list_a_users_file_is_not_believed(
     assert (out_dir / "thesis.tex").read_bytes() == thesis
 
 
+@pytest.mark.slow
 def test_a_manifest_of_another_user_is_not_believed(run_cli, case_file, out_dir, previous,
                                                     tmp_path):  # fmt: skip
     """The same dir as read by another user (another key): none of its files are theirs."""
@@ -93,6 +96,7 @@ def test_a_manifest_of_another_user_is_not_believed(run_cli, case_file, out_dir,
     assert "signed with another key" in run.stderr
 
 
+@pytest.mark.slow
 def test_a_users_file_named_like_an_output_is_never_replaced(run_cli, case_file, out_dir, previous):
     """A user's own dop853.csv in a rubcli dir: `-m dop853` refuses, naming it; --force
     replaces it."""
@@ -106,6 +110,7 @@ def test_a_users_file_named_like_an_output_is_never_replaced(run_cli, case_file,
     assert (out_dir / "dop853.csv").read_text().startswith("tau,")
 
 
+@pytest.mark.slow
 def test_an_output_edited_since_is_kept_and_named(run_cli, case_file, out_dir, previous):
     """An output the user edited is theirs: a rerun that does not write it keeps it (and
     says so), one that would replace it refuses."""
@@ -122,6 +127,7 @@ def test_an_output_edited_since_is_kept_and_named(run_cli, case_file, out_dir, p
     assert (out_dir / "dop853.csv").read_bytes() == edited
 
 
+@pytest.mark.slow
 def test_a_rerun_removes_only_its_own_stale_files(run_cli, case_file, out_dir, previous):
     case = case_file()
     previous(out_dir, "rk45", "dop853")
@@ -137,6 +143,7 @@ def test_a_rerun_removes_only_its_own_stale_files(run_cli, case_file, out_dir, p
 # ---------------------------------------------------------------------- commit
 
 
+@pytest.mark.slow
 def test_a_failed_move_is_undone_whole(run_cli, case_file, out_dir, previous):
     """The third move of the commit fails as across file systems (EXDEV): the two before
     are undone, the previous outputs are as they were, exit 74 with the reason."""
@@ -181,6 +188,7 @@ def test_a_signal_between_moves_in_process_completes_the_commit(tmp_path, monkey
     assert _hidden(target) == []
 
 
+@pytest.mark.slow
 def test_sigkill_during_the_commit_is_completed_by_the_next_command(
     run_cli, case_file, out_dir, previous
 ):
@@ -201,6 +209,7 @@ def test_sigkill_during_the_commit_is_completed_by_the_next_command(
     assert _hidden(out_dir) == []
 
 
+@pytest.mark.slow
 def test_sigkill_during_the_writing_leaves_nothing_beside_and_is_cleared(
     run_cli, case_file, out_dir, previous, tmp_path
 ):
@@ -219,6 +228,7 @@ def test_sigkill_during_the_writing_leaves_nothing_beside_and_is_cleared(
     assert _hidden(out_dir) == []
 
 
+@pytest.mark.slow
 def test_a_commit_into_a_bind_mount_is_renames_and_whole(in_namespace, case_file, tmp_path):
     """A bind-mounted output dir: staging on the parent's mount made every move EXDEV (a
     copy); staged inside the dir, the commit is renames, and SIGTERM during it waits for
@@ -249,6 +259,7 @@ echo "code=$?"
 # ----------------------------------------------------------- rubcli's own entries
 
 
+@pytest.mark.slow
 def test_a_stopped_sweep_does_not_make_its_case_dir_foreign(run_cli, case_file, tmp_path):
     """Ctrl-C on a default `rubcli sweep CASE` leaves its resume store in out/NAME; then
     `rubcli run CASE` into out/NAME must accept it (the store is rubcli's own)."""
@@ -269,6 +280,7 @@ def test_a_stopped_sweep_does_not_make_its_case_dir_foreign(run_cli, case_file, 
     assert {"report.json", "rk45.csv"} <= set(visible(case_dir))
 
 
+@pytest.mark.slow
 def test_a_sweep_into_the_working_dir_resumes_from_its_own_store(run_cli, case_file, tmp_path):
     """`rubcli sweep CASE --out .` keeps its store inside the dir, as rubcli's own: a
     sweep cut by a full disk leaves only it, and the same command then resumes."""
@@ -285,6 +297,7 @@ def test_a_sweep_into_the_working_dir_resumes_from_its_own_store(run_cli, case_f
     assert _hidden(work) == [] and _hidden(tmp_path) == []
 
 
+@pytest.mark.slow
 def test_the_store_of_a_changed_sweep_is_removed_and_named(run_cli, case_file, out_dir, tmp_path):
     """A sweep cut by a full disk keeps its points; the case then changes and its sweep
     completes: the earlier store, which no run will resume, is removed and named."""
@@ -301,6 +314,7 @@ def test_the_store_of_a_changed_sweep_is_removed_and_named(run_cli, case_file, o
     assert [p for p in os.listdir(tmp_path) if ".sweep-" in p] == []
 
 
+@pytest.mark.slow
 def test_every_command_takes_out_and_follows_the_dir_rule(run_cli, case_file, tmp_path):
     """`-o/--out` on every command; without it `run` writes out/<case name>, the others
     out/<case name>/<command> (orbits wrote into the run's dir)."""

@@ -54,6 +54,7 @@ def _consistent(directory) -> dict:
     return report
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("module", "signum"),
     [("numpy", INT), ("numba", TERM), ("typer", HUP), ("matplotlib", TERM)],
@@ -89,6 +90,7 @@ PHASES = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("phase", "signum"),
     [("solve", INT), ("energy balance", TERM), ("energy balance, in numba's code", TERM),
@@ -105,6 +107,7 @@ def test_a_signal_at_each_phase_of_a_run_keeps_the_previous_outputs(
     assert [p.name for p in out_dir.iterdir() if p.name.startswith(".")] == []  # no staging
 
 
+@pytest.mark.slow
 def test_a_signal_during_the_commit_is_held_until_the_commit_is_whole(run_cli, case_file, out_dir):
     """SIGTERM between two moves of the commit: the commit completes, then the command
     stops and says that the outputs were written."""
@@ -118,6 +121,8 @@ def test_a_signal_during_the_commit_is_held_until_the_commit_is_whole(run_cli, c
     assert list(report["methods"]) == ["dop853", "bdf"]
 
 
+@pytest.mark.serial
+@pytest.mark.slow
 def test_signals_from_outside_at_random_moments(run_cli, case_file, out_dir, previous):
     """Real signals sent from outside while a long run is anywhere between its start and
     its end: every time a clean exit, and a dir that is the previous run's or the new."""
@@ -175,6 +180,7 @@ COMMANDS = {
 }  # fmt: skip
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("command", list(COMMANDS))
 def test_every_command_stops_cleanly_on_a_signal(run_cli, case_file, out_dir, command):
     text, args, where = COMMANDS[command]
@@ -185,6 +191,7 @@ def test_every_command_stops_cleanly_on_a_signal(run_cli, case_file, out_dir, co
     assert not out_dir.exists()
 
 
+@pytest.mark.slow
 def test_a_sweep_stops_cleanly_on_a_signal_and_keeps_its_points(run_cli, case_file, out_dir):
     """Ctrl-C while the sweep computes (held at its second stored point): exit 130, the
     finished point kept in the store for the next run, nothing in the output dir."""
@@ -272,6 +279,8 @@ def _group_gone(pgid: int, timeout: float = 10.0) -> bool:
     return False
 
 
+@pytest.mark.serial
+@pytest.mark.slow
 @pytest.mark.parametrize("signum", [INT, TERM])
 def test_a_signal_to_the_process_group_stops_a_pooled_basin_sweep(
     state_dir, case_file, out_dir, signum

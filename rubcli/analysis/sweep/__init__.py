@@ -291,12 +291,16 @@ def close_client(client: Client, timeout: float = CONNECT_TIMEOUT_S) -> None:
 
 @contextlib.contextmanager
 def quiet_dask_client() -> Iterator[None]:
-    """Silence ``distributed.client``'s own error log, and tornado's log of an exception in
-    an event-loop callback (the client's, when its connection breaks), while a sweep runs:
-    a lost scheduler or worker is reported by the sweep in one line, not by tracebacks."""
+    """Silence ``distributed``'s logs in this process (``distributed.client``'s errors, and
+    the INFO record with a traceback that ``distributed.batched`` writes when the
+    connection to a killed scheduler closes in the middle of a write), and tornado's log of
+    an exception in an event-loop callback (the client's, when its connection breaks),
+    while a sweep runs: a lost scheduler or worker is reported by the sweep in one line,
+    not by tracebacks."""
     import logging
 
-    loggers = [logging.getLogger(name) for name in ("distributed.client", "tornado.application")]
+    names = ("distributed", "distributed.client", "tornado.application")
+    loggers = [logging.getLogger(name) for name in names]
     levels = [logger.level for logger in loggers]
     for logger in loggers:
         logger.setLevel(logging.CRITICAL)
