@@ -18,6 +18,30 @@ from rubcli.case.casefile import validate_case
 MAX_CASE_FILE_BYTES = 8 * 1024**2
 
 
+def open_regular_file(path: Path, shown: str, kind: str) -> tuple[int, os.stat_result]:
+    """``path`` opened for reading, and its status: a regular file only (a directory, a
+    FIFO, a device are refused before anything is read); CaseError lines begin with
+    ``shown`` and call the file a ``kind``."""
+    try:
+        # O_NONBLOCK: opening a FIFO does not wait for a writer; it is refused just below
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    except FileNotFoundError:
+        raise CaseError([f"{shown}: file not found"]) from None
+    except IsADirectoryError:
+        raise CaseError([f"{shown}: is a directory, not a {kind}"]) from None
+    except OSError as exc:
+        raise CaseError([f"{shown}: cannot read: {exc.strerror or exc}"]) from None
+    info = os.fstat(fd)
+    if not stat.S_ISREG(info.st_mode):
+        os.close(fd)
+        if stat.S_ISDIR(info.st_mode):
+            raise CaseError([f"{shown}: is a directory, not a {kind}"])
+        raise CaseError(
+            [f"{shown}: is not a regular file ({_file_kind(info.st_mode)}), not a {kind}"]
+        )
+    return fd, info
+
+
 def read_case_file(path: str | Path) -> dict[str, Any]:
     """Step 1: read and parse the TOML file. Raises CaseError naming the file.
 
@@ -26,23 +50,7 @@ def read_case_file(path: str | Path) -> dict[str, Any]:
     is refused before its content is read.
     """
     path = Path(path)
-    try:
-        # O_NONBLOCK: opening a FIFO does not wait for a writer; it is refused just below
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
-    except FileNotFoundError:
-        raise CaseError([f"{path}: file not found"]) from None
-    except IsADirectoryError:
-        raise CaseError([f"{path}: is a directory, not a case file"]) from None
-    except OSError as exc:
-        raise CaseError([f"{path}: cannot read: {exc.strerror or exc}"]) from None
-    info = os.fstat(fd)
-    if not stat.S_ISREG(info.st_mode):
-        os.close(fd)
-        if stat.S_ISDIR(info.st_mode):
-            raise CaseError([f"{path}: is a directory, not a case file"])
-        raise CaseError(
-            [f"{path}: is not a regular file ({_file_kind(info.st_mode)}), not a case file"]
-        )
+    fd, info = open_regular_file(path, str(path), "case file")
     with os.fdopen(fd, "rb") as handle:
         too_big = (
             f"{path}: is larger than {MAX_CASE_FILE_BYTES // 1024**2} MiB, the most a case "

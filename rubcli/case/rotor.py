@@ -43,7 +43,6 @@ from __future__ import annotations
 
 import math
 import os
-import stat
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -54,7 +53,7 @@ from pydantic import Field, ValidationError
 
 from rubcli.case.base import CaseError, _Section
 from rubcli.case.casefile import _format_error
-from rubcli.case.loading import read_case_file
+from rubcli.case.loading import open_regular_file, read_case_file
 from rubcli.case.run import CaseSection
 from rubcli.machine import ContactLaw, Machine, Speed, Station, Structure, Unbalance
 from rubcli.machine.contact import MAX_EXPONENT
@@ -219,19 +218,7 @@ def read_matrices(path: Path, where: str) -> dict[str, np.ndarray]:
     """The arrays of an ``.npz`` file of matrices, checked before they are loaded
     (module docstring); CaseError lines starting with ``where``."""
     shown = f"{where}: {path}"
-    try:
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
-    except FileNotFoundError:
-        raise CaseError([f"{shown}: file not found"]) from None
-    except IsADirectoryError:
-        raise CaseError([f"{shown}: is a directory, not a matrices file"]) from None
-    except OSError as exc:
-        raise CaseError([f"{shown}: cannot read: {exc.strerror or exc}"]) from None
-    info = os.fstat(fd)
-    if not stat.S_ISREG(info.st_mode):
-        os.close(fd)
-        what = "a directory" if stat.S_ISDIR(info.st_mode) else "not a regular file"
-        raise CaseError([f"{shown}: is {what}, not a matrices file"])
+    fd, info = open_regular_file(path, shown, "matrices file")
     with os.fdopen(fd, "rb") as handle:
         if info.st_size > MAX_MATRICES_BYTES:
             raise CaseError(
