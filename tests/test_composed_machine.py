@@ -326,6 +326,10 @@ def test_simulate_refuses_what_it_cannot_run():
         simulate(machine, t, initial=[0.0, 0.0])
     with pytest.raises(ValueError, match="rtol"):
         simulate(machine, t, rtol=float("nan"))
+    with pytest.raises(ValueError, match="max_steps must be an int > 0"):
+        simulate(machine, t, max_steps=2.5)
+    with pytest.raises(ValueError, match="max_wall_time_s must be a finite number"):
+        simulate(machine, t, max_wall_time_s=float("nan"))
 
 
 def test_a_run_stops_at_its_step_budget_with_the_samples_so_far():

@@ -228,3 +228,17 @@ def test_validate_json_and_the_other_commands(case_dir):
     result = runner.invoke(app, ["validate", str(path), "--json"])
     assert result.exit_code == 2
     assert json.loads(result.output)["valid"] is False
+
+
+def test_a_run_too_large_for_memory_is_refused_before_it_runs(case_dir):
+    path = case_dir / "two-seals.toml"
+    text = path.read_text()
+    text = text.replace("end = 0.48", "end = 100.0").replace(
+        "samples_per_revolution = 100", "samples_per_revolution = 2000"
+    )
+    text = text.replace('methods = ["dop853-jit"]', 'methods = ["dop853-jit", "rk45", "radau"]')
+    path.write_text(text)
+    result = runner.invoke(app, ["run", str(path), "--out", str(case_dir / "out")])
+    assert result.exit_code == 2, result.output
+    assert "GiB, more than the 8 GiB a run may hold" in " ".join(result.output.split())
+    assert not (case_dir / "out").exists()

@@ -62,6 +62,9 @@ from rubcli.problem import MAX_OUTPUT_SAMPLES
 from rubcli.system import METHODS
 
 MAX_MATRICES_BYTES = 2 * 1024**3
+# A run keeps every sample of every method in memory (the states, the work, a regime a
+# station): beyond this a case is refused before it runs.
+MAX_RUN_BYTES = 8 * 1024**3
 MATRIX_NAMES = ("M", "K", "C", "G")
 REQUIRED_MATRICES = ("M", "K", "C")
 STATION_NAME_PATTERN = r"^[A-Za-z][A-Za-z0-9_]*$"
@@ -202,6 +205,16 @@ def assemble_rotor_case(raw: dict[str, Any], path: Path) -> RotorCase:
     structure = _structure(arrays, settings, source)
     machine, nodes = _machine(structure, settings, source, names)
     t_eval = _time_grid(settings, source)
+    need = len(settings.solver.methods) * t_eval.size * (2 * machine.size + 1 + len(names)) * 8
+    if need > MAX_RUN_BYTES:
+        raise CaseError(
+            [
+                f"{source}: time: {t_eval.size:,} samples of {2 * machine.size + 1} states x "
+                f"{len(settings.solver.methods)} methods need {need / 1024**3:.3g} GiB, more than "
+                f"the {MAX_RUN_BYTES / 1024**3:g} GiB a run may hold: shorten [time] end or take "
+                "fewer samples_per_revolution"
+            ]  # fmt: skip
+        )
     return RotorCase(
         name=settings.case.name,
         source=source,

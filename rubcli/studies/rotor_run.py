@@ -81,15 +81,17 @@ def relative_orbit(case: RotorCase, solution: MachineSolution, s: int) -> np.nda
     return d
 
 
-def csv_columns(case: RotorCase, solution: MachineSolution) -> tuple[list[str], list]:
-    """The CSV's header and columns (module docstring)."""
+def csv_columns(
+    case: RotorCase, solution: MachineSolution, values: np.ndarray
+) -> tuple[list[str], list]:
+    """The CSV's header and columns (module docstring); ``values`` the stations' values
+    at the samples (``station_series``)."""
     header, columns = ["t_s"], [solution.t]
     structure = case.machine.structure
     for node in case.nodes:
         ix, iy = structure.lateral(node)
         header += [f"x_{node}", f"y_{node}"]
         columns += [solution.states[:, ix], solution.states[:, iy]]
-    values = station_series(solution)
     for s, name in enumerate(case.station_names):
         station = case.machine.stations[s]
         z = np.hypot(*relative_orbit(case, solution, s).T)
@@ -101,9 +103,8 @@ def csv_columns(case: RotorCase, solution: MachineSolution) -> tuple[list[str], 
     return header, columns
 
 
-def method_entry(case: RotorCase, solution: MachineSolution) -> dict[str, Any]:
-    """The report's entry of one method."""
-    values = station_series(solution)
+def method_entry(case: RotorCase, solution: MachineSolution, values: np.ndarray) -> dict[str, Any]:
+    """The report's entry of one method (``values`` as for ``csv_columns``)."""
     E = energy(solution, values[:, :, 0])
     residual = E - E[0] - (solution.work - solution.work[0])
     scale = max(float(np.max(np.abs(E))), float(np.max(np.abs(solution.work))), 1e-300)
@@ -144,9 +145,10 @@ def write_rotor_outputs(
     with io.staged_output_dir(case.output_dir, plan) as staged:
         entries = {}
         for solution in solutions:
-            entries[solution.method] = method_entry(case, solution)
+            values = station_series(solution)
+            entries[solution.method] = method_entry(case, solution, values)
             if case.settings.output.csv:
-                header, columns = csv_columns(case, solution)
+                header, columns = csv_columns(case, solution, values)
                 io.write_csv(staged.path(f"{solution.method}.csv"), header, [columns])
         if "orbit" in case.settings.output.plots and solutions:
             _write_orbits(case, solutions[0], staged.path(ORBIT_FIGURE))

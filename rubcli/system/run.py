@@ -92,6 +92,16 @@ def simulate(
         raise ValueError("simulate: t_eval must be at least 2 increasing times")
     if not np.all(np.isfinite(t_eval)):
         raise ValueError("simulate: t_eval must be finite")
+    for name, value in (("max_steps", max_steps), ("max_events", max_events)):
+        if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
+            raise ValueError(f"simulate: {name} must be an int > 0 (got {value!r})")
+    if max_wall_time_s is not None and not (
+        isinstance(max_wall_time_s, int | float) and math.isfinite(max_wall_time_s)
+        and max_wall_time_s > 0
+    ):  # fmt: skip
+        raise ValueError(
+            f"simulate: max_wall_time_s must be a finite number > 0 (got {max_wall_time_s!r})"
+        )
     for name, value in (("rtol", rtol), ("atol", atol)):
         if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
             raise ValueError(f"simulate: {name} must be a finite number > 0 (got {value!r})")

@@ -53,9 +53,17 @@ def energy(solution: MachineSolution, penetration: np.ndarray | None = None) -> 
     if penetration is None:
         penetration = station_series(solution)[:, :, 0]
     for s, station in enumerate(machine.stations):
-        law = station.law.record()[None, :]
-        E += np.array([stored_energy(law, 0, 0, p) for p in penetration[:, s]])
+        E += _stored_energy(station.law.record()[None, :], np.ascontiguousarray(penetration[:, s]))
     return E
+
+
+@jit
+def _stored_energy(law: np.ndarray, penetration: np.ndarray) -> np.ndarray:
+    """The law's stored energy at each penetration (``contact.stored_energy``)."""
+    out = np.empty(penetration.shape[0])
+    for k in range(penetration.shape[0]):
+        out[k] = stored_energy(law, 0, 0, penetration[k])
+    return out
 
 
 def energy_residual(solution: MachineSolution) -> np.ndarray:
