@@ -187,6 +187,11 @@ TABLE_ERRORS = {
         "station[1].radius: missing required key",
     ),  # fmt: skip
     "bad speed": ("speed = 2500.0", "speed = -1.0", "rotor.speed: Input should be greater than 0"),
+    "nul in the name": (
+        'matrices = "beam.npz"',
+        'matrices = "beam\\u0000.npz"',
+        "the name holds a NUL byte",
+    ),  # fmt: skip
     "bad method": (
         'methods = ["dop853-jit"]',
         'methods = ["analytic"]',

@@ -22,6 +22,8 @@ def open_regular_file(path: Path, shown: str, kind: str) -> tuple[int, os.stat_r
     """``path`` opened for reading, and its status: a regular file only (a directory, a
     FIFO, a device are refused before anything is read); CaseError lines begin with
     ``shown`` and call the file a ``kind``."""
+    if "\0" in str(path):
+        raise CaseError([f"{shown}: the name holds a NUL byte (\\0), which no file name may hold"])
     try:
         # O_NONBLOCK: opening a FIFO does not wait for a writer; it is refused just below
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
