@@ -1,0 +1,283 @@
+"""A structure from a ROSS rotor (``ross-rotordynamics``, the optional extra ``ross``).
+
+ROSS assembles a finite-element rotor (Timoshenko shaft elements, disks, bearings and
+seals) into ``M(speed)``, ``K(speed)``, ``C(speed)`` (bearing and seal coefficients at
+that speed, Rayleigh damping) and ``G()``, with 6 coordinates a node in the order
+``x, y, z, alpha, beta, theta``. rubcli takes these matrices as ROSS gives them, at the
+running speed (coefficients evaluated at the synchronous frequency, as ROSS's
+``run_unbalance_response`` and ``save_mat`` do), cross-coupled terms kept.
+
+The axial ``z`` and torsional ``theta`` coordinates of ROSS's beam are not coupled to
+the lateral ones in these linear matrices, and nothing rubcli applies (unbalances,
+contact forces, lateral gravity) acts on them, so from rest they stay at rest: they are
+dropped when every coupling entry is exactly zero (``lateral_structure``), leaving 4
+coordinates a node, ``x, y, alpha, beta``, node ``k``'s ``x, y`` at ``4 k, 4 k + 1``. This
+is exact (no reduction): it removes the axial and torsional modes, the stiffest of the
+model, and with them the rigid-body modes a rotor without axial supports has. Where a
+coupling is not zero (an axial force, a bearing's cross term into ``z``) all 6 stay.
+
+Versions (``pyproject.toml``): ROSS 3.x on Python 3.13 and newer; ROSS 2.3 (with
+``plotly < 6``) on Python 3.11 and 3.12. ROSS 3 reads files written by 2.3; ROSS 2.3
+cannot read a file written by ROSS 3 (it has ``default_damping_ratio``), which
+``load_ross_rotor`` says.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import warnings
+from collections.abc import Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rubcli.machine.contact import ContactLaw
+from rubcli.machine.machine import MAX_COORDINATES, Machine, Speed, Station, Structure, Unbalance
+
+ROSS_DOF_PER_NODE = 6
+LATERAL = (0, 1, 3, 4)  # x, y, alpha, beta of each node's 6
+ROSS_MISSING = 'needs ROSS (ross-rotordynamics): pip install -e ".[ross]"'
+
+
+class RossError(ValueError):
+    """A ROSS rotor that cannot be used: ROSS missing, its file unreadable, its model
+    outside what rubcli runs; the message says which and why."""
+
+
+@contextmanager
+def _quiet_descriptors():
+    """Standard output and error sent to /dev/null at the descriptor level: ROSS's
+    import prints (from Python and from a C library) about optional thermodynamic
+    libraries, which would corrupt a command's JSON output."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = [os.dup(1), os.dup(2)]
+    null = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, 1)
+        os.dup2(null, 2)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            yield
+    finally:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os.dup2(saved[0], 1)
+        os.dup2(saved[1], 2)
+        for fd in (*saved, null):
+            os.close(fd)
+
+
+def import_ross() -> Any:
+    """The ``ross`` module, imported quietly; RossError if it is not installed or
+    does not import."""
+    if sys.modules.get("ross") is not None:
+        return sys.modules["ross"]
+    try:
+        with _quiet_descriptors():
+            import ross
+    except ModuleNotFoundError as exc:
+        if exc.name and exc.name.split(".")[0] == "ross":
+            raise RossError(ROSS_MISSING) from None
+        raise RossError(f"ROSS does not import: {exc} ({ROSS_MISSING})") from None
+    except Exception as exc:  # noqa: BLE001 (an optional library's failure is reported)
+        raise RossError(f"ROSS does not import: {type(exc).__name__}: {exc}") from None
+    return ross
+
+
+def load_ross_rotor(path: str | Path) -> Any:
+    """A ``ross.Rotor`` from its file (checked before by the case's reader,
+    ``rubcli.case.rotor.check_ross_file``); RossError with ROSS's own message if ROSS
+    cannot build it."""
+    path = Path(path)
+    ross = import_ross()
+    try:
+        with _quiet_descriptors():
+            return ross.Rotor.load(str(path))
+    except TypeError as exc:
+        if "default_damping_ratio" in str(exc):
+            raise RossError(
+                f"{path}: written by ROSS 3, which this ROSS ({ross.__version__}, for Python "
+                "3.11-3.12) cannot read: run rubcli on Python 3.13+ (ROSS 3), or export the "
+                "matrices there (rubcli export-matrices) and use [rotor] matrices"
+            ) from None
+        raise RossError(f"{path}: ROSS cannot build this rotor: {exc}") from None
+    except Exception as exc:  # noqa: BLE001 (ROSS's own errors name the problem)
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+        raise RossError(
+            f"{path}: ROSS cannot build this rotor: {type(exc).__name__}: {first}"
+        ) from None
+
+
+def _is_ross_rotor(rotor: object) -> bool:
+    return all(hasattr(rotor, name) for name in ("M", "K", "C", "G", "shaft_elements", "ndof"))
+
+
+def ross_matrices(rotor: Any, speed: float) -> dict[str, np.ndarray]:
+    """ROSS's ``M, K, C, G`` of ``rotor`` at ``speed`` (rad/s; coefficients at the
+    synchronous frequency), as dense float arrays with 6 coordinates a node."""
+    if not _is_ross_rotor(rotor):
+        raise TypeError(f"rotor must be a ross.Rotor, got {type(rotor).__name__}")
+    speed = float(speed)
+    if not (np.isfinite(speed) and speed >= 0.0):
+        raise ValueError(f"speed must be a finite number >= 0 rad/s (got {speed!r})")
+    try:
+        with _quiet_descriptors():
+            out = {
+                "M": rotor.M(speed),
+                "K": rotor.K(speed),
+                "C": rotor.C(speed),
+                "G": rotor.G(),
+            }
+    except Exception as exc:  # noqa: BLE001 (ROSS's own errors name the problem)
+        raise RossError(f"ROSS cannot assemble the matrices at {speed:g} rad/s: {exc}") from None
+    out = {k: np.array(v, dtype=float) for k, v in out.items()}
+    if rotor.number_dof != ROSS_DOF_PER_NODE:
+        raise RossError(
+            f"the rotor has {rotor.number_dof} coordinates a node; rubcli reads ROSS's "
+            f"{ROSS_DOF_PER_NODE} (x, y, z, alpha, beta, theta)"
+        )
+    return out
+
+
+def lateral_coordinates(matrices: dict[str, np.ndarray]) -> tuple[np.ndarray, int]:
+    """The coordinates kept and the count a node: ``x, y, alpha, beta`` of every node
+    (4) when no matrix couples them to ``z, theta``, else all 6 (module docstring)."""
+    n = matrices["M"].shape[0]
+    nodes = n // ROSS_DOF_PER_NODE
+    lateral = np.array([ROSS_DOF_PER_NODE * k + j for k in range(nodes) for j in LATERAL])
+    other = np.setdiff1d(np.arange(n), lateral)
+    coupled = any(
+        np.any(m[np.ix_(lateral, other)] != 0.0) or np.any(m[np.ix_(other, lateral)] != 0.0)
+        for m in matrices.values()
+    )
+    if coupled:
+        return np.arange(n), ROSS_DOF_PER_NODE
+    return lateral, len(LATERAL)
+
+
+def outer_radii(rotor: Any) -> np.ndarray:
+    """The shaft's outer radius at each node (m): the larger of the elements meeting
+    there (``odl / 2`` of the element starting at it, ``odr / 2`` of one ending at it)."""
+    radii = np.zeros(len(rotor.nodes))
+    for element in rotor.shaft_elements:
+        left, right = int(element.n_l), int(element.n_r)
+        radii[left] = max(radii[left], float(element.odl) / 2.0)
+        radii[right] = max(radii[right], float(element.odr) / 2.0)
+    return radii
+
+
+def ross_structure(
+    rotor: Any, speed: float, gravity: tuple[float, float] | None = None
+) -> Structure:
+    """The structure of a ROSS rotor at ``speed`` (rad/s): its matrices, the lateral
+    coordinates only where that is exact (module docstring), and the static force of
+    ``gravity`` (m/s^2 along x and y: ``M a`` with ``a`` the acceleration on every node's
+    x and y, the consistent load of the weight)."""
+    matrices = ross_matrices(rotor, speed)
+    keep, per_node = lateral_coordinates(matrices)
+    if keep.size > MAX_COORDINATES:
+        raise RossError(
+            f"the rotor has {keep.size} coordinates, more than {MAX_COORDINATES}: reduce the model"
+        )
+    sub = {k: np.ascontiguousarray(v[np.ix_(keep, keep)]) for k, v in matrices.items()}
+    static = None
+    if gravity is not None:
+        gx, gy = (float(g) for g in gravity)
+        acceleration = np.zeros(keep.size)
+        acceleration[0::per_node] = gx
+        acceleration[1::per_node] = gy
+        static = sub["M"] @ acceleration
+    try:
+        return Structure(
+            M=sub["M"], K=sub["K"], C=sub["C"], G=sub["G"], static=static, dof_per_node=per_node
+        )
+    except ValueError as exc:
+        raise RossError(f"ROSS's matrices: {str(exc).removeprefix('structure: ')}") from None
+
+
+def export_matrices(rotor: Any, speed: float, path: str | Path) -> dict[str, np.ndarray]:
+    """Write the matrices of ``rotor`` at ``speed`` (rad/s) to an ``.npz`` a matrices
+    case reads without ROSS (``[rotor] matrices``): ``M, K, C, G``, ``number_dof`` and
+    ``outer_radius`` (m, per node: a station's default radius) and ``speed_rpm`` (the
+    speed the bearings' coefficients are taken at), lateral coordinates only where exact;
+    written atomically. Returns the arrays written."""
+    from rubcli.io.files import atomic_path
+
+    structure = ross_structure(rotor, speed)
+    arrays = {
+        "M": np.asarray(structure.M),
+        "K": np.asarray(structure.K),
+        "C": np.asarray(structure.C),
+        "G": np.asarray(structure.G),
+        "number_dof": np.array(structure.dof_per_node),
+        "outer_radius": outer_radii(rotor),
+        "speed_rpm": np.array(float(speed) * 60.0 / (2.0 * np.pi)),  # the bearings' speed
+    }
+    with atomic_path(Path(path)) as tmp, open(tmp, "wb") as handle:
+        np.savez(handle, **arrays)
+    return arrays
+
+
+@dataclass(frozen=True)
+class NodeStation:
+    """A contact station given at nodes of a finite-element rotor (SI): the rotor's node,
+    the clearance (m), the contact law, the friction coefficient, the surface radius (m;
+    None: the shaft's outer radius at the node), the stator's centre (m) or the node of
+    the structure that is the stator, and a name."""
+
+    node: int
+    clearance: float
+    law: ContactLaw
+    mu: float = 0.0
+    radius: float | None = None
+    offset: tuple[float, float] = (0.0, 0.0)
+    stator_node: int | None = None
+    name: str | None = None
+
+
+def ross_machine(
+    rotor: Any,
+    speed: float,
+    stations: Sequence[NodeStation],
+    unbalances: Sequence[tuple[int, float, float]] = (),
+    gravity: tuple[float, float] | None = None,
+) -> Machine:
+    """The machine of a ``ross.Rotor`` at the constant ``speed`` (rad/s), with contact
+    ``stations`` and ``unbalances`` ``(node, magnitude kg m, phase rad)`` at nodes
+    (ROSS's convention) and ``gravity`` (m/s^2 along x, y) as the static load."""
+    structure = ross_structure(rotor, speed, gravity)
+    radii = outer_radii(rotor)
+    built = []
+    for k, s in enumerate(stations):
+        if not isinstance(s, NodeStation):
+            raise TypeError(f"stations[{k}] must be a NodeStation, got {type(s).__name__}")
+        radius = s.radius
+        if radius is None:
+            if not 0 <= s.node < radii.size:
+                raise ValueError(f"stations[{k}].node: node {s.node} does not exist")
+            radius = float(radii[s.node])
+        stator = None if s.stator_node is None else structure.lateral(s.stator_node)
+        built.append(
+            Station(
+                structure.lateral(s.node),
+                s.clearance,
+                s.law,
+                s.mu,
+                radius,
+                stator,
+                s.offset,
+                s.name or f"station{k}",
+            )  # fmt: skip
+        )
+    loads = []
+    for k, unbalance in enumerate(unbalances):
+        if len(unbalance) != 3:
+            raise ValueError(f"unbalances[{k}] must be (node, magnitude, phase)")
+        node, magnitude, phase = unbalance
+        loads.append(Unbalance(structure.lateral(node), magnitude, phase))
+    return Machine(structure, tuple(built), Speed.constant(float(speed)), tuple(loads))
