@@ -35,7 +35,9 @@ REPO = Path(__file__).resolve().parents[1]
 SWEEP_CASES = sorted(
     p
     for p in (REPO / "cases").rglob("*.toml")
-    if "rotor" not in tomllib.loads(p.read_text()) and load_case(p).settings.sweep is not None
+    if "case" in (data := tomllib.loads(p.read_text()))
+    and "rotor" not in data
+    and load_case(p).settings.sweep is not None
 )
 
 FREE_CASE = """

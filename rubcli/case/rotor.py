@@ -1,4 +1,6 @@
-"""A case whose machine is given as matrices (``[rotor] matrices = "rotor.npz"``), in SI.
+"""A case whose machine is given as matrices (``[rotor] matrices = "rotor.npz"``) or as a
+ROSS rotor file (``[rotor] ross = "rotor.toml"``, read through ROSS, the optional extra:
+``rubcli.machine.ross``), in SI.
 
 ::
 
@@ -6,7 +8,9 @@
     name = "two-seals"
 
     [rotor]
-    matrices = "rotor.npz"   # M, K, C (optional G, number_dof), SI; relative to this file
+    matrices = "rotor.npz"   # M, K, C (optional G, number_dof, outer_radius), SI; relative
+                             # to this file; or ross = "rotor.toml" (ROSS's Rotor.save)
+    gravity = [0.0, -9.81]   # m/s^2 along x, y: the static load M a (optional)
     speed = 1500.0           # rpm
     number_dof = 6           # coordinates a node (else the file's number_dof)
 
@@ -23,7 +27,8 @@
     contact_damping = 0.0    # N s/m: the force c z' along the normal in contact
     contact_exponent = 1.0   # Hertzian exponent p: k delta^p
     mu = 0.15
-    radius = 0.02            # m: the rotor's surface radius (slip = radius Omega + d' . t)
+    radius = 0.02            # m: the rotor's surface radius (slip = radius Omega + d' . t);
+                             # default: the shaft's outer radius at the node (ROSS, outer_radius)
     offset = [0.0, 0.0]      # the stator's centre, m
     # stator_node = 3        # the stator is this node of the structure (a ring, a casing)
 
@@ -41,15 +46,17 @@ the arrays' headers, before their data), finite, ``M`` symmetric positive defini
 
 from __future__ import annotations
 
+import json
 import math
 import os
+import tomllib
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pydantic import Field, ValidationError
+from pydantic import Field, ValidationError, model_validator
 
 from rubcli.case.base import CaseError, _Section
 from rubcli.case.casefile import _format_error
@@ -62,6 +69,8 @@ from rubcli.problem import MAX_OUTPUT_SAMPLES
 from rubcli.system import METHODS
 
 MAX_MATRICES_BYTES = 2 * 1024**3
+MAX_ROSS_FILE_BYTES = 64 * 1024**2
+MAX_ROSS_NODES = MAX_COORDINATES // 4  # 4 lateral coordinates a node kept
 # A run keeps every sample of every method in memory (the states, the work, a regime a
 # station): beyond this a case is refused before it runs.
 MAX_RUN_BYTES = 8 * 1024**3
@@ -72,11 +81,24 @@ MAX_SPEED_RPM = 1e7
 
 
 class RotorSection(_Section):
-    """[rotor]: the structure's matrices file, the speed, the coordinates per node."""
+    """[rotor]: the structure (a matrices file, or a ROSS rotor file), the speed, the
+    coordinates per node (matrices only), the gravity (m/s^2 along x, y)."""
 
-    matrices: str = Field(min_length=1)
+    matrices: str | None = Field(default=None, min_length=1)
+    ross: str | None = Field(default=None, min_length=1)
     speed: float = Field(gt=0, le=MAX_SPEED_RPM)  # rpm
     number_dof: int | None = Field(default=None, ge=2, le=64)
+    gravity: list[float] | None = Field(default=None, min_length=2, max_length=2)
+
+    @model_validator(mode="after")
+    def _one_structure(self) -> RotorSection:
+        if (self.matrices is None) == (self.ross is None):
+            raise ValueError("give the structure once: matrices = FILE.npz or ross = FILE.toml")
+        if self.ross is not None and self.number_dof is not None:
+            raise ValueError("number_dof is for a matrices file (a ROSS rotor gives its own)")
+        if self.gravity is not None and not all(abs(g) <= 1e4 for g in self.gravity):
+            raise ValueError("gravity must be at most 1e4 m/s^2 in each direction")
+        return self
 
 
 class UnbalanceSection(_Section):
@@ -93,7 +115,7 @@ class StationSection(_Section):
     contact_damping: float = Field(default=0.0, ge=0, le=1e30)  # N s/m
     contact_exponent: float = Field(default=1.0, ge=1.0, le=MAX_EXPONENT)
     mu: float = Field(default=0.0, ge=0, le=100)
-    radius: float = Field(ge=0, le=1e3)  # m
+    radius: float | None = Field(default=None, ge=0, le=1e3)  # m; None: the shaft's
     offset: list[float] = Field(default_factory=lambda: [0.0, 0.0], min_length=2, max_length=2)
     stator_node: int | None = Field(default=None, ge=0)
 
@@ -142,7 +164,7 @@ class RotorCase:
     station_names: tuple[str, ...]
     station_nodes: tuple[tuple[int, int | None], ...]  # (rotor node, stator node or None)
     settings: RotorCaseFile
-    matrices_path: Path
+    rotor_file: Path  # the matrices file or the ROSS rotor file
 
     @property
     def methods(self) -> list[str]:
@@ -198,12 +220,18 @@ def assemble_rotor_case(raw: dict[str, Any], path: Path) -> RotorCase:
         problems.append(f"{source}: station: two stations have the same name")
     if problems:
         raise CaseError(problems)
-    matrices_path = Path(settings.rotor.matrices)
-    if not matrices_path.is_absolute():
-        matrices_path = path.parent / matrices_path
-    arrays = read_matrices(matrices_path, f"{source}: rotor.matrices")
-    structure = _structure(arrays, settings, source)
-    machine, nodes = _machine(structure, settings, source, names)
+    field = "matrices" if settings.rotor.matrices is not None else "ross"
+    rotor_file = Path(getattr(settings.rotor, field))
+    if not rotor_file.is_absolute():
+        rotor_file = path.parent / rotor_file
+    where = f"{source}: rotor.{field}"
+    if field == "matrices":
+        arrays = read_matrices(rotor_file, where)
+        structure = _structure(arrays, settings, source)
+        radii = arrays.get("outer_radius")
+    else:
+        structure, radii = _ross_structure(rotor_file, settings, where)
+    machine, nodes = _machine(structure, settings, source, names, radii)
     t_eval = _time_grid(settings, source)
     need = len(settings.solver.methods) * t_eval.size * (2 * machine.size + 1 + len(names)) * 8
     if need > MAX_RUN_BYTES:
@@ -223,7 +251,7 @@ def assemble_rotor_case(raw: dict[str, Any], path: Path) -> RotorCase:
         station_names=tuple(names),
         station_nodes=tuple(nodes),
         settings=settings,
-        matrices_path=matrices_path,
+        rotor_file=rotor_file,
     )
 
 
@@ -262,7 +290,7 @@ def _arrays(archive: zipfile.ZipFile, shown: str) -> dict[str, np.ndarray]:
             ]  # fmt: skip
         )
     out: dict[str, np.ndarray] = {}
-    for name in (*MATRIX_NAMES, "number_dof"):
+    for name in (*MATRIX_NAMES, "number_dof", "outer_radius"):
         if name not in members:
             continue
         try:
@@ -277,6 +305,9 @@ def _arrays(archive: zipfile.ZipFile, shown: str) -> dict[str, np.ndarray]:
                 if name == "number_dof":
                     if int(np.prod(shape)) != 1:
                         raise CaseError([f"{shown}: number_dof must be one integer"])
+                elif name == "outer_radius":
+                    if len(shape) != 1 or shape[0] > MAX_COORDINATES:
+                        raise CaseError([f"{shown}: outer_radius must be a radius a node"])
                 elif len(shape) != 2 or shape[0] != shape[1]:
                     raise CaseError([f"{shown}: {name} must be a square matrix (got {shape})"])
                 elif shape[0] > MAX_COORDINATES:
@@ -313,16 +344,95 @@ def _structure(arrays: dict[str, np.ndarray], settings: RotorCaseFile, source: s
                 ]  # fmt: skip
             )
         per_node = 2
+    static = None
+    if settings.rotor.gravity is not None:
+        # the consistent load of the weight: M a, a the acceleration on every x and y
+        acceleration = np.zeros(n)
+        acceleration[0::per_node], acceleration[1::per_node] = settings.rotor.gravity
+        static = np.asarray(arrays["M"], dtype=float) @ acceleration
     try:
         return Structure(
-            M=arrays["M"], K=arrays["K"], C=arrays["C"], G=arrays.get("G"), dof_per_node=per_node
-        )
+            M=arrays["M"], K=arrays["K"], C=arrays["C"], G=arrays.get("G"), static=static,
+            dof_per_node=per_node,
+        )  # fmt: skip
     except (TypeError, ValueError) as exc:
         raise CaseError([f"{where}: {str(exc).removeprefix('structure: ')}"]) from None
 
 
+def check_ross_file(path: Path, where: str) -> None:
+    """A ROSS rotor file (``Rotor.save``: TOML or JSON) checked before ROSS reads it: a
+    regular file of at most ``MAX_ROSS_FILE_BYTES``, of a known format, with shaft
+    elements, whose nodes give at most ``MAX_ROSS_NODES`` nodes; CaseError lines
+    starting with ``where``."""
+    shown = f"{where}: {path}"
+    suffix = path.suffix.lower()
+    if suffix not in (".toml", ".json"):
+        raise CaseError([f"{shown}: a ROSS rotor file is .toml or .json (Rotor.save)"])
+    fd, info = open_regular_file(path, shown, "ROSS rotor file")
+    with os.fdopen(fd, "rb") as handle:
+        if info.st_size > MAX_ROSS_FILE_BYTES:
+            raise CaseError(
+                [
+                    f"{shown}: is larger than {MAX_ROSS_FILE_BYTES // 1024**2} MiB, more than a "
+                    "rotor file holds"
+                ]  # fmt: skip
+            )
+        raw = handle.read()
+    try:
+        text = raw.decode("utf-8")
+        data = json.loads(text) if suffix == ".json" else tomllib.loads(text)
+    except UnicodeDecodeError:
+        raise CaseError([f"{shown}: not a text file (UTF-8)"]) from None
+    except (tomllib.TOMLDecodeError, json.JSONDecodeError, RecursionError) as exc:
+        raise CaseError([f"{shown}: not a ROSS rotor file: {exc}"]) from None
+    if not isinstance(data, dict):
+        raise CaseError([f"{shown}: not a ROSS rotor file (its top level is not a table)"])
+    nodes = 0
+    for name, element in data.items():
+        if name in ("parameters", "ross_version") or name.startswith("_"):
+            continue
+        if not isinstance(element, dict):
+            raise CaseError([f"{shown}: {name}: an element must be a table"])
+        n = element.get("n")
+        if n is not None and (isinstance(n, bool) or not isinstance(n, int) or n < 0):
+            raise CaseError([f"{shown}: {name}.n: a node number must be an integer >= 0"])
+        if name.startswith("ShaftElement"):
+            nodes = max(nodes, (n or 0) + 2)
+    if nodes == 0:
+        raise CaseError([f"{shown}: not a ROSS rotor file (it has no ShaftElement table)"])
+    if nodes > MAX_ROSS_NODES:
+        raise CaseError(
+            [
+                f"{shown}: {nodes} nodes, more than the {MAX_ROSS_NODES} a run holds "
+                f"({MAX_COORDINATES} coordinates): reduce the model"
+            ]  # fmt: skip
+        )
+
+
+def _ross_structure(
+    path: Path, settings: RotorCaseFile, where: str
+) -> tuple[Structure, np.ndarray]:
+    """The structure of a ROSS rotor file at the case's speed, and the shaft's outer
+    radius at each node."""
+    check_ross_file(path, where)
+    from rubcli.machine import ross
+
+    try:
+        rotor = ross.load_ross_rotor(path)
+        omega = settings.rotor.speed * 2.0 * math.pi / 60.0
+        gravity = settings.rotor.gravity
+        structure = ross.ross_structure(rotor, omega, None if gravity is None else tuple(gravity))
+    except ross.RossError as exc:
+        raise CaseError([f"{where}: {exc}"]) from None
+    return structure, ross.outer_radii(rotor)
+
+
 def _machine(
-    structure: Structure, settings: RotorCaseFile, source: str, names: list[str]
+    structure: Structure,
+    settings: RotorCaseFile,
+    source: str,
+    names: list[str],
+    radii: np.ndarray | None,
 ) -> tuple[Machine, list[tuple[int, int | None]]]:
     problems: list[str] = []
 
@@ -353,10 +463,17 @@ def _machine(
                 continue
         if rotor is None:
             continue
+        radius = s.radius
+        if radius is None:
+            if radii is None or s.node >= radii.size or not radii[s.node] > 0.0:
+                problems.append(
+                    f"{source}: station[{k}].radius: give the rotor's surface radius at the "
+                    "station (m): the rotor's file gives none at this node"
+                )
+                continue
+            radius = float(radii[s.node])
         law = ContactLaw(s.contact_stiffness, s.contact_damping, s.contact_exponent)
-        stations.append(
-            Station(rotor, s.clearance, law, s.mu, s.radius, stator, s.offset, names[k])
-        )
+        stations.append(Station(rotor, s.clearance, law, s.mu, radius, stator, s.offset, names[k]))
         nodes.append((s.node, s.stator_node))
     if problems:
         raise CaseError(problems)

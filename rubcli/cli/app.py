@@ -21,6 +21,7 @@ from rubcli.cli import (
     compare,
     console,
     ensemble,
+    export_matrices,
     forces_map,
     init,
     orbits,
@@ -183,6 +184,7 @@ app.command("sweep")(sweep.command)
 app.command("orbits")(orbits.command)
 app.command("ensemble")(ensemble.command)
 app.command("chart")(chart.command)
+app.command("export-matrices")(export_matrices.command)
 
 
 def _version(value: bool) -> None:

@@ -53,7 +53,7 @@ def summary_lines(case: RotorCase) -> list[str]:
     st = machine.structure
     lines = [
         f"case      {case.name}",
-        f"rotor     {case.matrices_path}: {st.size} coordinates, {st.nodes} nodes of "
+        f"rotor     {case.rotor_file}: {st.size} coordinates, {st.nodes} nodes of "
         f"{st.dof_per_node}; {case.settings.rotor.speed:g} rpm",
     ]
     for name, station, (node, stator) in zip(

@@ -64,5 +64,7 @@ def station_orbits_figure(
         ax.set_xlabel("x relative to the stator's centre (µm)")
         ax.set_ylabel("y relative to the stator's centre (µm)")
         ax.grid(True, linewidth=0.3)
-    fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", ncol=4)
+    # four entries in a row where the panels are wide enough, else two rows of two
+    fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center",
+               ncol=4 if count > 1 else 2)  # fmt: skip
     return fig
