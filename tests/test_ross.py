@@ -1,0 +1,270 @@
+"""ROSS rotors (rubcli/machine/ross.py, [rotor] ross in a case, rubcli export-matrices):
+the structure rubcli builds against ROSS's own linear analyses on the same rotor, the
+lateral coordinates' exactness, and the refusals of a rotor file that cannot be used.
+
+The rotor is ROSS's example with damping (cases/rotors/ross_example.toml). These tests
+need ROSS (the test extra installs it: ROSS 2.3 on Python 3.11-3.12, ROSS 3 on 3.13+)."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from rubcli.case.rotor import load_rotor_case
+from rubcli.cli.app import app
+from rubcli.machine import ContactLaw, linear
+from rubcli.machine.ross import (
+    NodeStation,
+    RossError,
+    import_ross,
+    lateral_coordinates,
+    load_ross_rotor,
+    outer_radii,
+    ross_machine,
+    ross_matrices,
+    ross_structure,
+)
+
+REPO = Path(__file__).resolve().parents[1]
+ROTOR_FILE = REPO / "cases" / "rotors" / "ross_example.toml"
+SPEED = 1200.0 * 2.0 * math.pi / 60.0  # rad/s: ROSS's rub example
+runner = CliRunner()
+
+try:
+    import_ross()
+except RossError:
+    pytest.skip("ROSS is not installed (pip install -e '.[ross]')", allow_module_level=True)
+
+
+@pytest.fixture(scope="module")
+def rotor():
+    return load_ross_rotor(ROTOR_FILE)
+
+
+def test_eigenvalues_are_ross_run_modal(rotor):
+    # the full model (all 6 coordinates a node) against ROSS's own modal analysis
+    full = ross_matrices(rotor, SPEED)
+    from rubcli.machine import Structure
+
+    structure = Structure(full["M"], full["K"], full["C"], full["G"], dof_per_node=6)
+    ours = linear.eigenvalues(structure, SPEED)
+    ours = np.concatenate([ours, ours.conj()])
+    # every mode (ROSS's dense eigensolver: its sparse one is converged to about 1e-7 only)
+    modal = rotor.run_modal(SPEED, num_modes=2 * structure.size, sparse=False)
+    theirs = np.asarray(modal.evalues)
+    assert theirs.size >= structure.size
+    # relative to each eigenvalue, and to the spectrum's scale for the near-defective
+    # overdamped rigid-body pair of the axial and torsional coordinates (no supports)
+    distance = np.array([np.min(np.abs(ours - v)) for v in theirs])
+    assert np.all(distance < 1e-8 * np.abs(theirs) + 1e-10 * np.max(np.abs(ours)))
+
+
+def test_the_lateral_model_is_exact(rotor):
+    # eig(full) = eig(lateral) + eig(axial and torsional): the dropped block is uncoupled
+    full = ross_matrices(rotor, SPEED)
+    keep, per_node = lateral_coordinates(full)
+    assert per_node == 4 and keep.size == 4 * len(rotor.nodes)
+    other = np.setdiff1d(np.arange(full["M"].shape[0]), keep)
+
+    def eig(idx):
+        n = idx.size
+        M, K = full["M"][np.ix_(idx, idx)], full["K"][np.ix_(idx, idx)]
+        D = full["C"][np.ix_(idx, idx)] + SPEED * full["G"][np.ix_(idx, idx)]
+        A = np.block(
+            [[np.zeros((n, n)), np.eye(n)], [-np.linalg.solve(M, K), -np.linalg.solve(M, D)]]
+        )
+        return np.linalg.eigvals(A)
+
+    whole = eig(np.arange(full["M"].shape[0]))
+    parts = np.concatenate([eig(keep), eig(other)])
+    scale = np.max(np.abs(whole))
+    assert whole.size == parts.size
+    # each eigenvalue of the whole found among the parts' (to the eigensolver's round-off)
+    assert np.max([np.min(np.abs(parts - v)) for v in whole]) < 1e-9 * scale
+    structure = ross_structure(rotor, SPEED)
+    np.testing.assert_array_equal(structure.M, full["M"][np.ix_(keep, keep)])
+
+
+def test_unbalance_response_is_ross_run_unbalance_response(rotor):
+    machine = ross_machine(
+        rotor, SPEED, [NodeStation(12, 1.0, ContactLaw(1e6))], [(12, 5e-4, -math.pi / 2)]
+    )
+    static, amplitudes = linear.steady_response(machine)
+    assert not np.any(static)
+    response = rotor.run_unbalance_response(12, 5e-4, -math.pi / 2, frequency=np.array([SPEED]))
+    keep, _ = lateral_coordinates(ross_matrices(rotor, SPEED))
+    theirs = np.asarray(response.forced_resp)[keep, 0]
+    assert np.max(np.abs(theirs - amplitudes)) < 1e-8 * np.max(np.abs(theirs))
+
+
+def test_outer_radius_and_gravity(rotor):
+    radii = outer_radii(rotor)
+    assert radii.shape == (len(rotor.nodes),) and radii[12] == pytest.approx(0.019 / 2)
+    structure = ross_structure(rotor, SPEED, gravity=(0.0, -9.81))
+    # the weight: the static force sums to the rotor's mass times g along y
+    mass = sum(float(e.m) for e in rotor.shaft_elements) + sum(
+        float(d.m) for d in rotor.disk_elements
+    )
+    fy = structure.static[1 :: structure.dof_per_node].sum()
+    fx = structure.static[0 :: structure.dof_per_node].sum()
+    assert fy == pytest.approx(-9.81 * mass, rel=1e-9) and abs(fx) < 1e-12
+
+
+def _case(tmp_path: Path, rotor: str = "ross = 'rotor.toml'", extra: str = "") -> Path:
+    if "rotor.toml" in rotor and not (tmp_path / "rotor.toml").exists():
+        (tmp_path / "rotor.toml").write_bytes(ROTOR_FILE.read_bytes())
+    path = tmp_path / "case.toml"
+    path.write_text(
+        f"""
+[case]
+name = "r"
+[rotor]
+{rotor}
+speed = 1200.0
+{extra}
+[[unbalance]]
+node = 12
+magnitude = 5e-4
+[[station]]
+node = 12
+clearance = 7.95e-5
+contact_stiffness = 1.1e6
+mu = 0.3
+[time]
+end = 0.01
+"""
+    )
+    return path
+
+
+def test_a_ross_case_and_its_exported_matrices_are_the_same_machine(tmp_path):
+    case = load_rotor_case(_case(tmp_path, extra="gravity = [0.0, -9.81]"))
+    assert case.machine.size == 136 and case.machine.stations[0].radius == pytest.approx(0.0095)
+    npz = tmp_path / "rotor.npz"
+    result = runner.invoke(
+        app, ["export-matrices", str(tmp_path / "rotor.toml"), "--speed", "1200", "--out", str(npz)]
+    )
+    assert result.exit_code == 0, result.output
+    other = load_rotor_case(_case(tmp_path, "matrices = 'rotor.npz'", "gravity = [0.0, -9.81]"))
+    for name in ("M", "K", "C", "G", "static"):
+        np.testing.assert_array_equal(
+            getattr(other.machine.structure, name), getattr(case.machine.structure, name)
+        )
+    assert other.machine.stations[0].radius == case.machine.stations[0].radius
+    with np.load(npz) as arrays:
+        assert float(arrays["speed_rpm"]) == pytest.approx(1200.0)
+    # an existing file is kept unless --force
+    again = runner.invoke(
+        app, ["export-matrices", str(tmp_path / "rotor.toml"), "--speed", "1200", "--out", str(npz)]
+    )
+    assert again.exit_code == 2 and "--force" in again.output
+
+
+def _refused(tmp_path: Path, case: Path, *needles: str) -> None:
+    result = runner.invoke(app, ["validate", str(case)])
+    assert result.exit_code == 2, result.output
+    text = " ".join(result.output.split())
+    assert "Traceback" not in text
+    for needle in needles:
+        assert needle in text, text
+
+
+def test_rotor_files_that_cannot_be_used_are_refused_naming_them(tmp_path):
+    def rotor_file(name: str, content: str | bytes) -> str:
+        path = tmp_path / name
+        path.write_bytes(content if isinstance(content, bytes) else content.encode())
+        return f"ross = '{name}'"
+
+    good = ROTOR_FILE.read_text()
+    cases = [
+        ("ross = 'missing.toml'", ("rotor.ross", "missing.toml", "file not found")),
+        (rotor_file("r.txt", good), ("rotor.ross", "r.txt", ".toml or .json")),
+        (
+            rotor_file("bad.toml", "[[[ nonsense"),
+            ("rotor.ross", "bad.toml", "not a ROSS rotor file"),
+        ),
+        (rotor_file("list.json", "[1, 2]"), ("list.json", "top level is not a table")),
+        (rotor_file("bin.toml", b"\xff\xfe\x00"), ("bin.toml", "not a text file")),
+        (rotor_file("none.toml", "ross_version = '2.3.0'\n[parameters]\n"), ("no ShaftElement",)),
+        (rotor_file("neg.toml", '["ShaftElement_a"]\nn = -1\n'), ("ShaftElement_a.n", ">= 0")),
+        (rotor_file("huge.toml", '["ShaftElement_a"]\nn = 100000\n'), ("100002 nodes", "reduce")),
+        (
+            rotor_file("broken.toml", '["ShaftElement_a"]\nn = 0\nL = "long"\n'),
+            ("broken.toml", "ROSS cannot build this rotor"),
+        ),
+        (
+            rotor_file("alien.toml", '["Nonsense_a"]\nn = 0\n["ShaftElement_b"]\nn = 0\n'),
+            ("alien.toml", "ROSS cannot build this rotor"),
+        ),  # fmt: skip
+    ]
+    for rotor, needles in cases:
+        _refused(tmp_path, _case(tmp_path, rotor), *needles)
+    (tmp_path / "dir.toml").mkdir()
+    _refused(tmp_path, _case(tmp_path, "ross = 'dir.toml'"), "dir.toml", "is a directory")
+    os.mkfifo(tmp_path / "fifo.toml")
+    _refused(tmp_path, _case(tmp_path, "ross = 'fifo.toml'"), "fifo.toml", "regular file")
+    both = "ross = 'rotor.toml'\nmatrices = 'rotor.npz'"
+    _refused(tmp_path, _case(tmp_path, both), "rotor", "give the structure once")
+    _refused(tmp_path, _case(tmp_path, "ross = 'rotor.toml'\nnumber_dof = 6"), "number_dof")
+    _refused(tmp_path, _case(tmp_path, "ross = 'rotor.toml'", "gravity = [0.0]"), "gravity")
+
+
+def test_a_station_at_a_node_the_rotor_lacks_is_refused(tmp_path):
+    path = _case(tmp_path)
+    path.write_text(path.read_text().replace("node = 12\nclearance", "node = 34\nclearance"))
+    _refused(tmp_path, path, "station[0].node", "node 34 does not exist")
+
+
+def test_without_ross_the_case_says_how_to_get_it(tmp_path):
+    case = _case(tmp_path)
+    code = (
+        "import sys; sys.modules['ross'] = None\n"
+        "from rubcli.cli.entry import main\n"
+        f"sys.argv = ['rubcli', 'validate', {str(case)!r}]\n"
+        "main()\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120
+    )
+    assert result.returncode == 2, result.stderr
+    assert "needs ROSS" in result.stderr and 'pip install -e ".[ross]"' in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_the_python_api_refuses_what_is_not_a_rotor(rotor):
+    with pytest.raises(TypeError, match="ross.Rotor"):
+        ross_structure(object(), SPEED)
+    with pytest.raises(ValueError, match="speed"):
+        ross_structure(rotor, float("nan"))
+    with pytest.raises(TypeError, match="NodeStation"):
+        ross_machine(rotor, SPEED, [{"node": 12}])
+    with pytest.raises(ValueError, match="node"):
+        ross_machine(rotor, SPEED, [NodeStation(99, 1e-4, ContactLaw(1e6))])
+
+
+def test_ross_import_prints_nothing():
+    # ROSS's import talks about optional libraries; a command's --json output stays JSON
+    code = "from rubcli.machine.ross import import_ross; import_ross(); print('{}')"
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120
+    )
+    assert result.returncode == 0 and json.loads(result.stdout) == {}
+    assert result.stderr == ""
+
+
+def test_the_shipped_rotor_file_is_what_its_script_makes(tmp_path):
+    # the script's rotor (ROSS's example) gives the shipped file's matrices
+    shipped = ross_matrices(load_ross_rotor(ROTOR_FILE), SPEED)
+    made = ross_matrices(import_ross().rotor_example_with_damping(), SPEED)
+    for name in shipped:
+        np.testing.assert_allclose(shipped[name], made[name], rtol=1e-12, atol=0)
+    assert tomllib.loads(ROTOR_FILE.read_text())["ross_version"].startswith("2.3")
