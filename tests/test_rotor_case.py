@@ -184,7 +184,7 @@ TABLE_ERRORS = {
     "no radius": (
         "radius = 0.02                  # m\noffset",
         "offset",
-        "station[1].radius: missing required key",
+        "station[1].radius: give the rotor's surface radius at the station (m)",
     ),  # fmt: skip
     "bad speed": ("speed = 2500.0", "speed = -1.0", "rotor.speed: Input should be greater than 0"),
     "nul in the name": (
