@@ -64,6 +64,7 @@ from rubcli.case.loading import open_regular_file, read_case_file
 from rubcli.case.run import CaseSection
 from rubcli.machine import ContactLaw, Machine, Speed, Station, Structure, Unbalance
 from rubcli.machine.contact import MAX_EXPONENT
+from rubcli.machine.linear import gravity_load
 from rubcli.machine.machine import MAX_COORDINATES
 from rubcli.problem import MAX_OUTPUT_SAMPLES
 from rubcli.system import METHODS
@@ -346,10 +347,8 @@ def _structure(arrays: dict[str, np.ndarray], settings: RotorCaseFile, source: s
         per_node = 2
     static = None
     if settings.rotor.gravity is not None:
-        # the consistent load of the weight: M a, a the acceleration on every x and y
-        acceleration = np.zeros(n)
-        acceleration[0::per_node], acceleration[1::per_node] = settings.rotor.gravity
-        static = np.asarray(arrays["M"], dtype=float) @ acceleration
+        M = np.asarray(arrays["M"], dtype=float)
+        static = gravity_load(M, per_node, tuple(settings.rotor.gravity))
     try:
         return Structure(
             M=arrays["M"], K=arrays["K"], C=arrays["C"], G=arrays.get("G"), static=static,

@@ -16,6 +16,15 @@ import numpy as np
 from rubcli.machine.machine import Machine, Structure
 
 
+def gravity_load(M: np.ndarray, dof_per_node: int, gravity: tuple[float, float]) -> np.ndarray:
+    """The static force of ``gravity`` (m/s^2 along x, y) on a structure of mass matrix
+    ``M``: ``M a``, ``a`` the acceleration on every node's x and y (the consistent load
+    of the weight)."""
+    acceleration = np.zeros(M.shape[0])
+    acceleration[0::dof_per_node], acceleration[1::dof_per_node] = (float(g) for g in gravity)
+    return M @ acceleration
+
+
 def unbalance_amplitudes(machine: Machine, speed: float) -> np.ndarray:
     """The complex force amplitudes ``F`` (N) of the unbalances at ``speed`` (rad/s)."""
     force = np.zeros(machine.size, dtype=complex)

@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from rubcli.machine.contact import ContactLaw
+from rubcli.machine.linear import gravity_load
 from rubcli.machine.machine import MAX_COORDINATES, Machine, Speed, Station, Structure, Unbalance
 
 ROSS_DOF_PER_NODE = 6
@@ -185,13 +186,7 @@ def ross_structure(
             f"the rotor has {keep.size} coordinates, more than {MAX_COORDINATES}: reduce the model"
         )
     sub = {k: np.ascontiguousarray(v[np.ix_(keep, keep)]) for k, v in matrices.items()}
-    static = None
-    if gravity is not None:
-        gx, gy = (float(g) for g in gravity)
-        acceleration = np.zeros(keep.size)
-        acceleration[0::per_node] = gx
-        acceleration[1::per_node] = gy
-        static = sub["M"] @ acceleration
+    static = None if gravity is None else gravity_load(sub["M"], per_node, gravity)
     try:
         return Structure(
             M=sub["M"], K=sub["K"], C=sub["C"], G=sub["G"], static=static, dof_per_node=per_node
