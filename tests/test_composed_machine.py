@@ -370,3 +370,50 @@ def test_a_rotor_touching_a_ring_that_touches_a_casing():
     assert np.max(np.abs(energy_residual(run))) < 1e-9 * E0
     first_ring = run.events.at_station(1).t[0]
     assert first_ring > run.events.at_station(0).t[0]  # pushed by the rotor
+
+
+@pytest.mark.parametrize("regime", [model.FREE, model.SLIP_POSITIVE, model.STICK])
+@pytest.mark.parametrize("speed", ["constant", "run-up"])
+def test_the_implicit_methods_jacobian_is_the_derivative_of_the_system(regime, speed):
+    """The Jacobian radau, bdf and lsoda get (exact from the matrices in the columns no
+    station reads, differenced in the stations' own, all differenced in stick) against
+    central differences of the right-hand side at ten times its step: a structure
+    coupled in every matrix, gyroscopic at a speed that changes, a station on a ring of
+    the structure and a rigid one with contact damping, both in contact."""
+    from rubcli.system.arrays import SystemArrays
+    from rubcli.system.kernels import jacobian_into, rhs_into
+
+    rng = np.random.default_rng(3)
+    n = 8  # coordinates 6 and 7: read by no station
+    A = rng.normal(size=(n, n))
+    M = np.eye(n) + 0.1 * (A + A.T)
+    K = np.eye(n) * 3.0 + 0.2 * rng.normal(size=(n, n))
+    G = 0.05 * (A - A.T)
+    C = 0.02 * np.eye(n) + 0.01 * (A @ A.T)
+    stations = (
+        Station((0, 1), 1.0, ContactLaw(30.0, damping=0.2), 0.2, 2.0, stator=(4, 5)),
+        Station((2, 3), 1.0, ContactLaw(50.0), 0.1, 1.5),
+    )
+    profile = Speed.constant(1.2) if speed == "constant" else Speed((0.0, 10.0), (0.5, 2.0))
+    machine = Machine(Structure(M=M, K=K, C=C, G=G), stations, profile,
+                      (Unbalance((2, 3), 0.3, 0.4),))  # fmt: skip
+    arrays = SystemArrays.of(machine)
+    ctx = arrays.context(np.full(2, regime, dtype=np.int64))
+    # both stations in contact: 1.2 clearances between the rotor points and their stators
+    q = np.array([1.0, 0.5, 0.9, -0.7, 0.1, -0.2, 0.3, 0.4]) + 0.01 * rng.normal(size=n)
+    y = np.concatenate([q, rng.normal(size=n), [0.0]])
+    m = y.size
+    scale = np.concatenate([np.ones(n), np.full(n, 2.0), [1.0]])
+    jac = np.empty((m, m))
+    jacobian_into(3.0, y, ctx, scale, jac, np.empty(m), np.empty(m), np.empty(m))
+    reference = np.zeros((m, m))
+    for j in range(m - 1):
+        h = 1e-5 * max(abs(y[j]), scale[j])
+        f_plus, f_minus = np.empty(m), np.empty(m)
+        rhs_into(3.0, y + h * np.eye(m)[j], ctx, 0, f_plus)
+        rhs_into(3.0, y - h * np.eye(m)[j], ctx, 0, f_minus)
+        reference[:, j] = (f_plus - f_minus) / (2.0 * h)
+    rows = slice(0, 2 * n)  # the work's row is not a derivative any method needs
+    size = np.max(np.abs(reference[rows]))
+    assert np.max(np.abs(jac[rows] - reference[rows])) < 1e-7 * size
+    assert np.all(jac[:, -1] == 0.0)

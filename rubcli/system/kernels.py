@@ -337,24 +337,61 @@ def event_functions(
     return status
 
 
+@inline
+def _difference_column(t, y, ctx, scale, j, jac, shifted, f_plus, f_minus):
+    """Column j of the Jacobian by a central difference, step ``1e-6 max(|y_j|,
+    scale[j])`` (``shifted`` holds y on entry and on return)."""
+    m = y.shape[0]
+    h = 1e-6 * max(abs(y[j]), scale[j])
+    shifted[j] = y[j] + h
+    rhs_into(t, shifted, ctx, 0, f_plus)
+    shifted[j] = y[j] - h
+    rhs_into(t, shifted, ctx, 0, f_minus)
+    shifted[j] = y[j]
+    for i in range(m):
+        jac[i, j] = (f_plus[i] - f_minus[i]) / (2.0 * h)
+
+
 @jit
 def jacobian_into(
     t: float, y: np.ndarray, ctx: tuple, scale: np.ndarray, jac: np.ndarray,
     shifted: np.ndarray, f_plus: np.ndarray, f_minus: np.ndarray,
 ) -> None:  # fmt: skip
-    """Central differences of the right-hand side (m, m) into ``jac``, for the implicit
-    methods: column j with the step ``1e-6 max(|y_j|, scale[j])`` (``scale``: a typical
-    size of each state). The work ``W`` is a state nothing depends on: its column is 0."""
+    """The right-hand side's Jacobian (m, m) into ``jac``, for the implicit methods.
+
+    With no station in stick, a state that no station reads enters the derivative only
+    through the linear structure, so its column is exact from the matrices (``q' = v``,
+    ``v' = -M^-1 K q - M^-1 (C + Omega G) v``); the columns of the stations' coordinates
+    are central differences (step ``1e-6 max(|y_j|, scale[j])``, ``scale``: a typical
+    size of each state). A station in stick couples every state (its force holds the
+    rolling constraint against the whole free acceleration): then every column is a
+    difference. The work ``W`` is a state nothing depends on: its column is 0, and so is
+    its row outside the differenced columns (Newton's iterate of W then follows the
+    others' exactly, which is all an implicit step needs of it)."""
+    (Minv, MinvK, MinvC, MinvG, _, _, _, _, _, idx, _, knots, regimes, _, _, _, _, _, _,
+     _, flags) = ctx  # fmt: skip
     m = y.shape[0]
+    n = Minv.shape[0]
     for i in range(m):
         shifted[i] = y[i]
     jac[:, :] = 0.0
-    for j in range(m - 1):
-        h = 1e-6 * max(abs(y[j]), scale[j])
-        shifted[j] = y[j] + h
-        rhs_into(t, shifted, ctx, 0, f_plus)
-        shifted[j] = y[j] - h
-        rhs_into(t, shifted, ctx, 0, f_minus)
-        shifted[j] = y[j]
-        for i in range(m):
-            jac[i, j] = (f_plus[i] - f_minus[i]) / (2.0 * h)
+    stuck = False
+    for s in range(regimes.shape[0]):
+        if regimes[s] == STICK:
+            stuck = True
+    if stuck:
+        for j in range(m - 1):
+            _difference_column(t, y, ctx, scale, j, jac, shifted, f_plus, f_minus)
+        return
+    omega = speed_at(knots, t)[0] if flags[F_GYROSCOPIC] else 0.0
+    for i in range(n):
+        jac[i, n + i] = 1.0
+        for j in range(n):
+            jac[n + i, j] = -MinvK[i, j]
+            jac[n + i, n + j] = -MinvC[i, j] - omega * MinvG[i, j]
+    for s in range(idx.shape[0]):
+        for c in range(4):
+            j = idx[s, c]
+            if j >= 0:
+                _difference_column(t, y, ctx, scale, j, jac, shifted, f_plus, f_minus)
+                _difference_column(t, y, ctx, scale, n + j, jac, shifted, f_plus, f_minus)
