@@ -7,6 +7,7 @@ need ROSS (the test extra installs it: ROSS 2.3 on Python 3.11-3.12, ROSS 3 on 3
 
 from __future__ import annotations
 
+import csv
 import json
 import math
 import os
@@ -33,6 +34,8 @@ from rubcli.machine.ross import (
     ross_matrices,
     ross_structure,
 )
+from rubcli.model import FREE
+from rubcli.system import simulate
 
 REPO = Path(__file__).resolve().parents[1]
 ROTOR_FILE = REPO / "cases" / "rotors" / "ross_example.toml"
@@ -170,6 +173,57 @@ def test_a_ross_case_and_its_exported_matrices_are_the_same_machine(tmp_path):
         app, ["export-matrices", str(tmp_path / "rotor.toml"), "--speed", "1200", "--out", str(npz)]
     )
     assert again.exit_code == 2 and "--force" in again.output
+
+
+ROSS_CASES = sorted(
+    p
+    for p in (REPO / "cases").rglob("*.toml")
+    if "ross" in tomllib.loads(p.read_text()).get("rotor", {})
+)
+
+
+def test_there_are_ross_cases():
+    assert REPO / "cases" / "rotors" / "ross-rub.toml" in ROSS_CASES
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", ROSS_CASES, ids=lambda p: p.name)
+def test_ross_case_runs(path, tmp_path):
+    """Each shipped ROSS case through `rubcli run`: its files, a report that closes its
+    energy balance, and, over its first 0.1 s (the first contacts), its contact events
+    and the stations' positions against radau ten times tighter (rtol 1e-7, atol
+    1e-12; the two differ by about 3e-7 clearances on ross-rub). Tighter than that the
+    full model's Newton iterations stall on rounding (its matrices span 1e12)."""
+    out = tmp_path / "out"
+    result = runner.invoke(app, ["run", str(path), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    case = load_rotor_case(path)
+    expected = {"report.json", "orbit.png"} | {f"{m}.csv" for m in case.methods}
+    assert {p.name for p in out.iterdir()} == expected
+    report = json.loads((out / "report.json").read_text())
+    assert report["machine"]["coordinates"] == case.machine.size
+    t = case.t_eval[case.t_eval <= 0.1]
+    reference = simulate(case.machine, t, method="radau", rtol=1e-7, atol=1e-12)
+    assert reference.success, reference.message
+    for method, entry in report["methods"].items():
+        assert entry["status"] == "success", entry["message"]
+        assert entry["energy_residual_relative"] < 1e-5
+        with open(out / f"{method}.csv", newline="") as handle:
+            rows = list(csv.DictReader(handle))[: t.size]
+        for s, name in enumerate(case.station_names):
+            events = reference.events.at_station(s)
+            assert len(events) > 0  # the first 0.1 s hold contacts
+            station = entry["stations"][name]
+            assert sum(station["events"].values()) >= len(events)
+            node = case.station_nodes[s][0]
+            ix, iy = case.machine.structure.lateral(node)
+            clearance = case.machine.stations[s].clearance
+            got = np.array([[float(r[f"x_{node}"]), float(r[f"y_{node}"])] for r in rows])
+            assert np.max(np.abs(got - reference.states[:, [ix, iy]])) < 1e-4 * clearance
+            regimes = [r[f"{name}_regime"] for r in rows]
+            touching = np.array([r != "free" for r in regimes])
+            ref_touching = reference.regimes[:, s] != FREE
+            assert np.mean(touching != ref_touching) < 0.02  # samples beside an event
 
 
 def _refused(tmp_path: Path, case: Path, *needles: str) -> None:

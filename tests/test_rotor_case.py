@@ -21,8 +21,10 @@ from rubcli.cli.app import app
 from rubcli.system import simulate
 
 REPO = Path(__file__).resolve().parents[1]
-MATRICES_CASES = sorted(
-    p for p in (REPO / "cases").rglob("*.toml") if "rotor" in tomllib.loads(p.read_text())
+MATRICES_CASES = sorted(  # (the cases on a ROSS rotor file: test_ross)
+    p
+    for p in (REPO / "cases").rglob("*.toml")
+    if "matrices" in tomllib.loads(p.read_text()).get("rotor", {})
 )
 runner = CliRunner()
 
