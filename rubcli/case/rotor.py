@@ -66,6 +66,7 @@ from rubcli.machine import ContactLaw, Machine, Speed, Station, Structure, Unbal
 from rubcli.machine.contact import MAX_EXPONENT
 from rubcli.machine.linear import gravity_load
 from rubcli.machine.machine import MAX_COORDINATES
+from rubcli.machine.reduction import Reduction, reduce_machine
 from rubcli.problem import MAX_OUTPUT_SAMPLES
 from rubcli.system import METHODS
 
@@ -83,13 +84,16 @@ MAX_SPEED_RPM = 1e7
 
 class RotorSection(_Section):
     """[rotor]: the structure (a matrices file, or a ROSS rotor file), the speed, the
-    coordinates per node (matrices only), the gravity (m/s^2 along x, y)."""
+    coordinates per node (matrices only), the gravity (m/s^2 along x, y), and ``modes``:
+    the fixed-interface modes of a Craig-Bampton reduction that keeps the stations' and
+    unbalances' coordinates physical (``machine.reduction``; 0: the full model)."""
 
     matrices: str | None = Field(default=None, min_length=1)
     ross: str | None = Field(default=None, min_length=1)
     speed: float = Field(gt=0, le=MAX_SPEED_RPM)  # rpm
     number_dof: int | None = Field(default=None, ge=2, le=64)
     gravity: list[float] | None = Field(default=None, min_length=2, max_length=2)
+    modes: int = Field(default=0, ge=0, le=MAX_COORDINATES)
 
     @model_validator(mode="after")
     def _one_structure(self) -> RotorSection:
@@ -155,12 +159,15 @@ PLOTS = ("orbit",)
 
 @dataclass(frozen=True, eq=False)
 class RotorCase:
-    """A validated matrices case: the machine (SI), its sample times, the nodes each
-    station joins, and the settings as given."""
+    """A validated matrices case: the machine (SI) it runs (the full one, or its
+    reduction), its sample times, the nodes each station joins, and the settings as
+    given."""
 
     name: str
     source: str
     machine: Machine
+    full_machine: Machine  # machine itself unless reduced
+    reduction: Reduction | None
     t_eval: np.ndarray
     station_names: tuple[str, ...]
     station_nodes: tuple[tuple[int, int | None], ...]  # (rotor node, stator node or None)
@@ -184,6 +191,13 @@ class RotorCase:
                 if node is not None and node not in found:
                     found.append(node)
         return found
+
+    def lateral(self, node: int) -> tuple[int, int]:
+        """The coordinates of ``node``'s x and y in the machine that runs."""
+        pair = self.full_machine.structure.lateral(node)
+        if self.reduction is None:
+            return pair
+        return (self.reduction.reduced_index(pair[0]), self.reduction.reduced_index(pair[1]))
 
     def to_dict(self) -> dict[str, Any]:
         return self.settings.model_dump(mode="json")
@@ -232,7 +246,13 @@ def assemble_rotor_case(raw: dict[str, Any], path: Path) -> RotorCase:
         radii = arrays.get("outer_radius")
     else:
         structure, radii = _ross_structure(rotor_file, settings, where)
-    machine, nodes = _machine(structure, settings, source, names, radii)
+    full, nodes = _machine(structure, settings, source, names, radii)
+    machine, reduction = full, None
+    if settings.rotor.modes > 0:
+        try:
+            machine, reduction = reduce_machine(full, settings.rotor.modes)
+        except ValueError as exc:
+            raise CaseError([f"{source}: rotor.modes: {exc}"]) from None
     t_eval = _time_grid(settings, source)
     need = len(settings.solver.methods) * t_eval.size * (2 * machine.size + 1 + len(names)) * 8
     if need > MAX_RUN_BYTES:
@@ -248,6 +268,8 @@ def assemble_rotor_case(raw: dict[str, Any], path: Path) -> RotorCase:
         name=settings.case.name,
         source=source,
         machine=machine,
+        full_machine=full,
+        reduction=reduction,
         t_eval=t_eval,
         station_names=tuple(names),
         station_nodes=tuple(nodes),

@@ -50,12 +50,19 @@ def rotor_case_or_none(path: Path, json: bool = False) -> RotorCase | None:
 
 def summary_lines(case: RotorCase) -> list[str]:
     machine = case.machine
-    st = machine.structure
+    st = case.full_machine.structure
     lines = [
         f"case      {case.name}",
         f"rotor     {case.rotor_file}: {st.size} coordinates, {st.nodes} nodes of "
         f"{st.dof_per_node}; {case.settings.rotor.speed:g} rpm",
     ]
+    if case.reduction is not None:
+        r = case.reduction
+        extra = " and the weight's static deflection" if r.static_vectors else ""
+        lines.append(
+            f"reduced   {machine.size} coordinates (Craig-Bampton): the {len(r.kept)} of the "
+            f"stations and unbalances, {r.modes} fixed-interface modes{extra}"
+        )
     for name, station, (node, stator) in zip(
         case.station_names, machine.stations, case.station_nodes, strict=True
     ):

@@ -87,9 +87,8 @@ def csv_columns(
     """The CSV's header and columns (module docstring); ``values`` the stations' values
     at the samples (``station_series``)."""
     header, columns = ["t_s"], [solution.t]
-    structure = case.machine.structure
     for node in case.nodes:
-        ix, iy = structure.lateral(node)
+        ix, iy = case.lateral(node)
         header += [f"x_{node}", f"y_{node}"]
         columns += [solution.states[:, ix], solution.states[:, iy]]
     for s, name in enumerate(case.station_names):
@@ -164,10 +163,21 @@ def write_rotor_outputs(
 
 def machine_summary(case: RotorCase) -> dict[str, Any]:
     machine = case.machine
+    full = case.full_machine.structure
+    reduction = case.reduction
     return {
         "coordinates": machine.size,
-        "nodes": machine.structure.nodes,
-        "number_dof": machine.structure.dof_per_node,
+        "nodes": full.nodes,
+        "number_dof": full.dof_per_node,
+        "full_coordinates": full.size,
+        "reduction": None
+        if reduction is None
+        else {
+            "method": "craig-bampton",
+            "kept_coordinates": len(reduction.kept),
+            "modes": reduction.modes,
+            "static_vectors": reduction.static_vectors,
+        },
         "speed_rad_s": machine.speed.values[0],
         "stations": [
             {"name": name, "law": station.law.text(), "clearance_m": station.clearance}

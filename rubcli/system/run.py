@@ -281,6 +281,7 @@ class _Run:
         solver = SCIPY_METHODS[self.method](
             fun, t, y.copy(), t_end, rtol=self.rtol, atol=self.atol, **options
         )
+        nfev_before = self.nfev  # a solver counts its own segment's evaluations
         while True:
             if self.steps >= max_steps:
                 raise _RunError(f"more than max_steps = {max_steps} steps by t = {solver.t:.9g}")
@@ -298,11 +299,11 @@ class _Run:
                 yj = solver.y if j == adv.SCAN_POINTS else dense(tj)
                 g = self._g(tj, np.ascontiguousarray(yj))
                 if np.any((self.g_prev > 0.0) & (g <= 0.0)):
-                    self.nfev = solver.nfev
+                    self.nfev = nfev_before + solver.nfev
                     return self._locate(t_old, h, j, dense)
                 self.g_prev[:] = g
             self._samples_until(t_new, dense)
-            self.nfev = solver.nfev
+            self.nfev = nfev_before + solver.nfev
             if solver.status == "finished":
                 return None
 
