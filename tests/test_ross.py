@@ -370,7 +370,7 @@ def test_the_reduced_rotor_converges_to_the_full_one():
     for modes in (4, 12, 24):
         text = path.read_text().replace("speed = 1200.0", f"speed = 1200.0\nmodes = {modes}")
         case = assemble_rotor_case(tomllib.loads(text), path)
-        assert case.machine.size == 2 + modes
+        assert case.machine.size == 6 + modes  # node 12 and the two probes kept
         run = simulate(case.machine, reference.t, rtol=1e-10, atol=1e-15)
         assert run.success, run.message
         a, b = case.lateral(NODE)

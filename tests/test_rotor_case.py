@@ -7,13 +7,16 @@ from __future__ import annotations
 import csv
 import importlib.util
 import json
+import math
 import shutil
+import textwrap
 import tomllib
 import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
+from PIL import Image
 from typer.testing import CliRunner
 
 from rubcli.case.rotor import load_rotor_case
@@ -219,6 +222,71 @@ def test_a_bad_table_is_refused_naming_its_field(case_dir, kind):
     assert message in " ".join(result.output.split()), result.output
 
 
+PROBES = """
+[[probe]]
+name = "bearing_side"
+node = 1
+angle = 0.5
+
+[[probe]]
+node = 4
+angle = -1.5707963267948966
+"""
+
+
+@pytest.mark.parametrize("modes", [0, 10])
+def test_probes_read_as_rosss_and_are_reported(case_dir, modes):
+    """A probe reads x cos(angle) + y sin(angle) at its node (ROSS's Probe), on the full
+    model and on a reduction (which keeps its node's coordinates): its CSV column, its
+    report entry and its panel in the orbit figure."""
+    path = case_dir / "two-seals.toml"
+    text = path.read_text().replace("[time]", PROBES + "\n[time]")
+    if modes:
+        text = text.replace("speed = 2500.0", f"speed = 2500.0\nmodes = {modes}")
+    path.write_text(text)
+    case = load_rotor_case(path)
+    assert [p.name for p in case.probes] == ["bearing_side", "probe1"]
+    out = case_dir / "out"
+    result = runner.invoke(app, ["run", str(path), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    with open(out / "dop853-jit.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    # the probes' own columns against the full model's nodes (a reduction's error aside)
+    full = simulate(case.full_machine, case.t_eval, rtol=1e-10, atol=1e-14)
+    clearance = case.machine.stations[0].clearance
+    for name, node, angle in (("bearing_side", 1, 0.5), ("probe1", 4, -math.pi / 2)):
+        ix, iy = case.full_machine.structure.lateral(node)
+        expected = full.states[:, ix] * math.cos(angle) + full.states[:, iy] * math.sin(angle)
+        got = np.array([float(r[f"{name}_m"]) for r in rows])
+        assert np.max(np.abs(got - expected)) < 1e-3 * clearance
+        from_nodes = [float(r[f"x_{node}"]) * math.cos(angle) + float(r[f"y_{node}"])
+                      * math.sin(angle) for r in rows]  # fmt: skip
+        np.testing.assert_allclose(got, from_nodes, rtol=1e-12, atol=1e-20)
+    entry = json.loads((out / "report.json").read_text())["methods"]["dop853-jit"]["probes"]
+    assert set(entry) == {"bearing_side", "probe1"}
+    assert entry["probe1"]["node"] == 4
+    got = np.array([float(r["probe1_m"]) for r in rows])
+    assert entry["probe1"]["max_abs_m"] == pytest.approx(np.max(np.abs(got)), rel=1e-12)
+    with Image.open(out / "orbit.png") as image:  # three panels side by side: a wide figure
+        assert image.size[0] > 2.5 * image.size[1]
+
+
+@pytest.mark.parametrize(
+    ("probe", "message"),
+    [("node = 99\nangle = 0.0", "probe[0].node: node 99 does not exist"),
+     ('name = "disk_seal"\nnode = 1\nangle = 0.0', "disk_seal is a station's name too"),
+     ("node = 1", "probe[0].angle: missing required key"),
+     ("node = 1\nangle = 0.0\ndirection = 'axial'", "probe[0].direction: unknown key")],
+)  # fmt: skip
+def test_a_bad_probe_is_refused_naming_it(case_dir, probe, message):
+    path = case_dir / "two-seals.toml"
+    path.write_text(path.read_text().replace("[time]", f"[[probe]]\n{probe}\n\n[time]"))
+    result = runner.invoke(app, ["validate", str(path)])
+    assert result.exit_code == 2, result.output
+    assert message in " ".join(result.output.split()), result.output
+    assert "Traceback" not in result.output
+
+
 def test_validate_json_and_the_other_commands(case_dir):
     path = case_dir / "two-seals.toml"
     result = runner.invoke(app, ["validate", str(path), "--json"])
@@ -249,3 +317,15 @@ def test_a_run_too_large_for_memory_is_refused_before_it_runs(case_dir):
     assert result.exit_code == 2, result.output
     assert "GiB, more than the 8 GiB a run may hold" in " ".join(result.output.split())
     assert not (case_dir / "out").exists()
+
+
+def test_the_documented_case_validates(case_dir):
+    """The matrices case of docs/composed-machine.md, as written, beside the beam."""
+    text = (REPO / "docs" / "composed-machine.md").read_text()
+    start = text.index("    [case]\n")
+    block = text[start : text.index("\n\n`rubcli validate`", start)]
+    path = case_dir / "documented.toml"
+    path.write_text(textwrap.dedent(block) + "\n")
+    result = runner.invoke(app, ["validate", str(path)])
+    assert result.exit_code == 0, result.output
+    assert [p.name for p in load_rotor_case(path).probes] == ["bearing_side"]

@@ -85,8 +85,9 @@ MAX_SPEED_RPM = 1e7
 class RotorSection(_Section):
     """[rotor]: the structure (a matrices file, or a ROSS rotor file), the speed, the
     coordinates per node (matrices only), the gravity (m/s^2 along x, y), and ``modes``:
-    the fixed-interface modes of a Craig-Bampton reduction that keeps the stations' and
-    unbalances' coordinates physical (``machine.reduction``; 0: the full model)."""
+    the fixed-interface modes of a Craig-Bampton reduction that keeps the stations',
+    unbalances' and probes' coordinates physical (``machine.reduction``; 0: the full
+    model)."""
 
     matrices: str | None = Field(default=None, min_length=1)
     ross: str | None = Field(default=None, min_length=1)
@@ -125,6 +126,15 @@ class StationSection(_Section):
     stator_node: int | None = Field(default=None, ge=0)
 
 
+class ProbeSection(_Section):
+    """[[probe]]: a displacement probe as ROSS's ``Probe(node, angle)``: it reads
+    ``x cos(angle) + y sin(angle)`` at ``node`` (m)."""
+
+    name: str | None = Field(default=None, pattern=STATION_NAME_PATTERN, max_length=40)
+    node: int = Field(ge=0)
+    angle: float = Field(ge=-1e3, le=1e3)  # rad
+
+
 class TimeSection(_Section):
     end: float = Field(gt=0, le=1e6)  # s
     samples_per_revolution: int = Field(default=50, gt=0, le=100_000)
@@ -149,12 +159,22 @@ class RotorCaseFile(_Section):
     rotor: RotorSection
     unbalance: list[UnbalanceSection] = Field(default_factory=list)
     station: list[StationSection] = Field(min_length=1, max_length=64)
+    probe: list[ProbeSection] = Field(default_factory=list, max_length=64)
     time: TimeSection
     solver: RotorSolverSection = Field(default_factory=RotorSolverSection)
     output: RotorOutputSection = Field(default_factory=RotorOutputSection)
 
 
 PLOTS = ("orbit",)
+
+
+@dataclass(frozen=True)
+class Probe:
+    """A displacement probe: its name, node and angle (rad from x toward y)."""
+
+    name: str
+    node: int
+    angle: float
 
 
 @dataclass(frozen=True, eq=False)
@@ -171,6 +191,7 @@ class RotorCase:
     t_eval: np.ndarray
     station_names: tuple[str, ...]
     station_nodes: tuple[tuple[int, int | None], ...]  # (rotor node, stator node or None)
+    probes: tuple[Probe, ...]
     settings: RotorCaseFile
     rotor_file: Path  # the matrices file or the ROSS rotor file
 
@@ -184,12 +205,12 @@ class RotorCase:
 
     @property
     def nodes(self) -> list[int]:
-        """Every node a station joins, in order, once."""
+        """Every node a station joins or a probe reads, in order, once."""
         found: list[int] = []
-        for rotor, stator in self.station_nodes:
-            for node in (rotor, stator):
-                if node is not None and node not in found:
-                    found.append(node)
+        every = [n for pair in self.station_nodes for n in pair] + [p.node for p in self.probes]
+        for node in every:
+            if node is not None and node not in found:
+                found.append(node)
         return found
 
     def lateral(self, node: int) -> tuple[int, int]:
@@ -233,6 +254,14 @@ def assemble_rotor_case(raw: dict[str, Any], path: Path) -> RotorCase:
     names = [s.name or f"station{k}" for k, s in enumerate(settings.station)]
     if len(set(names)) != len(names):
         problems.append(f"{source}: station: two stations have the same name")
+    probe_names = [p.name or f"probe{k}" for k, p in enumerate(settings.probe)]
+    if len(set(probe_names)) != len(probe_names):
+        problems.append(f"{source}: probe: two probes have the same name")
+    if set(probe_names) & set(names):
+        problems.append(
+            f"{source}: probe: {', '.join(sorted(set(probe_names) & set(names)))} is a station's "
+            "name too (their CSV columns would clash)"
+        )
     if problems:
         raise CaseError(problems)
     field = "matrices" if settings.rotor.matrices is not None else "ross"
@@ -247,10 +276,20 @@ def assemble_rotor_case(raw: dict[str, Any], path: Path) -> RotorCase:
     else:
         structure, radii = _ross_structure(rotor_file, settings, where)
     full, nodes = _machine(structure, settings, source, names, radii)
+    bad = [k for k, p in enumerate(settings.probe) if p.node >= structure.nodes]
+    if bad:
+        raise CaseError(
+            [f"{source}: probe[{k}].node: node {settings.probe[k].node} does not exist (the "
+             f"rotor has {structure.nodes} nodes, 0 to {structure.nodes - 1})" for k in bad]
+        )  # fmt: skip
+    probes = tuple(
+        Probe(name, p.node, p.angle) for name, p in zip(probe_names, settings.probe, strict=True)
+    )
     machine, reduction = full, None
     if settings.rotor.modes > 0:
+        keep = tuple(c for p in probes for c in structure.lateral(p.node))
         try:
-            machine, reduction = reduce_machine(full, settings.rotor.modes)
+            machine, reduction = reduce_machine(full, settings.rotor.modes, keep)
         except ValueError as exc:
             raise CaseError([f"{source}: rotor.modes: {exc}"]) from None
     t_eval = _time_grid(settings, source)
@@ -273,6 +312,7 @@ def assemble_rotor_case(raw: dict[str, Any], path: Path) -> RotorCase:
         t_eval=t_eval,
         station_names=tuple(names),
         station_nodes=tuple(nodes),
+        probes=probes,
         settings=settings,
         rotor_file=rotor_file,
     )

@@ -2,7 +2,8 @@
 point's position relative to the stator's centre, in micrometres, inside its clearance
 circle; the start faint, the last revolutions (the steady state, if the run reached one)
 drawn strong, the samples in contact marked. One panel per station, on one scale each
-(its own clearance), so a reader sees at a glance where and how deep it rubs."""
+(its own clearance), so a reader sees at a glance where and how deep it rubs; then one
+per probe: its node's orbit about the bearing line, with the probe's direction."""
 
 from __future__ import annotations
 
@@ -20,12 +21,14 @@ LAST_SHARE = 0.25  # the last quarter of the run is drawn as its steady part
 @dataclass(frozen=True)
 class StationOrbit:
     """One station's relative orbit (k, 2) in m, its clearance (m), which samples are in
-    contact (k,), and its label."""
+    contact (k,), and its label; a probe's: its node's orbit, no clearance and no
+    contact, and its ``direction`` (rad)."""
 
     label: str
     relative: np.ndarray
-    clearance: float
-    contact: np.ndarray
+    clearance: float | None
+    contact: np.ndarray | None
+    direction: float | None = None
 
 
 def station_orbits_figure(
@@ -39,32 +42,56 @@ def station_orbits_figure(
     last = max(1, int(round(LAST_SHARE * t.size)))
     start_s = float(t[-last]) if t.size else 0.0
     last_revolutions = revolutions * LAST_SHARE
+    handles: dict[str, object] = {}
+    # the probes' panels on one scale, so that their orbits compare at a glance
+    probe_size = max(
+        (1.05 * MICRO * float(np.max(np.hypot(*o.relative.T), initial=0.0))
+         for o in orbits if o.clearance is None), default=0.0,
+    )  # fmt: skip
     for i, orbit in enumerate(orbits):
         ax = fig.add_subplot(1, count, i + 1)
         xy = orbit.relative * MICRO
-        c = orbit.clearance * MICRO
-        circle = np.linspace(0.0, 2.0 * np.pi, 361)
-        ax.plot(c * np.cos(circle), c * np.sin(circle), color="0.3", linestyle="--",
-                linewidth=1.0, label="clearance circle")  # fmt: skip
+        size = 1.05 * float(np.max(np.hypot(xy[:, 0], xy[:, 1]), initial=0.0))
+        if orbit.clearance is None:
+            size = probe_size
+        if orbit.clearance is not None:
+            c = orbit.clearance * MICRO
+            circle = np.linspace(0.0, 2.0 * np.pi, 361)
+            ax.plot(c * np.cos(circle), c * np.sin(circle), color="0.3", linestyle="--",
+                    linewidth=1.0, label="clearance circle")  # fmt: skip
+            size = max(size, 1.15 * c)
+        if orbit.direction is not None:
+            d = np.array([np.cos(orbit.direction), np.sin(orbit.direction)]) * size
+            ax.plot([-d[0], d[0]], [-d[1], d[1]], color="tab:green", linewidth=1.0,
+                    label="probe direction")  # fmt: skip
         ax.plot(xy[:-last, 0], xy[:-last, 1], color="tab:blue", alpha=0.25, linewidth=0.6,
                 label=f"start (t < {start_s:.3g} s)")  # fmt: skip
         ax.plot(xy[-last:, 0], xy[-last:, 1], color="tab:blue", linewidth=1.2,
                 label=f"last {last_revolutions:.3g} revolutions")  # fmt: skip
-        touching = np.zeros(len(xy), dtype=bool)
-        touching[-last:] = orbit.contact[-last:]
-        share = float(np.mean(orbit.contact[-last:]))
-        ax.plot(xy[touching, 0], xy[touching, 1], linestyle="none", marker="o",
-                markersize=2.0, color="tab:red", label="in contact")  # fmt: skip
-        reach = max(1.15 * c, 1.05 * float(np.max(np.hypot(xy[:, 0], xy[:, 1]), initial=0.0)))
-        ax.set_xlim(-reach, reach)
-        ax.set_ylim(-reach, reach)
+        ax.set_xlim(-size, size)
+        ax.set_ylim(-size, size)
         ax.set_aspect("equal")
-        ax.set_title(f"{orbit.label}\nclearance {c:.4g} µm; in contact {100 * share:.3g} % of the "
-                     f"last {last_revolutions:.3g} revolutions", fontsize="medium")  # fmt: skip
-        ax.set_xlabel("x relative to the stator's centre (µm)")
-        ax.set_ylabel("y relative to the stator's centre (µm)")
+        if orbit.contact is not None:
+            touching = np.zeros(len(xy), dtype=bool)
+            touching[-last:] = orbit.contact[-last:]
+            share = float(np.mean(orbit.contact[-last:]))
+            ax.plot(xy[touching, 0], xy[touching, 1], linestyle="none", marker="o",
+                    markersize=2.0, color="tab:red", label="in contact")  # fmt: skip
+            ax.set_title(f"{orbit.label}\nclearance {c:.4g} µm; in contact {100 * share:.3g} % "
+                         f"of the last {last_revolutions:.3g} revolutions",
+                         fontsize="medium")  # fmt: skip
+            ax.set_xlabel("x relative to the stator's centre (µm)")
+            ax.set_ylabel("y relative to the stator's centre (µm)")
+        else:
+            along = xy[-last:] @ np.array([np.cos(orbit.direction), np.sin(orbit.direction)])
+            ax.set_title(f"{orbit.label}\n{np.ptp(along):.4g} µm peak to peak along it over the "
+                         f"last {last_revolutions:.3g} revolutions", fontsize="medium")  # fmt: skip
+            ax.set_xlabel("x relative to the bearing line (µm)")
+            ax.set_ylabel("y relative to the bearing line (µm)")
         ax.grid(True, linewidth=0.3)
-    # four entries in a row where the panels are wide enough, else two rows of two
-    fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center",
-               ncol=4 if count > 1 else 2)  # fmt: skip
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            handles.setdefault(label, handle)
+    # every entry of every panel once: four in a row where the panels are wide enough
+    fig.legend(list(handles.values()), list(handles), loc="outside lower center",
+               ncol=min(len(handles), 4 if count > 1 else 2))  # fmt: skip
     return fig

@@ -4,19 +4,23 @@ Each method of the case runs the composed machine's system (``rubcli.system.simu
 then, into the output dir as one commit:
 
 - ``<method>.csv``: the time ``t_s`` (s); every station's node (and its stator's, when it
-  is a node of the structure) as ``x_<node>``, ``y_<node>`` (m); per station ``<name>_``
+  is a node of the structure) and every probe's as ``x_<node>``, ``y_<node>`` (m); per
+  station ``<name>_``
   ``penetration_m`` (``z - clearance``, negative when free), ``clearances`` (``z`` over
   the clearance), ``regime`` (free, slip+, slip-, stick), ``normal_N``, ``friction_N``
   (the tangential force on the rotor against the slip, in stick the force that holds it)
-  and ``slip_m_s`` (``v_r``);
-- ``orbit.png``: every station's orbit inside its clearance circle (the first method's);
-- ``report.json``: per method its status, statistics, wall time and energy balance, and
-  per station its contact share, stick share, deepest penetration, largest forces and
-  events by kind.
+  and ``slip_m_s`` (``v_r``); per probe ``<name>_m``, what it reads (``probe_reading``);
+- ``orbit.png``: every station's orbit inside its clearance circle and every probe's
+  node's orbit (the first method's);
+- ``report.json``: per method its status, statistics, wall time and energy balance; per
+  station its contact share, stick share, deepest penetration, largest forces and events
+  by kind; per probe its largest reading and its peak to peak over the last quarter (the
+  figure's steady part).
 """
 
 from __future__ import annotations
 
+import math
 import time
 from collections import Counter
 from collections.abc import Callable
@@ -26,10 +30,12 @@ from typing import Any
 import numpy as np
 
 from rubcli import io
-from rubcli.case.rotor import RotorCase
+from rubcli.case.rotor import Probe, RotorCase
 from rubcli.model import REGIME_NAMES, STICK
 from rubcli.system import KIND_NAMES, MachineSolution, simulate
 from rubcli.system.series import energy, station_series
+
+STEADY_SHARE = 0.25  # the last quarter of a run: its steady part, as the orbit figure's
 
 ORBIT_FIGURE = "orbit.png"
 
@@ -99,7 +105,19 @@ def csv_columns(
                                            "normal_N", "friction_N", "slip_m_s")]  # fmt: skip
         columns += [values[:, s, 0], z / station.clearance, labels, values[:, s, 2],
                     values[:, s, 3], values[:, s, 1]]  # fmt: skip
+    for probe in case.probes:
+        header.append(f"{probe.name}_m")
+        columns.append(probe_reading(case, solution, probe))
     return header, columns
+
+
+def probe_reading(case: RotorCase, solution: MachineSolution, probe: Probe) -> np.ndarray:
+    """What ``probe`` reads at the samples, ``x cos(angle) + y sin(angle)`` (m), as
+    ROSS's Probe."""
+    ix, iy = case.lateral(probe.node)
+    return solution.states[:, ix] * np.cos(probe.angle) + solution.states[:, iy] * np.sin(
+        probe.angle
+    )
 
 
 def method_entry(case: RotorCase, solution: MachineSolution, values: np.ndarray) -> dict[str, Any]:
@@ -122,6 +140,16 @@ def method_entry(case: RotorCase, solution: MachineSolution, values: np.ndarray)
             "max_friction_N": float(np.max(np.abs(values[:, s, 3]))),
             "events": dict(Counter(KIND_NAMES[k] for k in events.kind.tolist())),
         }
+    steady = slice(-max(1, int(round(STEADY_SHARE * solution.t.size))), None)
+    probes = {}
+    for probe in case.probes:
+        reading = probe_reading(case, solution, probe)
+        probes[probe.name] = {
+            "node": probe.node,
+            "angle_rad": probe.angle,
+            "max_abs_m": float(np.max(np.abs(reading))),
+            "peak_to_peak_last_quarter_m": float(np.ptp(reading[steady])),
+        }
     return {
         "status": solution.status,
         "message": solution.message,
@@ -131,6 +159,7 @@ def method_entry(case: RotorCase, solution: MachineSolution, values: np.ndarray)
         "energy_residual_J": float(np.max(np.abs(residual))),
         "energy_residual_relative": float(np.max(np.abs(residual)) / scale),
         "stations": stations,
+        "probes": probes,
     }
 
 
@@ -202,9 +231,22 @@ def _write_orbits(case: RotorCase, solution: MachineSolution, path: Path) -> Non
                 contact=solution.regimes[:, s] != 0,
             )
         )
+    for probe in case.probes:
+        ix, iy = case.lateral(probe.node)
+        angle = math.degrees(probe.angle)
+        orbits.append(
+            StationOrbit(
+                label=f"{probe.name} (probe at node {probe.node}, {angle:.4g} deg)",
+                relative=solution.states[:, [ix, iy]],
+                clearance=None,
+                contact=None,
+                direction=probe.angle,
+            )
+        )
     revolutions = float(solution.t[-1] - solution.t[0]) * case.machine.speed.values[0] / (2 * np.pi)
     title = (
-        f"{case.name}: orbits at the contact stations ({solution.method}, "
+        f"{case.name}: orbits at the contact stations{' and probes' if case.probes else ''} "
+        f"({solution.method}, "
         f"{case.settings.rotor.speed:g} rpm)"
     )
     io.save_figure(station_orbits_figure(title, orbits, solution.t, revolutions), path)
