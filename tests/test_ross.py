@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from PIL import Image
 from typer.testing import CliRunner
 
 from rubcli.case.rotor import assemble_rotor_case, load_rotor_case
@@ -169,6 +170,11 @@ def test_a_ross_case_and_its_exported_matrices_are_the_same_machine(tmp_path):
     assert other.machine.stations[0].radius == case.machine.stations[0].radius
     with np.load(npz) as arrays:
         assert float(arrays["speed_rpm"]) == pytest.approx(1200.0)
+        assert list(arrays["disk_nodes"]) == [12, 24] and list(arrays["bearing_nodes"]) == [4, 31]
+    # the shaft's layout travels with the matrices
+    np.testing.assert_array_equal(other.layout.positions, case.layout.positions)
+    assert other.layout.disks == case.layout.disks == (12, 24)
+    assert case.layout.positions[0] == 0.0 and np.all(np.diff(case.layout.positions) > 0)
     # an existing file is kept unless --force
     again = runner.invoke(
         app, ["export-matrices", str(tmp_path / "rotor.toml"), "--speed", "1200", "--out", str(npz)]
@@ -223,10 +229,14 @@ def test_ross_case_runs(path, tmp_path):
     result = runner.invoke(app, ["run", str(path), "--out", str(out)])
     assert result.exit_code == 0, result.output
     case = load_rotor_case(path)
-    expected = {"report.json", "orbit.png"} | {f"{m}.csv" for m in case.methods}
+    plots = {f"{p}.png" for p in case.settings.output.plots}
+    expected = {"report.json"} | plots | {f"{m}.csv" for m in case.methods}
     assert {p.name for p in out.iterdir()} == expected
     report = json.loads((out / "report.json").read_text())
     assert report["machine"]["coordinates"] == case.machine.size
+    if "shaft" in case.settings.output.plots:
+        with Image.open(out / "shaft.png") as image:
+            assert image.size[0] > 1.2 * image.size[1]
     reference = _reference(path)
     t = reference.t
     for method, entry in report["methods"].items():
@@ -244,6 +254,14 @@ def test_ross_case_runs(path, tmp_path):
             clearance = case.machine.stations[s].clearance
             got = np.array([[float(r[f"x_{node}"]), float(r[f"y_{node}"])] for r in rows])
             assert np.max(np.abs(got - reference.states[:, [ix, iy]])) < 1e-4 * clearance
+            # the deflection envelope at the station's node: its CSV orbit's largest radius
+            # over the last quarter of the run
+            with open(out / f"{method}.csv", newline="") as handle:
+                every = list(csv.DictReader(handle))
+            steady = every[-round(0.25 * len(every)) :]
+            radius = max(math.hypot(float(r[f"x_{node}"]), float(r[f"y_{node}"])) for r in steady)
+            envelope = entry["deflection"]["envelope_last_quarter_m"]
+            assert len(envelope) == 34 and envelope[node] == pytest.approx(radius, rel=1e-12)
             regimes = [r[f"{name}_regime"] for r in rows]
             touching = np.array([r != "free" for r in regimes])
             ref_touching = reference.regimes[:, s] != FREE

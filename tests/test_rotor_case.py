@@ -158,6 +158,25 @@ BROKEN = {
         lambda d: _save(d / "beam.npz", **{**_beam(d), "number_dof": np.array(5)}),
         "dof_per_node = 5 must be >= 2 and divide the 24",
     ),  # fmt: skip
+    "positions too few": (
+        lambda d: _save(d / "beam.npz", **{**_beam(d), "node_position": np.arange(5.0)}),
+        "node_position must be 6 finite positions",
+    ),  # fmt: skip
+    "positions decreasing": (
+        lambda d: _save(d / "beam.npz", **{**_beam(d), "node_position": -np.arange(6.0)}),
+        "node_position must not decrease",
+    ),  # fmt: skip
+    "disk beyond": (
+        lambda d: _save(
+            d / "beam.npz",
+            **{**_beam(d), "node_position": np.arange(6.0), "disk_nodes": np.array([7])},
+        ),
+        "disk_nodes must be nodes of the rotor (0 to 5)",
+    ),  # fmt: skip
+    "positions 2-D": (
+        lambda d: _save(d / "beam.npz", **{**_beam(d), "node_position": np.ones((6, 2))}),
+        "node_position must be a list of numbers a node",
+    ),  # fmt: skip
 }
 
 
@@ -201,6 +220,11 @@ TABLE_ERRORS = {
         'methods = ["dop853-jit"]',
         'methods = ["analytic"]',
         "'analytic' cannot run a machine given as matrices",
+    ),  # fmt: skip
+    "shaft without positions": (
+        'dir = "out/two-seals"',
+        'dir = "out/two-seals"\nplots = ["orbit", "shaft"]',
+        "output.plots: 'shaft' needs the nodes' positions",
     ),  # fmt: skip
     "same node": (
         "offset = [5e-6, 0.0]",

@@ -78,6 +78,8 @@ MAX_ROSS_NODES = MAX_COORDINATES // 4  # 4 lateral coordinates a node kept
 MAX_RUN_BYTES = 8 * 1024**3
 MATRIX_NAMES = ("M", "K", "C", "G")
 REQUIRED_MATRICES = ("M", "K", "C")
+# the shaft's layout, for its view (``ShaftLayout``): optional in a matrices file
+LAYOUT_NAMES = ("node_position", "disk_nodes", "bearing_nodes")
 STATION_NAME_PATTERN = r"^[A-Za-z][A-Za-z0-9_]*$"
 MAX_SPEED_RPM = 1e7
 
@@ -165,7 +167,18 @@ class RotorCaseFile(_Section):
     output: RotorOutputSection = Field(default_factory=RotorOutputSection)
 
 
-PLOTS = ("orbit",)
+PLOTS = ("orbit", "shaft")
+
+
+@dataclass(frozen=True, eq=False)
+class ShaftLayout:
+    """Where the rotor's nodes are along its axis (m), the shaft's outer radius at each
+    (m; 0 where unknown), and which nodes carry a disk or a bearing: for the shaft view."""
+
+    positions: np.ndarray
+    radii: np.ndarray
+    disks: tuple[int, ...]
+    bearings: tuple[int, ...]
 
 
 @dataclass(frozen=True)
@@ -192,6 +205,7 @@ class RotorCase:
     station_names: tuple[str, ...]
     station_nodes: tuple[tuple[int, int | None], ...]  # (rotor node, stator node or None)
     probes: tuple[Probe, ...]
+    layout: ShaftLayout | None  # None: the rotor's file gives no node positions
     settings: RotorCaseFile
     rotor_file: Path  # the matrices file or the ROSS rotor file
 
@@ -272,9 +286,15 @@ def assemble_rotor_case(raw: dict[str, Any], path: Path) -> RotorCase:
     if field == "matrices":
         arrays = read_matrices(rotor_file, where)
         structure = _structure(arrays, settings, source)
-        radii = arrays.get("outer_radius")
     else:
-        structure, radii = _ross_structure(rotor_file, settings, where)
+        structure, arrays = _ross_structure(rotor_file, settings, where)
+    radii = arrays.get("outer_radius")
+    layout = _layout(arrays, structure, where)
+    if "shaft" in settings.output.plots and layout is None:
+        raise CaseError(
+            [f"{source}: output.plots: 'shaft' needs the nodes' positions, which {rotor_file} "
+             "does not give (a matrices file: node_position, as rubcli export-matrices writes)"]
+        )  # fmt: skip
     full, nodes = _machine(structure, settings, source, names, radii)
     bad = [k for k, p in enumerate(settings.probe) if p.node >= structure.nodes]
     if bad:
@@ -313,6 +333,7 @@ def assemble_rotor_case(raw: dict[str, Any], path: Path) -> RotorCase:
         station_names=tuple(names),
         station_nodes=tuple(nodes),
         probes=probes,
+        layout=layout,
         settings=settings,
         rotor_file=rotor_file,
     )
@@ -353,7 +374,7 @@ def _arrays(archive: zipfile.ZipFile, shown: str) -> dict[str, np.ndarray]:
             ]  # fmt: skip
         )
     out: dict[str, np.ndarray] = {}
-    for name in (*MATRIX_NAMES, "number_dof", "outer_radius"):
+    for name in (*MATRIX_NAMES, "number_dof", "outer_radius", *LAYOUT_NAMES):
         if name not in members:
             continue
         try:
@@ -368,9 +389,9 @@ def _arrays(archive: zipfile.ZipFile, shown: str) -> dict[str, np.ndarray]:
                 if name == "number_dof":
                     if int(np.prod(shape)) != 1:
                         raise CaseError([f"{shown}: number_dof must be one integer"])
-                elif name == "outer_radius":
+                elif name == "outer_radius" or name in LAYOUT_NAMES:
                     if len(shape) != 1 or shape[0] > MAX_COORDINATES:
-                        raise CaseError([f"{shown}: outer_radius must be a radius a node"])
+                        raise CaseError([f"{shown}: {name} must be a list of numbers a node"])
                 elif len(shape) != 2 or shape[0] != shape[1]:
                     raise CaseError([f"{shown}: {name} must be a square matrix (got {shape})"])
                 elif shape[0] > MAX_COORDINATES:
@@ -472,9 +493,9 @@ def check_ross_file(path: Path, where: str) -> None:
 
 def _ross_structure(
     path: Path, settings: RotorCaseFile, where: str
-) -> tuple[Structure, np.ndarray]:
+) -> tuple[Structure, dict[str, np.ndarray]]:
     """The structure of a ROSS rotor file at the case's speed, and the shaft's outer
-    radius at each node."""
+    radius and layout (``ross.shaft_layout``)."""
     check_ross_file(path, where)
     from rubcli.machine import ross
 
@@ -485,7 +506,30 @@ def _ross_structure(
         structure = ross.ross_structure(rotor, omega, None if gravity is None else tuple(gravity))
     except ross.RossError as exc:
         raise CaseError([f"{where}: {exc}"]) from None
-    return structure, ross.outer_radii(rotor)
+    return structure, ross.shaft_layout(rotor)
+
+
+def _layout(arrays: dict[str, np.ndarray], structure: Structure, where: str) -> ShaftLayout | None:
+    """The shaft's layout from the rotor's arrays (``LAYOUT_NAMES``), checked: a position
+    a node, finite and not decreasing, disks and bearings at nodes that exist."""
+    if "node_position" not in arrays:
+        return None
+    nodes = structure.nodes
+    positions = np.asarray(arrays["node_position"], dtype=float)
+    if positions.shape != (nodes,) or not np.all(np.isfinite(positions)):
+        raise CaseError([f"{where}: node_position must be {nodes} finite positions (m)"])
+    if np.any(np.diff(positions) < 0.0):
+        raise CaseError([f"{where}: node_position must not decrease along the shaft"])
+    radii = np.asarray(arrays.get("outer_radius", np.zeros(nodes)), dtype=float)
+    if radii.shape != (nodes,) or not np.all(np.isfinite(radii) & (radii >= 0.0)):
+        raise CaseError([f"{where}: outer_radius must be {nodes} radii >= 0 (m)"])
+    marked = {}
+    for name in ("disk_nodes", "bearing_nodes"):
+        values = np.asarray(arrays.get(name, np.zeros(0)), dtype=float)
+        if not np.all((values == np.round(values)) & (values >= 0) & (values < nodes)):
+            raise CaseError([f"{where}: {name} must be nodes of the rotor (0 to {nodes - 1})"])
+        marked[name] = tuple(sorted({int(v) for v in values}))
+    return ShaftLayout(positions, radii, marked["disk_nodes"], marked["bearing_nodes"])
 
 
 def _machine(

@@ -172,6 +172,18 @@ def outer_radii(rotor: Any) -> np.ndarray:
     return radii
 
 
+def shaft_layout(rotor: Any) -> dict[str, np.ndarray]:
+    """The shaft's layout for its view, as a matrices file holds it: ``node_position``
+    (m along the axis), ``outer_radius`` (``outer_radii``), ``disk_nodes``,
+    ``bearing_nodes``."""
+    return {
+        "node_position": np.array([float(x) for x in rotor.nodes_pos]),
+        "outer_radius": outer_radii(rotor),
+        "disk_nodes": np.array(sorted(int(d.n) for d in rotor.disk_elements), dtype=np.int64),
+        "bearing_nodes": np.array(sorted(int(b.n) for b in rotor.bearing_elements), dtype=np.int64),
+    }
+
+
 def ross_structure(
     rotor: Any, speed: float, gravity: tuple[float, float] | None = None
 ) -> Structure:
@@ -197,10 +209,10 @@ def ross_structure(
 
 def export_matrices(rotor: Any, speed: float, path: str | Path) -> dict[str, np.ndarray]:
     """Write the matrices of ``rotor`` at ``speed`` (rad/s) to an ``.npz`` a matrices
-    case reads without ROSS (``[rotor] matrices``): ``M, K, C, G``, ``number_dof`` and
-    ``outer_radius`` (m, per node: a station's default radius) and ``speed_rpm`` (the
-    speed the bearings' coefficients are taken at), lateral coordinates only where exact;
-    written atomically. Returns the arrays written."""
+    case reads without ROSS (``[rotor] matrices``): ``M, K, C, G``, ``number_dof``, the
+    shaft's layout (``shaft_layout``: ``outer_radius`` is also a station's default radius)
+    and ``speed_rpm`` (the speed the bearings' coefficients are taken at), lateral
+    coordinates only where exact; written atomically. Returns the arrays written."""
     from rubcli.io.files import atomic_path
 
     structure = ross_structure(rotor, speed)
@@ -210,7 +222,7 @@ def export_matrices(rotor: Any, speed: float, path: str | Path) -> dict[str, np.
         "C": np.asarray(structure.C),
         "G": np.asarray(structure.G),
         "number_dof": np.array(structure.dof_per_node),
-        "outer_radius": outer_radii(rotor),
+        **shaft_layout(rotor),
         "speed_rpm": np.array(float(speed) * 60.0 / (2.0 * np.pi)),  # the bearings' speed
     }
     with atomic_path(Path(path)) as tmp, open(tmp, "wb") as handle:

@@ -12,10 +12,12 @@ then, into the output dir as one commit:
   and ``slip_m_s`` (``v_r``); per probe ``<name>_m``, what it reads (``probe_reading``);
 - ``orbit.png``: every station's orbit inside its clearance circle and every probe's
   node's orbit (the first method's);
+- ``shaft.png`` (``plots = ["shaft"]``, a rotor whose file gives its nodes' positions):
+  the shaft with its disks, bearings, stations and probes, and the deflection envelope;
 - ``report.json``: per method its status, statistics, wall time and energy balance; per
   station its contact share, stick share, deepest penetration, largest forces and events
   by kind; per probe its largest reading and its peak to peak over the last quarter (the
-  figure's steady part).
+  figure's steady part); every node's largest deflection over the last quarter.
 """
 
 from __future__ import annotations
@@ -38,12 +40,15 @@ from rubcli.system.series import energy, station_series
 STEADY_SHARE = 0.25  # the last quarter of a run: its steady part, as the orbit figure's
 
 ORBIT_FIGURE = "orbit.png"
+SHAFT_FIGURE = "shaft.png"
 
 
 def expected_files(case: RotorCase) -> tuple[str, ...]:
     names = [f"{m}.csv" for m in case.methods] if case.settings.output.csv else []
     if "orbit" in case.settings.output.plots:
         names.append(ORBIT_FIGURE)
+    if "shaft" in case.settings.output.plots:
+        names.append(SHAFT_FIGURE)
     return (*names, io.REPORT_NAME)
 
 
@@ -120,6 +125,21 @@ def probe_reading(case: RotorCase, solution: MachineSolution, probe: Probe) -> n
     )
 
 
+def deflection_envelope(
+    case: RotorCase, solution: MachineSolution
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each node's largest radial deflection ``hypot(x, y)`` (m) over the run and over
+    its last quarter, in the full model's coordinates (a reduction's mapped back)."""
+    q = solution.states[:, : case.machine.size]
+    if case.reduction is not None:
+        q = case.reduction.full_positions(q)
+    structure = case.full_machine.structure
+    pairs = np.array([structure.lateral(k) for k in range(structure.nodes)])
+    radial = np.hypot(q[:, pairs[:, 0]], q[:, pairs[:, 1]])
+    steady = radial[-max(1, int(round(STEADY_SHARE * radial.shape[0]))) :]
+    return np.max(radial, axis=0), np.max(steady, axis=0)
+
+
 def method_entry(case: RotorCase, solution: MachineSolution, values: np.ndarray) -> dict[str, Any]:
     """The report's entry of one method (``values`` as for ``csv_columns``)."""
     E = energy(solution, values[:, :, 0])
@@ -150,6 +170,7 @@ def method_entry(case: RotorCase, solution: MachineSolution, values: np.ndarray)
             "max_abs_m": float(np.max(np.abs(reading))),
             "peak_to_peak_last_quarter_m": float(np.ptp(reading[steady])),
         }
+    _, envelope = deflection_envelope(case, solution)
     return {
         "status": solution.status,
         "message": solution.message,
@@ -160,6 +181,11 @@ def method_entry(case: RotorCase, solution: MachineSolution, values: np.ndarray)
         "energy_residual_relative": float(np.max(np.abs(residual)) / scale),
         "stations": stations,
         "probes": probes,
+        "deflection": {
+            "largest_node_last_quarter": int(np.argmax(envelope)),
+            "largest_last_quarter_m": float(np.max(envelope)),
+            "envelope_last_quarter_m": [float(r) for r in envelope],  # a node each
+        },
     }
 
 
@@ -180,6 +206,8 @@ def write_rotor_outputs(
                 io.write_csv(staged.path(f"{solution.method}.csv"), header, [columns])
         if "orbit" in case.settings.output.plots and solutions:
             _write_orbits(case, solutions[0], staged.path(ORBIT_FIGURE))
+        if "shaft" in case.settings.output.plots and solutions:
+            _write_shaft(case, solutions[0], staged.path(SHAFT_FIGURE))
         report = {
             **io.report_envelope("run", command_line, case.to_dict()),
             "machine": machine_summary(case),
@@ -250,3 +278,22 @@ def _write_orbits(case: RotorCase, solution: MachineSolution, path: Path) -> Non
         f"{case.settings.rotor.speed:g} rpm)"
     )
     io.save_figure(station_orbits_figure(title, orbits, solution.t, revolutions), path)
+
+
+def _write_shaft(case: RotorCase, solution: MachineSolution, path: Path) -> None:
+    from rubcli.plotting.shaft import Marked, shaft_figure
+
+    layout = case.layout  # the case refuses "shaft" without one
+    stations = [
+        Marked(name, node, station.clearance)
+        for name, (node, _), station in zip(
+            case.station_names, case.station_nodes, case.machine.stations, strict=True
+        )
+    ]
+    probes = [Marked(p.name, p.node) for p in case.probes]
+    whole, last = deflection_envelope(case, solution)
+    title = f"{case.name}: the shaft and its deflection ({solution.method}, "
+    title += f"{case.settings.rotor.speed:g} rpm, 0 .. {solution.t[-1]:.3g} s)"
+    figure = shaft_figure(title, layout.positions, layout.radii, layout.disks, layout.bearings,
+                          stations, probes, whole, last)  # fmt: skip
+    io.save_figure(figure, path)
