@@ -417,3 +417,23 @@ def test_the_implicit_methods_jacobian_is_the_derivative_of_the_system(regime, s
     size = np.max(np.abs(reference[rows]))
     assert np.max(np.abs(jac[rows] - reference[rows])) < 1e-7 * size
     assert np.all(jac[:, -1] == 0.0)
+
+
+def test_a_station_on_its_surface_in_contact_has_its_damping_force():
+    """At ``delta = 0`` exactly in a contact regime (where a segment after an entry
+    starts) the normal force is already ``c z'``: once it was 0 there and c z' an instant
+    later, a jump at the step's start that radau's error estimate cannot pass (it failed
+    at such an entry on ROSS's rotor with two seals, cases/rotors/ross-two-seals.toml)."""
+    from rubcli.system.arrays import SystemArrays
+    from rubcli.system.kernels import V_NORMAL, evaluate
+
+    law = ContactLaw(50.0, damping=0.3)
+    machine = Machine(Structure(M=np.eye(2), K=np.eye(2)), (Station((0, 1), 1.0, law, 0.1, 1.0),),
+                      Speed.constant(1.0))  # fmt: skip
+    arrays = SystemArrays.of(machine)
+    for regime, expected in ((model.SLIP_POSITIVE, 0.3 * 0.2), (model.FREE, 0.0)):
+        ctx = arrays.context(np.array([regime], dtype=np.int64))
+        y = np.array([1.0, 0.0, 0.2, 0.5, 0.0])  # on the surface, moving out at z' = 0.2
+        out, vals = np.empty(5), np.empty((1, 4))
+        evaluate(0.0, y, ctx, out, vals)
+        assert vals[0, V_NORMAL] == pytest.approx(expected, rel=1e-15)

@@ -2,8 +2,8 @@
 
 Above, the shaft's outline (its outer radius at each node, mm) with its disks, bearings,
 contact stations and probes marked; below, on the same axial positions, the deflection
-envelope: each node's largest radial deflection over the whole run (faint) and over its
-last quarter (the steady part, strong), in micrometres, with each station's clearance
+envelope: each node's largest radial deflection over the whole run (a wide faint band)
+and over its last quarter (the steady part, a strong line on it), in micrometres, with each station's clearance
 marked at its node, so a reader sees which stations the envelope reaches."""
 
 from __future__ import annotations
@@ -70,8 +70,9 @@ def shaft_figure(
     top.grid(True, linewidth=0.3)
     top.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
 
-    bottom.plot(x, envelope_all * MICRO, color="tab:blue", alpha=0.35, linewidth=1.0,
-                marker=".", label="whole run")  # fmt: skip
+    # the whole run as a wide band behind: it shows where the last quarter reaches it too
+    bottom.plot(x, envelope_all * MICRO, color="tab:blue", alpha=0.25, linewidth=7.0,
+                solid_capstyle="round", label="whole run (wide band)")  # fmt: skip
     bottom.plot(x, envelope_last * MICRO, color="tab:blue", linewidth=1.6, marker="o",
                 markersize=3, label="last quarter of the run")  # fmt: skip
     for k, station in enumerate(stations):

@@ -260,7 +260,10 @@ def evaluate(t: float, y: np.ndarray, ctx: tuple, out: np.ndarray, vals: np.ndar
         vals[s, V_TANGENTIAL] = 0.0
         if regimes[s] == FREE:
             continue
-        normal = contact.normal_force(par, s, S_LAW, pen, geo[s, G_A]) if pen > 0.0 else 0.0
+        # in contact from delta = 0 on: a segment that starts on the surface (an entry)
+        # has its damping force c z' from its first instant, not from the next one (a
+        # jump at a step's start defeats radau's error estimate, which uses f there)
+        normal = contact.normal_force(par, s, S_LAW, pen, geo[s, G_A]) if pen >= 0.0 else 0.0
         tangential = 0.0
         if regimes[s] != STICK:
             tangential = par[s, S_MU] * normal * (1.0 if regimes[s] == SLIP_POSITIVE else -1.0)
