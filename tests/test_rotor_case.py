@@ -316,9 +316,13 @@ def test_validate_json_and_the_other_commands(case_dir):
     result = runner.invoke(app, ["validate", str(path), "--json"])
     assert result.exit_code == 0, result.output
     assert json.loads(result.output)["valid"] is True
-    result = runner.invoke(app, ["compare", str(path)])
+    result = runner.invoke(app, ["sweep", str(path)])
     assert result.exit_code == 2
-    assert "runs with `rubcli validate` and `rubcli run`" in " ".join(result.output.split())
+    assert "runs with `rubcli validate`, `rubcli run` and `rubcli compare`" in " ".join(
+        result.output.split()
+    )
+    result = runner.invoke(app, ["compare", str(path), "--quick"])
+    assert result.exit_code == 2 and "--quick" in result.output
     result = runner.invoke(app, ["run", str(path), "--periods", "3"])
     assert result.exit_code == 2 and "[time] end" in result.output
     result = runner.invoke(app, ["run", str(path), "--method", "taylor"])
@@ -353,3 +357,28 @@ def test_the_documented_case_validates(case_dir):
     result = runner.invoke(app, ["validate", str(path)])
     assert result.exit_code == 0, result.output
     assert [p.name for p in load_rotor_case(path).probes] == ["bearing_side"]
+
+
+@pytest.mark.slow
+def test_compare_states_the_reductions_error_beside_the_methods(case_dir):
+    """`rubcli compare` on a reduced case: the full model by radau as the reference, the
+    case's method on the reduction at three tolerances, radau on the full model at three.
+    radau's error on the full model falls with its tolerance; the reduction's does not (it
+    is the reduction's own, the same at every tolerance) and is above radau's."""
+    path = case_dir / "two-seals.toml"
+    path.write_text(path.read_text().replace("speed = 2500.0", "speed = 2500.0\nmodes = 8"))
+    out = case_dir / "cmp"
+    result = runner.invoke(app, ["compare", str(path), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert {p.name for p in out.iterdir()} == {"compare.csv", "compare.png", "report.json"}
+    report = json.loads((out / "report.json").read_text())
+    assert report["reference"]["method"] == "radau" and report["reference"]["coordinates"] == 24
+    runs = report["runs"]
+    assert all(r["status"] == "success" for r in runs)
+    reduced = [r["error_clearances"] for r in runs if r["model"] == "8 modes"]
+    full = [r["error_clearances"] for r in runs if r["model"] == "full"]
+    assert len(reduced) == 3 and len(full) == 3
+    assert full[0] > full[1] > full[2]
+    assert max(reduced) < 1.1 * min(reduced) and min(reduced) > 10 * full[2]
+    with open(out / "compare.csv", newline="") as handle:
+        assert len(list(csv.DictReader(handle))) == 6

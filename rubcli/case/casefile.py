@@ -216,8 +216,8 @@ def _short_repr(value: object, limit: int = 80) -> str:
 
 # What a case with [rotor] (a machine given as matrices, rubcli.case.rotor) runs with.
 MATRICES_CASE_COMMANDS = (
-    "a machine given as matrices runs with `rubcli validate` and `rubcli run` (the other "
-    "commands take the Jeffcott rotor's [model] or [physical])"
+    "a machine given as matrices runs with `rubcli validate`, `rubcli run` and `rubcli "
+    "compare` (the other commands take the Jeffcott rotor's [model] or [physical])"
 )
 
 

@@ -97,6 +97,15 @@ def command(
 ) -> None:
     """Reference solution, error against run time per method, orbits and response classes."""
     check_max_wall_time(max_wall_time)
+    from rubcli.cli import rotor
+
+    rotor_case = rotor.rotor_case_or_none(case_file)
+    if rotor_case is not None:
+        if quick:
+            console.error(f"{case_file}: --quick: a machine given as matrices runs its own ladder")
+            raise typer.Exit(EXIT_INVALID)
+        rotor.compare(rotor_case, case_file, out, max_wall_time, force, wait, json)
+        return
     case = load_or_exit(case_file)
     cfg = case.settings.compare or CompareSection()
     from rubcli import solvers

@@ -166,3 +166,42 @@ def _table(case: RotorCase, report: dict[str, Any]) -> None:
     columns = ["method", "status", "time s", "station", "contact", "stick",
                "max penetration m", "max F_N N", "energy residual"]  # fmt: skip
     tables.table(f"{case.name}: results", columns, rows)
+
+
+def compare(
+    case: RotorCase,
+    case_file: Path,
+    out: Path | None,
+    max_wall_time: float | None,
+    force: bool,
+    wait: bool,
+    json: bool,
+) -> None:
+    """``rubcli compare`` on a matrices or ROSS case: error against run time."""
+    from rubcli.studies import rotor_compare
+
+    target = out if out is not None else case.output_dir / "compare"
+    plan = prepare_output(target, force, wait, rotor_compare.expected_files())
+    command_line = {"case_file": str(case_file), "out": str(out) if out is not None else None,
+                    "max_wall_time": max_wall_time}  # fmt: skip
+    with machine_readable(json):
+        try:
+            result = rotor_compare.compare_rotor_case(
+                case, max_wall_time, on_run=lambda text: console.info(f"running {text}")
+            )
+        except RuntimeError as exc:
+            console.error(f"{case_file}: {exc}")
+            raise typer.Exit(1) from None
+        report = rotor_compare.write_compare_outputs(case, result, str(target), plan, command_line)
+        report_stale(plan)
+        rows = [[r["model"], str(r["coordinates"]), r["method"], f"{r['rtol']:g}", r["status"],
+                 f"{r['wall_time_s']:.3g}", f"{r['error_clearances']:.3g}"]
+                for r in report["runs"]]  # fmt: skip
+        tables.table(
+            f"{case.name}: error against run time (reference: full model, radau)",
+            ["model", "coordinates", "method", "rtol", "status", "time s", "error (clearances)"],
+            rows,
+        )
+        console.info(f"wrote {len(report['files'])} files to {target}: "
+                     f"{', '.join(report['files'])}")  # fmt: skip
+    emit(report, json)

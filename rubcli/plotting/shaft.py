@@ -3,8 +3,9 @@
 Above, the shaft's outline (its outer radius at each node, mm) with its disks, bearings,
 contact stations and probes marked; below, on the same axial positions, the deflection
 envelope: each node's largest radial deflection over the whole run (a wide faint band)
-and over its last quarter (the steady part, a strong line on it), in micrometres, with each station's clearance
-marked at its node, so a reader sees which stations the envelope reaches."""
+and over its last quarter (the steady part, a strong line on it), in micrometres, with
+each station's clearance marked at its node, so a reader sees which stations the
+envelope reaches."""
 
 from __future__ import annotations
 
