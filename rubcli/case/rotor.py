@@ -8,11 +8,14 @@ ROSS rotor file (``[rotor] ross = "rotor.toml"``, read through ROSS, the optiona
     name = "two-seals"
 
     [rotor]
-    matrices = "rotor.npz"   # M, K, C (optional G, number_dof, outer_radius), SI; relative
-                             # to this file; or ross = "rotor.toml" (ROSS's Rotor.save)
+    matrices = "rotor.npz"   # M, K, C (optional G, number_dof, outer_radius, and the
+                             # shaft view's node_position, disk_nodes, bearing_nodes), SI;
+                             # relative to this file; or ross = "rotor.toml" (ROSS's
+                             # Rotor.save)
     gravity = [0.0, -9.81]   # m/s^2 along x, y: the static load M a (optional)
     speed = 1500.0           # rpm
     number_dof = 6           # coordinates a node (else the file's number_dof)
+    modes = 0                # > 0: a Craig-Bampton reduction (rubcli.machine.reduction)
 
     [[unbalance]]
     node = 0                 # coordinates number_dof * node + 0 (x), + 1 (y)
@@ -32,9 +35,17 @@ ROSS rotor file (``[rotor] ross = "rotor.toml"``, read through ROSS, the optiona
     offset = [0.0, 0.0]      # the stator's centre, m
     # stator_node = 3        # the stator is this node of the structure (a ring, a casing)
 
+    [[probe]]                # optional: reads x cos(angle) + y sin(angle), as ROSS's Probe
+    name = "probe_de"        # names its CSV column (default probe<k>)
+    node = 1
+    angle = 0.0              # rad
+
     [time]
     end = 0.4                # s
     samples_per_revolution = 50
+
+    [output]
+    plots = ["orbit", "shaft"]  # the shaft view needs the nodes' positions
 
 Read in three steps as every case (read the TOML, validate the schema, assemble the
 machine); every problem a ``CaseError`` line naming the file and the field. The
