@@ -6,6 +6,7 @@
 The machine is cases/rotors/ross-rub.toml (ROSS's example rotor with damping, rub at
 node 12, 1200 rpm, from rest, 0.5 s). Printed:
 
+0. The full model's stiffest eigenvalue (why an implicit method runs it).
 1. ROSS's law as ROSS runs it (``Rotor.run_rubbing``, its documented step 1e-4 s, friction
    0.3, contact damping 40 N s/m) beside rubcli's run of the shipped case: the largest
    radial displacement at node 12, the contact share of the last 0.25 s, the largest
@@ -33,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from rubcli.case.rotor import assemble_rotor_case, load_rotor_case
-from rubcli.machine import ContactLaw
+from rubcli.machine import ContactLaw, linear
 from rubcli.machine.ross import load_ross_rotor
 from rubcli.system import simulate
 
@@ -133,6 +134,9 @@ def main() -> None:
     rotor = load_ross_rotor(ROTOR)
     case = load_rotor_case(CASE)
     ix, iy = case.lateral(NODE)
+    full = case.full_machine
+    values = linear.eigenvalues(full.structure, full.speed.values[0])
+    print(f"0. the full model's most negative eigenvalue: {values.real.min():.3g} 1/s")
 
     print("1. ROSS's law (friction 0.3, contact damping 40 N s/m) and rubcli's")
     t, x, y, wall = ross_run(rotor, STEPS[0], 0.3, 40.0)
