@@ -265,6 +265,7 @@ def test_probes_read_as_rosss_and_are_reported(case_dir, modes):
     report entry and its panel in the orbit figure."""
     path = case_dir / "two-seals.toml"
     text = path.read_text().replace("[time]", PROBES + "\n[time]")
+    text = text.replace('dir = "out/two-seals"', 'dir = "out/two-seals"\nplots = ["orbit", "time"]')
     if modes:
         text = text.replace("speed = 2500.0", f"speed = 2500.0\nmodes = {modes}")
     path.write_text(text)
@@ -293,6 +294,8 @@ def test_probes_read_as_rosss_and_are_reported(case_dir, modes):
     assert entry["probe1"]["max_abs_m"] == pytest.approx(np.max(np.abs(got)), rel=1e-12)
     with Image.open(out / "orbit.png") as image:  # three panels side by side: a wide figure
         assert image.size[0] > 2.5 * image.size[1]
+    with Image.open(out / "time.png") as image:  # the stations above the probes
+        assert image.size[1] > 0.6 * image.size[0]
 
 
 @pytest.mark.parametrize(

@@ -45,7 +45,7 @@ ROSS rotor file (``[rotor] ross = "rotor.toml"``, read through ROSS, the optiona
     samples_per_revolution = 50
 
     [output]
-    plots = ["orbit", "shaft"]  # the shaft view needs the nodes' positions
+    plots = ["orbit", "shaft", "time"]  # the shaft view needs the nodes' positions
 
 Read in three steps as every case (read the TOML, validate the schema, assemble the
 machine); every problem a ``CaseError`` line naming the file and the field. The
@@ -178,7 +178,7 @@ class RotorCaseFile(_Section):
     output: RotorOutputSection = Field(default_factory=RotorOutputSection)
 
 
-PLOTS = ("orbit", "shaft")
+PLOTS = ("orbit", "shaft", "time")
 
 
 @dataclass(frozen=True, eq=False)

@@ -95,3 +95,52 @@ def station_orbits_figure(
     fig.legend(list(handles.values()), list(handles), loc="outside lower center",
                ncol=min(len(handles), 4 if count > 1 else 2))  # fmt: skip
     return fig
+
+
+@dataclass(frozen=True)
+class Trace:
+    """A signal against time for the time traces: its label, values (k,) in m, and,
+    for a station, its clearance (m) and which samples are in contact."""
+
+    label: str
+    values: np.ndarray
+    clearance: float | None = None
+    contact: np.ndarray | None = None
+
+
+def traces_figure(title: str, t: np.ndarray, stations: Sequence[Trace],
+                  probes: Sequence[Trace]) -> Figure:  # fmt: skip
+    """Time traces: each station's distance from its stator's centre with its clearance
+    (samples in contact marked), then each probe's reading; micrometres against seconds,
+    one shared time axis."""
+    rows = 1 + (1 if probes else 0)
+    fig = Figure(figsize=(10.0, 3.2 * rows + 0.8), layout="constrained")
+    FigureCanvasAgg(fig)
+    fig.suptitle(title)
+    axes = fig.subplots(rows, 1, sharex=True, squeeze=False)[:, 0]
+    ax = axes[0]
+    # red marks contact: the signals take the other colours of the cycle
+    colors = [f"C{c}" for c in (0, 1, 2, 4, 5, 6, 8, 9)]
+    for k, trace in enumerate(stations):
+        color = colors[k % len(colors)]
+        ax.plot(t, trace.values * MICRO, color=color, linewidth=0.9, label=trace.label)
+        ax.axhline(trace.clearance * MICRO, color=color, linestyle="--", linewidth=1.0,
+                   label=f"{trace.label}: clearance")  # fmt: skip
+        touching = trace.contact
+        ax.plot(t[touching], trace.values[touching] * MICRO, linestyle="none", marker="o",
+                markersize=2.0, color="tab:red",
+                label="in contact" if k == 0 else None)  # fmt: skip
+    ax.set_ylabel("distance from the stator's centre (µm)")
+    ax.set_title("contact stations", fontsize="medium")
+    if probes:
+        bottom = axes[1]
+        for k, trace in enumerate(probes):
+            bottom.plot(t, trace.values * MICRO, color=colors[(k + len(stations)) % len(colors)],
+                        linewidth=0.9, label=trace.label)  # fmt: skip
+        bottom.set_ylabel("probe reading (µm)")
+        bottom.set_title("probes", fontsize="medium")
+    for a in axes:
+        a.grid(True, linewidth=0.3)
+        a.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    axes[-1].set_xlabel("time (s)")
+    return fig

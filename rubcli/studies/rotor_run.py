@@ -12,6 +12,8 @@ then, into the output dir as one commit:
   and ``slip_m_s`` (``v_r``); per probe ``<name>_m``, what it reads (``probe_reading``);
 - ``orbit.png``: every station's orbit inside its clearance circle and every probe's
   node's orbit (the first method's);
+- ``time.png`` (``plots = ["time"]``): each station's distance from its stator's
+  centre against time with its clearance, and each probe's reading;
 - ``shaft.png`` (``plots = ["shaft"]``, a rotor whose file gives its nodes' positions):
   the shaft with its disks, bearings, stations and probes, and the deflection envelope;
 - ``report.json``: per method its status, statistics, wall time and energy balance; per
@@ -41,6 +43,7 @@ STEADY_SHARE = 0.25  # the last quarter of a run: its steady part, as the orbit 
 
 ORBIT_FIGURE = "orbit.png"
 SHAFT_FIGURE = "shaft.png"
+TIME_FIGURE = "time.png"
 
 
 def expected_files(case: RotorCase) -> tuple[str, ...]:
@@ -49,6 +52,8 @@ def expected_files(case: RotorCase) -> tuple[str, ...]:
         names.append(ORBIT_FIGURE)
     if "shaft" in case.settings.output.plots:
         names.append(SHAFT_FIGURE)
+    if "time" in case.settings.output.plots:
+        names.append(TIME_FIGURE)
     return (*names, io.REPORT_NAME)
 
 
@@ -208,6 +213,8 @@ def write_rotor_outputs(
             _write_orbits(case, solutions[0], staged.path(ORBIT_FIGURE))
         if "shaft" in case.settings.output.plots and solutions:
             _write_shaft(case, solutions[0], staged.path(SHAFT_FIGURE))
+        if "time" in case.settings.output.plots and solutions:
+            _write_traces(case, solutions[0], staged.path(TIME_FIGURE))
         report = {
             **io.report_envelope("run", command_line, case.to_dict()),
             "machine": machine_summary(case),
@@ -297,3 +304,22 @@ def _write_shaft(case: RotorCase, solution: MachineSolution, path: Path) -> None
     figure = shaft_figure(title, layout.positions, layout.radii, layout.disks, layout.bearings,
                           stations, probes, whole, last)  # fmt: skip
     io.save_figure(figure, path)
+
+
+def _write_traces(case: RotorCase, solution: MachineSolution, path: Path) -> None:
+    from rubcli.plotting.stations import Trace, traces_figure
+
+    stations = [
+        Trace(f"{name} (node {node})", np.hypot(*relative_orbit(case, solution, s).T),
+              case.machine.stations[s].clearance, solution.regimes[:, s] != 0)
+        for s, (name, (node, _)) in enumerate(zip(case.station_names, case.station_nodes,
+                                                   strict=True))
+    ]  # fmt: skip
+    probes = [
+        Trace(f"{p.name} (node {p.node}, {math.degrees(p.angle):.4g} deg)",
+              probe_reading(case, solution, p))
+        for p in case.probes
+    ]  # fmt: skip
+    title = (f"{case.name}: time traces ({solution.method}, "
+             f"{case.settings.rotor.speed:g} rpm)")  # fmt: skip
+    io.save_figure(traces_figure(title, solution.t, stations, probes), path)
