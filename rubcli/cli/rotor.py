@@ -61,7 +61,7 @@ def summary_lines(case: RotorCase) -> list[str]:
         extra = " and the weight's static deflection" if r.static_vectors else ""
         lines.append(
             f"reduced   {machine.size} coordinates (Craig-Bampton): the {len(r.kept)} of the "
-            f"stations and unbalances, {r.modes} fixed-interface modes{extra}"
+            f"stations, unbalances and probes, {r.modes} fixed-interface modes{extra}"
         )
     for name, station, (node, stator) in zip(
         case.station_names, machine.stations, case.station_nodes, strict=True

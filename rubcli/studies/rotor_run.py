@@ -5,11 +5,11 @@ then, into the output dir as one commit:
 
 - ``<method>.csv``: the time ``t_s`` (s); every station's node (and its stator's, when it
   is a node of the structure) and every probe's as ``x_<node>``, ``y_<node>`` (m); per
-  station ``<name>_``
-  ``penetration_m`` (``z - clearance``, negative when free), ``clearances`` (``z`` over
-  the clearance), ``regime`` (free, slip+, slip-, stick), ``normal_N``, ``friction_N``
-  (the tangential force on the rotor against the slip, in stick the force that holds it)
-  and ``slip_m_s`` (``v_r``); per probe ``<name>_m``, what it reads (``probe_reading``);
+  station ``<name>_penetration_m`` (``z - clearance``, negative when free),
+  ``<name>_clearances`` (``z`` over the clearance), ``<name>_regime`` (free, slip+,
+  slip-, stick), ``<name>_normal_N``, ``<name>_friction_N`` (the tangential force on the
+  rotor against the slip, in stick the force that holds it) and ``<name>_slip_m_s``
+  (``v_r``); per probe ``<name>_m``, what it reads (``probe_reading``);
 - ``orbit.png``: every station's orbit inside its clearance circle and every probe's
   node's orbit (the first method's);
 - ``time.png`` (``plots = ["time"]``): each station's distance from its stator's
