@@ -160,7 +160,7 @@ BROKEN = {
     ),  # fmt: skip
     "positions too few": (
         lambda d: _save(d / "beam.npz", **{**_beam(d), "node_position": np.arange(5.0)}),
-        "node_position must be 6 finite positions",
+        "node_position must be 6 positions (m; nan off the shaft)",
     ),  # fmt: skip
     "positions decreasing": (
         lambda d: _save(d / "beam.npz", **{**_beam(d), "node_position": -np.arange(6.0)}),
@@ -171,7 +171,14 @@ BROKEN = {
             d / "beam.npz",
             **{**_beam(d), "node_position": np.arange(6.0), "disk_nodes": np.array([7])},
         ),
-        "disk_nodes must be nodes of the rotor (0 to 5)",
+        "disk_nodes must be nodes on the shaft (0 to 5)",
+    ),  # fmt: skip
+    "disk off the shaft": (
+        lambda d: _save(
+            d / "beam.npz",
+            **{**_beam(d), "disk_nodes": np.array([5]), "node_position": [0, 1, 2, 3, 4, np.nan]},
+        ),
+        "disk_nodes must be nodes on the shaft",
     ),  # fmt: skip
     "positions 2-D": (
         lambda d: _save(d / "beam.npz", **{**_beam(d), "node_position": np.ones((6, 2))}),
@@ -385,3 +392,22 @@ def test_compare_states_the_reductions_error_beside_the_methods(case_dir):
     assert max(reduced) < 1.1 * min(reduced) and min(reduced) > 10 * full[2]
     with open(out / "compare.csv", newline="") as handle:
         assert len(list(csv.DictReader(handle))) == 6
+
+
+def test_the_shaft_view_skips_nodes_off_the_shaft(case_dir):
+    """A node with no position (nan: off the shaft, as a ROSS bearing's support node)
+    is left out of the shaft view; the stations on the shaft are drawn."""
+    arrays = _beam(case_dir)
+    _save(case_dir / "beam.npz", **arrays, node_position=np.array([0, 0.1, 0.2, 0.3, 0.4, np.nan]),
+          disk_nodes=np.array([2]), bearing_nodes=np.array([0, 4]))  # fmt: skip
+    path = case_dir / "two-seals.toml"
+    old = 'dir = "out/two-seals"'
+    text = path.read_text().replace(old, old + '\nplots = ["shaft"]')
+    path.write_text(text)
+    case = load_rotor_case(path)
+    assert case.layout.disks == (2,) and np.isnan(case.layout.positions[5])
+    out = case_dir / "out"
+    result = runner.invoke(app, ["run", str(path), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    with Image.open(out / "shaft.png") as image:
+        assert image.size[0] > 1.2 * image.size[1]

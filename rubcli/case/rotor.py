@@ -183,8 +183,9 @@ PLOTS = ("orbit", "shaft", "time")
 
 @dataclass(frozen=True, eq=False)
 class ShaftLayout:
-    """Where the rotor's nodes are along its axis (m), the shaft's outer radius at each
-    (m; 0 where unknown), and which nodes carry a disk or a bearing: for the shaft view."""
+    """Where the rotor's nodes are along its axis (m; nan for a node off the shaft), the
+    shaft's outer radius at each (m; 0 where unknown), and which nodes carry a disk or a
+    bearing: for the shaft view."""
 
     positions: np.ndarray
     radii: np.ndarray
@@ -522,23 +523,34 @@ def _ross_structure(
 
 def _layout(arrays: dict[str, np.ndarray], structure: Structure, where: str) -> ShaftLayout | None:
     """The shaft's layout from the rotor's arrays (``LAYOUT_NAMES``), checked: a position
-    a node, finite and not decreasing, disks and bearings at nodes that exist."""
+    a node (nan: off the shaft, as a bearing's support node), at least two on the shaft,
+    not decreasing along it; radii as many as the nodes or fewer (the rest 0); disks and
+    bearings at nodes on the shaft."""
     if "node_position" not in arrays:
         return None
     nodes = structure.nodes
     positions = np.asarray(arrays["node_position"], dtype=float)
-    if positions.shape != (nodes,) or not np.all(np.isfinite(positions)):
-        raise CaseError([f"{where}: node_position must be {nodes} finite positions (m)"])
-    if np.any(np.diff(positions) < 0.0):
+    shaft = np.isfinite(positions)
+    if positions.shape != (nodes,) or np.any(np.isinf(positions)) or shaft.sum() < 2:
+        raise CaseError(
+            [f"{where}: node_position must be {nodes} positions (m; nan off the shaft), "
+             "at least two of them finite"]
+        )  # fmt: skip
+    if np.any(np.diff(positions[shaft]) < 0.0):
         raise CaseError([f"{where}: node_position must not decrease along the shaft"])
-    radii = np.asarray(arrays.get("outer_radius", np.zeros(nodes)), dtype=float)
-    if radii.shape != (nodes,) or not np.all(np.isfinite(radii) & (radii >= 0.0)):
-        raise CaseError([f"{where}: outer_radius must be {nodes} radii >= 0 (m)"])
+    given = np.asarray(arrays.get("outer_radius", np.zeros(0)), dtype=float).reshape(-1)
+    if given.size > nodes or not np.all(np.isfinite(given) & (given >= 0.0)):
+        raise CaseError([f"{where}: outer_radius must be at most {nodes} radii >= 0 (m)"])
+    radii = np.zeros(nodes)
+    radii[: given.size] = given
     marked = {}
     for name in ("disk_nodes", "bearing_nodes"):
-        values = np.asarray(arrays.get(name, np.zeros(0)), dtype=float)
-        if not np.all((values == np.round(values)) & (values >= 0) & (values < nodes)):
-            raise CaseError([f"{where}: {name} must be nodes of the rotor (0 to {nodes - 1})"])
+        values = np.asarray(arrays.get(name, np.zeros(0)), dtype=float).reshape(-1)
+        whole = values == np.round(values)
+        if not np.all(whole & (values >= 0) & (values < nodes)) or not np.all(
+            shaft[values.astype(np.int64)]
+        ):
+            raise CaseError([f"{where}: {name} must be nodes on the shaft (0 to {nodes - 1})"])
         marked[name] = tuple(sorted({int(v) for v in values}))
     return ShaftLayout(positions, radii, marked["disk_nodes"], marked["bearing_nodes"])
 

@@ -174,13 +174,18 @@ def outer_radii(rotor: Any) -> np.ndarray:
 
 def shaft_layout(rotor: Any) -> dict[str, np.ndarray]:
     """The shaft's layout for its view, as a matrices file holds it: ``node_position``
-    (m along the axis), ``outer_radius`` (``outer_radii``), ``disk_nodes``,
-    ``bearing_nodes``."""
+    (m along the axis, one a node of the structure: nan for a node off the shaft, as a
+    bearing's support node that ROSS numbers after the shaft's), ``outer_radius``
+    (``outer_radii``), ``disk_nodes``, ``bearing_nodes`` (the bearings on the shaft)."""
+    positions = np.full(int(rotor.ndof) // ROSS_DOF_PER_NODE, np.nan)
+    on_shaft = [float(x) for x in rotor.nodes_pos]
+    positions[: len(on_shaft)] = on_shaft
+    bearings = sorted({int(b.n) for b in rotor.bearing_elements if int(b.n) < len(on_shaft)})
     return {
-        "node_position": np.array([float(x) for x in rotor.nodes_pos]),
+        "node_position": positions,
         "outer_radius": outer_radii(rotor),
         "disk_nodes": np.array(sorted(int(d.n) for d in rotor.disk_elements), dtype=np.int64),
-        "bearing_nodes": np.array(sorted(int(b.n) for b in rotor.bearing_elements), dtype=np.int64),
+        "bearing_nodes": np.array(bearings, dtype=np.int64),
     }
 
 

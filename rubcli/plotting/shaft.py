@@ -40,17 +40,21 @@ def shaft_figure(
     envelope_all: np.ndarray,
     envelope_last: np.ndarray,
 ) -> Figure:
-    """The shaft view (module docstring); positions, radii and envelopes a node, m."""
+    """The shaft view (module docstring); positions (nan: a node off the shaft, not
+    drawn), radii and envelopes a node, m."""
     fig = Figure(figsize=(10.0, 6.4), layout="constrained")
     FigureCanvasAgg(fig)
     fig.suptitle(title)
     top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=(1.0, 2.0))
-    x = positions
-    r = radii * MILLI
-    top.fill_between(x, -r, r, color="0.8", step=None, label="shaft (outer radius)")
-    top.plot(x, r, color="0.4", linewidth=0.8)
-    top.plot(x, -r, color="0.4", linewidth=0.8)
-    reach = max(float(np.max(r, initial=0.0)), 1e-3)
+    shaft = np.isfinite(positions)
+    stations = [m for m in stations if shaft[m.node]]
+    probes = [m for m in probes if shaft[m.node]]
+    x = positions  # indexed by node; the lines below run over the shaft's nodes only
+    r = np.where(shaft, radii, np.nan) * MILLI
+    top.fill_between(x[shaft], -r[shaft], r[shaft], color="0.8", label="shaft (outer radius)")
+    top.plot(x[shaft], r[shaft], color="0.4", linewidth=0.8)
+    top.plot(x[shaft], -r[shaft], color="0.4", linewidth=0.8)
+    reach = max(float(np.max(r[shaft], initial=0.0)), 1e-3)
     if disks:
         top.plot(x[list(disks)], np.zeros(len(disks)), linestyle="none", marker="s",
                  markersize=11, color="0.25", label="disk")  # fmt: skip
@@ -72,13 +76,14 @@ def shaft_figure(
     top.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
 
     # the whole run as a wide band behind: it shows where the last quarter reaches it too
-    bottom.plot(x, envelope_all * MICRO, color="tab:blue", alpha=0.25, linewidth=7.0,
-                solid_capstyle="round", label="whole run (wide band)")  # fmt: skip
-    bottom.plot(x, envelope_last * MICRO, color="tab:blue", linewidth=1.6, marker="o",
-                markersize=3, label="last quarter of the run")  # fmt: skip
+    bottom.plot(x[shaft], envelope_all[shaft] * MICRO, color="tab:blue", alpha=0.25,
+                linewidth=7.0, solid_capstyle="round", label="whole run (wide band)")  # fmt: skip
+    bottom.plot(x[shaft], envelope_last[shaft] * MICRO, color="tab:blue", linewidth=1.6,
+                marker="o", markersize=3, label="last quarter of the run")  # fmt: skip
     for k, station in enumerate(stations):
         c = station.clearance * MICRO
-        span = 0.015 * float(x[-1] - x[0] if x[-1] > x[0] else 1.0)
+        length = float(np.max(x[shaft]) - np.min(x[shaft]))
+        span = 0.015 * (length if length > 0.0 else 1.0)
         bottom.plot([x[station.node] - span, x[station.node] + span], [c, c], color="tab:red",
                     linewidth=2.5, label="clearance at a station" if k == 0 else None)  # fmt: skip
         bottom.annotate(station.name, (x[station.node], c), xytext=(0, 5), ha="center",
