@@ -45,10 +45,6 @@ class Reduction:
     modes: int
     static_vectors: int
 
-    @property
-    def full_size(self) -> int:
-        return self.basis.shape[0]
-
     def reduced_index(self, coordinate: int) -> int:
         """The reduced coordinate that is the full ``coordinate``; ValueError if it is
         not kept."""

@@ -41,6 +41,12 @@ from rubcli.system.series import energy, station_series
 
 STEADY_SHARE = 0.25  # the last quarter of a run: its steady part, as the orbit figure's
 
+
+def steady_part(samples: int) -> slice:
+    """The samples of a run's steady part: its last ``STEADY_SHARE``."""
+    return slice(-max(1, int(round(STEADY_SHARE * samples))), None)
+
+
 ORBIT_FIGURE = "orbit.png"
 SHAFT_FIGURE = "shaft.png"
 TIME_FIGURE = "time.png"
@@ -141,7 +147,7 @@ def deflection_envelope(
     structure = case.full_machine.structure
     pairs = np.array([structure.lateral(k) for k in range(structure.nodes)])
     radial = np.hypot(q[:, pairs[:, 0]], q[:, pairs[:, 1]])
-    steady = radial[-max(1, int(round(STEADY_SHARE * radial.shape[0]))) :]
+    steady = radial[steady_part(radial.shape[0])]
     return np.max(radial, axis=0), np.max(steady, axis=0)
 
 
@@ -165,7 +171,7 @@ def method_entry(case: RotorCase, solution: MachineSolution, values: np.ndarray)
             "max_friction_N": float(np.max(np.abs(values[:, s, 3]))),
             "events": dict(Counter(KIND_NAMES[k] for k in events.kind.tolist())),
         }
-    steady = slice(-max(1, int(round(STEADY_SHARE * solution.t.size))), None)
+    steady = steady_part(solution.t.size)
     probes = {}
     for probe in case.probes:
         reading = probe_reading(case, solution, probe)
