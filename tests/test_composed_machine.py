@@ -24,6 +24,7 @@ from rubcli.machine import (
     ContactLaw,
     Machine,
     Speed,
+    SpeedTable,
     Station,
     Structure,
     Unbalance,
@@ -373,13 +374,15 @@ def test_a_rotor_touching_a_ring_that_touches_a_casing():
 
 
 @pytest.mark.parametrize("regime", [model.FREE, model.SLIP_POSITIVE, model.STICK])
-@pytest.mark.parametrize("speed", ["constant", "run-up"])
+@pytest.mark.parametrize("speed", ["constant", "run-up", "run-up on bearings of the speed"])
 def test_the_implicit_methods_jacobian_is_the_derivative_of_the_system(regime, speed):
     """The Jacobian radau, bdf and lsoda get (exact from the matrices in the columns no
     station reads, differenced in the stations' own, all differenced in stick) against
     central differences of the right-hand side at ten times its step: a structure
-    coupled in every matrix, gyroscopic at a speed that changes, a station on a ring of
-    the structure and a rigid one with contact damping, both in contact."""
+    coupled in every matrix, gyroscopic at a speed that changes (and with bearings whose
+    coefficients change with it, on a station's coordinate and on two no station reads),
+    a station on a ring of the structure and a rigid one with contact damping, both in
+    contact."""
     from rubcli.system.arrays import SystemArrays
     from rubcli.system.kernels import jacobian_into, rhs_into
 
@@ -395,7 +398,11 @@ def test_the_implicit_methods_jacobian_is_the_derivative_of_the_system(regime, s
         Station((2, 3), 1.0, ContactLaw(50.0), 0.1, 1.5),
     )
     profile = Speed.constant(1.2) if speed == "constant" else Speed((0.0, 10.0), (0.5, 2.0))
-    machine = Machine(Structure(M=M, K=K, C=C, G=G), stations, profile,
+    table = None
+    if speed.endswith("speed"):
+        blocks = rng.normal(size=(3, 3, 3))
+        table = SpeedTable((5, 6, 7), [0.0, 1.0, 3.0], 2.0 + blocks, 0.1 * np.abs(blocks))
+    machine = Machine(Structure(M=M, K=K, C=C, G=G, speed_table=table), stations, profile,
                       (Unbalance((2, 3), 0.3, 0.4),))  # fmt: skip
     arrays = SystemArrays.of(machine)
     ctx = arrays.context(np.full(2, regime, dtype=np.int64))

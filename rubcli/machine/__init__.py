@@ -4,12 +4,13 @@ construction; ``rubcli.system`` builds the one system every method runs from it.
 
 from rubcli.machine.contact import ContactLaw
 from rubcli.machine.jeffcott import jeffcott_machine
-from rubcli.machine.machine import Machine, Speed, Station, Structure, Unbalance
+from rubcli.machine.machine import Machine, Speed, SpeedTable, Station, Structure, Unbalance
 
 __all__ = [
     "ContactLaw",
     "Machine",
     "Speed",
+    "SpeedTable",
     "Station",
     "Structure",
     "Unbalance",

@@ -6,7 +6,8 @@ convention at a constant speed, ``F_x = m e Omega^2 cos(Omega t + p)``, ``F_y = 
 Omega^2 sin(Omega t + p)`` (``Unbalance``), the force is ``Re(F e^{i Omega t})`` with
 ``F_x = m e Omega^2 e^{i p}``, ``F_y = -i m e Omega^2 e^{i p}``, and the steady state is
 ``q = q_s + Re(Q e^{i Omega t})``: ``K q_s = f`` and ``(K - Omega^2 M + i Omega (C +
-Omega G)) Q = F``, the equation ROSS's ``run_unbalance_response`` solves.
+Omega G)) Q = F``, the equation ROSS's ``run_unbalance_response`` solves. Bearings whose
+coefficients change with the speed (``SpeedTable``) are taken at the speed asked.
 """
 
 from __future__ import annotations
@@ -46,11 +47,12 @@ def steady_response(machine: Machine, speed: float | None = None) -> tuple[np.nd
             raise ValueError("steady_response: the machine's speed is not constant; give speed")
         speed = float(machine.speed.values[0])
     st = machine.structure
-    dynamic = st.K - speed**2 * st.M + 1j * speed * (st.C + speed * st.G)
+    K, C = st.at_speed(speed)  # bearings whose coefficients change: at this speed
+    dynamic = K - speed**2 * st.M + 1j * speed * (C + speed * st.G)
     amplitudes = np.linalg.solve(dynamic, unbalance_amplitudes(machine, speed))
     static = np.zeros(machine.size)
     if np.any(st.static != 0.0):
-        static = np.linalg.solve(st.K, st.static)
+        static = np.linalg.solve(K, st.static)
     return static, amplitudes
 
 
@@ -59,11 +61,12 @@ def eigenvalues(structure: Structure, speed: float) -> np.ndarray:
     Re(phi e^{lambda t})``, sorted by the damped frequency ``|Im lambda|`` (each pair of
     complex conjugates once, with ``Im lambda >= 0``)."""
     n = structure.size
+    K, C = structure.at_speed(speed)
     Minv = np.linalg.inv(structure.M)
     A = np.zeros((2 * n, 2 * n))
     A[:n, n:] = np.eye(n)
-    A[n:, :n] = -Minv @ structure.K
-    A[n:, n:] = -Minv @ (structure.C + speed * structure.G)
+    A[n:, :n] = -Minv @ K
+    A[n:, n:] = -Minv @ (C + speed * structure.G)
     values = np.linalg.eigvals(A)
     values = values[values.imag >= 0.0]
     return values[np.argsort(values.imag)]

@@ -8,7 +8,9 @@ ValueError naming the owner and the field. The system built from a machine
 
 - ``Structure``: the matrices ``M`` (symmetric positive definite), ``C``, ``K``, ``G``
   (any; ``G`` is scaled by the spin speed), a static force, and ``dof_per_node`` (the
-  coordinates per node, a node's lateral ``x, y`` first: ROSS's order).
+  coordinates per node, a node's lateral ``x, y`` first: ROSS's order); optionally a
+  ``SpeedTable``: bearings' and seals' coefficients that change with the speed, added to
+  ``K`` and ``C`` on their coordinates at the current speed.
 - ``Unbalance`` at a pair of coordinates: ``m e (Omega^2 cos p + Omega' sin p)`` on the
   first, ``m e (Omega^2 sin p - Omega' cos p)`` on the second, ``p = phase + integral
   Omega``.
@@ -84,6 +86,55 @@ def _matrix(owner: str, name: str, value: object, n: int | None) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
+class SpeedTable:
+    """Stiffness and damping that change with the spin speed (bearings, seals): at speed
+    ``Omega`` the blocks ``K(Omega)``, ``C(Omega)`` on ``coordinates``, linear between
+    the tabulated ``speeds`` (rad/s, increasing) and held beyond them, are added to the
+    structure's ``K`` and ``C``. Their force ``-K(Omega) q_b - C(Omega) q_b'`` is counted
+    in the work ``W`` (a stiffness that changes with time stores no energy of its own)."""
+
+    coordinates: tuple[int, ...]
+    speeds: np.ndarray = field(repr=False)  # (k,)
+    K: np.ndarray = field(repr=False)  # (k, m, m)
+    C: np.ndarray = field(repr=False)  # (k, m, m)
+
+    def __post_init__(self) -> None:
+        owner = "structure: speed table"
+        coords = tuple(int(c) for c in self.coordinates)
+        if not coords or len(set(coords)) != len(coords):
+            raise ValueError(f"{owner}: coordinates must be distinct and at least one")
+        m = len(coords)
+        speeds = np.array(self.speeds, dtype=float).reshape(-1)
+        if speeds.size < 1 or not np.all(np.isfinite(speeds)) or np.any(np.diff(speeds) <= 0):
+            raise ValueError(f"{owner}: speeds must be finite and increase")
+        for name in ("K", "C"):
+            block = np.array(getattr(self, name), dtype=float)
+            if block.shape != (speeds.size, m, m):
+                raise ValueError(
+                    f"{owner}: {name} must be {speeds.size} x {m} x {m} (a block a speed), "
+                    f"got shape {block.shape}"
+                )
+            if not np.all(np.isfinite(block)) or np.max(np.abs(block)) > MAX_MAGNITUDE:
+                raise ValueError(f"{owner}: {name} must be finite")
+            block.setflags(write=False)
+            object.__setattr__(self, name, block)
+        speeds.setflags(write=False)
+        object.__setattr__(self, "coordinates", coords)
+        object.__setattr__(self, "speeds", speeds)
+
+    def at(self, omega: float) -> tuple[np.ndarray, np.ndarray]:
+        """The blocks ``(K, C)`` at speed ``omega`` (interpolated as the kernel does)."""
+        w = self.speeds
+        if omega <= w[0] or w.size == 1:
+            return self.K[0].copy(), self.C[0].copy()
+        if omega >= w[-1]:
+            return self.K[-1].copy(), self.C[-1].copy()
+        k = int(np.searchsorted(w, omega, side="right")) - 1
+        s = (omega - w[k]) / (w[k + 1] - w[k])
+        return (1 - s) * self.K[k] + s * self.K[k + 1], (1 - s) * self.C[k] + s * self.C[k + 1]
+
+
+@dataclass(frozen=True, eq=False)
 class Structure:
     """The linear structure: ``M`` (symmetric positive definite), ``C``, ``K``, ``G``
     (None: zero), a static force (None: zero), ``dof_per_node`` coordinates a node."""
@@ -94,6 +145,7 @@ class Structure:
     G: np.ndarray | None = field(default=None, repr=False)
     static: np.ndarray | None = field(default=None, repr=False)
     dof_per_node: int = 2
+    speed_table: SpeedTable | None = None
 
     def __post_init__(self) -> None:
         owner = "structure"
@@ -139,6 +191,25 @@ class Structure:
             raise ValueError(
                 f"{owner}: dof_per_node = {per_node} must be >= 2 and divide the {n} coordinates"
             )
+        table = self.speed_table
+        if table is not None:
+            if not isinstance(table, SpeedTable):
+                raise TypeError(f"{owner}: speed_table must be a SpeedTable, got {_kind(table)}")
+            if not all(0 <= c < n for c in table.coordinates):
+                raise ValueError(
+                    f"{owner}: the speed table names a coordinate outside 0 to {n - 1}"
+                )
+
+    def at_speed(self, omega: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(K, C)`` at spin speed ``omega``: the matrices with the speed table's blocks
+        there added (the matrices themselves without a table)."""
+        K, C = np.array(self.K), np.array(self.C)
+        if self.speed_table is not None:
+            b = np.array(self.speed_table.coordinates)
+            Kb, Cb = self.speed_table.at(omega)
+            K[np.ix_(b, b)] += Kb
+            C[np.ix_(b, b)] += Cb
+        return K, C
 
     @property
     def size(self) -> int:
@@ -210,6 +281,19 @@ class Speed:
     @property
     def is_constant(self) -> bool:
         return len(self.values) == 1 or len(set(self.values)) == 1
+
+    def at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(Omega, angle)`` at the times ``t``: the speed and the spin angle
+        ``integral_0^t Omega``, as the system reads them (``kernels.speed_at``)."""
+        t = np.asarray(t, dtype=float)
+        knots = self.knots()
+        k = np.clip(np.searchsorted(knots[:, 0], t, side="right") - 1, 0, len(knots) - 1)
+        dt = t - knots[k, 0]
+        inside = (t > knots[0, 0]) & (k < len(knots) - 1)
+        nxt = np.minimum(k + 1, len(knots) - 1)
+        span = np.where(inside, knots[nxt, 0] - knots[k, 0], 1.0)
+        rate = np.where(inside, (knots[nxt, 1] - knots[k, 1]) / span, 0.0)
+        return knots[k, 1] + rate * dt, knots[k, 2] + knots[k, 1] * dt + 0.5 * rate * dt * dt
 
     def knots(self) -> np.ndarray:
         """(k, 3): each knot's time, speed and the spin angle integral_0^t Omega there."""

@@ -11,6 +11,11 @@ any asked for (``keep``: a probe's) stay physical; the rest (the interior) is sp
 - where the static force loads the interior (gravity), its static deflection with the
   kept coordinates held, made M-orthogonal to the modes: the weight's sag is then exact.
 
+Coefficients that change with the speed (``SpeedTable``: bearings in a run-up) sit on
+kept coordinates, so the interior's matrices, and with them the basis, do not depend on
+the speed: the reduction is the same at every speed, and the table acts on the kept
+coordinates unchanged.
+
 ``q = T p``: the first ``len(kept)`` reduced coordinates are the kept ones themselves, the
 others modal. The reduced matrices are ``T^T X T`` for X in M, C, K, G (a Galerkin
 projection: symmetry, definiteness of M and the skew gyroscopic part are kept).
@@ -60,11 +65,14 @@ class Reduction:
 
 def kept_coordinates(machine: Machine, keep: tuple[int, ...] = ()) -> tuple[int, ...]:
     """The coordinates a reduction of ``machine`` keeps physical, in order, once: each
-    station's rotor and stator pair, each unbalance's pair, then ``keep``."""
+    station's rotor and stator pair, each unbalance's pair, the speed table's coordinates
+    (bearings whose coefficients change with the speed), then ``keep``."""
     found: list[int] = []
     pairs = [s.rotor for s in machine.stations]
     pairs += [s.stator for s in machine.stations if s.stator is not None]
     pairs += [u.coordinates for u in machine.unbalances]
+    table = machine.structure.speed_table
+    pairs += [table.coordinates] if table is not None else []
     for coordinate in [c for pair in pairs for c in pair] + [int(c) for c in keep]:
         if coordinate not in found:
             found.append(coordinate)
@@ -114,6 +122,14 @@ def craig_bampton(
     T[b, np.arange(b.size)] = 1.0
     T[np.ix_(interior, np.arange(b.size))] = psi
     T[interior, b.size :] = phi
+    table = structure.speed_table
+    if table is not None:
+        missing = sorted(set(table.coordinates) - set(int(c) for c in b))
+        if missing:
+            raise ValueError(f"reduction: the speed table's coordinates {missing} must be kept")
+        table = dataclasses.replace(
+            table, coordinates=tuple(int(np.flatnonzero(b == c)[0]) for c in table.coordinates)
+        )
     reduced = Structure(
         M=T.T @ M @ T,
         K=T.T @ K @ T,
@@ -121,6 +137,7 @@ def craig_bampton(
         G=T.T @ structure.G @ T,
         static=T.T @ structure.static,
         dof_per_node=T.shape[1],  # a reduced structure has no nodes: Reduction maps them
+        speed_table=table,
     )
     reduction = Reduction(T, tuple(int(c) for c in b), modes, phi.shape[1] - modes)
     return reduced, reduction

@@ -30,6 +30,10 @@ class SystemArrays:
     indices: np.ndarray  # (S, 4) int64: rotor x, y; stator x, y (-1: rigid)
     parameters: np.ndarray  # (S, S_LAW + LAW_SIZE): kernels.S_* columns, then the law
     knots: np.ndarray  # (k, 3): speed.knots()
+    table_indices: np.ndarray  # (m,) int64: the speed table's coordinates (none: empty)
+    table_speeds: np.ndarray  # (k,)
+    table_stiffness: np.ndarray  # (k, m, m)
+    table_damping: np.ndarray  # (k, m, m)
 
     @classmethod
     def of(cls, machine: Machine) -> SystemArrays:
@@ -60,6 +64,15 @@ class SystemArrays:
         Gsym = 0.5 * (G + G.T)
         Kanti = 0.5 * (st.K - st.K.T)
         flags = np.array([np.any(G != 0.0), np.any(Gsym != 0.0), np.any(Kanti != 0.0)])
+        table = st.speed_table
+        if table is None:
+            table_indices = np.zeros(0, dtype=np.int64)
+            table_speeds = np.zeros(1)
+            table_stiffness, table_damping = np.zeros((1, 0, 0)), np.zeros((1, 0, 0))
+        else:
+            table_indices = np.array(table.coordinates, dtype=np.int64)
+            table_speeds = np.array(table.speeds)
+            table_stiffness, table_damping = np.array(table.K), np.array(table.C)
         return cls(
             machine=machine,
             Minv=Minv,
@@ -75,6 +88,10 @@ class SystemArrays:
             indices=indices,
             parameters=parameters,
             knots=machine.speed.knots(),
+            table_indices=table_indices,
+            table_speeds=table_speeds,
+            table_stiffness=table_stiffness,
+            table_damping=table_damping,
         )
 
     @property
@@ -88,6 +105,7 @@ class SystemArrays:
         place at a switch)."""
         n = self.Minv.shape[0]
         S = self.indices.shape[0]
+        m = self.table_indices.shape[0]
         return (
             self.Minv,
             self.MinvK,
@@ -110,4 +128,11 @@ class SystemArrays:
             np.zeros(S, dtype=np.int64),
             np.zeros((S, VALUES_SIZE)),
             self.flags,
+            self.table_indices,
+            self.table_speeds,
+            self.table_stiffness,
+            self.table_damping,
+            np.zeros((m, m)),
+            np.zeros((m, m)),
+            np.zeros(m),
         )

@@ -77,6 +77,30 @@ def speed_at(knots: np.ndarray, t: float) -> tuple[float, float, float]:
 
 
 @inline
+def _table_at(tw, tK, tC, omega, Kw, Cw):
+    """The speed table's blocks at ``omega`` into ``Kw``, ``Cw``: linear between its
+    speeds ``tw``, held beyond them (``machine.SpeedTable``)."""
+    last = tw.shape[0] - 1
+    k, s = 0, 0.0
+    if last > 0 and omega > tw[0]:
+        if omega >= tw[last]:
+            k = last
+        else:
+            while tw[k + 1] <= omega:
+                k += 1
+            s = (omega - tw[k]) / (tw[k + 1] - tw[k])
+    m = Kw.shape[0]
+    for a in range(m):
+        for c in range(m):
+            if s > 0.0:
+                Kw[a, c] = (1.0 - s) * tK[k, a, c] + s * tK[k + 1, a, c]
+                Cw[a, c] = (1.0 - s) * tC[k, a, c] + s * tC[k + 1, a, c]
+            else:
+                Kw[a, c] = tK[k, a, c]
+                Cw[a, c] = tC[k, a, c]
+
+
+@inline
 def _geometry(q, v, idx, par, s, geo):
     """Station s's relative position and velocity (``G_*`` columns of ``geo[s]``)."""
     dx = q[idx[s, 0]] - par[s, S_CX]
@@ -188,7 +212,7 @@ def evaluate(t: float, y: np.ndarray, ctx: tuple, out: np.ndarray, vals: np.ndar
     slip, normal and tangential force into ``vals`` (``V_*``); returns ``OK`` or
     ``SINGULAR`` (the stick stations' mobilities are singular)."""
     (Minv, MinvK, MinvC, MinvG, Dsym, Gsym, Kanti, facc, unb, idx, par, knots, regimes, work,
-     geo, mob, lhs, rhs, stuck, _, flags) = ctx  # fmt: skip
+     geo, mob, lhs, rhs, stuck, _, flags, tidx, tw, tK, tC, tKw, tCw, tf) = ctx  # fmt: skip
     n = Minv.shape[0]
     S = idx.shape[0]
     omega, omega_rate, angle = speed_at(knots, t)
@@ -227,6 +251,20 @@ def evaluate(t: float, y: np.ndarray, ctx: tuple, out: np.ndarray, vals: np.ndar
             for j in range(n):
                 a_i += MinvG[i, j] * v[j]
             acc[i] -= omega * a_i
+    if tidx.shape[0] > 0:  # the speed table's force -K(Omega) q_b - C(Omega) v_b, and its power
+        _table_at(tw, tK, tC, omega, tKw, tCw)
+        m_b = tidx.shape[0]
+        for a in range(m_b):
+            f_a = 0.0
+            for c in range(m_b):
+                f_a -= tKw[a, c] * q[tidx[c]] + tCw[a, c] * v[tidx[c]]
+            tf[a] = f_a
+            power += v[tidx[a]] * f_a
+        for i in range(n):
+            a_i = 0.0
+            for a in range(m_b):
+                a_i += Minv[i, tidx[a]] * tf[a]
+            acc[i] += a_i
     for u in range(unb.shape[0]):
         p = unb[u, 3] + angle
         c, sn = math.cos(p), math.sin(p)
@@ -372,7 +410,7 @@ def jacobian_into(
     its row outside the differenced columns (Newton's iterate of W then follows the
     others' exactly, which is all an implicit step needs of it)."""
     (Minv, MinvK, MinvC, MinvG, _, _, _, _, _, idx, _, knots, regimes, _, _, _, _, _, _,
-     _, flags) = ctx  # fmt: skip
+     _, flags, tidx, tw, tK, tC, tKw, tCw, _) = ctx  # fmt: skip
     m = y.shape[0]
     n = Minv.shape[0]
     for i in range(m):
@@ -386,12 +424,24 @@ def jacobian_into(
         for j in range(m - 1):
             _difference_column(t, y, ctx, scale, j, jac, shifted, f_plus, f_minus)
         return
-    omega = speed_at(knots, t)[0] if flags[F_GYROSCOPIC] else 0.0
+    omega = speed_at(knots, t)[0]
+    gyro = omega if flags[F_GYROSCOPIC] else 0.0
     for i in range(n):
         jac[i, n + i] = 1.0
         for j in range(n):
             jac[n + i, j] = -MinvK[i, j]
-            jac[n + i, n + j] = -MinvC[i, j] - omega * MinvG[i, j]
+            jac[n + i, n + j] = -MinvC[i, j] - gyro * MinvG[i, j]
+    m_b = tidx.shape[0]
+    if m_b > 0:  # the speed table's blocks at this speed
+        _table_at(tw, tK, tC, omega, tKw, tCw)
+        for i in range(n):
+            for c in range(m_b):
+                kc, cc = 0.0, 0.0
+                for a in range(m_b):
+                    kc += Minv[i, tidx[a]] * tKw[a, c]
+                    cc += Minv[i, tidx[a]] * tCw[a, c]
+                jac[n + i, tidx[c]] -= kc
+                jac[n + i, n + tidx[c]] -= cc
     for s in range(idx.shape[0]):
         for c in range(4):
             j = idx[s, c]
