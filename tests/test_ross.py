@@ -154,6 +154,15 @@ end = 0.01
     return path
 
 
+def test_a_shape_after_the_runs_end_is_refused_naming_it(tmp_path):
+    path = _case(tmp_path)
+    path.write_text(path.read_text() + "[output]\nshapes = [0.005, 0.02]\n")
+    result = runner.invoke(app, ["validate", str(path)])
+    assert result.exit_code == 2, result.output
+    text = " ".join(result.output.split())
+    assert "output.shapes: 0.02 s is after the run's end (0.01 s)" in text, result.output
+
+
 def test_a_ross_case_and_its_exported_matrices_are_the_same_machine(tmp_path):
     case = load_rotor_case(_case(tmp_path, extra="gravity = [0.0, -9.81]"))
     assert case.machine.size == 136 and case.machine.stations[0].radius == pytest.approx(0.0095)
@@ -182,10 +191,11 @@ def test_a_ross_case_and_its_exported_matrices_are_the_same_machine(tmp_path):
     assert again.exit_code == 2 and "--force" in again.output
 
 
+# the shipped ROSS cases at a constant speed (a run-up's: tests/test_ross_runup.py)
 ROSS_CASES = sorted(
     p
     for p in (REPO / "cases").rglob("*.toml")
-    if "ross" in tomllib.loads(p.read_text()).get("rotor", {})
+    if "ross" in (data := tomllib.loads(p.read_text())).get("rotor", {}) and "speed" not in data
 )
 
 
@@ -231,6 +241,8 @@ def test_ross_case_runs(path, tmp_path):
     case = load_rotor_case(path)
     plots = {f"{p}.png" for p in case.settings.output.plots}
     expected = {"report.json"} | plots | {f"{m}.csv" for m in case.methods}
+    if case.settings.output.shapes:
+        expected |= {"shape.png", "shapes.csv"}
     assert {p.name for p in out.iterdir()} == expected
     report = json.loads((out / "report.json").read_text())
     assert report["machine"]["coordinates"] == case.machine.size
@@ -262,6 +274,16 @@ def test_ross_case_runs(path, tmp_path):
             radius = max(math.hypot(float(r[f"x_{node}"]), float(r[f"y_{node}"])) for r in steady)
             envelope = entry["deflection"]["envelope_last_quarter_m"]
             assert len(envelope) == 34 and envelope[node] == pytest.approx(radius, rel=1e-12)
+            if case.settings.output.shapes:  # the shape at a sample: the CSV's row there
+                with open(out / "shapes.csv", newline="") as handle:
+                    shape = list(csv.DictReader(handle))[node]
+                for instant in case.settings.output.shapes:
+                    row = min(every, key=lambda r: abs(float(r["t_s"]) - instant))
+                    label = f"{float(row['t_s']):.6g}s_m"
+                    for axis in ("x", "y"):
+                        assert float(shape[f"{axis}_at_{label}"]) == pytest.approx(
+                            float(row[f"{axis}_{node}"]), rel=1e-12, abs=1e-18
+                        )
             regimes = [r[f"{name}_regime"] for r in rows]
             touching = np.array([r != "free" for r in regimes])
             ref_touching = reference.regimes[:, s] != FREE

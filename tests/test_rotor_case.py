@@ -21,6 +21,7 @@ from typer.testing import CliRunner
 
 from rubcli.case.rotor import load_rotor_case
 from rubcli.cli.app import app
+from rubcli.machine import linear
 from rubcli.system import simulate
 
 REPO = Path(__file__).resolve().parents[1]
@@ -233,6 +234,11 @@ TABLE_ERRORS = {
         'dir = "out/two-seals"\nplots = ["orbit", "shaft"]',
         "output.plots: 'shaft' needs the nodes' positions",
     ),  # fmt: skip
+    "shapes without positions": (
+        'dir = "out/two-seals"',
+        'dir = "out/two-seals"\nshapes = [0.1]',
+        "output.shapes: a deflected shape needs the nodes' positions",
+    ),  # fmt: skip
     "same node": (
         "offset = [5e-6, 0.0]",
         "offset = [5e-6, 0.0]\nstator_node = 4",
@@ -411,3 +417,76 @@ def test_the_shaft_view_skips_nodes_off_the_shaft(case_dir):
     assert result.exit_code == 0, result.output
     with Image.open(out / "shaft.png") as image:
         assert image.size[0] > 1.2 * image.size[1]
+
+
+RAMP = """
+[speed]
+profile = "ramp"
+from = 1500.0
+to = 3500.0
+rate = 4000.0
+"""
+
+
+def test_a_runup_on_matrices_writes_its_bode_polar_and_cascade(case_dir):
+    """A matrices case with [speed] (its bearings' coefficients constant: the file holds
+    one speed's, as validate says): the run-up's figures and report, the CSV's speed the
+    ramp's, the probes' linear critical speed the structure's own natural frequency
+    there (the peak of the steady response), and the seals' rub at the stations."""
+    path = case_dir / "two-seals.toml"
+    text = path.read_text().replace("speed = 2500.0                 # rpm\n", "")
+    text = text.replace("[time]", RAMP + PROBES + "\n[time]")
+    path.write_text(text.replace("end = 0.48", "end = 0.6"))
+    result = runner.invoke(app, ["validate", str(path)])
+    assert result.exit_code == 0, result.output
+    assert "coefficients constant" in result.output
+    out = case_dir / "out"
+    result = runner.invoke(app, ["run", str(path), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    names = {p.name for p in out.iterdir()}
+    assert {"bode.png", "polar.png", "cascade.png", "orbit.png"} <= names
+    report = json.loads((out / "report.json").read_text())
+    assert report["methods"]["dop853-jit"]["energy_residual_relative"] < 1e-6
+    runup = report["runup"]
+    assert set(runup["probes"]) == {"bearing_side", "probe1"}
+    assert set(runup["stations"]) == {"disk_seal", "offset_seal"}
+    case = load_rotor_case(path)
+    structure = case.machine.structure
+    for entry in runup["probes"].values():
+        critical = entry["linear_critical_rpm"] * 2 * math.pi / 60
+        frequencies = np.abs(linear.eigenvalues(structure, critical).imag)
+        if 1500 < entry["linear_critical_rpm"] < 3500:  # a peak inside the range
+            assert np.min(np.abs(frequencies - critical)) < 0.01 * critical
+    with open(out / "dop853-jit.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    t = np.array([float(r["t_s"]) for r in rows])
+    rpm = np.array([float(r["speed_rpm"]) for r in rows])
+    np.testing.assert_allclose(rpm, np.minimum(1500.0 + 4000.0 * t, 3500.0), rtol=1e-12)
+    with Image.open(out / "bode.png") as image:
+        assert image.size[0] > image.size[1]
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (lambda t: t.replace("[time]", RAMP + PROBES + "\n[time]"), "give the speed once"),
+        (lambda t: t.replace("speed = 2500.0                 # rpm\n", "")
+         .replace("[time]", RAMP + "\n[time]"), "give at least one [[probe]]"),
+        (lambda t: t.replace("speed = 2500.0                 # rpm\n", "")
+         .replace("[time]", RAMP.replace("4000.0", "-40.0") + PROBES + "\n[time]"),
+         "rate must be nonzero with the sign of to - from"),
+        (lambda t: t.replace("speed = 2500.0                 # rpm\n", "")
+         .replace("[time]", '[speed]\nprofile = "driven"\n' + PROBES + "\n[time]"),
+         "speed.profile: Input should be 'ramp' or 'table'"),
+        (lambda t: t.replace("speed = 2500.0                 # rpm\n", "")
+         .replace("[time]", '[speed]\nprofile = "table"\nt = [0.0, 0.1]\nspeed = [100.0]\n'
+                  + PROBES + "\n[time]"), "speed.speed: List should have at least 2 items"),
+    ],
+)  # fmt: skip
+def test_a_bad_speed_is_refused_naming_it(case_dir, change, message):
+    path = case_dir / "two-seals.toml"
+    path.write_text(change(path.read_text()))
+    result = runner.invoke(app, ["validate", str(path)])
+    assert result.exit_code == 2, result.output
+    assert message in " ".join(result.output.split()), result.output
+    assert "Traceback" not in result.output

@@ -46,6 +46,8 @@ ROSS rotor file (``[rotor] ross = "rotor.toml"``, read through ROSS, the optiona
 
     [output]
     plots = ["orbit", "shaft", "time"]  # the shaft view needs the nodes' positions
+    shapes = [0.1, 0.35]     # s: the deflected shape at these instants (shape.png,
+                             # shapes.csv; needs the nodes' positions too)
 
 Read in three steps as every case (read the TOML, validate the schema, assemble the
 machine); every problem a ``CaseError`` line naming the file and the field. The
@@ -64,10 +66,10 @@ import tomllib
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import Field, ValidationError, model_validator
+from pydantic import ConfigDict, Field, ValidationError, model_validator
 
 from rubcli.case.base import CaseError, _Section
 from rubcli.case.casefile import _format_error
@@ -104,7 +106,7 @@ class RotorSection(_Section):
 
     matrices: str | None = Field(default=None, min_length=1)
     ross: str | None = Field(default=None, min_length=1)
-    speed: float = Field(gt=0, le=MAX_SPEED_RPM)  # rpm
+    speed: float | None = Field(default=None, gt=0, le=MAX_SPEED_RPM)  # rpm; or [speed]
     number_dof: int | None = Field(default=None, ge=2, le=64)
     gravity: list[float] | None = Field(default=None, min_length=2, max_length=2)
     modes: int = Field(default=0, ge=0, le=MAX_COORDINATES)
@@ -118,6 +120,54 @@ class RotorSection(_Section):
         if self.gravity is not None and not all(abs(g) <= 1e4 for g in self.gravity):
             raise ValueError("gravity must be at most 1e4 m/s^2 in each direction")
         return self
+
+
+class RotorSpeedSection(_Section):
+    """[speed]: a speed that changes (a run-up, a coast-down), in rpm: a ramp from
+    ``from`` to ``to`` at ``rate`` rpm/s (its sign that of ``to - from``), held at ``to``
+    after; or a table of times ``t`` (s) and speeds ``speed`` (rpm), linear between."""
+
+    model_config = ConfigDict(populate_by_name=True)
+
+    profile: Literal["ramp", "table"]
+    start: float | None = Field(default=None, alias="from", gt=0, le=MAX_SPEED_RPM)
+    to: float | None = Field(default=None, gt=0, le=MAX_SPEED_RPM)
+    rate: float | None = Field(default=None, ge=-1e9, le=1e9)  # rpm/s
+    t: list[float] | None = Field(default=None, min_length=2, max_length=100_000)  # s
+    speed: list[Annotated[float, Field(gt=0, le=MAX_SPEED_RPM)]] | None = Field(
+        default=None, min_length=2, max_length=100_000
+    )  # rpm
+
+    @model_validator(mode="after")
+    def _complete(self) -> RotorSpeedSection:
+        ramp = {"from": self.start, "to": self.to, "rate": self.rate}
+        table = {"t": self.t, "speed": self.speed}
+        mine, other = (ramp, table) if self.profile == "ramp" else (table, ramp)
+        extra = [k for k, v in other.items() if v is not None]
+        if extra:
+            raise ValueError(f"{', '.join(extra)} do not belong to profile = '{self.profile}'")
+        missing = [k for k, v in mine.items() if v is None]
+        if missing:
+            raise ValueError(f"profile = '{self.profile}' needs {', '.join(missing)}")
+        if self.profile == "ramp":
+            if self.to == self.start:
+                raise ValueError("from and to are the same speed: give [rotor] speed instead")
+            if self.rate == 0 or (self.rate > 0) != (self.to > self.start):
+                raise ValueError("rate must be nonzero with the sign of to - from (rpm/s)")
+        else:
+            if len(self.t) != len(self.speed):
+                raise ValueError(f"t has {len(self.t)} times and speed {len(self.speed)} speeds")
+            if any(not b > a for a, b in zip(self.t, self.t[1:], strict=False)):
+                raise ValueError("t must increase")
+            if len(set(self.speed)) == 1:
+                raise ValueError("every speed of the table is the same: give [rotor] speed")
+        return self
+
+    def knots_rpm(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """The profile's knots: times (s) and speeds (rpm)."""
+        if self.profile == "table":
+            return tuple(self.t), tuple(self.speed)
+        return (0.0, abs(self.to - self.start) / abs(self.rate)), (self.start, self.to)
 
 
 class UnbalanceSection(_Section):
@@ -165,6 +215,8 @@ class RotorOutputSection(_Section):
     dir: str | None = Field(default=None, min_length=1)
     csv: bool = True
     plots: list[str] = Field(default_factory=lambda: ["orbit"])
+    # instants (s) whose deflected shape is drawn (shape.png) and written (shapes.csv)
+    shapes: list[Annotated[float, Field(ge=0)]] = Field(default_factory=list, max_length=12)
 
 
 class RotorCaseFile(_Section):
@@ -173,10 +225,34 @@ class RotorCaseFile(_Section):
     unbalance: list[UnbalanceSection] = Field(default_factory=list)
     station: list[StationSection] = Field(min_length=1, max_length=64)
     probe: list[ProbeSection] = Field(default_factory=list, max_length=64)
+    speed: RotorSpeedSection | None = None
     time: TimeSection
     solver: RotorSolverSection = Field(default_factory=RotorSolverSection)
     output: RotorOutputSection = Field(default_factory=RotorOutputSection)
 
+    @model_validator(mode="after")
+    def _one_speed(self) -> RotorCaseFile:
+        if (self.rotor.speed is None) == (self.speed is None):
+            raise ValueError(
+                "give the speed once: [rotor] speed (rpm, constant) or a [speed] table (a "
+                "run-up or coast-down)"
+            )
+        if self.speed is not None and not self.probe:
+            raise ValueError(
+                "a run-up's Bode, polar and cascade plots read the probes: give at least one "
+                "[[probe]]"
+            )
+        return self
+
+    def speed_knots(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """The speed's knots: times (s) and speeds (rad/s); one knot: constant."""
+        if self.speed is None:
+            return (0.0,), (self.rotor.speed * RPM,)
+        times, rpm = self.speed.knots_rpm()
+        return times, tuple(v * RPM for v in rpm)
+
+
+RPM = 2.0 * math.pi / 60.0  # rad/s of one rpm
 
 PLOTS = ("orbit", "shaft", "time")
 
@@ -246,8 +322,21 @@ class RotorCase:
             return pair
         return (self.reduction.reduced_index(pair[0]), self.reduction.reduced_index(pair[1]))
 
+    @property
+    def runup(self) -> bool:
+        """The speed changes ([speed]): the run-up products are written."""
+        return self.settings.speed is not None
+
+    @property
+    def speed_text(self) -> str:
+        """The speed as a title shows it: ``1200 rpm`` or ``600 to 3000 rpm``."""
+        if self.settings.speed is None:
+            return f"{self.settings.rotor.speed:g} rpm"
+        rpm = self.settings.speed.knots_rpm()[1]
+        return f"{rpm[0]:g} to {rpm[-1]:g} rpm"
+
     def to_dict(self) -> dict[str, Any]:
-        return self.settings.model_dump(mode="json")
+        return self.settings.model_dump(mode="json", by_alias=True)
 
 
 def load_rotor_case(path: str | Path) -> RotorCase:
@@ -306,6 +395,17 @@ def assemble_rotor_case(raw: dict[str, Any], path: Path) -> RotorCase:
         raise CaseError(
             [f"{source}: output.plots: 'shaft' needs the nodes' positions, which {rotor_file} "
              "does not give (a matrices file: node_position, as rubcli export-matrices writes)"]
+        )  # fmt: skip
+    if settings.output.shapes and layout is None:
+        raise CaseError(
+            [f"{source}: output.shapes: a deflected shape needs the nodes' positions, which "
+             f"{rotor_file} does not give (a matrices file: node_position)"]
+        )  # fmt: skip
+    late = [t for t in settings.output.shapes if t > settings.time.end]
+    if late:
+        raise CaseError(
+            [f"{source}: output.shapes: {', '.join(f'{t:g}' for t in late)} s is after the "
+             f"run's end ({settings.time.end:g} s)"]
         )  # fmt: skip
     full, nodes = _machine(structure, settings, source, names, radii)
     bad = [k for k, p in enumerate(settings.probe) if p.node >= structure.nodes]
@@ -513,9 +613,14 @@ def _ross_structure(
 
     try:
         rotor = ross.load_ross_rotor(path)
-        omega = settings.rotor.speed * 2.0 * math.pi / 60.0
+        speeds = settings.speed_knots()[1]
         gravity = settings.rotor.gravity
-        structure = ross.ross_structure(rotor, omega, None if gravity is None else tuple(gravity))
+        structure = ross.ross_structure(
+            rotor,
+            speeds[0],
+            None if gravity is None else tuple(gravity),
+            None if len(speeds) == 1 else (min(speeds), max(speeds)),
+        )
     except ross.RossError as exc:
         raise CaseError([f"{where}: {exc}"]) from None
     return structure, ross.shaft_layout(rotor)
@@ -605,13 +710,14 @@ def _machine(
         nodes.append((s.node, s.stator_node))
     if problems:
         raise CaseError(problems)
-    omega = settings.rotor.speed * 2.0 * math.pi / 60.0
-    machine = Machine(structure, tuple(stations), Speed.constant(omega), tuple(unbalances))
+    times, speeds = settings.speed_knots()
+    machine = Machine(structure, tuple(stations), Speed(times, speeds), tuple(unbalances))
     return machine, nodes
 
 
 def _time_grid(settings: RotorCaseFile, source: str) -> np.ndarray:
-    revolutions = settings.time.end * settings.rotor.speed / 60.0
+    fastest = max(settings.speed_knots()[1]) / RPM
+    revolutions = settings.time.end * fastest / 60.0  # at the fastest speed: its sampling
     samples = revolutions * settings.time.samples_per_revolution
     if not samples <= MAX_OUTPUT_SAMPLES:
         raise CaseError(

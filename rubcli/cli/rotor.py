@@ -54,14 +54,31 @@ def summary_lines(case: RotorCase) -> list[str]:
     lines = [
         f"case      {case.name}",
         f"rotor     {case.rotor_file}: {st.size} coordinates, {st.nodes} nodes of "
-        f"{st.dof_per_node}; {case.settings.rotor.speed:g} rpm",
+        f"{st.dof_per_node}; {case.speed_text}",
     ]
+    if case.runup:
+        table = st.speed_table
+        lines.append(
+            f"speed     {case.settings.speed.profile}: "
+            + ", ".join(
+                f"{rpm:g} rpm at {t:g} s"
+                for t, rpm in zip(*case.settings.speed.knots_rpm(), strict=True)
+            )
+            + "; bearings: "
+            + (
+                "coefficients constant (the rotor's file holds one speed's)"
+                if table is None
+                else f"{len(table.coordinates)} coordinates' coefficients at the current speed "
+                f"(ROSS's interpolant tabulated at {table.speeds.size} speeds)"
+            )
+        )
     if case.reduction is not None:
         r = case.reduction
         extra = " and the weight's static deflection" if r.static_vectors else ""
+        bearings = " and bearings" if st.speed_table is not None else ""
         lines.append(
             f"reduced   {machine.size} coordinates (Craig-Bampton): the {len(r.kept)} of the "
-            f"stations, unbalances and probes, {r.modes} fixed-interface modes{extra}"
+            f"stations, unbalances, probes{bearings}, {r.modes} fixed-interface modes{extra}"
         )
     for name, station, (node, stator) in zip(
         case.station_names, machine.stations, case.station_nodes, strict=True

@@ -5,7 +5,9 @@ seals) into ``M(speed)``, ``K(speed)``, ``C(speed)`` (bearing and seal coefficie
 that speed, Rayleigh damping) and ``G()``, with 6 coordinates a node in the order
 ``x, y, z, alpha, beta, theta``. rubcli takes these matrices as ROSS gives them, at the
 running speed (coefficients evaluated at the synchronous frequency, as ROSS's
-``run_unbalance_response`` and ``save_mat`` do), cross-coupled terms kept.
+``run_unbalance_response`` and ``save_mat`` do), cross-coupled terms kept; in a run-up,
+the coefficients that change with the speed at the current speed (``ross_structure``'s
+``speed_range``: ROSS's interpolant tabulated finely, ``SpeedTable``).
 
 The axial ``z`` and torsional ``theta`` coordinates of ROSS's beam are not coupled to
 the lateral ones in these linear matrices, and nothing rubcli applies (unbalances,
@@ -37,7 +39,15 @@ import numpy as np
 
 from rubcli.machine.contact import ContactLaw
 from rubcli.machine.linear import gravity_load
-from rubcli.machine.machine import MAX_COORDINATES, Machine, Speed, Station, Structure, Unbalance
+from rubcli.machine.machine import (
+    MAX_COORDINATES,
+    Machine,
+    Speed,
+    SpeedTable,
+    Station,
+    Structure,
+    Unbalance,
+)
 
 ROSS_DOF_PER_NODE = 6
 LATERAL = (0, 1, 3, 4)  # x, y, alpha, beta of each node's 6
@@ -189,25 +199,135 @@ def shaft_layout(rotor: Any) -> dict[str, np.ndarray]:
     }
 
 
+def _bearing_blocks(
+    rotor: Any, speeds: np.ndarray, only: list[int] | None = None
+) -> tuple[list[int], list[int], np.ndarray, np.ndarray]:
+    """The bearings and seals (their indices in ``rotor.bearing_elements``) whose
+    coefficients change over ``speeds`` (rad/s), or those of ``only``; their coordinates
+    (ROSS's numbering) and their summed ``K``, ``C`` blocks at each speed as ROSS
+    evaluates them (``BearingElement.K(frequency)``, ``.C(frequency)``)."""
+    chosen = []
+    with _quiet_descriptors():
+        for k, element in enumerate(rotor.bearing_elements):
+            if only is not None and k not in only:
+                continue
+            dofs = [int(d) for d in element.dof_global_index.values()]
+            K = np.array([np.asarray(element.K(w), dtype=float) for w in speeds])
+            C = np.array([np.asarray(element.C(w), dtype=float) for w in speeds])
+            if only is not None or np.ptp(K, axis=0).any() or np.ptp(C, axis=0).any():
+                chosen.append((k, dofs, K, C))
+    coordinates = sorted({d for _, dofs, _, _ in chosen for d in dofs})
+    where = {d: k for k, d in enumerate(coordinates)}
+    K = np.zeros((speeds.size, len(coordinates), len(coordinates)))
+    C = np.zeros_like(K)
+    for _, dofs, Kb, Cb in chosen:
+        at = np.array([where[d] for d in dofs])
+        K[:, at[:, None], at[None, :]] += Kb
+        C[:, at[:, None], at[None, :]] += Cb
+    return [k for k, _, _, _ in chosen], coordinates, K, C
+
+
+# A run-up's bearings: ROSS's interpolant of each coefficient (a spline through its
+# table) tabulated at speeds across the run's range, finer until linear interpolation
+# between them is within this share of the largest coefficient of ROSS's own at the
+# midpoints (at most MAX_TABLE_SPEEDS speeds).
+TABLE_RTOL = 1e-6
+MAX_TABLE_SPEEDS = 4097
+
+
+def ross_speed_table(
+    rotor: Any, low: float, high: float
+) -> tuple[list[int], list[int], np.ndarray, np.ndarray, np.ndarray, float]:
+    """The bearings and seals of ``rotor`` whose coefficients change between ``low`` and
+    ``high`` (rad/s; their indices, empty: none change), their coordinates (ROSS's
+    numbering), the tabulated speeds, the ``K`` and ``C`` blocks there, and the table's
+    largest error against ROSS's interpolant at the midpoints, a share of the largest
+    coefficient."""
+    count = 17
+    changing = _bearing_blocks(rotor, np.linspace(low, high, count))[0]
+    if not changing:
+        return [], [], np.array([low]), np.zeros((1, 0, 0)), np.zeros((1, 0, 0)), 0.0
+    while True:
+        speeds = np.linspace(low, high, count)
+        _, coordinates, K, C = _bearing_blocks(rotor, speeds, changing)
+        mid = 0.5 * (speeds[1:] + speeds[:-1])
+        _, _, Km, Cm = _bearing_blocks(rotor, mid, changing)
+        error = 0.0
+        for table, midpoint in ((K, Km), (C, Cm)):
+            scale = max(float(np.max(np.abs(table))), 1e-300)
+            gap = np.max(np.abs(0.5 * (table[1:] + table[:-1]) - midpoint))
+            error = max(error, float(gap) / scale)
+        if error <= TABLE_RTOL or count >= MAX_TABLE_SPEEDS:
+            return changing, coordinates, speeds, K, C, error
+        count = 2 * count - 1
+
+
 def ross_structure(
-    rotor: Any, speed: float, gravity: tuple[float, float] | None = None
+    rotor: Any,
+    speed: float,
+    gravity: tuple[float, float] | None = None,
+    speed_range: tuple[float, float] | None = None,
 ) -> Structure:
     """The structure of a ROSS rotor at ``speed`` (rad/s): its matrices, the lateral
     coordinates only where that is exact (module docstring), and the static force of
     ``gravity`` (m/s^2 along x and y: ``M a`` with ``a`` the acceleration on every node's
-    x and y, the consistent load of the weight)."""
+    x and y, the consistent load of the weight).
+
+    With ``speed_range`` (rad/s, a run-up's lowest and highest speed): the bearings and
+    seals whose coefficients change over it become the structure's ``SpeedTable``
+    (``ross_speed_table``: ROSS's interpolant, tabulated), the matrices hold the rest.
+    RossError if a bearing's mass coefficients change with the speed (not supported)."""
     matrices = ross_matrices(rotor, speed)
-    keep, per_node = lateral_coordinates(matrices)
+    table = None
+    if speed_range is not None:
+        low, high = (float(v) for v in speed_range)
+        if high > low:
+            with _quiet_descriptors():
+                changing_mass = np.any(rotor.M(low) != rotor.M(high))
+            if changing_mass:
+                raise RossError(
+                    "a bearing's mass coefficients change with the speed, which a run-up does "
+                    "not support: give them constant"
+                )
+            changing, *table = ross_speed_table(rotor, low, high)
+            if changing:
+                b = np.array(table[0])
+                _, _, Kb, Cb = _bearing_blocks(rotor, np.array([float(speed)]), changing)
+                matrices["K"][np.ix_(b, b)] -= Kb[0]
+                matrices["C"][np.ix_(b, b)] -= Cb[0]
+            else:
+                table = None
+    together = dict(matrices)
+    if table is not None:  # a coordinate coupled at any tabulated speed is kept
+        b = np.array(table[0])
+        for name, blocks in (("K", table[2]), ("C", table[3])):
+            extra = np.zeros_like(matrices[name])
+            extra[np.ix_(b, b)] = np.max(np.abs(blocks), axis=0)
+            together[f"{name}_table"] = extra
+    keep, per_node = lateral_coordinates(together)
     if keep.size > MAX_COORDINATES:
         raise RossError(
             f"the rotor has {keep.size} coordinates, more than {MAX_COORDINATES}: reduce the model"
         )
     sub = {k: np.ascontiguousarray(v[np.ix_(keep, keep)]) for k, v in matrices.items()}
     static = None if gravity is None else gravity_load(sub["M"], per_node, gravity)
+    speed_table = None
+    if table is not None:
+        coordinates, speeds, K, C, _ = table
+        inside = [k for k, c in enumerate(coordinates) if c in set(keep.tolist())]
+        position = {int(c): k for k, c in enumerate(keep)}
+        sel = np.array(inside)
+        speed_table = SpeedTable(
+            tuple(position[coordinates[k]] for k in inside),
+            speeds,
+            K[:, sel[:, None], sel[None, :]],
+            C[:, sel[:, None], sel[None, :]],
+        )
     try:
         return Structure(
-            M=sub["M"], K=sub["K"], C=sub["C"], G=sub["G"], static=static, dof_per_node=per_node
-        )
+            M=sub["M"], K=sub["K"], C=sub["C"], G=sub["G"], static=static, dof_per_node=per_node,
+            speed_table=speed_table,
+        )  # fmt: skip
     except ValueError as exc:
         raise RossError(f"ROSS's matrices: {str(exc).removeprefix('structure: ')}") from None
 

@@ -5,7 +5,7 @@ contact stations and probes marked; below, on the same axial positions, the defl
 envelope: each node's largest radial deflection over the whole run (a wide faint band)
 and over its last quarter (the steady part, a strong line on it), in micrometres, with
 each station's clearance marked at its node, so a reader sees which stations the
-envelope reaches."""
+envelope reaches. ``shapes_figure``: the deflected shape at chosen instants."""
 
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 MICRO = 1e6
 MILLI = 1e3
@@ -96,4 +97,51 @@ def shaft_figure(
     bottom.set_title("deflection envelope (probes dotted)", fontsize="medium")
     bottom.grid(True, linewidth=0.3)
     bottom.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    return fig
+
+
+def shapes_figure(
+    title: str,
+    positions: np.ndarray,
+    times: Sequence[float],
+    shapes: np.ndarray,
+    stations: Sequence[Marked],
+    offsets: Sequence[tuple[float, float]],
+) -> Figure:
+    """The deflected shape at chosen instants: each node's x (upper panel) and y (lower)
+    deflection (µm) along the shaft at each time of ``times``, ``shapes`` (instants,
+    nodes, 2) in m; each station's wall, its stator's centre plus and minus its
+    clearance, marked at its node (``offsets``: the centres, m)."""
+    fig = Figure(figsize=(10.0, 6.8), layout="constrained")
+    FigureCanvasAgg(fig)
+    fig.suptitle(f"{title}\nevery node's x and y at the sample nearest each instant")
+    axes = fig.subplots(2, 1, sharex=True, sharey=True)
+    shaft = np.isfinite(positions)
+    x = positions[shaft]
+    colours = [f"C{k % 10}" for k in range(len(times))]
+    for j, (ax, name) in enumerate(zip(axes, ("x", "y"), strict=True)):
+        for k, t in enumerate(times):
+            ax.plot(x, MICRO * shapes[k, shaft, j], color=colours[k], marker="o", markersize=2.5,
+                    linewidth=1.4, label=f"t = {t:.6g} s")  # fmt: skip
+        ax.axhline(0.0, color="0.6", linewidth=0.8, zorder=1)
+        for station, centre in zip(stations, offsets, strict=True):
+            if not shaft[station.node]:
+                continue
+            at = positions[station.node]
+            for side in (-1.0, 1.0):
+                wall = MICRO * (centre[j] + side * station.clearance)
+                ax.plot([at], [wall], marker="_", markersize=18, markeredgewidth=2.0,
+                        color="0.1", linestyle="none", zorder=4)  # fmt: skip
+            ax.annotate(station.name, (at, MICRO * (centre[j] + station.clearance)),
+                        xytext=(0, 6), textcoords="offset points", ha="center",
+                        fontsize="small", color="0.1")  # fmt: skip
+        ax.set_ylabel(f"deflection {name} (µm)")
+        ax.grid(True, alpha=0.3)
+    axes[1].set_xlabel("axial position (m)")
+    handles, labels = axes[0].get_legend_handles_labels()
+    handles.append(Line2D([], [], marker="_", markersize=14, markeredgewidth=2.0,
+                          color="0.1", linestyle="none"))  # fmt: skip
+    labels.append("station's wall: its stator's centre +- clearance")
+    fig.legend(handles, labels, loc="outside lower center", ncols=min(4, len(labels)),
+               fontsize="small")  # fmt: skip
     return fig

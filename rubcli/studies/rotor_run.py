@@ -3,8 +3,9 @@
 Each method of the case runs the composed machine's system (``rubcli.system.simulate``);
 then, into the output dir as one commit:
 
-- ``<method>.csv``: the time ``t_s`` (s); every station's node (and its stator's, when it
-  is a node of the structure) and every probe's as ``x_<node>``, ``y_<node>`` (m); per
+- ``<method>.csv``: the time ``t_s`` (s); in a run-up the speed ``speed_rpm``; every
+  station's node (and its stator's, when it is a node of the structure) and every
+  probe's as ``x_<node>``, ``y_<node>`` (m); per
   station ``<name>_penetration_m`` (``z - clearance``, negative when free),
   ``<name>_clearances`` (``z`` over the clearance), ``<name>_regime`` (free, slip+,
   slip-, stick), ``<name>_normal_N``, ``<name>_friction_N`` (the tangential force on the
@@ -16,6 +17,11 @@ then, into the output dir as one commit:
   centre against time with its clearance, and each probe's reading;
 - ``shaft.png`` (``plots = ["shaft"]``, a rotor whose file gives its nodes' positions):
   the shaft with its disks, bearings, stations and probes, and the deflection envelope;
+- for a run-up or coast-down (``[speed]``): ``bode.png``, ``polar.png``, ``cascade.png``
+  at the probes and stations, and report.json's ``runup`` (``studies.rotor_runup``), of
+  the first method;
+- ``shape.png`` and ``shapes.csv`` (``[output] shapes``, instants in s): every node's x
+  and y deflection at the sample nearest each instant, along the shaft;
 - ``report.json``: per method its status, statistics, wall time and energy balance; per
   station its contact share, stick share, deepest penetration, largest forces and events
   by kind; per probe its largest reading and its peak to peak over the last quarter (the
@@ -50,6 +56,8 @@ def steady_part(samples: int) -> slice:
 ORBIT_FIGURE = "orbit.png"
 SHAFT_FIGURE = "shaft.png"
 TIME_FIGURE = "time.png"
+SHAPE_FIGURE = "shape.png"
+SHAPES_CSV = "shapes.csv"
 
 
 def expected_files(case: RotorCase) -> tuple[str, ...]:
@@ -60,6 +68,12 @@ def expected_files(case: RotorCase) -> tuple[str, ...]:
         names.append(SHAFT_FIGURE)
     if "time" in case.settings.output.plots:
         names.append(TIME_FIGURE)
+    if case.settings.output.shapes:
+        names += [SHAPE_FIGURE, SHAPES_CSV]
+    if case.runup:
+        from rubcli.studies.rotor_runup import FIGURES
+
+        names += FIGURES
     return (*names, io.REPORT_NAME)
 
 
@@ -109,6 +123,9 @@ def csv_columns(
     """The CSV's header and columns (module docstring); ``values`` the stations' values
     at the samples (``station_series``)."""
     header, columns = ["t_s"], [solution.t]
+    if case.runup:
+        header.append("speed_rpm")
+        columns.append(case.machine.speed.at(solution.t)[0] * 60.0 / (2.0 * math.pi))
     for node in case.nodes:
         ix, iy = case.lateral(node)
         header += [f"x_{node}", f"y_{node}"]
@@ -221,10 +238,23 @@ def write_rotor_outputs(
             _write_shaft(case, solutions[0], staged.path(SHAFT_FIGURE))
         if "time" in case.settings.output.plots and solutions:
             _write_traces(case, solutions[0], staged.path(TIME_FIGURE))
+        if case.settings.output.shapes and solutions:
+            _write_shapes(case, solutions[0], staged.path(SHAPE_FIGURE), staged.path(SHAPES_CSV))
+        runup = None
+        if case.runup and solutions:
+            from rubcli.studies import rotor_runup
+
+            tracked = rotor_runup.track(case, solutions[0])
+            if isinstance(tracked, str):
+                runup = {"method": solutions[0].method, "none": tracked}
+            else:
+                rotor_runup.write_runup(case, tracked, solutions[0].method, staged)
+                runup = {"of_method": solutions[0].method, **tracked.to_dict()}
         report = {
             **io.report_envelope("run", command_line, case.to_dict()),
             "machine": machine_summary(case),
             "methods": entries,
+            **({"runup": runup} if runup is not None else {}),
             "files": [*staged.names(), io.REPORT_NAME],
         }
         staged.write_report(report)
@@ -248,7 +278,14 @@ def machine_summary(case: RotorCase) -> dict[str, Any]:
             "modes": reduction.modes,
             "static_vectors": reduction.static_vectors,
         },
-        "speed_rad_s": machine.speed.values[0],
+        "speed_rad_s": machine.speed.values[0] if machine.speed.is_constant else None,
+        "speed_knots": {"t_s": list(machine.speed.times), "rad_s": list(machine.speed.values)},
+        "bearings_at_speed": None
+        if machine.structure.speed_table is None
+        else {
+            "coordinates": len(machine.structure.speed_table.coordinates),
+            "tabulated_speeds": int(machine.structure.speed_table.speeds.size),
+        },
         "stations": [
             {"name": name, "law": station.law.text(), "clearance_m": station.clearance}
             for name, station in zip(case.station_names, machine.stations, strict=True)
@@ -284,11 +321,12 @@ def _write_orbits(case: RotorCase, solution: MachineSolution, path: Path) -> Non
                 direction=probe.angle,
             )
         )
-    revolutions = float(solution.t[-1] - solution.t[0]) * case.machine.speed.values[0] / (2 * np.pi)
+    angle = case.machine.speed.at(solution.t[[0, -1]])[1]
+    revolutions = float(angle[1] - angle[0]) / (2.0 * np.pi)
     title = (
         f"{case.name}: orbits at the contact stations{' and probes' if case.probes else ''} "
         f"({solution.method}, "
-        f"{case.settings.rotor.speed:g} rpm)"
+        f"{case.speed_text})"
     )
     io.save_figure(station_orbits_figure(title, orbits, solution.t, revolutions), path)
 
@@ -306,7 +344,7 @@ def _write_shaft(case: RotorCase, solution: MachineSolution, path: Path) -> None
     probes = [Marked(p.name, p.node) for p in case.probes]
     whole, last = deflection_envelope(case, solution)
     title = f"{case.name}: the shaft and its deflection ({solution.method}, "
-    title += f"{case.settings.rotor.speed:g} rpm, 0 .. {solution.t[-1]:.3g} s)"
+    title += f"{case.speed_text}, 0 .. {solution.t[-1]:.3g} s)"
     figure = shaft_figure(title, layout.positions, layout.radii, layout.disks, layout.bearings,
                           stations, probes, whole, last)  # fmt: skip
     io.save_figure(figure, path)
@@ -327,5 +365,45 @@ def _write_traces(case: RotorCase, solution: MachineSolution, path: Path) -> Non
         for p in case.probes
     ]  # fmt: skip
     title = (f"{case.name}: time traces ({solution.method}, "
-             f"{case.settings.rotor.speed:g} rpm)")  # fmt: skip
+             f"{case.speed_text})")  # fmt: skip
     io.save_figure(traces_figure(title, solution.t, stations, probes), path)
+
+
+def deflected_shapes(
+    case: RotorCase, solution: MachineSolution, times: list[float]
+) -> tuple[np.ndarray, np.ndarray]:
+    """The samples nearest ``times`` (their times, s) and every node's x and y there
+    (instants, nodes, 2; m), in the full model's coordinates (a reduction's mapped back)."""
+    index = np.array([int(np.argmin(np.abs(solution.t - t))) for t in times], dtype=np.int64)
+    q = solution.states[index, : case.machine.size]
+    if case.reduction is not None:
+        q = case.reduction.full_positions(q)
+    structure = case.full_machine.structure
+    pairs = np.array([structure.lateral(k) for k in range(structure.nodes)])
+    return solution.t[index], np.stack([q[:, pairs[:, 0]], q[:, pairs[:, 1]]], axis=-1)
+
+
+def _write_shapes(case: RotorCase, solution: MachineSolution, figure: Path, table: Path) -> None:
+    from rubcli.plotting.shaft import Marked, shapes_figure
+
+    layout = case.layout  # the case refuses shapes without one
+    times, shapes = deflected_shapes(case, solution, list(case.settings.output.shapes))
+    header = ["node", "position_m"]
+    columns: list = [np.arange(shapes.shape[1]), layout.positions]
+    for k, t in enumerate(times):
+        header += [f"x_at_{t:.6g}s_m", f"y_at_{t:.6g}s_m"]
+        columns += [shapes[k, :, 0], shapes[k, :, 1]]
+    io.write_csv(table, header, [columns])
+    stations = [
+        Marked(name, node, station.clearance)
+        for name, (node, stator), station in zip(
+            case.station_names, case.station_nodes, case.machine.stations, strict=True
+        )
+        if stator is None  # a stator that is a node moves: its wall is not a fixed line
+    ]
+    offsets = [s.offset for s, (_, stator) in zip(case.machine.stations, case.station_nodes,
+                                                  strict=True) if stator is None]  # fmt: skip
+    title = f"{case.name}: the deflected shape ({solution.method}, {case.speed_text})"
+    io.save_figure(
+        shapes_figure(title, layout.positions, list(times), shapes, stations, offsets), figure
+    )

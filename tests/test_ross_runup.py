@@ -1,0 +1,139 @@
+"""A ROSS rotor run up through its critical speed (cases/rotors/ross-runup.toml, on
+bearings whose coefficients change with the speed: cases/rotors/ross_runup.toml): the
+bearings at each speed against ROSS's own matrices there, the run-up's linear critical
+speed against ROSS's ``run_modal``, and the shipped case through ``rubcli run``.
+
+These tests need ROSS (the test extra installs it)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from rubcli.case.rotor import load_rotor_case
+from rubcli.cli.app import app
+from rubcli.machine.ross import (
+    TABLE_RTOL,
+    RossError,
+    import_ross,
+    lateral_coordinates,
+    load_ross_rotor,
+    ross_matrices,
+    ross_speed_table,
+    ross_structure,
+)
+from rubcli.system import simulate
+
+REPO = Path(__file__).resolve().parents[1]
+ROTOR_FILE = REPO / "cases" / "rotors" / "ross_runup.toml"
+CASE = REPO / "cases" / "rotors" / "ross-runup.toml"
+RPM = 2.0 * math.pi / 60.0
+LOW, HIGH = 600.0 * RPM, 3000.0 * RPM  # the shipped run-up's speeds
+runner = CliRunner()
+
+try:
+    import_ross()
+except RossError:
+    pytest.skip("ROSS is not installed (pip install -e '.[ross]')", allow_module_level=True)
+
+
+@pytest.fixture(scope="module")
+def rotor():
+    return load_ross_rotor(ROTOR_FILE)
+
+
+def test_the_bearings_at_each_speed_are_rosss(rotor):
+    """The structure of a run-up: its matrices plus the speed table at a speed, against
+    ROSS's ``K(speed)``, ``C(speed)`` there (its spline through the bearings' tables),
+    at speeds between the table's, to the table's stated error; ``M`` and ``G`` as
+    ROSS's."""
+    structure = ross_structure(rotor, LOW, speed_range=(LOW, HIGH))
+    table = structure.speed_table
+    assert table is not None and len(table.coordinates) == 4  # x, y of the two bearings
+    *_, error = ross_speed_table(rotor, LOW, HIGH)
+    assert error <= TABLE_RTOL
+    for speed in np.linspace(LOW, HIGH, 7)[1:-1] + 0.37 * (HIGH - LOW) / 6:
+        ross = ross_matrices(rotor, speed)
+        keep, _ = lateral_coordinates(ross)
+        K, C = structure.at_speed(speed)
+        for name, ours in (("K", K), ("C", C)):
+            theirs = ross[name][np.ix_(keep, keep)]
+            bearing = np.max(np.abs(table.K if name == "K" else table.C))
+            assert np.max(np.abs(ours - theirs)) <= 2 * TABLE_RTOL * bearing, name
+        np.testing.assert_allclose(structure.M, ross["M"][np.ix_(keep, keep)], rtol=0, atol=0)
+        np.testing.assert_allclose(structure.G, ross["G"][np.ix_(keep, keep)], rtol=0, atol=0)
+
+
+def test_a_constant_speed_has_no_table(rotor):
+    structure = ross_structure(rotor, LOW)
+    assert structure.speed_table is None
+    np.testing.assert_array_equal(structure.at_speed(LOW)[0], structure.K)
+
+
+def test_the_shipped_file_is_what_its_script_makes():
+    # the script's bearings are the file's tables
+    data = tomllib.loads(ROTOR_FILE.read_text())
+    script = {}
+    exec(compile((ROTOR_FILE.parent / "make_ross_runup.py").read_text(), "make", "exec"), script)
+    bearing = data["BearingElement_Bearing 0"]
+    np.testing.assert_allclose(bearing["frequency"], script["FREQUENCY"], rtol=0, atol=0)
+    np.testing.assert_allclose(bearing["kxx"], 4.40e5 * script["STIFFENING"], rtol=1e-15)
+    np.testing.assert_allclose(bearing["kxy"], 4.40e5 * script["STIFFENING"] * script["CROSS"],
+                               rtol=1e-15)  # fmt: skip
+
+
+@pytest.mark.slow
+def test_the_shipped_runup_runs(tmp_path):
+    """``rubcli run`` on the shipped run-up: its files; the energy balance closed through
+    the bearings that change with the speed and the rub; the linear critical speed of
+    each probe's direction at a speed where one of ROSS's own damped natural frequencies
+    (``run_modal`` there) equals the speed; the rub's onset after the linear response at
+    the seal passes the clearance; the CSV's speed the profile's."""
+    out = tmp_path / "out"
+    result = runner.invoke(app, ["run", str(CASE), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    report = json.loads((out / "report.json").read_text())
+    names = {p.name for p in out.iterdir()}
+    assert {"bode.png", "polar.png", "cascade.png", "report.json", "dop853-jit.csv"} <= names
+    entry = report["methods"]["dop853-jit"]
+    assert entry["status"] == "success"
+    assert entry["energy_residual_relative"] < 1e-6
+    runup = report["runup"]
+    assert runup["revolutions"] > 100
+    rotor = load_ross_rotor(ROTOR_FILE)
+    for name in ("probe14x", "probe14y"):
+        critical = runup["probes"][name]["linear_critical_rpm"] * RPM
+        modal = rotor.run_modal(critical, num_modes=8)
+        assert min(abs(w - critical) for w in modal.wd[:2]) < 0.01 * critical, name
+    seal = runup["stations"]["seal"]
+    assert 1200.0 < seal["rub_onset_rpm"] < 1800.0
+    with open(out / "dop853-jit.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    t = np.array([float(r["t_s"]) for r in rows])
+    rpm = np.array([float(r["speed_rpm"]) for r in rows])
+    np.testing.assert_allclose(rpm, np.minimum(600.0 + 800.0 * t, 3000.0), rtol=1e-12)
+
+
+@pytest.mark.slow
+def test_the_runup_agrees_with_a_tighter_run_through_the_first_contacts():
+    """The shipped tolerance (rtol 1e-9) against a thousand times tighter over the first
+    1.45 s (the rub's first contacts, near the critical speed): contact regimes per
+    sample and the seal's orbit to 1e-4 clearances. (The stiff bearing's mode holds
+    an explicit step near 3 us here, and the implicit radau then takes minutes.)"""
+    case = load_rotor_case(CASE)
+    t = case.t_eval[case.t_eval <= 1.45]
+    ours = simulate(case.machine, t, method="dop853-jit", rtol=1e-9, atol=1e-14)
+    reference = simulate(case.machine, t, method="dop853-jit", rtol=1e-12, atol=1e-17)
+    assert ours.success and reference.success, (ours.message, reference.message)
+    assert len(reference.events.at_station(0)) > 0
+    ix, iy = case.machine.stations[0].rotor
+    gap = np.max(np.abs(ours.states[:, [ix, iy]] - reference.states[:, [ix, iy]]))
+    assert gap < 1e-4 * case.machine.stations[0].clearance
+    assert np.mean(ours.regimes[:, 0] != reference.regimes[:, 0]) < 0.01
