@@ -70,7 +70,7 @@ def test_forces_at_the_kept_coordinates_are_statically_exact(beam):
 
 def test_the_weight_is_statically_exact_through_its_vector(beam):
     structure = beam.structure
-    weight = linear.gravity_load(structure.M, structure.dof_per_node, (0.0, -9.81))
+    weight = linear.gravity_load(structure.M, structure.lateral_pairs(), (0.0, -9.81))
     heavy = Structure(M=structure.M, K=structure.K, static=weight, dof_per_node=4)
     kept = beam.stations[0].rotor
     reduced, reduction = craig_bampton(heavy, kept, 2)

@@ -34,6 +34,7 @@ from rubcli.machine.ross import (
     ross_machine,
     ross_matrices,
     ross_structure,
+    shaft_layout,
 )
 from rubcli.model import FREE
 from rubcli.system import simulate
@@ -76,7 +77,7 @@ def test_eigenvalues_are_ross_run_modal(rotor):
 def test_the_lateral_model_is_exact(rotor):
     # eig(full) = eig(lateral) + eig(axial and torsional): the dropped block is uncoupled
     full = ross_matrices(rotor, SPEED)
-    keep, per_node = lateral_coordinates(full)
+    keep, per_node, _ = lateral_coordinates(full)
     assert per_node == 4 and keep.size == 4 * len(rotor.nodes)
     other = np.setdiff1d(np.arange(full["M"].shape[0]), keep)
 
@@ -99,6 +100,73 @@ def test_the_lateral_model_is_exact(rotor):
     np.testing.assert_array_equal(structure.M, full["M"][np.ix_(keep, keep)])
 
 
+RING_FILE = REPO / "cases" / "rotors" / "ross_ring.toml"
+
+
+def test_a_support_node_keeps_its_own_coordinates():
+    """A rotor with a support node (the snubber ring of ross_ring.toml, ROSS's node 34:
+    3 coordinates after the shaft's): the lateral model keeps the ring's x and y, maps
+    node 34 to them, is exact (the dropped z's and the shaft's axial and torsional
+    coordinates are uncoupled: eig(full) = eig(lateral) + eig(rest)), its eigenvalues
+    are among ROSS's own run_modal's, and the weight loads the ring too."""
+    rotor = load_ross_rotor(RING_FILE)
+    assert rotor.ndof == 6 * 34 + 3
+    full = ross_matrices(rotor, SPEED)
+    keep, per_node, node_xy = lateral_coordinates(full, len(rotor.nodes))
+    assert per_node == 4 and keep.size == 4 * 34 + 2
+    assert list(keep[node_xy[34]]) == [204, 205] and list(keep[node_xy[18]]) == [108, 109]
+    structure = ross_structure(rotor, SPEED, gravity=(0.0, -9.81))
+    assert structure.nodes == 35 and structure.lateral(34) == (136, 137)
+    ours = linear.eigenvalues(structure, SPEED)
+    ours = np.concatenate([ours, ours.conj()])
+    modal = rotor.run_modal(SPEED, num_modes=2 * full["M"].shape[0], sparse=False)
+    theirs = np.asarray(modal.evalues)
+    # each of ours is one of ROSS's (the full model has the axial and torsional ones too)
+    distance = np.array([np.min(np.abs(theirs - v)) for v in ours])
+    assert np.all(distance < 1e-8 * np.abs(ours) + 1e-10 * np.max(np.abs(theirs)))
+    mass = sum(float(e.m) for e in rotor.shaft_elements) + sum(
+        float(d.m) for d in rotor.disk_elements
+    ) + sum(float(p.m) for p in rotor.point_mass_elements)  # fmt: skip
+    fy = structure.static[structure.lateral_pairs()[:, 1]].sum()
+    assert fy == pytest.approx(-9.81 * mass, rel=1e-9)
+    layout = shaft_layout(rotor)  # the ring's node is off the shaft; its zero link no bearing
+    assert layout["node_position"].size == 35 and np.isnan(layout["node_position"][34])
+    assert list(layout["bearing_nodes"]) == [4, 31]
+
+
+def test_the_shipped_ring_file_is_what_its_script_makes():
+    script = {}
+    exec(compile((RING_FILE.parent / "make_ross_ring.py").read_text(), "make", "exec"), script)
+    shipped = ross_matrices(load_ross_rotor(RING_FILE), SPEED)
+    if not import_ross().__version__.startswith("2.3"):  # ROSS 3's example differs from 2.3's
+        assert shipped["M"].shape == (207, 207)
+        return
+    made = ross_matrices(script["ring_rotor"](import_ross()), SPEED)
+    for name in shipped:
+        np.testing.assert_allclose(shipped[name], made[name], rtol=1e-12, atol=0)
+
+
+def test_a_support_node_travels_with_the_exported_matrices(tmp_path):
+    npz = tmp_path / "ring.npz"
+    (tmp_path / "rotor.toml").write_bytes(RING_FILE.read_bytes())
+    result = runner.invoke(
+        app, ["export-matrices", str(tmp_path / "rotor.toml"), "--speed", "1200", "--out", str(npz)]
+    )
+    assert result.exit_code == 0, result.output
+    ring = "\n[[station]]\nnode = 18\nstator_node = 34\nclearance = 6e-5\n"
+    ring += "contact_stiffness = 2e6\nradius = 0.0095\n"
+    built = []
+    for rotor in ("ross = 'rotor.toml'", "matrices = 'ring.npz'"):
+        path = _case(tmp_path, rotor, "gravity = [0.0, -9.81]")
+        path.write_text(path.read_text().replace("[time]", ring + "[time]"))
+        built.append(load_rotor_case(path))
+    a, b = (case.machine.structure for case in built)
+    for name in ("M", "K", "C", "G", "static"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    assert a.lateral(34) == b.lateral(34) == (136, 137)
+    assert built[1].machine.stations[1].stator == (136, 137)
+
+
 def test_unbalance_response_is_ross_run_unbalance_response(rotor):
     machine = ross_machine(
         rotor, SPEED, [NodeStation(12, 1.0, ContactLaw(1e6))], [(12, 5e-4, -math.pi / 2)]
@@ -109,7 +177,7 @@ def test_unbalance_response_is_ross_run_unbalance_response(rotor):
     ross = import_ross()
     speeds = "frequency" if ross.__version__.startswith("2.") else "speed_range"
     response = rotor.run_unbalance_response(12, 5e-4, -math.pi / 2, **{speeds: np.array([SPEED])})
-    keep, _ = lateral_coordinates(ross_matrices(rotor, SPEED))
+    keep, _, _ = lateral_coordinates(ross_matrices(rotor, SPEED))
     theirs = np.asarray(response.forced_resp)[keep, 0]
     assert np.max(np.abs(theirs - amplitudes)) < 1e-8 * np.max(np.abs(theirs))
 

@@ -61,7 +61,7 @@ def test_the_bearings_at_each_speed_are_rosss(rotor):
     assert error <= TABLE_RTOL
     for speed in np.linspace(LOW, HIGH, 7)[1:-1] + 0.37 * (HIGH - LOW) / 6:
         ross = ross_matrices(rotor, speed)
-        keep, _ = lateral_coordinates(ross)
+        keep, _, _ = lateral_coordinates(ross)
         K, C = structure.at_speed(speed)
         for name, ours in (("K", K), ("C", C)):
             theirs = ross[name][np.ix_(keep, keep)]
@@ -122,18 +122,19 @@ def test_the_shipped_runup_runs(tmp_path):
 
 
 @pytest.mark.slow
-def test_the_runup_agrees_with_a_tighter_run_through_the_first_contacts():
-    """The shipped tolerance (rtol 1e-9) against a thousand times tighter over the first
-    1.45 s (the rub's first contacts, near the critical speed): contact regimes per
-    sample and the seal's orbit to 1e-4 clearances. (The stiff bearing's mode holds
-    an explicit step near 3 us here, and the implicit radau then takes minutes.)"""
+def test_the_runup_agrees_with_scipys_dop853_through_the_first_contacts():
+    """The shipped method and tolerance against scipy's own DOP853 (an independent
+    implementation, stepping in Python) at ten times tighter over the first 1.4 s (the
+    rub's first contacts, near the critical speed): contact regimes per sample and the
+    seal's orbit to 1e-6 clearances. (The two agree to about 1e-10 clearances: the stiff
+    bearing's mode holds the explicit step near 3 us, far below what the tolerance asks.)"""
     case = load_rotor_case(CASE)
-    t = case.t_eval[case.t_eval <= 1.45]
+    t = case.t_eval[case.t_eval <= 1.4]
     ours = simulate(case.machine, t, method="dop853-jit", rtol=1e-9, atol=1e-14)
-    reference = simulate(case.machine, t, method="dop853-jit", rtol=1e-12, atol=1e-17)
+    reference = simulate(case.machine, t, method="dop853", rtol=1e-10, atol=1e-15)
     assert ours.success and reference.success, (ours.message, reference.message)
     assert len(reference.events.at_station(0)) > 0
     ix, iy = case.machine.stations[0].rotor
     gap = np.max(np.abs(ours.states[:, [ix, iy]] - reference.states[:, [ix, iy]]))
-    assert gap < 1e-4 * case.machine.stations[0].clearance
-    assert np.mean(ours.regimes[:, 0] != reference.regimes[:, 0]) < 0.01
+    assert gap < 1e-6 * case.machine.stations[0].clearance
+    assert np.array_equal(ours.regimes[:, 0], reference.regimes[:, 0])

@@ -8,8 +8,9 @@ ROSS rotor file (``[rotor] ross = "rotor.toml"``, read through ROSS, the optiona
     name = "two-seals"
 
     [rotor]
-    matrices = "rotor.npz"   # M, K, C (optional G, number_dof, outer_radius, and the
-                             # shaft view's node_position, disk_nodes, bearing_nodes), SI;
+    matrices = "rotor.npz"   # M, K, C (optional G, number_dof, node_xy: each node's x, y
+                             # where nodes differ, outer_radius, and the shaft view's
+                             # node_position, disk_nodes, bearing_nodes), SI;
                              # relative to this file; or ross = "rotor.toml" (ROSS's
                              # Rotor.save)
     gravity = [0.0, -9.81]   # m/s^2 along x, y: the static load M a (optional)
@@ -486,7 +487,7 @@ def _arrays(archive: zipfile.ZipFile, shown: str) -> dict[str, np.ndarray]:
             ]  # fmt: skip
         )
     out: dict[str, np.ndarray] = {}
-    for name in (*MATRIX_NAMES, "number_dof", "outer_radius", *LAYOUT_NAMES):
+    for name in (*MATRIX_NAMES, "number_dof", "node_xy", "outer_radius", *LAYOUT_NAMES):
         if name not in members:
             continue
         try:
@@ -501,6 +502,9 @@ def _arrays(archive: zipfile.ZipFile, shown: str) -> dict[str, np.ndarray]:
                 if name == "number_dof":
                     if int(np.prod(shape)) != 1:
                         raise CaseError([f"{shown}: number_dof must be one integer"])
+                elif name == "node_xy":
+                    if len(shape) != 2 or shape[1] != 2 or shape[0] > MAX_COORDINATES:
+                        raise CaseError([f"{shown}: node_xy must be a pair of coordinates a node"])
                 elif name == "outer_radius" or name in LAYOUT_NAMES:
                     if len(shape) != 1 or shape[0] > MAX_COORDINATES:
                         raise CaseError([f"{shown}: {name} must be a list of numbers a node"])
@@ -540,14 +544,21 @@ def _structure(arrays: dict[str, np.ndarray], settings: RotorCaseFile, source: s
                 ]  # fmt: skip
             )
         per_node = 2
+    node_xy = arrays.get("node_xy")
     static = None
     if settings.rotor.gravity is not None:
         M = np.asarray(arrays["M"], dtype=float)
-        static = gravity_load(M, per_node, tuple(settings.rotor.gravity))
+        if node_xy is not None:
+            pairs = np.asarray(node_xy, dtype=np.int64)
+            if pairs.ndim != 2 or pairs.shape[1] != 2 or np.any(pairs < 0) or np.any(pairs >= n):
+                raise CaseError([f"{where}: node_xy must be a pair of coordinates a node"])
+        else:
+            pairs = np.array([(per_node * k, per_node * k + 1) for k in range(n // per_node)])
+        static = gravity_load(M, pairs, tuple(settings.rotor.gravity))
     try:
         return Structure(
             M=arrays["M"], K=arrays["K"], C=arrays["C"], G=arrays.get("G"), static=static,
-            dof_per_node=per_node,
+            dof_per_node=per_node, node_xy=node_xy,
         )  # fmt: skip
     except (TypeError, ValueError) as exc:
         raise CaseError([f"{where}: {str(exc).removeprefix('structure: ')}"]) from None

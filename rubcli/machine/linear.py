@@ -17,12 +17,13 @@ import numpy as np
 from rubcli.machine.machine import Machine, Structure
 
 
-def gravity_load(M: np.ndarray, dof_per_node: int, gravity: tuple[float, float]) -> np.ndarray:
+def gravity_load(M: np.ndarray, pairs: np.ndarray, gravity: tuple[float, float]) -> np.ndarray:
     """The static force of ``gravity`` (m/s^2 along x, y) on a structure of mass matrix
-    ``M``: ``M a``, ``a`` the acceleration on every node's x and y (the consistent load
-    of the weight)."""
+    ``M``: ``M a``, ``a`` the acceleration on every node's x and y (``pairs``, (nodes, 2):
+    their coordinates), the consistent load of the weight."""
     acceleration = np.zeros(M.shape[0])
-    acceleration[0::dof_per_node], acceleration[1::dof_per_node] = (float(g) for g in gravity)
+    pairs = np.asarray(pairs, dtype=np.int64)
+    acceleration[pairs[:, 0]], acceleration[pairs[:, 1]] = (float(g) for g in gravity)
     return M @ acceleration
 
 

@@ -10,7 +10,8 @@ ValueError naming the owner and the field. The system built from a machine
   (any; ``G`` is scaled by the spin speed), a static force, and ``dof_per_node`` (the
   coordinates per node, a node's lateral ``x, y`` first: ROSS's order); optionally a
   ``SpeedTable``: bearings' and seals' coefficients that change with the speed, added to
-  ``K`` and ``C`` on their coordinates at the current speed.
+  ``K`` and ``C`` on their coordinates at the current speed; and ``node_xy``, each node's
+  ``x, y`` where nodes differ in their coordinates (a ROSS support node has 3).
 - ``Unbalance`` at a pair of coordinates: ``m e (Omega^2 cos p + Omega' sin p)`` on the
   first, ``m e (Omega^2 sin p - Omega' cos p)`` on the second, ``p = phase + integral
   Omega``.
@@ -146,6 +147,9 @@ class Structure:
     static: np.ndarray | None = field(default=None, repr=False)
     dof_per_node: int = 2
     speed_table: SpeedTable | None = None
+    # each node's (x, y) coordinates where the nodes are not all alike (a ROSS rotor's
+    # support nodes have fewer coordinates than its shaft's); None: dof_per_node a node
+    node_xy: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         owner = "structure"
@@ -187,7 +191,15 @@ class Structure:
         per_node = self.dof_per_node
         if isinstance(per_node, bool) or not isinstance(per_node, numbers.Integral):
             raise TypeError(f"{owner}: dof_per_node must be an int, got {_kind(per_node)}")
-        if not (per_node >= 2 and n % per_node == 0):
+        if self.node_xy is not None:
+            xy = np.array(self.node_xy, dtype=np.int64)
+            if xy.ndim != 2 or xy.shape[1] != 2 or xy.shape[0] < 1:
+                raise ValueError(f"{owner}: node_xy must be a pair of coordinates a node")
+            if np.any(xy < 0) or np.any(xy >= n) or np.unique(xy).size != xy.size:
+                raise ValueError(f"{owner}: node_xy must name distinct coordinates 0 to {n - 1}")
+            xy.setflags(write=False)
+            object.__setattr__(self, "node_xy", xy)
+        elif not (per_node >= 2 and n % per_node == 0):
             raise ValueError(
                 f"{owner}: dof_per_node = {per_node} must be >= 2 and divide the {n} coordinates"
             )
@@ -218,6 +230,8 @@ class Structure:
 
     @property
     def nodes(self) -> int:
+        if self.node_xy is not None:
+            return int(self.node_xy.shape[0])
         return self.size // self.dof_per_node
 
     def lateral(self, node: int) -> tuple[int, int]:
@@ -226,7 +240,13 @@ class Structure:
             raise TypeError(f"structure: node must be an int, got {_kind(node)}")
         if not 0 <= node < self.nodes:
             raise ValueError(f"structure: node {node} does not exist (0 to {self.nodes - 1})")
+        if self.node_xy is not None:
+            return (int(self.node_xy[node, 0]), int(self.node_xy[node, 1]))
         return (self.dof_per_node * int(node), self.dof_per_node * int(node) + 1)
+
+    def lateral_pairs(self) -> np.ndarray:
+        """(nodes, 2): every node's x and y coordinates."""
+        return np.array([self.lateral(k) for k in range(self.nodes)], dtype=np.int64)
 
 
 @dataclass(frozen=True)

@@ -12,8 +12,11 @@ the coefficients that change with the speed at the current speed (``ross_structu
 The axial ``z`` and torsional ``theta`` coordinates of ROSS's beam are not coupled to
 the lateral ones in these linear matrices, and nothing rubcli applies (unbalances,
 contact forces, lateral gravity) acts on them, so from rest they stay at rest: they are
-dropped when every coupling entry is exactly zero (``lateral_structure``), leaving 4
-coordinates a node, ``x, y, alpha, beta``, node ``k``'s ``x, y`` at ``4 k, 4 k + 1``. This
+dropped when every coupling entry is exactly zero (``lateral_coordinates``), leaving 4
+coordinates a node, ``x, y, alpha, beta``, node ``k``'s ``x, y`` at ``4 k, 4 k + 1``.
+Support nodes (a bearing's ``n_link``: a pedestal, a ring), which ROSS numbers after the
+shaft's with 3 coordinates each (``x, y, z``), keep their ``x, y`` after the shaft's
+coordinates (the structure's ``node_xy`` maps every node). This
 is exact (no reduction): it removes the axial and torsional modes, the stiffest of the
 model, and with them the rigid-body modes a rotor without axial supports has. Where a
 coupling is not zero (an axial force, a bearing's cross term into ``z``) all 6 stay.
@@ -50,6 +53,7 @@ from rubcli.machine.machine import (
 )
 
 ROSS_DOF_PER_NODE = 6
+SUPPORT_DOF_PER_NODE = 3  # a support node's x, y, z (ROSS numbers them after the shaft's)
 LATERAL = (0, 1, 3, 4)  # x, y, alpha, beta of each node's 6
 ROSS_MISSING = 'needs ROSS (ross-rotordynamics): pip install -e ".[ross]"'
 
@@ -155,20 +159,51 @@ def ross_matrices(rotor: Any, speed: float) -> dict[str, np.ndarray]:
     return out
 
 
-def lateral_coordinates(matrices: dict[str, np.ndarray]) -> tuple[np.ndarray, int]:
-    """The coordinates kept and the count a node: ``x, y, alpha, beta`` of every node
-    (4) when no matrix couples them to ``z, theta``, else all 6 (module docstring)."""
+def support_nodes(rotor: Any) -> int:
+    """The rotor's support nodes: ROSS numbers them after the shaft's, 3 coordinates
+    each (``x, y, z``: a bearing's ``n_link``, a point mass on it), after the shaft
+    nodes' 6; RossError if its coordinates do not add up so."""
+    shaft = len(rotor.nodes)
+    rest = int(rotor.ndof) - ROSS_DOF_PER_NODE * shaft
+    if rest < 0 or rest % SUPPORT_DOF_PER_NODE:
+        raise RossError(
+            f"the rotor has {rotor.ndof} coordinates, not {ROSS_DOF_PER_NODE} a shaft node "
+            f"and {SUPPORT_DOF_PER_NODE} a support node"
+        )
+    return rest // SUPPORT_DOF_PER_NODE
+
+
+def lateral_coordinates(
+    matrices: dict[str, np.ndarray], shaft_nodes: int | None = None
+) -> tuple[np.ndarray, int, np.ndarray | None]:
+    """The coordinates kept, the count a shaft node, and each node's ``x, y`` among the
+    kept ones where there are support nodes (None: none). Kept: ``x, y, alpha, beta`` of
+    every shaft node (4) and ``x, y`` of every support node when no matrix couples them
+    to the ``z, theta`` (module docstring), else every coordinate. ``shaft_nodes``: the
+    shaft's nodes (None: every coordinate a shaft node's)."""
     n = matrices["M"].shape[0]
-    nodes = n // ROSS_DOF_PER_NODE
-    lateral = np.array([ROSS_DOF_PER_NODE * k + j for k in range(nodes) for j in LATERAL])
+    shaft = n // ROSS_DOF_PER_NODE if shaft_nodes is None else int(shaft_nodes)
+    base = ROSS_DOF_PER_NODE * shaft
+    supports = (n - base) // SUPPORT_DOF_PER_NODE
+    support_xy = [(base + SUPPORT_DOF_PER_NODE * i, base + SUPPORT_DOF_PER_NODE * i + 1)
+                  for i in range(supports)]  # fmt: skip
+    lateral = np.array(
+        [ROSS_DOF_PER_NODE * k + j for k in range(shaft) for j in LATERAL]
+        + [c for pair in support_xy for c in pair],
+        dtype=np.int64,
+    )
     other = np.setdiff1d(np.arange(n), lateral)
     coupled = any(
         np.any(m[np.ix_(lateral, other)] != 0.0) or np.any(m[np.ix_(other, lateral)] != 0.0)
         for m in matrices.values()
     )
-    if coupled:
-        return np.arange(n), ROSS_DOF_PER_NODE
-    return lateral, len(LATERAL)
+    keep = np.arange(n) if coupled else lateral
+    per_node = ROSS_DOF_PER_NODE if coupled else len(LATERAL)
+    if not supports:
+        return keep, per_node, None
+    where = {int(c): k for k, c in enumerate(keep)}
+    xy = [(ROSS_DOF_PER_NODE * k, ROSS_DOF_PER_NODE * k + 1) for k in range(shaft)] + support_xy
+    return keep, per_node, np.array([(where[x], where[y]) for x, y in xy], dtype=np.int64)
 
 
 def outer_radii(rotor: Any) -> np.ndarray:
@@ -186,11 +221,16 @@ def shaft_layout(rotor: Any) -> dict[str, np.ndarray]:
     """The shaft's layout for its view, as a matrices file holds it: ``node_position``
     (m along the axis, one a node of the structure: nan for a node off the shaft, as a
     bearing's support node that ROSS numbers after the shaft's), ``outer_radius``
-    (``outer_radii``), ``disk_nodes``, ``bearing_nodes`` (the bearings on the shaft)."""
-    positions = np.full(int(rotor.ndof) // ROSS_DOF_PER_NODE, np.nan)
+    (``outer_radii``), ``disk_nodes``, ``bearing_nodes`` (the bearings on the shaft that
+    carry a load: not a link of zero coefficients to a support node)."""
+    positions = np.full(len(rotor.nodes) + support_nodes(rotor), np.nan)
     on_shaft = [float(x) for x in rotor.nodes_pos]
     positions[: len(on_shaft)] = on_shaft
-    bearings = sorted({int(b.n) for b in rotor.bearing_elements if int(b.n) < len(on_shaft)})
+    with _quiet_descriptors():  # a bearing of zero coefficients (a link to a ring) is none
+        bearings = sorted({
+            int(b.n) for b in rotor.bearing_elements
+            if int(b.n) < len(on_shaft) and (np.any(b.K(0.0) != 0.0) or np.any(b.C(0.0) != 0.0))
+        })  # fmt: skip
     return {
         "node_position": positions,
         "outer_radius": outer_radii(rotor),
@@ -304,13 +344,17 @@ def ross_structure(
             extra = np.zeros_like(matrices[name])
             extra[np.ix_(b, b)] = np.max(np.abs(blocks), axis=0)
             together[f"{name}_table"] = extra
-    keep, per_node = lateral_coordinates(together)
+    support_nodes(rotor)  # the coordinates add up (RossError if not)
+    keep, per_node, node_xy = lateral_coordinates(together, len(rotor.nodes))
     if keep.size > MAX_COORDINATES:
         raise RossError(
             f"the rotor has {keep.size} coordinates, more than {MAX_COORDINATES}: reduce the model"
         )
     sub = {k: np.ascontiguousarray(v[np.ix_(keep, keep)]) for k, v in matrices.items()}
-    static = None if gravity is None else gravity_load(sub["M"], per_node, gravity)
+    pairs = node_xy
+    if pairs is None:
+        pairs = np.array([(per_node * k, per_node * k + 1) for k in range(keep.size // per_node)])
+    static = None if gravity is None else gravity_load(sub["M"], pairs, gravity)
     speed_table = None
     if table is not None:
         coordinates, speeds, K, C, _ = table
@@ -326,7 +370,7 @@ def ross_structure(
     try:
         return Structure(
             M=sub["M"], K=sub["K"], C=sub["C"], G=sub["G"], static=static, dof_per_node=per_node,
-            speed_table=speed_table,
+            speed_table=speed_table, node_xy=node_xy,
         )  # fmt: skip
     except ValueError as exc:
         raise RossError(f"ROSS's matrices: {str(exc).removeprefix('structure: ')}") from None
@@ -347,6 +391,7 @@ def export_matrices(rotor: Any, speed: float, path: str | Path) -> dict[str, np.
         "C": np.asarray(structure.C),
         "G": np.asarray(structure.G),
         "number_dof": np.array(structure.dof_per_node),
+        **({} if structure.node_xy is None else {"node_xy": np.asarray(structure.node_xy)}),
         **shaft_layout(rotor),
         "speed_rpm": np.array(float(speed) * 60.0 / (2.0 * np.pi)),  # the bearings' speed
     }
