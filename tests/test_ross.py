@@ -341,7 +341,8 @@ def test_ross_case_runs(path, tmp_path):
             steady = every[-round(0.25 * len(every)) :]
             radius = max(math.hypot(float(r[f"x_{node}"]), float(r[f"y_{node}"])) for r in steady)
             envelope = entry["deflection"]["envelope_last_quarter_m"]
-            assert len(envelope) == 34 and envelope[node] == pytest.approx(radius, rel=1e-12)
+            assert len(envelope) == case.full_machine.structure.nodes
+            assert envelope[node] == pytest.approx(radius, rel=1e-12)
             if case.settings.output.shapes:  # the shape at a sample: the CSV's row there
                 with open(out / "shapes.csv", newline="") as handle:
                     shape = list(csv.DictReader(handle))[node]

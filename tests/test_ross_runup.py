@@ -106,7 +106,7 @@ def test_the_shipped_runup_runs(tmp_path):
     assert entry["status"] == "success"
     assert entry["energy_residual_relative"] < 1e-6
     runup = report["runup"]
-    assert runup["revolutions"] > 100
+    assert runup["revolutions"] in (89, 90)  # the ramp's 90 turns (3 s at 1800 rpm on average)
     rotor = load_ross_rotor(ROTOR_FILE)
     for name in ("probe14x", "probe14y"):
         critical = runup["probes"][name]["linear_critical_rpm"] * RPM
@@ -124,14 +124,15 @@ def test_the_shipped_runup_runs(tmp_path):
 @pytest.mark.slow
 def test_the_runup_agrees_with_scipys_dop853_through_the_first_contacts():
     """The shipped method and tolerance against scipy's own DOP853 (an independent
-    implementation, stepping in Python) at ten times tighter over the first 1.4 s (the
-    rub's first contacts, near the critical speed): contact regimes per sample and the
-    seal's orbit to 1e-6 clearances. (The two agree to about 1e-10 clearances: the stiff
-    bearing's mode holds the explicit step near 3 us, far below what the tolerance asks.)"""
+    implementation, stepping in Python, its own step control and event location) over
+    the first 1.4 s (the rub's first contacts, near the critical speed): contact regimes
+    per sample and the seal's orbit to 1e-6 clearances. (At ten times tighter the two
+    agree to about 1e-10 clearances: the reduced model's stiffest, overdamped mode holds
+    the explicit step near 3 us, far below what the tolerance asks.)"""
     case = load_rotor_case(CASE)
     t = case.t_eval[case.t_eval <= 1.4]
     ours = simulate(case.machine, t, method="dop853-jit", rtol=1e-9, atol=1e-14)
-    reference = simulate(case.machine, t, method="dop853", rtol=1e-10, atol=1e-15)
+    reference = simulate(case.machine, t, method="dop853", rtol=1e-9, atol=1e-14)
     assert ours.success and reference.success, (ours.message, reference.message)
     assert len(reference.events.at_station(0)) > 0
     ix, iy = case.machine.stations[0].rotor

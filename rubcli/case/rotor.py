@@ -14,7 +14,7 @@ ROSS rotor file (``[rotor] ross = "rotor.toml"``, read through ROSS, the optiona
                              # relative to this file; or ross = "rotor.toml" (ROSS's
                              # Rotor.save)
     gravity = [0.0, -9.81]   # m/s^2 along x, y: the static load M a (optional)
-    speed = 1500.0           # rpm
+    speed = 1500.0           # rpm (or a [speed] section: a run-up, a coast-down)
     number_dof = 6           # coordinates a node (else the file's number_dof)
     modes = 0                # > 0: a Craig-Bampton reduction (rubcli.machine.reduction)
 
@@ -41,9 +41,15 @@ ROSS rotor file (``[rotor] ross = "rotor.toml"``, read through ROSS, the optiona
     node = 1
     angle = 0.0              # rad
 
+    # [speed]                # in place of [rotor] speed: the bearings follow the speed
+    # profile = "ramp"       # from, to (rpm) and rate (rpm/s); or "table": t (s), speed (rpm)
+    # from = 600.0           # (a run-up writes bode.png, polar.png, cascade.png at the
+    # to = 3000.0            #  probes: it needs a [[probe]])
+    # rate = 800.0
+
     [time]
     end = 0.4                # s
-    samples_per_revolution = 50
+    samples_per_revolution = 50  # at the fastest speed
 
     [output]
     plots = ["orbit", "shaft", "time"]  # the shaft view needs the nodes' positions
@@ -235,7 +241,7 @@ class RotorCaseFile(_Section):
     def _one_speed(self) -> RotorCaseFile:
         if (self.rotor.speed is None) == (self.speed is None):
             raise ValueError(
-                "give the speed once: [rotor] speed (rpm, constant) or a [speed] table (a "
+                "give the speed once: [rotor] speed (rpm, constant) or a [speed] section (a "
                 "run-up or coast-down)"
             )
         if self.speed is not None and not self.probe:
