@@ -71,6 +71,24 @@ def test_the_bearings_at_each_speed_are_rosss(rotor):
         np.testing.assert_allclose(structure.G, ross["G"][np.ix_(keep, keep)], rtol=0, atol=0)
 
 
+def test_the_python_api_builds_the_cases_runup(rotor):
+    """``ross_machine`` on a ``Speed`` profile: the machine the shipped case builds
+    (before its reduction), bearings' table and all."""
+    from rubcli.machine import ContactLaw, Speed
+    from rubcli.machine.ross import NodeStation, ross_machine
+
+    case = load_rotor_case(CASE)
+    profile = Speed((0.0, 3.0), (LOW, HIGH))
+    station = NodeStation(13, 1e-4, ContactLaw(2e6, damping=20.0), mu=0.05)
+    machine = ross_machine(rotor, profile, [station], [(12, 1e-4, 0.0)])
+    ours, theirs = machine.structure, case.full_machine.structure
+    for name in ("M", "K", "C", "G"):
+        np.testing.assert_array_equal(getattr(ours, name), getattr(theirs, name))
+    np.testing.assert_array_equal(ours.speed_table.K, theirs.speed_table.K)
+    assert machine.speed == case.full_machine.speed
+    assert machine.stations[0].rotor == case.full_machine.stations[0].rotor
+
+
 def test_a_constant_speed_has_no_table(rotor):
     structure = ross_structure(rotor, LOW)
     assert structure.speed_table is None

@@ -164,4 +164,3 @@ def test_a_slow_runup_converges_to_the_linear_response_at_first_order_in_its_rat
     orders = [math.log2(a / b) for a, b in zip(errors, errors[1:], strict=False)]
     assert errors[-1] < 0.03
     assert all(0.9 < p < 1.1 for p in orders), (errors, orders)
-

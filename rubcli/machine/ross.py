@@ -419,15 +419,20 @@ class NodeStation:
 
 def ross_machine(
     rotor: Any,
-    speed: float,
+    speed: float | Speed,
     stations: Sequence[NodeStation],
     unbalances: Sequence[tuple[int, float, float]] = (),
     gravity: tuple[float, float] | None = None,
 ) -> Machine:
-    """The machine of a ``ross.Rotor`` at the constant ``speed`` (rad/s), with contact
-    ``stations`` and ``unbalances`` ``(node, magnitude kg m, phase rad)`` at nodes
-    (ROSS's convention) and ``gravity`` (m/s^2 along x, y) as the static load."""
-    structure = ross_structure(rotor, speed, gravity)
+    """The machine of a ``ross.Rotor`` at the constant ``speed`` (rad/s) or on a
+    ``Speed`` profile (a run-up: the bearings follow the speed, ``ross_structure``'s
+    ``speed_range``), with contact ``stations`` and ``unbalances`` ``(node, magnitude kg
+    m, phase rad)`` at nodes (ROSS's convention) and ``gravity`` (m/s^2 along x, y) as the
+    static load."""
+    profile = speed if isinstance(speed, Speed) else Speed.constant(float(speed))
+    values = profile.values
+    span = None if profile.is_constant else (min(values), max(values))
+    structure = ross_structure(rotor, values[0], gravity, span)
     radii = outer_radii(rotor)
     built = []
     for k, s in enumerate(stations):
@@ -457,4 +462,4 @@ def ross_machine(
             raise ValueError(f"unbalances[{k}] must be (node, magnitude, phase)")
         node, magnitude, phase = unbalance
         loads.append(Unbalance(structure.lateral(node), magnitude, phase))
-    return Machine(structure, tuple(built), Speed.constant(float(speed)), tuple(loads))
+    return Machine(structure, tuple(built), profile, tuple(loads))
