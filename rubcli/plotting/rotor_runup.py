@@ -24,11 +24,11 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
+from rubcli.analysis.response.rotor_tracking import RotorRunup
 from rubcli.plotting import display
 from rubcli.plotting.cascade import CMAP, DYNAMIC_RANGE_DB, LARGE, SMALL, cascade_points
 from rubcli.plotting.run import _new_figure
 from rubcli.plotting.transient import ORDER_LINES, RUB_SHADE, TRACKING_NOTE, polar_labels
-from rubcli.studies.rotor_runup import RotorRunup
 
 MICRO = 1e6
 RPM_LABEL = "speed (rpm)"
@@ -80,8 +80,8 @@ def bode_figure(title: str, runup: RotorRunup) -> Figure:
     (amp, dist), (lag, share) = fig.subplots(2, 2, sharex=True)
     for k, track in enumerate(runup.probes):
         colour = _colour(k)
-        label = f"{track.probe.name} (node {track.probe.node}, "
-        label += f"{math.degrees(track.probe.angle):.4g} deg)"
+        label = f"{track.name} (node {track.node}, "
+        label += f"{math.degrees(track.angle):.4g} deg)"
         amp.plot(runup.rpm, MICRO * track.amplitude, color=colour, lw=1.5, label=label, zorder=3)
         amp.plot(runup.linear_rpm, MICRO * track.linear_amplitude, color=colour, lw=0.9,
                  ls="--", zorder=2)  # fmt: skip
@@ -124,8 +124,7 @@ def bode_figure(title: str, runup: RotorRunup) -> Figure:
     if critical is not None:
         handles.append(Line2D([], [], color="0.35", ls=":", lw=1.0))
         labels.append(
-            f"critical speed of the linear response at {runup.probes[0].probe.name}: "
-            f"{critical:.0f} rpm"
+            f"critical speed of the linear response at {runup.probes[0].name}: {critical:.0f} rpm"
         )
     if _contact_spans(runup):
         handles.append(Patch(**{k: v for k, v in RUB_SHADE.items() if k != "zorder"}))
@@ -170,8 +169,8 @@ def polar_figure(title: str, runup: RotorRunup) -> Figure:
         ax.set_aspect("equal")
         ax.axhline(0.0, color="0.85", lw=0.8, zorder=1)
         ax.axvline(0.0, color="0.85", lw=0.8, zorder=1)
-        ax.set_title(f"{track.probe.name} (node {track.probe.node}, "
-                     f"{math.degrees(track.probe.angle):.4g} deg)", fontsize="medium")  # fmt: skip
+        ax.set_title(f"{track.name} (node {track.node}, "
+                     f"{math.degrees(track.angle):.4g} deg)", fontsize="medium")  # fmt: skip
         ax.set_xlabel("in phase with the unbalance (µm)")
         ax.set_ylabel("90 degrees ahead of it (µm)")
         ax.grid(True, alpha=0.3)

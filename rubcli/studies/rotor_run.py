@@ -244,7 +244,10 @@ def write_rotor_outputs(
         if case.runup and solutions:
             from rubcli.studies import rotor_runup
 
-            tracked = rotor_runup.track(case, solutions[0])
+            first = solutions[0]
+            readings = [probe_reading(case, first, p) for p in case.probes]
+            orbits = [relative_orbit(case, first, s) for s in range(len(case.station_names))]
+            tracked = rotor_runup.track(case, first, readings, orbits)
             if isinstance(tracked, str):
                 runup = {"method": solutions[0].method, "none": tracked}
             else:

@@ -23,14 +23,14 @@ time.png):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from rubcli import io
 from rubcli.analysis.response import order_tracking as ot
-from rubcli.case.rotor import Probe, RotorCase
+from rubcli.analysis.response.rotor_tracking import ProbeTrack, RotorRunup, StationTrack
+from rubcli.case.rotor import RotorCase
 from rubcli.machine.linear import eigenvalues, steady_response
 from rubcli.system import MachineSolution
 
@@ -42,77 +42,6 @@ MAX_DAMPING_RATIO = 0.3  # ... of the modes damped less (the heavily damped ones
 RPM_PER_RAD_S = 60.0 / (2.0 * math.pi)
 
 
-@dataclass(frozen=True)
-class ProbeTrack:
-    """One probe's 1X per revolution: amplitude (m), lag (degrees), peak to peak (m); its
-    linear 1X amplitude and lag at ``RotorRunup.linear_rpm``."""
-
-    probe: Probe
-    amplitude: np.ndarray = field(repr=False)
-    lag_deg: np.ndarray = field(repr=False)
-    peak_to_peak: np.ndarray = field(repr=False)
-    linear_amplitude: np.ndarray = field(repr=False)
-    linear_lag_deg: np.ndarray = field(repr=False)
-
-
-@dataclass(frozen=True)
-class StationTrack:
-    """One station's largest distance per revolution (clearances), its share of each
-    revolution in contact and its rub's onset and end (rpm; None: none)."""
-
-    name: str
-    node: int
-    largest: np.ndarray = field(repr=False)
-    contact_share: np.ndarray = field(repr=False)
-    onset_rpm: float | None
-    end_rpm: float | None
-
-
-@dataclass(frozen=True)
-class RotorRunup:
-    """A run-up's tracking (module docstring): per revolution its mean time and speed."""
-
-    t: np.ndarray = field(repr=False)
-    rpm: np.ndarray = field(repr=False)
-    probes: tuple[ProbeTrack, ...]
-    stations: tuple[StationTrack, ...]
-    linear_rpm: np.ndarray = field(repr=False)
-    cascades: tuple[tuple[str, ot.OrderCascade], ...]  # (the probes at a node, cascade)
-    mode_rpm: np.ndarray = field(repr=False)
-    mode_hz: np.ndarray = field(repr=False)  # (speeds, MODES_DRAWN) damped frequencies
-
-    def to_dict(self) -> dict[str, Any]:
-        """report.json's ``runup`` entry."""
-        probes = {}
-        for track in self.probes:
-            k = int(np.argmax(track.amplitude))
-            j = int(np.argmax(track.linear_amplitude))
-            probes[track.probe.name] = {
-                "peak_1x_m": float(track.amplitude[k]),
-                "peak_1x_rpm": float(self.rpm[k]),
-                "largest_peak_to_peak_m": float(np.max(track.peak_to_peak)),
-                "linear_peak_1x_m": float(track.linear_amplitude[j]),
-                "linear_critical_rpm": float(self.linear_rpm[j]),
-            }
-        stations = {
-            s.name: {
-                "largest_clearances": float(np.max(s.largest)),
-                "largest_rpm": float(self.rpm[int(np.argmax(s.largest))]),
-                "rub_onset_rpm": s.onset_rpm,
-                "rub_end_rpm": s.end_rpm,
-                "revolutions_in_contact": int(np.count_nonzero(s.contact_share > 0.0)),
-            }
-            for s in self.stations
-        }
-        return {
-            "method": "order tracking per revolution on the spin angle; the linear response "
-            "without contact at each speed beside",
-            "revolutions": int(self.rpm.size),
-            "probes": probes,
-            "stations": stations,
-        }
-
-
 def reference_phase(case: RotorCase, solution: MachineSolution) -> np.ndarray:
     """The angle the probes' lag is measured from at each sample: the spin angle plus the
     first unbalance's phase (the instant it points along x), as ROSS's phase."""
@@ -121,11 +50,15 @@ def reference_phase(case: RotorCase, solution: MachineSolution) -> np.ndarray:
     return angle + phase
 
 
-def track(case: RotorCase, solution: MachineSolution) -> RotorRunup | str:
-    """The run-up's tracking (module docstring), or why there is none (a run that did not
-    reach a whole revolution, or too few samples in one)."""
-    from rubcli.studies.rotor_run import probe_reading, relative_orbit
-
+def track(
+    case: RotorCase,
+    solution: MachineSolution,
+    readings: list[np.ndarray],
+    orbits: list[np.ndarray],
+) -> RotorRunup | str:
+    """The run-up's tracking (module docstring) from each probe's reading and each
+    station's orbit about its stator's centre at the samples (m), or why there is none (a
+    run that did not reach a whole revolution, or too few samples in one)."""
     if solution.t.size < 2 or not np.all(np.isfinite(solution.states)):
         return "the run has no whole revolution to track"
     # the samples while the speed changes: a speed held after the ramp would draw its
@@ -143,12 +76,11 @@ def track(case: RotorCase, solution: MachineSolution) -> RotorRunup | str:
     zeros = np.zeros(t.size)
     try:
         revolutions = []
-        for probe in case.probes:
-            reading = probe_reading(case, solution, probe)[part]
-            revolutions.append(ot.order_track(t, reading, zeros, phase, rpm))
+        for reading in readings:
+            revolutions.append(ot.order_track(t, reading[part], zeros, phase, rpm))
         station_revs = []
         for s in range(len(case.station_names)):
-            d = relative_orbit(case, solution, s)[part] / case.machine.stations[s].clearance
+            d = orbits[s][part] / case.machine.stations[s].clearance
             regimes = solution.regimes[part, s]
             station_revs.append(
                 (ot.order_track(t, d[:, 0], d[:, 1], phase, rpm, regimes),
@@ -171,7 +103,9 @@ def track(case: RotorCase, solution: MachineSolution) -> RotorRunup | str:
         lag = ot.probe_lag_deg(reading.real, -reading.imag, math.degrees(probe.angle))
         probes.append(
             ProbeTrack(
-                probe=probe,
+                name=probe.name,
+                node=probe.node,
+                angle=probe.angle,
                 amplitude=rev.x_amplitude,
                 lag_deg=np.mod(rev.x_lag_deg - math.degrees(probe.angle) + 90.0, 360.0) - 90.0,
                 peak_to_peak=rev.x_peak_to_peak,
