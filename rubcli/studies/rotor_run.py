@@ -162,7 +162,7 @@ def deflection_envelope(
     if case.reduction is not None:
         q = case.reduction.full_positions(q)
     structure = case.full_machine.structure
-    pairs = np.array([structure.lateral(k) for k in range(structure.nodes)])
+    pairs = structure.lateral_pairs()
     radial = np.hypot(q[:, pairs[:, 0]], q[:, pairs[:, 1]])
     steady = radial[steady_part(radial.shape[0])]
     return np.max(radial, axis=0), np.max(steady, axis=0)
@@ -249,7 +249,7 @@ def write_rotor_outputs(
             orbits = [relative_orbit(case, first, s) for s in range(len(case.station_names))]
             tracked = rotor_runup.track(case, first, readings, orbits)
             if isinstance(tracked, str):
-                runup = {"method": solutions[0].method, "none": tracked}
+                runup = {"of_method": solutions[0].method, "none": tracked}
             else:
                 rotor_runup.write_runup(case, tracked, solutions[0].method, staged)
                 runup = {"of_method": solutions[0].method, **tracked.to_dict()}
@@ -382,7 +382,7 @@ def deflected_shapes(
     if case.reduction is not None:
         q = case.reduction.full_positions(q)
     structure = case.full_machine.structure
-    pairs = np.array([structure.lateral(k) for k in range(structure.nodes)])
+    pairs = structure.lateral_pairs()
     return solution.t[index], np.stack([q[:, pairs[:, 0]], q[:, pairs[:, 1]]], axis=-1)
 
 
