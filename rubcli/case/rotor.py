@@ -84,7 +84,7 @@ from rubcli.case.loading import open_regular_file, read_case_file
 from rubcli.case.run import CaseSection
 from rubcli.machine import ContactLaw, Machine, Speed, Station, Structure, Unbalance
 from rubcli.machine.contact import MAX_EXPONENT
-from rubcli.machine.linear import gravity_load
+from rubcli.machine.linear import with_gravity
 from rubcli.machine.machine import MAX_COORDINATES
 from rubcli.machine.reduction import Reduction, reduce_machine
 from rubcli.problem import MAX_OUTPUT_SAMPLES
@@ -550,24 +550,14 @@ def _structure(arrays: dict[str, np.ndarray], settings: RotorCaseFile, source: s
                 ]  # fmt: skip
             )
         per_node = 2
-    node_xy = arrays.get("node_xy")
-    static = None
-    if settings.rotor.gravity is not None:
-        M = np.asarray(arrays["M"], dtype=float)
-        if node_xy is not None:
-            pairs = np.asarray(node_xy, dtype=np.int64)
-            if pairs.ndim != 2 or pairs.shape[1] != 2 or np.any(pairs < 0) or np.any(pairs >= n):
-                raise CaseError([f"{where}: node_xy must be a pair of coordinates a node"])
-        else:
-            pairs = np.array([(per_node * k, per_node * k + 1) for k in range(n // per_node)])
-        static = gravity_load(M, pairs, tuple(settings.rotor.gravity))
     try:
-        return Structure(
-            M=arrays["M"], K=arrays["K"], C=arrays["C"], G=arrays.get("G"), static=static,
-            dof_per_node=per_node, node_xy=node_xy,
+        structure = Structure(
+            M=arrays["M"], K=arrays["K"], C=arrays["C"], G=arrays.get("G"),
+            dof_per_node=per_node, node_xy=arrays.get("node_xy"),
         )  # fmt: skip
     except (TypeError, ValueError) as exc:
         raise CaseError([f"{where}: {str(exc).removeprefix('structure: ')}"]) from None
+    return with_gravity(structure, settings.rotor.gravity)
 
 
 def check_ross_file(path: Path, where: str) -> None:

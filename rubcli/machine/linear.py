@@ -12,6 +12,9 @@ coefficients change with the speed (``SpeedTable``) are taken at the speed asked
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Sequence
+
 import numpy as np
 
 from rubcli.machine.machine import Machine, Structure
@@ -25,6 +28,15 @@ def gravity_load(M: np.ndarray, pairs: np.ndarray, gravity: tuple[float, float])
     pairs = np.asarray(pairs, dtype=np.int64)
     acceleration[pairs[:, 0]], acceleration[pairs[:, 1]] = (float(g) for g in gravity)
     return M @ acceleration
+
+
+def with_gravity(structure: Structure, gravity: Sequence[float] | None) -> Structure:
+    """``structure`` with the static force of ``gravity`` (m/s^2 along x, y; None: the
+    structure as it is) on every node (``gravity_load``)."""
+    if gravity is None:
+        return structure
+    load = gravity_load(structure.M, structure.lateral_pairs(), tuple(gravity))
+    return dataclasses.replace(structure, static=load)
 
 
 def unbalance_amplitudes(machine: Machine, speed: float) -> np.ndarray:

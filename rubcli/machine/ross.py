@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 
 from rubcli.machine.contact import ContactLaw
-from rubcli.machine.linear import gravity_load
+from rubcli.machine.linear import with_gravity
 from rubcli.machine.machine import (
     MAX_COORDINATES,
     Machine,
@@ -351,10 +351,6 @@ def ross_structure(
             f"the rotor has {keep.size} coordinates, more than {MAX_COORDINATES}: reduce the model"
         )
     sub = {k: np.ascontiguousarray(v[np.ix_(keep, keep)]) for k, v in matrices.items()}
-    pairs = node_xy
-    if pairs is None:
-        pairs = np.array([(per_node * k, per_node * k + 1) for k in range(keep.size // per_node)])
-    static = None if gravity is None else gravity_load(sub["M"], pairs, gravity)
     speed_table = None
     if table is not None:
         coordinates, speeds, K, C, _ = table
@@ -368,12 +364,13 @@ def ross_structure(
             C[:, sel[:, None], sel[None, :]],
         )
     try:
-        return Structure(
-            M=sub["M"], K=sub["K"], C=sub["C"], G=sub["G"], static=static, dof_per_node=per_node,
+        structure = Structure(
+            M=sub["M"], K=sub["K"], C=sub["C"], G=sub["G"], dof_per_node=per_node,
             speed_table=speed_table, node_xy=node_xy,
         )  # fmt: skip
     except ValueError as exc:
         raise RossError(f"ROSS's matrices: {str(exc).removeprefix('structure: ')}") from None
+    return with_gravity(structure, gravity)
 
 
 def export_matrices(rotor: Any, speed: float, path: str | Path) -> dict[str, np.ndarray]:

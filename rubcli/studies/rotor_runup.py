@@ -42,12 +42,15 @@ MAX_DAMPING_RATIO = 0.3  # ... of the modes damped less (the heavily damped ones
 RPM_PER_RAD_S = 60.0 / (2.0 * math.pi)
 
 
+def unbalance_phase(case: RotorCase) -> float:
+    """The phase the probes' lag is measured from: the first unbalance's (as ROSS's)."""
+    return case.machine.unbalances[0].phase if case.machine.unbalances else 0.0
+
+
 def reference_phase(case: RotorCase, solution: MachineSolution) -> np.ndarray:
     """The angle the probes' lag is measured from at each sample: the spin angle plus the
-    first unbalance's phase (the instant it points along x), as ROSS's phase."""
-    _, angle = case.machine.speed.at(solution.t)
-    phase = case.machine.unbalances[0].phase if case.machine.unbalances else 0.0
-    return angle + phase
+    first unbalance's phase (the instant it points along x)."""
+    return case.machine.speed.at(solution.t)[1] + unbalance_phase(case)
 
 
 def track(
@@ -92,7 +95,7 @@ def track(
     low, high = float(np.min(omega)), float(np.max(omega))
     linear_w = np.linspace(low, high, LINEAR_SPEEDS)
     # the linear amplitudes relative to the reference phase (the first unbalance's)
-    turn = np.exp(-1j * (case.machine.unbalances[0].phase if case.machine.unbalances else 0.0))
+    turn = np.exp(-1j * unbalance_phase(case))
     responses = [turn * steady_response(case.machine, float(w))[1] for w in linear_w]
     probes = []
     for probe, rev in zip(case.probes, revolutions, strict=True):
