@@ -226,8 +226,8 @@ TABLE_ERRORS = {
     ),  # fmt: skip
     "bad method": (
         'methods = ["dop853-jit"]',
-        'methods = ["analytic"]',
-        "'analytic' cannot run a machine given as matrices",
+        'methods = ["taylor"]',
+        "'taylor' cannot run a machine given as matrices",
     ),  # fmt: skip
     "shaft without positions": (
         'dir = "out/two-seals"',

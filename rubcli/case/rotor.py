@@ -367,6 +367,12 @@ def assemble_rotor_case(raw: dict[str, Any], path: Path) -> RotorCase:
         )
     if len(set(settings.solver.methods)) != len(settings.solver.methods):
         problems.append(f"{source}: solver.methods: a method is listed twice")
+    if settings.speed is not None and "analytic" in settings.solver.methods:
+        problems.append(
+            f"{source}: solver.methods: 'analytic' needs a constant speed (its free flight is "
+            "the closed form of a structure that does not change); a [speed] run-up runs by "
+            "dop853-jit or radau"
+        )
     bad_plots = [p for p in settings.output.plots if p not in PLOTS]
     if bad_plots:
         problems.append(

@@ -30,7 +30,11 @@ from rubcli.system.run import IMPLICIT as IMPLICIT_METHODS
 
 REFERENCE = {"method": "radau", "rtol": 1e-7, "atol": 1e-12}
 # rtol ladders: the implicit methods' floor on a finite-element model is about 1e-7
-LADDERS = {"implicit": (1e-4, 1e-5, 1e-6), "explicit": (1e-6, 1e-8, 1e-10)}
+LADDERS = {
+    "implicit": (1e-4, 1e-5, 1e-6),
+    "explicit": (1e-6, 1e-8, 1e-10),
+    "analytic": (1e-4, 1e-6, 1e-8),  # its error is about 1e-2 of its rtol (docs/rotors.md)
+}
 ATOL_PER_RTOL = 1e-2  # atol = rtol * 1e-2 * the smallest clearance (m, m/s): below rtol |q|
 FILES = ("compare.csv", "compare.png")
 COLUMNS = ("model", "coordinates", "method", "rtol", "atol", "status", "wall_time_s",
@@ -47,6 +51,7 @@ def _runs(case: RotorCase) -> list[tuple[str, Machine, str, float]]:
     runs = []
     for method in case.methods:
         kind = "implicit" if method in IMPLICIT_METHODS else "explicit"
+        kind = "analytic" if method == "analytic" else kind
         runs += [(model, case.machine, method, rtol) for rtol in LADDERS[kind]]
     if case.reduction is not None:
         runs += [("full", case.full_machine, "radau", rtol) for rtol in LADDERS["implicit"]]

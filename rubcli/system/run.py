@@ -33,6 +33,16 @@ from scipy.optimize import brentq
 from rubcli.machine import Machine
 from rubcli.model import FREE, SLIP_NEGATIVE, SLIP_POSITIVE, STICK
 from rubcli.system import advance as adv
+from rubcli.system.analytic import (
+    GROW,
+    SAFETY,
+    SHRINK,
+    STEPS_PER_PERIOD,
+    AnalyticError,
+    Dense,
+    FreeFlow,
+    Piece,
+)
 from rubcli.system.arrays import SystemArrays
 from rubcli.system.kernels import (
     OK,
@@ -59,7 +69,7 @@ from rubcli.system.solution import (
 )
 
 SCIPY_METHODS = {"rk45": RK45, "dop853": DOP853, "radau": Radau, "bdf": BDF, "lsoda": LSODA}
-METHODS = ("dop853-jit", *SCIPY_METHODS)
+METHODS = ("dop853-jit", "analytic", *SCIPY_METHODS)
 IMPLICIT = ("radau", "bdf", "lsoda")
 STORM_EVENTS = 200  # events in a row at one instant: a storm
 CHUNK_STEPS = 20_000  # dop853-jit's steps between two checks of the wall-time budget
@@ -86,6 +96,12 @@ def simulate(
         raise TypeError(f"simulate: machine must be a Machine, got {type(machine).__name__}")
     if method not in METHODS:
         raise ValueError(f"simulate: unknown method {method!r}; choose from {', '.join(METHODS)}")
+    if method == "analytic" and not machine.speed.is_constant:
+        raise ValueError(
+            "simulate: analytic needs a constant speed (its free flight is the closed form "
+            "of a structure that does not change); a speed that changes runs by dop853-jit "
+            "or radau"
+        )
     n = machine.size
     t_eval = np.asarray(t_eval, dtype=float)
     if t_eval.ndim != 1 or t_eval.size < 2 or not np.all(np.diff(t_eval) > 0):
@@ -161,6 +177,11 @@ class _Run:
         self.g = np.empty((S, 2))
         self.g_prev = np.ones((S, 2))
         self.point = np.empty(m)
+        # analytic: the free flight (built at the first segment) and a context with every
+        # station free, whose right-hand side is the structure's alone
+        self.flow: FreeFlow | None = None
+        self.ctx_free = arrays.context(np.zeros(S, dtype=np.int64))
+        self._free_out = np.empty(m)
 
     # -- the system at one state ---------------------------------------------------------
     def _evaluate(self, t: float, y: np.ndarray) -> None:
@@ -213,6 +234,8 @@ class _Run:
         self.g_prev[:] = 1.0
         if self.method == "dop853-jit":
             return self._segment_jit(t, y, t_end, max_steps, deadline)
+        if self.method == "analytic":
+            return self._segment_analytic(t, y, t_end, max_steps, deadline)
         return self._segment_scipy(t, y, t_end, max_steps, deadline)
 
     def _segment_jit(self, t, y, t_end, max_steps, deadline):
@@ -307,6 +330,116 @@ class _Run:
             if solver.status == "finished":
                 return None
 
+    def _segment_analytic(self, t, y, t_end, max_steps, deadline):
+        """Closed-form steps (``system.analytic``): one piece a free step, two half
+        pieces a contact step (step doubling), each scanned at its quarters."""
+        if self.flow is None:
+            try:
+                self.flow = FreeFlow(self.arrays, self.ctx_free, t)
+            except AnalyticError as failure:
+                raise _RunError(f"analytic cannot run this machine: {failure}") from None
+        flow = self.flow
+        y = y.copy()
+        h_contact = None
+        rho = flow.omega
+        while t < t_end:
+            if self.steps >= max_steps:
+                raise _RunError(f"more than max_steps = {max_steps} steps by t = {t:.9g}")
+            if deadline is not None and time.perf_counter() > deadline:
+                raise _RunError(f"the wall-time budget ran out at t = {t:.9g}")
+            w0 = flow.modal(y)
+            if not np.any(self.regimes != FREE):
+                rho = flow.fastest_rate(t, w0, self.rtol)
+                h_res = min(2.0 * math.pi / (rho * STEPS_PER_PERIOD), t_end - t)
+                pieces = [Piece(flow, t, y, w0, h_res)]
+            else:
+                pieces, h_contact, rho = self._contact_step(t, y, w0, t_end, h_contact, rho)
+            self.steps += 1
+            dense = Dense(pieces, self.ctx)
+            for piece in pieces:
+                scan = piece.t0 + piece.h * np.arange(1, adv.SCAN_POINTS + 1) / adv.SCAN_POINTS
+                scan[-1] = piece.t1
+                for j, (tj, yj) in enumerate(zip(scan, piece.states(scan), strict=True), 1):
+                    g = self._g(tj, yj)
+                    if np.any((self.g_prev > 0.0) & (g <= 0.0)):
+                        return self._locate(piece.t0, piece.h, j, dense, dense.state)
+                    self.g_prev[:] = g
+                self._samples_until(piece.t1, dense)
+            last = pieces[-1]
+            t = last.t1
+            y = dense(t)
+            if np.any(self.regimes == STICK):  # the velocities back onto rolling
+                self._evaluate(t, y)
+                y[self.n : 2 * self.n] = self.ctx[13][W_VELOCITY]
+        return None
+
+    def _station_acceleration(self, t: float, y: np.ndarray) -> np.ndarray:
+        """The stations' share of the acceleration: the system's minus the free one's."""
+        n = self.n
+        rhs_into(t, y, self.ctx, 0, self.out)
+        rhs_into(t, y, self.ctx_free, 0, self._free_out)
+        self.nfev += 2
+        return self.out[n : 2 * n] - self._free_out[n : 2 * n]
+
+    def _expansion(self, t: float, y: np.ndarray, rho: float) -> tuple[np.ndarray, np.ndarray]:
+        """The stations' acceleration at (t, y) and its rate along the flow: a one-sided
+        second-order difference (ahead only: a contact's start is its surface) over
+        1e-5 of the fastest motion's period, so that neither its truncation nor its
+        rounding shows at the step's order."""
+        a0 = self._station_acceleration(t, y)
+        rhs_into(t, y, self.ctx, 0, self.out)
+        self.nfev += 1
+        rate = self.out.copy()
+        delta = 1e-5 * 2.0 * math.pi / rho
+        a1 = self._station_acceleration(t + delta, y + delta * rate)
+        a2 = self._station_acceleration(t + 2.0 * delta, y + 2.0 * delta * rate)
+        return a0, (4.0 * a1 - 3.0 * a0 - a2) / (2.0 * delta)
+
+    def _contact_step(self, t, y, w0, t_end, h_contact, rho):
+        """A contact step: the station forces linear in time about (t, y) (the predictor),
+        then the cubic through their values and rates at both ends (the corrector, kept);
+        the difference between it and the quadratic through the start's value and rate
+        and the end's value, ``O(h^4)``, and the cubic's defect at the step's middle are
+        held to rtol/atol on the mechanical states.
+        Returns the piece, the next step's length and the resolution's rate."""
+        flow = self.flow
+        a0, r0 = self._expansion(t, y, rho)
+        rho = flow.fastest_rate(t, w0, self.rtol, flow.modal_forces(a0, r0))
+        h_res = min(2.0 * math.pi / (rho * STEPS_PER_PERIOD), t_end - t)
+        h = h_res if h_contact is None else min(h_contact, h_res)
+        m2 = 2 * self.n
+        while True:
+            t1 = t + h
+            predictor = Piece(flow, t, y, w0, h, flow.modal_forces(a0, r0))
+            guess = predictor.state(t1)
+            a1, r1 = self._expansion(t1, guess, rho)
+            jump = a1 - a0 - r0 * h
+            c2 = (3.0 * jump - h * (r1 - r0)) / h**2
+            c3 = (h * (r1 - r0) - 2.0 * jump) / h**3
+            piece = Piece(flow, t, y, w0, h, flow.modal_forces(a0, r0, c2, c3))
+            end = piece.state(t1)
+            lower = Piece(flow, t, y, w0, h, flow.modal_forces(a0, r0, jump / h**2))
+            other = lower.state(t1)
+            # the cubic's defect at the step's middle (a kink inside, which the ends do
+            # not see: a force that stops pulling), as the state error it would make
+            middle = t + 0.5 * h
+            cubic = a0 + 0.5 * h * (r0 + 0.5 * h * (c2 + 0.5 * h * c3))
+            defect = self._station_acceleration(middle, piece.state(middle)) - cubic
+            scale = self.atol + self.rtol * np.maximum(np.abs(y[:m2]), np.abs(end[:m2]))
+            error = np.maximum(
+                np.abs(other[:m2] - end[:m2]),
+                np.concatenate([0.125 * h * h * np.abs(defect), 0.5 * h * np.abs(defect)]),
+            )
+            err = float(np.sqrt(np.mean((error / scale) ** 2)))
+            if not math.isfinite(err):
+                err = math.inf
+            factor = GROW if err == 0.0 else min(GROW, max(SHRINK, SAFETY * err**-0.25))
+            if err <= 1.0:
+                return [piece], h * factor, rho
+            h *= factor
+            if h <= 16.0 * math.ulp(max(abs(t), 1.0)):
+                raise _RunError(f"the step size fell below the minimum at t = {t:.9g}")
+
     def _state_scale(self) -> np.ndarray:
         """A typical size of each state, for the Jacobian's differences: the smallest
         clearance for positions, it times the fastest spin speed for velocities."""
@@ -316,12 +449,16 @@ class _Run:
             [np.full(self.n, clearance), np.full(self.n, clearance * max(speed, 1.0)), [1.0]]
         )
 
-    def _locate(self, t_old: float, h: float, j: int, dense: Callable):
-        """The earliest event in the scan interval j of the step (t_old, h)."""
+    def _locate(
+        self, t_old: float, h: float, j: int, dense: Callable, state: Callable | None = None
+    ):
+        """The earliest event in the scan interval j of the step (t_old, h); ``state``: the
+        dense output without the work, for the search (default ``dense``)."""
+        state = dense if state is None else state
         ta = t_old + h * (j - 1) / adv.SCAN_POINTS
         tb = t_old + h * j / adv.SCAN_POINTS if j < adv.SCAN_POINTS else t_old + h
-        gb = self._g(tb, dense(tb)).copy()
-        ga = self._g(ta, dense(ta)).copy()
+        gb = self._g(tb, state(tb)).copy()
+        ga = self._g(ta, state(ta)).copy()
         best = None
         for s, i in zip(*np.nonzero((self.g_prev > 0.0) & (gb <= 0.0)), strict=True):
             if ga[s, i] <= 0.0:  # on or past the surface at the segment's start
@@ -329,11 +466,11 @@ class _Run:
             else:
 
                 def value(tau: float, s: int = s, i: int = i) -> float:
-                    return self._g(tau, dense(tau))[s, i]
+                    return self._g(tau, state(tau))[s, i]
 
                 root = brentq(value, ta, tb, xtol=4.0 * math.ulp(max(abs(ta), abs(tb), 1.0)))
-                # the root's side beyond the surface, so the switch starts outside it
-                while value(root) > 0.0 and root < tb:
+                # the root strictly beyond the surface, so the switch starts outside it
+                while value(root) >= 0.0 and root < tb:
                     root = min(tb, np.nextafter(root, math.inf))
             if best is None or root < best[0]:
                 best = (root, int(s), int(i))
